@@ -1,0 +1,182 @@
+"""A batch of variants as the kernel sees it: contiguous arrays, variants on the last axis.
+
+:func:`build_batch` derives everything the kernel needs from a topology and a parameter matrix
+``P`` (n_params, V): masses, initial state, curve ramp coefficients, unit wall normals and the time
+step of every variant. Nothing here knows about YAML or pydantic.
+
+Curves are evaluated branch-free as a sum of ramps,
+``y(e) = y_0 + s_0 (e - x_0) + sum_k ds_k max(0, e - x_k)`` over the interior knots ``k``, which is
+the piecewise-linear interpolant with linear extrapolation beyond both ends.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from crashstudy.compiler import Topology
+from crashstudy.timestep import StepChoice, choose_steps, spring_stiffness_bound
+
+
+@dataclass
+class Batch:
+    """Kernel input. Shapes use N nodes, D axes, S springs, C curves, K knots in all, V variants."""
+
+    # shared topology (int64 / float64)
+    spring_i: np.ndarray  # (S,)
+    spring_j: np.ndarray  # (S,)
+    material: np.ndarray  # (S,)
+    curve_a: np.ndarray  # (S,) loading / elastic curve index, -1 none
+    curve_b: np.ndarray  # (S,) unloading curve index, -1 none
+    curve_off: np.ndarray  # (C + 1,)
+    free: np.ndarray  # (N, D) 1.0 where the dof moves under forces, else 0.0
+    load_node: np.ndarray  # (L,)
+    load_curve: np.ndarray  # (L,)
+    pm_node: np.ndarray  # (P,)
+    pm_dir: np.ndarray  # (P,)
+    pm_kind: np.ndarray  # (P,)
+    pm_curve: np.ndarray  # (P,)
+    wall_nodes: np.ndarray  # (W, N) float 1.0 / 0.0
+    # per variant
+    mass: np.ndarray  # (N, V) [mass]
+    inv_mass: np.ndarray  # (N, D, V) 1/m on free dofs, 0 elsewhere [1/mass]
+    x0: np.ndarray  # (N, D, V) initial positions [length]
+    v0: np.ndarray  # (N, D, V) initial velocities [length/time]
+    length0: np.ndarray  # (S, V) initial spring length [length]
+    sign: np.ndarray  # (S, V) 1-D orientation s = sign(X_j - X_i)
+    kpar: np.ndarray  # (S, V) stiffness / damping / unloading stiffness
+    yield_t: np.ndarray  # (S, V) tension yield [force] (+inf: never)
+    yield_c: np.ndarray  # (S, V) compression yield [force] (-inf: never)
+    cx: np.ndarray  # (K, V) knot abscissae
+    cy: np.ndarray  # (K, V) knot ordinates
+    cds: np.ndarray  # (K, V) slope increment at interior knots (0 at the two ends)
+    cs0: np.ndarray  # (C, V) slope of the first segment
+    cs1: np.ndarray  # (C, V) slope of the last segment
+    gravity: np.ndarray  # (D, V) [length/time^2]
+    load_force: np.ndarray  # (L, D, V) [force]
+    pm_scale: np.ndarray  # (P, V)
+    wall_point: np.ndarray  # (W, D, V) [length]
+    wall_normal: np.ndarray  # (W, D, V) unit normal
+    dt: np.ndarray  # (V,) [time]
+    n_steps: np.ndarray  # (V,) int
+    out_every: np.ndarray  # (V,) int
+    ke_fraction: np.ndarray  # (V,) termination threshold on KE / KE0 (0: no early termination)
+    min_time: np.ndarray  # (V,) [time]
+    invalid: np.ndarray  # (V,) int reason code: 0 ok, see INVALID_REASONS
+
+    @property
+    def n_variants(self) -> int:
+        return int(self.dt.shape[0])
+
+    def take(self, idx: np.ndarray) -> Batch:
+        """The sub-batch of variants ``idx`` (arrays copied contiguous)."""
+        out = {}
+        V = self.n_variants
+        for f in fields(self):
+            a = getattr(self, f.name)
+            if f.name in _SHARED:
+                out[f.name] = a
+            else:
+                assert a.shape[-1] == V, f.name
+                out[f.name] = np.ascontiguousarray(a[..., idx])
+        return Batch(**out)
+
+
+_SHARED = {"spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_off", "free", "load_node",
+           "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes"}  # fmt: skip
+
+INVALID_REASONS = {
+    1: "fixed dt is above the critical step",
+    2: "a curve's x is not strictly increasing",
+    3: "a node needs mass > 0",
+    4: "a spring has zero initial length",
+    5: "a wall normal is the zero vector",
+    6: "end_time must be > 0",
+}
+
+
+def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, StepChoice]:
+    """Derive the kernel arrays for the variants in ``P`` (n_params, V)."""
+    b = topo.blocks
+    V = P.shape[1]
+    N, D, S = topo.n_nodes, topo.dim, topo.n_springs
+    mass = np.ascontiguousarray(P[b["mass"]])
+    x0 = np.ascontiguousarray(P[b["position"]].reshape(N, D, V))
+    v0 = np.ascontiguousarray(P[b["velocity"]].reshape(N, D, V))
+    free = (~topo.fixed).astype(np.float64)
+    if len(topo.pm_node):
+        free[topo.pm_node, topo.pm_dir] = 0.0
+    invalid = np.zeros(V, dtype=np.int64)
+    movable = ~topo.fixed.all(axis=1)
+    bad_mass = np.any(movable[:, None] & ~(mass > 0), axis=0)
+    with np.errstate(divide="ignore"):
+        inv_mass = np.where((free[:, :, None] > 0) & (mass[:, None, :] > 0), 1.0 / mass[:, None, :], 0.0)
+
+    i, j = topo.spring_nodes[:, 0], topo.spring_nodes[:, 1]
+    dx = x0[j] - x0[i]  # (S, D, V)
+    length0 = np.sqrt(np.sum(dx * dx, axis=1))
+    sign = np.sign(dx[:, 0, :]) if D == 1 else np.ones((S, V))
+
+    cx = np.ascontiguousarray(P[b["cx"]])
+    cy = np.ascontiguousarray(P[b["cy_"]])
+    off = topo.curve_offsets
+    C = len(topo.curve_ids)
+    cds = np.zeros_like(cx)
+    cs0 = np.zeros((C, V))
+    cs1 = np.zeros((C, V))
+    bad_curve = np.zeros(V, dtype=bool)
+    for c in range(C):
+        a, e = int(off[c]), int(off[c + 1])
+        dxk = np.diff(cx[a:e], axis=0)
+        bad_curve |= np.any(~(dxk > 0), axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            slope = np.diff(cy[a:e], axis=0) / dxk
+        cs0[c], cs1[c] = slope[0], slope[-1]
+        cds[a + 1 : e - 1] = np.diff(slope, axis=0)
+
+    kpar = np.ascontiguousarray(P[b["k"]])
+    kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy)
+    W = len(topo.wall_ids)
+    normal = P[b["wall_normal"]].reshape(W, D, V)
+    nlen = np.sqrt(np.sum(normal * normal, axis=1))
+    bad_normal = np.any(nlen == 0, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = np.where(nlen[:, None, :] > 0, normal / nlen[:, None, :], 0.0)
+    end_time = P[b["end_time"].start]
+    spacing = time_curve_spacing(topo, cx)
+    steps = choose_steps(topo, mass, kmax, damp, end_time, P[b["time_step"].start], interval, spacing)
+
+    for code, bad in ((6, ~(end_time > 0)), (5, bad_normal), (4, np.any(length0 == 0, axis=0)),
+                      (3, bad_mass), (2, bad_curve), (1, steps.refused)):  # fmt: skip
+        invalid = np.where(bad, code, invalid)
+    steps.n_steps = np.where(invalid > 0, 0, steps.n_steps)
+
+    batch = Batch(
+        spring_i=i.copy(), spring_j=j.copy(), material=topo.material, curve_a=topo.spring_curves[:, 0].copy(),
+        curve_b=topo.spring_curves[:, 1].copy(), curve_off=off, free=free, load_node=topo.load_node,
+        load_curve=topo.load_curve, pm_node=topo.pm_node, pm_dir=topo.pm_dir, pm_kind=topo.pm_kind,
+        pm_curve=topo.pm_curve, wall_nodes=topo.wall_nodes.astype(np.float64),
+        mass=mass, inv_mass=np.ascontiguousarray(inv_mass), x0=x0, v0=v0, length0=length0,
+        sign=np.ascontiguousarray(sign), kpar=kpar, yield_t=np.ascontiguousarray(P[b["ty"]]),
+        yield_c=np.ascontiguousarray(P[b["cy"]]), cx=cx, cy=cy, cds=cds, cs0=cs0, cs1=cs1,
+        gravity=np.ascontiguousarray(P[b["gravity"]].reshape(D, V)) if topo.has_gravity else np.zeros((D, V)),
+        load_force=np.ascontiguousarray(P[b["load"]].reshape(len(topo.load_node), D, V)),
+        pm_scale=np.ascontiguousarray(P[b["pm_scale"]]),
+        wall_point=np.ascontiguousarray(P[b["wall_point"]].reshape(W, D, V)),
+        wall_normal=np.ascontiguousarray(unit), dt=steps.dt, n_steps=steps.n_steps,
+        out_every=steps.out_every, ke_fraction=P[b["ke_fraction"].start].copy(),
+        min_time=P[b["min_time"].start].copy(), invalid=invalid,
+    )  # fmt: skip
+    return batch, steps
+
+
+def time_curve_spacing(topo: Topology, cx: np.ndarray) -> np.ndarray:
+    """Per-variant shortest segment of the load / prescribed-motion curves [time], (V,)."""
+    ids = {int(c) for c in topo.load_curve if c >= 0} | {int(c) for c in topo.pm_curve}
+    V = cx.shape[1]
+    out = np.full(V, np.inf)
+    for c in ids:
+        a, e = int(topo.curve_offsets[c]), int(topo.curve_offsets[c + 1])
+        out = np.minimum(out, np.min(np.diff(cx[a:e], axis=0), axis=0))
+    return out

@@ -1,0 +1,51 @@
+"""What a kernel returns: per-variant summaries and the requested sampled histories."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# failure codes (status); 0 = ok
+OK, UNSTABLE, CRUSHED_TO_ZERO, INVALID = 0, 1, 2, 3
+
+HISTORY_SHAPES = {  # dims between time and variant
+    "position": ("node", "axis"), "displacement": ("node", "axis"), "velocity": ("node", "axis"),
+    "acceleration": ("node", "axis"), "spring_force": ("spring",), "spring_elongation": ("spring",),
+    "kinetic_energy": (), "internal_energy": (), "external_work": (), "wall_energy": (), "wall_force": ("wall",),
+}  # fmt: skip
+HISTORY_ORDER = tuple(HISTORY_SHAPES)
+
+
+@dataclass
+class KernelOutput:
+    """Results for V variants (variants on the last axis of every array).
+
+    Summary arrays are computed from every time step. ``histories`` maps a name of
+    :data:`HISTORY_SHAPES` to an array (T, ..., V), NaN after a variant's end.
+    """
+
+    status: np.ndarray  # (V,) int64 failure code
+    fail_time: np.ndarray  # (V,) [time] when the failure was detected (NaN if ok)
+    fail_item: np.ndarray  # (V,) int64 spring index (crushed) or invalid-input code
+    t_end: np.ndarray  # (V,) [time] last time computed (early termination may cut it)
+    peak_force: np.ndarray  # (S, V) max |F| [force]
+    max_crush: np.ndarray  # (S, V) max shortening max(-e) [length]
+    absorbed_energy: np.ndarray  # (S, V) work done on the spring up to the end [energy]
+    peak_acceleration: np.ndarray  # (N, V) max |a| [length/time^2]
+    peak_wall_force: np.ndarray  # (W, V) [force]
+    energy_error: np.ndarray  # (V,) max relative energy balance error
+    final_energy: np.ndarray  # (4, V) KE, IE, W_ext, E_wall at the end [energy]
+    histories: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...], n_out: int) -> KernelOutput:
+    """An output with summaries zeroed and histories filled with NaN."""
+    sizes = {"node": N, "axis": D, "spring": S, "wall": W}
+    hist = {h: np.full((n_out, *(sizes[d] for d in HISTORY_SHAPES[h]), V), np.nan) for h in histories}
+    return KernelOutput(
+        status=np.zeros(V, dtype=np.int64), fail_time=np.full(V, np.nan), fail_item=np.full(V, -1, dtype=np.int64),
+        t_end=np.zeros(V), peak_force=np.zeros((S, V)), max_crush=np.zeros((S, V)),
+        absorbed_energy=np.zeros((S, V)), peak_acceleration=np.zeros((N, V)), peak_wall_force=np.zeros((W, V)),
+        energy_error=np.zeros(V), final_energy=np.zeros((4, V)), histories=hist,
+    )  # fmt: skip

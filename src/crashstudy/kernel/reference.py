@@ -1,0 +1,201 @@
+"""Plain NumPy twin of the compiled kernel: the executable definition of the time integration.
+
+Explicit central difference (SPEC section 4), vectorised over variants, one Python iteration per
+time step. It is slow and only meant for tests (the compiled kernel must agree with it) and for
+readers: every formula of the compiled kernel appears here once, in the same order.
+
+Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0``):
+
+1. spring elongations and forces from ``x^n`` (dampers from ``v^{n-1/2}``); material state update;
+2. external forces (loads, gravity) and accelerations ``a^n = f^n / m`` on free dofs;
+3. ``v^{n+1/2} = v^{n-1/2} + dt a^n`` (half a step at ``n = 0``), then prescribed motion and
+   rigid walls (normal velocity into the wall removed: a perfectly plastic stonewall impact);
+4. energies: internal and external work by the trapezoidal rule, kinetic energy as
+   ``1/2 m v^{n-1/2} . v^{n+1/2}`` (exactly conserved with the trapezoidal internal energy for a
+   linear system), wall energy ``1/2 m v_n (v^{n-1/2} . n)`` per removal;
+5. summaries (every step), histories (every ``out_every`` steps), failure and termination checks;
+6. ``x^{n+1} = x^n + dt v^{n+1/2}``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from crashstudy.batch import Batch
+from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
+from crashstudy.kernel import materials as mat
+from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
+
+TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
+
+
+def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOutput:
+    """Integrate every variant of ``b``; see the module docstring for the step."""
+    N, D, V = b.x0.shape
+    S = len(b.spring_i)
+    W = b.wall_nodes.shape[0]
+    out = allocate(S, N, D, W, V, histories, n_out)
+    out.status[:] = np.where(b.invalid > 0, INVALID, 0)
+    out.fail_item[:] = np.where(b.invalid > 0, b.invalid, -1)
+    out.fail_time[:] = np.where(b.invalid > 0, 0.0, np.nan)
+    nst = b.n_steps.copy()
+    dt = b.dt
+    x = b.x0.copy()
+    v = b.v0.copy()
+    m = b.mass
+    state = np.zeros((S, mat.NSTATE, V))
+    f_prev = np.zeros((S, V))
+    e_prev = np.zeros((S, V))
+    fext_prev = np.zeros((N, D, V))
+    ie = np.zeros((S, V))
+    work = np.zeros(V)
+    wall_e = np.zeros(V)
+    wmax = np.zeros(V)
+    ke0 = 0.5 * np.sum(m[:, None, :] * b.v0 * b.v0, axis=(0, 1))
+    err = np.zeros(V)
+    no_ext = len(b.load_node) == 0 and len(b.pm_node) == 0 and not np.any(b.gravity)
+    cargs = (b.cx, b.cy, b.cds, b.cs0, b.curve_off)
+
+    for n in range(int(nst.max(initial=-1)) + 1):
+        act = (n <= nst) & (out.status == 0)
+        if not act.any():
+            break
+        t = n * dt
+        dtn = dt if n > 0 else 0.5 * dt
+        f = np.zeros((N, D, V))
+        forces = np.zeros((S, V))
+        elong = np.zeros((S, V))
+        edot_min = np.full(V, np.inf)
+        crushed = np.full(V, -1)
+        for s in range(S):
+            i, j = b.spring_i[s], b.spring_j[s]
+            if D == 1:
+                e = b.sign[s] * ((x[j, 0] - b.x0[j, 0]) - (x[i, 0] - b.x0[i, 0]))
+                edot = b.sign[s] * (v[j, 0] - v[i, 0])
+                axis = b.sign[s][None, :]
+            else:
+                d = x[j] - x[i]
+                length = np.sqrt(np.sum(d * d, axis=0))
+                gone = length <= TINY_LENGTH * b.length0[s]
+                crushed = np.where(gone & (crushed < 0), s, crushed)
+                axis = d / np.where(gone, 1.0, length)
+                e = length - b.length0[s]
+                edot = np.sum(axis * (v[j] - v[i]), axis=0)
+            F = _force(b, s, e, edot, state[s], cargs)
+            f[i] += F * axis
+            f[j] -= F * axis
+            forces[s], elong[s] = F, e
+            edot_min = np.minimum(edot_min, edot)
+            if n > 0:
+                ie[s] += np.where(act, 0.5 * (F + f_prev[s]) * (e - e_prev[s]), 0.0)
+            out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], np.abs(F)), out.peak_force[s])
+            out.max_crush[s] = np.where(act, np.maximum(out.max_crush[s], -e), out.max_crush[s])
+        f_prev, e_prev = forces, elong
+
+        fext = m[:, None, :] * b.gravity[None, :, :] * np.ones((N, D, 1))
+        for k in range(len(b.load_node)):
+            c = b.load_curve[k]
+            scale = mat.time_curve_eval(c, t, *cargs) if c >= 0 else 1.0
+            fext[b.load_node[k]] += b.load_force[k] * scale
+        ftot = f + fext
+        a = ftot * b.inv_mass
+        vnew = v + dtn * a
+
+        for k in range(len(b.pm_node)):
+            p, d, c = b.pm_node[k], b.pm_dir[k], b.pm_curve[k]
+            if b.pm_kind[k] == PM_DISPLACEMENT:
+                target = b.x0[p, d] + b.pm_scale[k] * mat.time_curve_eval(c, t + dt, *cargs)
+                vnew[p, d] = (target - x[p, d]) / dt
+            elif b.pm_kind[k] == PM_ACCELERATION:
+                vnew[p, d] = v[p, d] + dtn * b.pm_scale[k] * mat.time_curve_eval(c, t, *cargs)
+            else:
+                vnew[p, d] = b.pm_scale[k] * mat.time_curve_eval(c, t + 0.5 * dt, *cargs)
+            a[p, d] = (vnew[p, d] - v[p, d]) / dtn
+            fext[p, d] += m[p] * a[p, d] - ftot[p, d]
+
+        wall_force = np.zeros((W, V))
+        for w in range(W):
+            for k in range(N):
+                if b.wall_nodes[w, k] == 0.0:
+                    continue
+                nrm = b.wall_normal[w]
+                vn = np.sum(vnew[k] * nrm, axis=0)
+                dist = np.sum((x[k] + dt * vnew[k] - b.wall_point[w]) * nrm, axis=0)
+                hit = (dist < 0.0) & (vn < 0.0)
+                vold_n = np.sum(v[k] * nrm, axis=0)
+                vnew[k] = np.where(hit, vnew[k] - vn * nrm * b.free[k][:, None], vnew[k])
+                wall_e += np.where(hit & act, 0.5 * m[k] * vn * vold_n, 0.0)
+                wall_force[w] += np.where(hit, m[k] * np.abs(vn) / dt, 0.0)
+
+        if n == 0:
+            ke = ke0.copy()
+        else:
+            ke = 0.5 * np.sum(m[:, None, :] * v * vnew, axis=(0, 1))
+            work += np.where(act, 0.5 * np.sum((fext + fext_prev) * v, axis=(0, 1)) * dt, 0.0)
+        wmax = np.maximum(wmax, np.abs(work))
+        ie_tot = np.sum(ie, axis=0)
+        bal = np.abs(ke + ie_tot + wall_e - ke0 - work)
+        err = np.where(act, np.maximum(err, bal), err)
+        amag = np.sqrt(np.sum(a * a, axis=1))
+        out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
+        out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
+
+        bad = act & ~np.isfinite(bal)
+        out.status[:] = np.where(bad, UNSTABLE, out.status)
+        gone = act & ~bad & (crushed >= 0)
+        out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)
+        out.fail_item[:] = np.where(gone, crushed, out.fail_item)
+        out.fail_time[:] = np.where(bad | gone, t, out.fail_time)
+        ok = act & ~bad & ~gone
+
+        rec = ok & (n % b.out_every == 0)
+        if rec.any() and histories:
+            _record(out, rec, n // b.out_every, x, b.x0, 0.5 * (v + vnew) if n > 0 else b.v0, a, forces, elong,
+                    ke, ie_tot, work, wall_e, wall_force)  # fmt: skip
+        out.t_end[:] = np.where(ok, t, out.t_end)
+        last = ok & (n == nst)
+        if b.ke_fraction.any():
+            small_f = np.sum(np.abs(forces), axis=0) <= b.ke_fraction * np.sum(out.peak_force, axis=0)
+            small_ke = ke <= b.ke_fraction * (ke0 + wmax)
+            opening = (edot_min >= 0.0) & no_ext
+            stop = ok & (b.ke_fraction > 0) & (t >= b.min_time) & small_f & (small_ke | opening) & (n > 0)
+            nst = np.where(stop, n, nst)
+            last |= stop
+        out.final_energy[:, last] = np.stack([ke, ie_tot, work, wall_e])[:, last]
+
+        x = np.where(ok, x + dt * vnew, x)
+        v = np.where(ok, vnew, v)
+        fext_prev = fext
+
+    out.absorbed_energy[:] = ie
+    out.energy_error[:] = err / np.maximum(ke0 + wmax, 1e-300)
+    return out
+
+
+def _force(b: Batch, s: int, e: np.ndarray, edot: np.ndarray, st: np.ndarray, cargs: tuple) -> np.ndarray:
+    kind = b.material[s]
+    if kind == LINEAR:
+        return b.kpar[s] * e
+    if kind == DAMPER:
+        return b.kpar[s] * edot
+    if kind == NONLINEAR:
+        return mat.curve_eval(int(b.curve_a[s]), e, *cargs)
+    if kind == CRUSH:
+        return mat.crush(e, st, int(b.curve_a[s]), b.kpar[s], *cargs)
+    if kind == GENERAL:
+        cx, cy, cds, cs0, off = cargs
+        return mat.general_nonlinear(e, st, int(b.curve_a[s]), int(b.curve_b[s]), b.yield_t[s], b.yield_c[s],
+                                     cx, cy, cds, cs0, b.cs1, off)  # fmt: skip
+    raise ValueError(f"unknown material code {kind}")
+
+
+def _record(out: KernelOutput, rec: np.ndarray, k: np.ndarray, x, x0, vel, a, forces, elong, ke, ie, work,
+            wall_e, wall_force) -> None:  # fmt: skip
+    cols = np.nonzero(rec)[0]
+    rows = k[cols]
+    values = {"position": x, "displacement": x - x0, "velocity": vel, "acceleration": a,
+              "spring_force": forces, "spring_elongation": elong, "kinetic_energy": ke,
+              "internal_energy": ie, "external_work": work, "wall_energy": wall_e, "wall_force": wall_force}  # fmt: skip
+    for name, arr in out.histories.items():
+        src = values[name]
+        arr[rows, ..., cols] = np.moveaxis(src[..., cols], -1, 0)

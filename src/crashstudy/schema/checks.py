@@ -1,0 +1,166 @@
+"""Checks of relations between entries of a model (things one field alone cannot tell).
+
+Each check yields ``(path, message)`` where ``path`` is the tuple of keys/indices of the offending
+field in the YAML document, so the caller can name its line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from crashstudy.schema.model import Crush, GeneralNonlinear, Model, NonlinearElastic
+
+Path = tuple[str | int, ...]
+Found = Iterator[tuple[Path, str]]
+
+
+def curve_value(x: list[float], y: list[float], at: float) -> float:
+    """Piecewise-linear curve value at ``at`` with linear extrapolation along the end segments."""
+    xs, ys = np.asarray(x), np.asarray(y)
+    if at <= xs[0]:
+        return float(ys[0] + (ys[1] - ys[0]) / (xs[1] - xs[0]) * (at - xs[0]))
+    if at >= xs[-1]:
+        return float(ys[-1] + (ys[-1] - ys[-2]) / (xs[-1] - xs[-2]) * (at - xs[-1]))
+    return float(np.interp(at, xs, ys))
+
+
+def model_problems(m: Model) -> list[tuple[Path, str]]:
+    """All relational problems of a shape-valid model, in file order."""
+    dim = len(next(iter(m.nodes.values())).position)
+    out: list[tuple[Path, str]] = []
+    for check in (_nodes, _springs, _vectors, _loads_and_motion, _walls, _output):
+        out.extend(check(m, dim))
+    return out
+
+
+def _fixed_axes(fixed: bool | list[str], dim: int) -> set[str]:
+    axes = ["x", "y"][:dim]
+    if fixed is True:
+        return set(axes)
+    if fixed is False:
+        return set()
+    return set(fixed)
+
+
+def _nodes(m: Model, dim: int) -> Found:
+    for nid, node in m.nodes.items():
+        if len(node.position) != dim:
+            yield ("nodes", nid, "position"), (
+                f"expected {dim} coordinate(s) like the first node (a model is 1-D or 2-D throughout), "
+                f"got {len(node.position)}"
+            )
+        fixed = _fixed_axes(node.fixed, dim)
+        if dim == 1 and "y" in fixed:
+            yield ("nodes", nid, "fixed"), "a 1-D model has only the axis 'x'"
+        if len(fixed) < dim and node.mass is None:
+            yield ("nodes", nid), "a node that is not fixed in every direction needs 'mass' > 0"
+
+
+def _curve_ref(m: Model, path: Path, cid: str) -> Found:
+    if cid not in m.curves:
+        yield path, f"unknown curve {cid!r}; defined curves: {sorted(m.curves) or 'none'}"
+
+
+def _springs(m: Model, dim: int) -> Found:
+    for sid, sp in m.springs.items():
+        a, b = sp.nodes
+        for k, nid in enumerate(sp.nodes):
+            if nid not in m.nodes:
+                yield ("springs", sid, "nodes", k), f"unknown node {nid!r}"
+        if a == b:
+            yield ("springs", sid, "nodes"), "a spring joins two different nodes"
+        elif a in m.nodes and b in m.nodes:
+            pa, pb = m.nodes[a].position, m.nodes[b].position
+            if len(pa) == len(pb) and float(np.hypot.reduce(np.subtract(pb, pa))) == 0.0:
+                yield ("springs", sid, "nodes"), f"nodes {a!r} and {b!r} are at the same position: a spring needs a non-zero initial length"
+        mat = sp.material
+        base: Path = ("springs", sid, "material")
+        if isinstance(mat, NonlinearElastic):
+            yield from _curve_ref(m, base + ("curve",), mat.curve)
+        elif isinstance(mat, GeneralNonlinear):
+            yield from _curve_ref(m, base + ("loading",), mat.loading)
+            yield from _curve_ref(m, base + ("unloading",), mat.unloading)
+            for key in ("loading", "unloading"):
+                cid = getattr(mat, key)
+                if cid in m.curves:
+                    c = m.curves[cid]
+                    scale = max(abs(v) for v in c.y) or 1.0
+                    if abs(curve_value(c.x, c.y, 0.0)) > 1e-9 * scale:
+                        yield base + (key,), f"the {key} curve {cid!r} must pass through the origin (its force at e=0 is {curve_value(c.x, c.y, 0.0):g})"
+            if mat.unloading in m.curves:
+                c = m.curves[mat.unloading]
+                if any(not b > a for a, b in zip(c.y, c.y[1:])):
+                    yield base + ("unloading",), f"the unloading curve {mat.unloading!r} must be increasing (y strictly increasing)"
+        elif isinstance(mat, Crush):
+            yield from _curve_ref(m, base + ("loading",), mat.loading)
+            if mat.loading in m.curves:
+                c = m.curves[mat.loading]
+                if c.x[0] >= 0:
+                    yield base + ("loading",), f"the crush curve {mat.loading!r} needs a compression part (x < 0)"
+
+
+def _vectors(m: Model, dim: int) -> Found:
+    for nid, v in m.initial_velocity.items():
+        if nid not in m.nodes:
+            yield ("initial_velocity", nid), f"unknown node {nid!r}"
+            continue
+        if len(v) != dim:
+            yield ("initial_velocity", nid), f"expected {dim} component(s), got {len(v)}"
+            continue
+        fixed = _fixed_axes(m.nodes[nid].fixed, dim)
+        for k, ax in enumerate(["x", "y"][:dim]):
+            if ax in fixed and v[k] != 0.0:
+                yield ("initial_velocity", nid, k), f"node {nid!r} is fixed along {ax}; its initial velocity there must be 0"
+    if m.gravity is not None and len(m.gravity) != dim:
+        yield ("gravity",), f"expected {dim} component(s), got {len(m.gravity)}"
+
+
+def _loads_and_motion(m: Model, dim: int) -> Found:
+    for i, ld in enumerate(m.loads):
+        if ld.node not in m.nodes:
+            yield ("loads", i, "node"), f"unknown node {ld.node!r}"
+        if len(ld.force) != dim:
+            yield ("loads", i, "force"), f"expected {dim} component(s), got {len(ld.force)}"
+        if ld.curve is not None:
+            yield from _curve_ref(m, ("loads", i, "curve"), ld.curve)
+    seen: dict[tuple[str, str], int] = {}
+    for i, pm in enumerate(m.prescribed_motion):
+        path: Path = ("prescribed_motion", i)
+        yield from _curve_ref(m, path + ("curve",), pm.curve)
+        if pm.node not in m.nodes:
+            yield path + ("node",), f"unknown node {pm.node!r}"
+            continue
+        if dim == 1 and pm.direction == "y":
+            yield path + ("direction",), "a 1-D model has only the direction 'x'"
+        elif pm.direction in _fixed_axes(m.nodes[pm.node].fixed, dim):
+            yield path + ("direction",), f"node {pm.node!r} is fixed along {pm.direction}: a prescribed direction must not also be fixed"
+        key = (pm.node, pm.direction)
+        if key in seen:
+            yield path, f"node {pm.node!r} already has a prescribed motion along {pm.direction} (entry {seen[key]})"
+        seen[key] = i
+
+
+def _walls(m: Model, dim: int) -> Found:
+    ids: set[str] = set()
+    for i, w in enumerate(m.rigid_walls):
+        path: Path = ("rigid_walls", i)
+        if w.id in ids:
+            yield path + ("id",), f"duplicate wall id {w.id!r}"
+        ids.add(w.id)
+        for key in ("point", "normal"):
+            if len(getattr(w, key)) != dim:
+                yield path + (key,), f"expected {dim} component(s), got {len(getattr(w, key))}"
+        if not any(w.normal):
+            yield path + ("normal",), "the normal must not be the zero vector"
+        for k, nid in enumerate(w.nodes or []):
+            if nid not in m.nodes:
+                yield path + ("nodes", k), f"unknown node {nid!r}"
+
+
+def _output(m: Model, dim: int) -> Found:
+    if m.output.interval is not None and m.output.interval > m.end_time:
+        yield ("output", "interval"), f"expected an interval no longer than end_time ({m.end_time:g}), got {m.output.interval:g}"
+    if not m.rigid_walls and isinstance(m.output.histories, list) and "wall_force" in m.output.histories:
+        yield ("output", "histories"), "'wall_force' needs at least one rigid wall"
