@@ -1,0 +1,87 @@
+"""Execution backends: anything that maps a function over tasks and yields results as they finish.
+
+Backends are small and interchangeable (a test runs each and compares with the in-process one):
+
+- ``InProcess``: a plain loop in this process (the kernel itself uses every core through numba).
+- ``ProcessPool``: ``--jobs N`` worker processes, each kernel limited to ``cores // N`` threads.
+- ``DaskBackend``: ``--scheduler tcp://HOST:PORT`` or ``local`` (a ``LocalCluster``); needs the
+  ``dask`` extra. Workers compute; the client (this process) writes the files.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from typing import Any, Protocol
+
+
+class Backend(Protocol):
+    def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]: ...
+
+    def close(self) -> None: ...
+
+
+class InProcess:
+    """Run tasks one after the other in this process."""
+
+    def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
+        for t in tasks:
+            yield fn(*t)
+
+    def close(self) -> None:
+        pass
+
+
+def _limit_threads(n: int) -> None:
+    import numba
+
+    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+
+
+def _call_limited(n_threads: int, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
+    _limit_threads(n_threads)
+    return fn(*args)
+
+
+class ProcessPool:
+    """``jobs`` worker processes; at most ``2 * jobs`` tasks in flight (bounded memory)."""
+
+    def __init__(self, jobs: int) -> None:
+        import multiprocessing as mp
+
+        self.jobs = jobs
+        self.threads = max(1, (os.cpu_count() or 1) // jobs)
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
+
+    def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
+        pending: set[Future[Any]] = set()
+        it = iter(tasks)
+        done_all = False
+        while True:
+            while not done_all and len(pending) < 2 * self.jobs:
+                try:
+                    t = next(it)
+                except StopIteration:
+                    done_all = True
+                    break
+                pending.add(self.pool.submit(_call_limited, self.threads, fn, t))
+            if not pending:
+                return
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for f in finished:
+                yield f.result()
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def make_backend(jobs: int = 1, scheduler: str | None = None) -> Backend:
+    """The backend for the command-line options ``--jobs`` and ``--scheduler``."""
+    if scheduler:
+        from crashstudy.dask_backend import DaskBackend
+
+        return DaskBackend(scheduler)
+    if jobs > 1:
+        return ProcessPool(jobs)
+    return InProcess()

@@ -1,0 +1,203 @@
+"""Command line: parses arguments, calls the runner, prints, and sets exit codes.
+
+Exit codes: 0 success, 1 a check failed or a variant failed, 2 the input is invalid.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+from crashstudy.errors import InputError
+
+EXIT_OK, EXIT_FAILED, EXIT_INVALID, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="crashstudy", description="Lumped-parameter crash models over design matrices.")
+    from crashstudy import __version__
+
+    p.add_argument("--version", action="version", version=f"crashstudy {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run every variant of a study")
+    r.add_argument("study")
+    r.add_argument("-o", "--output", help="result folder (default results/<study name>)")
+    r.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; the kernel is multi-threaded)")
+    r.add_argument("--scheduler", help="Dask scheduler address tcp://HOST:PORT, or 'local' for a LocalCluster")
+    r.add_argument("--resume", action="store_true", help="finish an interrupted run (only missing variants run)")
+    r.add_argument("--force", action="store_true", help="overwrite existing results")
+    r.add_argument("--dry-run", action="store_true", help="validate and print the number of variants, run nothing")
+    r.add_argument("--progress", choices=["auto", "on", "off"], default="auto")
+
+    v = sub.add_parser("validate", help="check a model or study file and report every problem")
+    v.add_argument("file")
+
+    s = sub.add_parser("simulate", help="run one model (no matrix)")
+    s.add_argument("model")
+    s.add_argument("-o", "--output", help="result folder (default results/<model name>)")
+
+    sm = sub.add_parser("summary", help="print the summary table of a result folder")
+    sm.add_argument("dir")
+    sm.add_argument("--sort", help="column to sort by (e.g. peak_deceleration_g.cabin)")
+    sm.add_argument("--ascending", action="store_true", help="sort ascending (default descending)")
+    sm.add_argument("--head", type=int, default=30, help="rows to show (0 = all)")
+    sm.add_argument("--columns", nargs="+", help="columns to show (substrings match)")
+
+    pl = sub.add_parser("plot", help="write PNG figures of a result folder")
+    pl.add_argument("dir")
+    pl.add_argument("--kind", choices=["history", "force-displacement", "matrix"], default="history")
+    pl.add_argument("--quantity", help="history variable or summary metric (e.g. spring_force, peak_force.cabin)")
+    pl.add_argument("--items", nargs="+", help="nodes or springs to plot")
+    pl.add_argument("--x", dest="x_axis", help="matrix plot: study axis on the x axis")
+    pl.add_argument("--y", dest="y_axis", help="matrix plot: second study axis (heat map)")
+    pl.add_argument("--max-variants", type=int, default=50)
+    pl.add_argument("-o", "--output", help="folder for the PNGs (default DIR/plots)")
+
+    c = sub.add_parser("compare", help="regression check of a result against a baseline")
+    c.add_argument("new")
+    c.add_argument("baseline")
+    c.add_argument("--rtol", type=float)
+    c.add_argument("--atol", type=float)
+    c.add_argument("--junit", help="write JUnit XML to this file")
+
+    sc = sub.add_parser("schema", help="print the JSON Schema of model or study files")
+    sc.add_argument("kind", choices=["model", "study"])
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    signal.signal(signal.SIGTERM, _sigterm)
+    try:
+        return int(COMMANDS[args.command](args))
+    except InputError as exc:
+        print(f"error: invalid input\n{exc.format()}", file=sys.stderr)
+        return EXIT_INVALID
+    except KeyboardInterrupt:
+        print("\ninterrupted: finished variants are kept; continue with --resume", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (FileNotFoundError, NotADirectoryError, PermissionError, IsADirectoryError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    except OSError as exc:  # disk full, read-only folder: say so plainly
+        print(f"error: cannot write results: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+
+
+def _sigterm(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+def _run(args: argparse.Namespace) -> int:
+    from crashstudy.runner import default_out, run_plan
+    from crashstudy.study import load_study
+
+    plan = load_study(args.study)
+    print(f"study {plan.name}: {plan.n_variants} variants"
+          + (" (" + " x ".join(str(s) for s in plan.shape) + ")" if plan.shape else ""))  # fmt: skip
+    if args.dry_run:
+        for ax in plan.axes:
+            print(f"  {ax.path}: {len(ax.values)} values {list(ax.values[:6])}{' ...' if len(ax.values) > 6 else ''}")
+        return EXIT_OK
+    progress = None if args.progress == "auto" else args.progress == "on"
+    out = Path(args.output) if args.output else default_out(plan.name)
+    rep = run_plan(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume, force=args.force,
+                   progress=progress)  # fmt: skip
+    print(f"wrote {rep.results.path} and summary.csv ({rep.n_computed} variants computed in {rep.seconds:.1f} s)")
+    if rep.n_failed:
+        print(f"{rep.n_failed} of {rep.n_variants} variants failed (see status / failure_reason)", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from crashstudy.schema import parse_model
+    from crashstudy.study import load_study
+    from crashstudy.yamlio import load_yaml
+
+    doc = load_yaml(args.file)
+    if isinstance(doc.data, dict) and "model" in doc.data and "nodes" not in doc.data:
+        plan = load_study(args.file)
+        print(f"{args.file}: valid study ({plan.n_variants} variants)")
+    else:
+        lm = parse_model(doc)
+        m = lm.model
+        print(f"{args.file}: valid model ({len(m.nodes)} nodes, {len(m.springs)} springs, "
+              f"{len(next(iter(m.nodes.values())).position)}-D)")  # fmt: skip
+    return EXIT_OK
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from crashstudy.runner import simulate_report
+
+    rep = simulate_report(args.model, args.output)
+    s = rep.results.summary.iloc[0]
+    print(f"wrote {rep.results.path} and summary.csv")
+    print(f"  status {s['status']}  dt {s['dt']:.4g}  energy_error {s['energy_error']:.2e}  ({s['dt_control']})")
+    if s["status"] != "ok":
+        print(f"  failed: {s['failure_reason']}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def _summary(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from crashstudy.results import open_results
+
+    df = open_results(args.dir).summary
+    if args.columns:
+        keep = ["variant"] + [c for c in df.columns if any(k in c for k in args.columns) and c != "variant"]
+        df = df[keep]
+    if args.sort:
+        if args.sort not in df.columns:
+            close = [c for c in df.columns if args.sort in c]
+            raise InputError([_arg_problem(args.dir, f"no column {args.sort!r}; columns like it: {close or list(df.columns)}")])
+        df = df.sort_values(args.sort, ascending=args.ascending)
+    with pd.option_context("display.max_columns", 30, "display.width", 200, "display.max_colwidth", 40):
+        print(df if not args.head else df.head(args.head))
+        if args.head and len(df) > args.head:
+            print(f"... {len(df) - args.head} more rows (--head 0 shows all)")
+    return EXIT_OK
+
+
+def _arg_problem(where: str, msg: str) -> Any:
+    from crashstudy.errors import Problem
+
+    return Problem(where, None, "", msg)
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from crashstudy.plot import plot_command
+
+    for path in plot_command(args):
+        print(f"wrote {path}")
+    return EXIT_OK
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from crashstudy.compare import compare_command
+
+    return compare_command(args)
+
+
+def _schema(args: argparse.Namespace) -> int:
+    import json
+
+    from crashstudy.schema.model import Model
+    from crashstudy.schema.study import Study
+
+    cls = Model if args.kind == "model" else Study
+    print(json.dumps(cls.model_json_schema(), indent=2))
+    return EXIT_OK
+
+
+COMMANDS = {"run": _run, "validate": _validate, "simulate": _simulate, "summary": _summary, "plot": _plot,
+            "compare": _compare, "schema": _schema}  # fmt: skip
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,285 @@
+"""Result files: ``results.nc`` written chunk by chunk, ``summary.csv``, and reading them back.
+
+The netCDF file is built as ``results.nc.partial`` (netCDF4, variants written as they finish, a
+``done`` flag per variant flushed with them) and renamed to ``results.nc`` only when every variant
+is in it: an interrupted run never leaves a file that looks complete, and ``--resume`` continues the
+partial file. ``summary.csv`` is written after, through a temporary file and a rename.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import netCDF4
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from crashstudy import __version__
+from crashstudy.kernel.output import HISTORY_SHAPES, KernelOutput
+from crashstudy.study import Plan
+from crashstudy.units import UNIT_SYSTEMS
+
+PARTIAL = "results.nc.partial"
+FINAL = "results.nc"
+SUMMARY = "summary.csv"
+STATUS_TEXT = {0: "ok", 1: "failed", 2: "failed", 3: "failed"}
+
+
+def _units(plan: Plan) -> dict[str, str]:
+    u = UNIT_SYSTEMS[plan.topology.units]
+    return {"length": u.length, "time": u.time, "velocity": u.velocity, "acceleration": u.acceleration,
+            "force": u.force, "energy": u.energy, "mass": u.mass, "1": "1", "g": "g"}  # fmt: skip
+
+
+HISTORY_META = {
+    "position": ("length", "node position"),
+    "displacement": ("length", "node displacement from the initial position"),
+    "velocity": ("velocity", "node velocity"),
+    "acceleration": ("acceleration", "node acceleration (forces / mass; prescribed dofs: kinematic)"),
+    "spring_force": ("force", "spring force (positive = tension)"),
+    "spring_elongation": ("length", "spring elongation (negative = compression)"),
+    "kinetic_energy": ("energy", "kinetic energy"),
+    "internal_energy": ("energy", "work done on all springs and dampers"),
+    "external_work": ("energy", "work of loads, gravity and prescribed motion"),
+    "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
+    "wall_force": ("force", "rigid wall force (momentum removed per unit time)"),
+}
+SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
+    "peak_force": (("spring",), "force", "largest |spring force| over every time step"),
+    "max_crush": (("spring",), "length", "largest shortening of the spring, max(-elongation)"),
+    "absorbed_energy": (("spring",), "energy", "work done on the spring up to the end"),
+    "peak_deceleration": (("node",), "acceleration", "largest acceleration magnitude over every time step"),
+    "peak_deceleration_g": (("node",), "g", "peak_deceleration in standard gravities"),
+    "peak_wall_force": (("wall",), "force", "largest rigid wall force"),
+    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - W_ext| / max(KE0 + |W_ext|, tiny)"),
+    "dt": ((), "time", "time step used"),
+    "dt_crit": ((), "time", "critical time step bound (nodal, whole assembly)"),
+    "t_end": ((), "time", "last time computed (early termination may end a run before end_time)"),
+    "final_kinetic_energy": ((), "energy", "kinetic energy at the end"),
+    "final_internal_energy": ((), "energy", "internal energy at the end"),
+}
+
+
+@dataclass
+class ChunkResult:
+    """Results of variants ``index`` (sorted global numbers) as computed by one task."""
+
+    index: np.ndarray
+    out: KernelOutput
+    dt: np.ndarray
+    dt_crit: np.ndarray
+    dt_control: list[str]
+    reasons: list[str]
+
+
+class ResultWriter:
+    """Writes a plan's results into ``directory`` chunk by chunk (see the module docstring)."""
+
+    def __init__(self, directory: str | os.PathLike[str], plan: Plan, resume: bool = False) -> None:
+        self.dir = Path(directory)
+        self.plan = plan
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.path = self.dir / PARTIAL
+        if resume and self.path.exists():
+            self.nc = netCDF4.Dataset(self.path, "a")
+            if self.nc.getncattr("plan_fingerprint") != plan_fingerprint(plan):
+                self.nc.close()
+                raise ValueError(f"{self.path} belongs to a different study or model; run without --resume")
+        else:
+            self.nc = self._create()
+
+    def done(self) -> np.ndarray:
+        """Boolean (V,): variants already written."""
+        return np.asarray(self.nc.variables["done"][:], dtype=bool)
+
+    def _create(self) -> netCDF4.Dataset:
+        p = self.plan
+        topo = p.topology
+        units = _units(p)
+        nc = netCDF4.Dataset(self.path, "w", format="NETCDF4")
+        V = p.n_variants
+        nc.createDimension("variant", V)
+        nc.createDimension("time", p.n_out)
+        nc.createDimension("node", topo.n_nodes)
+        nc.createDimension("spring", topo.n_springs)
+        nc.createDimension("axis", topo.dim)
+        nc.createDimension("wall", len(topo.wall_ids))
+        var = nc.createVariable("variant", "i8", ("variant",))
+        var[:] = np.arange(V)
+        tv = nc.createVariable("time", "f8", ("time",))
+        tv[:] = p.times
+        tv.units, tv.long_name = units["time"], "time"
+        for dim, ids in (("node", topo.node_ids), ("spring", topo.spring_ids), ("axis", ("x", "y")[: topo.dim]),
+                         ("wall", topo.wall_ids)):  # fmt: skip
+            v = nc.createVariable(dim, str, (dim,))
+            for k, name in enumerate(ids):
+                v[k] = name
+        for ax in p.axes:
+            v = nc.createVariable(ax.path, "f8", ("variant",), zlib=False)
+            v.long_name = f"study axis {ax.path}"
+            v[:] = p.axis_values(0, V)[ax.path] if V <= 2_000_000 else 0.0
+        cv = min(V, 4096)
+        for name in topo.histories:
+            dims = ("variant", "time", *HISTORY_SHAPES[name])
+            sizes = [1, p.n_out] + [len(nc.dimensions[d]) for d in HISTORY_SHAPES[name]]
+            v = nc.createVariable(name, "f8", dims, fill_value=np.nan, chunksizes=[max(1, s) for s in sizes])
+            v.units, v.long_name = units[HISTORY_META[name][0]], HISTORY_META[name][1]
+        for name, (dims, kind, long) in SUMMARY_META.items():
+            if dims == ("wall",) and not topo.wall_ids:
+                continue
+            shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
+            v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
+            v.units, v.long_name = units[kind], long
+        for name, long in (("status", "ok or failed"), ("failure_reason", "why a variant failed (empty if ok)"),
+                           ("dt_control", "node (and its stiffest spring) that controls the critical step")):  # fmt: skip
+            v = nc.createVariable(name, str, ("variant",))
+            v.long_name = long
+        d = nc.createVariable("done", "i1", ("variant",), fill_value=0, chunksizes=[cv])
+        d.long_name = "1 once the variant's results are written"
+        nc.setncatts({
+            "title": f"crashstudy results of {p.name}", "crashstudy_version": __version__,
+            "units": topo.units, "model_name": topo.name, "model_file": p.model_file, "model_yaml": p.model_text,
+            "study_file": p.study_file, "study_yaml": p.study_text, "crashstudy_axes": json.dumps([a.path for a in p.axes]),
+            "plan_fingerprint": plan_fingerprint(p), "history_interval": p.interval,
+            "Conventions": "CF-1.8",
+        })  # fmt: skip
+        return nc
+
+    def write(self, res: ChunkResult) -> None:
+        """Write one chunk's variants (``res.index`` must be a contiguous range)."""
+        lo, hi = int(res.index[0]), int(res.index[-1]) + 1
+        assert hi - lo == len(res.index), "chunks are contiguous ranges"
+        nc, o = self.nc, res.out
+        g = UNIT_SYSTEMS[self.plan.topology.units].g
+        for name, arr in o.histories.items():
+            nc.variables[name][lo:hi] = np.moveaxis(arr, -1, 0)
+        summary = {
+            "peak_force": o.peak_force.T, "max_crush": o.max_crush.T, "absorbed_energy": o.absorbed_energy.T,
+            "peak_deceleration": o.peak_acceleration.T, "peak_deceleration_g": o.peak_acceleration.T / g,
+            "energy_error": o.energy_error, "dt": res.dt, "dt_crit": res.dt_crit, "t_end": o.t_end,
+            "final_kinetic_energy": o.final_energy[0], "final_internal_energy": o.final_energy[1],
+        }  # fmt: skip
+        if self.plan.topology.wall_ids:
+            summary["peak_wall_force"] = o.peak_wall_force.T
+        failed = o.status != 0
+        for name, arr in summary.items():
+            a = np.array(arr, dtype=np.float64)
+            if name not in ("dt", "dt_crit"):
+                a[failed] = np.nan  # a failed variant has no trustworthy summary
+            nc.variables[name][lo:hi] = a
+        nc.variables["status"][lo:hi] = np.array([STATUS_TEXT[int(s)] for s in o.status], dtype=object)
+        nc.variables["failure_reason"][lo:hi] = np.array(res.reasons, dtype=object)
+        nc.variables["dt_control"][lo:hi] = np.array(res.dt_control, dtype=object)
+        nc.variables["done"][lo:hi] = 1
+        nc.sync()
+
+    def abort(self) -> None:
+        """Close the partial file (kept for ``--resume``)."""
+        if self.nc.isopen():
+            self.nc.close()
+
+    def finish(self) -> Path:
+        """Close, write ``summary.csv`` and rename the partial file to ``results.nc``."""
+        self.nc.close()
+        final = self.dir / FINAL
+        with xr.open_dataset(self.path) as ds:
+            write_summary_csv(ds, self.dir / SUMMARY)
+        os.replace(self.path, final)
+        return final
+
+
+def plan_fingerprint(plan: Plan) -> str:
+    """Hash of everything that determines the results of a plan."""
+    import hashlib
+
+    h = hashlib.sha256()
+    h.update(plan.model_text.encode())
+    h.update(plan.study_text.encode())
+    h.update(plan.base.tobytes())
+    for ax in plan.axes:
+        h.update(ax.path.encode())
+        h.update(ax.values.tobytes())
+    h.update(__version__.encode())
+    return h.hexdigest()[:32]
+
+
+def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.DataFrame:
+    """Tidy summary table, one row per variant: axis values, status, then one column per metric and item."""
+    sub = ds.isel(variant=slice(lo, hi))
+    axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
+    cols: dict[str, Any] = {"variant": sub["variant"].values}
+    for ax in axes:
+        cols[ax] = sub[ax].values
+    for name in ("status", "failure_reason"):
+        cols[name] = sub[name].values.astype(str)
+    for name, (dims, _, _) in SUMMARY_META.items():
+        if name not in sub:
+            continue
+        arr = sub[name].values
+        if not dims:
+            cols[name] = arr
+        else:
+            ids = sub[dims[0]].values.astype(str)
+            for k, item in enumerate(ids):
+                cols[f"{name}.{item}"] = arr[:, k]
+    cols["dt_control"] = sub["dt_control"].values.astype(str)
+    return pd.DataFrame(cols)
+
+
+def write_summary_csv(ds: xr.Dataset, path: Path, chunk: int = 200_000) -> None:
+    """Write ``summary.csv`` chunk by chunk (bounded memory), atomically."""
+    tmp = path.with_suffix(".csv.partial")
+    n = ds.sizes["variant"]
+    with open(tmp, "w", newline="") as fh:
+        for lo in range(0, max(n, 1), chunk):
+            summary_frame(ds, lo, min(n, lo + chunk)).to_csv(fh, index=False, header=lo == 0)
+    os.replace(tmp, path)
+
+
+class Results:
+    """A finished (or partial) result folder, for notebooks: ``.dataset`` (xarray) and ``.summary`` (pandas)."""
+
+    def __init__(self, directory: str | os.PathLike[str]) -> None:
+        self.dir = Path(directory)
+        final = self.dir / FINAL
+        if not final.exists():
+            raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})")
+        self.path = final
+        self._ds: xr.Dataset | None = None
+
+    @property
+    def dataset(self) -> xr.Dataset:
+        """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``)."""
+        if self._ds is None:
+            ds = xr.open_dataset(self.path)
+            axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
+            self._ds = ds.set_coords([a for a in axes if a in ds])
+        return self._ds
+
+    @property
+    def summary(self) -> pd.DataFrame:
+        """One row per variant: the axis values as columns, then status and summary metrics."""
+        csv = self.dir / SUMMARY
+        if csv.exists():
+            return pd.read_csv(csv, keep_default_na=False, na_values=["", "nan", "NaN"]).assign(
+                failure_reason=lambda d: d["failure_reason"].fillna("").astype(str)
+            )
+        return summary_frame(self.dataset)
+
+    def close(self) -> None:
+        if self._ds is not None:
+            self._ds.close()
+            self._ds = None
+
+    def __repr__(self) -> str:
+        return f"Results({str(self.dir)!r})"
+
+
+def open_results(directory: str | os.PathLike[str]) -> Results:
+    """Open a result folder written by ``crashstudy run`` or ``crashstudy simulate``."""
+    return Results(directory)

@@ -1,0 +1,257 @@
+"""The pipeline, end to end: study/model file -> plan -> chunks on a backend -> result files.
+
+This is the one module that knows every stage; the command line only parses arguments, prints and
+sets exit codes. Each chunk is computed by :func:`run_chunk`, a pure function of the plan and a
+variant range, so any backend (in-process, process pool, Dask) gives identical results.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from crashstudy.batch import INVALID_REASONS, Batch, build_batch
+from crashstudy.errors import InputError, Problem
+from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
+from crashstudy.results import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
+from crashstudy.schema import load_model
+from crashstudy.study import Plan, load_study, plan_from_model
+
+HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
+MAX_CHUNK = 8192  # variants per chunk when histories are small or off
+
+
+def chunk_size(plan: Plan) -> int:
+    """Variants per chunk: bounded so that a chunk's history arrays stay within HISTORY_BUDGET."""
+    topo = plan.topology
+    per = {"node": topo.n_nodes * topo.dim, "spring": topo.n_springs, "wall": len(topo.wall_ids)}
+    from crashstudy.kernel.output import HISTORY_SHAPES
+
+    width = sum(per[HISTORY_SHAPES[h][0]] if HISTORY_SHAPES[h] else 1 for h in topo.histories)
+    per_variant = 8 * plan.n_out * (width + 4)  # + the kernel's energy buffer
+    return int(max(1, min(MAX_CHUNK, HISTORY_BUDGET // max(per_variant, 1))))
+
+
+def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled") -> KernelOutput:
+    if kernel == "reference":
+        from crashstudy.kernel.reference import run_reference
+
+        return run_reference(batch, histories, n_out)
+    from crashstudy.kernel.compiled import run_compiled
+
+    return run_compiled(batch, histories, n_out)
+
+
+def _reorder(out: KernelOutput, take: np.ndarray, V: int, histories: tuple[str, ...], n_out: int,
+             S: int, N: int, D: int, W: int) -> KernelOutput:  # fmt: skip
+    """Spread results computed for columns ``take`` (unique, sorted) back to all ``V`` variants."""
+    full = allocate(S, N, D, W, V, histories, n_out)
+    for name in ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed_energy",
+                 "peak_acceleration", "peak_wall_force", "energy_error", "final_energy"):  # fmt: skip
+        getattr(full, name)[...] = getattr(out, name)[..., take]
+    for h in histories:
+        full.histories[h][...] = out.histories[h][..., take]
+    return full
+
+
+def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkResult:
+    """Compute variants ``lo`` .. ``hi - 1`` of ``plan``.
+
+    Identical variants are computed once; the rest are ordered by step count so that the kernel's
+    blocks hold variants that finish together.
+    """
+    topo = plan.topology
+    P = plan.params(lo, hi)
+    V = hi - lo
+    uniq, inverse = np.unique(P, axis=1, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
+    order = np.argsort(batch.n_steps, kind="stable")
+    out = run_kernel(batch.take(order), topo.histories, plan.n_out, kernel)
+    pos = np.empty_like(order)
+    pos[order] = np.arange(len(order))
+    N, D, S, W = topo.n_nodes, topo.dim, topo.n_springs, len(topo.wall_ids)
+    full = _reorder(out, pos[inverse], V, topo.histories, plan.n_out, S, N, D, W)
+    dt, dt_crit = steps.dt[inverse], steps.dt_crit[inverse]
+    ctrl_n, ctrl_s = steps.control_node[inverse], steps.control_spring[inverse]
+    control = [
+        ("none" if n < 0 else f"node {topo.node_ids[n]}") + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "")
+        for n, s in zip(ctrl_n, ctrl_s)
+    ]
+    user_dt = P[topo.blocks["time_step"].start]
+    reasons = [_reason(full, k, topo.spring_ids, user_dt[k], dt_crit[k], control[k]) for k in range(V)]
+    return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons)
+
+
+def _reason(out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float, dt_crit: float, control: str) -> str:
+    code = int(out.status[k])
+    t = out.fail_time[k]
+    if code == UNSTABLE:
+        return f"numerical instability: non-finite state at t={t:.6g} (dt_crit={dt_crit:.6g}, {control})"
+    if code == CRUSHED_TO_ZERO:
+        return f"spring {springs[int(out.fail_item[k])]!r} crushed to zero length at t={t:.6g}"
+    if code == INVALID:
+        item = int(out.fail_item[k])
+        if item == 1:
+            return f"fixed dt={user_dt:.6g} is above the critical step dt_crit={dt_crit:.6g} ({control})"
+        return f"invalid input: {INVALID_REASONS.get(item, 'unknown')}"
+    return ""
+
+
+class Progress:
+    """One status line on a terminal (variants done, variants/s, ETA); silent otherwise."""
+
+    def __init__(self, total: int, enabled: bool | None = None, stream: Any = None) -> None:
+        self.stream = stream or sys.stderr
+        self.enabled = self.stream.isatty() if enabled is None else enabled
+        self.total, self.done, self.t0, self.last = total, 0, time.perf_counter(), 0.0
+
+    def update(self, n: int) -> None:
+        self.done += n
+        now = time.perf_counter()
+        if not self.enabled or (now - self.last < 0.2 and self.done < self.total):
+            return
+        self.last = now
+        rate = self.done / max(now - self.t0, 1e-9)
+        eta = (self.total - self.done) / rate if rate > 0 else float("inf")
+        self.stream.write(f"\r  {self.done}/{self.total} variants  {rate:,.0f} variants/s  ETA {eta:,.0f} s   ")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+@dataclass
+class RunReport:
+    """What a run did: where the results are and how many variants failed."""
+
+    results: Results
+    n_variants: int
+    n_failed: int
+    n_computed: int
+    seconds: float
+
+
+def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
+    """Contiguous ranges of the variants still to do, each at most ``size`` long."""
+    out: list[tuple[int, int]] = []
+    idx = np.nonzero(todo)[0]
+    if not len(idx):
+        return out
+    breaks = np.nonzero(np.diff(idx) != 1)[0] + 1
+    for run in np.split(idx, breaks):
+        for lo in range(int(run[0]), int(run[-1]) + 1, size):
+            out.append((lo, min(lo + size, int(run[-1]) + 1)))
+    return out
+
+
+def prepare_output(out_dir: Path, resume: bool, force: bool, source: str) -> None:
+    """Refuse to overwrite a finished result unless ``force``; clear it when forced."""
+    final, partial = out_dir / FINAL, out_dir / PARTIAL
+    if force and out_dir.exists():
+        for p in (final, partial, out_dir / "summary.csv"):
+            if p.exists():
+                p.unlink()
+        return
+    if final.exists() and not resume:
+        raise InputError([Problem(source, None, "", f"results already exist in {out_dir}; use --force to overwrite or --resume")])
+    if partial.exists() and not resume:
+        raise InputError([Problem(source, None, "", f"an unfinished run is in {out_dir}; use --resume to finish it or --force to start again")])
+
+
+def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
+             resume: bool = False, force: bool = False, progress: bool | None = None,
+             kernel: str = "compiled", chunk: int | None = None) -> RunReport:  # fmt: skip
+    """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`)."""
+    from crashstudy.backends import make_backend
+
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    prepare_output(out, resume, force, plan.study_file or plan.model_file)
+    if resume and (out / FINAL).exists() and not (out / PARTIAL).exists():
+        res = Results(out)
+        n_failed = int((res.summary["status"] != "ok").sum())
+        return RunReport(res, plan.n_variants, n_failed, 0, time.perf_counter() - t0)
+    writer = ResultWriter(out, plan, resume=resume)
+    todo = ~writer.done()
+    ranges = _ranges(todo, chunk or chunk_size(plan))
+    bar = Progress(plan.n_variants, progress)
+    bar.update(int((~todo).sum()))
+    backend = make_backend(jobs, scheduler)
+    n_failed = 0
+    try:
+        for res in backend.imap_unordered(run_chunk, ((plan, lo, hi, kernel) for lo, hi in ranges)):
+            writer.write(res)
+            n_failed += int(np.count_nonzero(res.out.status))
+            bar.update(len(res.index))
+    except BaseException:
+        writer.abort()
+        backend.close()
+        bar.close()
+        raise
+    backend.close()
+    bar.close()
+    writer.finish()
+    results = Results(out)
+    if resume:
+        n_failed = int((results.summary["status"] != "ok").sum())
+    return RunReport(results, plan.n_variants, n_failed, int(todo.sum()), time.perf_counter() - t0)
+
+
+def default_out(name: str) -> Path:
+    return Path("results") / name
+
+
+def run_study(study: str | os.PathLike[str] | dict[str, Any], out_dir: str | os.PathLike[str] | None = None,
+              jobs: int = 1, scheduler: str | None = None, resume: bool = False, force: bool = False,
+              progress: bool | None = False) -> Results:  # fmt: skip
+    """Run a study (a file path or a dict as its YAML would load) and return its :class:`Results`.
+
+    Results go to ``out_dir`` (default ``results/<study name>``). Raises
+    :class:`~crashstudy.errors.InputError` for invalid input. Failed variants are marked in the
+    results (``status``, ``failure_reason``), never raised.
+    """
+    plan = load_study(study)
+    return run_plan(plan, out_dir or default_out(plan.name), jobs, scheduler, resume, force, progress).results
+
+
+def simulate(model: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None,
+             force: bool = True) -> Results:  # fmt: skip
+    """Run one model file (no matrix) and return its :class:`Results` (a ``variant`` dim of length 1)."""
+    report = simulate_report(str(model), out_dir, force)
+    return report.results
+
+
+def simulate_report(model: str, out_dir: str | os.PathLike[str] | None = None, force: bool = True) -> RunReport:
+    lm = load_model(model)
+    plan = plan_from_model(lm)
+    _refuse_fixed_dt(plan, lm.doc)
+    out = Path(out_dir) if out_dir else default_out(plan.name)
+    return run_plan(plan, out, force=force, progress=False)
+
+
+def _refuse_fixed_dt(plan: Plan, doc: Any) -> None:
+    """A single model with a fixed ``dt`` above the critical step is invalid input (exit 2)."""
+    if plan.topology.time_step_mode != "dt":
+        return
+    batch, steps = build_batch(plan.topology, plan.params(0, 1), plan.interval)
+    if steps.refused[0]:
+        n, s = int(steps.control_node[0]), int(steps.control_spring[0])
+        ctrl = f"node {plan.topology.node_ids[n]}" + (f", spring {plan.topology.spring_ids[s]}" if s >= 0 else "")
+        dt = plan.base[plan.topology.blocks["time_step"].start]
+        raise InputError([Problem(doc.file, doc.line_of(("time_step", "dt")), "time_step.dt",
+                                  f"dt={dt:.6g} is above the critical step dt_crit={steps.dt_crit[0]:.6g} "
+                                  f"(controlled by {ctrl}); use a smaller dt or safety_factor")])  # fmt: skip
+
+
+def remove_tree(path: Path) -> None:
+    shutil.rmtree(path, ignore_errors=True)
