@@ -1,0 +1,59 @@
+"""Shared test helpers: run a model given as YAML text or a dict, with either kernel."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from crashstudy.batch import build_batch
+from crashstudy.kernel.output import KernelOutput
+from crashstudy.schema import parse_model
+from crashstudy.study import Plan, plan_from_model
+from crashstudy.yamlio import loads_yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDIES = ROOT / "studies"
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # for `import reference_scipy`
+
+
+def model_plan(model: str | dict[str, Any]) -> Plan:
+    """A one-variant plan from YAML text or a plain dict (validated like a file)."""
+    text = model if isinstance(model, str) else yaml.safe_dump(model, sort_keys=False)
+    return plan_from_model(parse_model(loads_yaml(text, file="<test model>")))
+
+
+def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: dict[str, list[float]] | None = None
+              ) -> tuple[KernelOutput, Any, Plan]:  # fmt: skip
+    """Run a model (optionally with axis values per variant: {path: [v0, v1, ...]}).
+
+    Returns (kernel output, batch, plan); histories follow the model's ``output.histories``.
+    """
+    from crashstudy.compiler import apply_axis
+    from crashstudy.runner import run_kernel
+
+    plan = model_plan(model)
+    topo = plan.topology
+    n = len(next(iter(variants.values()))) if variants else 1
+    P = np.repeat(plan.base[:, None], n, axis=1)
+    for path, vals in (variants or {}).items():
+        apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
+    batch, _ = build_batch(topo, P, plan.interval)
+    out = run_kernel(batch, topo.histories, plan.n_out, kernel)
+    return out, batch, plan
+
+
+def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """Run the installed command line in a subprocess (as a user would)."""
+    return subprocess.run([sys.executable, "-m", "crashstudy.cli", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=600)  # fmt: skip
+
+
+@pytest.fixture
+def cli():
+    return run_cli
