@@ -34,9 +34,9 @@ class InProcess:
 
 
 def _limit_threads(n: int) -> None:
-    import numba
+    from crashstudy.kernel.compiled import set_threads
 
-    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
+    set_threads(n)
 
 
 def _call_limited(n_threads: int, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:

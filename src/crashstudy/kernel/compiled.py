@@ -1,7 +1,8 @@
 """The compiled (numba) kernel: the reference step of :mod:`crashstudy.kernel.reference`, with the
 loop over variants innermost.
 
-Variants are cut into blocks of at most ``BLOCK`` columns; blocks run in parallel (``prange``) and
+Variants are cut into blocks of at most ``BLOCK`` columns; blocks run in parallel on a thread pool
+(the compiled function releases the GIL; a ``parallel=True`` kernel took minutes to compile) and
 each block advances all its variants through time together, so the innermost loops run over
 contiguous variant columns and the CPU works on several variants per instruction. Every variant
 keeps its own step ``dt``, so its result does not depend on which block it lands in.
@@ -12,6 +13,9 @@ are none, no history writes when no history is kept.
 """
 
 from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numba as nb
 import numpy as np
@@ -24,10 +28,20 @@ from crashstudy.kernel.scalar import curve_at, general_nonlinear, time_curve_at
 
 BLOCK = 256
 NSTATE = 8
+_THREADS = [os.cpu_count() or 1]
 
 
-@nb.njit(parallel=True, cache=True, nogil=True)
-def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_curve, pm_node, pm_dir, pm_kind,
+def set_threads(n: int) -> None:
+    """Threads the compiled kernel uses (default: every core)."""
+    _THREADS[0] = max(1, int(n))
+
+
+def get_threads() -> int:
+    return _THREADS[0]
+
+
+@nb.njit(cache=True, nogil=True)
+def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_curve, pm_node, pm_dir, pm_kind,
          pm_curve, wall_nodes, mass, inv_mass, x0, v0, length0, sign, kpar, yield_t, yield_c, cx, cy, cds, cs0,
          cs1, gravity, load_force, pm_scale, wall_point, wall_normal, dt, n_steps, out_every, ke_fraction,
          min_time, invalid, rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, h_wall,
@@ -36,6 +50,8 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
     N = x0.shape[0]
     D = x0.shape[1]
     S = si.shape[0]
+    K = cx.shape[0]
+    C = cs0.shape[0]
     W = wall_nodes.shape[0]
     NL = load_node.shape[0]
     NP = pm_node.shape[0]
@@ -52,10 +68,48 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
     any_hist = False
     for h in range(rec_mask.shape[0]):
         any_hist = any_hist or rec_mask[h]
-    nblocks = starts.shape[0] - 1
-    for bi in nb.prange(nblocks):
+    has_term = False
+    for q in range(ke_fraction.shape[0]):
+        if ke_fraction[q] > 0.0:
+            has_term = True
+    for bi in range(b_lo, b_hi):
         lo = starts[bi]
         B = starts[bi + 1] - lo
+        # block-local copies of the per-variant inputs (contiguous, cache-resident)
+        m_b = np.empty((N, B))
+        im_b = np.empty((N, D, B))
+        x0_b = np.empty((N, D, B))
+        sg_b = np.empty((S, B))
+        l0_b = np.empty((S, B))
+        kp_b = np.empty((S, B))
+        cx_b = np.empty((K, B))
+        cy_b = np.empty((K, B))
+        ds_b = np.empty((K, B))
+        s0_b = np.empty((C, B))
+        dt_b = np.empty(B)
+        for w in range(B):
+            dt_b[w] = dt[lo + w]
+        for n_ in range(N):
+            for w in range(B):
+                m_b[n_, w] = mass[n_, lo + w]
+            for d in range(D):
+                for w in range(B):
+                    im_b[n_, d, w] = inv_mass[n_, d, lo + w]
+                    x0_b[n_, d, w] = x0[n_, d, lo + w]
+        for s in range(S):
+            for w in range(B):
+                sg_b[s, w] = sign[s, lo + w]
+                l0_b[s, w] = length0[s, lo + w]
+                kp_b[s, w] = kpar[s, lo + w]
+        for k in range(K):
+            for w in range(B):
+                cx_b[k, w] = cx[k, lo + w]
+                cy_b[k, w] = cy[k, lo + w]
+                ds_b[k, w] = cds[k, lo + w]
+        for c in range(C):
+            for w in range(B):
+                s0_b[c, w] = cs0[c, lo + w]
+        # state
         x = np.empty((N, D, B))
         v = np.empty((N, D, B))
         vnew = np.empty((N, D, B))
@@ -69,6 +123,10 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
         f_prev = np.zeros((S, B))
         e_prev = np.zeros((S, B))
         ie = np.zeros((S, B))
+        pf = np.zeros((S, B))
+        mc = np.zeros((S, B))
+        pacc = np.zeros((N, B))
+        pwall = np.zeros((W, B))
         e_tmp = np.empty(B)
         ed_tmp = np.empty(B)
         F_tmp = np.empty(B)
@@ -80,10 +138,13 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
         wmax = np.zeros(B)
         ke0 = np.zeros(B)
         ke = np.zeros(B)
+        ie_tot = np.zeros(B)
         err = np.zeros(B)
+        bal = np.zeros(B)
         wforce = np.zeros((W, B))
         act = np.empty(B, dtype=np.bool_)
         nst = np.empty(B, dtype=np.int64)
+        next_rec = np.zeros(B, dtype=np.int64)
         st_ok = np.zeros(B, dtype=np.int64)
         nmax = -1
         for w in range(B):
@@ -98,42 +159,47 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
         for n_ in range(N):
             for d in range(D):
                 for w in range(B):
-                    x[n_, d, w] = x0[n_, d, lo + w]
+                    x[n_, d, w] = x0_b[n_, d, w]
                     v[n_, d, w] = v0[n_, d, lo + w]
-                    ke0[w] += 0.5 * mass[n_, lo + w] * v0[n_, d, lo + w] * v0[n_, d, lo + w]
+                    ke0[w] += 0.5 * m_b[n_, w] * v[n_, d, w] * v[n_, d, w]
 
         for n in range(nmax + 1):
             anyact = False
             for w in range(B):
-                act[w] = n <= nst[w] and st_ok[w] == 0
-                anyact = anyact or act[w]
+                a_ = n <= nst[w] and st_ok[w] == 0
+                act[w] = a_
+                anyact = anyact or a_
             if not anyact:
                 break
+            h = 1.0 if n > 0 else 0.5
             f[:] = 0.0
-            for w in range(B):
-                edot_min[w] = np.inf
-                crushed[w] = -1
+            if D > 1:
+                for w in range(B):
+                    crushed[w] = -1
+            if has_term:
+                for w in range(B):
+                    edot_min[w] = np.inf
             for s in range(S):
                 i = si[s]
                 j = sj[s]
                 kind = material[s]
                 if D == 1:
                     for w in range(B):
-                        q = lo + w
-                        sg = sign[s, q]
-                        e_tmp[w] = sg * ((x[j, 0, w] - x0[j, 0, q]) - (x[i, 0, w] - x0[i, 0, q]))
-                        ed_tmp[w] = sg * (v[j, 0, w] - v[i, 0, w])
+                        sg = sg_b[s, w]
+                        e_tmp[w] = sg * ((x[j, 0, w] - x0_b[j, 0, w]) - (x[i, 0, w] - x0_b[i, 0, w]))
                         ax_tmp[0, w] = sg
+                    if kind == DAMPER or has_term:
+                        for w in range(B):
+                            ed_tmp[w] = sg_b[s, w] * (v[j, 0, w] - v[i, 0, w])
                 else:
                     for w in range(B):
-                        q = lo + w
                         ln2 = 0.0
                         for d in range(D):
                             dd = x[j, d, w] - x[i, d, w]
                             ax_tmp[d, w] = dd
                             ln2 += dd * dd
                         ln = np.sqrt(ln2)
-                        gone = ln <= TINY_LENGTH * length0[s, q]
+                        gone = ln <= TINY_LENGTH * l0_b[s, w]
                         if gone and crushed[w] < 0:
                             crushed[w] = s
                         dn = 1.0 if gone else ln
@@ -141,46 +207,34 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
                         for d in range(D):
                             ax_tmp[d, w] = ax_tmp[d, w] / dn
                             edot += ax_tmp[d, w] * (v[j, d, w] - v[i, d, w])
-                        e_tmp[w] = ln - length0[s, q]
+                        e_tmp[w] = ln - l0_b[s, w]
                         ed_tmp[w] = edot
                 if kind == LINEAR:
                     for w in range(B):
-                        F_tmp[w] = kpar[s, lo + w] * e_tmp[w]
+                        F_tmp[w] = kp_b[s, w] * e_tmp[w]
                 elif kind == DAMPER:
                     for w in range(B):
-                        F_tmp[w] = kpar[s, lo + w] * ed_tmp[w]
-                elif kind == NONLINEAR:
+                        F_tmp[w] = kp_b[s, w] * ed_tmp[w]
+                elif kind == NONLINEAR or kind == CRUSH:
                     c = curve_a[s]
                     a0 = off[c]
                     b0 = off[c + 1]
                     for w in range(B):
-                        q = lo + w
-                        F_tmp[w] = cy[a0, q] + cs0[c, q] * (e_tmp[w] - cx[a0, q])
+                        F_tmp[w] = cy_b[a0, w] + s0_b[c, w] * (e_tmp[w] - cx_b[a0, w])
                     for k in range(a0 + 1, b0 - 1):
                         for w in range(B):
-                            q = lo + w
-                            F_tmp[w] = F_tmp[w] + cds[k, q] * max(0.0, e_tmp[w] - cx[k, q])
-                elif kind == CRUSH:
-                    c = curve_a[s]
-                    a0 = off[c]
-                    b0 = off[c + 1]
-                    for w in range(B):
-                        q = lo + w
-                        F_tmp[w] = cy[a0, q] + cs0[c, q] * (e_tmp[w] - cx[a0, q])
-                    for k in range(a0 + 1, b0 - 1):
+                            F_tmp[w] = F_tmp[w] + ds_b[k, w] * max(0.0, e_tmp[w] - cx_b[k, w])
+                    if kind == CRUSH:
                         for w in range(B):
-                            q = lo + w
-                            F_tmp[w] = F_tmp[w] + cds[k, q] * max(0.0, e_tmp[w] - cx[k, q])
-                    for w in range(B):
-                        e = e_tmp[w]
-                        emin = state[s, 0, w]
-                        fstar = state[s, 1, w]
-                        on = e <= emin
-                        f_load = min(0.0, F_tmp[w])
-                        f_unl = min(0.0, fstar + kpar[s, lo + w] * (e - emin))
-                        F_tmp[w] = f_load if on else f_unl
-                        state[s, 0, w] = e if on else emin
-                        state[s, 1, w] = f_load if on else fstar
+                            e = e_tmp[w]
+                            emin = state[s, 0, w]
+                            fstar = state[s, 1, w]
+                            on = e <= emin
+                            f_load = min(0.0, F_tmp[w])
+                            f_unl = min(0.0, fstar + kp_b[s, w] * (e - emin))
+                            F_tmp[w] = f_load if on else f_unl
+                            state[s, 0, w] = e if on else emin
+                            state[s, 1, w] = f_load if on else fstar
                 else:  # GENERAL
                     for w in range(B):
                         F_tmp[w] = general_nonlinear(e_tmp[w], state[s], w, curve_a[s], curve_b[s], yield_t[s, lo + w],
@@ -191,62 +245,66 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
                         f[i, d, w] += fa
                         f[j, d, w] -= fa
                 for w in range(B):
-                    q = lo + w
                     F = F_tmp[w]
                     e = e_tmp[w]
+                    a_ = act[w]
+                    die = 0.5 * (F + f_prev[s, w]) * (e - e_prev[s, w]) if n > 0 else 0.0
+                    ie[s, w] = ie[s, w] + die if a_ else ie[s, w]
+                    pf[s, w] = max(pf[s, w], abs(F)) if a_ else pf[s, w]
+                    mc[s, w] = max(mc[s, w], -e) if a_ else mc[s, w]
                     forces[s, w] = F
                     elong[s, w] = e
-                    edot_min[w] = min(edot_min[w], ed_tmp[w])
-                    if act[w]:
-                        if n > 0:
-                            ie[s, w] += 0.5 * (F + f_prev[s, w]) * (e - e_prev[s, w])
-                        peak_force[s, q] = max(peak_force[s, q], abs(F))
-                        max_crush[s, q] = max(max_crush[s, q], -e)
                     f_prev[s, w] = F
                     e_prev[s, w] = e
+                if has_term:
+                    for w in range(B):
+                        edot_min[w] = min(edot_min[w], ed_tmp[w])
 
-            # external forces and accelerations
-            for n_ in range(N):
-                for d in range(D):
-                    for w in range(B):
-                        q = lo + w
-                        fe = mass[n_, q] * gravity[d, q] if has_gravity else 0.0
-                        fext[n_, d, w] = fe
-            for k in range(NL):
-                c = load_curve[k]
-                p = load_node[k]
-                for w in range(B):
-                    q = lo + w
-                    scale = time_curve_at(c, n * dt[q], q, cx, cy, cds, cs0, off) if c >= 0 else 1.0
+            # external forces, accelerations, velocities
+            if not no_ext:
+                for n_ in range(N):
                     for d in range(D):
-                        fext[p, d, w] += load_force[k, d, q] * scale
-            for n_ in range(N):
-                for d in range(D):
+                        for w in range(B):
+                            fext[n_, d, w] = m_b[n_, w] * gravity[d, lo + w] if has_gravity else 0.0
+                for k in range(NL):
+                    c = load_curve[k]
+                    p = load_node[k]
                     for w in range(B):
                         q = lo + w
-                        ftot = f[n_, d, w] + fext[n_, d, w]
-                        a = ftot * inv_mass[n_, d, q]
-                        acc[n_, d, w] = a
-                        dtn = dt[q] if n > 0 else 0.5 * dt[q]
-                        vnew[n_, d, w] = v[n_, d, w] + dtn * a
+                        scale = time_curve_at(c, n * dt_b[w], q, cx, cy, cds, cs0, off) if c >= 0 else 1.0
+                        for d in range(D):
+                            fext[p, d, w] += load_force[k, d, q] * scale
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            a = (f[n_, d, w] + fext[n_, d, w]) * im_b[n_, d, w]
+                            acc[n_, d, w] = a
+                            vnew[n_, d, w] = v[n_, d, w] + (h * dt_b[w]) * a
+            else:
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            a = (f[n_, d, w] + 0.0) * im_b[n_, d, w]
+                            acc[n_, d, w] = a
+                            vnew[n_, d, w] = v[n_, d, w] + (h * dt_b[w]) * a
             for k in range(NP):
                 p = pm_node[k]
                 d = pm_dir[k]
                 c = pm_curve[k]
                 for w in range(B):
                     q = lo + w
-                    t = n * dt[q]
-                    dtn = dt[q] if n > 0 else 0.5 * dt[q]
+                    t = n * dt_b[w]
+                    dtn = h * dt_b[w]
                     if pm_kind[k] == PM_DISPLACEMENT:
-                        target = x0[p, d, q] + pm_scale[k, q] * time_curve_at(c, t + dt[q], q, cx, cy, cds, cs0, off)
-                        vnew[p, d, w] = (target - x[p, d, w]) / dt[q]
+                        target = x0_b[p, d, w] + pm_scale[k, q] * time_curve_at(c, t + dt_b[w], q, cx, cy, cds, cs0, off)
+                        vnew[p, d, w] = (target - x[p, d, w]) / dt_b[w]
                     elif pm_kind[k] == PM_ACCELERATION:
                         vnew[p, d, w] = v[p, d, w] + dtn * pm_scale[k, q] * time_curve_at(c, t, q, cx, cy, cds, cs0, off)
                     else:
-                        vnew[p, d, w] = pm_scale[k, q] * time_curve_at(c, t + 0.5 * dt[q], q, cx, cy, cds, cs0, off)
+                        vnew[p, d, w] = pm_scale[k, q] * time_curve_at(c, t + 0.5 * dt_b[w], q, cx, cy, cds, cs0, off)
                     acc[p, d, w] = (vnew[p, d, w] - v[p, d, w]) / dtn
                     ftot = f[p, d, w] + fext[p, d, w]
-                    fext[p, d, w] += mass[p, q] * acc[p, d, w] - ftot
+                    fext[p, d, w] += m_b[p, w] * acc[p, d, w] - ftot
             if W > 0:
                 wforce[:] = 0.0
             for wl in range(W):
@@ -261,66 +319,89 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
                         for d in range(D):
                             nr = wall_normal[wl, d, q]
                             vn += vnew[n_, d, w] * nr
-                            dist += (x[n_, d, w] + dt[q] * vnew[n_, d, w] - wall_point[wl, d, q]) * nr
+                            dist += (x[n_, d, w] + dt_b[w] * vnew[n_, d, w] - wall_point[wl, d, q]) * nr
                             vold_n += v[n_, d, w] * nr
                         if dist < 0.0 and vn < 0.0:
                             for d in range(D):
                                 vnew[n_, d, w] = vnew[n_, d, w] - vn * wall_normal[wl, d, q] * free[n_, d]
                             if act[w]:
-                                wall_e[w] += 0.5 * mass[n_, q] * vn * vold_n
-                            wforce[wl, w] += mass[n_, q] * abs(vn) / dt[q]
+                                wall_e[w] += 0.5 * m_b[n_, w] * vn * vold_n
+                            wforce[wl, w] += m_b[n_, w] * abs(vn) / dt_b[w]
 
-            # energies, summaries, failures, histories, termination
-            for w in range(B):
-                q = lo + w
-                if not act[w]:
-                    continue
-                if n == 0:
-                    kw = ke0[w]
-                else:
-                    kw = 0.0
-                    wk = 0.0
+            # energies (sums over nodes/springs with the variant loop innermost)
+            if n == 0:
+                for w in range(B):
+                    ke[w] = ke0[w]
+            else:
+                for w in range(B):
+                    ke[w] = 0.0
+                    bal[w] = 0.0
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            ke[w] += 0.5 * m_b[n_, w] * v[n_, d, w] * vnew[n_, d, w]
+                if not no_ext:
                     for n_ in range(N):
                         for d in range(D):
-                            kw += 0.5 * mass[n_, q] * v[n_, d, w] * vnew[n_, d, w]
-                            wk += 0.5 * (fext[n_, d, w] + fext_prev[n_, d, w]) * v[n_, d, w]
-                    work[w] += wk * dt[q]
-                ke[w] = kw
+                            for w in range(B):
+                                bal[w] += 0.5 * (fext[n_, d, w] + fext_prev[n_, d, w]) * v[n_, d, w]
+                    for w in range(B):
+                        dw = bal[w] * dt_b[w]
+                        work[w] = work[w] + dw if act[w] else work[w]
+            for w in range(B):
+                ie_tot[w] = 0.0
+            for s in range(S):
+                for w in range(B):
+                    ie_tot[w] += ie[s, w]
+            anybad = False
+            for w in range(B):
+                a_ = act[w]
                 wmax[w] = max(wmax[w], abs(work[w]))
-                ie_tot = 0.0
-                for s in range(S):
-                    ie_tot += ie[s, w]
-                bal = abs(kw + ie_tot + wall_e[w] - ke0[w] - work[w])
-                err[w] = max(err[w], bal)
-                for n_ in range(N):
+                b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - ke0[w] - work[w])
+                bal[w] = b_
+                err[w] = max(err[w], b_) if a_ else err[w]
+                bad = a_ and not (b_ < np.inf)
+                anybad = anybad or bad
+            for n_ in range(N):
+                for w in range(B):
                     a2 = 0.0
                     for d in range(D):
                         a2 += acc[n_, d, w] * acc[n_, d, w]
-                    peak_acc[n_, q] = max(peak_acc[n_, q], np.sqrt(a2))
-                for wl in range(W):
-                    peak_wall[wl, q] = max(peak_wall[wl, q], wforce[wl, w])
-                t = n * dt[q]
-                if not np.isfinite(bal):
-                    st_ok[w] = UNSTABLE
-                    fail_time[q] = t
-                    act[w] = False
-                    continue
-                if crushed[w] >= 0:
-                    st_ok[w] = CRUSHED_TO_ZERO
-                    fail_item[q] = crushed[w]
-                    fail_time[q] = t
-                    act[w] = False
-                    continue
-                if any_hist and n % out_every[q] == 0:
+                    pacc[n_, w] = max(pacc[n_, w], np.sqrt(a2)) if act[w] else pacc[n_, w]
+            for wl in range(W):
+                for w in range(B):
+                    pwall[wl, w] = max(pwall[wl, w], wforce[wl, w]) if act[w] else pwall[wl, w]
+            if D > 1:
+                for w in range(B):
+                    anybad = anybad or (act[w] and crushed[w] >= 0)
+            if anybad:
+                for w in range(B):
+                    if not act[w]:
+                        continue
+                    if not (bal[w] < np.inf):
+                        st_ok[w] = UNSTABLE
+                        fail_time[lo + w] = n * dt_b[w]
+                        act[w] = False
+                    elif D > 1 and crushed[w] >= 0:
+                        st_ok[w] = CRUSHED_TO_ZERO
+                        fail_item[lo + w] = crushed[w]
+                        fail_time[lo + w] = n * dt_b[w]
+                        act[w] = False
+            if any_hist:
+                for w in range(B):
+                    q = lo + w
+                    if not (act[w] and n == next_rec[w]):
+                        continue
                     r = n // out_every[q]
+                    next_rec[w] = n + out_every[q]
                     for n_ in range(N):
                         for d in range(D):
                             if rec_mask[0]:
                                 h_pos[r, n_, d, q] = x[n_, d, w]
                             if rec_mask[1]:
-                                h_disp[r, n_, d, q] = x[n_, d, w] - x0[n_, d, q]
+                                h_disp[r, n_, d, q] = x[n_, d, w] - x0_b[n_, d, w]
                             if rec_mask[2]:
-                                h_vel[r, n_, d, q] = 0.5 * (v[n_, d, w] + vnew[n_, d, w]) if n > 0 else v0[n_, d, q]
+                                h_vel[r, n_, d, q] = 0.5 * (v[n_, d, w] + vnew[n_, d, w]) if n > 0 else v[n_, d, w]
                             if rec_mask[3]:
                                 h_acc[r, n_, d, q] = acc[n_, d, w]
                     for s in range(S):
@@ -328,45 +409,65 @@ def _run(starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_
                             h_force[r, s, q] = forces[s, w]
                         if rec_mask[5]:
                             h_elong[r, s, q] = elong[s, w]
-                    h_energy[r, 0, q] = kw
-                    h_energy[r, 1, q] = ie_tot
-                    h_energy[r, 2, q] = work[w]
-                    h_energy[r, 3, q] = wall_e[w]
+                    if rec_mask[6]:
+                        h_energy[r, 0, q] = ke[w]
+                        h_energy[r, 1, q] = ie_tot[w]
+                        h_energy[r, 2, q] = work[w]
+                        h_energy[r, 3, q] = wall_e[w]
                     for wl in range(W):
                         if rec_mask[10]:
                             h_wall[r, wl, q] = wforce[wl, w]
-                t_end[q] = t
-                last = n == nst[w]
-                if ke_fraction[q] > 0.0 and n > 0 and t >= min_time[q]:
+            if has_term and n > 0:
+                for w in range(B):
+                    q = lo + w
+                    t = n * dt_b[w]
+                    if not act[w] or ke_fraction[q] <= 0.0 or t < min_time[q]:
+                        continue
                     fsum = 0.0
                     psum = 0.0
                     for s in range(S):
                         fsum += abs(forces[s, w])
-                        psum += peak_force[s, q]
+                        psum += pf[s, w]
                     small_f = fsum <= ke_fraction[q] * psum
-                    small_ke = kw <= ke_fraction[q] * (ke0[w] + wmax[w])
+                    small_ke = ke[w] <= ke_fraction[q] * (ke0[w] + wmax[w])
                     opening = edot_min[w] >= 0.0 and no_ext
                     if small_f and (small_ke or opening):
                         nst[w] = n
-                        last = True
-                if last:
-                    final_energy[0, q] = kw
-                    final_energy[1, q] = ie_tot
+            for w in range(B):
+                if act[w]:
+                    t_end[lo + w] = n * dt_b[w]
+                if act[w] and n == nst[w]:
+                    q = lo + w
+                    final_energy[0, q] = ke[w]
+                    final_energy[1, q] = ie_tot[w]
                     final_energy[2, q] = work[w]
                     final_energy[3, q] = wall_e[w]
             for n_ in range(N):
                 for d in range(D):
                     for w in range(B):
-                        if act[w]:
-                            x[n_, d, w] = x[n_, d, w] + dt[lo + w] * vnew[n_, d, w]
-                            v[n_, d, w] = vnew[n_, d, w]
-                        fext_prev[n_, d, w] = fext[n_, d, w]
+                        a_ = act[w]
+                        x[n_, d, w] = x[n_, d, w] + dt_b[w] * vnew[n_, d, w] if a_ else x[n_, d, w]
+                        v[n_, d, w] = vnew[n_, d, w] if a_ else v[n_, d, w]
+            if not no_ext:
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            fext_prev[n_, d, w] = fext[n_, d, w]
         for w in range(B):
             q = lo + w
             status[q] = st_ok[w]
-            for s in range(S):
-                absorbed[s, q] = ie[s, w]
             energy_error[q] = err[w] / max(ke0[w] + wmax[w], 1e-300)
+        for s in range(S):
+            for w in range(B):
+                absorbed[s, lo + w] = ie[s, w]
+                peak_force[s, lo + w] = pf[s, w]
+                max_crush[s, lo + w] = mc[s, w]
+        for n_ in range(N):
+            for w in range(B):
+                peak_acc[n_, lo + w] = pacc[n_, w]
+        for wl in range(W):
+            for w in range(B):
+                peak_wall[wl, lo + w] = pwall[wl, w]
 
 
 def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK) -> KernelOutput:
@@ -389,7 +490,7 @@ def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = 
     starts = np.arange(0, V + block, block)
     starts[-1] = V
     starts = np.unique(starts).astype(np.int64)
-    _run(starts, b.spring_i, b.spring_j, b.material, b.curve_a, b.curve_b, b.curve_off, b.free, b.load_node,
+    args = (starts, b.spring_i, b.spring_j, b.material, b.curve_a, b.curve_b, b.curve_off, b.free, b.load_node,
          b.load_curve, b.pm_node, b.pm_dir, b.pm_kind, b.pm_curve, b.wall_nodes, b.mass, b.inv_mass, b.x0, b.v0,
          b.length0, b.sign, b.kpar, b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.gravity,
          b.load_force, b.pm_scale, b.wall_point, b.wall_normal, b.dt, b.n_steps, b.out_every, b.ke_fraction,
@@ -399,6 +500,13 @@ def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = 
          h_energy, buf("wall_force", (T, W, V)),
          out.status, out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
          out.peak_acceleration, out.peak_wall_force, out.energy_error, out.final_energy)  # fmt: skip
+    nblocks = len(starts) - 1
+    threads = min(get_threads(), nblocks)
+    if threads <= 1:
+        _run(0, nblocks, *args)
+    else:
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(lambda bi: _run(bi, bi + 1, *args), range(nblocks)))
     for k, name in enumerate(energies):
         if name in out.histories:
             out.histories[name][:] = h_energy[:, k, :]
