@@ -1,0 +1,377 @@
+"""Every kind of invalid input file exits with code 2 and a short message naming file, line and field.
+
+Each case edits a small valid model (``BASE``, line numbers below) and runs ``crashstudy validate``
+and ``crashstudy simulate -o DIR`` on it. Both must exit 2 and print to stderr, without a traceback
+and on less than 40 lines, a problem line ``<file>:<line>: <field path>: <message>`` where the line
+is the exact line of the offending text, the field path is the dotted path of the offending field,
+and the message says what was expected; ``simulate`` must leave its output folder empty.
+
+Most checks call :func:`crashstudy.cli.main` in-process (fast); a few run the real command line in a
+subprocess, as a user would.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
+    from conftest import STUDIES, run_cli
+except ImportError:  # ... or as a package
+    from tests.conftest import STUDIES, run_cli  # type: ignore[no-redef]
+from crashstudy.cli import main
+
+BASE = """\
+name: bad-input-base
+units: SI
+curves:
+  load: {x: [-0.1, 0.0, 0.1], y: [-1000.0, 0.0, 1000.0]}
+  unload: {x: [-0.1, 0.0, 0.1], y: [-2000.0, 0.0, 2000.0]}
+  pulse: {x: [0.0, 0.01, 0.02], y: [0.0, 1.0, 0.0]}
+nodes:
+  ground: {position: [0.0], fixed: true}
+  mass: {position: [1.0], mass: 10.0}
+springs:
+  s1:
+    nodes: [ground, mass]
+    material: {type: linear_elastic, stiffness: 1.0e5}
+initial_velocity: {mass: [-1.0]}
+end_time: 0.01
+time_step: {safety_factor: 0.5}
+output: {interval: 1.0e-4}
+"""
+# line:  1 name, 2 units, 3 curves, 4 load, 5 unload, 6 pulse, 7 nodes, 8 ground, 9 mass, 10 springs,
+#        11 s1, 12 nodes, 13 material, 14 initial_velocity, 15 end_time, 16 time_step, 17 output
+
+GN = "material: {type: general_nonlinear, loading: load, unloading: unload}"
+
+
+def edit(*pairs: tuple[str, str]) -> str:
+    """BASE with each ``old`` replaced once by ``new`` (``old`` must be present)."""
+    text = BASE
+    for old, new in pairs:
+        assert text.count(old) >= 1, old
+        text = text.replace(old, new, 1)
+    return text
+
+
+@dataclass
+class Case:
+    id: str
+    text: str
+    line: int | None  # exact line of the problem (None: the file as a whole)
+    field: str  # dotted field path ("" when the problem has none, e.g. YAML syntax)
+    expect: list[str]  # what the message must say (what was expected)
+    more: list[tuple[int, str, str]] = field(default_factory=list)  # further (line, field, text) problems
+
+
+ALIAS_BOMB = "".join(
+    f"{chr(97 + k)}: &{chr(97 + k)} [" + ", ".join(["x" if k == 0 else f"*{chr(96 + k)}"] * 10) + "]\n"
+    for k in range(9)
+)  # a: 10 values, b: 10 x a, ... i: 10^9 values once expanded; the limit (10^6) is passed on line 6 (f)
+
+CASES = [
+    Case("yaml-syntax-error", edit(("end_time: 0.01", "end_time: 0.01: 0.02")), 15, "",
+         ["invalid YAML: mapping values are not allowed here"]),
+    # an unclosed brace is detected on the next line; the message names both lines
+    Case("yaml-unclosed-flow-mapping", edit(("mass: 10.0}", "mass: 10.0")), 10, "",
+         ["invalid YAML", "expected ',' or '}'", "flow mapping at line 9"]),
+    Case("tab-indentation", edit(("    nodes: [ground, mass]", "\tnodes: [ground, mass]")), 12, "",
+         ["invalid YAML", "character '\\t'"]),
+    Case("duplicate-node-id", edit(("  mass: {position: [1.0], mass: 10.0}\n",
+                                    "  mass: {position: [1.0], mass: 10.0}\n  mass: {position: [2.0], mass: 5.0}\n")),
+         10, "nodes.mass", ["duplicate key 'mass' (first at line 9)"]),
+    Case("duplicate-key-in-mapping", edit(("    nodes: [ground, mass]\n", "    nodes: [ground, mass]\n    nodes: [mass, ground]\n")),
+         13, "springs.s1.nodes", ["duplicate key 'nodes' (first at line 12)"]),
+    Case("unknown-top-level-key", edit(("units: SI", "unit: SI")), 2, "unit",
+         ["unknown key 'unit'; did you mean 'units'?"]),
+    Case("misspelled-material-key", edit(("stiffness: 1.0e5", "stifness: 1.0e5")), 13, "springs.s1.material.stifness",
+         ["unknown key 'stifness'; did you mean 'stiffness'?"],
+         [(13, "springs.s1.material.stiffness", "missing required field 'stiffness'")]),
+    Case("unknown-material-type", edit(("linear_elastic", "linear_plastic")), 13, "springs.s1.material",
+         ["material type 'linear_plastic' is unknown; expected one of 'linear_elastic', 'nonlinear_elastic', "
+          "'general_nonlinear', 'crush', 'damper'"]),
+    Case("spring-names-unknown-node", edit(("[ground, mass]", "[ground, mas]")), 12, "springs.s1.nodes.1",
+         ["unknown node 'mas'"]),
+    Case("spring-same-node-twice", edit(("[ground, mass]", "[mass, mass]")), 12, "springs.s1.nodes",
+         ["a spring joins two different nodes"]),
+    Case("spring-zero-initial-length", edit(("position: [1.0]", "position: [0.0]")), 12, "springs.s1.nodes",
+         ["nodes 'ground' and 'mass' are at the same position", "non-zero initial length"]),
+    Case("curve-x-not-increasing", edit(("x: [-0.1, 0.0, 0.1], y: [-1000.0", "x: [-0.1, 0.1, 0.0], y: [-1000.0")),
+         4, "curves.load", ["x must be strictly increasing (found 0.1 followed by 0.0)"]),
+    Case("curve-x-y-length-mismatch", edit(("y: [-2000.0, 0.0, 2000.0]", "y: [-2000.0, 0.0]")), 5, "curves.unload",
+         ["x and y must have the same number of points (x has 3, y has 2)"]),
+    Case("curve-with-one-point", edit(("pulse: {x: [0.0, 0.01, 0.02], y: [0.0, 1.0, 0.0]}", "pulse: {x: [0.0], y: [0.0]}")),
+         6, "curves.pulse.x", ["at least 2 items"], [(6, "curves.pulse.y", "at least 2 items")]),
+    Case("loading-curve-misses-origin",
+         edit(("y: [-1000.0, 0.0, 1000.0]", "y: [-900.0, 100.0, 1100.0]"),
+              ("material: {type: linear_elastic, stiffness: 1.0e5}", GN)),
+         13, "springs.s1.material.loading", ["the loading curve 'load' must pass through the origin (its force at e=0 is 100)"]),
+    Case("unloading-curve-not-increasing",
+         edit(("y: [-2000.0, 0.0, 2000.0]", "y: [-2000.0, 0.0, -5.0]"),
+              ("material: {type: linear_elastic, stiffness: 1.0e5}", GN)),
+         13, "springs.s1.material.unloading", ["the unloading curve 'unload' must be increasing"]),
+    Case("negative-mass", edit(("mass: 10.0", "mass: -10.0")), 9, "nodes.mass.mass",
+         ["expected greater than 0 (got -10.0)"]),
+    Case("missing-mass-on-free-node", edit((", mass: 10.0}", "}")), 9, "nodes.mass",
+         ["a node that is not fixed in every direction needs 'mass' > 0"]),
+    Case("string-where-number-needed", edit(("mass: 10.0", "mass: heavy")), 9, "nodes.mass.mass",
+         ["expected a valid number (got 'heavy')"]),
+    Case("nan-value", edit(("stiffness: 1.0e5", "stiffness: .nan")), 13, "springs.s1.material.stiffness",
+         ["expected a finite number (got nan)"]),
+    Case("inf-value", edit(("end_time: 0.01", "end_time: .inf")), 15, "end_time",
+         ["expected a finite number (got inf)"]),
+    Case("1d-and-2d-positions-mixed", edit(("position: [1.0]", "position: [1.0, 0.0]")), 9, "nodes.mass.position",
+         ["expected 1 coordinate(s) like the first node", "got 2"]),
+    Case("initial-velocity-component-count", edit(("{mass: [-1.0]}", "{mass: [-1.0, 0.0]}")), 14, "initial_velocity.mass",
+         ["expected 1 component(s), got 2"]),
+    Case("time-step-two-modes", edit(("{safety_factor: 0.5}", "{safety_factor: 0.5, dt: 1.0e-6}")), 16, "time_step",
+         ["give exactly one of safety_factor, dt or tolerance (got safety_factor, dt)"]),
+    Case("safety-factor-above-one", edit(("safety_factor: 0.5", "safety_factor: 1.5")), 16, "time_step.safety_factor",
+         ["expected less than or equal to 1 (got 1.5)"]),
+    Case("prescribed-direction-also-fixed",
+         edit(("end_time: 0.01", "prescribed_motion:\n  - {node: ground, quantity: displacement, direction: x, curve: pulse}\n"
+                                 "end_time: 0.01")),
+         16, "prescribed_motion.0.direction", ["node 'ground' is fixed along x: a prescribed direction must not also be fixed"]),
+    Case("unknown-curve-in-load",
+         edit(("end_time: 0.01", "loads:\n  - {node: mass, force: [100.0], curve: pluse}\nend_time: 0.01")),
+         16, "loads.0.curve", ["unknown curve 'pluse'; defined curves: ['load', 'pulse', 'unload']"]),
+    Case("python-object-tag", edit(("end_time: 0.01", "end_time: !!python/object/apply:os.system ['true']")), 15, "end_time",
+         ["unsupported tag !!python/object/apply:os.system", "expected plain data without tags"]),
+    Case("billion-laughs-aliases", ALIAS_BOMB + BASE, 6, "", ["alias bomb", "more than 1,000,000 values"]),
+    Case("100-deep-nesting", "name: deep\nnodes: " + "[" * 100 + "]" * 100 + "\n", 2, "", ["nesting deeper than 64 levels"]),
+    Case("empty-file", "", 1, "", ["expected a mapping at top level", "found an empty document"]),
+    Case("top-level-is-a-list", "- name: a\n- name: b\n", 1, "", ["expected a mapping at top level", "found a list"]),
+    Case("unknown-history-name",
+         edit(("output: {interval: 1.0e-4}", "output: {interval: 1.0e-4, histories: [spring_force, spring_forse]}")),
+         17, "output.histories", ["unknown history 'spring_forse'", "expected 'all', 'none' or names from"]),
+    Case("three-problems-at-once",
+         edit(("mass: 10.0", "mass: -10.0"), ("stiffness: 1.0e5", "stifness: 1.0e5"), ("end_time: 0.01", "end_time: zero")),
+         9, "nodes.mass.mass", ["expected greater than 0 (got -10.0)"],
+         [(13, "springs.s1.material.stifness", "did you mean 'stiffness'?"),
+          (13, "springs.s1.material.stiffness", "missing required field 'stiffness'"),
+          (15, "end_time", "expected a valid number (got 'zero')")]),
+]  # fmt: skip
+
+
+def problem_lines(err: str, path: Path) -> list[str]:
+    return [ln for ln in err.splitlines() if ln.startswith(str(path))]
+
+
+def assert_reported(err: str, path: Path, line: int | None, fld: str, expect: list[str]) -> None:
+    """``err`` has a problem line ``<path>:<line>: <field>: ...`` saying each of ``expect``."""
+    where = f"{path}:{line}:" if line is not None else f"{path}:"
+    head = f"{where} {fld}: " if fld else f"{where} "
+    hits = [ln for ln in problem_lines(err, path) if ln.startswith(head)]
+    assert hits, f"no problem line starting with {head!r} in:\n{err}"
+    assert any(all(text in ln for text in expect) for ln in hits), f"{expect} not said in {hits}"
+
+
+def assert_short_and_clean(err: str, out: str = "") -> None:
+    assert "Traceback" not in err and "Traceback" not in out
+    assert err.startswith("error: invalid input\n"), err
+    assert len(err.splitlines()) < 40
+    assert out == ""
+
+
+def cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    capsys.readouterr()
+    rc = main(list(argv))
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
+def assert_nothing_written(out_dir: Path) -> None:
+    assert not out_dir.exists() or not any(out_dir.iterdir()), sorted(out_dir.rglob("*"))
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_invalid_model_exits_2_naming_file_line_field_and_expectation(
+    case: Case, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / f"{case.id}.yaml"
+    path.write_text(case.text, encoding="utf-8")
+    out_dir = tmp_path / "results"
+    for argv in (["validate", str(path)], ["simulate", str(path), "-o", str(out_dir)]):
+        rc, out, err = cli(capsys, *argv)
+        assert rc == 2, (argv, out, err)
+        assert_short_and_clean(err, out)
+        assert_reported(err, path, case.line, case.field, case.expect)
+        for line, fld, text in case.more:
+            assert_reported(err, path, line, fld, [text])
+        assert len(problem_lines(err, path)) == 1 + len(case.more), err  # every problem once, nothing else
+    assert_nothing_written(out_dir)
+
+
+def test_missing_file_exits_2_naming_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "no-such-model.yaml"
+    for argv in (["validate", str(path)], ["simulate", str(path), "-o", str(tmp_path / "results")]):
+        rc, out, err = cli(capsys, *argv)
+        assert rc == 2
+        assert_short_and_clean(err, out)
+        assert err.splitlines()[1] == f"{path}: file not found"
+    assert_nothing_written(tmp_path / "results")
+
+
+@pytest.mark.xfail(strict=True, reason="relational checks (crashstudy.schema.checks) only run when the shape "
+                   "validation passed: a file with a shape problem and relational problems reports only the first")  # fmt: skip
+def test_shape_and_relational_problems_are_reported_together(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """SPEC 7: ``validate`` reports every problem at once: here a negative mass (a field's own
+    range), a spring naming an unknown node and a load naming an unknown curve (relations)."""
+    path = tmp_path / "mixed.yaml"
+    path.write_text(edit(("mass: 10.0", "mass: -10.0"), ("[ground, mass]", "[ground, mas]"),
+                         ("end_time: 0.01", "loads:\n  - {node: mass, force: [1.0], curve: pluse}\nend_time: 0.01")))  # fmt: skip
+    rc, out, err = cli(capsys, "validate", str(path))
+    assert rc == 2
+    assert_reported(err, path, 9, "nodes.mass.mass", ["expected greater than 0 (got -10.0)"])
+    assert_reported(err, path, 12, "springs.s1.nodes.1", ["unknown node 'mas'"])
+    assert_reported(err, path, 16, "loads.0.curve", ["unknown curve 'pluse'"])
+
+
+@pytest.mark.xfail(strict=True, reason="validate does not check a fixed dt against dt_crit: it reports "
+                   "'valid model' (exit 0) for a file that simulate refuses as invalid input (exit 2)")  # fmt: skip
+def test_validate_refuses_a_fixed_dt_above_the_critical_step_like_simulate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """k = 1e7 N/m, m = 10 kg: dt_crit = 2 / sqrt(2 k / m) = 1.41e-3 s (a little less with a safety
+    margin); dt = 5e-3 s is refused."""
+    path = tmp_path / "dt.yaml"
+    path.write_text(edit(("stiffness: 1.0e5", "stiffness: 1.0e7"), ("end_time: 0.01", "end_time: 0.05"),
+                         ("{safety_factor: 0.5}", "{dt: 5.0e-3}"), ("interval: 1.0e-4", "interval: 1.0e-2")))  # fmt: skip
+    rc, out, err = cli(capsys, "simulate", str(path), "-o", str(tmp_path / "results"))
+    assert rc == 2
+    assert_reported(err, path, 16, "time_step.dt", ["dt=0.005 is above the critical step dt_crit=0.001"])
+    assert_nothing_written(tmp_path / "results")
+    rc, out, err = cli(capsys, "validate", str(path))
+    assert rc == 2, out
+    assert_reported(err, path, 16, "time_step.dt", ["dt=0.005 is above the critical step dt_crit=0.001"])
+
+
+# --------------------------------------------------------------------------------------------------
+# Study files (SPEC 5)
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class StudyCase:
+    id: str
+    text: str
+    file: str  # which file the problem is reported in: "study" or "model"
+    line: int | None
+    field: str
+    expect: list[str]
+
+
+STUDY_CASES = [
+    StudyCase("unknown-axis-path", "name: s\nmodel: model.yaml\nmatrix:\n  impact_velocity: [1.0, 2.0]\n"
+              "  springs.s1.material.stifness: [1.0e5, 2.0e5]\n", "study", 5, "matrix.springs.s1.material.stifness",
+              ["unknown axis 'springs.s1.material.stifness'", "closest valid paths: springs.s1.material.stiffness"]),
+    StudyCase("unknown-axis-path-several-close", "name: s\nmodel: model.yaml\nmatrix:\n  nodes.mass.mas: [5.0, 10.0]\n",
+              "study", 4, "matrix.nodes.mass.mas",
+              ["closest valid paths: nodes.mass.mass, nodes.mass.position.0, nodes.ground.mass"]),
+    StudyCase("zip-group-unequal-lengths", "name: s\nmodel: model.yaml\nzip:\n"
+              "  - {nodes.mass.mass: [5.0, 10.0], impact_velocity: [1.0, 2.0, 3.0]}\n", "study", 4, "zip.0",
+              ["the axes of a zip group need equal lengths, got [2, 3]"]),
+    StudyCase("matrix-value-makes-model-invalid", "name: s\nmodel: model.yaml\nmatrix:\n  nodes.mass.mass:\n"
+              "    - 5.0\n    - -10.0\n    - 20.0\n", "study", 6, "matrix.nodes.mass.mass.1",
+              ["value -10.0 makes the model invalid", "greater than 0"]),
+    StudyCase("model-file-does-not-exist", "name: s\nmodel: models/nothere.yaml\nmatrix:\n  nodes.mass.mass: [5.0]\n",
+              "study", 2, "model", ["model file not found", "nothere.yaml"]),
+    StudyCase("unknown-study-key", "name: s\nmodel: model.yaml\nmatrx:\n  nodes.mass.mass: [5.0]\n", "study", 3, "matrx",
+              ["unknown key 'matrx'; did you mean 'matrix'?"]),
+    StudyCase("invalid-model-of-a-study", "name: s\nmodel: model.yaml\n", "model", 9, "nodes.mass.mass",
+              ["expected a valid number (got 'heavy')"]),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("case", STUDY_CASES, ids=[c.id for c in STUDY_CASES])
+def test_invalid_study_exits_2_naming_file_line_field_and_expectation(
+    case: StudyCase, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    model = tmp_path / "model.yaml"
+    model.write_text(edit(("mass: 10.0", "mass: heavy")) if case.file == "model" else BASE)
+    study = tmp_path / f"{case.id}.yaml"
+    study.write_text(case.text)
+    named = study if case.file == "study" else model
+    out_dir = tmp_path / "results"
+    for argv in (["validate", str(study)], ["run", str(study), "-o", str(out_dir)]):
+        rc, out, err = cli(capsys, *argv)
+        assert rc == 2, (argv, out, err)
+        assert_short_and_clean(err, out)
+        assert_reported(err, named, case.line, case.field, case.expect)
+    assert_nothing_written(out_dir)
+
+
+# --------------------------------------------------------------------------------------------------
+# Valid files, and the real command line in a subprocess
+# --------------------------------------------------------------------------------------------------
+
+EXAMPLE_MODELS = sorted((STUDIES / "models").glob("*.yaml"))
+EXAMPLE_STUDIES = sorted(STUDIES.glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLE_MODELS + EXAMPLE_STUDIES, ids=lambda p: str(p.relative_to(STUDIES)))
+def test_example_files_validate(path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rc, out, err = cli(capsys, "validate", str(path))
+    assert rc == 0, err
+    assert err == ""
+    kind = "model" if path.parent.name == "models" else "study"
+    assert re.fullmatch(rf"{re.escape(str(path))}: valid {kind} \(.*\)\n", out), out
+
+
+def test_example_models_are_present() -> None:
+    names = {p.name for p in EXAMPLE_MODELS}
+    assert {"general-nonlinear-tension.yaml", "general-nonlinear-compression.yaml", "helicopter-subfloor.yaml",
+            "linear-spring.yaml", "nonlinear-elastic.yaml"} <= names  # fmt: skip
+
+
+def test_command_line_in_a_subprocess(tmp_path: Path) -> None:
+    """The installed command line as a user runs it: paths relative to the working directory are
+    reported as given; exit codes 2 (invalid) and 0 (valid); ``run --dry-run`` prints the count."""
+    (tmp_path / "broken.yaml").write_text(edit(("mass: 10.0}", "mass: 10.0")))
+    (tmp_path / "tagged.yaml").write_text(
+        edit(("end_time: 0.01", "end_time: !!python/object/apply:os.system ['true']"))
+    )
+    (tmp_path / "model.yaml").write_text(BASE)
+    (tmp_path / "study.yaml").write_text(
+        "name: s\nmodel: model.yaml\nmatrix:\n  nodes.mass.mass: [5.0, 10.0, 20.0]\n  impact_velocity: [1.0, 2.0]\n"
+        "zip:\n  - {springs.s1.material.stiffness: [1.0e5, 2.0e5], end_time: [0.01, 0.02]}\n"
+    )
+
+    p = run_cli("validate", "broken.yaml", cwd=tmp_path)
+    assert p.returncode == 2 and p.stdout == "" and "Traceback" not in p.stderr
+    assert p.stderr.splitlines()[1].startswith("broken.yaml:10: invalid YAML: expected ',' or '}'")
+    assert len(p.stderr.splitlines()) < 40
+
+    p = run_cli("simulate", "tagged.yaml", "-o", "out", cwd=tmp_path)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.splitlines()[1].startswith(
+        "tagged.yaml:15: end_time: unsupported tag !!python/object/apply"
+    )
+    assert_nothing_written(tmp_path / "out")
+
+    p = run_cli("run", "study.yaml", "--dry-run", "-o", "out", cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.splitlines()[0] == "study s: 12 variants (3 x 2 x 2)"
+    assert_nothing_written(tmp_path / "out")
+
+    p = run_cli("validate", "study.yaml", cwd=tmp_path)
+    assert p.returncode == 0 and p.stdout == "study.yaml: valid study (12 variants)\n", p.stderr
+
+
+@pytest.mark.xfail(strict=True, reason="run --dry-run lists axis values as numpy reprs ('np.float64(5.0)') "
+                   "under numpy 2 instead of plain numbers")  # fmt: skip
+def test_dry_run_lists_axis_values_as_plain_numbers(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "model.yaml").write_text(BASE)
+    study = tmp_path / "study.yaml"
+    study.write_text("name: s\nmodel: model.yaml\nmatrix:\n  nodes.mass.mass: [5.0, 10.0, 20.0]\n")
+    rc, out, err = cli(capsys, "run", str(study), "--dry-run")
+    assert rc == 0
+    assert out.splitlines() == ["study s: 3 variants (3)", "  nodes.mass.mass: 3 values [5.0, 10.0, 20.0]"]
