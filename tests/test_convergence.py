@@ -107,8 +107,6 @@ def _damped_peak_force() -> float:
     return K_D * V_D / WD_D * float(np.exp(-ZETA * W_D * t) * np.sin(WD_D * t))
 
 
-@pytest.mark.xfail(strict=True, reason="the damper force uses the lagging half-step velocity v^{n-1/2}: "
-                   "the damped oscillator converges at first order (observed 1.10, 1.05)")  # fmt: skip
 def test_damped_oscillator_converges_at_second_order() -> None:
     """Linear spring + damper (zeta 0.1) against the closed form, fixed dt 2, 1, 0.5 ms: observed orders
     within [1.8, 2.2] like the undamped chain.
@@ -237,10 +235,10 @@ def test_tolerance_mode_keeps_helicopter_peak_force_error_below_twice_the_tolera
     [
         pytest.param(1.0e-2),
         pytest.param(
-            1.0e-3, marks=pytest.mark.xfail(strict=True, reason="damper is first order: error 2.6x tol")
+            1.0e-3
         ),
         pytest.param(
-            1.0e-4, marks=pytest.mark.xfail(strict=True, reason="damper is first order: error 9.6x tol")
+            1.0e-4
         ),
     ],
 )

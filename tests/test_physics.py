@@ -130,8 +130,6 @@ def test_damped_oscillator_peak_spring_force_matches_closed_form() -> None:
     assert _rel(out.peak_force[0, 0], f_max) < 5e-3
 
 
-@pytest.mark.xfail(strict=True, reason="damper force uses v^{n-1/2}: first-order in dt; tolerance mode assumes "
-                   "second order (history error 0.99% of v0/omega at the default tolerance)")  # fmt: skip
 def test_damped_oscillator_displacement_history_matches_closed_form() -> None:
     """x(t) = (v0/wd) exp(-zeta w t) sin(wd t): max abs error below 0.5% of v0/w over 1.6 periods.
 
@@ -340,13 +338,11 @@ def test_mass_on_spring_dropped_on_floor_peak_force_matches_closed_form() -> Non
     model, _, f_peak = _drop()
     out, _, _ = run_model(model)
     assert out.status[0] == 0
-    assert np.nanmin(out.histories["position"][:, 0, 1, 0]) >= 0.0
+    assert np.nanmin(out.histories["position"][:, 0, 1, 0]) >= -1e-12  # on the floor up to round-off
     assert _rel(out.peak_force[0, 0], f_peak) < 5e-3
     assert out.energy_error[0] < 1e-3
 
 
-@pytest.mark.xfail(strict=True, reason="a wall halts a node up to v*dt short of its plane; the node then falls "
-                   "across the gap and hits again, so wall_energy is 3.5% above m v^2/2")  # fmt: skip
 def test_floor_absorbs_exactly_the_impact_energy_of_the_foot() -> None:
     """Perfectly plastic impact of the foot: wall_energy = m_foot v_hit^2 / 2 within 0.5% (the foot then
     stays pressed on the floor while the leg is compressed, so the wall does no more work).
@@ -408,8 +404,6 @@ def test_prescribed_displacement_gives_spring_force_k_times_u(dim: int) -> None:
     assert np.max(np.abs(force - expected)) < 1e-9 * np.max(expected)
 
 
-@pytest.mark.xfail(strict=True, reason="t = n*dt rounds past the curve's last knot (0.30000000000000004 > 0.3): "
-                   "the time curve reads 0 there and the node is snapped back to its start")  # fmt: skip
 def test_prescribed_displacement_holds_up_to_the_last_knot_of_its_curve() -> None:
     """The path's last knot is t = 0.3 = end_time, inside the curve's range: at the last sample the force
     is still k u(0.3) = 360 N (1e-9 relative) and the grip's peak acceleration stays that of the path's
@@ -448,11 +442,6 @@ def _tow(initial_velocity: float) -> dict[str, Any]:
         pytest.param(
             0.0,
             id="started-from-rest",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the velocity jump at t = 0 (half step) is booked at twice its work: "
-                "external_work 5004 J for KE + IE = 5002 J",
-            ),
         ),  # fmt: skip
     ],
 )
@@ -639,7 +628,8 @@ def test_reference_and_compiled_kernels_agree_on_every_output(case: str) -> None
 def _chain(masses: np.ndarray, stiffness: np.ndarray, fixed_end: bool) -> tuple[dict[str, Any], float, float]:
     """1-D chain (a fixed node first when ``fixed_end``); nodes start with alternating +-1 m/s.
 
-    Returns (model, nodal bound dt_crit = min_n 2 / sqrt(2 K_n / m_n), exact omega_max [rad/s]).
+    Returns (model, dt_crit = 0.99 min_n 2 / sqrt(2 K_n / m_n) (the nodal bound with crashstudy's 1%
+    margin), exact omega_max [rad/s]).
     """
     nodes: dict[str, Any] = {"n0": {"position": [0.0], "fixed": True}} if fixed_end else {}
     for i, m in enumerate(masses, start=1):
@@ -660,7 +650,7 @@ def _chain(masses: np.ndarray, stiffness: np.ndarray, fixed_end: bool) -> tuple[
     Kf = K[free, free]
     m = np.asarray(masses, dtype=float)
     omega_max = float(np.sqrt(np.linalg.eigvalsh(Kf / np.sqrt(np.outer(m, m))).max()))
-    dt_crit = float(np.min(2.0 / np.sqrt(2.0 * np.diag(Kf) / m)))
+    dt_crit = 0.99 * float(np.min(2.0 / np.sqrt(2.0 * np.diag(Kf) / m)))
     model = {
         "name": "chain",
         "nodes": nodes,
@@ -686,7 +676,7 @@ def _chain_params() -> list[Any]:
             out.append(pytest.param(np.ones(n), np.full(n_springs, 1.0e4), fixed_end, id=f"{n}-equal-{end}"))
             out.append(pytest.param(rng.uniform(0.1, 10.0, n), rng.uniform(1.0e3, 1.0e5, n_springs), fixed_end,
                                     id=f"{n}-unequal-{end}"))  # fmt: skip
-    return [p for p in out if p.id != "2-equal-free"]  # that one attains the bound: see the xfail below
+    return [p for p in out if p.id != "2-equal-free"]  # that one attains the bound: tested on its own below
 
 
 @pytest.mark.parametrize(("masses", "stiffness", "fixed_end"), _chain_params())
@@ -708,14 +698,13 @@ def test_chain_at_safety_factor_one_runs_stable(
     assert np.max(out.peak_force[:, 1]) <= 1.5 * np.max(out.peak_force[:, 0])
 
 
-@pytest.mark.xfail(strict=True, reason="for two free masses on one spring the nodal bound equals omega_max: "
-                   "safety_factor 1.0 gives omega dt = 2 exactly, where central difference grows linearly")  # fmt: skip
 def test_free_dumbbell_at_safety_factor_one_stays_bounded() -> None:
     """Two free 1 kg masses on one 1e4 N/m spring, approaching at 2 m/s: the peak force over 2000 steps is at
-    most 1.5x that over the first 1000 (a stable run repeats itself).
+    most 1.5x that over the first 1000 (a stable run repeats itself). (At omega dt = 1.98 the peak is
+    about 7x the exact 141 N: stable is not accurate, which is why the default step is accuracy-driven.)
 
-    Measured: omega_max dt = 2.0; peak force 2.8e5 N after 1000 steps, 5.7e5 N after 2000 (exact:
-    141 N); status 0 and energy_error 9e-9 do not notice.
+    The nodal bound equals omega_max here; without the 1% margin of dt_crit, omega dt = 2 exactly and
+    central difference grew linearly (peak 2.8e5 N after 1000 steps, 5.7e5 N after 2000).
     """
     model, dt_crit, omega_max = _chain(np.ones(2), np.full(1, 1.0e4), fixed_end=False)
     out, batch, _ = run_model(model, variants={"end_time": [model["end_time"], 2 * model["end_time"]]})
@@ -724,6 +713,7 @@ def test_free_dumbbell_at_safety_factor_one_stays_bounded() -> None:
         f"omega_max dt = {omega_max * batch.dt[0]:.6f}; peak force {out.peak_force[0, 0]:.3g} N after 1000 steps, "
         f"{out.peak_force[0, 1]:.3g} N after 2000"
     )
+
 
 
 REFUSED_DT_MODEL = """\
@@ -742,7 +732,7 @@ time_step: {dt: 0.02}
 
 
 def test_fixed_dt_above_critical_is_refused_by_simulate(tmp_path: Path) -> None:
-    """dt 0.02 s > dt_crit = 2 / sqrt(2 k / m) = 0.0141 s: exit 2, the message names the file, line 11,
+    """dt 0.02 s > dt_crit = 0.99 * 2 / sqrt(2 k / m) = 0.0140 s: exit 2, the message names the file, line 11,
     ``time_step.dt`` and ``dt_crit=``, no traceback, and no result folder is written."""
     model = tmp_path / "refused.yaml"
     model.write_text(REFUSED_DT_MODEL)
@@ -750,7 +740,7 @@ def test_fixed_dt_above_critical_is_refused_by_simulate(tmp_path: Path) -> None:
     assert proc.returncode == 2, proc.stderr
     assert "time_step.dt" in proc.stderr
     assert "refused.yaml:11" in proc.stderr
-    assert "dt_crit=0.0141421" in proc.stderr
+    assert "dt_crit=0.0140007" in proc.stderr
     assert "Traceback" not in proc.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["refused.yaml"], "no output folder may be created"
 

@@ -41,7 +41,7 @@ def get_threads() -> int:
 
 
 @nb.njit(cache=True, nogil=True)
-def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_curve, pm_node, pm_dir, pm_kind,
+def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_curve, pm_node, pm_dir, pm_kind,
          pm_curve, wall_nodes, mass, inv_mass, x0, v0, length0, sign, kpar, yield_t, yield_c, cx, cy, cds, cs0,
          cs1, gravity, load_force, pm_scale, wall_point, wall_normal, dt, n_steps, out_every, ke_fraction,
          min_time, invalid, rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, h_wall,
@@ -116,7 +116,9 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
         f = np.empty((N, D, B))
         fext = np.zeros((N, D, B))
         fext_prev = np.zeros((N, D, B))
-        acc = np.empty((N, D, B))
+        acc = np.zeros((N, D, B))  # a^{n-1} at the start of step n (dampers' velocity estimate)
+        jump_prev = np.zeros((W, N, D, B))
+        pm_acc = np.zeros((NP, B))  # kinematic acceleration of each prescribed dof
         state = np.zeros((S if has_state else 0, NSTATE, B))
         forces = np.zeros((S, B))
         elong = np.zeros((S, B))
@@ -190,7 +192,9 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
                         ax_tmp[0, w] = sg
                     if kind == DAMPER or has_term:
                         for w in range(B):
-                            ed_tmp[w] = sg_b[s, w] * (v[j, 0, w] - v[i, 0, w])
+                            vpj = v[j, 0, w] + 0.5 * dt_b[w] * acc[j, 0, w]
+                            vpi = v[i, 0, w] + 0.5 * dt_b[w] * acc[i, 0, w]
+                            ed_tmp[w] = sg_b[s, w] * (vpj - vpi)
                 else:
                     for w in range(B):
                         ln2 = 0.0
@@ -206,7 +210,9 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
                         edot = 0.0
                         for d in range(D):
                             ax_tmp[d, w] = ax_tmp[d, w] / dn
-                            edot += ax_tmp[d, w] * (v[j, d, w] - v[i, d, w])
+                            vpj = v[j, d, w] + 0.5 * dt_b[w] * acc[j, d, w]
+                            vpi = v[i, d, w] + 0.5 * dt_b[w] * acc[i, d, w]
+                            edot += ax_tmp[d, w] * (vpj - vpi)
                         e_tmp[w] = ln - l0_b[s, w]
                         ed_tmp[w] = edot
                 if kind == LINEAR:
@@ -302,7 +308,11 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
                         vnew[p, d, w] = v[p, d, w] + dtn * pm_scale[k, q] * time_curve_at(c, t, q, cx, cy, cds, cs0, off)
                     else:
                         vnew[p, d, w] = pm_scale[k, q] * time_curve_at(c, t + 0.5 * dt_b[w], q, cx, cy, cds, cs0, off)
-                    acc[p, d, w] = (vnew[p, d, w] - v[p, d, w]) / dtn
+                    if n != nst[w]:
+                        pm_acc[k, w] = (vnew[p, d, w] - v[p, d, w]) / dtn
+                    else:  # the last step's update would look past end_time: continue with the previous acceleration
+                        vnew[p, d, w] = v[p, d, w] + dtn * pm_acc[k, w]
+                    acc[p, d, w] = pm_acc[k, w]
                     ftot = f[p, d, w] + fext[p, d, w]
                     fext[p, d, w] += m_b[p, w] * acc[p, d, w] - ftot
             if W > 0:
@@ -314,19 +324,23 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
                     for w in range(B):
                         q = lo + w
                         vn = 0.0
+                        gap = 0.0
                         dist = 0.0
-                        vold_n = 0.0
                         for d in range(D):
                             nr = wall_normal[wl, d, q]
                             vn += vnew[n_, d, w] * nr
+                            gap += (x[n_, d, w] - wall_point[wl, d, q]) * nr
                             dist += (x[n_, d, w] + dt_b[w] * vnew[n_, d, w] - wall_point[wl, d, q]) * nr
-                            vold_n += v[n_, d, w] * nr
-                        if dist < 0.0 and vn < 0.0:
-                            for d in range(D):
-                                vnew[n_, d, w] = vnew[n_, d, w] - vn * wall_normal[wl, d, q] * free[n_, d]
-                            if act[w]:
-                                wall_e[w] += 0.5 * m_b[n_, w] * vn * vold_n
-                            wforce[wl, w] += m_b[n_, w] * abs(vn) / dt_b[w]
+                        dvn = -gap / dt_b[w] - vn if (dist < 0.0 and vn < 0.0) else 0.0
+                        we = 0.0
+                        for d in range(D):
+                            jmp = dvn * wall_normal[wl, d, q] * free[n_, d]
+                            vnew[n_, d, w] = vnew[n_, d, w] + jmp
+                            we += v[n_, d, w] * (jmp + jump_prev[wl, n_, d, w])
+                            jump_prev[wl, n_, d, w] = jmp
+                        if act[w]:
+                            wall_e[w] += -0.5 * m_b[n_, w] * we
+                        wforce[wl, w] += m_b[n_, w] * abs(dvn) / dt_b[w]
 
             # energies (sums over nodes/springs with the variant loop innermost)
             if n == 0:
@@ -344,7 +358,8 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
                     for n_ in range(N):
                         for d in range(D):
                             for w in range(B):
-                                bal[w] += 0.5 * (fext[n_, d, w] + fext_prev[n_, d, w]) * v[n_, d, w]
+                                vb = 0.5 * (v0[n_, d, lo + w] + v[n_, d, w]) if n == 1 else v[n_, d, w]
+                                bal[w] += 0.5 * (fext[n_, d, w] * v[n_, d, w] + fext_prev[n_, d, w] * vb)
                     for w in range(B):
                         dw = bal[w] * dt_b[w]
                         work[w] = work[w] + dw if act[w] else work[w]
@@ -362,12 +377,13 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
                 err[w] = max(err[w], b_) if a_ else err[w]
                 bad = a_ and not (b_ < np.inf)
                 anybad = anybad or bad
+            # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
             for n_ in range(N):
                 for w in range(B):
                     a2 = 0.0
                     for d in range(D):
                         a2 += acc[n_, d, w] * acc[n_, d, w]
-                    pacc[n_, w] = max(pacc[n_, w], np.sqrt(a2)) if act[w] else pacc[n_, w]
+                    pacc[n_, w] = max(pacc[n_, w], a2) if act[w] else pacc[n_, w]
             for wl in range(W):
                 for w in range(B):
                     pwall[wl, w] = max(pwall[wl, w], wforce[wl, w]) if act[w] else pwall[wl, w]
@@ -394,6 +410,8 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
                         continue
                     r = n // out_every[q]
                     next_rec[w] = n + out_every[q]
+                    if r >= n_out:  # the last step may pass the last sample time
+                        continue
                     for n_ in range(N):
                         for d in range(D):
                             if rec_mask[0]:
@@ -464,7 +482,7 @@ def _run(b_lo, b_hi, starts, si, sj, material, curve_a, curve_b, off, free, load
                 max_crush[s, lo + w] = mc[s, w]
         for n_ in range(N):
             for w in range(B):
-                peak_acc[n_, lo + w] = pacc[n_, w]
+                peak_acc[n_, lo + w] = np.sqrt(pacc[n_, w])
         for wl in range(W):
             for w in range(B):
                 peak_wall[wl, lo + w] = pwall[wl, w]
@@ -503,10 +521,10 @@ def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = 
     nblocks = len(starts) - 1
     threads = min(get_threads(), nblocks)
     if threads <= 1:
-        _run(0, nblocks, *args)
+        _run(0, nblocks, T, *args)
     else:
         with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(lambda bi: _run(bi, bi + 1, *args), range(nblocks)))
+            list(pool.map(lambda bi: _run(bi, bi + 1, T, *args), range(nblocks)))
     for k, name in enumerate(energies):
         if name in out.histories:
             out.histories[name][:] = h_energy[:, k, :]

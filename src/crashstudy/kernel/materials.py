@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 NSTATE = 8
+TIME_EPS = 1e-9  # relative to a time curve's span
 
 
 def curve_eval(c: int, e: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray,
@@ -29,7 +30,8 @@ def time_curve_eval(c: int, t: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: 
                     cs0: np.ndarray, off: np.ndarray) -> np.ndarray:
     """Curve ``c`` as a function of time: interpolated inside its range, zero outside."""
     a, b = int(off[c]), int(off[c + 1])
-    inside = (t >= cx[a]) & (t <= cx[b - 1])
+    eps = TIME_EPS * (cx[b - 1] - cx[a])  # t = n dt carries round-off: a knot at end_time is inside
+    inside = (t >= cx[a] - eps) & (t <= cx[b - 1] + eps)
     return np.where(inside, curve_eval(c, t, cx, cy, cds, cs0, off), 0.0)
 
 

@@ -6,13 +6,16 @@ readers: every formula of the compiled kernel appears here once, in the same ord
 
 Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0``):
 
-1. spring elongations and forces from ``x^n`` (dampers from ``v^{n-1/2}``); material state update;
+1. spring elongations and forces from ``x^n`` (dampers from the second-order estimate
+   ``v^n ~ v^{n-1/2} + dt/2 a^{n-1}``); material state update;
 2. external forces (loads, gravity) and accelerations ``a^n = f^n / m`` on free dofs;
 3. ``v^{n+1/2} = v^{n-1/2} + dt a^n`` (half a step at ``n = 0``), then prescribed motion and
-   rigid walls (normal velocity into the wall removed: a perfectly plastic stonewall impact);
+   rigid walls (a node that would cross a wall gets the normal velocity that lands it exactly on
+   the plane, and none into it afterwards: a perfectly plastic stonewall impact);
 4. energies: internal and external work by the trapezoidal rule, kinetic energy as
    ``1/2 m v^{n-1/2} . v^{n+1/2}`` (exactly conserved with the trapezoidal internal energy for a
-   linear system), wall energy ``1/2 m v_n (v^{n-1/2} . n)`` per removal;
+   linear system), wall energy ``-1/2 v^{n-1/2} . (J^n + J^{n-1})`` for the wall impulses ``J``
+   (the discrete work of an impulse, so the balance holds at every step);
 5. summaries (every step), histories (every ``out_every`` steps), failure and termination checks;
 6. ``x^{n+1} = x^n + dt v^{n+1/2}``.
 """
@@ -47,6 +50,8 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
     f_prev = np.zeros((S, V))
     e_prev = np.zeros((S, V))
     fext_prev = np.zeros((N, D, V))
+    a_prev = np.zeros((N, D, V))  # a^{n-1}: dampers use the second-order velocity v^{n-1/2} + dt/2 a^{n-1}
+    jump_prev = np.zeros((W, N, D, V))  # velocity jump of each node at each wall in the previous step
     ie = np.zeros((S, V))
     work = np.zeros(V)
     wall_e = np.zeros(V)
@@ -69,9 +74,11 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
         crushed = np.full(V, -1)
         for s in range(S):
             i, j = b.spring_i[s], b.spring_j[s]
+            vpj = v[j] + 0.5 * dt * a_prev[j]
+            vpi = v[i] + 0.5 * dt * a_prev[i]
             if D == 1:
                 e = b.sign[s] * ((x[j, 0] - b.x0[j, 0]) - (x[i, 0] - b.x0[i, 0]))
-                edot = b.sign[s] * (v[j, 0] - v[i, 0])
+                edot = b.sign[s] * (vpj[0] - vpi[0])
                 axis = b.sign[s][None, :]
             else:
                 d = x[j] - x[i]
@@ -80,7 +87,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
                 crushed = np.where(gone & (crushed < 0), s, crushed)
                 axis = d / np.where(gone, 1.0, length)
                 e = length - b.length0[s]
-                edot = np.sum(axis * (v[j] - v[i]), axis=0)
+                edot = np.sum(axis * (vpj - vpi), axis=0)
             F = _force(b, s, e, edot, state[s], cargs)
             f[i] += F * axis
             f[j] -= F * axis
@@ -110,7 +117,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
                 vnew[p, d] = v[p, d] + dtn * b.pm_scale[k] * mat.time_curve_eval(c, t, *cargs)
             else:
                 vnew[p, d] = b.pm_scale[k] * mat.time_curve_eval(c, t + 0.5 * dt, *cargs)
-            a[p, d] = (vnew[p, d] - v[p, d]) / dtn
+            # the last step's update would look past end_time: continue with the previous acceleration
+            vnew[p, d] = np.where(n == nst, v[p, d] + dtn * a_prev[p, d], vnew[p, d])
+            a[p, d] = np.where(n == nst, a_prev[p, d], (vnew[p, d] - v[p, d]) / dtn)
             fext[p, d] += m[p] * a[p, d] - ftot[p, d]
 
         wall_force = np.zeros((W, V))
@@ -120,18 +129,24 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
                     continue
                 nrm = b.wall_normal[w]
                 vn = np.sum(vnew[k] * nrm, axis=0)
+                gap = np.sum((x[k] - b.wall_point[w]) * nrm, axis=0)
                 dist = np.sum((x[k] + dt * vnew[k] - b.wall_point[w]) * nrm, axis=0)
                 hit = (dist < 0.0) & (vn < 0.0)
-                vold_n = np.sum(v[k] * nrm, axis=0)
-                vnew[k] = np.where(hit, vnew[k] - vn * nrm * b.free[k][:, None], vnew[k])
-                wall_e += np.where(hit & act, 0.5 * m[k] * vn * vold_n, 0.0)
-                wall_force[w] += np.where(hit, m[k] * np.abs(vn) / dt, 0.0)
+                dvn = np.where(hit, -gap / dt - vn, 0.0)  # lands the node exactly on the plane
+                jump = dvn * nrm * b.free[k][:, None]
+                vnew[k] = vnew[k] + jump
+                # wall work of the impulses of this and the previous step, at v^{n-1/2}
+                wall_e += np.where(act, -0.5 * m[k] * np.sum(v[k] * (jump + jump_prev[w, k]), axis=0), 0.0)
+                wall_force[w] += m[k] * np.abs(dvn) / dt
+                jump_prev[w, k] = jump
 
         if n == 0:
             ke = ke0.copy()
         else:
             ke = 0.5 * np.sum(m[:, None, :] * v * vnew, axis=(0, 1))
-            work += np.where(act, 0.5 * np.sum((fext + fext_prev) * v, axis=(0, 1)) * dt, 0.0)
+            # trapezoid; over the first (half) step f^0 acts on the mean velocity (v0 + v^{1/2}) / 2 for dt/2
+            vbar = 0.5 * (b.v0 + v) if n == 1 else v
+            work += np.where(act, 0.5 * np.sum(fext * v + fext_prev * vbar, axis=(0, 1)) * dt, 0.0)
         wmax = np.maximum(wmax, np.abs(work))
         ie_tot = np.sum(ie, axis=0)
         bal = np.abs(ke + ie_tot + wall_e - ke0 - work)
@@ -148,7 +163,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
         out.fail_time[:] = np.where(bad | gone, t, out.fail_time)
         ok = act & ~bad & ~gone
 
-        rec = ok & (n % b.out_every == 0)
+        rec = ok & (n % b.out_every == 0) & (n // b.out_every < n_out)  # the last step may pass the last sample
         if rec.any() and histories:
             _record(out, rec, n // b.out_every, x, b.x0, 0.5 * (v + vnew) if n > 0 else b.v0, a, forces, elong,
                     ke, ie_tot, work, wall_e, wall_force)  # fmt: skip
@@ -165,6 +180,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
 
         x = np.where(ok, x + dt * vnew, x)
         v = np.where(ok, vnew, v)
+        a_prev = a
         fext_prev = fext
 
     out.absorbed_energy[:] = ie

@@ -25,7 +25,8 @@ def curve_at(c, e, v, cx, cy, cds, cs0, off):  # pragma: no cover - compiled
 def time_curve_at(c, t, v, cx, cy, cds, cs0, off):  # pragma: no cover - compiled
     a = off[c]
     b = off[c + 1]
-    if t < cx[a, v] or t > cx[b - 1, v]:
+    eps = 1e-9 * (cx[b - 1, v] - cx[a, v])  # materials.TIME_EPS
+    if t < cx[a, v] - eps or t > cx[b - 1, v] + eps:
         return 0.0
     return curve_at(c, t, v, cx, cy, cds, cs0, off)
 
