@@ -216,8 +216,6 @@ def test_missing_file_exits_2_naming_it(tmp_path: Path, capsys: pytest.CaptureFi
     assert_nothing_written(tmp_path / "results")
 
 
-@pytest.mark.xfail(strict=True, reason="relational checks (crashstudy.schema.checks) only run when the shape "
-                   "validation passed: a file with a shape problem and relational problems reports only the first")  # fmt: skip
 def test_shape_and_relational_problems_are_reported_together(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -233,8 +231,6 @@ def test_shape_and_relational_problems_are_reported_together(
     assert_reported(err, path, 16, "loads.0.curve", ["unknown curve 'pluse'"])
 
 
-@pytest.mark.xfail(strict=True, reason="validate does not check a fixed dt against dt_crit: it reports "
-                   "'valid model' (exit 0) for a file that simulate refuses as invalid input (exit 2)")  # fmt: skip
 def test_validate_refuses_a_fixed_dt_above_the_critical_step_like_simulate(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -364,8 +360,6 @@ def test_command_line_in_a_subprocess(tmp_path: Path) -> None:
     assert p.returncode == 0 and p.stdout == "study.yaml: valid study (12 variants)\n", p.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="run --dry-run lists axis values as numpy reprs ('np.float64(5.0)') "
-                   "under numpy 2 instead of plain numbers")  # fmt: skip
 def test_dry_run_lists_axis_values_as_plain_numbers(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

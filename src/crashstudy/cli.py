@@ -101,7 +101,8 @@ def _run(args: argparse.Namespace) -> int:
           + (" (" + " x ".join(str(s) for s in plan.shape) + ")" if plan.shape else ""))  # fmt: skip
     if args.dry_run:
         for ax in plan.axes:
-            print(f"  {ax.path}: {len(ax.values)} values {list(ax.values[:6])}{' ...' if len(ax.values) > 6 else ''}")
+            shown = ", ".join(repr(float(v)) for v in ax.values[:6])
+            print(f"  {ax.path}: {len(ax.values)} values [{shown}{', ...' if len(ax.values) > 6 else ''}]")
         return EXIT_OK
     progress = None if args.progress == "auto" else args.progress == "on"
     out = Path(args.output) if args.output else default_out(plan.name)
@@ -124,7 +125,11 @@ def _validate(args: argparse.Namespace) -> int:
         plan = load_study(args.file)
         print(f"{args.file}: valid study ({plan.n_variants} variants)")
     else:
+        from crashstudy.runner import refuse_fixed_dt
+        from crashstudy.study import plan_from_model
+
         lm = parse_model(doc)
+        refuse_fixed_dt(plan_from_model(lm), doc)
         m = lm.model
         print(f"{args.file}: valid model ({len(m.nodes)} nodes, {len(m.springs)} springs, "
               f"{len(next(iter(m.nodes.values())).position)}-D)")  # fmt: skip

@@ -91,6 +91,9 @@ class DaskBackend:
             self.cluster = distributed.LocalCluster(
                 host="127.0.0.1", n_workers=n_workers, threads_per_worker=1, processes=True,
                 dashboard_address=None, silence_logs=logging.ERROR,
+                # no dashboard; the scheduler's small HTTP server (health, metrics) still starts, and would
+                # take the fixed port 8787 (a warning when two runs overlap): a free loopback port instead
+                scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
             )  # fmt: skip
             try:
                 self.client = distributed.Client(self.cluster, set_as_default=False)

@@ -28,6 +28,14 @@ PARTIAL = "results.nc.partial"
 FINAL = "results.nc"
 SUMMARY = "summary.csv"
 STATUS_TEXT = {0: "ok", 1: "failed", 2: "failed", 3: "failed"}
+ID_LEN = 64  # longest id (the schema allows 64 characters)
+TEXT_LEN = 160  # longest stored message
+
+
+def _chars(texts: list[str], width: int) -> np.ndarray:
+    """Strings as a (len, width) 'S1' character array, UTF-8, cut to ``width`` bytes."""
+    raw = np.array([t.encode("utf-8")[:width] for t in texts], dtype=f"S{width}")
+    return netCDF4.stringtochar(raw) if len(texts) else np.zeros((0, width), dtype="S1")
 
 
 def _units(plan: Plan) -> dict[str, str]:
@@ -114,11 +122,16 @@ class ResultWriter:
         tv = nc.createVariable("time", "f8", ("time",))
         tv[:] = p.times
         tv.units, tv.long_name = units["time"], "time"
+        # strings are fixed-width character arrays (CF): variable-length strings crash libhdf5 when a
+        # file is opened many times (netcdf4-python issue 1444)
+        nc.createDimension("id_len", ID_LEN)
+        nc.createDimension("text_len", TEXT_LEN)
         for dim, ids in (("node", topo.node_ids), ("spring", topo.spring_ids), ("axis", ("x", "y")[: topo.dim]),
                          ("wall", topo.wall_ids)):  # fmt: skip
-            v = nc.createVariable(dim, str, (dim,))
-            for k, name in enumerate(ids):
-                v[k] = name
+            v = nc.createVariable(dim, "S1", (dim, "id_len"))
+            v._Encoding = "utf-8"
+            if ids:
+                v[:] = _chars(list(ids), ID_LEN)
         for ax in p.axes:
             v = nc.createVariable(ax.path, "f8", ("variant",), zlib=False)
             v.long_name = f"study axis {ax.path}"
@@ -137,7 +150,8 @@ class ResultWriter:
             v.units, v.long_name = units[kind], long
         for name, long in (("status", "ok or failed"), ("failure_reason", "why a variant failed (empty if ok)"),
                            ("dt_control", "node (and its stiffest spring) that controls the critical step")):  # fmt: skip
-            v = nc.createVariable(name, str, ("variant",))
+            v = nc.createVariable(name, "S1", ("variant", "text_len"), chunksizes=[cv, TEXT_LEN])
+            v._Encoding = "utf-8"
             v.long_name = long
         d = nc.createVariable("done", "i1", ("variant",), fill_value=0, chunksizes=[cv])
         d.long_name = "1 once the variant's results are written"
@@ -172,9 +186,9 @@ class ResultWriter:
             if name not in ("dt", "dt_crit"):
                 a[failed] = np.nan  # a failed variant has no trustworthy summary
             nc.variables[name][lo:hi] = a
-        nc.variables["status"][lo:hi] = np.array([STATUS_TEXT[int(s)] for s in o.status], dtype=object)
-        nc.variables["failure_reason"][lo:hi] = np.array(res.reasons, dtype=object)
-        nc.variables["dt_control"][lo:hi] = np.array(res.dt_control, dtype=object)
+        nc.variables["status"][lo:hi] = _chars([STATUS_TEXT[int(s)] for s in o.status], TEXT_LEN)
+        nc.variables["failure_reason"][lo:hi] = _chars(res.reasons, TEXT_LEN)
+        nc.variables["dt_control"][lo:hi] = _chars(res.dt_control, TEXT_LEN)
         nc.variables["done"][lo:hi] = 1
         nc.sync()
 
@@ -266,9 +280,9 @@ class Results:
         """One row per variant: the axis values as columns, then status and summary metrics."""
         csv = self.dir / SUMMARY
         if csv.exists():
-            return pd.read_csv(csv, keep_default_na=False, na_values=["", "nan", "NaN"]).assign(
-                failure_reason=lambda d: d["failure_reason"].fillna("").astype(str)
-            )
+            df = pd.read_csv(csv, dtype={"status": str, "failure_reason": str, "dt_control": str})
+            df["failure_reason"] = df["failure_reason"].fillna("")
+            return df
         return summary_frame(self.dataset)
 
     def close(self) -> None:

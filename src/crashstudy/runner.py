@@ -234,12 +234,12 @@ def simulate(model: str | os.PathLike[str], out_dir: str | os.PathLike[str] | No
 def simulate_report(model: str, out_dir: str | os.PathLike[str] | None = None, force: bool = True) -> RunReport:
     lm = load_model(model)
     plan = plan_from_model(lm)
-    _refuse_fixed_dt(plan, lm.doc)
+    refuse_fixed_dt(plan, lm.doc)
     out = Path(out_dir) if out_dir else default_out(plan.name)
     return run_plan(plan, out, force=force, progress=False)
 
 
-def _refuse_fixed_dt(plan: Plan, doc: Any) -> None:
+def refuse_fixed_dt(plan: Plan, doc: Any) -> None:
     """A single model with a fixed ``dt`` above the critical step is invalid input (exit 2)."""
     if plan.topology.time_step_mode != "dt":
         return

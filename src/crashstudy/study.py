@@ -186,7 +186,7 @@ def _unknown_path(path: str, topo: Topology) -> str:
     return f"unknown axis {path!r}: not a numeric field of the model{hint}"
 
 
-def plan_from_model(lm: LoadedModel, data: dict[str, Any] | None = None) -> Plan:
+def plan_from_model(lm: LoadedModel) -> Plan:
     """A one-variant plan for ``crashstudy simulate``."""
     return _plan(lm.model, lm.doc, None, [], [], None, {})
 

@@ -8,7 +8,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from crashstudy.errors import InputError
-from crashstudy.schema.checks import model_problems
+from crashstudy.schema.checks import model_problems, raw_reference_problems
 from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.yamlio import LoadedYaml, load_yaml
@@ -37,7 +37,10 @@ def parse_model(doc: LoadedYaml) -> LoadedModel:
     """Validate a loaded document as a model file; raise :class:`InputError` with every problem."""
     m, found = validate_model_data(doc.data)
     if isinstance(found, ValidationError):
-        raise InputError(pydantic_problems(found, doc, Model))
+        problems = pydantic_problems(found, doc, Model)
+        seen = {p.field for p in problems}
+        extra = [p for p in located(doc, raw_reference_problems(doc.data)) if p.field not in seen]
+        raise InputError(sorted(problems + extra, key=lambda p: (p.line or 0)))
     if found:
         raise InputError(located(doc, found))
     assert m is not None

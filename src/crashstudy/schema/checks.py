@@ -164,3 +164,53 @@ def _output(m: Model, dim: int) -> Found:
         yield ("output", "interval"), f"expected an interval no longer than end_time ({m.end_time:g}), got {m.output.interval:g}"
     if not m.rigid_walls and isinstance(m.output.histories, list) and "wall_force" in m.output.histories:
         yield ("output", "histories"), "'wall_force' needs at least one rigid wall"
+
+
+def raw_reference_problems(data: object) -> list[tuple[Path, str]]:
+    """Unknown node and curve names, read from plain data that failed shape validation.
+
+    With a shape error no :class:`Model` exists, but a misspelled reference elsewhere in the file is
+    still worth reporting in the same run; every lookup here is defensive.
+    """
+    if not isinstance(data, dict):
+        return []
+    nodes = data.get("nodes") if isinstance(data.get("nodes"), dict) else {}
+    curves = data.get("curves") if isinstance(data.get("curves"), dict) else {}
+    out: list[tuple[Path, str]] = []
+
+    def node_ref(path: Path, name: object) -> None:
+        if isinstance(name, str) and nodes and name not in nodes:
+            out.append((path, f"unknown node {name!r}"))
+
+    def curve_ref(path: Path, name: object) -> None:
+        if isinstance(name, str) and name not in curves:
+            out.append((path, f"unknown curve {name!r}; defined curves: {sorted(curves) or 'none'}"))
+
+    springs = data.get("springs")
+    for sid, sp in (springs.items() if isinstance(springs, dict) else []):
+        if not isinstance(sp, dict):
+            continue
+        ends = sp.get("nodes")
+        for k, nid in enumerate(ends if isinstance(ends, list) else []):
+            node_ref(("springs", sid, "nodes", k), nid)
+        mat = sp.get("material")
+        if isinstance(mat, dict):
+            for key in ("curve", "loading", "unloading"):
+                if key in mat:
+                    curve_ref(("springs", sid, "material", key), mat[key])
+    for key in ("loads", "prescribed_motion"):
+        items = data.get(key)
+        for i, item in enumerate(items if isinstance(items, list) else []):
+            if isinstance(item, dict):
+                node_ref((key, i, "node"), item.get("node"))
+                if item.get("curve") is not None:
+                    curve_ref((key, i, "curve"), item.get("curve"))
+    iv = data.get("initial_velocity")
+    for nid in (iv if isinstance(iv, dict) else {}):
+        node_ref(("initial_velocity", nid), nid)
+    walls = data.get("rigid_walls")
+    for i, w in enumerate(walls if isinstance(walls, list) else []):
+        ids = w.get("nodes") if isinstance(w, dict) else None
+        for k, nid in enumerate(ids if isinstance(ids, list) else []):
+            node_ref(("rigid_walls", i, "nodes", k), nid)
+    return out
