@@ -72,6 +72,15 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
     for q in range(ke_fraction.shape[0]):
         if ke_fraction[q] > 0.0:
             has_term = True
+    movable = np.zeros(N, dtype=np.bool_)
+    for n_ in range(N):
+        for d in range(D):
+            if free[n_, d] > 0.0:
+                movable[n_] = True
+    for k in range(NP):
+        movable[pm_node[k]] = True
+    # 1-D models without walls, prescribed motion or external forces take a fused node update
+    fused_1d = D == 1 and W == 0 and NP == 0 and no_ext
     for bi in range(b_lo, b_hi):
         lo = starts[bi]
         B = starts[bi + 1] - lo
@@ -145,6 +154,8 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
         bal = np.zeros(B)
         wforce = np.zeros((W, B))
         act = np.empty(B, dtype=np.bool_)
+        actf = np.empty(B)  # 1.0 while the variant runs, else 0.0 (arithmetic masks vectorise)
+        n_fail = np.full(B, -1, dtype=np.int64)
         nst = np.empty(B, dtype=np.int64)
         next_rec = np.zeros(B, dtype=np.int64)
         st_ok = np.zeros(B, dtype=np.int64)
@@ -166,13 +177,21 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     ke0[w] += 0.5 * m_b[n_, w] * v[n_, d, w] * v[n_, d, w]
 
         for n in range(nmax + 1):
-            anyact = False
+            nact = 0
+            n_end = nmax + 1  # the first step at which an active variant ends
             for w in range(B):
-                a_ = n <= nst[w] and st_ok[w] == 0
+                a_ = (n <= nst[w]) & (st_ok[w] == 0)
                 act[w] = a_
-                anyact = anyact or a_
-            if not anyact:
+                actf[w] = 1.0 if a_ else 0.0
+                nact += a_
+                n_end = min(n_end, nst[w] if a_ else nmax + 1)
+            if nact == 0:
                 break
+            rec_now = False
+            if any_hist:
+                for w in range(B):
+                    rec_now = rec_now or (act[w] and n == next_rec[w])
+            fused = fused_1d and n > 0 and not rec_now
             h = 1.0 if n > 0 else 0.5
             f[:] = 0.0
             if D > 1:
@@ -181,6 +200,8 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
             if has_term:
                 for w in range(B):
                     edot_min[w] = np.inf
+            for w in range(B):
+                ie_tot[w] = 0.0
             for s in range(S):
                 i = si[s]
                 j = sj[s]
@@ -245,29 +266,68 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     for w in range(B):
                         F_tmp[w] = general_nonlinear(e_tmp[w], state[s], w, curve_a[s], curve_b[s], yield_t[s, lo + w],
                                                      yield_c[s, lo + w], lo + w, cx, cy, cds, cs0, cs1, off)
-                for d in range(D):
+                # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
+                if D == 1 and n > 0:  # one pass: scatter and summaries
                     for w in range(B):
-                        fa = F_tmp[w] * ax_tmp[d, w]
-                        f[i, d, w] += fa
-                        f[j, d, w] -= fa
-                for w in range(B):
-                    F = F_tmp[w]
-                    e = e_tmp[w]
-                    a_ = act[w]
-                    die = 0.5 * (F + f_prev[s, w]) * (e - e_prev[s, w]) if n > 0 else 0.0
-                    ie[s, w] = ie[s, w] + die if a_ else ie[s, w]
-                    pf[s, w] = max(pf[s, w], abs(F)) if a_ else pf[s, w]
-                    mc[s, w] = max(mc[s, w], -e) if a_ else mc[s, w]
-                    forces[s, w] = F
-                    elong[s, w] = e
-                    f_prev[s, w] = F
-                    e_prev[s, w] = e
+                        F = F_tmp[w]
+                        e = e_tmp[w]
+                        af = actf[w]
+                        fa = F * ax_tmp[0, w]
+                        f[i, 0, w] += fa
+                        f[j, 0, w] -= fa
+                        ie[s, w] = ie[s, w] + (0.5 * (F + f_prev[s, w]) * (e - e_prev[s, w])) * af
+                        ie_tot[w] += ie[s, w]
+                        pf[s, w] = max(pf[s, w], abs(F) * af)
+                        mc[s, w] = max(mc[s, w], -e * af)
+                        forces[s, w] = F
+                        elong[s, w] = e
+                        f_prev[s, w] = F
+                        e_prev[s, w] = e
+                else:
+                    for d in range(D):
+                        for w in range(B):
+                            fa = F_tmp[w] * ax_tmp[d, w]
+                            f[i, d, w] += fa
+                            f[j, d, w] -= fa
+                    for w in range(B):
+                        F = F_tmp[w]
+                        e = e_tmp[w]
+                        af = actf[w]
+                        if n > 0:
+                            ie[s, w] = ie[s, w] + (0.5 * (F + f_prev[s, w]) * (e - e_prev[s, w])) * af
+                        ie_tot[w] += ie[s, w]
+                        pf[s, w] = max(pf[s, w], abs(F) * af)
+                        mc[s, w] = max(mc[s, w], -e * af)
+                        forces[s, w] = F
+                        elong[s, w] = e
+                        f_prev[s, w] = F
+                        e_prev[s, w] = e
                 if has_term:
                     for w in range(B):
                         edot_min[w] = min(edot_min[w], ed_tmp[w])
 
             # external forces, accelerations, velocities
-            if not no_ext:
+            if fused:
+                # a = f/m, v^{n+1/2}, kinetic energy, peak |a| and x^{n+1} in one pass (the same
+                # arithmetic as the general path below; x and v advance before the failure check,
+                # which changes nothing a failed variant reports)
+                for w in range(B):
+                    ke[w] = 0.0
+                for n_ in range(N):
+                    mv = movable[n_]
+                    for w in range(B):
+                        a = (f[n_, 0, w] + 0.0) * im_b[n_, 0, w]
+                        acc[n_, 0, w] = a
+                        vo = v[n_, 0, w]
+                        vn = vo + (h * dt_b[w]) * a
+                        vnew[n_, 0, w] = vn
+                        ke[w] += 0.5 * m_b[n_, w] * vo * vn
+                        af = actf[w]
+                        if mv:
+                            pacc[n_, w] = max(pacc[n_, w], (a * a) * af)
+                        x[n_, 0, w] = x[n_, 0, w] + (dt_b[w] * af) * vn
+                        v[n_, 0, w] = vn * af + vo * (1.0 - af)
+            elif not no_ext:
                 for n_ in range(N):
                     for d in range(D):
                         for w in range(B):
@@ -343,7 +403,9 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                         wforce[wl, w] += m_b[n_, w] * abs(dvn) / dt_b[w]
 
             # energies (sums over nodes/springs with the variant loop innermost)
-            if n == 0:
+            if fused:
+                pass  # kinetic energy summed above; no external work
+            elif n == 0:
                 for w in range(B):
                     ke[w] = ke0[w]
             else:
@@ -361,32 +423,27 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                                 vb = 0.5 * (v0[n_, d, lo + w] + v[n_, d, w]) if n == 1 else v[n_, d, w]
                                 bal[w] += 0.5 * (fext[n_, d, w] * v[n_, d, w] + fext_prev[n_, d, w] * vb)
                     for w in range(B):
-                        dw = bal[w] * dt_b[w]
-                        work[w] = work[w] + dw if act[w] else work[w]
+                        work[w] = work[w] + (bal[w] * dt_b[w]) * actf[w]
+            nbad = 0
             for w in range(B):
-                ie_tot[w] = 0.0
-            for s in range(S):
-                for w in range(B):
-                    ie_tot[w] += ie[s, w]
-            anybad = False
-            for w in range(B):
-                a_ = act[w]
                 wmax[w] = max(wmax[w], abs(work[w]))
                 b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - ke0[w] - work[w])
                 bal[w] = b_
-                err[w] = max(err[w], b_) if a_ else err[w]
-                bad = a_ and not (b_ < np.inf)
-                anybad = anybad or bad
+                err[w] = max(err[w], b_ * actf[w])
+                nbad += act[w] & ~(b_ < np.inf)
+            anybad = nbad > 0
             # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
             for n_ in range(N):
+                if fused or not movable[n_]:
+                    continue
                 for w in range(B):
                     a2 = 0.0
                     for d in range(D):
                         a2 += acc[n_, d, w] * acc[n_, d, w]
-                    pacc[n_, w] = max(pacc[n_, w], a2) if act[w] else pacc[n_, w]
+                    pacc[n_, w] = max(pacc[n_, w], a2 * actf[w])
             for wl in range(W):
                 for w in range(B):
-                    pwall[wl, w] = max(pwall[wl, w], wforce[wl, w]) if act[w] else pwall[wl, w]
+                    pwall[wl, w] = max(pwall[wl, w], wforce[wl, w] * actf[w])
             if D > 1:
                 for w in range(B):
                     anybad = anybad or (act[w] and crushed[w] >= 0)
@@ -397,12 +454,16 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     if not (bal[w] < np.inf):
                         st_ok[w] = UNSTABLE
                         fail_time[lo + w] = n * dt_b[w]
+                        n_fail[w] = n
                         act[w] = False
+                        actf[w] = 0.0
                     elif D > 1 and crushed[w] >= 0:
                         st_ok[w] = CRUSHED_TO_ZERO
                         fail_item[lo + w] = crushed[w]
                         fail_time[lo + w] = n * dt_b[w]
+                        n_fail[w] = n
                         act[w] = False
+                        actf[w] = 0.0
             if any_hist:
                 for w in range(B):
                     q = lo + w
@@ -451,9 +512,10 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     opening = edot_min[w] >= 0.0 and no_ext
                     if small_f and (small_ke or opening):
                         nst[w] = n
+                        n_end = n
             for w in range(B):
-                if act[w]:
-                    t_end[lo + w] = n * dt_b[w]
+                if n != n_end:
+                    break
                 if act[w] and n == nst[w]:
                     q = lo + w
                     final_energy[0, q] = ke[w]
@@ -461,11 +523,13 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     final_energy[2, q] = work[w]
                     final_energy[3, q] = wall_e[w]
             for n_ in range(N):
+                if fused:
+                    break
                 for d in range(D):
                     for w in range(B):
-                        a_ = act[w]
-                        x[n_, d, w] = x[n_, d, w] + dt_b[w] * vnew[n_, d, w] if a_ else x[n_, d, w]
-                        v[n_, d, w] = vnew[n_, d, w] if a_ else v[n_, d, w]
+                        af = actf[w]  # a stopped variant keeps x and v (vnew is finite for it)
+                        x[n_, d, w] = x[n_, d, w] + (dt_b[w] * af) * vnew[n_, d, w]
+                        v[n_, d, w] = vnew[n_, d, w] * af + v[n_, d, w] * (1.0 - af)
             if not no_ext:
                 for n_ in range(N):
                     for d in range(D):
@@ -475,6 +539,10 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
             q = lo + w
             status[q] = st_ok[w]
             energy_error[q] = err[w] / max(ke0[w] + wmax[w], 1e-300)
+            if st_ok[w] == 0:
+                t_end[q] = nst[w] * dt_b[w]
+            elif n_fail[w] > 0:
+                t_end[q] = (n_fail[w] - 1) * dt_b[w]
         for s in range(S):
             for w in range(B):
                 absorbed[s, lo + w] = ie[s, w]
