@@ -29,7 +29,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; the kernel is multi-threaded)")
     r.add_argument("--scheduler", help="Dask scheduler address tcp://HOST:PORT, or 'local' for a LocalCluster")
     r.add_argument("--resume", action="store_true", help="finish an interrupted run (only missing variants run)")
-    r.add_argument("--force", action="store_true", help="overwrite existing results")
+    r.add_argument("--force", action="store_true",
+                   help="recompute everything (default: reuse unchanged variants of this study's earlier results)")
     r.add_argument("--dry-run", action="store_true", help="validate and print the number of variants, run nothing")
     r.add_argument("--progress", choices=["auto", "on", "off"], default="auto")
 
@@ -108,7 +109,8 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else default_out(plan.name)
     rep = run_plan(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume, force=args.force,
                    progress=progress)  # fmt: skip
-    print(f"wrote {rep.results.path} and summary.csv ({rep.n_computed} variants computed in {rep.seconds:.1f} s)")
+    reused = f", {rep.n_reused} unchanged variants reused" if rep.n_reused else ""
+    print(f"wrote {rep.results.path} and summary.csv ({rep.n_computed} variants computed in {rep.seconds:.1f} s{reused})")
     if rep.n_failed:
         print(f"{rep.n_failed} of {rep.n_variants} variants failed (see status / failure_reason)", file=sys.stderr)
         return EXIT_FAILED

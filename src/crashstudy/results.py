@@ -21,6 +21,7 @@ import xarray as xr
 
 from crashstudy import __version__
 from crashstudy.kernel.output import HISTORY_SHAPES, KernelOutput
+from crashstudy.provenance import HASH_LEN, text_hash
 from crashstudy.study import Plan
 from crashstudy.units import UNIT_SYSTEMS
 
@@ -83,6 +84,7 @@ class ChunkResult:
     dt_crit: np.ndarray
     dt_control: list[str]
     reasons: list[str]
+    hashes: list[str]
 
 
 class ResultWriter:
@@ -91,6 +93,7 @@ class ResultWriter:
     def __init__(self, directory: str | os.PathLike[str], plan: Plan, resume: bool = False) -> None:
         self.dir = Path(directory)
         self.plan = plan
+        self.plan_axes = {a.path for a in plan.axes}
         self.dir.mkdir(parents=True, exist_ok=True)
         self.path = self.dir / PARTIAL
         if resume and self.path.exists():
@@ -153,13 +156,18 @@ class ResultWriter:
             v = nc.createVariable(name, "S1", ("variant", "text_len"), chunksizes=[cv, TEXT_LEN])
             v._Encoding = "utf-8"
             v.long_name = long
+        nc.createDimension("hash_len", HASH_LEN)
+        hv = nc.createVariable("input_hash", "S1", ("variant", "hash_len"), chunksizes=[cv, HASH_LEN])
+        hv._Encoding = "utf-8"
+        hv.long_name = "hash of everything that determines the variant's results (reuse key)"
         d = nc.createVariable("done", "i1", ("variant",), fill_value=0, chunksizes=[cv])
         d.long_name = "1 once the variant's results are written"
         nc.setncatts({
             "title": f"crashstudy results of {p.name}", "crashstudy_version": __version__,
             "units": topo.units, "model_name": topo.name, "model_file": p.model_file, "model_yaml": p.model_text,
             "study_file": p.study_file, "study_yaml": p.study_text, "crashstudy_axes": json.dumps([a.path for a in p.axes]),
-            "plan_fingerprint": plan_fingerprint(p), "history_interval": p.interval,
+            "plan_fingerprint": plan_fingerprint(p), "history_interval": p.interval, "study_name": p.name,
+            "model_sha256": text_hash(p.model_text), "study_sha256": text_hash(p.study_text),
             "Conventions": "CF-1.8",
         })  # fmt: skip
         return nc
@@ -189,8 +197,24 @@ class ResultWriter:
         nc.variables["status"][lo:hi] = _chars([STATUS_TEXT[int(s)] for s in o.status], TEXT_LEN)
         nc.variables["failure_reason"][lo:hi] = _chars(res.reasons, TEXT_LEN)
         nc.variables["dt_control"][lo:hi] = _chars(res.dt_control, TEXT_LEN)
+        nc.variables["input_hash"][lo:hi] = _chars(res.hashes, HASH_LEN)
         nc.variables["done"][lo:hi] = 1
         nc.sync()
+
+    def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> None:
+        """Copy finished variants ``old_idx`` of an earlier result into variants ``new_idx``."""
+        if not len(new_idx):
+            return
+        names = [n for n, v in self.nc.variables.items()
+                 if v.dimensions[:1] == ("variant",) and n != "variant" and n not in self.plan_axes
+                 and n in old.variables]  # fmt: skip
+        brk = np.nonzero((np.diff(new_idx) != 1) | (np.diff(old_idx) != 1))[0] + 1
+        for nrun, orun in zip(np.split(new_idx, brk), np.split(old_idx, brk)):
+            a, b = int(nrun[0]), int(nrun[-1]) + 1
+            c, d = int(orun[0]), int(orun[-1]) + 1
+            for n in names:
+                self.nc.variables[n][a:b] = old.variables[n][c:d]
+        self.nc.sync()
 
     def abort(self) -> None:
         """Close the partial file (kept for ``--resume``)."""

@@ -20,6 +20,7 @@ import numpy as np
 from crashstudy.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
+from crashstudy.provenance import variant_hashes
 from crashstudy.results import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
 from crashstudy.schema import load_model
 from crashstudy.study import Plan, load_study, plan_from_model
@@ -87,7 +88,7 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
     ]
     user_dt = P[topo.blocks["time_step"].start]
     reasons = [_reason(full, k, topo.spring_ids, user_dt[k], dt_crit[k], control[k]) for k in range(V)]
-    return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons)
+    return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, P))
 
 
 def _reason(out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float, dt_crit: float, control: str) -> str:
@@ -139,6 +140,7 @@ class RunReport:
     n_failed: int
     n_computed: int
     seconds: float
+    n_reused: int = 0
 
 
 def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
@@ -154,18 +156,59 @@ def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
     return out
 
 
-def prepare_output(out_dir: Path, resume: bool, force: bool, source: str) -> None:
-    """Refuse to overwrite a finished result unless ``force``; clear it when forced."""
+def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_name: str) -> None:
+    """Refuse to overwrite another study's results or an unfinished run unless ``force``; clear when forced.
+
+    A finished result of the *same* study is not refused: the run reuses its unchanged variants.
+    """
     final, partial = out_dir / FINAL, out_dir / PARTIAL
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
     if force and out_dir.exists():
         for p in (final, partial, out_dir / "summary.csv"):
             if p.exists():
                 p.unlink()
         return
     if final.exists() and not resume:
-        raise InputError([Problem(source, None, "", f"results already exist in {out_dir}; use --force to overwrite or --resume")])
+        other = _study_of(final)
+        if other != study_name:
+            raise InputError([Problem(source, None, "", f"{out_dir} holds the results of {other!r}, not of study "
+                                      f"{study_name!r}; use --force to overwrite or choose another -o")])  # fmt: skip
     if partial.exists() and not resume:
         raise InputError([Problem(source, None, "", f"an unfinished run is in {out_dir}; use --resume to finish it or --force to start again")])
+
+
+def _study_of(final: Path) -> str:
+    import netCDF4
+
+    try:
+        with netCDF4.Dataset(final) as nc:
+            return str(nc.getncattr("study_name")) if "study_name" in nc.ncattrs() else "an unknown study"
+    except OSError:
+        return "an unreadable file"
+
+
+def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) -> int:
+    """Copy the variants of an earlier result of this study whose input hash is unchanged."""
+    import netCDF4
+
+    from crashstudy.provenance import topology_signature
+
+    with netCDF4.Dataset(final) as old:
+        if "input_hash" not in old.variables:
+            return 0
+        old_hashes = {h: k for k, h in reversed(list(enumerate(old.variables["input_hash"][:])))}
+        sig = topology_signature(plan)
+        new_idx: list[int] = []
+        old_idx: list[int] = []
+        for lo in range(0, plan.n_variants, size):
+            hi = min(plan.n_variants, lo + size)
+            for k, h in enumerate(variant_hashes(plan, plan.params(lo, hi), sig)):
+                if h in old_hashes:
+                    new_idx.append(lo + k)
+                    old_idx.append(old_hashes[h])
+        writer.reuse(old, np.asarray(new_idx, dtype=np.int64), np.asarray(old_idx, dtype=np.int64))
+    return len(new_idx)
 
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
@@ -176,12 +219,15 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
 
     t0 = time.perf_counter()
     out = Path(out_dir)
-    prepare_output(out, resume, force, plan.study_file or plan.model_file)
+    prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
     if resume and (out / FINAL).exists() and not (out / PARTIAL).exists():
         res = Results(out)
         n_failed = int((res.summary["status"] != "ok").sum())
         return RunReport(res, plan.n_variants, n_failed, 0, time.perf_counter() - t0)
     writer = ResultWriter(out, plan, resume=resume)
+    reused = 0
+    if not resume and (out / FINAL).exists():
+        reused = _reuse_finished(writer, plan, out / FINAL, chunk or MAX_CHUNK)
     todo = ~writer.done()
     ranges = _ranges(todo, chunk or chunk_size(plan))
     bar = Progress(plan.n_variants, progress)
@@ -202,9 +248,9 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     bar.close()
     writer.finish()
     results = Results(out)
-    if resume:
+    if resume or reused:
         n_failed = int((results.summary["status"] != "ok").sum())
-    return RunReport(results, plan.n_variants, n_failed, int(todo.sum()), time.perf_counter() - t0)
+    return RunReport(results, plan.n_variants, n_failed, int(todo.sum()), time.perf_counter() - t0, reused)
 
 
 def default_out(name: str) -> Path:
