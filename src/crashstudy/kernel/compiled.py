@@ -24,7 +24,7 @@ from crashstudy.batch import Batch
 from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, HISTORY_ORDER, INVALID, UNSTABLE, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH
-from crashstudy.kernel.scalar import curve_at, general_nonlinear, time_curve_at
+from crashstudy.kernel.scalar import general_nonlinear, time_curve_at
 
 BLOCK = 256
 NSTATE = 8

@@ -8,7 +8,7 @@ Pydantic objects stop at the compile step: the kernel never sees them.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -96,7 +96,7 @@ class Damper(Strict):
 
 
 Material = Annotated[
-    Union[LinearElastic, NonlinearElastic, GeneralNonlinear, Crush, Damper],
+    LinearElastic | NonlinearElastic | GeneralNonlinear | Crush | Damper,
     Field(discriminator="type"),
 ]
 MATERIAL_TYPES = ("linear_elastic", "nonlinear_elastic", "general_nonlinear", "crush", "damper")
