@@ -65,6 +65,7 @@ class Topology:
     output_interval: float | None
     histories: tuple[str, ...]
     termination: bool
+    accuracy_check: bool
     blocks: dict[str, slice] = field(repr=False)
     paths: dict[str, PathRef] = field(repr=False)
     n_params: int = 0
@@ -215,7 +216,7 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
         pm_curve=np.array([cidx[q.curve] for q in pm], dtype=np.int64),
         wall_nodes=wall_nodes, has_gravity=m.gravity is not None and any(m.gravity),
         time_step_mode=mode, output_interval=m.output.interval, histories=histories,
-        termination=term is not None, blocks=blocks, paths=paths, n_params=pos,
+        termination=term is not None, accuracy_check=m.accuracy_check, blocks=blocks, paths=paths, n_params=pos,
     )  # fmt: skip
     return topo, p
 

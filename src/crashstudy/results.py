@@ -71,6 +71,7 @@ SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
     "t_end": ((), "time", "last time computed (early termination may end a run before end_time)"),
     "final_kinetic_energy": ((), "energy", "kinetic energy at the end"),
     "final_internal_energy": ((), "energy", "internal energy at the end"),
+    "error_estimate": ((), "1", "estimated relative error of the peaks (accuracy_check: re-run at dt/2)"),
 }
 
 
@@ -85,6 +86,7 @@ class ChunkResult:
     dt_control: list[str]
     reasons: list[str]
     hashes: list[str]
+    error_estimate: np.ndarray  # (V,) NaN unless the model asks for accuracy_check
 
 
 class ResultWriter:
@@ -185,6 +187,7 @@ class ResultWriter:
             "peak_deceleration": o.peak_acceleration.T, "peak_deceleration_g": o.peak_acceleration.T / g,
             "energy_error": o.energy_error, "dt": res.dt, "dt_crit": res.dt_crit, "t_end": o.t_end,
             "final_kinetic_energy": o.final_energy[0], "final_internal_energy": o.final_energy[1],
+            "error_estimate": res.error_estimate,
         }  # fmt: skip
         if self.plan.topology.wall_ids:
             summary["peak_wall_force"] = o.peak_wall_force.T

@@ -211,3 +211,4 @@ class Model(Strict):
     time_step: TimeStep = TimeStep(tolerance=1.0e-3)
     output: Output = Output()
     termination: Termination | None = None
+    accuracy_check: bool = False  # re-run at half the step; report a Richardson error estimate per variant
