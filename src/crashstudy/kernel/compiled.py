@@ -24,7 +24,7 @@ from crashstudy.batch import Batch
 from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, HISTORY_ORDER, INVALID, UNSTABLE, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH
-from crashstudy.kernel.scalar import general_nonlinear, time_curve_at
+from crashstudy.kernel.scalar import reverse_yield, time_curve_at
 
 BLOCK = 256
 NSTATE = 8
@@ -38,6 +38,18 @@ def set_threads(n: int) -> None:
 
 def get_threads() -> int:
     return _THREADS[0]
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - compiled
+    """out = curve c at arg, over the block (ramp sum; see batch.py)."""
+    a0 = off[c]
+    b0 = off[c + 1]
+    for w in range(B):
+        out[w] = cy_b[a0, w] + s0_b[c, w] * (arg[w] - cx_b[a0, w])
+    for k in range(a0 + 1, b0 - 1):
+        for w in range(B):
+            out[w] = out[w] + ds_b[k, w] * max(0.0, arg[w] - cx_b[k, w])
 
 
 @nb.njit(cache=True, nogil=True)
@@ -95,6 +107,15 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
         cy_b = np.empty((K, B))
         ds_b = np.empty((K, B))
         s0_b = np.empty((C, B))
+        yt_b = np.empty((S, B))
+        yc_b = np.empty((S, B))
+        g_arg = np.empty(B)
+        g_argt = np.empty(B)
+        g_argc = np.empty(B)
+        g_L = np.empty(B)
+        g_Ut = np.empty(B)
+        g_Uc = np.empty(B)
+        g_rev = np.zeros(B, dtype=np.bool_)
         dt_b = np.empty(B)
         for w in range(B):
             dt_b[w] = dt[lo + w]
@@ -108,6 +129,8 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
         for s in range(S):
             for w in range(B):
                 sg_b[s, w] = sign[s, lo + w]
+                yt_b[s, w] = yield_t[s, lo + w]
+                yc_b[s, w] = yield_c[s, lo + w]
                 l0_b[s, w] = length0[s, lo + w]
                 kp_b[s, w] = kpar[s, lo + w]
         for k in range(K):
@@ -262,10 +285,54 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                             F_tmp[w] = f_load if on else f_unl
                             state[s, 0, w] = e if on else emin
                             state[s, 1, w] = f_load if on else fstar
-                else:  # GENERAL
+                else:  # GENERAL: SPEC 3 rules 1-4, branch-free over the block; reversals (rare) per lane
+                    ca = curve_a[s]
+                    cb = curve_b[s]
                     for w in range(B):
-                        F_tmp[w] = general_nonlinear(e_tmp[w], state[s], w, curve_a[s], curve_b[s], yield_t[s, lo + w],
-                                                     yield_c[s, lo + w], lo + w, cx, cy, cds, cs0, cs1, off)
+                        g_arg[w] = e_tmp[w] - state[s, 5, w]
+                        g_argt[w] = e_tmp[w] - state[s, 1, w]
+                        g_argc[w] = e_tmp[w] - state[s, 3, w]
+                    _ramp(ca, g_arg, g_L, off, cx_b, cy_b, ds_b, s0_b, B)
+                    _ramp(cb, g_argt, g_Ut, off, cx_b, cy_b, ds_b, s0_b, B)
+                    _ramp(cb, g_argc, g_Uc, off, cx_b, cy_b, ds_b, s0_b, B)
+                    nrev = 0
+                    for w in range(B):
+                        e = e_tmp[w]
+                        mode = state[s, 0, w]
+                        et = state[s, 1, w]
+                        ft = state[s, 2, w]
+                        ec = state[s, 3, w]
+                        fc = state[s, 4, w]
+                        ytw = yt_b[s, w]
+                        ycw = yc_b[s, w]
+                        L = g_L[w]
+                        thr_t = ft if state[s, 6, w] > 0 else ytw
+                        thr_c = fc if state[s, 7, w] > 0 else ycw
+                        is0 = mode == 0
+                        ist = mode > 0
+                        isc = mode < 0
+                        on_l = ist & (e >= et)
+                        on_lc = isc & (e <= ec)
+                        bt = ft + g_Ut[w]
+                        bc = fc + g_Uc[w]
+                        F_tmp[w] = L if (is0 | on_l | on_lc) else (bt if ist else bc)
+                        to_t = is0 & (L >= ytw)
+                        to_c = is0 & (L <= ycw)
+                        rev = (ist & ~on_l & (bt <= thr_c)) | (isc & ~on_lc & (bc >= thr_t))
+                        g_rev[w] = rev
+                        nrev += rev
+                        state[s, 1, w] = e if (on_l | to_t) else et
+                        state[s, 2, w] = L if (on_l | to_t) else ft
+                        state[s, 3, w] = e if (on_lc | to_c) else ec
+                        state[s, 4, w] = L if (on_lc | to_c) else fc
+                        state[s, 0, w] = 1.0 if to_t else (-1.0 if to_c else mode)
+                        state[s, 6, w] = 1.0 if to_t else state[s, 6, w]
+                        state[s, 7, w] = 1.0 if to_c else state[s, 7, w]
+                    if nrev > 0:
+                        for w in range(B):
+                            if g_rev[w]:
+                                F_tmp[w] = reverse_yield(e_tmp[w], state[s], w, ca, cb, yt_b[s, w], yc_b[s, w], lo + w,
+                                                         cx, cy, cds, cs0, cs1, off)
                 # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
                 if D == 1 and n > 0:  # one pass: scatter and summaries
                     for w in range(B):

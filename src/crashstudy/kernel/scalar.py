@@ -1,5 +1,5 @@
-"""Compiled scalar helpers of the numba kernel (one variant at a time): curve inverses and the
-``general_nonlinear`` state machine. They follow :mod:`crashstudy.kernel.materials` line by line.
+"""Compiled scalar helpers of the numba kernel (one variant at a time): time curves, curve inverses
+and the rare ``general_nonlinear`` reversal (rule 4). They follow :mod:`crashstudy.kernel.materials`.
 """
 
 from __future__ import annotations
@@ -70,80 +70,37 @@ def unloading_inverse(c, f, v, cx, cy, cs0, cs1, off):  # pragma: no cover - com
 
 
 @_jit
-def general_nonlinear(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):  # pragma: no cover - compiled
-    """Force of a general_nonlinear spring; ``st[:, w]`` is this variant's state (see materials.py)."""
+def reverse_yield(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):  # pragma: no cover - compiled
+    """SPEC 3 rule 4 for one lane whose unloading branch reached the other direction's yield force.
+
+    ``st[:, w]`` holds the state before this step (a reversing lane is on its unloading line, so the
+    vectorised step left it unchanged). Returns the force; updates the state.
+    """
     mode = st[0, w]
     et = st[1, w]
     ft = st[2, w]
     ec = st[3, w]
     fc = st[4, w]
-    shift = st[5, w]
-    yld_t = st[6, w]
-    yld_c = st[7, w]
-    L = curve_at(ca, e - shift, v, cx, cy, cds, cs0, off)
-    thr_t = ft if yld_t > 0 else yt
-    thr_c = fc if yld_c > 0 else yc
-    F = 0.0
-    to_t = False
-    to_c = False
-    rev_t = False
-    rev_c = False
-    if mode == 0:
-        F = L
-        to_t = L >= yt
-        to_c = L <= yc
-    elif mode > 0:
-        if e >= et:
-            F = L
-            et = e
-            ft = L
-        else:
-            F = ft + curve_at(cb, e - et, v, cx, cy, cds, cs0, off)
-            rev_c = F <= thr_c
-    else:
-        if e <= ec:
-            F = L
-            ec = e
-            fc = L
-        else:
-            F = fc + curve_at(cb, e - ec, v, cx, cy, cds, cs0, off)
-            rev_t = F >= thr_t
-    if rev_c:
+    thr_t = ft if st[6, w] > 0 else yt
+    thr_c = fc if st[7, w] > 0 else yc
+    if mode > 0:  # tension unloading reached compression
         cross = et + unloading_inverse(cb, thr_c - ft, v, cx, cy, cs0, cs1, off)
         shift = cross - curve_inverse(ca, thr_c, -1.0, v, cx, cy, cds, cs0, cs1, off)
-    if rev_t:
+        Ls = curve_at(ca, e - shift, v, cx, cy, cds, cs0, off)
+        st[3, w] = e
+        st[4, w] = Ls
+        st[0, w] = -1.0
+        st[7, w] = 1.0
+    else:  # compression unloading reached tension
         cross = ec + unloading_inverse(cb, thr_t - fc, v, cx, cy, cs0, cs1, off)
         shift = cross - curve_inverse(ca, thr_t, 1.0, v, cx, cy, cds, cs0, cs1, off)
-    if rev_c or rev_t:
         Ls = curve_at(ca, e - shift, v, cx, cy, cds, cs0, off)
-        F = Ls
-        if rev_c:
-            ec = e
-            fc = Ls
-        else:
-            et = e
-            ft = Ls
-    if to_t:
-        et = e
-        ft = L
-    if to_c:
-        ec = e
-        fc = L
-    if to_t or rev_t:
-        mode = 1.0
-        yld_t = 1.0
-    elif to_c or rev_c:
-        mode = -1.0
-        yld_c = 1.0
-    st[0, w] = mode
-    st[1, w] = et
-    st[2, w] = ft
-    st[3, w] = ec
-    st[4, w] = fc
+        st[1, w] = e
+        st[2, w] = Ls
+        st[0, w] = 1.0
+        st[6, w] = 1.0
     st[5, w] = shift
-    st[6, w] = yld_t
-    st[7, w] = yld_c
-    return F
+    return Ls
 
 
 _ = np  # numpy is used by numba typing of the arrays passed in
