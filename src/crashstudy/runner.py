@@ -250,17 +250,21 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
         res = Results(out)
         n_failed = int((res.summary["status"] != "ok").sum())
         return RunReport(res, plan.n_variants, n_failed, 0, time.perf_counter() - t0)
-    writer = ResultWriter(out, plan, resume=resume)
-    reused = 0
-    if not resume and (out / FINAL).exists():
-        reused = _reuse_finished(writer, plan, out / FINAL, chunk or MAX_CHUNK)
-    todo = ~writer.done()
-    ranges = _ranges(todo, chunk or chunk_size(plan))
-    bar = Progress(plan.n_variants, progress)
-    bar.update(int((~todo).sum()))
-    backend = make_backend(jobs, scheduler)
-    n_failed = 0
+    backend = make_backend(jobs, scheduler)  # before any file is written: a backend that cannot start leaves none
     try:
+        writer = ResultWriter(out, plan, resume=resume)
+    except BaseException:
+        backend.close()
+        raise
+    reused = 0
+    n_failed = 0
+    bar = Progress(plan.n_variants, progress)
+    try:
+        if not resume and (out / FINAL).exists():
+            reused = _reuse_finished(writer, plan, out / FINAL, chunk or MAX_CHUNK)
+        todo = ~writer.done()
+        ranges = _ranges(todo, chunk or chunk_size(plan))
+        bar.update(int((~todo).sum()))
         for res in backend.imap_unordered(run_chunk, ((plan, lo, hi, kernel) for lo, hi in ranges)):
             writer.write(res)
             n_failed += int(np.count_nonzero(res.out.status))
