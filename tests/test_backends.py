@@ -219,8 +219,6 @@ def test_cli_without_distributed_exits_2_with_the_install_hint(study_file: Path,
     assert "pip install 'crashstudy[dask]'" in capsys.readouterr().err
 
 
-@pytest.mark.xfail(strict=True, reason="runner.run_plan opens the ResultWriter before make_backend; "
-                   "a backend that cannot start leaves results.nc.partial behind (runner change proposed)")  # fmt: skip
 def test_backend_that_cannot_start_leaves_no_partial_result(study_file: Path, tmp_path: Path,
                                                              monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
     monkeypatch.setitem(sys.modules, "distributed", None)
@@ -244,3 +242,15 @@ def test_cli_run_with_local_scheduler_exits_0(
     assert proc.returncode == 0, proc.stderr
     assert f"{N_VARIANTS} variants" in proc.stdout
     assert_same_results(_load(out), reference)
+
+
+def test_dask_local_workers_run_the_kernel_with_one_thread_each() -> None:
+    from crashstudy.dask_backend import DaskBackend
+    from crashstudy.kernel.compiled import get_threads
+
+    backend = DaskBackend("local")
+    try:
+        assert backend.worker_threads() == 2
+        assert sorted(backend.imap_unordered(get_threads, [()] * 6)) == [1] * 6
+    finally:
+        backend.close()

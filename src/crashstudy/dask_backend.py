@@ -30,11 +30,12 @@ def _problem(message: str) -> InputError:
 
 
 def _call_on_worker(fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
-    """Run ``fn(*args)`` on a Dask worker with numba limited to the worker's share of threads.
+    """Run ``fn(*args)`` on a Dask worker with the kernel limited to the worker's share of threads.
 
-    A worker started with ``--nthreads T`` runs up to ``T`` tasks at once; each task's kernel gets
-    ``T`` divided by the number of tasks running on that worker when it starts (at least 1), so a
-    lone task uses all ``T`` threads and ``T`` concurrent tasks use one each.
+    A worker started with ``--nthreads T`` runs up to ``T`` tasks at once; a task sets the compiled
+    kernel's thread count (:func:`crashstudy.kernel.compiled.set_threads`, one setting per worker
+    process) to ``T`` divided by the number of tasks running on that worker as it starts (at least 1):
+    a worker of one thread computes with one thread, a lone task on a ``T``-thread worker with ``T``.
     """
     from distributed import get_worker
 
