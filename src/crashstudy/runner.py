@@ -121,7 +121,8 @@ def _reason(out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float,
     code = int(out.status[k])
     t = out.fail_time[k]
     if code == UNSTABLE:
-        return f"numerical instability: non-finite state at t={t:.6g} (dt_crit={dt_crit:.6g}, {control})"
+        return (f"numerical instability: energy balance lost (non-finite, or error above 100%) at t={t:.6g} "
+                f"(dt_crit={dt_crit:.6g}, {control})")  # fmt: skip
     if code == CRUSHED_TO_ZERO:
         return f"spring {springs[int(out.fail_item[k])]!r} crushed to zero length at t={t:.6g}"
     if code == INVALID:

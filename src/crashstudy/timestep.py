@@ -4,9 +4,10 @@ Critical step: the nodal bound ``omega_max^2 <= max_n 2 K_n / m_n`` where ``K_n`
 springs at node ``n``, the steepest slope ``k_max`` any curve of the spring can use. It is safe for
 the whole assembly in 1-D and 2-D: for any displacement field ``u``,
 ``u^T K u = sum_s k_s (n_s . (u_j - u_i))^2 <= sum_s 2 k_s (|u_i|^2 + |u_j|^2) = sum_n 2 K_n |u_n|^2``.
-Dampers enter as the nodal damping rate ``gamma_n = C_n / m_n`` (``C_n`` the sum of damping
-coefficients at the node) with the damped central-difference limit
-``dt <= (2 / omega) (sqrt(1 + xi^2) - xi)``, ``xi = gamma / omega`` (``-> 1/gamma`` for a pure damper).
+Dampers enter as the nodal damping rate ``gamma_n = 2 C_n / m_n`` (``C_n`` the sum of damping
+coefficients at the node; the same bound as for the stiffness) with the damped limit
+``dt <= (2 / omega) (sqrt(1 + xi^2) - xi)``, ``xi = gamma / omega`` (``-> 1/gamma`` for a pure damper,
+the limit of the kernel's second-order damper velocity ``v^{n-1/2} + dt/2 a^{n-1}``).
 
 Accuracy (``tolerance`` mode): central difference is second order, and the relative error of the
 reported peaks behaves as ``~ (omega dt)^2 / 8``; the step ``dt = min(dt_crit, 2 sqrt(2 tol) / omega)``
@@ -101,7 +102,7 @@ def choose_steps(
     with np.errstate(divide="ignore", invalid="ignore"):
         m = np.where(movable[:, None], mass, np.inf)
         omega = np.sqrt(2.0 * K / m)
-        gamma = Cn / m
+        gamma = 2.0 * Cn / m  # nodal bound on the damping rate, like 2 K_n / m_n for the stiffness
         xi = np.where(omega > 0, gamma / omega, np.inf)
         dt_node = np.where(
             omega > 0,

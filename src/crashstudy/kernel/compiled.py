@@ -23,7 +23,7 @@ import numpy as np
 from crashstudy.batch import Batch
 from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, HISTORY_ORDER, INVALID, UNSTABLE, KernelOutput, allocate
-from crashstudy.kernel.reference import TINY_LENGTH
+from crashstudy.kernel.reference import TINY_LENGTH, UNSTABLE_ENERGY
 from crashstudy.kernel.scalar import reverse_yield, time_curve_at
 
 BLOCK = 256
@@ -151,6 +151,12 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
         acc = np.zeros((N, D, B))  # a^{n-1} at the start of step n (dampers' velocity estimate)
         jump_prev = np.zeros((W, N, D, B))
         pm_acc = np.zeros((NP, B))  # kinematic acceleration of each prescribed dof
+        axis_prev = np.zeros((S if D > 1 else 0, D, B))  # 2-D: previous spring direction (un-normalised)
+        if D > 1:
+            for s in range(S):
+                for d in range(D):
+                    for w in range(B):
+                        axis_prev[s, d, w] = x0_b[sj[s], d, w] - x0_b[si[s], d, w]
         state = np.zeros((S if has_state else 0, NSTATE, B))
         forces = np.zeros((S, B))
         elong = np.zeros((S, B))
@@ -247,7 +253,11 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                             ax_tmp[d, w] = dd
                             ln2 += dd * dd
                         ln = np.sqrt(ln2)
-                        gone = ln <= TINY_LENGTH * l0_b[s, w]
+                        turn = 0.0
+                        for d in range(D):
+                            turn += ax_tmp[d, w] * axis_prev[s, d, w]
+                            axis_prev[s, d, w] = ax_tmp[d, w]
+                        gone = (ln <= TINY_LENGTH * l0_b[s, w]) or (turn <= 0.0)
                         if gone and crushed[w] < 0:
                             crushed[w] = s
                         dn = 1.0 if gone else ln
@@ -497,7 +507,7 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                 b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - ke0[w] - work[w])
                 bal[w] = b_
                 err[w] = max(err[w], b_ * actf[w])
-                nbad += act[w] & ~(b_ < np.inf)
+                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]))
             anybad = nbad > 0
             # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
             for n_ in range(N):
@@ -518,7 +528,7 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                 for w in range(B):
                     if not act[w]:
                         continue
-                    if not (bal[w] < np.inf):
+                    if not (bal[w] <= UNSTABLE_ENERGY * (ke0[w] + wmax[w])):
                         st_ok[w] = UNSTABLE
                         fail_time[lo + w] = n * dt_b[w]
                         n_fail[w] = n

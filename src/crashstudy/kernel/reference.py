@@ -30,6 +30,7 @@ from crashstudy.kernel import materials as mat
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 
 TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
+UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + |W_ext| is an instability
 
 
 def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOutput:
@@ -52,6 +53,8 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
     fext_prev = np.zeros((N, D, V))
     a_prev = np.zeros((N, D, V))  # a^{n-1}: dampers use the second-order velocity v^{n-1/2} + dt/2 a^{n-1}
     jump_prev = np.zeros((W, N, D, V))  # velocity jump of each node at each wall in the previous step
+    # 2-D: the previous direction of each spring; a reversal means the nodes passed through each other
+    axis_prev = (b.x0[b.spring_j] - b.x0[b.spring_i]) if D > 1 else np.zeros((0, D, V))
     ie = np.zeros((S, V))
     work = np.zeros(V)
     wall_e = np.zeros(V)
@@ -83,9 +86,10 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
             else:
                 d = x[j] - x[i]
                 length = np.sqrt(np.sum(d * d, axis=0))
-                gone = length <= TINY_LENGTH * b.length0[s]
+                gone = (length <= TINY_LENGTH * b.length0[s]) | (np.sum(d * axis_prev[s], axis=0) <= 0.0)
                 crushed = np.where(gone & (crushed < 0), s, crushed)
                 axis = d / np.where(gone, 1.0, length)
+                axis_prev[s] = d
                 e = length - b.length0[s]
                 edot = np.sum(axis * (vpj - vpi), axis=0)
             F = _force(b, s, e, edot, state[s], cargs)
@@ -155,7 +159,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
         out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
         out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
 
-        bad = act & ~np.isfinite(bal)
+        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (ke0 + wmax)))
         out.status[:] = np.where(bad, UNSTABLE, out.status)
         gone = act & ~bad & (crushed >= 0)
         out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)
