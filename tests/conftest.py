@@ -57,3 +57,14 @@ def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[
 @pytest.fixture
 def cli():
     return run_cli
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Compile (or load from numba's cache) the kernel once, in the main process, before any test or
+    xdist worker needs it: workers then load the cached machine code instead of compiling it again."""
+    if hasattr(config, "workerinput"):
+        return
+    run_model({"name": "warm-up", "nodes": {"a": {"position": [0.0], "fixed": True},
+                                            "b": {"position": [1.0], "mass": 1.0}},
+               "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 1.0}}},
+               "end_time": 0.01, "output": {"histories": "none"}})  # fmt: skip
