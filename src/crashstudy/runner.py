@@ -71,7 +71,14 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
     topo = plan.topology
     P = plan.params(lo, hi)
     V = hi - lo
-    uniq, inverse = np.unique(P, axis=1, return_inverse=True)
+    # a variant's parameters are a function of its axis values: dedupe on those (few columns)
+    axes = plan.axis_values(lo, hi)
+    if axes:
+        _, first, inverse = np.unique(np.stack(list(axes.values()), axis=1), axis=0, return_index=True,
+                                      return_inverse=True)  # fmt: skip
+        uniq = P[:, first]
+    else:
+        uniq, inverse = P[:, :1], np.zeros(V, dtype=np.int64)
     inverse = inverse.reshape(-1)
     batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
     order = np.argsort(batch.n_steps, kind="stable")
