@@ -31,6 +31,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import psutil
@@ -73,14 +74,18 @@ def tree_rss(proc: psutil.Process) -> int:
     return total
 
 
-def run(study: Path, out: Path, jobs: int, interval: float = 0.1) -> dict[str, float | int | str]:
+def run(study: Path, out: Path, jobs: int, interval: float = 0.1) -> dict[str, Any]:
     cmd = [sys.executable, "-m", "crashstudy.cli", "run", str(study), "-o", str(out), "--jobs", str(jobs),
            "--progress", "off", "--force"]  # fmt: skip
     t0 = time.perf_counter()
     proc = psutil.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     peak, peak_at, samples, n_procs = 0, 0.0, 0, 1
+    timeline: list[tuple[float, int]] = []  # (seconds, RSS) every 10 s: shows whether memory grows
     while proc.poll() is None:
         rss = tree_rss(proc)
+        now = time.perf_counter() - t0
+        if not timeline or now - timeline[-1][0] >= 10.0:
+            timeline.append((now, rss))
         if rss > peak:
             peak, peak_at = rss, time.perf_counter() - t0
         try:
@@ -92,7 +97,8 @@ def run(study: Path, out: Path, jobs: int, interval: float = 0.1) -> dict[str, f
     wall = time.perf_counter() - t0
     stdout, stderr = proc.communicate()
     return {"exit": proc.returncode, "wall": wall, "peak_rss": peak, "peak_at": peak_at, "samples": samples,
-            "procs": n_procs, "stdout": stdout.strip(), "stderr": stderr.strip()[-2000:]}  # fmt: skip
+            "procs": n_procs, "stdout": stdout.strip(), "stderr": stderr.strip()[-2000:],
+            "timeline": timeline}  # fmt: skip
 
 
 def machine() -> list[str]:
@@ -127,8 +133,21 @@ def machine() -> list[str]:
         f"numpy {np.__version__}, numba {numba.__version__} ({numba.config.NUMBA_NUM_THREADS} threads), "
         f"netCDF4 {netCDF4.__version__} (HDF5 {netCDF4.__hdf5libversion__})",
         f"- crashstudy {crashstudy.__version__} from {Path(crashstudy.__file__).parent}, "
-        f"commit {commit}{' + uncommitted changes in src/' if dirty else ''}",
+        + (
+            f"commit {commit}{' + uncommitted changes in src/' if dirty else ''}"
+            if Path(crashstudy.__file__).resolve().is_relative_to(ROOT / "src")
+            else f"not this checkout's src/ (the checkout is at {commit})"
+        ),
     ]
+
+
+def timeline_rows(timeline: Any, wall: float) -> list[str]:
+    rows, next_t = [], 0.0
+    for t, rss in timeline:
+        if t >= next_t:
+            rows.append(f"| {t:,.0f} | {mib(rss)} |")
+            next_t = t + wall / 10
+    return rows
 
 
 def mib(n: float) -> str:
@@ -186,6 +205,12 @@ def main(argv: list[str] | None = None) -> int:
         "and writing summary.csv) |",
         f"| results.nc | {mib(nc_size)} ({nc_size / n_var:.0f} bytes/variant) |",
         f"| summary.csv | {mib(csv_size)} ({csv_size / n_var:.0f} bytes/variant) |",
+        "",
+        "RSS of the process tree during the run (a row per tenth of the wall time):",
+        "",
+        "| time [s] | RSS |",
+        "|---|---|",
+        *timeline_rows(r["timeline"], float(r["wall"])),
         "",
         "Machine:",
         "",
