@@ -121,7 +121,7 @@ def _damped_closed_form(t: np.ndarray) -> np.ndarray:
 def test_damped_oscillator_peak_spring_force_matches_closed_form() -> None:
     """Peak spring force k x_max, x_max at tan(wd t) = wd / (zeta w), within 0.5%.
 
-    Measured: 2.8e-3 relative (low: the damper acts on the lagging half-step velocity).
+    Measured before the second-order damper velocity (commit 133e37b): 2.8e-3 relative.
     """
     out, _, _ = run_model(_damped())
     t_max = np.arctan(np.sqrt(1.0 - ZETA**2) / ZETA) / WD_D
@@ -133,8 +133,8 @@ def test_damped_oscillator_peak_spring_force_matches_closed_form() -> None:
 def test_damped_oscillator_displacement_history_matches_closed_form() -> None:
     """x(t) = (v0/wd) exp(-zeta w t) sin(wd t): max abs error below 0.5% of v0/w over 1.6 periods.
 
-    Measured: 0.99% of v0/w (dt 5e-4 s); halving dt halves the error (first order, see
-    test_convergence.py), while the undamped oscillator's error is 0.11% and falls 4x.
+    Found the damper's first-order error: 0.99% of v0/w while the damper used v^{n-1/2} alone; fixed in
+    commit 133e37b (now second order, see test_convergence.py).
     """
     out, batch, plan = run_model(_damped())
     t = np.arange(plan.n_out) * plan.interval
@@ -347,8 +347,8 @@ def test_floor_absorbs_exactly_the_impact_energy_of_the_foot() -> None:
     """Perfectly plastic impact of the foot: wall_energy = m_foot v_hit^2 / 2 within 0.5% (the foot then
     stays pressed on the floor while the leg is compressed, so the wall does no more work).
 
-    Measured: +3.5% at h = 0.2 m (2.5% at 0.21 m, 5.0% at 0.23 m); at first contact the foot is halted
-    0.17 mm above the floor, then the leg pushes it across that gap to 0.38 m/s and it hits again.
+    Found: +3.5% while the wall halted the foot up to v dt short of the floor (it then hit again);
+    since 133e37b the wall lands the node on the plane and books the impulse's discrete work.
     """
     model, v_hit, _ = _drop()
     out, _, _ = run_model(model)
@@ -409,8 +409,8 @@ def test_prescribed_displacement_holds_up_to_the_last_knot_of_its_curve() -> Non
     is still k u(0.3) = 360 N (1e-9 relative) and the grip's peak acceleration stays that of the path's
     kinks (about 1.1e3 m/s^2, as with end_time 0.25).
 
-    Measured: force 0.0 at t = 0.3 (expected 360 N), peak acceleration 5.9e5 m/s^2 (displacement
-    0.012 m undone in one step of 1/7000 s).
+    Found: force 0.0 at t = 0.3 and 5.9e5 m/s^2 while t = n dt rounding past the last knot read the curve
+    as 0 and the last step looked past end_time (both fixed in 133e37b).
     """
     out, _, _ = run_model(_pull(1, end_time=0.3))
     force = out.histories["spring_force"][:, 0, 0]
@@ -452,7 +452,7 @@ def test_prescribed_velocity_external_work_equals_kinetic_plus_internal_energy(
     the prescribed motion is KE + IE - KE0: 5000 J started at speed, 5002 J from rest (the jump at
     t = 0 does m v^2 / 2 = 2 J); balance 1e-9 relative.
 
-    Measured: started at speed, energy_error 1e-13; from rest, external_work 5004 J (energy_error 4e-4).
+    Found: from rest, external_work 5004 J (the first half step's work booked twice); fixed in 133e37b.
     """
     out, _, _ = run_model(_tow(initial_velocity))
     ke, ie, work, wall = out.final_energy[:, 0]
@@ -471,8 +471,8 @@ def test_prescribed_velocity_external_work_equals_kinetic_plus_internal_energy(
 def test_example_model_runs_with_energy_error_below_1e_3(path: Path) -> None:
     """Every studies/models/*.yaml at its own settings: status 0 and energy_error < 1e-3.
 
-    Measured: at most 1.9e-4 (general-nonlinear-tension: the prescribed ramp starting from rest,
-    see test_prescribed_velocity_external_work_equals_kinetic_plus_internal_energy); others < 1e-8.
+    Measured at the time of writing: at most 1.9e-4 (general-nonlinear-tension, then booking the first
+    half step's work twice; fixed in 133e37b).
     """
     out, _, _ = run_model(path.read_text())
     assert np.all(out.status == 0)
