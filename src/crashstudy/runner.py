@@ -271,7 +271,11 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
         if not resume and (out / FINAL).exists():
             reused = _reuse_finished(writer, plan, out / FINAL, chunk or MAX_CHUNK)
         todo = ~writer.done()
-        ranges = _ranges(todo, chunk or chunk_size(plan))
+        size = chunk or chunk_size(plan)
+        if chunk is None and (scheduler or jobs > 1):  # several chunks per worker thread keep every worker busy
+            slots = backend.worker_threads() if hasattr(backend, "worker_threads") else jobs
+            size = min(size, max(1, -(-int(todo.sum()) // (4 * max(1, slots)))))
+        ranges = _ranges(todo, size)
         bar.update(int((~todo).sum()))
         for res in backend.imap_unordered(run_chunk, ((plan, lo, hi, kernel) for lo, hi in ranges)):
             writer.write(res)
