@@ -412,9 +412,6 @@ def test_interrupted_run_resumes_to_results_identical_to_an_uninterrupted_run(
     pd.testing.assert_frame_equal(pd.read_csv(out / "summary.csv"), pd.read_csv(ref / "summary.csv"))
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: `crashstudy run --resume` onto a partial file whose study changed "
-                   "raises an uncaught ValueError from ResultWriter (traceback, exit 1) instead of exit 2 with a "
-                   "message; the message also says 'run without --resume', which is refused too")  # fmt: skip
 def test_resume_after_the_study_changed_is_refused_as_invalid_input(work: Path, monkeypatch: pytest.MonkeyPatch,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
     study = dump(work / "changed.yaml", {"name": "changed", "model": "model.yaml",
@@ -645,28 +642,17 @@ def test_dataset_has_units_and_the_input_files_verbatim(api_run: tuple[Any, dict
     assert m.attrs["model_yaml"] == (work / "model.yaml").read_text()
 
 
-@pytest.mark.xfail(strict=True, reason="BUG (SPEC 6 'every study axis as a coordinate along variant'): in "
-                   "results.nc the axes are plain variables (no CF 'coordinates' attribute), so xr.open_dataset "
-                   "gives them as data variables; only crashstudy.open_results makes them coordinates")  # fmt: skip
 def test_plain_xarray_sees_the_study_axes_as_coordinates(matrix_run: Path) -> None:
     with xr.open_dataset(matrix_run / "results.nc") as ds:
         assert [a for a in AXES if a not in ds.coords] == []
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG (SPEC 6 'every variable has units and long_name'): the study-axis "
-    "coordinates carry only long_name, no units (nodes.body.mass should say kg, impact_velocity m/s)",
-)
 def test_study_axis_coordinates_have_units(api_run: tuple[Any, dict[str, Any]]) -> None:
     ds = api_run[0].dataset
     assert ds["nodes.body.mass"].attrs.get("units") == "kg"
     assert ds["impact_velocity"].attrs.get("units") == "m/s"
 
 
-@pytest.mark.xfail(strict=True, reason="BUG (SPEC 6 'every variable has units and long_name'): status, "
-                   "failure_reason, dt_control, input_hash, done have no units; variant/node/spring/axis/wall "
-                   "coordinates have neither attribute")  # fmt: skip
 def test_every_variable_has_units_and_long_name(api_run: tuple[Any, dict[str, Any]]) -> None:
     ds = api_run[0].dataset
     missing = [n for n, v in ds.variables.items() if "units" not in v.attrs or "long_name" not in v.attrs]
@@ -731,8 +717,6 @@ def test_summary_unknown_sort_column_exits_2_naming_similar_columns(api_run: tup
     assert "peak_force.crush" in err and "peak_force.body" in err and "Traceback" not in err
 
 
-@pytest.mark.xfail(strict=True, reason="BUG (minor): for a misspelt column `crashstudy summary --sort` matches only "
-                   "substrings, finds none and dumps all columns instead of the similar ones")  # fmt: skip
 def test_summary_misspelt_sort_column_suggests_the_close_ones(api_run: tuple[Any, dict[str, Any]],
                                                               capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
     res, _ = api_run

@@ -162,7 +162,9 @@ def _summary(args: argparse.Namespace) -> int:
         df = df[keep]
     if args.sort:
         if args.sort not in df.columns:
-            close = [c for c in df.columns if args.sort in c]
+            import difflib
+
+            close = [c for c in df.columns if args.sort in c] or difflib.get_close_matches(args.sort, list(df.columns), 5)
             raise InputError([_arg_problem(args.dir, f"no column {args.sort!r}; columns like it: {close or list(df.columns)}")])
         df = df.sort_values(args.sort, ascending=args.ascending)
     with pd.option_context("display.max_columns", 30, "display.width", 200, "display.max_colwidth", 40):

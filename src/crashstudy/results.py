@@ -20,6 +20,7 @@ import pandas as pd
 import xarray as xr
 
 from crashstudy import __version__
+from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES, KernelOutput
 from crashstudy.provenance import HASH_LEN, text_hash
 from crashstudy.study import Plan
@@ -42,7 +43,9 @@ def _chars(texts: list[str], width: int) -> np.ndarray:
 def _units(plan: Plan) -> dict[str, str]:
     u = UNIT_SYSTEMS[plan.topology.units]
     return {"length": u.length, "time": u.time, "velocity": u.velocity, "acceleration": u.acceleration,
-            "force": u.force, "energy": u.energy, "mass": u.mass, "1": "1", "g": "g"}  # fmt: skip
+            "force": u.force, "energy": u.energy, "mass": u.mass, "1": "1", "g": "g",
+            "stiffness": f"{u.force}/{u.length}", "damping": f"{u.force}*{u.time}/{u.length}",
+            "curve": "curve units (x: length or time, y: force or motion)"}  # fmt: skip
 
 
 HISTORY_META = {
@@ -102,7 +105,9 @@ class ResultWriter:
             self.nc = netCDF4.Dataset(self.path, "a")
             if self.nc.getncattr("plan_fingerprint") != plan_fingerprint(plan):
                 self.nc.close()
-                raise ValueError(f"{self.path} belongs to a different study or model; run without --resume")
+                raise InputError([Problem(plan.study_file or plan.model_file, None, "",
+                                          f"the unfinished run in {self.dir} was started from a different study or "
+                                          "model; use --force to start again")])  # fmt: skip
         else:
             self.nc = self._create()
 
@@ -124,6 +129,7 @@ class ResultWriter:
         nc.createDimension("wall", len(topo.wall_ids))
         var = nc.createVariable("variant", "i8", ("variant",))
         var[:] = np.arange(V)
+        var.units, var.long_name = "1", "variant number (row-major over the study axes)"
         tv = nc.createVariable("time", "f8", ("time",))
         tv[:] = p.times
         tv.units, tv.long_name = units["time"], "time"
@@ -135,11 +141,13 @@ class ResultWriter:
                          ("wall", topo.wall_ids)):  # fmt: skip
             v = nc.createVariable(dim, "S1", (dim, "id_len"))
             v._Encoding = "utf-8"
+            v.units, v.long_name = "", f"{dim} id" if dim != "axis" else "coordinate axis"
             if ids:
                 v[:] = _chars(list(ids), ID_LEN)
         for ax in p.axes:
             v = nc.createVariable(ax.path, "f8", ("variant",), zlib=False)
             v.long_name = f"study axis {ax.path}"
+            v.units = units[axis_unit(ax.path, p)]
             v[:] = p.axis_values(0, V)[ax.path] if V <= 2_000_000 else 0.0
         cv = min(V, 4096)
         for name in topo.histories:
@@ -157,13 +165,18 @@ class ResultWriter:
                            ("dt_control", "node (and its stiffest spring) that controls the critical step")):  # fmt: skip
             v = nc.createVariable(name, "S1", ("variant", "text_len"), chunksizes=[cv, TEXT_LEN])
             v._Encoding = "utf-8"
-            v.long_name = long
+            v.units, v.long_name = "", long
         nc.createDimension("hash_len", HASH_LEN)
         hv = nc.createVariable("input_hash", "S1", ("variant", "hash_len"), chunksizes=[cv, HASH_LEN])
         hv._Encoding = "utf-8"
-        hv.long_name = "hash of everything that determines the variant's results (reuse key)"
+        hv.units, hv.long_name = "", "hash of everything that determines the variant's results (reuse key)"
         d = nc.createVariable("done", "i1", ("variant",), fill_value=0, chunksizes=[cv])
-        d.long_name = "1 once the variant's results are written"
+        d.units, d.long_name = "1", "1 once the variant's results are written"
+        if p.axes:  # CF: the study axes are coordinates of every per-variant variable
+            coords = " ".join(a.path for a in p.axes)
+            for v in nc.variables.values():
+                if v.dimensions[:1] == ("variant",) and v.name != "variant" and v.name not in self.plan_axes:
+                    v.coordinates = coords
         nc.setncatts({
             "title": f"crashstudy results of {p.name}", "crashstudy_version": __version__,
             "units": topo.units, "model_name": topo.name, "model_file": p.model_file, "model_yaml": p.model_text,
@@ -232,6 +245,22 @@ class ResultWriter:
             write_summary_csv(ds, self.dir / SUMMARY)
         os.replace(self.path, final)
         return final
+
+
+def axis_unit(path: str, plan: Plan) -> str:
+    """Unit kind (a key of the units table) of the model field a study axis varies."""
+    parts = path.split(".")
+    last = parts[-2] if parts[-1].isdigit() else parts[-1]
+    if path == "impact_velocity" or parts[0] == "initial_velocity":
+        return "velocity"
+    if parts[0] == "curves":
+        return "1" if last in ("scale", "x_scale") else "curve"
+    return {
+        "mass": "mass", "position": "length", "point": "length", "stiffness": "stiffness",
+        "unloading_stiffness": "stiffness", "damping": "damping", "tension_yield": "force",
+        "compression_yield": "force", "force": "force", "gravity": "acceleration", "end_time": "time",
+        "dt": "time", "min_time": "time",
+    }.get(last if parts[0] != "gravity" else "gravity", "1")  # fmt: skip
 
 
 def plan_fingerprint(plan: Plan) -> str:
