@@ -1,0 +1,661 @@
+"""Property-based tests (hypothesis) of the command line on generated models, studies and corruptions.
+
+Three properties, each through :func:`crashstudy.cli.main` in this process, as a user's command would run:
+
+1. **Random valid models run or fail cleanly.** 1-D and 2-D trees of 2-6 nodes, every material type with
+   valid curves, random masses, velocities, optional gravity, loads with time curves and rigid walls, all
+   three unit systems, ``safety_factor`` or ``tolerance`` steps. ``simulate`` returns 0 or 1 and never
+   raises; on 1 the summary says ``failed`` with a non-empty reason; on 0 ``energy_error`` is finite.
+2. **Random corruptions of valid files never crash ``validate``.** A valid model or study text (generated
+   or one of the examples in ``studies/``) with 1-3 corruptions (a deleted, duplicated or swapped line,
+   a number turned into text, NaN, infinity or a huge number, swapped ids, random bytes, truncation, a
+   broken indent) -> exit 0, 1 or 2 and no exception; on 2 stderr is ``error: invalid input`` followed by
+   ``file[:line]: ...`` problem lines, no traceback.
+3. **Random valid studies count their variants right.** Random axes among valid paths of a small model,
+   random zip groups: the variant count equals the product of the matrix axis lengths and of the zip group
+   lengths, ``run --dry-run`` prints it, ``validate`` says it, and the variants are numbered row-major.
+
+The number of generated inputs that actually ran is counted and printed at the end of the module (run
+with ``-s`` to see it); docs/robustness.md quotes it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import itertools
+import math
+import re
+import shutil
+import tempfile
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from crashstudy.cli import main
+from crashstudy.results import Results
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDIES = ROOT / "studies"
+
+COUNTS: Counter[str] = Counter()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _report_counts() -> Iterator[None]:
+    yield
+    if COUNTS:
+        print("\n[test_properties] generated inputs run: "
+              + ", ".join(f"{k}={v}" for k, v in sorted(COUNTS.items())))  # fmt: skip
+
+
+def run_main(*argv: str) -> tuple[int, str, str]:
+    """``crashstudy ARGV`` in this process; returns (exit code, stdout, stderr). Any exception propagates."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(list(argv))
+    return rc, out.getvalue(), err.getvalue()
+
+
+def dump(data: dict[str, Any]) -> str:
+    return yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120)
+
+
+# ------------------------------------------------------------------------------------------------
+# Strategy: random valid models
+# ------------------------------------------------------------------------------------------------
+
+NAMES = ["a", "b", "c", "d", "e", "f"]
+
+
+def _num(lo: float, hi: float) -> st.SearchStrategy[float]:
+    return st.floats(lo, hi, allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def increasing(draw: st.DrawFn, n: int, lo: float, hi: float, min_gap: float) -> list[float]:
+    """``n`` strictly increasing values in [lo, hi] at least ``min_gap`` apart (rounded, as a user writes)."""
+    gaps = draw(st.lists(_num(min_gap, (hi - lo) / max(n, 1)), min_size=n, max_size=n))
+    out, x = [], lo
+    for g in gaps:
+        x += g
+        out.append(round(x, 6))
+    for a, b in zip(out, out[1:], strict=False):
+        assume(b > a)
+    return out
+
+
+@st.composite
+def force_curve(draw: st.DrawFn, through_origin: bool, need_compression: bool = False,
+                increasing_y: bool = False, kmax: float = 1e5) -> dict[str, list[float]]:  # fmt: skip
+    """A material curve (elongation -> force): compression knots, the origin, tension knots."""
+    n_neg = draw(st.integers(1 if need_compression or through_origin else 0, 3))
+    n_pos = draw(st.integers(1 if through_origin or n_neg == 0 else 0, 3))
+    neg = [-v for v in reversed(draw(increasing(n_neg, 0.0, 0.5, 0.005)))]
+    pos = draw(increasing(n_pos, 0.0, 0.5, 0.005))
+    xs = neg + [0.0] + pos
+    ys = [0.0]
+    # walk away from the origin in both directions with bounded slopes
+    for direction, knots in ((-1, neg[::-1]), (1, pos)):
+        prev_x, prev_y, side = 0.0, 0.0, []
+        for x in knots:
+            lo = 0.02 * kmax if increasing_y else -kmax
+            slope = draw(_num(lo, kmax))
+            prev_y = round(prev_y + slope * (x - prev_x), 6)
+            prev_x = x
+            side.append(prev_y)
+        ys = side[::-1] + ys if direction < 0 else ys + side
+    if increasing_y:
+        assume(all(b > a for a, b in zip(ys, ys[1:], strict=False)))
+    if not through_origin:
+        shift = draw(_num(-0.1 * kmax, 0.1 * kmax))
+        ys = [round(y + shift, 6) for y in ys]
+    return {"x": xs, "y": ys}
+
+
+@st.composite
+def time_curve(draw: st.DrawFn, end_time: float) -> dict[str, list[float]]:
+    n = draw(st.integers(2, 4))
+    xs = draw(increasing(n, -0.1 * end_time, 1.2 * end_time, end_time / 50))
+    ys = draw(st.lists(_num(-2.0, 2.0).map(lambda v: round(v, 4)), min_size=n, max_size=n))
+    return {"x": xs, "y": ys}
+
+
+@st.composite
+def valid_model(draw: st.DrawFn) -> dict[str, Any]:
+    dim = draw(st.sampled_from([1, 2]))
+    n = draw(st.integers(2, 6))
+    ids = NAMES[:n]
+    root_fixed = draw(st.booleans()) or draw(st.booleans())  # 3/4 of the models hang on a fixed node
+    end_time = draw(_num(1e-3, 0.03).map(lambda v: round(v, 5)))
+    curves: dict[str, Any] = {}
+    nodes: dict[str, Any] = {}
+    positions: list[list[float]] = []
+    for k, nid in enumerate(ids):
+        if k == 0:
+            pos = [0.0] * dim
+        else:
+            parent = positions[draw(st.integers(0, k - 1))] if draw(st.booleans()) else positions[k - 1]
+            length = draw(_num(0.05, 1.0))
+            if dim == 1:
+                pos = [round(parent[0] + draw(st.sampled_from([-1, 1])) * length, 6)]
+            else:
+                ang = draw(_num(0.0, 2 * math.pi))
+                pos = [round(parent[0] + length * math.cos(ang), 6), round(parent[1] + length * math.sin(ang), 6)]
+        positions.append(pos)
+        node: dict[str, Any] = {"position": pos}
+        if k == 0 and root_fixed:
+            node["fixed"] = True
+        else:
+            node["mass"] = round(draw(_num(0.1, 100.0)), 4)
+            if dim == 2 and draw(st.integers(0, 4)) == 0:
+                node["fixed"] = [draw(st.sampled_from(["x", "y"]))]
+        nodes[nid] = node
+    springs: dict[str, Any] = {}
+    for k in range(1, n):
+        # tree: node k hangs on an earlier node at a different position
+        cands = [j for j in range(k) if positions[j] != positions[k]]
+        assume(cands)
+        j = draw(st.sampled_from(cands))
+        kind = draw(st.sampled_from(["linear_elastic", "nonlinear_elastic", "general_nonlinear", "crush", "damper"]))
+        kmax = draw(_num(1e2, 1e5))
+        if kind == "linear_elastic":
+            mat: dict[str, Any] = {"type": kind, "stiffness": round(kmax, 3)}
+        elif kind == "damper":
+            mat = {"type": kind, "damping": round(draw(_num(0.0, 100.0)), 3)}
+        elif kind == "nonlinear_elastic":
+            cid = f"c{k}"
+            curves[cid] = draw(force_curve(through_origin=draw(st.booleans()), kmax=kmax))
+            mat = {"type": kind, "curve": cid}
+        elif kind == "crush":
+            cid = f"c{k}"
+            curves[cid] = draw(force_curve(through_origin=True, need_compression=True, kmax=kmax))
+            mat = {"type": kind, "loading": cid, "unloading_stiffness": round(draw(_num(1e2, 2e5)), 3)}
+        else:
+            lid, uid = f"l{k}", f"u{k}"
+            curves[lid] = draw(force_curve(through_origin=True, kmax=kmax))
+            curves[uid] = draw(force_curve(through_origin=True, increasing_y=True, kmax=kmax))
+            mat = {"type": kind, "loading": lid, "unloading": uid}
+            if draw(st.booleans()):
+                mat["tension_yield"] = round(draw(_num(1.0, 1e4)), 3)
+            if draw(st.booleans()):
+                mat["compression_yield"] = -round(draw(_num(1.0, 1e4)), 3)
+        springs[f"s{k}"] = {"nodes": [ids[j], ids[k]] if draw(st.booleans()) else [ids[k], ids[j]], "material": mat}
+    free = [nid for nid in ids if nodes[nid].get("fixed") is not True]
+    model: dict[str, Any] = {
+        "name": "generated", "units": draw(st.sampled_from(["SI", "mm-ms-kg-kN", "mm-s-t-N"])),
+        "curves": curves, "nodes": nodes, "springs": springs,
+    }  # fmt: skip
+    iv: dict[str, list[float]] = {}
+    some = draw(st.sampled_from([1, 1, 1, 0]))  # 3 in 4 models start moving
+    moving: list[str] = draw(st.lists(st.sampled_from(free), min_size=some, unique=True)) if free else []
+    for nid in moving:
+        fixed = nodes[nid].get("fixed") or []
+        iv[nid] = [0.0 if ax in fixed else draw(st.sampled_from([-1, 1])) * round(draw(_num(0.5, 20.0)), 3)
+                   for ax in "xy"[:dim]]  # fmt: skip
+    if iv and draw(st.sampled_from([False] * 7 + [True])):
+        # an extreme but finite speed: the state overflows and the variant must fail with a reason
+        nid = sorted(iv)[0]
+        iv[nid] = [v * 10.0 ** draw(st.integers(150, 300)) for v in iv[nid]]
+    if iv:
+        model["initial_velocity"] = iv
+    if draw(st.booleans()):
+        model["gravity"] = [round(draw(_num(-10.0, 10.0)), 3) for _ in range(dim)]
+    with_loads: bool = draw(st.booleans())
+    if free and with_loads:
+        loads: list[dict[str, Any]] = []
+        for _ in range(draw(st.integers(1, 2))):
+            load: dict[str, Any] = {"node": draw(st.sampled_from(free)),
+                                    "force": [round(draw(_num(-1e3, 1e3)), 2) for _ in range(dim)]}  # fmt: skip
+            if draw(st.booleans()):
+                cid = f"t{len(loads)}"
+                curves[cid] = draw(time_curve(end_time))
+                load["curve"] = cid
+            loads.append(load)
+        model["loads"] = loads
+    if draw(st.sampled_from([False, False, True])):
+        normal = [draw(st.sampled_from([-1.0, 1.0]))] if dim == 1 else [round(draw(_num(-1.0, 1.0)), 3) for _ in "xy"]
+        assume(any(normal))
+        wall: dict[str, Any] = {"id": "wall", "point": [round(draw(_num(-2.0, 2.0)), 3) for _ in range(dim)],
+                                "normal": normal}  # fmt: skip
+        if draw(st.booleans()):
+            wall["nodes"] = draw(st.lists(st.sampled_from(ids), min_size=1, unique=True))
+        model["rigid_walls"] = [wall]
+    model["end_time"] = end_time
+    if draw(st.booleans()):
+        model["time_step"] = {"safety_factor": round(draw(_num(0.1, 1.0)), 4) or 1.0}
+    else:
+        model["time_step"] = {"tolerance": draw(st.sampled_from([1e-5, 1e-4, 1e-3, 1e-2, 0.1]))}
+    model["output"] = {"histories": "none"}
+    return model
+
+
+# ------------------------------------------------------------------------------------------------
+# 1. valid models run or fail with a clear status
+# ------------------------------------------------------------------------------------------------
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=list(HealthCheck))
+@given(valid_model())
+def test_random_valid_model_runs_or_fails_with_a_clear_status(model: dict[str, Any]) -> None:
+    with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp:
+        path = Path(tmp) / "model.yaml"
+        path.write_text(dump(model), encoding="utf-8")
+        rc, out, err = run_main("validate", str(path))
+        assert rc == 0, f"generated model is not valid:\n{err}\n{dump(model)}"
+        rc, out, err = run_main("simulate", str(path), "-o", str(Path(tmp) / "out"))
+        COUNTS["models_simulated"] += 1
+        assert rc in (0, 1), (rc, out, err)
+        assert "Traceback" not in err
+        res = Results(Path(tmp) / "out")
+        row = res.summary.iloc[0]
+        res.close()
+        checked = _well_posed(model)
+        if rc == 1:
+            COUNTS["models_failed_cleanly"] += 1
+            speeds = [abs(v) for vec in model.get("initial_velocity", {}).values() for v in vec]
+            kind = "extreme speed" if any(v > 1e100 for v in speeds) else "at rest" if not any(speeds) else "moving"
+            COUNTS[f"failure ({kind}): " + str(row["failure_reason"]).split(" at t=")[0].split(" (")[0]] += 1
+            assert row["status"] == "failed", row
+            assert str(row["failure_reason"]).strip(), row
+            assert "failed: " in err and str(row["failure_reason"]) in err
+            # a well-posed model may only fail because a 2-D spring collapsed, never as "unstable"
+            assert not checked or "crushed to zero length" in row["failure_reason"], (row["failure_reason"], dump(model))
+        else:
+            COUNTS["models_ok"] += 1
+            assert row["status"] == "ok", row
+            assert np.isfinite(row["energy_error"]), row
+            if checked:
+                # the work of a kink inside a step (yield, unloading, a curve knot) is integrated to second
+                # order, so not quite round-off (up to ~3e-6 seen); a damper's work is second-order accurate
+                # (about 5 % at safety_factor 1). An accounting bug shows as 1e-3 ... 1 (see the xfails below)
+                dampers = any(sp["material"]["type"] == "damper" for sp in model["springs"].values())
+                COUNTS["models_energy_balance_checked"] += 1
+                assert row["energy_error"] < (0.1 if dampers else 1e-4), (row["energy_error"], dump(model))
+
+
+def _well_posed(model: dict[str, Any]) -> bool:
+    """No rigid wall, every elastic curve through the origin, and moving at the start (KE0 > 0), at most 1 km/s.
+
+    Such a model must run (or fail only by a 2-D collapse) with a small ``energy_error``. Excluded, each
+    with its own test below: walls (:func:`test_energy_error_of_a_node_that_reaches_a_wall_in_the_first_step`),
+    preloaded springs (:func:`test_preloaded_spring_keeps_the_energy_balance`) and models that start at
+    rest, where ``energy_error`` is relative to a tiny number (:func:`test_model_at_rest_until_a_late_load_runs`).
+    """
+    if model.get("rigid_walls"):
+        return False
+    for sp in model["springs"].values():
+        mat = sp["material"]
+        if mat["type"] == "nonlinear_elastic":
+            c = model["curves"][mat["curve"]]
+            if 0.0 not in c["x"] or c["y"][c["x"].index(0.0)] != 0.0:
+                return False
+    speeds = [abs(v) for vec in model.get("initial_velocity", {}).values() for v in vec]
+    return any(speeds) and all(v <= 1e3 for v in speeds)
+
+
+AT_REST = """\
+name: pulse-from-rest
+curves:
+  load: {x: [-0.097332, -0.087526, -0.009807, 0.0, 0.128734], y: [-822.644089, -822.644089, -61.823486, 0.0, 0.0]}
+  unload: {x: [-0.01, 0.0, 0.01], y: [-1000.0, 0.0, 1000.0]}
+  pulse: {x: [0.005, 0.01, 0.02], y: [0.0, 1.0, 0.0]}
+nodes:
+  a: {position: [0.0], fixed: true}
+  b: {position: [1.0], mass: 10.0}
+springs:
+  s: {nodes: [a, b], material: {type: general_nonlinear, loading: load, unloading: unload}}
+loads:
+  - {node: b, force: [-1000.0], curve: pulse}
+end_time: 0.05
+output: {histories: none}
+"""
+
+
+@pytest.mark.xfail(strict=True, reason="BUG (found by the model generator): a model at rest (KE0 = 0) whose load starts "
+                   "after the first step fails its variant as 'numerical instability: energy balance lost (non-finite, "
+                   "or error above 100%) at t=5e-05': the loading curve, which passes through the origin, evaluates to "
+                   "-1.1e-13 N at e = 0 (round-off of the ramp sum), and that round-off is divided by "
+                   "max(KE0 + |W_ext|, tiny) = tiny; the '> 100 % is unstable' rule then fails a correct run")  # fmt: skip
+def test_model_at_rest_until_a_late_load_runs(tmp_path: Path) -> None:
+    path = tmp_path / "at-rest.yaml"
+    path.write_text(AT_REST)
+    rc, out, err = run_main("simulate", str(path), "-o", str(tmp_path / "out"))
+    assert rc == 0, err
+    res = Results(tmp_path / "out")
+    row = res.summary.iloc[0]
+    res.close()
+    assert row["status"] == "ok" and row["energy_error"] < 1e-6
+
+
+WALL_START = """\
+name: wall-start
+nodes:
+  a: {position: [0.0], fixed: true}
+  b: {position: [1.0], mass: 1.0}
+springs:
+  s: {nodes: [a, b], material: {type: linear_elastic, stiffness: 1.0e4}}
+initial_velocity: {b: [-10.0]}
+rigid_walls:
+  - {id: floor, point: [WALL], normal: [1.0], nodes: [b]}
+end_time: 0.01
+time_step: {safety_factor: 0.9}
+output: {interval: 1.0e-5, histories: all}
+"""
+
+
+@pytest.mark.parametrize("wall", ["1.0", "0.99996"], ids=["starts-on-the-wall", "wall-within-first-step"])
+@pytest.mark.xfail(strict=True, reason="BUG (found by the model generator): a node that reaches a rigid wall within "
+                   "the first step (starts on the wall plane moving into it, or closer than v*dt) gets "
+                   "energy_error = 1 - gap/(v dt) (1.0 on the plane) instead of round-off: the t=0 energy record "
+                   "already holds that impact's wall_energy while its kinetic energy is still KE0")  # fmt: skip
+def test_energy_error_of_a_node_that_reaches_a_wall_in_the_first_step(tmp_path: Path, wall: str) -> None:
+    """A 1 kg mass at 10 m/s (dt = 1e-5 s, 1e-4 m per step) hits a stonewall at once: all 50 J go into
+    ``wall_energy``, KE + IE + E_wall - W_ext must stay 50 J at every sample and ``energy_error`` be round-off.
+    A gap of exactly one step (wall at 0.9999) already gives 0; closer gaps give 0.4 and 1.0."""
+    path = tmp_path / "wall-start.yaml"
+    path.write_text(WALL_START.replace("WALL", wall))
+    rc, out, err = run_main("simulate", str(path), "-o", str(tmp_path / "out"))
+    assert rc == 0, err
+    res = Results(tmp_path / "out")
+    ds = res.dataset
+    balance = (ds["kinetic_energy"] + ds["internal_energy"] + ds["wall_energy"] - ds["external_work"]).values[0]
+    final_wall = float(ds["wall_energy"][0, -1])
+    err_value = float(ds["energy_error"][0])
+    res.close()
+    assert final_wall == pytest.approx(50.0)
+    assert np.abs(balance - 50.0).max() < 1e-6, f"KE + IE + E_wall - W_ext over time: {balance[:3]} ..."
+    assert err_value < 1e-6, f"energy_error {err_value} for a run that conserves energy"
+
+
+PRELOADED = """\
+name: preloaded
+nodes:
+  a: {position: [0.0], fixed: true}
+  b: {position: [0.5], mass: 10.0}
+curves:
+  constant-pull: {x: [-0.1, 0.0, 0.1], y: [1000.0, 1000.0, 1000.0]}
+springs:
+  s: {nodes: [a, b], material: {type: nonlinear_elastic, curve: constant-pull}}
+SPEED
+end_time: 0.05
+time_step: {dt: 1.0e-3}
+output: {interval: 1.0e-3, histories: all}
+"""
+
+
+@pytest.mark.parametrize("speed", [None, 0.1], ids=["released-from-rest", "slow-start"])
+@pytest.mark.xfail(strict=True, reason="BUG (found by the model generator): a spring force present at t=0 (a "
+                   "nonlinear_elastic curve with C(0) != 0, i.e. a preloaded spring) is left out of the first half "
+                   "step's work: KE + IE - KE0 - W_ext is off by F0^2 dt^2 / (8 m) (0.0125 J here; gravity of the "
+                   "same 1000 N balances exactly). Released from rest (KE0 = W_ext = 0) that offset over 'tiny' is "
+                   "above 100 %, so the variant fails as 'numerical instability: energy balance lost' (exit 1); at "
+                   "0.1 m/s energy_error = 0.25")  # fmt: skip
+def test_preloaded_spring_keeps_the_energy_balance(tmp_path: Path, speed: float | None) -> None:
+    """A constant 1000 N pull on 10 kg: x(t) = 0.5 + v0 t - 50 t^2, which central difference integrates
+    exactly; the energy balance must hold to round-off and the variant must not fail."""
+    path = tmp_path / "preloaded.yaml"
+    path.write_text(PRELOADED.replace("SPEED", "" if speed is None else f"initial_velocity: {{b: [{speed}]}}"))
+    rc, out, err = run_main("simulate", str(path), "-o", str(tmp_path / "out"))
+    res = Results(tmp_path / "out")
+    ds = res.dataset
+    x_end = float(ds["position"][0, -1, 1, 0])
+    balance = (ds["kinetic_energy"] + ds["internal_energy"] - ds["external_work"]).values[0]
+    err_value = float(ds["energy_error"][0])
+    res.close()
+    assert rc == 0, err
+    v0 = speed or 0.0
+    assert x_end == pytest.approx(0.5 + v0 * 0.05 - 50.0 * 0.05**2, abs=1e-12)
+    assert np.abs(balance - balance[0]).max() < 1e-9, (balance[:3] - balance[0])
+    assert err_value < 1e-6
+
+
+# ------------------------------------------------------------------------------------------------
+# 2. corrupted files: validate exits 0, 1 or 2 and never raises
+# ------------------------------------------------------------------------------------------------
+
+EXAMPLE_MODELS = sorted((STUDIES / "models").glob("*.yaml"))
+EXAMPLE_STUDIES = sorted(STUDIES.glob("*.yaml"))
+NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?(?![\w.])")
+ID_WORD = re.compile(r"\b[a-z][a-z0-9_]*(?:-[a-z0-9_]+)*\b")
+BAD_NUMBERS = [".nan", ".inf", "-.inf", "1e400", "-1e400", "1.0e308", "9" * 40, "9" * 5000, "0", "-0.0", "1e-320",
+               "0x7f", "0o17", "'1.0'", "1_000", "NaN", "inf", "12abc", "~", "[]", "{}", "true"]  # fmt: skip
+
+
+@st.composite
+def corrupt(draw: st.DrawFn, text: str) -> bytes:
+    """``text`` with 1-3 random corruptions, as bytes (some corruptions are not valid UTF-8)."""
+    data = text.encode("utf-8")
+    for _ in range(draw(st.integers(1, 3))):
+        s = data.decode("utf-8", "surrogateescape")
+        lines = s.splitlines(keepends=True) or [""]
+        op = draw(st.sampled_from(["delete-line", "number-to-text", "bad-number", "duplicate-line", "swap-lines",
+                                   "swap-ids", "random-bytes", "truncate", "indent", "replace-char"]))  # fmt: skip
+        COUNTS[f"corruption:{op}"] += 1
+        if op == "delete-line":
+            del lines[draw(st.integers(0, len(lines) - 1))]
+            s = "".join(lines)
+        elif op in ("number-to-text", "bad-number"):
+            nums = list(NUMBER.finditer(s))
+            if not nums:
+                continue
+            m = draw(st.sampled_from(nums))
+            new = draw(st.sampled_from(["heavy", "x", "one", "1.0.0", "1,5", "12 kg", "'3'"])) if op == "number-to-text" \
+                else draw(st.sampled_from(BAD_NUMBERS))  # fmt: skip
+            s = s[: m.start()] + new + s[m.end():]
+        elif op == "duplicate-line":
+            k = draw(st.integers(0, len(lines) - 1))
+            lines.insert(k, lines[k])
+            s = "".join(lines)
+        elif op == "swap-lines":
+            i, j = draw(st.integers(0, len(lines) - 1)), draw(st.integers(0, len(lines) - 1))
+            lines[i], lines[j] = lines[j], lines[i]
+            s = "".join(lines)
+        elif op == "swap-ids":
+            words = sorted({m.group() for m in ID_WORD.finditer(s)})
+            if len(words) < 2:
+                continue
+            a, b = draw(st.sampled_from(words)), draw(st.sampled_from(words))
+            s = re.sub(rf"\b{re.escape(a)}\b", "\0", s)
+            s = re.sub(rf"\b{re.escape(b)}\b", a, s).replace("\0", b)
+        elif op == "random-bytes":
+            raw = s.encode("utf-8", "surrogateescape")
+            k = draw(st.integers(0, len(raw)))
+            raw = raw[:k] + draw(st.binary(min_size=1, max_size=8)) + raw[k:]
+            s = raw.decode("utf-8", "surrogateescape")
+        elif op == "truncate":
+            s = s[: draw(st.integers(0, len(s)))]
+        elif op == "indent":
+            k = draw(st.integers(0, len(lines) - 1))
+            lines[k] = draw(st.sampled_from([" ", "   ", "\t", ""])) + lines[k].lstrip(" ")
+            s = "".join(lines)
+        else:
+            if not s:
+                continue
+            k = draw(st.integers(0, len(s) - 1))
+            s = s[:k] + draw(st.sampled_from(list(":-[]{},&*!#'\"|>%@`"))) + s[k + 1:]
+        data = s.encode("utf-8", "surrogateescape")
+    return data
+
+
+@pytest.fixture(scope="module")
+def studies_copy(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A copy of ``studies/`` so that corrupted study files find their models."""
+    dst = tmp_path_factory.mktemp("studies") / "studies"
+    shutil.copytree(STUDIES, dst)
+    return dst
+
+
+def _check_validate(path: Path, model_path: Path | None = None) -> None:
+    rc, out, err = run_main("validate", str(path))
+    COUNTS["corrupted_files_validated"] += 1
+    COUNTS[f"validate_exit_{rc}"] += 1
+    assert rc in (0, 1, 2), (rc, out, err)
+    assert "Traceback" not in err and "Traceback" not in out
+    if rc == 2:
+        lines = err.splitlines()
+        assert lines[0] == "error: invalid input", err
+        files = [str(path)] + ([str(model_path)] if model_path else [])
+        assert len(lines) >= 2
+        for ln in lines[1:]:
+            assert ln.startswith("... and ") or any(ln.startswith(f + ":") for f in files), (ln, err)
+        with_line = [ln for ln in lines[1:] if any(re.match(re.escape(f) + r":\d+: ", ln) for f in files)]
+        if with_line:
+            COUNTS["invalid_with_line_number"] += 1
+        else:  # only a problem with the file as a whole has no line (encoding, size, missing model)
+            assert any(w in err for w in ("not UTF-8", "too large", "not found", "cannot read")), err
+    elif rc == 0:
+        assert re.search(r": valid (model|study) \(", out), out
+
+
+@settings(max_examples=250, deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.data())
+def test_corrupted_model_text_never_crashes_validate(studies_copy: Path, data: st.DataObject) -> None:
+    source = data.draw(st.sampled_from(["generated"] + [p.name for p in EXAMPLE_MODELS]), label="source")
+    text = dump(data.draw(valid_model(), label="model")) if source == "generated" \
+        else (STUDIES / "models" / source).read_text(encoding="utf-8")  # fmt: skip
+    raw = data.draw(corrupt(text), label="corrupted")
+    path = studies_copy / "models" / "corrupted-model.yaml"
+    path.write_bytes(raw)
+    _check_validate(path)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.data())
+def test_corrupted_study_text_never_crashes_validate(studies_copy: Path, data: st.DataObject) -> None:
+    source = data.draw(st.sampled_from([p.name for p in EXAMPLE_STUDIES]), label="source")
+    text = (STUDIES / source).read_text(encoding="utf-8")
+    raw = data.draw(corrupt(text), label="corrupted")
+    path = studies_copy / "corrupted-study.yaml"
+    path.write_bytes(raw)
+    model = re.search(rb"^model:\s*(\S+)", raw, re.M)
+    model_path = (studies_copy / model.group(1).decode("utf-8", "replace")).resolve() if model else None
+    _check_validate(path, model_path)
+
+
+# ------------------------------------------------------------------------------------------------
+# 3. random valid studies: variant count and numbering
+# ------------------------------------------------------------------------------------------------
+
+SMALL_MODEL = """\
+name: small
+units: SI
+curves:
+  crush-loading: {x: [-0.2, -0.02, 0.0], y: [-60000.0, -40000.0, 0.0]}
+  pulse: {x: [0.0, 0.005, 0.01], y: [0.0, 1.0, 0.0]}
+nodes:
+  wall:  {position: [0.0], fixed: true}
+  front: {position: [0.3], mass: 50.0}
+  body:  {position: [0.9], mass: 800.0}
+springs:
+  crush:
+    nodes: [wall, front]
+    material: {type: crush, loading: crush-loading, unloading_stiffness: 5.0e6}
+  body:
+    nodes: [front, body]
+    material: {type: linear_elastic, stiffness: 2.0e6}
+  damper:
+    nodes: [front, body]
+    material: {type: damper, damping: 100.0}
+initial_velocity: {front: [-10.0], body: [-10.0]}
+gravity: [0.0]
+loads:
+  - {node: body, force: [-100.0], curve: pulse}
+end_time: 0.02
+time_step: {safety_factor: 0.9}
+output: {interval: 1.0e-3, histories: none}
+"""
+
+# every numeric path of SMALL_MODEL a study may vary, with values that keep the model valid
+AXIS_VALUES: dict[str, st.SearchStrategy[float]] = {
+    "nodes.front.mass": _num(1.0, 1e3),
+    "nodes.body.mass": _num(1.0, 1e4),
+    "springs.body.material.stiffness": _num(1e3, 1e8),
+    "springs.crush.material.unloading_stiffness": _num(1e3, 1e8),
+    "springs.damper.material.damping": _num(0.0, 1e4),
+    "curves.crush-loading.scale": _num(0.1, 10.0),
+    "curves.crush-loading.x_scale": _num(0.1, 10.0),
+    "curves.pulse.scale": _num(0.1, 10.0),
+    "curves.crush-loading.y.0": _num(-1e6, -5e4),
+    "impact_velocity": _num(0.0, 50.0),
+    "initial_velocity.body.0": _num(-50.0, 50.0),
+    "gravity.0": _num(-20.0, 20.0),
+    "loads.0.force.0": _num(-1e4, 1e4),
+    "end_time": _num(0.002, 0.05),
+    "time_step.safety_factor": _num(0.05, 1.0),
+}
+
+
+@st.composite
+def valid_study(draw: st.DrawFn) -> tuple[dict[str, Any], list[int], list[list[str]]]:
+    """(study dict, lengths of the dimensions in order, axis paths of each dimension)."""
+    paths = draw(st.lists(st.sampled_from(sorted(AXIS_VALUES)), min_size=1, max_size=7, unique=True))
+    n_matrix = draw(st.integers(0, len(paths)))
+    matrix_paths, zip_paths = paths[:n_matrix], paths[n_matrix:]
+    # split the zip paths into consecutive groups
+    groups: list[list[str]] = []
+    rest = list(zip_paths)
+    while rest:
+        k = draw(st.integers(1, len(rest)))
+        groups.append(rest[:k])
+        rest = rest[k:]
+    study: dict[str, Any] = {"name": "generated-study", "model": "model.yaml"}
+    lengths: list[int] = []
+    dims: list[list[str]] = []
+    if matrix_paths:
+        study["matrix"] = {}
+        for p in matrix_paths:
+            n = draw(st.integers(1, 5))
+            study["matrix"][p] = [round(v, 6) for v in draw(st.lists(AXIS_VALUES[p], min_size=n, max_size=n))]
+            lengths.append(n)
+            dims.append([p])
+    if groups:
+        study["zip"] = []
+        for g in groups:
+            n = draw(st.integers(1, 5))
+            study["zip"].append({p: [round(v, 6) for v in draw(st.lists(AXIS_VALUES[p], min_size=n, max_size=n))]
+                                 for p in g})  # fmt: skip
+            lengths.append(n)
+            dims.append(g)
+    if draw(st.booleans()):
+        study["set"] = {"end_time": 0.01}
+        if "end_time" in paths:  # an axis wins over set; keep it simple: no conflict
+            study.pop("set")
+    return study, lengths, dims
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+@given(valid_study())
+def test_random_valid_study_counts_its_variants(case: tuple[dict[str, Any], list[int], list[list[str]]]) -> None:
+    from crashstudy.study import load_study
+
+    study, lengths, dims = case
+    with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp:
+        d = Path(tmp)
+        (d / "model.yaml").write_text(SMALL_MODEL)
+        (d / "study.yaml").write_text(dump(study))
+        expected = math.prod(lengths)
+        rc, out, err = run_main("run", str(d / "study.yaml"), "--dry-run", "-o", str(d / "out"))
+        COUNTS["studies_dry_run"] += 1
+        assert rc == 0, err
+        shape = " (" + " x ".join(str(n) for n in lengths) + ")"
+        assert out.splitlines()[0] == f"study generated-study: {expected} variants{shape}", out
+        assert not (d / "out").exists()
+        rc, out, err = run_main("validate", str(d / "study.yaml"))
+        assert rc == 0 and out == f"{d / 'study.yaml'}: valid study ({expected} variants)\n", (out, err)
+        # row-major numbering: matrix axes first, then zip groups, the last dimension fastest
+        plan = load_study(d / "study.yaml")
+        assert plan.n_variants == expected
+        got = plan.axis_values(0, expected)
+        table = (study.get("matrix", {}) | {p: v for g in study.get("zip", []) for p, v in g.items()})
+        for k, idx in enumerate(itertools.product(*(range(n) for n in lengths))):
+            for dim, paths in enumerate(dims):
+                for p in paths:
+                    assert got[p][k] == float(table[p][idx[dim]]), (p, k, idx)
