@@ -242,11 +242,6 @@ def test_interrupted_run_leaves_partial_only_and_resumes_identically(
     assert_identical(load(out), reference[0], out, reference[1])
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: SIGKILL after results.nc.partial is created but before the first chunk "
-                   "is synced (the whole first chunk's compute time, ~2 s here, the whole run for a one-chunk study) "
-                   "leaves an HDF5 file that --resume cannot open: traceback 'AttributeError: NetCDF: Attribute not "
-                   "found' (plan_fingerprint) or 'error: cannot write results: [Errno -101] NetCDF: HDF error', "
-                   "exit 1; only --force recovers")  # fmt: skip
 def test_sigkill_before_the_first_chunk_is_written_resumes(
     fault_dir: Path, reference: tuple[xr.Dataset, Path], tmp_path: Path
 ) -> None:
@@ -311,9 +306,6 @@ def test_killed_worker_fails_the_run_and_resume_completes_identically(
     assert_identical(load(o.out), reference[0], o.out, reference[1])
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: a pool worker killed mid-study ends `crashstudy run --jobs 2` with an "
-                   "uncaught concurrent.futures.process.BrokenProcessPool traceback (exit 1) instead of a one-line "
-                   "message saying a worker died and that --resume continues")  # fmt: skip
 def test_killed_worker_is_reported_in_one_message_without_traceback(worker_killed: Outcome) -> None:
     assert_clean_message(worker_killed.err)
     assert "--resume" in worker_killed.err
@@ -395,19 +387,12 @@ def test_disk_full_while_writing_results_leaves_partial_only(disk_full) -> None:
     assert_no_complete_result(out)
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: ENOSPC inside netCDF4 (Dataset.sync in ResultWriter.write, then close "
-                   "in abort) is a RuntimeError('NetCDF: HDF error'), which cli.main does not catch: two chained "
-                   "tracebacks, exit 1, no word of a full disk")  # fmt: skip
 def test_disk_full_is_a_clear_message(disk_full) -> None:  # type: ignore[no-untyped-def]
     full, p, out = disk_full
     assert_clean_message(p.stderr)
     assert "No space left" in p.stderr or "disk" in p.stderr, p.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: after the disk filled up during the netCDF writes, the partial file is "
-                   "corrupt (netCDF4 cannot open it: '[Errno -101] NetCDF: HDF error'); after freeing space "
-                   "`--resume` exits 1 with 'error: cannot write results: [Errno -101] NetCDF: HDF error' instead of "
-                   "completing; only --force recovers")  # fmt: skip
 def test_disk_full_then_freed_resume_completes_identically(
     disk_full, fault_dir: Path, reference: tuple[xr.Dataset, Path]  # type: ignore[no-untyped-def]
 ) -> None:
@@ -630,17 +615,15 @@ def test_yaml_attack_is_refused_with_exit_2(tmp_path: Path, kind: str, text: str
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: a valid study of 10^12 variants (6 axes of 100 values) passes validate "
-                   "and --dry-run, then `run` dies in ResultWriter._create with an uncaught numpy MemoryError "
-                   "traceback (np.arange(V) for the variant coordinate) and leaves results.nc.partial behind")  # fmt: skip
 def test_variant_bomb_is_refused_without_traceback(fault_dir: Path, tmp_path: Path) -> None:
     values = "[" + ", ".join(f"{1.0 + k / 100:.2f}" for k in range(100)) + "]"
     axes = ["nodes.body.mass", "springs.spring.material.stiffness", "impact_velocity", "end_time",
             "nodes.body.position.0", "initial_velocity.body.0"]  # fmt: skip
     study = fault_dir / "bomb.yaml"
     study.write_text("name: bomb\nmodel: models/fault-model.yaml\nmatrix:\n" + "".join(f"  {a}: {values}\n" for a in axes))
-    p = cli("run", study, "--dry-run")
-    assert p.returncode == 0 and "1000000000000 variants" in p.stdout, p.stderr
+    p = cli("run", study, "--dry-run")  # refused up front, naming the count and the limit
+    assert p.returncode == 2 and "1,000,000,000,000 variants" in p.stderr, p.stderr
+    assert_clean_message(p.stderr)
     out = tmp_path / "out"
     p = cli("run", study, "-o", out, "--progress", "off", timeout=120)
     assert p.returncode in (1, 2), p.stderr[-1500:]

@@ -64,6 +64,7 @@ class Batch:
     ke_fraction: np.ndarray  # (V,) termination threshold on KE / KE0 (0: no early termination)
     min_time: np.ndarray  # (V,) [time]
     invalid: np.ndarray  # (V,) int reason code: 0 ok, see INVALID_REASONS
+    energy_floor: np.ndarray  # (V,) [energy] round-off floor of the instability test (1e-9 of the model's scale)
 
     @property
     def n_variants(self) -> int:
@@ -167,8 +168,15 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         wall_normal=np.ascontiguousarray(unit), dt=steps.dt, n_steps=steps.n_steps,
         out_every=steps.out_every, ke_fraction=P[b["ke_fraction"].start].copy(),
         min_time=P[b["min_time"].start].copy(), invalid=invalid,
+        energy_floor=_energy_floor(kmax, length0, mass, v0),
     )  # fmt: skip
     return batch, steps
+
+
+def _energy_floor(kmax: np.ndarray, length0: np.ndarray, mass: np.ndarray, v0: np.ndarray) -> np.ndarray:
+    """1e-9 of the model's energy scale (springs' k L0^2 and the initial m v0^2), per variant."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return 1e-9 * (np.sum(kmax * length0 * length0, axis=0) + np.sum(mass[:, None, :] * v0 * v0, axis=(0, 1)))
 
 
 def time_curve_spacing(topo: Topology, cx: np.ndarray) -> np.ndarray:

@@ -87,6 +87,17 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:  # disk full, read-only folder: say so plainly
         print(f"error: cannot write results: {exc}", file=sys.stderr)
         return EXIT_FAILED
+    except RuntimeError as exc:
+        from concurrent.futures.process import BrokenProcessPool
+
+        if isinstance(exc, BrokenProcessPool):
+            print("error: a worker process died; finished variants are kept: continue with --resume", file=sys.stderr)
+            return EXIT_FAILED
+        if "NetCDF" in str(exc) or "HDF" in str(exc):  # netCDF4 reports a full disk as an HDF error
+            print(f"error: cannot write results ({exc}): is the disk full or the folder not writable? "
+                  "Finished variants are kept: continue with --resume", file=sys.stderr)  # fmt: skip
+            return EXIT_FAILED
+        raise
 
 
 def _sigterm(signum: int, frame: Any) -> None:

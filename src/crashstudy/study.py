@@ -28,6 +28,7 @@ from crashstudy.schema.study import Study
 from crashstudy.yamlio import LoadedYaml, load_yaml, loads_yaml
 
 DEFAULT_SAMPLES = 1000
+MAX_VARIANTS = 100_000_000  # one results.nc; its axis coordinates alone take 0.8 GB each
 
 
 @dataclass(frozen=True)
@@ -235,6 +236,9 @@ def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
     axes, shape, problems = _axes(study, sdoc, topo, data)
     if problems:
         raise InputError(problems)
+    if math.prod(shape) > MAX_VARIANTS:
+        raise InputError([_study_problem(sdoc, ("matrix",), f"{math.prod(shape):,} variants: at most "
+                                         f"{MAX_VARIANTS:,} fit in one result file; split the study")])  # fmt: skip
     regression = {k: v.model_dump() for k, v in study.regression.items()}
     plan = _plan(m, mdoc, sdoc, axes, shape, study.name, regression)
     return plan

@@ -56,7 +56,7 @@ def _ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - co
 def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_curve, pm_node, pm_dir, pm_kind,
          pm_curve, wall_nodes, mass, inv_mass, x0, v0, length0, sign, kpar, yield_t, yield_c, cx, cy, cds, cs0,
          cs1, gravity, load_force, pm_scale, wall_point, wall_normal, dt, n_steps, out_every, ke_fraction,
-         min_time, invalid, rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, h_wall,
+         min_time, invalid, e_floor, rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, h_wall,
          status, fail_time, fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, peak_wall, energy_error,
          final_energy):  # pragma: no cover - compiled  # fmt: skip
     N = x0.shape[0]
@@ -507,7 +507,7 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                 b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - ke0[w] - work[w])
                 bal[w] = b_
                 err[w] = max(err[w], b_ * actf[w])
-                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]))
+                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]) + e_floor[lo + w])
             anybad = nbad > 0
             # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
             for n_ in range(N):
@@ -528,7 +528,7 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                 for w in range(B):
                     if not act[w]:
                         continue
-                    if not (bal[w] <= UNSTABLE_ENERGY * (ke0[w] + wmax[w])):
+                    if not (bal[w] <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]) + e_floor[lo + w]):
                         st_ok[w] = UNSTABLE
                         fail_time[lo + w] = n * dt_b[w]
                         n_fail[w] = n
@@ -657,7 +657,7 @@ def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = 
          b.load_curve, b.pm_node, b.pm_dir, b.pm_kind, b.pm_curve, b.wall_nodes, b.mass, b.inv_mass, b.x0, b.v0,
          b.length0, b.sign, b.kpar, b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.gravity,
          b.load_force, b.pm_scale, b.wall_point, b.wall_normal, b.dt, b.n_steps, b.out_every, b.ke_fraction,
-         b.min_time, b.invalid, rec_mask,
+         b.min_time, b.invalid, b.energy_floor, rec_mask,
          buf("position", (T, N, D, V)), buf("displacement", (T, N, D, V)), buf("velocity", (T, N, D, V)),
          buf("acceleration", (T, N, D, V)), buf("spring_force", (T, S, V)), buf("spring_elongation", (T, S, V)),
          h_energy, buf("wall_force", (T, W, V)),

@@ -30,7 +30,8 @@ from crashstudy.kernel import materials as mat
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 
 TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
-UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + |W_ext| is an instability
+UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + |W_ext| (+ a round-off
+# floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
 
 
 def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOutput:
@@ -159,7 +160,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
         out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
         out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
 
-        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (ke0 + wmax)))
+        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (ke0 + wmax) + b.energy_floor))
         out.status[:] = np.where(bad, UNSTABLE, out.status)
         gone = act & ~bad & (crushed >= 0)
         out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)
