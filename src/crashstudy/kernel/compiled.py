@@ -276,14 +276,7 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     for w in range(B):
                         F_tmp[w] = kp_b[s, w] * ed_tmp[w]
                 elif kind == NONLINEAR or kind == CRUSH:
-                    c = curve_a[s]
-                    a0 = off[c]
-                    b0 = off[c + 1]
-                    for w in range(B):
-                        F_tmp[w] = cy_b[a0, w] + s0_b[c, w] * (e_tmp[w] - cx_b[a0, w])
-                    for k in range(a0 + 1, b0 - 1):
-                        for w in range(B):
-                            F_tmp[w] = F_tmp[w] + ds_b[k, w] * max(0.0, e_tmp[w] - cx_b[k, w])
+                    _ramp(curve_a[s], e_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
                     if kind == CRUSH:
                         for w in range(B):
                             e = e_tmp[w]
