@@ -82,8 +82,13 @@ def median(xs: Sequence[float]) -> float:
     return float(statistics.median(xs))
 
 
-def write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
+def write_csv(path: Path, rows: list[dict[str, Any]], info: dict[str, str]) -> None:
+    """Rows as CSV; every row also carries the machine record ``info`` (cores, CPU model, load at start
+    and end), so the file stands on its own."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    keep = ("os.cpu_count()", "CPU model (lscpu)", "load average at start (1/5/15 min)",
+            "load average at end (1/5/15 min)", "crashstudy code measured")  # fmt: skip
+    rows = [{**r, **{f"machine: {k}": info[k] for k in keep if k in info}} for r in rows]
     keys: list[str] = []
     for r in rows:
         keys += [k for k in r if k not in keys]
@@ -97,7 +102,10 @@ def md_table(rows: list[dict[str, Any]], cols: list[str] | None = None) -> str:
     """A Markdown table of ``rows`` (floats in 3 significant digits)."""
     if not rows:
         return "(no rows)\n"
-    cols = cols or list(rows[0])
+    if cols is None:
+        cols = []
+        for r in rows:
+            cols += [k for k in r if k not in cols]
 
     def fmt(v: Any) -> str:
         if isinstance(v, float):

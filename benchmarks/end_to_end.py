@@ -3,7 +3,7 @@ hand-specialised loop, and where the time goes.
 
 1. Accuracy calibration on a sample of variants (corners and centre of the study's ranges): the
    largest ``time_step: {tolerance}`` whose peak force and peak deceleration errors are at most
-   ``--target`` (1e-3) on every sampled variant, and the cheapest scipy DOP853 rtol (hybrid solver of
+   ``--target`` (1e-3) on every sampled variant, and the loosest scipy DOP853 rtol (hybrid solver of
    :mod:`scipy_models`, events at every branch change) that reaches the same target. Reference: scipy
    DOP853 rtol 1e-11 with events (validated against crashstudy at safety_factor 0.00025 to ~1e-7 on
    the frontal model in the work-precision benchmark). Error = largest relative error over springs /
@@ -127,7 +127,7 @@ def calibrate(target: float) -> tuple[float, float, list[dict[str, Any]]]:
                      "median_peak_error": float(np.median(errs)), "mean_time_s": float("nan")})  # fmt: skip
     ok = [r["setting"] for r in rows if r["max_peak_error"] <= target]
     chosen_tol = max(ok) if ok else TOLERANCES[-1]
-    chosen_rtol, best_t = RTOLS[-1], float("inf")
+    scipy_ok = []
     for rtol in RTOLS:
         errs, times = [], []
         for p, r in zip(pts, refs, strict=True):
@@ -137,8 +137,11 @@ def calibrate(target: float) -> tuple[float, float, list[dict[str, Any]]]:
             errs.append(rel_err(sm_values(sol), r))
         rows.append({"solver": "scipy DOP853 + events", "setting": rtol, "max_peak_error": max(errs),
                      "median_peak_error": float(np.median(errs)), "mean_time_s": float(np.mean(times))})  # fmt: skip
-        if max(errs) <= target and np.mean(times) < best_t:
-            chosen_rtol, best_t = rtol, float(np.mean(times))
+        if max(errs) <= target:
+            scipy_ok.append(rtol)
+    # the loosest rtol that reaches the target (cost grows as rtol shrinks; picking by measured time
+    # would let timing noise choose a tighter, slower setting)
+    chosen_rtol = max(scipy_ok) if scipy_ok else RTOLS[-1]
     return chosen_tol, chosen_rtol, rows
 
 
@@ -330,8 +333,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"V={V}: {r['wall_s']:.1f} s, {r['peak_rss_MiB']:.0f} MiB, x{row['speedup_vs_scipy']:.0f} vs scipy "
                   f"(load {row['load_after']})", flush=True)  # fmt: skip
 
-    write_csv(args.out / f"{args.name}.csv", rows)
     info = machine(start_load)
+    write_csv(args.out / f"{args.name}.csv", rows, info)
     text = ["# End to end: `crashstudy run`, summary only, frontal-9mass\n\n", machine_md(info),
             f"- threads (crashstudy default = os.cpu_count()): {threads}\n",
             f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n", __doc__.split("\n\n", 1)[1], "\n",
@@ -339,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
             md_table(calib) if calib else "(given on the command line)\n",
             f"\nscipy time per variant at rtol {rtol:g}: mean {sp_mean:.4g} s, median {sp_median:.4g} s "
             f"({args.scipy_sample} random variants of the study).\n\n## Runs\n\n",
-            md_table(rows, [k for k in rows[0] if k != "cli_says"]) if rows else "", "\n",
+            md_table([{k: v for k, v in r.items() if k != "cli_says"} for r in rows]) if rows else "", "\n",
             "".join(f"- {r['variants']}: `{r['cli_says']}`\n" for r in rows),
             f"\n## Where the time goes ({args.profile_size}-variant study, fresh process, in-process timers)\n\n",
             md_table([{"stage": k, "seconds": v} for k, v in prof.items()]) if prof else "(not run)\n"]  # fmt: skip

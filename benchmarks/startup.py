@@ -73,10 +73,10 @@ def main(argv: list[str] | None = None) -> int:
                              "load": load()})  # fmt: skip
                 print(f"repeat {r} {label}: {wall:.2f} s, {rss:.0f} MiB (load {load()})", flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
-    write_csv(args.out / "startup.csv", rows)
+    info = machine(start_load)
+    write_csv(args.out / "startup.csv", rows, info)
     first = [r["wall_s"] for r in rows if str(r["run"]).startswith("first")]
     second = [r["wall_s"] for r in rows if str(r["run"]).startswith("second")]
-    info = machine(start_load)
     text = ("# First vs second `crashstudy simulate` (numba cache)\n\n" + machine_md(info)
             + f"- model: {args.model.relative_to(MODELS.parents[1]) if args.model.is_relative_to(MODELS.parents[1]) else args.model}\n"
             + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n" + __doc__.split("\n\n", 1)[1] + "\n"

@@ -327,9 +327,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name}: {time.perf_counter() - t_model:.0f} s (load {load()})", flush=True)
 
     args.out.mkdir(parents=True, exist_ok=True)
-    write_csv(args.out / "work_precision.csv", rows)
-    write_csv(args.out / "tolerance_promise.csv", promise)
     info = machine(start_load)
+    write_csv(args.out / "work_precision.csv", rows, info)
+    write_csv(args.out / "tolerance_promise.csv", promise, info)
     text = ["# Work-precision: error vs time per variant\n\n", machine_md(info),
             f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n", __doc__.split("\n\n", 1)[1], "\n",
             "## References\n\n", md_table(refs), "\n## Crossover: scipy time / crashstudy time at equal error\n\n",
