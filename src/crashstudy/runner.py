@@ -40,14 +40,37 @@ def chunk_size(plan: Plan) -> int:
     return int(max(1, min(MAX_CHUNK, HISTORY_BUDGET // max(per_variant, 1))))
 
 
-def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled") -> KernelOutput:
+GENERATED_MIN_WORK = 2e10  # element-steps of a run above which compiling the model's own kernel pays
+
+
+def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
+               work: float = 0.0, vary: frozenset[int] | None = None) -> KernelOutput:  # fmt: skip
+    """Integrate ``batch`` with ``kernel``: "compiled" (the model's generated kernel when it supports the
+    model and is already compiled or the run's ``work`` [element-steps] earns its compilation back,
+    else the generic one), "generic", "generated" or "reference" (NumPy; tests). ``vary``: indices
+    of the curves the study varies (see :func:`varying_curves`)."""
     if kernel == "reference":
         from crashstudy.kernel.reference import run_reference
 
         return run_reference(batch, histories, n_out)
+    from crashstudy.kernel import generated
+
+    if kernel == "generated" or (
+        kernel == "compiled"
+        and generated.unsupported(batch) is None
+        and (work >= GENERATED_MIN_WORK or generated.is_compiled(batch, histories, vary))
+    ):
+        return generated.run_generated(batch, histories, n_out, vary)
     from crashstudy.kernel.compiled import run_compiled
 
     return run_compiled(batch, histories, n_out)
+
+
+def varying_curves(plan: Plan) -> frozenset[int]:
+    """Indices of the curves a study's axes change (``curves.<id>...`` paths)."""
+    ids = plan.topology.curve_ids
+    names = {ax.path.split(".")[1] for ax in plan.axes if ax.path.startswith("curves.")}
+    return frozenset(ids.index(c) for c in names if c in ids)
 
 
 def _reorder(out: KernelOutput, take: np.ndarray, V: int, histories: tuple[str, ...], n_out: int,
@@ -83,7 +106,8 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
     batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
     order = np.argsort(batch.n_steps, kind="stable")
     sorted_batch = batch.take(order)
-    out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel)
+    work = float(np.sum(batch.n_steps)) * topo.n_springs * plan.n_variants / max(batch.n_variants, 1)
+    out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, work, varying_curves(plan))
     estimate = error_estimate(sorted_batch, out, kernel) if topo.accuracy_check else np.full(len(order), np.nan)
     pos = np.empty_like(order)
     pos[order] = np.arange(len(order))
@@ -113,7 +137,7 @@ def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled") ->
     import dataclasses
 
     half = dataclasses.replace(batch, dt=batch.dt / 2, n_steps=batch.n_steps * 2, out_every=batch.out_every * 2)
-    fine = run_kernel(half, (), 1, kernel)
+    fine = run_kernel(half, (), 1, kernel, float(np.sum(half.n_steps)) * len(batch.spring_i))
     worst = np.zeros(batch.n_variants)
     for name in ("peak_force", "peak_acceleration"):
         coarse, ref = getattr(out, name), getattr(fine, name)

@@ -1,0 +1,642 @@
+"""Model-specialised kernels: numba source generated from a batch's topology, compiled once, cached.
+
+The generic kernel (:mod:`crashstudy.kernel.compiled`) reads the topology from arrays at run time:
+which nodes a spring joins, its material, how many knots its curves have. Every step it loops over
+springs and nodes and keeps a dozen separate block arrays, and LLVM vectorises few of its loops.
+Here the topology is written into the source instead, the way a hand-specialised loop would be: one
+fused, branch-free pass over the variants of a block per time step computes every spring, every
+node update and every summary, with all per-variant numbers (masses, curve knots, stiffnesses,
+state, summaries) in rows of ONE block work array ``Z`` with a compile-time row stride, so LLVM can
+prove the rows never overlap and puts several variants in one SIMD instruction.
+
+The arithmetic is that of the reference kernel, operation for operation, so results are bitwise
+those of :func:`crashstudy.kernel.reference.run_reference` (``tests/test_generated.py``). The
+numbers stay per variant: one compiled kernel serves every study of the same model shape.
+
+Scope (:func:`unsupported`): 1-D models without walls, loads, prescribed motion, gravity or early
+termination; every material. Anything else runs on the generic kernel.
+
+Compilation costs seconds per model shape, so the runner uses a generated kernel when the study is
+large enough to earn it back, or when this shape's kernel is already compiled (numba's on-disk cache
+next to the generated source, in :func:`cache_dir`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import sys
+import tempfile
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numba as nb
+import numpy as np
+
+from crashstudy.batch import Batch
+from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR
+from crashstudy.kernel.compiled import get_threads
+from crashstudy.kernel.output import HISTORY_ORDER, KernelOutput, allocate
+from crashstudy.kernel.scalar import reverse_yield
+
+GEN_VERSION = 2  # bump when the generated source changes meaning (old cached kernels are ignored)
+BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
+ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
+ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
+_LOCK = threading.Lock()
+_LOADED: dict[str, Any] = {}
+
+
+@nb.njit(cache=True, nogil=True)
+def reverse_yield_lane(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):  # pragma: no cover - compiled
+    """:func:`crashstudy.kernel.scalar.reverse_yield` compiled once, called (rarely) by every generated
+    kernel instead of being inlined into each."""
+    return reverse_yield(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off)
+
+
+def unsupported(b: Batch) -> str | None:
+    """Why a generated kernel cannot run ``b`` (None if it can)."""
+    N, D, V = b.x0.shape
+    if D != 1:
+        return "2-D model"
+    if b.wall_nodes.shape[0] > 0:
+        return "rigid walls"
+    if len(b.load_node) > 0 or len(b.pm_node) > 0:
+        return "loads or prescribed motion"
+    if np.any(b.gravity != 0.0):
+        return "gravity"
+    if np.any(b.ke_fraction > 0.0):
+        return "early termination"
+    return None
+
+
+def cache_dir() -> Path:
+    """Where generated sources (and numba's compiled cache beside them) live:
+    ``$CRASHSTUDY_KERNEL_CACHE``, else ``~/.cache/crashstudy/kernels``, else a temporary folder."""
+    env = os.environ.get("CRASHSTUDY_KERNEL_CACHE")
+    for cand in ([Path(env)] if env else []) + [Path.home() / ".cache" / "crashstudy" / "kernels",
+                                                 Path(tempfile.gettempdir()) / "crashstudy-kernels"]:  # fmt: skip
+        try:
+            cand.mkdir(parents=True, exist_ok=True)
+            probe = cand / f".probe-{os.getpid()}"
+            probe.write_text("")
+            probe.unlink()
+            return cand
+        except OSError:
+            continue
+    raise OSError("no writable folder for generated kernels (set CRASHSTUDY_KERNEL_CACHE)")
+
+
+# ---------------------------------------------------------------------------------------------
+# shape of a model: what the source depends on
+
+
+def _constant_curves(b: Batch, vary: frozenset[int] | None) -> list[int]:
+    """Curves whose coefficients are the same in every variant of ``b`` and, when ``vary`` (curve
+    indices a study varies) is given, not among those: their numbers stay in registers."""
+    out = []
+    for c in range(len(b.curve_off) - 1):
+        a0, b0 = b.curve_off[c], b.curve_off[c + 1]
+        if vary is not None and c in vary:
+            continue
+        rows = [b.cx[a0:b0], b.cy[a0:b0], b.cds[a0:b0], b.cs0[c : c + 1]]
+        if all(np.all(r == r[:, :1]) for r in rows):
+            out.append(c)
+    return out
+
+
+def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
+    """(coefficient name, Batch array, row) of every constant-curve coefficient the springs read, in
+    the order of the kernel's ``cst`` argument."""
+    off, S = shape["off"], shape["S"]
+    used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0}
+    out = []
+    for c in shape["const"]:
+        if c not in used:
+            continue
+        out += [(f"cy0_{c}", "cy", off[c]), (f"s0_{c}", "cs0", c)]
+        for k in range(off[c], off[c + 1] - 1):
+            out.append((f"cx{k}", "cx", k))
+            if k > off[c]:
+                out.append((f"ds{k}", "cds", k))
+    return out
+
+
+def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
+    """The ``cst`` argument: the constant curves' coefficients (the same in every variant)."""
+    return np.array([getattr(b, arr)[row, 0] for _, arr, row in _const_layout(shape)] + [0.0])
+
+
+def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None) -> dict[str, Any]:
+    N = b.x0.shape[0]
+    static = [bool(b.free[n, 0] == 0.0 and not np.any(b.v0[n, 0] != 0.0)) for n in range(N)]
+    sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
+            for s in range(len(b.spring_i))]  # fmt: skip
+    return {
+        "const": _constant_curves(b, vary), "sign": sign,
+        "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "S": len(b.spring_i),
+        "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
+        "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
+        "movable": [bool(b.free[n, 0] > 0.0) for n in range(N)], "static": static,
+        "hist": [h for h in HISTORY_ORDER if h in histories or (h in ENERGIES and any(e in histories for e in ENERGIES))],
+    }  # fmt: skip
+
+
+class _Rows:
+    """Row numbers of the block work array, handed out by name."""
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.at: dict[str, int] = {}
+
+    def add(self, name: str) -> int:
+        self.at[name] = self.n
+        self.n += 1
+        return self.at[name]
+
+    def __getitem__(self, name: str) -> str:
+        """The work-array element of row ``name`` for lane ``w``, as source text."""
+        return f"Z[{self.at[name] * ROW} + w]"
+
+
+def _source(shape: dict[str, Any]) -> str:
+    """The module source of the kernel for ``shape`` (see the module docstring)."""
+    N, S = shape["N"], shape["S"]
+    si, sj, mat, ca, cb, off = shape["si"], shape["sj"], shape["mat"], shape["ca"], shape["cb"], shape["off"]
+    static, movable, hist = shape["static"], shape["movable"], shape["hist"]
+    const, sign = shape["const"], shape["sign"]
+    general = [s for s in range(S) if mat[s] == GENERAL]
+    dampers = any(mat[s] == DAMPER for s in range(S))
+    R = _Rows()
+    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien"):
+        R.add(name)
+    live = [n for n in range(N) if not static[n]]
+    for n in live:
+        for f in ("x", "x0", "v", "m", "im", "pa") + (("a",) if dampers else ()):
+            R.add(f"{f}{n}")
+    curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0})
+    cname = {nm: f"k_{nm}" for nm, _, _ in _const_layout(shape)}  # coefficient -> local constant
+    for c in curves:
+        if c in const:
+            continue
+        R.add(f"cy0_{c}")
+        R.add(f"s0_{c}")
+        for k in range(off[c], off[c + 1] - 1):
+            R.add(f"cx{k}")
+            if k > off[c]:
+                R.add(f"ds{k}")
+    for s in range(S):
+        for f in ("sg", "kp", "fp", "ep", "ie", "pf", "mc"):
+            R.add(f"{f}{s}")
+        if mat[s] == CRUSH:
+            R.add(f"st{s}_0")
+            R.add(f"st{s}_1")
+    gs_row = {}
+    for s in general:
+        R.add(f"yt{s}")
+        R.add(f"yc{s}")
+        R.add(f"F{s}")
+        R.add(f"E{s}")
+        R.add(f"rev{s}")
+        gs_row[s] = R.n
+        for k in range(8):
+            R.add(f"st{s}_{k}")
+    if hist:
+        for n in live:
+            R.add(f"xh{n}")
+            R.add(f"vh{n}")
+
+    def co(name: str) -> str:
+        return cname[name] if name in cname else R[name]
+
+    def ramp(c: int, arg: str) -> str:
+        a0, b0 = off[c], off[c + 1]
+        out = f"({co(f'cy0_{c}')} + {co(f's0_{c}')} * ({arg} - {co(f'cx{a0}')}))"
+        for k in range(a0 + 1, b0 - 1):
+            out = f"({out} + {co(f'ds{k}')} * _max(0.0, {arg} - {co(f'cx{k}')}))"
+        return out
+
+    def disp(n: int) -> str:
+        return "0.0" if static[n] else f"d{n}"
+
+    def disps(ind: str, springs: list[int]) -> None:
+        """Local displacements x - x0 of the nodes ``springs`` join (computed once per lane)."""
+        for n in sorted({m for s in springs for m in (si[s], sj[s])}):
+            if not static[n]:
+                emit(f"{ind}d{n} = {R[f'x{n}']} - {R[f'x0{n}']}")
+
+    def elong(s: int) -> str:
+        body = f"({disp(sj[s])} - {disp(si[s])})"
+        if sign[s] == 1:  # 1.0 * y == y and -1.0 * y == -y exactly
+            return body
+        return f"-{body}" if sign[s] == -1 else f"{R[f'sg{s}']} * {body}"
+
+    def chain_of(n: int, force: Any) -> str:
+        """Nodal force of node ``n`` in the reference scatter's order; ``force(s)``: spring s's F."""
+        out = "0.0"
+        for s in range(S):
+            for side, op in ((si[s], "+"), (sj[s], "-")):
+                if side != n:
+                    continue
+                term = force(s)
+                if sign[s] == 0:
+                    out = f"({out} {op} {term} * {R[f'sg{s}']})"
+                else:
+                    out = f"({out} {op if sign[s] == 1 else ('-' if op == '+' else '+')} {term})"
+        return out
+
+    L: list[str] = []
+    emit = L.append
+
+    # ---- pass A: general_nonlinear springs (rules 1-3 branch-free; reversals flagged) ----
+    def pass_a(ind: str) -> None:
+        emit(f"{ind}nrev = 0")
+        emit(f"{ind}for w in range(B):")
+        i2 = ind + "    "
+        disps(i2, general)
+        for s in general:
+            st = [R[f"st{s}_{k}"] for k in range(8)]
+            emit(f"{i2}e = {elong(s)}")
+            emit(f"{i2}mode = {st[0]}")
+            emit(f"{i2}et = {st[1]}")
+            emit(f"{i2}ft = {st[2]}")
+            emit(f"{i2}ec = {st[3]}")
+            emit(f"{i2}fc = {st[4]}")
+            emit(f"{i2}ytw = {R[f'yt{s}']}")
+            emit(f"{i2}ycw = {R[f'yc{s}']}")
+            emit(f"{i2}L = {ramp(ca[s], f'(e - {st[5]})')}")
+            emit(f"{i2}Ut = {ramp(cb[s], '(e - et)')}")
+            emit(f"{i2}Uc = {ramp(cb[s], '(e - ec)')}")
+            emit(f"{i2}thr_t = ft if {st[6]} > 0 else ytw")
+            emit(f"{i2}thr_c = fc if {st[7]} > 0 else ycw")
+            emit(f"{i2}is0 = mode == 0")
+            emit(f"{i2}ist = mode > 0")
+            emit(f"{i2}isc = mode < 0")
+            emit(f"{i2}on_l = ist & (e >= et)")
+            emit(f"{i2}on_lc = isc & (e <= ec)")
+            emit(f"{i2}bt = ft + Ut")
+            emit(f"{i2}bc = fc + Uc")
+            emit(f"{i2}{R[f'F{s}']} = L if (is0 | on_l | on_lc) else (bt if ist else bc)")
+            emit(f"{i2}{R[f'E{s}']} = e")
+            emit(f"{i2}to_t = is0 & (L >= ytw)")
+            emit(f"{i2}to_c = is0 & (L <= ycw)")
+            emit(f"{i2}rev = (ist & (not on_l) & (bt <= thr_c)) | (isc & (not on_lc) & (bc >= thr_t))")
+            emit(f"{i2}{R[f'rev{s}']} = 1.0 if rev else 0.0")
+            emit(f"{i2}nrev += 1 if rev else 0")
+            emit(f"{i2}{st[1]} = e if (on_l | to_t) else et")
+            emit(f"{i2}{st[2]} = L if (on_l | to_t) else ft")
+            emit(f"{i2}{st[3]} = e if (on_lc | to_c) else ec")
+            emit(f"{i2}{st[4]} = L if (on_lc | to_c) else fc")
+            emit(f"{i2}{st[0]} = 1.0 if to_t else (-1.0 if to_c else mode)")
+            emit(f"{i2}{st[6]} = 1.0 if to_t else {st[6]}")
+            emit(f"{i2}{st[7]} = 1.0 if to_c else {st[7]}")
+        emit(f"{ind}if nrev > 0:")
+        for s in general:
+            emit(f"{ind}    for w in range(B):")
+            emit(f"{ind}        if {R[f'rev{s}']} > 0.0:")
+            emit(f"{ind}            {R[f'F{s}']} = reverse_yield_lane({R[f'E{s}']}, gst{s}, w, {ca[s]}, {cb[s]}, "
+                 f"{R[f'yt{s}']}, {R[f'yc{s}']}, lo + w, cx, cy, cds, cs0, cs1, off)")  # fmt: skip
+
+    # ---- pass B: every other spring, summaries, node updates, energy balance ----
+    def pass_b(ind: str) -> None:
+        emit(f"{ind}nbad = 0")
+        emit(f"{ind}for w in range(B):")
+        i2 = ind + "    "
+        emit(f"{i2}af = 1.0 if fn <= {R['lim']} else 0.0")
+        emit(f"{i2}afw = af * wt  # no absorbed work in step 0 (adds an exact 0)")
+        emit(f"{i2}dtw = {R['dt']}")
+        disps(i2, [s for s in range(S) if mat[s] != GENERAL])
+        for s in range(S):
+            k = mat[s]
+            if k == GENERAL:
+                emit(f"{i2}F{s} = {R[f'F{s}']}")
+                emit(f"{i2}e{s} = {R[f'E{s}']}")
+                continue
+            emit(f"{i2}e{s} = {elong(s)}")
+            if k == LINEAR:
+                emit(f"{i2}F{s} = {R[f'kp{s}']} * e{s}")
+            elif k == DAMPER:
+                vp = ["0.0" if static[n] else f"({R[f'v{n}']} + 0.5 * dtw * {R[f'a{n}']})" for n in (sj[s], si[s])]
+                sg = {1: "1.0", -1: "-1.0", 0: R[f"sg{s}"]}[sign[s]]
+                emit(f"{i2}F{s} = {R[f'kp{s}']} * ({sg} * ({vp[0]} - {vp[1]}))")
+            elif k == NONLINEAR:
+                emit(f"{i2}F{s} = {ramp(ca[s], f'e{s}')}")
+            elif k == CRUSH:
+                emin, fstar = R[f"st{s}_0"], R[f"st{s}_1"]
+                emit(f"{i2}emin = {emin}")
+                emit(f"{i2}fstar = {fstar}")
+                emit(f"{i2}on = e{s} <= emin")
+                emit(f"{i2}f_load = _min(0.0, {ramp(ca[s], f'e{s}')})")
+                emit(f"{i2}f_unl = _min(0.0, fstar + {R[f'kp{s}']} * (e{s} - emin))")
+                emit(f"{i2}F{s} = f_load if on else f_unl")
+                emit(f"{i2}{emin} = e{s} if on else emin")
+                emit(f"{i2}{fstar} = f_load if on else fstar")
+            else:  # pragma: no cover - the compiler knows no other material
+                raise ValueError(f"material code {k}")
+        # summaries in spring order (the reference kernel's order of operations)
+        emit(f"{i2}ie_tot = 0.0")
+        for s in range(S):
+            ie = R[f"ie{s}"]
+            emit(f"{i2}{ie} = {ie} + (0.5 * (F{s} + {R[f'fp{s}']}) * (e{s} - {R[f'ep{s}']})) * afw")
+            emit(f"{i2}ie_tot = ie_tot + {ie}")
+            emit(f"{i2}{R[f'pf{s}']} = _max({R[f'pf{s}']}, abs(F{s}) * af)")
+            emit(f"{i2}{R[f'mc{s}']} = _max({R[f'mc{s}']}, -e{s} * af)")
+            emit(f"{i2}{R[f'fp{s}']} = F{s}")
+            emit(f"{i2}{R[f'ep{s}']} = e{s}")
+        # nodal forces in the reference scatter's order, then the central-difference update
+        emit(f"{i2}ke = 0.0")
+        for n in live:
+            chain = chain_of(n, lambda s: f"F{s}")
+            x, v = R[f"x{n}"], R[f"v{n}"]
+            emit(f"{i2}a = ({chain} + 0.0) * {R[f'im{n}']}")
+            emit(f"{i2}vo = {v}")
+            emit(f"{i2}vn = vo + (h * dtw) * a")
+            emit(f"{i2}ke = ke + 0.5 * {R[f'm{n}']} * vo * vn")
+            if movable[n]:
+                emit(f"{i2}{R[f'pa{n}']} = _max({R[f'pa{n}']}, (a * a) * af)")
+            if dampers:
+                emit(f"{i2}{R[f'a{n}']} = a")
+            emit(f"{i2}{x} = {x} + (dtw * af) * vn")
+            emit(f"{i2}{v} = vn * af + vo * (1.0 - af)")
+        emit(f"{i2}ke = ke if wt > 0.0 else {R['ke0']}")
+        emit(f"{i2}bal = abs((((ke + ie_tot) + 0.0) - {R['ke0']}) - 0.0)")
+        emit(f"{i2}{R['err']} = _max({R['err']}, bal * af)")
+        emit(f"{i2}nbad += 0 if bal <= {R['thr']} else (1 if af > 0.0 else 0)")
+        emit(f"{i2}{R['ken']} = ke")
+        emit(f"{i2}{R['ien']} = ie_tot")
+
+    n_rows = None  # filled below once every row is known
+    head = [
+        '"""Generated by crashstudy.kernel.generated (do not edit): one model shape, see _SHAPE."""',
+        "import numba as nb",
+        "import numpy as np",
+        "from crashstudy.kernel.generated import reverse_yield_lane",
+        "",
+        f"_SHAPE = {shape!r}",
+        "",
+        "",
+        '@nb.njit(inline="always", error_model="numpy")',
+        "def _max(a, b):",
+        "    return b if b > a else a",
+        "",
+        "",
+        '@nb.njit(inline="always", error_model="numpy")',
+        "def _min(a, b):",
+        "    return b if b < a else a",
+        "",
+        "",
+        '@nb.njit(nogil=True, error_model="numpy", cache=True)',
+        "def run_blocks(b_lo, b_hi, starts, n_out, cst, mass, inv_mass, x0, v0, sign, kpar, yield_t, yield_c, cx, cy,",
+        "               cds, cs0, cs1, off, dt, n_steps, out_every, invalid, e_floor, unstable_energy,",
+        "               h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time, fail_item,",
+        "               t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy):",
+        f"    N = {N}",
+        f"    S = {S}",
+        *[f"    {cname[nm]} = cst[{i}]" for i, nm in enumerate(cname)],
+        "    for bi in range(b_lo, b_hi):",
+        "        lo = starts[bi]",
+        "        B = starts[bi + 1] - lo",
+        "        Z = np.zeros(NROWS * ROW)",
+    ]
+    L.extend(head)
+    ind = "        "
+    for s in general:
+        emit(f"{ind}gst{s} = Z[{gs_row[s] * ROW}:{(gs_row[s] + 8) * ROW}].reshape((8, ROW))")
+    emit(f"{ind}next_rec = np.zeros(B, dtype=np.int64)")
+    emit(f"{ind}n_fail = np.full(B, -1, dtype=np.int64)")
+    emit(f"{ind}nmax = -1")
+    emit(f"{ind}for w in range(B):")
+    i2 = ind + "    "
+    emit(f"{i2}q = lo + w")
+    emit(f"{i2}{R['dt']} = dt[q]")
+    for n in live:
+        emit(f"{i2}{R[f'x{n}']} = x0[{n}, 0, q]")
+        emit(f"{i2}{R[f'x0{n}']} = x0[{n}, 0, q]")
+        emit(f"{i2}{R[f'v{n}']} = v0[{n}, 0, q]")
+        emit(f"{i2}{R[f'm{n}']} = mass[{n}, q]")
+        emit(f"{i2}{R[f'im{n}']} = inv_mass[{n}, 0, q]")
+    for c in curves:
+        if c in const:
+            continue
+        a0 = off[c]
+        emit(f"{i2}{R[f'cy0_{c}']} = cy[{a0}, q]")
+        emit(f"{i2}{R[f's0_{c}']} = cs0[{c}, q]")
+        for k in range(a0, off[c + 1] - 1):
+            emit(f"{i2}{R[f'cx{k}']} = cx[{k}, q]")
+            if k > a0:
+                emit(f"{i2}{R[f'ds{k}']} = cds[{k}, q]")
+    for s in range(S):
+        emit(f"{i2}{R[f'sg{s}']} = sign[{s}, q]")
+        emit(f"{i2}{R[f'kp{s}']} = kpar[{s}, q]")
+    for s in general:
+        emit(f"{i2}{R[f'yt{s}']} = yield_t[{s}, q]")
+        emit(f"{i2}{R[f'yc{s}']} = yield_c[{s}, q]")
+    emit(f"{i2}ke0 = 0.0")
+    for n in range(N):  # every node, as the reference sums
+        emit(f"{i2}ke0 += 0.5 * mass[{n}, q] * v0[{n}, 0, q] * v0[{n}, 0, q]")
+    emit(f"{i2}{R['ke0']} = ke0")
+    emit(f"{i2}{R['thr']} = unstable_energy * (ke0 + 0.0) + e_floor[q]")
+    emit(f"{i2}if invalid[q] > 0:")
+    emit(f"{i2}    status[q] = 3")
+    emit(f"{i2}    fail_item[q] = invalid[q]")
+    emit(f"{i2}    fail_time[q] = 0.0")
+    emit(f"{i2}    {R['lim']} = -1.0")
+    emit(f"{i2}else:")
+    emit(f"{i2}    {R['lim']} = float(n_steps[q])")
+    emit(f"{i2}    nmax = max(nmax, n_steps[q])")
+    emit(f"{ind}alive = nmax")
+    emit(f"{ind}n_end = _next_end(Z, B, -1.0)")
+    emit(f"{ind}next_min = 0")
+    emit(f"{ind}for n in range(nmax + 1):")
+    i3 = ind + "    "
+    emit(f"{i3}if n > alive:")
+    emit(f"{i3}    break")
+    emit(f"{i3}fn = float(n)")
+    emit(f"{i3}h = 1.0 if n > 0 else 0.5")
+    emit(f"{i3}wt = 1.0 if n > 0 else 0.0")
+    if general:
+        pass_a(i3)
+    if hist:  # a sample keeps x^n and v^{n-1/2}; the rest is read back after the pass
+        emit(f"{i3}rec = n == next_min")
+        emit(f"{i3}if rec:")
+        emit(f"{i3}    for w in range(B):")
+        for n in live:
+            emit(f"{i3}        {R[f'xh{n}']} = {R[f'x{n}']}")
+            emit(f"{i3}        {R[f'vh{n}']} = {R[f'v{n}']}")
+    pass_b(i3)
+    # failures (rare): the lanes whose energy balance broke stop here
+    emit(f"{i3}if nbad > 0:")
+    emit(f"{i3}    for w in range(B):")
+    emit(f"{i3}        if fn <= {R['lim']} and not (abs((((({R['ken']} + {R['ien']}) + 0.0) - {R['ke0']}) - 0.0))"
+         f" <= {R['thr']}):")  # fmt: skip
+    emit(f"{i3}            status[lo + w] = 1")
+    emit(f"{i3}            fail_time[lo + w] = n * {R['dt']}")
+    emit(f"{i3}            n_fail[w] = n")
+    emit(f"{i3}            {R['lim']} = -1.0")
+    emit(f"{i3}    alive = -1")
+    emit(f"{i3}    for w in range(B):")
+    emit(f"{i3}        alive = max(alive, int({R['lim']}))")
+    emit(f"{i3}    n_end = _next_end(Z, B, fn - 1.0)")
+    if hist:
+        emit(f"{i3}if rec:")
+        emit(f"{i3}    next_min = nmax + 1")
+        emit(f"{i3}    for w in range(B):")
+        emit(f"{i3}        q = lo + w")
+        emit(f"{i3}        if fn > {R['lim']}:")
+        emit(f"{i3}            continue")
+        emit(f"{i3}        if n == next_rec[w]:")
+        emit(f"{i3}            r = n // out_every[q]")
+        emit(f"{i3}            next_rec[w] = n + out_every[q]")
+        emit(f"{i3}            if r < n_out:")
+        i5 = i3 + "                "
+        for n in range(N):
+            if static[n]:
+                pos, dsp, vel, acc = f"x0[{n}, 0, q]", "0.0", "0.0", "0.0"
+            else:
+                pos = R[f"xh{n}"]
+                dsp = f"{R[f'xh{n}']} - {R[f'x0{n}']}"
+                # v^{n+1/2} is the lane's v row now (it ran: x + 1.0 * ... and vn * 1.0 + vo * 0.0)
+                vel = f"(0.5 * ({R[f'vh{n}']} + {R[f'v{n}']}) if n > 0 else {R[f'vh{n}']})"
+                chain = chain_of(n, lambda s: R[f"fp{s}"])
+                acc = f"({chain} + 0.0) * {R[f'im{n}']}"
+            if "position" in hist:
+                emit(f"{i5}h_pos[r, {n}, 0, q] = {pos}")
+            if "displacement" in hist:
+                emit(f"{i5}h_disp[r, {n}, 0, q] = {dsp}")
+            if "velocity" in hist:
+                emit(f"{i5}h_vel[r, {n}, 0, q] = {vel}")
+            if "acceleration" in hist:
+                emit(f"{i5}h_acc[r, {n}, 0, q] = {acc}")
+        for s in range(S):
+            if "spring_force" in hist:
+                emit(f"{i5}h_force[r, {s}, q] = {R[f'fp{s}']}")
+            if "spring_elongation" in hist:
+                emit(f"{i5}h_elong[r, {s}, q] = {R[f'ep{s}']}")
+        if "kinetic_energy" in hist:
+            emit(f"{i5}h_energy[r, 0, q] = {R['ken']}")
+            emit(f"{i5}h_energy[r, 1, q] = {R['ien']}")
+            emit(f"{i5}h_energy[r, 2, q] = 0.0")
+            emit(f"{i5}h_energy[r, 3, q] = 0.0")
+        emit(f"{i3}        if fn + 1.0 <= {R['lim']}:")
+        emit(f"{i3}            next_min = min(next_min, next_rec[w])")
+    emit(f"{i3}if fn == n_end:")
+    emit(f"{i3}    for w in range(B):")
+    emit(f"{i3}        if fn == {R['lim']}:")
+    emit(f"{i3}            final_energy[0, lo + w] = {R['ken']}")
+    emit(f"{i3}            final_energy[1, lo + w] = {R['ien']}")
+    emit(f"{i3}            final_energy[2, lo + w] = 0.0")
+    emit(f"{i3}            final_energy[3, lo + w] = 0.0")
+    emit(f"{i3}    n_end = _next_end(Z, B, fn)")
+    # results of the block
+    emit(f"{ind}for w in range(B):")
+    emit(f"{ind}    q = lo + w")
+    emit(f"{ind}    energy_error[q] = {R['err']} / max({R['ke0']} + 0.0, 1e-300)")
+    emit(f"{ind}    if status[q] == 0:")
+    emit(f"{ind}        t_end[q] = n_steps[q] * {R['dt']}")
+    emit(f"{ind}    elif n_fail[w] > 0:")
+    emit(f"{ind}        t_end[q] = (n_fail[w] - 1) * {R['dt']}")
+    for s in range(S):
+        emit(f"{ind}    absorbed[{s}, q] = {R[f'ie{s}']}")
+        emit(f"{ind}    peak_force[{s}, q] = {R[f'pf{s}']}")
+        emit(f"{ind}    max_crush[{s}, q] = {R[f'mc{s}']}")
+    for n in range(N):
+        emit(f"{ind}    peak_acc[{n}, q] = " + ("0.0" if static[n] or not movable[n] else f"np.sqrt({R[f'pa{n}']})"))
+    n_rows = R.n
+    L.extend([
+        "",
+        "",
+        '@nb.njit(inline="always", error_model="numpy")',
+        "def _next_end(Z, B, after):",
+        '    """The smallest step limit of a running lane above ``after`` (-1 if none)."""',
+        "    out = np.inf",
+        "    for w in range(B):",
+        f"        lim = Z[{R.at['lim'] * ROW} + w]",
+        "        if lim > after and lim < out:",
+        "            out = lim",
+        "    return out if out < np.inf else -1.0",
+        "",
+        "",
+        f"NROWS = {n_rows}",
+        f"ROW = {ROW}",
+        "",
+    ])  # fmt: skip
+    return "\n".join(L) + "\n"
+
+
+def _module(shape: dict[str, Any]) -> Any:
+    """The compiled module for ``shape`` (generated, written and imported once per process)."""
+    src = _source(shape)
+    key = hashlib.sha256(src.encode()).hexdigest()[:20]
+    with _LOCK:
+        if key in _LOADED:
+            return _LOADED[key]
+        folder = cache_dir()
+        path = folder / f"k_{key}.py"
+        if not path.exists() or path.read_text() != src:
+            tmp = folder / f".k_{key}.{os.getpid()}.tmp"
+            tmp.write_text(src)
+            os.replace(tmp, path)
+        name = f"crashstudy_generated_{key}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        assert spec is not None and spec.loader is not None
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod
+        spec.loader.exec_module(mod)
+        _LOADED[key] = mod
+        return mod
+
+
+def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None) -> bool:
+    """Whether this model shape's kernel was compiled before (in this process or in the disk cache)."""
+    src = _source(_shape(b, histories, vary))
+    key = hashlib.sha256(src.encode()).hexdigest()[:20]
+    if key in _LOADED:
+        return True
+    try:
+        folder = cache_dir()
+    except OSError:
+        return False
+    return any(folder.glob(f"__pycache__/k_{key}.run_blocks-*.nbi"))
+
+
+def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozenset[int] | None = None
+                  ) -> KernelOutput:  # fmt: skip
+    """Integrate every variant of ``b`` with its model's generated kernel (results bitwise those of
+    the reference kernel). ``b`` must be supported (:func:`unsupported` returns None)."""
+    why = unsupported(b)
+    if why is not None:
+        raise ValueError(f"no generated kernel for this model: {why}")
+    from crashstudy.kernel.reference import UNSTABLE_ENERGY
+
+    shape = _shape(b, histories, vary)
+    mod = _module(shape)
+    N, D, V = b.x0.shape
+    S = len(b.spring_i)
+    out = allocate(S, N, D, 0, V, histories, n_out)
+    want_energy = any(h in histories for h in ENERGIES)
+    h_energy = np.full((n_out, 4, V), np.nan) if want_energy else np.empty((1, 4, 1))
+
+    def buf(name: str, nd: int) -> np.ndarray:
+        return out.histories[name] if name in out.histories else np.empty((1,) * nd)
+
+    starts = np.unique(np.minimum(np.arange(0, V + BLOCK, BLOCK), V)).astype(np.int64)
+    args = (starts, n_out, _constants(b, shape), b.mass, b.inv_mass, b.x0, b.v0, b.sign, b.kpar, b.yield_t, b.yield_c, b.cx, b.cy,
+            b.cds, b.cs0, b.cs1, b.curve_off, b.dt, b.n_steps, b.out_every, b.invalid, b.energy_floor,
+            UNSTABLE_ENERGY, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
+            buf("acceleration", 4), buf("spring_force", 3), buf("spring_elongation", 3), h_energy, out.status,
+            out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
+            out.peak_acceleration, out.energy_error, out.final_energy)  # fmt: skip
+    nblocks = len(starts) - 1
+    threads = min(get_threads(), nblocks)
+    if threads <= 1:
+        mod.run_blocks(0, nblocks, *args)
+    else:
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(lambda bi: mod.run_blocks(bi, bi + 1, *args), range(nblocks)))
+    for k, name in enumerate(ENERGIES):
+        if name in out.histories:
+            out.histories[name][:] = h_energy[:, k, :]
+    return out

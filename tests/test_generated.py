@@ -1,0 +1,179 @@
+"""Generated (model-specialised) kernels against the NumPy reference kernel.
+
+The generated kernel is a third implementation of the same step; the independent truth is the
+reference kernel (:mod:`crashstudy.kernel.reference`, itself checked against closed forms and scipy in
+test_physics). Tolerance: bitwise (every summary, every history; NaN where the reference has NaN).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from conftest import run_model
+from test_physics import TWIN_1D
+from test_stress import forced_batch, outputs_equal
+
+from crashstudy.kernel import generated
+from crashstudy.kernel.output import UNSTABLE, KernelOutput
+from crashstudy.runner import run_chunk, run_kernel, varying_curves
+from crashstudy.study import load_study
+
+ROOT = Path(__file__).resolve().parents[1]
+FRONTAL = ROOT / "studies" / "models" / "frontal-9mass.yaml"
+ALL_1D = ["position", "displacement", "velocity", "acceleration", "spring_force", "spring_elongation",
+          "kinetic_energy", "internal_energy", "external_work", "wall_energy"]  # fmt: skip
+
+
+def _assert_bitwise(ref: KernelOutput, got: KernelOutput) -> None:
+    for f in fields(KernelOutput):
+        if f.name == "histories":
+            continue
+        r, g = getattr(ref, f.name), getattr(got, f.name)
+        assert r.shape == g.shape, f.name
+        assert np.array_equal(r, g, equal_nan=r.dtype.kind == "f"), f"{f.name} differs"
+    assert set(ref.histories) == set(got.histories)
+    for name, r in ref.histories.items():
+        assert np.array_equal(r, got.histories[name], equal_nan=True), f"history {name} differs"
+
+
+def _one_d_materials(mirror: bool = False) -> dict[str, Any]:
+    """TWIN_1D without what generated kernels leave to the generic one (wall, gravity, load, prescribed
+    motion): crush, linear + damper in parallel, nonlinear elastic, general_nonlinear. ``mirror``
+    draws the model right to left (every spring's 1-D sign is -1)."""
+    m = copy.deepcopy(TWIN_1D)
+    for key in ("gravity", "loads", "prescribed_motion", "rigid_walls"):
+        m.pop(key)
+    m["output"]["histories"] = "all"
+    if mirror:
+        for node in m["nodes"].values():
+            node["position"] = [-node["position"][0]]
+        m["initial_velocity"] = {k: [-v[0]] for k, v in m["initial_velocity"].items()}
+    return m
+
+
+def _mount_reversal() -> dict[str, Any]:
+    """A 170 kg engine driven at 3 m/s into an engine mount (general_nonlinear, yield +-20 kN): it yields
+    in compression, unloads along the 4.5e6 N/m line and the spring-back (about 100 J stored against
+    44 J needed) carries it past the tension yield: SPEC rule 4 (the reversal path) runs."""
+    return {
+        "name": "mount-reversal",
+        "curves": {
+            "load": {"x": [-0.1, -0.04, -0.01, 0.0, 0.01, 0.04, 0.1],
+                     "y": [-3.0e5, -3.0e4, -2.0e4, 0.0, 2.0e4, 3.0e4, 3.0e5]},
+            "unload": {"x": [-0.01, 0.0, 0.01], "y": [-4.5e4, 0.0, 4.5e4]},
+        },
+        "nodes": {"frame": {"position": [0.0], "fixed": True}, "engine": {"position": [0.2], "mass": 170.0}},
+        "springs": {"mount": {"nodes": ["frame", "engine"],
+                              "material": {"type": "general_nonlinear", "loading": "load", "unloading": "unload",
+                                           "tension_yield": 2.0e4, "compression_yield": -2.0e4}}},
+        "initial_velocity": {"engine": [-3.0]},
+        "end_time": 0.08,
+        "output": {"interval": 2.0e-4, "histories": ["spring_force", "spring_elongation", "acceleration"]},
+    }  # fmt: skip
+
+
+def test_unsupported_models_are_named_and_refused() -> None:
+    """2-D models and models with walls, loads, prescribed motion or gravity stay on the generic kernel;
+    asking for a generated kernel for one is a clear error."""
+    _, batch, _ = run_model(TWIN_1D, kernel="reference")
+    assert generated.unsupported(batch) == "rigid walls"
+    with pytest.raises(ValueError, match="no generated kernel for this model: rigid walls"):
+        generated.run_generated(batch, (), 1)
+    _, batch, _ = run_model(_one_d_materials(), kernel="reference")
+    assert generated.unsupported(batch) is None
+
+
+@pytest.mark.parametrize("mirror", [False, True], ids=["left-to-right", "right-to-left"])
+def test_every_1d_material_bitwise_equal_to_reference(mirror: bool) -> None:
+    """Crush, linear, damper, nonlinear elastic and general_nonlinear springs, 5 variants with different
+    masses (so different steps and sampling strides), every history: bitwise the reference's."""
+    model = _one_d_materials(mirror)
+    variants = {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}
+    ref, batch, _ = run_model(model, kernel="reference", variants=variants)
+    got, _, _ = run_model(model, kernel="generated", variants=variants)
+    assert np.all(batch.sign == (-1.0 if mirror else 1.0))
+    assert len(np.unique(batch.out_every)) > 1, "variants sample at different strides"
+    assert np.all(ref.status == 0) and np.all(ref.peak_force > 0)
+    _assert_bitwise(ref, got)
+
+
+def test_general_nonlinear_reversal_bitwise_equal_to_reference() -> None:
+    """The rule-4 reversal (a lane leaves the vectorised pass for the scalar path): bitwise equal, and the
+    reversal really happens (the force history reaches the tension yield after the compression yield)."""
+    model = _mount_reversal()
+    variants = {"impact_velocity": [2.0, 2.5, 3.0, 3.5]}
+    ref, _, _ = run_model(model, kernel="reference", variants=variants)
+    got, _, _ = run_model(model, kernel="generated", variants=variants)
+    force = ref.histories["spring_force"][:, 0, :]
+    assert np.all(np.nanmin(force, axis=0) <= -2.0e4) and np.all(np.nanmax(force, axis=0) >= 2.0e4 - 1.0)
+    _assert_bitwise(ref, got)
+
+
+@pytest.mark.parametrize("histories", ["none", ["spring_force", "kinetic_energy"], "all"])
+def test_frontal_model_with_curve_and_mass_axes_bitwise_equal_to_reference(histories: Any) -> None:
+    """The frontal example (crush, general_nonlinear, linear; a fixed barrier node) with the front-rail
+    curve scaled per variant (its coefficients stay per-variant rows) and the engine mass varied (the
+    other curves are constants of the kernel): bitwise the reference's for 12 variants."""
+    model = yaml.safe_load(FRONTAL.read_text())
+    model["output"]["histories"] = histories
+    model["end_time"] = 0.06
+    rng = np.random.default_rng(4)
+    variants = {"curves.rail-loading.scale": list(rng.uniform(0.6, 1.6, 12)),
+                "nodes.engine.mass": list(rng.uniform(100.0, 250.0, 12))}  # fmt: skip
+    ref, batch, plan = run_model(model, kernel="reference", variants=variants)
+    got, _, _ = run_model(model, kernel="generated", variants=variants)
+    shape = generated._shape(batch, plan.topology.histories)
+    rail = plan.topology.curve_ids.index("rail-loading")
+    assert rail not in shape["const"] and len(shape["const"]) >= 5
+    _assert_bitwise(ref, got)
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
+def test_instability_fails_that_variant_only_as_in_the_reference() -> None:
+    """One variant of four runs at 3 x dt_crit (forced by hand): UNSTABLE at the reference's step, NaN
+    histories after it, the other three bitwise equal to their runs alone."""
+    batch, _, plan = forced_batch(3.0)
+    hist = plan.topology.histories
+    ref = run_kernel(batch, hist, plan.n_out, "reference")
+    got = run_kernel(batch, hist, plan.n_out, "generated")
+    assert list(got.status) == [0, UNSTABLE, 0, 0]
+    _assert_bitwise(ref, got)
+    alone = run_kernel(batch.take(np.array([2])), hist, plan.n_out, "generated")
+    assert outputs_equal(got, 2, alone, 0) == []
+
+
+def test_runner_picks_the_generated_kernel_for_a_big_run_and_results_do_not_change(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``run_chunk`` with the default kernel uses the generated one once a run's work passes
+    GENERATED_MIN_WORK (lowered here so a small study qualifies) and gives the generic kernel's numbers."""
+    import crashstudy.runner as runner
+
+    study = {"name": "pick", "model": str(FRONTAL), "matrix": {"curves.rail-loading.scale": [0.8, 1.2],
+             "impact_velocity": [12.0, 15.0, 18.0]}, "set": {"end_time": 0.03}}  # fmt: skip
+    plan = load_study(study)
+    assert varying_curves(plan) == frozenset({plan.topology.curve_ids.index("rail-loading")})
+    calls: list[str] = []
+    real_generated, real_generic = generated.run_generated, runner_generic()
+    monkeypatch.setattr(generated, "run_generated", lambda *a, **k: calls.append("generated") or real_generated(*a, **k))
+    monkeypatch.setattr("crashstudy.kernel.compiled.run_compiled",
+                        lambda *a, **k: calls.append("generic") or real_generic(*a, **k))  # fmt: skip
+    monkeypatch.setattr(runner, "GENERATED_MIN_WORK", 1.0)
+    fast = run_chunk(plan, 0, plan.n_variants)
+    monkeypatch.setattr(runner, "GENERATED_MIN_WORK", float("inf"))
+    monkeypatch.setattr(generated, "is_compiled", lambda *a, **k: False)
+    slow = run_chunk(plan, 0, plan.n_variants)
+    assert calls == ["generated", "generic"]
+    _assert_bitwise(slow.out, fast.out)
+
+
+def runner_generic():  # the generic kernel's entry point (looked up at call time by the runner)
+    from crashstudy.kernel.compiled import run_compiled
+
+    return run_compiled
