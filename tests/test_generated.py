@@ -15,17 +15,18 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
-from conftest import run_model
-from test_physics import TWIN_1D
-from test_stress import forced_batch, outputs_equal
 
+from conftest import run_model
 from crashstudy.kernel import generated
-from crashstudy.kernel.output import UNSTABLE, KernelOutput
+from crashstudy.kernel.output import CRUSHED_TO_ZERO, UNSTABLE, KernelOutput
 from crashstudy.runner import run_chunk, run_kernel, varying_curves
 from crashstudy.study import load_study
+from test_physics import TWIN_1D, TWIN_2D_HELI, TWIN_2D_MIXED
+from test_stress import forced_batch, outputs_equal
 
 ROOT = Path(__file__).resolve().parents[1]
 FRONTAL = ROOT / "studies" / "models" / "frontal-9mass.yaml"
+HELICOPTER = ROOT / "studies" / "models" / "helicopter-subfloor.yaml"
 ALL_1D = ["position", "displacement", "velocity", "acceleration", "spring_force", "spring_elongation",
           "kinetic_energy", "internal_energy", "external_work", "wall_energy"]  # fmt: skip
 
@@ -42,14 +43,21 @@ def _assert_bitwise(ref: KernelOutput, got: KernelOutput) -> None:
         assert np.array_equal(r, got.histories[name], equal_nan=True), f"history {name} differs"
 
 
-def _one_d_materials(mirror: bool = False) -> dict[str, Any]:
-    """TWIN_1D without what generated kernels leave to the generic one (wall, gravity, load, prescribed
-    motion): crush, linear + damper in parallel, nonlinear elastic, general_nonlinear. ``mirror``
-    draws the model right to left (every spring's 1-D sign is -1)."""
-    m = copy.deepcopy(TWIN_1D)
-    for key in ("gravity", "loads", "prescribed_motion", "rigid_walls"):
-        m.pop(key)
+def _without_walls_and_loads(model: dict[str, Any], keep_gravity: bool = True) -> dict[str, Any]:
+    """``model`` without what generated kernels leave to the generic one (walls, loads, prescribed motion)."""
+    m = copy.deepcopy(model)
+    for key in ("loads", "prescribed_motion", "rigid_walls") + (() if keep_gravity else ("gravity",)):
+        m.pop(key, None)
+    for node in m["nodes"].values():  # a prescribed dof of the twin becomes a free one
+        node.pop("fixed", None) if node.get("fixed") is not True else None
     m["output"]["histories"] = "all"
+    return m
+
+
+def _one_d_materials(mirror: bool = False, gravity: bool = False) -> dict[str, Any]:
+    """TWIN_1D without walls, loads and prescribed motion: crush, linear + damper in parallel, nonlinear
+    elastic, general_nonlinear. ``mirror`` draws the model right to left (every spring's 1-D sign is -1)."""
+    m = _without_walls_and_loads(TWIN_1D, keep_gravity=gravity)
     if mirror:
         for node in m["nodes"].values():
             node["position"] = [-node["position"][0]]
@@ -79,27 +87,60 @@ def _mount_reversal() -> dict[str, Any]:
 
 
 def test_unsupported_models_are_named_and_refused() -> None:
-    """2-D models and models with walls, loads, prescribed motion or gravity stay on the generic kernel;
-    asking for a generated kernel for one is a clear error."""
+    """Models with walls, loads or prescribed motion stay on the generic kernel; asking for a generated
+    kernel for one is a clear error."""
     _, batch, _ = run_model(TWIN_1D, kernel="reference")
     assert generated.unsupported(batch) == "rigid walls"
-    with pytest.raises(ValueError, match="no generated kernel for this model: rigid walls"):
+    _, batch, _ = run_model({k: v for k, v in TWIN_1D.items() if k != "rigid_walls"}, kernel="reference")
+    assert generated.unsupported(batch) == "loads or prescribed motion"
+    with pytest.raises(ValueError, match="no generated kernel for this model: loads or prescribed motion"):
         generated.run_generated(batch, (), 1)
     _, batch, _ = run_model(_one_d_materials(), kernel="reference")
     assert generated.unsupported(batch) is None
 
 
-@pytest.mark.parametrize("mirror", [False, True], ids=["left-to-right", "right-to-left"])
-def test_every_1d_material_bitwise_equal_to_reference(mirror: bool) -> None:
+@pytest.mark.parametrize(("mirror", "gravity"), [(False, False), (True, False), (False, True)],
+                         ids=["left-to-right", "right-to-left", "gravity"])  # fmt: skip
+def test_every_1d_material_bitwise_equal_to_reference(mirror: bool, gravity: bool) -> None:
     """Crush, linear, damper, nonlinear elastic and general_nonlinear springs, 5 variants with different
-    masses (so different steps and sampling strides), every history: bitwise the reference's."""
-    model = _one_d_materials(mirror)
+    masses (so different steps and sampling strides), every history (with gravity: its external work
+    too): bitwise the reference's."""
+    model = _one_d_materials(mirror, gravity)
     variants = {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}
     ref, batch, _ = run_model(model, kernel="reference", variants=variants)
     got, _, _ = run_model(model, kernel="generated", variants=variants)
     assert np.all(batch.sign == (-1.0 if mirror else 1.0))
     assert len(np.unique(batch.out_every)) > 1, "variants sample at different strides"
     assert np.all(ref.status == 0) and np.all(ref.peak_force > 0)
+    assert (np.nanmax(np.abs(ref.histories["external_work"])) > 0) == gravity
+    _assert_bitwise(ref, got)
+
+
+@pytest.mark.parametrize("case", ["helicopter-gravity", "mixed-materials"])
+def test_2d_models_bitwise_equal_to_reference(case: str) -> None:
+    """2-D: the helicopter twin (two general_nonlinear springs, gravity) and the mixed twin (crush, damper,
+    linear, nonlinear elastic; a node fixed in x only) without walls, loads and prescribed motion, 5
+    variants, every history: bitwise the reference's."""
+    if case == "helicopter-gravity":
+        model, path, values = _without_walls_and_loads(TWIN_2D_HELI), "nodes.cabin.mass", [200.0, 250, 300, 350, 400]
+    else:
+        model, path, values = _without_walls_and_loads(TWIN_2D_MIXED, False), "nodes.bob.mass", [0.5, 1, 1.5, 2, 3]
+    ref, batch, _ = run_model(model, kernel="reference", variants={path: values})
+    got, _, _ = run_model(model, kernel="generated", variants={path: values})
+    assert generated.unsupported(batch) is None and batch.x0.shape[1] == 2
+    assert np.all(ref.status == 0)
+    _assert_bitwise(ref, got)
+
+
+def test_2d_spring_crushed_to_zero_length_fails_as_in_the_reference() -> None:
+    """The helicopter example at 6, 8.2, 10 and 30 m/s: the two fast drops crush the underfloor through
+    zero length (CRUSHED_TO_ZERO, spring 0, at the reference's step); all outputs bitwise the reference's."""
+    model = yaml.safe_load(HELICOPTER.read_text())
+    model["output"]["histories"] = ["position", "spring_force", "kinetic_energy"]
+    variants = {"impact_velocity": [6.0, 8.2, 10.0, 30.0]}
+    ref, _, _ = run_model(model, kernel="reference", variants=variants)
+    got, _, _ = run_model(model, kernel="generated", variants=variants)
+    assert list(got.status) == [0, 0, CRUSHED_TO_ZERO, CRUSHED_TO_ZERO] and list(got.fail_item[2:]) == [0, 0]
     _assert_bitwise(ref, got)
 
 

@@ -117,7 +117,7 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
     ctrl_n, ctrl_s = steps.control_node[inverse], steps.control_spring[inverse]
     control = [
         ("none" if n < 0 else f"node {topo.node_ids[n]}") + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "")
-        for n, s in zip(ctrl_n, ctrl_s)
+        for n, s in zip(ctrl_n, ctrl_s, strict=True)
     ]
     user_dt = P[topo.blocks["time_step"].start]
     reasons = [_reason(full, k, topo.spring_ids, user_dt[k], dt_crit[k], control[k]) for k in range(V)]

@@ -7,14 +7,19 @@ Here the topology is written into the source instead, the way a hand-specialised
 fused, branch-free pass over the variants of a block per time step computes every spring, every
 node update and every summary, with all per-variant numbers (masses, curve knots, stiffnesses,
 state, summaries) in rows of ONE block work array ``Z`` with a compile-time row stride, so LLVM can
-prove the rows never overlap and puts several variants in one SIMD instruction.
+prove the rows never overlap and puts several variants in one SIMD instruction. Curves that no
+study axis changes (and that are equal in every variant of the batch) are read once into local
+constants; a spring's 1-D sign that is the same in every variant folds into the operators.
 
 The arithmetic is that of the reference kernel, operation for operation, so results are bitwise
 those of :func:`crashstudy.kernel.reference.run_reference` (``tests/test_generated.py``). The
 numbers stay per variant: one compiled kernel serves every study of the same model shape.
 
-Scope (:func:`unsupported`): 1-D models without walls, loads, prescribed motion, gravity or early
-termination; every material. Anything else runs on the generic kernel.
+Scope (:func:`unsupported`): 1-D and 2-D models, every material, gravity; not rigid walls, loads,
+prescribed motion or early termination (those run on the generic kernel).
+
+Units: whatever consistent system the model uses (the kernel only multiplies and adds; SI in the
+examples: m, s, kg, N, J).
 
 Compilation costs seconds per model shape, so the runner uses a generated kernel when the study is
 large enough to earn it back, or when this shape's kernel is already compiled (numba's on-disk cache
@@ -40,9 +45,10 @@ from crashstudy.batch import Batch
 from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR
 from crashstudy.kernel.compiled import get_threads
 from crashstudy.kernel.output import HISTORY_ORDER, KernelOutput, allocate
+from crashstudy.kernel.reference import TINY_LENGTH
 from crashstudy.kernel.scalar import reverse_yield
 
-GEN_VERSION = 2  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 3  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
@@ -59,15 +65,10 @@ def reverse_yield_lane(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):
 
 def unsupported(b: Batch) -> str | None:
     """Why a generated kernel cannot run ``b`` (None if it can)."""
-    N, D, V = b.x0.shape
-    if D != 1:
-        return "2-D model"
     if b.wall_nodes.shape[0] > 0:
         return "rigid walls"
     if len(b.load_node) > 0 or len(b.pm_node) > 0:
         return "loads or prescribed motion"
-    if np.any(b.gravity != 0.0):
-        return "gravity"
     if np.any(b.ke_fraction > 0.0):
         return "early termination"
     return None
@@ -131,16 +132,17 @@ def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
 
 
 def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None) -> dict[str, Any]:
-    N = b.x0.shape[0]
-    static = [bool(b.free[n, 0] == 0.0 and not np.any(b.v0[n, 0] != 0.0)) for n in range(N)]
+    N, D, _ = b.x0.shape
+    static = [bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0)) for n in range(N)]
     sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
             for s in range(len(b.spring_i))]  # fmt: skip
     return {
         "const": _constant_curves(b, vary), "sign": sign,
-        "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "S": len(b.spring_i),
+        "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
+        "gravity": bool(np.any(b.gravity != 0.0)),
         "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
         "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
-        "movable": [bool(b.free[n, 0] > 0.0) for n in range(N)], "static": static,
+        "movable": [bool(np.any(b.free[n] > 0.0)) for n in range(N)], "static": static,
         "hist": [h for h in HISTORY_ORDER if h in histories or (h in ENERGIES and any(e in histories for e in ENERGIES))],
     }  # fmt: skip
 
@@ -164,19 +166,29 @@ class _Rows:
 
 def _source(shape: dict[str, Any]) -> str:
     """The module source of the kernel for ``shape`` (see the module docstring)."""
-    N, S = shape["N"], shape["S"]
+    N, S, D = shape["N"], shape["S"], shape["D"]
     si, sj, mat, ca, cb, off = shape["si"], shape["sj"], shape["mat"], shape["ca"], shape["cb"], shape["off"]
     static, movable, hist = shape["static"], shape["movable"], shape["hist"]
-    const, sign = shape["const"], shape["sign"]
+    const, sign, grav = shape["const"], shape["sign"], shape["gravity"]
     general = [s for s in range(S) if mat[s] == GENERAL]
     dampers = any(mat[s] == DAMPER for s in range(S))
     R = _Rows()
-    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien"):
+    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl"):
         R.add(name)
+    if grav:
+        for name in ("work", "wmax"):
+            R.add(name)
+        for d in range(D):
+            R.add(f"g{d}")
+    if D > 1:
+        R.add("crushed")
     live = [n for n in range(N) if not static[n]]
     for n in live:
-        for f in ("x", "x0", "v", "m", "im", "pa") + (("a",) if dampers else ()):
+        for f in ("m", "pa"):
             R.add(f"{f}{n}")
+        for d in range(D):
+            for f in ("x", "x0", "v", "im") + (("a",) if dampers else ()) + (("v0",) if grav else ()):
+                R.add(f"{f}{n}_{d}")
     curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0})
     cname = {nm: f"k_{nm}" for nm, _, _ in _const_layout(shape)}  # coefficient -> local constant
     for c in curves:
@@ -189,25 +201,30 @@ def _source(shape: dict[str, Any]) -> str:
             if k > off[c]:
                 R.add(f"ds{k}")
     for s in range(S):
-        for f in ("sg", "kp", "fp", "ep", "ie", "pf", "mc"):
+        for f in ("kp", "fp", "ep", "ie", "pf", "mc") + (("sg",) if D == 1 else ("l0",)):
             R.add(f"{f}{s}")
+        for d in range(D if D > 1 else 0):
+            R.add(f"ap{s}_{d}")  # previous direction (un-normalised)
         if mat[s] == CRUSH:
             R.add(f"st{s}_0")
             R.add(f"st{s}_1")
     gs_row = {}
     for s in general:
-        R.add(f"yt{s}")
-        R.add(f"yc{s}")
-        R.add(f"F{s}")
-        R.add(f"E{s}")
-        R.add(f"rev{s}")
+        for f in ("yt", "yc", "F", "E", "rev"):
+            R.add(f"{f}{s}")
+        for d in range(D if D > 1 else 0):
+            R.add(f"ax{s}_{d}")
         gs_row[s] = R.n
         for k in range(8):
             R.add(f"st{s}_{k}")
     if hist:
         for n in live:
-            R.add(f"xh{n}")
-            R.add(f"vh{n}")
+            for d in range(D):
+                R.add(f"xh{n}_{d}")
+                R.add(f"vh{n}_{d}")
+        for s in range(S):
+            for d in range(D if D > 1 else 0):
+                R.add(f"axh{s}_{d}")
 
     def co(name: str) -> str:
         return cname[name] if name in cname else R[name]
@@ -219,47 +236,63 @@ def _source(shape: dict[str, Any]) -> str:
             out = f"({out} + {co(f'ds{k}')} * _max(0.0, {arg} - {co(f'cx{k}')}))"
         return out
 
-    def disp(n: int) -> str:
-        return "0.0" if static[n] else f"d{n}"
-
-    def disps(ind: str, springs: list[int]) -> None:
-        """Local displacements x - x0 of the nodes ``springs`` join (computed once per lane)."""
-        for n in sorted({m for s in springs for m in (si[s], sj[s])}):
-            if not static[n]:
-                emit(f"{ind}d{n} = {R[f'x{n}']} - {R[f'x0{n}']}")
-
-    def elong(s: int) -> str:
-        body = f"({disp(sj[s])} - {disp(si[s])})"
-        if sign[s] == 1:  # 1.0 * y == y and -1.0 * y == -y exactly
-            return body
-        return f"-{body}" if sign[s] == -1 else f"{R[f'sg{s}']} * {body}"
-
-    def chain_of(n: int, force: Any) -> str:
-        """Nodal force of node ``n`` in the reference scatter's order; ``force(s)``: spring s's F."""
-        out = "0.0"
-        for s in range(S):
-            for side, op in ((si[s], "+"), (sj[s], "-")):
-                if side != n:
-                    continue
-                term = force(s)
-                if sign[s] == 0:
-                    out = f"({out} {op} {term} * {R[f'sg{s}']})"
-                else:
-                    out = f"({out} {op if sign[s] == 1 else ('-' if op == '+' else '+')} {term})"
-        return out
-
     L: list[str] = []
     emit = L.append
+
+    def geometry(ind: str, springs: list[int], pass_a: bool) -> None:
+        """Elongation ``e{s}`` (and in 2-D the unit direction ``ax{s}_{d}``) of ``springs``, as the
+        reference computes them; 2-D also updates the previous direction and the collapse flag."""
+        if D == 1:
+            for n in sorted({m for s in springs for m in (si[s], sj[s])}):
+                if not static[n]:
+                    emit(f"{ind}d{n} = {R[f'x{n}_0']} - {R[f'x0{n}_0']}")
+            for s in springs:
+                body = f"({'0.0' if static[sj[s]] else f'd{sj[s]}'} - {'0.0' if static[si[s]] else f'd{si[s]}'})"
+                if sign[s] == 1:  # 1.0 * y == y and -1.0 * y == -y exactly
+                    emit(f"{ind}e{s} = {body}")
+                elif sign[s] == -1:
+                    emit(f"{ind}e{s} = -{body}")
+                else:
+                    emit(f"{ind}e{s} = {R[f'sg{s}']} * {body}")
+            return
+        for s in springs:
+            i, j = si[s], sj[s]
+            for d in range(D):
+                xj = f"x0[{j}, {d}, lo + w]" if static[j] else R[f"x{j}_{d}"]
+                xi = f"x0[{i}, {d}, lo + w]" if static[i] else R[f"x{i}_{d}"]
+                emit(f"{ind}u{d} = {xj} - {xi}")
+            emit(f"{ind}ln = np.sqrt(" + "".join("(" for _ in range(D)) + "0.0"
+                 + "".join(f" + u{d} * u{d})" for d in range(D)) + ")")  # fmt: skip
+            emit(f"{ind}turn = " + "".join("(" for _ in range(D)) + "0.0"
+                 + "".join(f" + u{d} * {R[f'ap{s}_{d}']})" for d in range(D)))  # fmt: skip
+            for d in range(D):
+                emit(f"{ind}{R[f'ap{s}_{d}']} = u{d}")
+            emit(f"{ind}gone = (ln <= {TINY_LENGTH!r} * {R[f'l0{s}']}) | (turn <= 0.0)")
+            if not pass_a:  # the first collapsed spring in spring order (pass A's ones come first: see below)
+                emit(f"{ind}{R['crushed']} = {float(s)!r} if (gone and {R['crushed']} < 0.0) else {R['crushed']}")
+            else:
+                emit(f"{ind}gone{s} = gone")
+            emit(f"{ind}dn = 1.0 if gone else ln")
+            for d in range(D):
+                emit(f"{ind}ax{s}_{d} = u{d} / dn")
+            emit(f"{ind}e{s} = ln - {R[f'l0{s}']}")
+
+    def vp(n: int, d: int) -> str:
+        return "0.0" if static[n] else f"({R[f'v{n}_{d}']} + 0.5 * dtw * {R[f'a{n}_{d}']})"
 
     # ---- pass A: general_nonlinear springs (rules 1-3 branch-free; reversals flagged) ----
     def pass_a(ind: str) -> None:
         emit(f"{ind}nrev = 0")
         emit(f"{ind}for w in range(B):")
         i2 = ind + "    "
-        disps(i2, general)
+        geometry(i2, general, True)
         for s in general:
             st = [R[f"st{s}_{k}"] for k in range(8)]
-            emit(f"{i2}e = {elong(s)}")
+            emit(f"{i2}e = e{s}")
+            if D > 1:
+                for d in range(D):
+                    emit(f"{i2}{R[f'ax{s}_{d}']} = ax{s}_{d}")
+                emit(f"{i2}{R[f'rev{s}']} = 2.0 if gone{s} else 0.0  # collapsed: kept for pass B")
             emit(f"{i2}mode = {st[0]}")
             emit(f"{i2}et = {st[1]}")
             emit(f"{i2}ft = {st[2]}")
@@ -284,7 +317,8 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{i2}to_t = is0 & (L >= ytw)")
             emit(f"{i2}to_c = is0 & (L <= ycw)")
             emit(f"{i2}rev = (ist & (not on_l) & (bt <= thr_c)) | (isc & (not on_lc) & (bc >= thr_t))")
-            emit(f"{i2}{R[f'rev{s}']} = 1.0 if rev else 0.0")
+            emit(f"{i2}{R[f'rev{s}']} = {R[f'rev{s}']} + 1.0 if rev else {R[f'rev{s}']}"
+                 if D > 1 else f"{i2}{R[f'rev{s}']} = 1.0 if rev else 0.0")  # fmt: skip
             emit(f"{i2}nrev += 1 if rev else 0")
             emit(f"{i2}{st[1]} = e if (on_l | to_t) else et")
             emit(f"{i2}{st[2]} = L if (on_l | to_t) else ft")
@@ -296,7 +330,7 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{ind}if nrev > 0:")
         for s in general:
             emit(f"{ind}    for w in range(B):")
-            emit(f"{ind}        if {R[f'rev{s}']} > 0.0:")
+            emit(f"{ind}        if {R[f'rev{s}']} == 1.0 or {R[f'rev{s}']} == 3.0:")
             emit(f"{ind}            {R[f'F{s}']} = reverse_yield_lane({R[f'E{s}']}, gst{s}, w, {ca[s]}, {cb[s]}, "
                  f"{R[f'yt{s}']}, {R[f'yc{s}']}, lo + w, cx, cy, cds, cs0, cs1, off)")  # fmt: skip
 
@@ -308,20 +342,31 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{i2}af = 1.0 if fn <= {R['lim']} else 0.0")
         emit(f"{i2}afw = af * wt  # no absorbed work in step 0 (adds an exact 0)")
         emit(f"{i2}dtw = {R['dt']}")
-        disps(i2, [s for s in range(S) if mat[s] != GENERAL])
+        if D > 1:
+            emit(f"{i2}{R['crushed']} = -1.0")
+        # the reference walks the springs in order; 2-D's "first collapsed spring" needs that order
         for s in range(S):
-            k = mat[s]
-            if k == GENERAL:
+            if mat[s] == GENERAL:
                 emit(f"{i2}F{s} = {R[f'F{s}']}")
                 emit(f"{i2}e{s} = {R[f'E{s}']}")
+                if D > 1:
+                    for d in range(D):
+                        emit(f"{i2}ax{s}_{d} = {R[f'ax{s}_{d}']}")
+                    emit(f"{i2}{R['crushed']} = {float(s)!r} if ({R[f'rev{s}']} >= 2.0 and {R['crushed']} < 0.0)"
+                         f" else {R['crushed']}")  # fmt: skip
                 continue
-            emit(f"{i2}e{s} = {elong(s)}")
+            geometry(i2, [s], False)
+            k = mat[s]
             if k == LINEAR:
                 emit(f"{i2}F{s} = {R[f'kp{s}']} * e{s}")
             elif k == DAMPER:
-                vp = ["0.0" if static[n] else f"({R[f'v{n}']} + 0.5 * dtw * {R[f'a{n}']})" for n in (sj[s], si[s])]
-                sg = {1: "1.0", -1: "-1.0", 0: R[f"sg{s}"]}[sign[s]]
-                emit(f"{i2}F{s} = {R[f'kp{s}']} * ({sg} * ({vp[0]} - {vp[1]}))")
+                if D == 1:
+                    sg = {1: "1.0", -1: "-1.0", 0: R[f"sg{s}"]}[sign[s]]
+                    emit(f"{i2}F{s} = {R[f'kp{s}']} * ({sg} * ({vp(sj[s], 0)} - {vp(si[s], 0)}))")
+                else:
+                    edot = "".join("(" for _ in range(D)) + "0.0" + "".join(
+                        f" + ax{s}_{d} * ({vp(sj[s], d)} - {vp(si[s], d)}))" for d in range(D))
+                    emit(f"{i2}F{s} = {R[f'kp{s}']} * {edot}")
             elif k == NONLINEAR:
                 emit(f"{i2}F{s} = {ramp(ca[s], f'e{s}')}")
             elif k == CRUSH:
@@ -346,29 +391,69 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{i2}{R[f'mc{s}']} = _max({R[f'mc{s}']}, -e{s} * af)")
             emit(f"{i2}{R[f'fp{s}']} = F{s}")
             emit(f"{i2}{R[f'ep{s}']} = e{s}")
+            if hist and D > 1:
+                for d in range(D):
+                    emit(f"{i2}{R[f'axh{s}_{d}']} = ax{s}_{d}")
         # nodal forces in the reference scatter's order, then the central-difference update
         emit(f"{i2}ke = 0.0")
+        if grav:
+            emit(f"{i2}bal = 0.0")
         for n in live:
-            chain = chain_of(n, lambda s: f"F{s}")
-            x, v = R[f"x{n}"], R[f"v{n}"]
-            emit(f"{i2}a = ({chain} + 0.0) * {R[f'im{n}']}")
-            emit(f"{i2}vo = {v}")
-            emit(f"{i2}vn = vo + (h * dtw) * a")
-            emit(f"{i2}ke = ke + 0.5 * {R[f'm{n}']} * vo * vn")
+            for d in range(D):
+                chain = _chain(n, d, lambda s: f"F{s}", lambda s, d: f"ax{s}_{d}")
+                x, v = R[f"x{n}_{d}"], R[f"v{n}_{d}"]
+                fext = f"{R[f'm{n}']} * {R[f'g{d}']}" if grav else "0.0"
+                emit(f"{i2}a = ({chain} + {fext}) * {R[f'im{n}_{d}']}")
+                emit(f"{i2}a_{d} = a")
+                emit(f"{i2}vo = {v}")
+                emit(f"{i2}vn = vo + (h * dtw) * a")
+                emit(f"{i2}ke = ke + 0.5 * {R[f'm{n}']} * vo * vn")
+                if grav:  # external work of gravity: trapezoid, f_ext^0 over the first half step
+                    emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo) if n1 else vo")
+                    emit(f"{i2}bal = bal + 0.5 * (({fext}) * vo + (({fext}) * wt) * vb)")
+                if dampers:
+                    emit(f"{i2}{R[f'a{n}_{d}']} = a")
+                emit(f"{i2}{x} = {x} + (dtw * af) * vn")
+                emit(f"{i2}{v} = vn * af + vo * (1.0 - af)")
             if movable[n]:
-                emit(f"{i2}{R[f'pa{n}']} = _max({R[f'pa{n}']}, (a * a) * af)")
-            if dampers:
-                emit(f"{i2}{R[f'a{n}']} = a")
-            emit(f"{i2}{x} = {x} + (dtw * af) * vn")
-            emit(f"{i2}{v} = vn * af + vo * (1.0 - af)")
+                a2 = "".join("(" for _ in range(D)) + "0.0" + "".join(f" + a_{d} * a_{d})" for d in range(D))
+                emit(f"{i2}{R[f'pa{n}']} = _max({R[f'pa{n}']}, {a2} * af)")
         emit(f"{i2}ke = ke if wt > 0.0 else {R['ke0']}")
-        emit(f"{i2}bal = abs((((ke + ie_tot) + 0.0) - {R['ke0']}) - 0.0)")
+        if grav:
+            emit(f"{i2}work = {R['work']} + (bal * dtw) * afw")
+            emit(f"{i2}{R['work']} = work")
+            emit(f"{i2}wmax = _max({R['wmax']}, abs(work))")
+            emit(f"{i2}{R['wmax']} = wmax")
+            emit(f"{i2}bal = abs((((ke + ie_tot) + 0.0) - {R['ke0']}) - work)")
+            emit(f"{i2}thr = unstable_energy * ({R['ke0']} + wmax) + {R['efl']}")
+        else:
+            emit(f"{i2}bal = abs((((ke + ie_tot) + 0.0) - {R['ke0']}) - 0.0)")
+            emit(f"{i2}thr = {R['thr']}")
         emit(f"{i2}{R['err']} = _max({R['err']}, bal * af)")
-        emit(f"{i2}nbad += 0 if bal <= {R['thr']} else (1 if af > 0.0 else 0)")
+        emit(f"{i2}{R['thr']} = thr")
+        bad = "not (bal <= thr)"
+        if D > 1:
+            bad = f"({bad} or {R['crushed']} >= 0.0)"
+        emit(f"{i2}nbad += (1 if af > 0.0 else 0) if {bad} else 0")
         emit(f"{i2}{R['ken']} = ke")
         emit(f"{i2}{R['ien']} = ie_tot")
 
-    n_rows = None  # filled below once every row is known
+    def _chain(n: int, d: int, force: Any, axis: Any) -> str:
+        """Nodal force on dof (n, d) in the reference scatter's order: f[i] += F ax, f[j] -= F ax."""
+        out = "0.0"
+        for s in range(S):
+            for side, op in ((si[s], "+"), (sj[s], "-")):
+                if side != n:
+                    continue
+                term = force(s)
+                if D > 1:
+                    out = f"({out} {op} {term} * {axis(s, d)})"
+                elif sign[s] == 0:
+                    out = f"({out} {op} {term} * {R[f'sg{s}']})"
+                else:  # a - b == a + (-b): the sign folds into the operator exactly
+                    out = f"({out} {op if sign[s] == 1 else ('-' if op == '+' else '+')} {term})"
+        return out
+
     head = [
         '"""Generated by crashstudy.kernel.generated (do not edit): one model shape, see _SHAPE."""',
         "import numba as nb",
@@ -389,12 +474,10 @@ def _source(shape: dict[str, Any]) -> str:
         "",
         "",
         '@nb.njit(nogil=True, error_model="numpy", cache=True)',
-        "def run_blocks(b_lo, b_hi, starts, n_out, cst, mass, inv_mass, x0, v0, sign, kpar, yield_t, yield_c, cx, cy,",
-        "               cds, cs0, cs1, off, dt, n_steps, out_every, invalid, e_floor, unstable_energy,",
-        "               h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time, fail_item,",
-        "               t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy):",
-        f"    N = {N}",
-        f"    S = {S}",
+        "def run_blocks(b_lo, b_hi, starts, n_out, cst, mass, inv_mass, x0, v0, sign, length0, kpar, yield_t,",
+        "               yield_c, cx, cy, cds, cs0, cs1, off, gravity, dt, n_steps, out_every, invalid, e_floor,",
+        "               unstable_energy, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
+        "               fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy):",
         *[f"    {cname[nm]} = cst[{i}]" for i, nm in enumerate(cname)],
         "    for bi in range(b_lo, b_hi):",
         "        lo = starts[bi]",
@@ -412,12 +495,18 @@ def _source(shape: dict[str, Any]) -> str:
     i2 = ind + "    "
     emit(f"{i2}q = lo + w")
     emit(f"{i2}{R['dt']} = dt[q]")
+    emit(f"{i2}{R['efl']} = e_floor[q]")
+    for d in range(D if grav else 0):
+        emit(f"{i2}{R[f'g{d}']} = gravity[{d}, q]")
     for n in live:
-        emit(f"{i2}{R[f'x{n}']} = x0[{n}, 0, q]")
-        emit(f"{i2}{R[f'x0{n}']} = x0[{n}, 0, q]")
-        emit(f"{i2}{R[f'v{n}']} = v0[{n}, 0, q]")
         emit(f"{i2}{R[f'm{n}']} = mass[{n}, q]")
-        emit(f"{i2}{R[f'im{n}']} = inv_mass[{n}, 0, q]")
+        for d in range(D):
+            emit(f"{i2}{R[f'x{n}_{d}']} = x0[{n}, {d}, q]")
+            emit(f"{i2}{R[f'x0{n}_{d}']} = x0[{n}, {d}, q]")
+            emit(f"{i2}{R[f'v{n}_{d}']} = v0[{n}, {d}, q]")
+            emit(f"{i2}{R[f'im{n}_{d}']} = inv_mass[{n}, {d}, q]")
+            if grav:
+                emit(f"{i2}{R[f'v0{n}_{d}']} = v0[{n}, {d}, q]")
     for c in curves:
         if c in const:
             continue
@@ -429,14 +518,20 @@ def _source(shape: dict[str, Any]) -> str:
             if k > a0:
                 emit(f"{i2}{R[f'ds{k}']} = cds[{k}, q]")
     for s in range(S):
-        emit(f"{i2}{R[f'sg{s}']} = sign[{s}, q]")
         emit(f"{i2}{R[f'kp{s}']} = kpar[{s}, q]")
+        if D == 1:
+            emit(f"{i2}{R[f'sg{s}']} = sign[{s}, q]")
+        else:
+            emit(f"{i2}{R[f'l0{s}']} = length0[{s}, q]")
+            for d in range(D):
+                emit(f"{i2}{R[f'ap{s}_{d}']} = x0[{sj[s]}, {d}, q] - x0[{si[s]}, {d}, q]")
     for s in general:
         emit(f"{i2}{R[f'yt{s}']} = yield_t[{s}, q]")
         emit(f"{i2}{R[f'yc{s}']} = yield_c[{s}, q]")
     emit(f"{i2}ke0 = 0.0")
     for n in range(N):  # every node, as the reference sums
-        emit(f"{i2}ke0 += 0.5 * mass[{n}, q] * v0[{n}, 0, q] * v0[{n}, 0, q]")
+        for d in range(D):
+            emit(f"{i2}ke0 += 0.5 * mass[{n}, q] * v0[{n}, {d}, q] * v0[{n}, {d}, q]")
     emit(f"{i2}{R['ke0']} = ke0")
     emit(f"{i2}{R['thr']} = unstable_energy * (ke0 + 0.0) + e_floor[q]")
     emit(f"{i2}if invalid[q] > 0:")
@@ -457,6 +552,7 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{i3}fn = float(n)")
     emit(f"{i3}h = 1.0 if n > 0 else 0.5")
     emit(f"{i3}wt = 1.0 if n > 0 else 0.0")
+    emit(f"{i3}n1 = n == 1")
     if general:
         pass_a(i3)
     if hist:  # a sample keeps x^n and v^{n-1/2}; the rest is read back after the pass
@@ -464,18 +560,28 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{i3}if rec:")
         emit(f"{i3}    for w in range(B):")
         for n in live:
-            emit(f"{i3}        {R[f'xh{n}']} = {R[f'x{n}']}")
-            emit(f"{i3}        {R[f'vh{n}']} = {R[f'v{n}']}")
+            for d in range(D):
+                emit(f"{i3}        {R[f'xh{n}_{d}']} = {R[f'x{n}_{d}']}")
+                emit(f"{i3}        {R[f'vh{n}_{d}']} = {R[f'v{n}_{d}']}")
     pass_b(i3)
-    # failures (rare): the lanes whose energy balance broke stop here
+    # failures (rare): the lanes whose energy balance broke (or, in 2-D, whose spring collapsed) stop here
     emit(f"{i3}if nbad > 0:")
     emit(f"{i3}    for w in range(B):")
-    emit(f"{i3}        if fn <= {R['lim']} and not (abs((((({R['ken']} + {R['ien']}) + 0.0) - {R['ke0']}) - 0.0))"
-         f" <= {R['thr']}):")  # fmt: skip
+    emit(f"{i3}        if not fn <= {R['lim']}:")
+    emit(f"{i3}            continue")
+    bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + 0.0) - {R['ke0']}) - "
+                + (R["work"] if grav else "0.0") + ")")  # fmt: skip
+    emit(f"{i3}        if not ({bal_expr} <= {R['thr']}):")
     emit(f"{i3}            status[lo + w] = 1")
-    emit(f"{i3}            fail_time[lo + w] = n * {R['dt']}")
-    emit(f"{i3}            n_fail[w] = n")
-    emit(f"{i3}            {R['lim']} = -1.0")
+    if D > 1:
+        emit(f"{i3}        elif {R['crushed']} >= 0.0:")
+        emit(f"{i3}            status[lo + w] = 2")
+        emit(f"{i3}            fail_item[lo + w] = int({R['crushed']})")
+    emit(f"{i3}        else:")
+    emit(f"{i3}            continue")
+    emit(f"{i3}        fail_time[lo + w] = n * {R['dt']}")
+    emit(f"{i3}        n_fail[w] = n")
+    emit(f"{i3}        {R['lim']} = -1.0")
     emit(f"{i3}    alive = -1")
     emit(f"{i3}    for w in range(B):")
     emit(f"{i3}        alive = max(alive, int({R['lim']}))")
@@ -493,23 +599,21 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{i3}            if r < n_out:")
         i5 = i3 + "                "
         for n in range(N):
-            if static[n]:
-                pos, dsp, vel, acc = f"x0[{n}, 0, q]", "0.0", "0.0", "0.0"
-            else:
-                pos = R[f"xh{n}"]
-                dsp = f"{R[f'xh{n}']} - {R[f'x0{n}']}"
-                # v^{n+1/2} is the lane's v row now (it ran: x + 1.0 * ... and vn * 1.0 + vo * 0.0)
-                vel = f"(0.5 * ({R[f'vh{n}']} + {R[f'v{n}']}) if n > 0 else {R[f'vh{n}']})"
-                chain = chain_of(n, lambda s: R[f"fp{s}"])
-                acc = f"({chain} + 0.0) * {R[f'im{n}']}"
-            if "position" in hist:
-                emit(f"{i5}h_pos[r, {n}, 0, q] = {pos}")
-            if "displacement" in hist:
-                emit(f"{i5}h_disp[r, {n}, 0, q] = {dsp}")
-            if "velocity" in hist:
-                emit(f"{i5}h_vel[r, {n}, 0, q] = {vel}")
-            if "acceleration" in hist:
-                emit(f"{i5}h_acc[r, {n}, 0, q] = {acc}")
+            for d in range(D):
+                if static[n]:
+                    pos, dsp, vel, acc = f"x0[{n}, {d}, q]", "0.0", "0.0", "0.0"
+                else:
+                    pos = R[f"xh{n}_{d}"]
+                    dsp = f"{R[f'xh{n}_{d}']} - {R[f'x0{n}_{d}']}"
+                    # v^{n+1/2} is the lane's v row now (it ran: vn * 1.0 + vo * 0.0)
+                    vel = f"(0.5 * ({R[f'vh{n}_{d}']} + {R[f'v{n}_{d}']}) if n > 0 else {R[f'vh{n}_{d}']})"
+                    chain = _chain(n, d, lambda s: R[f"fp{s}"], lambda s, d: R[f"axh{s}_{d}"])
+                    fext = f"{R[f'm{n}']} * {R[f'g{d}']}" if grav else "0.0"
+                    acc = f"({chain} + {fext}) * {R[f'im{n}_{d}']}"
+                for name, arr, val in (("position", "h_pos", pos), ("displacement", "h_disp", dsp),
+                                       ("velocity", "h_vel", vel), ("acceleration", "h_acc", acc)):  # fmt: skip
+                    if name in hist:
+                        emit(f"{i5}{arr}[r, {n}, {d}, q] = {val}")
         for s in range(S):
             if "spring_force" in hist:
                 emit(f"{i5}h_force[r, {s}, q] = {R[f'fp{s}']}")
@@ -518,7 +622,7 @@ def _source(shape: dict[str, Any]) -> str:
         if "kinetic_energy" in hist:
             emit(f"{i5}h_energy[r, 0, q] = {R['ken']}")
             emit(f"{i5}h_energy[r, 1, q] = {R['ien']}")
-            emit(f"{i5}h_energy[r, 2, q] = 0.0")
+            emit(f"{i5}h_energy[r, 2, q] = {R['work'] if grav else '0.0'}")
             emit(f"{i5}h_energy[r, 3, q] = 0.0")
         emit(f"{i3}        if fn + 1.0 <= {R['lim']}:")
         emit(f"{i3}            next_min = min(next_min, next_rec[w])")
@@ -527,13 +631,14 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{i3}        if fn == {R['lim']}:")
     emit(f"{i3}            final_energy[0, lo + w] = {R['ken']}")
     emit(f"{i3}            final_energy[1, lo + w] = {R['ien']}")
-    emit(f"{i3}            final_energy[2, lo + w] = 0.0")
+    emit(f"{i3}            final_energy[2, lo + w] = {R['work'] if grav else '0.0'}")
     emit(f"{i3}            final_energy[3, lo + w] = 0.0")
     emit(f"{i3}    n_end = _next_end(Z, B, fn)")
     # results of the block
     emit(f"{ind}for w in range(B):")
     emit(f"{ind}    q = lo + w")
-    emit(f"{ind}    energy_error[q] = {R['err']} / max({R['ke0']} + 0.0, 1e-300)")
+    wm = R["wmax"] if grav else "0.0"
+    emit(f"{ind}    energy_error[q] = {R['err']} / max({R['ke0']} + {wm}, 1e-300)")
     emit(f"{ind}    if status[q] == 0:")
     emit(f"{ind}        t_end[q] = n_steps[q] * {R['dt']}")
     emit(f"{ind}    elif n_fail[w] > 0:")
@@ -544,7 +649,6 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{ind}    max_crush[{s}, q] = {R[f'mc{s}']}")
     for n in range(N):
         emit(f"{ind}    peak_acc[{n}, q] = " + ("0.0" if static[n] or not movable[n] else f"np.sqrt({R[f'pa{n}']})"))
-    n_rows = R.n
     L.extend([
         "",
         "",
@@ -559,7 +663,7 @@ def _source(shape: dict[str, Any]) -> str:
         "    return out if out < np.inf else -1.0",
         "",
         "",
-        f"NROWS = {n_rows}",
+        f"NROWS = {R.n}",
         f"ROW = {ROW}",
         "",
     ])  # fmt: skip
@@ -623,9 +727,9 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
         return out.histories[name] if name in out.histories else np.empty((1,) * nd)
 
     starts = np.unique(np.minimum(np.arange(0, V + BLOCK, BLOCK), V)).astype(np.int64)
-    args = (starts, n_out, _constants(b, shape), b.mass, b.inv_mass, b.x0, b.v0, b.sign, b.kpar, b.yield_t, b.yield_c, b.cx, b.cy,
-            b.cds, b.cs0, b.cs1, b.curve_off, b.dt, b.n_steps, b.out_every, b.invalid, b.energy_floor,
-            UNSTABLE_ENERGY, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
+    args = (starts, n_out, _constants(b, shape), b.mass, b.inv_mass, b.x0, b.v0, b.sign, b.length0, b.kpar,
+            b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.curve_off, b.gravity, b.dt, b.n_steps,
+            b.out_every, b.invalid, b.energy_floor, UNSTABLE_ENERGY, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
             buf("acceleration", 4), buf("spring_force", 3), buf("spring_elongation", 3), h_energy, out.status,
             out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
             out.peak_acceleration, out.energy_error, out.final_energy)  # fmt: skip
