@@ -1,4 +1,8 @@
-"""Throughput of the generic compiled kernel on the frontal model, beside a hand-specialised loop.
+"""Throughput of the compiled kernels on the frontal model, beside a hand-specialised loop.
+
+Two crashstudy kernels are measured: the generic one (topology read from arrays at run time,
+:mod:`crashstudy.kernel.compiled`) and the generated one (numba source written from the model's
+topology, :mod:`crashstudy.kernel.generated`, what ``crashstudy run`` uses for big studies).
 
 Element-steps per second = (springs x steps, summed over variants) / seconds, for 1, 10^2, 10^4 and
 10^6 variants of ``studies/models/frontal-9mass.yaml`` (engine mass x impact velocity, so the
@@ -40,6 +44,7 @@ from common import FRONTAL, RESULTS, load, machine, machine_md, md_table, median
 from crashstudy.batch import Batch, build_batch  # noqa: E402
 from crashstudy.kernel.compiled import run_compiled  # noqa: E402
 from crashstudy.kernel.compiled import set_threads as gen_threads  # noqa: E402
+from crashstudy.kernel.generated import run_generated  # noqa: E402
 from crashstudy.runner import MAX_CHUNK, chunk_size  # noqa: E402
 from crashstudy.study import Plan, load_study  # noqa: E402
 from frontal_specialised import run_specialised  # noqa: E402
@@ -48,8 +53,10 @@ from frontal_specialised import set_threads as spec_threads  # noqa: E402
 GOAL = 1.0e9  # element-steps/s, 2 threads, 10^4+ variants, histories off (issue 4)
 
 
-def frontal_plan(n_variants: int, end_time: float | None, histories: str) -> Plan:
-    """The frontal model over an engine-mass x impact-velocity grid of ``n_variants`` variants."""
+def frontal_plan(n_variants: int, end_time: float | None, histories: str, curve_axis: bool = False) -> Plan:
+    """The frontal model over an engine-mass x impact-velocity grid of ``n_variants`` variants
+    (``curve_axis``: front-rail curve scale 0.8-1.6 instead of the engine mass, so the generated
+    kernel keeps that curve's coefficients per variant instead of as constants)."""
     a = int(round(math.sqrt(n_variants)))
     while n_variants % a:
         a -= 1
@@ -59,7 +66,9 @@ def frontal_plan(n_variants: int, end_time: float | None, histories: str) -> Pla
     set_: dict[str, Any] = {"output": {"histories": histories}}
     if end_time is not None:
         set_["end_time"] = end_time
-    study = {"name": "throughput", "model": str(FRONTAL), "matrix": {"nodes.engine.mass": masses,
+    first = ("curves.rail-loading.scale", [0.8 + 0.8 * (m - 120.0) / 90.0 for m in masses]) if curve_axis else (
+        "nodes.engine.mass", masses)  # fmt: skip
+    study = {"name": "throughput", "model": str(FRONTAL), "matrix": {first[0]: first[1],
              "impact_velocity": speeds}, "set": set_}  # fmt: skip
     plan = load_study(study)
     assert plan.n_variants == n_variants
@@ -80,7 +89,7 @@ def run_all(
     kernel: str, batches: list[Batch], histories: tuple[str, ...], n_out: int
 ) -> tuple[float, float, Any]:
     """(wall s, CPU s, last output) of one kernel over all chunks."""
-    fn = run_compiled if kernel == "generic" else run_specialised
+    fn = {"generic": run_compiled, "generated": run_generated, "specialised": run_specialised}[kernel]
     c0, t0 = time.process_time(), time.perf_counter()
     out = None
     for b in batches:
@@ -88,12 +97,16 @@ def run_all(
     return time.perf_counter() - t0, time.process_time() - c0, out
 
 
-def peak_check(batches: list[Batch], histories: tuple[str, ...], n_out: int) -> float:
-    """Largest relative difference of peak forces, specialised vs generic, over the first chunk."""
+def peak_check(batches: list[Batch], histories: tuple[str, ...], n_out: int) -> tuple[float, bool]:
+    """(largest relative difference of peak forces specialised vs generic, generated == generic
+    bitwise on every summary) over the first chunk."""
     b = batches[0]
     g = run_compiled(b, histories, n_out)
     s = run_specialised(b, histories, n_out)
-    return float(np.max(np.abs(s.peak_force - g.peak_force) / np.maximum(np.abs(g.peak_force), 1e-300)))
+    x = run_generated(b, histories, n_out)
+    same = all(np.array_equal(getattr(g, k), getattr(x, k), equal_nan=True) for k in
+               ("status", "peak_force", "peak_acceleration", "max_crush", "absorbed_energy", "energy_error"))  # fmt: skip
+    return float(np.max(np.abs(s.peak_force - g.peak_force) / np.maximum(np.abs(g.peak_force), 1e-300))), same
 
 
 def warm_up() -> None:
@@ -101,7 +114,9 @@ def warm_up() -> None:
     b = chunks(plan)
     for hist in (plan.topology.histories, ()):
         run_compiled(b[0], hist, plan.n_out)
+        run_generated(b[0], hist, plan.n_out)
         run_specialised(b[0], hist, plan.n_out)
+    run_generated(chunks(frontal_plan(4, 0.0012, "none", curve_axis=True))[0], (), 1)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -123,67 +138,76 @@ def main(argv: list[str] | None = None) -> int:
     )
 
     rows: list[dict[str, Any]] = []
-    for V in args.sizes:
+    cases = [(V, h, False) for V in args.sizes for h in ("none", "all")]
+    cases += [(V, "none", True) for V in args.sizes if V == 10_000]  # a study that scales a curve
+    for V, hist_mode, curve_axis in cases:
         end_time = args.end_time_big if V >= 1_000_000 else None
-        for hist_mode in ("none", "all"):
-            plan = frontal_plan(V, end_time, hist_mode)
-            histories = plan.topology.histories
-            batches = chunks(plan)
-            S = plan.topology.n_springs
-            n_steps = np.concatenate([b.n_steps for b in batches])
-            elem_steps = float(S * n_steps.sum())
-            check = peak_check(batches, histories, plan.n_out)
-            for th in args.threads:
-                gen_threads(th)
-                spec_threads(th)
-                load0 = load()
-                res: dict[str, list[float]] = {
-                    "generic": [],
-                    "specialised": [],
-                    "generic_cpu": [],
-                    "specialised_cpu": [],
-                }
-                for r in range(args.repeats):
-                    order = ("generic", "specialised") if r % 2 == 0 else ("specialised", "generic")
-                    for k in order:
-                        wall, cpu, _ = run_all(k, batches, histories, plan.n_out)
-                        res[k].append(wall)
-                        res[k + "_cpu"].append(cpu)
-                ratios = [g / s for g, s in zip(res["generic"], res["specialised"], strict=True)]
-                row = {
-                    "variants": V, "histories": hist_mode, "threads": th, "steps_per_variant": int(n_steps.max()),
-                    "end_time_s": float(plan.base[plan.topology.blocks["end_time"].start]),
-                    "chunk": min(chunk_size(plan), MAX_CHUNK), "element_steps": elem_steps,
-                    "generic_s": median(res["generic"]), "specialised_s": median(res["specialised"]),
-                    "generic_es_per_s": elem_steps / median(res["generic"]),
-                    "specialised_es_per_s": elem_steps / median(res["specialised"]),
-                    "generic_es_per_cpu_s": elem_steps / median(res["generic_cpu"]),
-                    "specialised_es_per_cpu_s": elem_steps / median(res["specialised_cpu"]),
-                    "ratio_generic_over_specialised": median(ratios),
-                    "ratio_min": min(ratios), "ratio_max": max(ratios), "repeats": args.repeats,
-                    "peak_force_max_rel_diff": check, "load_before": load0, "load_after": load(),
-                }  # fmt: skip
-                rows.append(row)
-                print(f"V={V:>8} hist={hist_mode:4} threads={th}: generic {row['generic_es_per_s']:.3g} es/s, "
-                      f"specialised {row['specialised_es_per_s']:.3g} es/s, ratio {row['ratio_generic_over_specialised']:.1f} "
-                      f"(peak-force check {check:.1e}; load {row['load_after']})", flush=True)  # fmt: skip
+        plan = frontal_plan(V, end_time, hist_mode, curve_axis)
+        histories = plan.topology.histories
+        batches = chunks(plan)
+        S = plan.topology.n_springs
+        n_steps = np.concatenate([b.n_steps for b in batches])
+        elem_steps = float(S * n_steps.sum())
+        check, same = peak_check(batches, histories, plan.n_out)
+        for th in args.threads:
+            gen_threads(th)
+            spec_threads(th)
+            load0 = load()
+            kernels = ("generic", "generated", "specialised")
+            res: dict[str, list[float]] = {k + sfx: [] for k in kernels for sfx in ("", "_cpu")}
+            for r in range(args.repeats):
+                for k in kernels[r % 3:] + kernels[: r % 3]:  # rotate the order between repeats
+                    wall, cpu, _ = run_all(k, batches, histories, plan.n_out)
+                    res[k].append(wall)
+                    res[k + "_cpu"].append(cpu)
+            ratios = [g / s for g, s in zip(res["generic"], res["specialised"], strict=True)]
+            gratios = [g / s for g, s in zip(res["generated"], res["specialised"], strict=True)]
+            row = {
+                "variants": V, "histories": hist_mode, "curve_axis": curve_axis, "threads": th,
+                "steps_per_variant": int(n_steps.max()),
+                "end_time_s": float(plan.base[plan.topology.blocks["end_time"].start]),
+                "chunk": min(chunk_size(plan), MAX_CHUNK), "element_steps": elem_steps,
+                "generic_s": median(res["generic"]), "specialised_s": median(res["specialised"]),
+                "generic_es_per_s": elem_steps / median(res["generic"]),
+                "specialised_es_per_s": elem_steps / median(res["specialised"]),
+                "generated_s": median(res["generated"]),
+                "generated_es_per_s": elem_steps / median(res["generated"]),
+                "generic_es_per_cpu_s": elem_steps / median(res["generic_cpu"]),
+                "generated_es_per_cpu_s": elem_steps / median(res["generated_cpu"]),
+                "specialised_es_per_cpu_s": elem_steps / median(res["specialised_cpu"]),
+                "ratio_generic_over_specialised": median(ratios),
+                "ratio_min": min(ratios), "ratio_max": max(ratios),
+                "ratio_generated_over_specialised": median(gratios),
+                "gratio_min": min(gratios), "gratio_max": max(gratios), "repeats": args.repeats,
+                "peak_force_max_rel_diff": check, "generated_equals_generic": same,
+                "load_before": load0, "load_after": load(),
+            }  # fmt: skip
+            rows.append(row)
+            print(f"V={V:>8} hist={hist_mode:4} curve_axis={curve_axis} threads={th}: generic "
+                  f"{row['generic_es_per_s']:.3g}, generated {row['generated_es_per_s']:.3g}, specialised "
+                  f"{row['specialised_es_per_s']:.3g} es/s; generated/specialised time "
+                  f"{row['ratio_generated_over_specialised']:.2f} (peak-force check {check:.1e}, generated == "
+                  f"generic: {same}; load {row['load_after']})", flush=True)  # fmt: skip
 
     args.out.mkdir(parents=True, exist_ok=True)
     info = machine(start_load)
     write_csv(args.out / "throughput.csv", rows, info)
     plot(rows, args.out / "throughput.png")
-    cols = ["variants", "histories", "threads", "steps_per_variant", "element_steps", "generic_es_per_s",
-            "specialised_es_per_s", "ratio_generic_over_specialised", "ratio_min", "ratio_max",
-            "generic_es_per_cpu_s", "specialised_es_per_cpu_s", "peak_force_max_rel_diff", "load_after"]  # fmt: skip
+    cols = ["variants", "histories", "curve_axis", "threads", "steps_per_variant", "element_steps",
+            "generic_es_per_s", "generated_es_per_s", "specialised_es_per_s", "ratio_generated_over_specialised",
+            "gratio_min", "gratio_max", "ratio_generic_over_specialised", "generated_es_per_cpu_s",
+            "specialised_es_per_cpu_s", "generated_equals_generic", "load_after"]  # fmt: skip
     text = (
-        "# Throughput: generic kernel vs hand-specialised loop (frontal-9mass)\n\n"
+        "# Throughput: generic and generated kernels vs hand-specialised loop (frontal-9mass)\n\n"
         + machine_md(info)
         + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n"
         + "Element-steps/s = springs x steps summed over variants / median wall seconds of "
         f"{args.repeats} repeats (compile and cache load excluded: both kernels warmed up first). "
-        "`*_per_cpu_s` divides by process CPU seconds instead (all threads). Ratio = median of the "
-        "paired (interleaved) generic/specialised wall-time ratios. `peak_force_max_rel_diff`: "
-        "specialised vs generic peak forces over the first chunk of variants.\n\n"
+        "`*_per_cpu_s` divides by process CPU seconds instead (all threads). Ratios = medians of the "
+        "paired wall-time ratios (kernel time / specialised time, the three kernels run in rotating order in "
+        "each repeat; > 1 means slower than the hand-specialised loop). `curve_axis`: the study scales the "
+        "front-rail curve (its coefficients are per-variant rows in the generated kernel) instead of the "
+        "engine mass. `generated_equals_generic`: every summary bitwise equal over the first chunk.\n\n"
         + md_table(rows, cols)
         + "\n![throughput](throughput.png)\n"
     )
@@ -201,7 +225,7 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.4), sharey=True)
     for ax, hist in zip(axes, ("none", "all"), strict=True):
         for th, ls in ((1, "--"), (2, "-")):
-            sel = [r for r in rows if r["histories"] == hist and r["threads"] == th]
+            sel = [r for r in rows if r["histories"] == hist and r["threads"] == th and not r["curve_axis"]]
             if not sel:
                 continue
             x = [r["variants"] for r in sel]
@@ -212,6 +236,8 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
                 color="C0",
                 label=f"generic, {th} thread(s)",
             )
+            ax.plot(x, [r["generated_es_per_s"] for r in sel], "^" + ls, color="C2",
+                    label=f"generated, {th} thread(s)")  # fmt: skip
             ax.plot(x, [r["specialised_es_per_s"] for r in sel], "s" + ls, color="C3",
                     label=f"hand-specialised, {th} thread(s)")  # fmt: skip
         ax.axhline(GOAL, color="gray", lw=0.8, ls=":")
