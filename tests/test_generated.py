@@ -218,3 +218,33 @@ def runner_generic():  # the generic kernel's entry point (looked up at call tim
     from crashstudy.kernel.compiled import run_compiled
 
     return run_compiled
+
+
+def test_bad_kernel_environment_variable_is_an_input_error_before_anything_is_written(tmp_path: Path) -> None:
+    """``CRASHSTUDY_KERNEL=fastest crashstudy simulate``: exit 2, a one-line message naming the variable and
+    the accepted values, no traceback, no result folder."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "res"
+    env = dict(os.environ, CRASHSTUDY_KERNEL="fastest")
+    proc = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(HELICOPTER), "--output", str(out)],
+                          capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    assert "environment: CRASHSTUDY_KERNEL: unknown kernel 'fastest': expected generic or generated" in proc.stderr
+    assert "Traceback" not in proc.stderr and not out.exists()
+
+
+def test_kernel_environment_variable_generated_falls_back_where_unsupported(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``CRASHSTUDY_KERNEL=generated`` runs a model with walls and loads on the generic kernel (equal to the
+    reference) instead of failing; ``generic`` keeps a supported model off the generated kernel."""
+    monkeypatch.setenv("CRASHSTUDY_KERNEL", "generated")
+    got, _, _ = run_model(TWIN_1D, kernel="compiled")
+    ref, _, _ = run_model(TWIN_1D, kernel="reference")
+    _assert_bitwise(ref, got)
+    monkeypatch.setenv("CRASHSTUDY_KERNEL", "generic")
+    monkeypatch.setattr(generated, "run_generated", lambda *a, **k: pytest.fail("generated kernel used"))
+    got, _, _ = run_model(_mount_reversal(), kernel="compiled")
+    ref, _, _ = run_model(_mount_reversal(), kernel="reference")
+    _assert_bitwise(ref, got)

@@ -48,13 +48,17 @@ def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str
     """Integrate ``batch`` with ``kernel``: "compiled" (the model's generated kernel when it supports the
     model and is already compiled or the run's ``work`` [element-steps] earns its compilation back,
     else the generic one), "generic", "generated" or "reference" (NumPy; tests). ``vary``: indices
-    of the curves the study varies (see :func:`varying_curves`)."""
+    of the curves the study varies (see :func:`varying_curves`). The environment variable
+    ``CRASHSTUDY_KERNEL`` (generic / generated) overrides "compiled" (docs/kernels.md)."""
+    if kernel == "compiled":  # the environment may choose; a generated kernel only where it applies
+        kernel = kernel_override()
+        if kernel == "generated" and _generated().unsupported(batch) is not None:
+            kernel = "generic"
     if kernel == "reference":
         from crashstudy.kernel.reference import run_reference
 
         return run_reference(batch, histories, n_out)
-    from crashstudy.kernel import generated
-
+    generated = _generated()
     if kernel == "generated" or (
         kernel == "compiled"
         and generated.unsupported(batch) is None
@@ -64,6 +68,21 @@ def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str
     from crashstudy.kernel.compiled import run_compiled
 
     return run_compiled(batch, histories, n_out)
+
+
+def _generated() -> Any:
+    from crashstudy.kernel import generated
+
+    return generated
+
+
+def kernel_override() -> str:
+    """The kernel ``CRASHSTUDY_KERNEL`` asks for ("compiled" = choose; "generic", "generated")."""
+    value = os.environ.get("CRASHSTUDY_KERNEL", "").strip() or "compiled"
+    if value not in ("compiled", "generic", "generated"):
+        raise InputError([Problem("environment", None, "CRASHSTUDY_KERNEL",
+                                  f"unknown kernel {value!r}: expected generic or generated (or unset)")])  # fmt: skip
+    return value
 
 
 def varying_curves(plan: Plan) -> frozenset[int]:
@@ -277,6 +296,7 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
 
     t0 = time.perf_counter()
     out = Path(out_dir)
+    kernel_override()  # a bad CRASHSTUDY_KERNEL is an input error before anything is written
     prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
     if resume and (out / FINAL).exists() and not (out / PARTIAL).exists():
         res = Results(out)
