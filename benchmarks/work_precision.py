@@ -35,8 +35,10 @@ Error of a quantity = the largest relative error over its items (springs or node
 value is at least 1% of the largest item's (tiny items, such as a spring that barely moves, are left
 out; fixed nodes have no acceleration).
 
-Run: ``python benchmarks/work_precision.py [--models NAME ...] [--repeats 3]``.
-Writes ``benchmarks/results/work_precision.{csv,md}``, ``tolerance_promise.csv`` and ``wp_<model>.png``.
+Run: ``python benchmarks/work_precision.py [--models NAME ...] [--repeats 3] [--promise-only]``.
+Writes ``benchmarks/results/work_precision.{csv,md}``, ``tolerance_promise.csv`` and ``wp_<model>.png``;
+``--promise-only`` runs only the references and the ``tolerance`` sweep and writes
+``tolerance_promise.{csv,md}`` (work_precision.{csv,md} and the plots are left as they are).
 """
 
 from __future__ import annotations
@@ -203,6 +205,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--scipy-sample", type=int, default=3)
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--promise-only", action="store_true",
+                    help="only the references and the tolerance sweep: writes tolerance_promise.{csv,md}")  # fmt: skip
     args = ap.parse_args(argv)
     start_load = load()
     t_start = time.perf_counter()
@@ -279,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(row)
             return row
 
-        for sf in SAFETY:
+        for sf in () if args.promise_only else SAFETY:
             add(
                 "crashstudy safety_factor",
                 sf,
@@ -300,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
                 if np.isfinite(e) and e <= 2 * tol and floor > tol:
                     p[f"{q}_verdict"] += " (reference floor above tol)"
             promise.append(p)
-        if hybrid:
+        if hybrid and not args.promise_only:
             for method, rtols in SCIPY.items():
                 for rtol in rtols:
                     add(
@@ -323,20 +327,32 @@ def main(argv: list[str] | None = None) -> int:
                     )
                 c["crossover"] = crossover(cs_env, sp_env)
                 cross.append(c)
-        plot_model(name, [r for r in rows if r["model"] == name], unc, ref_kind, args.out / f"wp_{name}.png")
+        if not args.promise_only:
+            plot_model(name, [r for r in rows if r["model"] == name], unc, ref_kind, args.out / f"wp_{name}.png")
         print(f"{name}: {time.perf_counter() - t_model:.0f} s (load {load()})", flush=True)
 
     args.out.mkdir(parents=True, exist_ok=True)
     info = machine(start_load)
-    write_csv(args.out / "work_precision.csv", rows, info)
     write_csv(args.out / "tolerance_promise.csv", promise, info)
+    promise_table = md_table(promise, ["model", "tolerance"] + [f"{q}_{k}" for q in QUANTITIES
+                                                                for k in ("err/tol", "verdict")])  # fmt: skip
+    if args.promise_only:
+        text = ["# Tolerance promise: achieved relative error vs requested tolerance\n\n", machine_md(info),
+                f"- total script time: {time.perf_counter() - t_start:.0f} s\n",
+                "- run: `python benchmarks/work_precision.py --promise-only` (references and errors as in "
+                "work_precision.md)\n\n", "## References\n\n", md_table(refs), "\n## Tolerance promise\n\n",
+                promise_table]  # fmt: skip
+        (args.out / "tolerance_promise.md").write_text("".join(text))
+        print(f"wrote {args.out / 'tolerance_promise.md'} ({time.perf_counter() - t_start:.0f} s)")
+        return 0
+    write_csv(args.out / "work_precision.csv", rows, info)
     text = ["# Work-precision: error vs time per variant\n\n", machine_md(info),
             f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n", __doc__.split("\n\n", 1)[1], "\n",
             "## References\n\n", md_table(refs), "\n## Crossover: scipy time / crashstudy time at equal error\n\n",
             "Both sides are their lower envelope (best setting of any series) interpolated in log-log; > 1 means "
             "crashstudy is faster at that error; nan where a side does not reach that error.\n\n", md_table(cross),
             "\n## Tolerance promise: achieved relative error vs requested tolerance\n\n",
-            md_table(promise, ["model", "tolerance"] + [f"{q}_{k}" for q in QUANTITIES for k in ("err/tol", "verdict")]),
+            promise_table,
             "\n## All points\n\n",
             md_table(rows, ["model", "series", "setting", "t_variant_s"] + [f"err_{q}" for q in QUANTITIES]
                      + ["batch", "dt_over_crit", "n_steps", "nfev", "events"]),

@@ -7,6 +7,11 @@ step of every variant. Nothing here knows about YAML or pydantic.
 Curves are evaluated branch-free as a sum of ramps,
 ``y(e) = y_0 + s_0 (e - x_0) + sum_k ds_k max(0, e - x_k)`` over the interior knots ``k``, which is
 the piecewise-linear interpolant with linear extrapolation beyond both ends.
+
+Knot peaks: between knots a curve is linear, so along an elongation path the largest |force| is at
+the path's ends or at an interior knot that is a local maximum of |curve|. ``knot_y`` holds those
+knots' forces per variant (0 elsewhere) and ``knot_check`` marks the knots that are such a maximum
+for at least one variant; the kernels test only those (see docs/solver.md, "Peaks").
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from crashstudy.compiler import Topology
+from crashstudy.compiler import CRUSH, GENERAL, NONLINEAR, Topology
 from crashstudy.timestep import StepChoice, choose_steps, spring_stiffness_bound
 
 
@@ -65,6 +70,9 @@ class Batch:
     min_time: np.ndarray  # (V,) [time]
     invalid: np.ndarray  # (V,) int reason code: 0 ok, see INVALID_REASONS
     energy_floor: np.ndarray  # (V,) [energy] round-off floor of the instability test (1e-9 of the model's scale)
+    knot_y: np.ndarray  # (K, V) [force] cy at interior knots of a spring curve that are a local maximum of
+    # |curve| for that variant (|y| >= |y| of both neighbour knots, y != 0, not flat on both sides), else 0.0
+    knot_check: np.ndarray  # (K,) bool, shared: knot_y[k] != 0 for some variant (only these knots are tested)
 
     @property
     def n_variants(self) -> int:
@@ -85,7 +93,7 @@ class Batch:
 
 
 _SHARED = {"spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_off", "free", "load_node",
-           "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes"}  # fmt: skip
+           "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check"}  # fmt: skip
 
 INVALID_REASONS = {
     1: "fixed dt is above the critical step",
@@ -168,9 +176,32 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         wall_normal=np.ascontiguousarray(unit), dt=steps.dt, n_steps=steps.n_steps,
         out_every=steps.out_every, ke_fraction=P[b["ke_fraction"].start].copy(),
         min_time=P[b["min_time"].start].copy(), invalid=invalid,
-        energy_floor=_energy_floor(kmax, length0, mass, v0),
+        energy_floor=_energy_floor(kmax, length0, mass, v0), **knot_peaks(topo, cx, cy),
     )  # fmt: skip
     return batch, steps
+
+
+def knot_peaks(topo: Topology, cx: np.ndarray, cy: np.ndarray) -> dict[str, np.ndarray]:
+    """``knot_y`` (K, V) and ``knot_check`` (K,) of :class:`Batch` (see the module docstring).
+
+    Only the interior knots of curves that springs follow by elongation (``nonlinear_elastic``, the
+    loading curve of ``crush`` and ``general_nonlinear``) can be flagged. A knot whose |curve| is flat on
+    one side (a plateau's end) is flagged too: a step can pass over a whole plateau between two samples.
+    """
+    K, V = cx.shape
+    knot_y = np.zeros((K, V))
+    off = topo.curve_offsets
+    curves = {int(topo.spring_curves[s, 0]) for s in range(topo.n_springs)
+              if topo.material[s] in (NONLINEAR, CRUSH, GENERAL) and topo.spring_curves[s, 0] >= 0}  # fmt: skip
+    for c in curves:
+        a, e = int(off[c]), int(off[c + 1])
+        for k in range(a + 1, e - 1):
+            y, yl, yr = cy[k], cy[k - 1], cy[k + 1]
+            sg = np.sign(y)
+            with np.errstate(invalid="ignore"):
+                peak = (y != 0) & (sg * (y - yl) >= 0) & (sg * (y - yr) >= 0) & ~((y == yl) & (y == yr))
+            knot_y[k] = np.where(peak, y, 0.0)
+    return {"knot_y": knot_y, "knot_check": np.any(knot_y != 0.0, axis=1)}
 
 
 def _energy_floor(kmax: np.ndarray, length0: np.ndarray, mass: np.ndarray, v0: np.ndarray) -> np.ndarray:

@@ -12,7 +12,10 @@ the limit of the kernel's second-order damper velocity ``v^{n-1/2} + dt/2 a^{n-1
 Accuracy (``tolerance`` mode): central difference is second order, and the relative error of the
 reported peaks behaves as ``~ (omega dt)^2 / 8``; the step ``dt = min(dt_crit, 2 sqrt(2 tol) / omega)``
 (i.e. ``sqrt(2 tol) * dt_crit``) keeps it under ``tol``. Time curves (loads, prescribed motion)
-additionally limit the step to a quarter of their shortest segment.
+additionally limit the step to a quarter of their shortest segment. A peak at a kink of a spring curve
+would be a first-order error of the sampled peaks that no such step controls; the kernels therefore
+include the knots passed over between two steps in the peaks (docs/solver.md, "Peaks"), which keeps
+the estimate above valid for them too.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ from crashstudy.batch import Batch
 from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, HISTORY_ORDER, INVALID, UNSTABLE, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH, UNSTABLE_ENERGY
-from crashstudy.kernel.scalar import reverse_yield, time_curve_at
+from crashstudy.kernel.scalar import knot_peak, reverse_yield, time_curve_at
 
 BLOCK = 256
 NSTATE = 8
@@ -56,7 +56,7 @@ def _ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - co
 def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_curve, pm_node, pm_dir, pm_kind,
          pm_curve, wall_nodes, mass, inv_mass, x0, v0, length0, sign, kpar, yield_t, yield_c, cx, cy, cds, cs0,
          cs1, gravity, load_force, pm_scale, wall_point, wall_normal, dt, n_steps, out_every, ke_fraction,
-         min_time, invalid, e_floor, rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, h_wall,
+         min_time, invalid, e_floor, knot_y, knot_check, rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, h_wall,
          status, fail_time, fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, peak_wall, energy_error,
          final_energy):  # pragma: no cover - compiled  # fmt: skip
     N = x0.shape[0]
@@ -91,6 +91,16 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                 movable[n_] = True
     for k in range(NP):
         movable[pm_node[k]] = True
+    # springs whose curve has a knot that can be a local maximum of |force| (Batch.knot_check)
+    knotted = np.zeros(S, dtype=np.bool_)
+    any_knot = False
+    for s in range(S):
+        ca = curve_a[s]
+        if (material[s] == NONLINEAR or material[s] == CRUSH or material[s] == GENERAL) and ca >= 0:
+            for k in range(off[ca] + 1, off[ca + 1] - 1):
+                if knot_check[k]:
+                    knotted[s] = True
+                    any_knot = True
     # 1-D models without walls, prescribed motion or external forces take a fused node update
     fused_1d = D == 1 and W == 0 and NP == 0 and no_ext
     for bi in range(b_lo, b_hi):
@@ -106,6 +116,7 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
         cx_b = np.empty((K, B))
         cy_b = np.empty((K, B))
         ds_b = np.empty((K, B))
+        ky_b = np.empty((K, B))
         s0_b = np.empty((C, B))
         yt_b = np.empty((S, B))
         yc_b = np.empty((S, B))
@@ -138,6 +149,7 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                 cx_b[k, w] = cx[k, lo + w]
                 cy_b[k, w] = cy[k, lo + w]
                 ds_b[k, w] = cds[k, lo + w]
+                ky_b[k, w] = knot_y[k, lo + w]
         for c in range(C):
             for w in range(B):
                 s0_b[c, w] = cs0[c, lo + w]
@@ -149,6 +161,15 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
         fext = np.zeros((N, D, B))
         fext_prev = np.zeros((N, D, B))
         acc = np.zeros((N, D, B))  # a^{n-1} at the start of step n (dampers' velocity estimate)
+        acc_prev = np.zeros((N, D, B) if any_knot else (0, D, B))  # a^{n-1} during step n (knot crossings)
+        k_sh = np.empty(B)  # knot test: shift of the curve's abscissa (general_nonlinear)
+        k_c = np.empty(B)  # candidate |force|, and the abscissa and force of the knot that gave it
+        k_x = np.empty(B)
+        k_y = np.empty(B)
+        k_any = np.zeros(S, dtype=np.bool_)  # some lane of the block passed over a knot of spring s this step
+        k_hit = np.zeros((S if any_knot else 0, B), dtype=np.bool_)  # this lane did
+        k_th = np.zeros((S if any_knot else 0, B))  # crossing fraction of the step at that knot
+        k_dfax = np.zeros((S if any_knot else 0, D, B))  # (knot force - interpolated force) * axis
         jump_prev = np.zeros((W, N, D, B))
         pm_acc = np.zeros((NP, B))  # kinematic acceleration of each prescribed dof
         axis_prev = np.zeros((S if D > 1 else 0, D, B))  # 2-D: previous spring direction (un-normalised)
@@ -231,10 +252,12 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     edot_min[w] = np.inf
             for w in range(B):
                 ie_tot[w] = 0.0
+            any_hit = False
             for s in range(S):
                 i = si[s]
                 j = sj[s]
                 kind = material[s]
+                kn = knotted[s] and n > 0
                 if D == 1:
                     for w in range(B):
                         sg = sg_b[s, w]
@@ -269,6 +292,82 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                             edot += ax_tmp[d, w] * (vpj - vpi)
                         e_tmp[w] = ln - l0_b[s, w]
                         ed_tmp[w] = edot
+                nhit = 0
+                if kn:  # did any lane pass over a flagged knot since the previous step? (cheap: no stores)
+                    ca = curve_a[s]
+                    for k in range(off[ca] + 1, off[ca + 1] - 1):
+                        if not knot_check[k]:
+                            continue
+                        if kind == CRUSH:
+                            for w in range(B):
+                                xk = cx_b[k, w]
+                                nhit += (xk > e_tmp[w]) & (xk < state[s, 0, w])
+                        elif kind == GENERAL:
+                            for w in range(B):
+                                e = e_tmp[w]
+                                ep = e_prev[s, w]
+                                mode = state[s, 0, w]
+                                sh = state[s, 5, w]
+                                lo_ = state[s, 1, w] if mode > 0 else (e if mode < 0 else min(ep, e))
+                                hi_ = e if mode > 0 else (state[s, 3, w] if mode < 0 else max(ep, e))
+                                xk = cx_b[k, w]
+                                nhit += (xk > lo_ - sh) & (xk < hi_ - sh)
+                        else:
+                            for w in range(B):
+                                xk = cx_b[k, w]
+                                nhit += (xk > min(e_prev[s, w], e_tmp[w])) & (xk < max(e_prev[s, w], e_tmp[w]))
+                if nhit > 0:  # rare: the knots passed over, lane by lane (the state is still the one before the step)
+                    nhit = 0
+                    ca = curve_a[s]
+                    first = True
+                    for k in range(off[ca] + 1, off[ca + 1] - 1):
+                        if not knot_check[k]:
+                            continue
+                        if kind == CRUSH:  # (e, e_min): crushing further
+                            for w in range(B):
+                                yk = min(0.0, ky_b[k, w])
+                                c0 = 0.0 if first else k_c[w]
+                                xs0 = (e_prev[s, w] - 0.0) if first else k_x[w]
+                                ys0 = 0.0 if first else k_y[w]
+                                c1 = knot_peak(c0, e_tmp[w], state[s, 0, w], cx_b[k, w], yk)
+                                k_x[w] = cx_b[k, w] if c1 > c0 else xs0
+                                k_y[w] = yk if c1 > c0 else ys0
+                                k_c[w] = c1
+                                k_sh[w] = 0.0
+                                nhit += c1 > c0
+                        elif kind == GENERAL:  # on the loading curve, in its own (shifted) abscissa
+                            for w in range(B):
+                                e = e_tmp[w]
+                                ep = e_prev[s, w]
+                                mode = state[s, 0, w]
+                                sh = state[s, 5, w]
+                                lo_ = state[s, 1, w] if mode > 0 else (e if mode < 0 else min(ep, e))
+                                hi_ = e if mode > 0 else (state[s, 3, w] if mode < 0 else max(ep, e))
+                                yk = ky_b[k, w]
+                                c0 = 0.0 if first else k_c[w]
+                                xs0 = (ep - sh) if first else k_x[w]
+                                ys0 = 0.0 if first else k_y[w]
+                                c1 = knot_peak(c0, lo_ - sh, hi_ - sh, cx_b[k, w], yk)
+                                k_x[w] = cx_b[k, w] if c1 > c0 else xs0
+                                k_y[w] = yk if c1 > c0 else ys0
+                                k_c[w] = c1
+                                k_sh[w] = sh
+                                nhit += c1 > c0
+                        else:  # nonlinear_elastic: the whole path
+                            for w in range(B):
+                                e = e_tmp[w]
+                                ep = e_prev[s, w]
+                                yk = ky_b[k, w]
+                                c0 = 0.0 if first else k_c[w]
+                                xs0 = (ep - 0.0) if first else k_x[w]
+                                ys0 = 0.0 if first else k_y[w]
+                                c1 = knot_peak(c0, min(ep, e), max(ep, e), cx_b[k, w], yk)
+                                k_x[w] = cx_b[k, w] if c1 > c0 else xs0
+                                k_y[w] = yk if c1 > c0 else ys0
+                                k_c[w] = c1
+                                k_sh[w] = 0.0
+                                nhit += c1 > c0
+                        first = False
                 if kind == LINEAR:
                     for w in range(B):
                         F_tmp[w] = kp_b[s, w] * e_tmp[w]
@@ -336,6 +435,22 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                             if g_rev[w]:
                                 F_tmp[w] = reverse_yield(e_tmp[w], state[s], w, ca, cb, yt_b[s, w], yc_b[s, w], lo + w,
                                                          cx, cy, cds, cs0, cs1, off)
+                if kn:
+                    k_any[s] = nhit > 0
+                if nhit > 0:  # rare: peak-force candidate and the deceleration data (see reference)
+                    any_hit = True
+                    for w in range(B):
+                        kcw = k_c[w]
+                        hit = kcw > 0.0
+                        epa = e_prev[s, w] - k_sh[w]
+                        ea = e_tmp[w] - k_sh[w]
+                        th = (k_x[w] - epa) / ((ea - epa) if hit else 1.0)
+                        dF = (k_y[w] - ((1.0 - th) * f_prev[s, w] + th * F_tmp[w])) if hit else 0.0
+                        k_hit[s, w] = hit
+                        k_th[s, w] = th
+                        for d in range(D):
+                            k_dfax[s, d, w] = dF * ax_tmp[d, w]
+                        pf[s, w] = max(pf[s, w], kcw * actf[w])
                 # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
                 if D == 1 and n > 0:  # one pass: scatter and summaries
                     for w in range(B):
@@ -376,6 +491,11 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     for w in range(B):
                         edot_min[w] = min(edot_min[w], ed_tmp[w])
 
+            if any_hit:  # a^{n-1}, for the accelerations at this step's knot crossings
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            acc_prev[n_, d, w] = acc[n_, d, w]
             # external forces, accelerations, velocities
             if fused:
                 # a = f/m, v^{n+1/2}, kinetic energy, peak |a| and x^{n+1} in one pass (the same
@@ -511,6 +631,23 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                     for d in range(D):
                         a2 += acc[n_, d, w] * acc[n_, d, w]
                     pacc[n_, w] = max(pacc[n_, w], a2 * actf[w])
+            if any_hit:  # |a| at the knot crossings of this step (see reference)
+                for s in range(S):
+                    if not k_any[s]:
+                        continue
+                    for side in range(2):
+                        p = si[s] if side == 0 else sj[s]
+                        if not movable[p]:
+                            continue
+                        for w in range(B):
+                            th = k_th[s, w]
+                            a2 = 0.0
+                            for d in range(D):
+                                ai = (1.0 - th) * acc_prev[p, d, w] + th * acc[p, d, w]
+                                cr = k_dfax[s, d, w] * im_b[p, d, w]
+                                ai = ai + cr if side == 0 else ai - cr
+                                a2 += ai * ai
+                            pacc[p, w] = max(pacc[p, w], (a2 if k_hit[s, w] else 0.0) * actf[w])
             for wl in range(W):
                 for w in range(B):
                     pwall[wl, w] = max(pwall[wl, w], wforce[wl, w] * actf[w])
@@ -650,7 +787,7 @@ def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = 
          b.load_curve, b.pm_node, b.pm_dir, b.pm_kind, b.pm_curve, b.wall_nodes, b.mass, b.inv_mass, b.x0, b.v0,
          b.length0, b.sign, b.kpar, b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.gravity,
          b.load_force, b.pm_scale, b.wall_point, b.wall_normal, b.dt, b.n_steps, b.out_every, b.ke_fraction,
-         b.min_time, b.invalid, b.energy_floor, rec_mask,
+         b.min_time, b.invalid, b.energy_floor, b.knot_y, b.knot_check, rec_mask,
          buf("position", (T, N, D, V)), buf("displacement", (T, N, D, V)), buf("velocity", (T, N, D, V)),
          buf("acceleration", (T, N, D, V)), buf("spring_force", (T, S, V)), buf("spring_elongation", (T, S, V)),
          h_energy, buf("wall_force", (T, W, V)),

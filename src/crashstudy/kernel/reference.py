@@ -64,6 +64,12 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
     err = np.zeros(V)
     no_ext = len(b.load_node) == 0 and len(b.pm_node) == 0 and not np.any(b.gravity)
     cargs = (b.cx, b.cy, b.cds, b.cs0, b.curve_off)
+    knotted = spring_knotted(b)
+    knot_hit = np.zeros((S, V), dtype=bool)  # the spring passed over a knot in this step
+    knot_th = np.zeros((S, V))  # crossing fraction of the step at the knot that gave a spring's candidate
+    knot_dfax = np.zeros((S, D, V))  # that knot's force minus the force interpolated in time, times the axis
+    movable = ~np.all(b.free == 0.0, axis=1)
+    movable[b.pm_node] = True
 
     for n in range(int(nst.max(initial=-1)) + 1):
         act = (n <= nst) & (out.status == 0)
@@ -93,6 +99,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
                 axis_prev[s] = d
                 e = length - b.length0[s]
                 edot = np.sum(axis * (vpj - vpi), axis=0)
+            st_before = state[s].copy() if knotted[s] and n > 0 else None
             F = _force(b, s, e, edot, state[s], cargs)
             f[i] += F * axis
             f[j] -= F * axis
@@ -101,6 +108,10 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
             if n > 0:
                 ie[s] += np.where(act, 0.5 * (F + f_prev[s]) * (e - e_prev[s]), 0.0)
             out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], np.abs(F)), out.peak_force[s])
+            if st_before is not None:  # knots passed over since the previous step (docs/solver.md, "Peaks")
+                cand, th, dF = _knot_crossing(b, s, e, e_prev[s], F, f_prev[s], st_before)
+                out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], cand), out.peak_force[s])
+                knot_hit[s], knot_th[s], knot_dfax[s] = cand > 0.0, th, dF * axis
             out.max_crush[s] = np.where(act, np.maximum(out.max_crush[s], -e), out.max_crush[s])
         f_prev, e_prev = forces, elong
 
@@ -158,6 +169,21 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
         err = np.where(act, np.maximum(err, bal), err)
         amag = np.sqrt(np.sum(a * a, axis=1))
         out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
+        for s in range(S if n > 0 else 0):
+            if not knotted[s]:
+                continue
+            # the node acceleration at the knot crossing: linear in time between the steps, plus the jump
+            # of the kinked spring's force from its own linear interpolation (second order)
+            th = knot_th[s]
+            for p, sgn in ((b.spring_i[s], 1.0), (b.spring_j[s], -1.0)):
+                if not movable[p]:
+                    continue
+                corr = knot_dfax[s] * b.inv_mass[p]
+                ai = (1.0 - th) * a_prev[p] + th * a[p]
+                ai = ai + corr if sgn > 0 else ai - corr
+                amag = np.sqrt(np.sum(ai * ai, axis=0))
+                out.peak_acceleration[p] = np.where(act & knot_hit[s], np.maximum(out.peak_acceleration[p], amag),
+                                                    out.peak_acceleration[p])  # fmt: skip
         out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
 
         bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (ke0 + wmax) + b.energy_floor))
@@ -191,6 +217,62 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
     out.absorbed_energy[:] = ie
     out.energy_error[:] = err / np.maximum(ke0 + wmax, 1e-300)
     return out
+
+
+def spring_knotted(b: Batch) -> np.ndarray:
+    """(S,) bool: the spring follows a curve (by elongation) with a knot flagged in ``b.knot_check``."""
+    out = np.zeros(len(b.spring_i), dtype=bool)
+    for s in range(len(b.spring_i)):
+        c = int(b.curve_a[s])
+        if b.material[s] in (NONLINEAR, CRUSH, GENERAL) and c >= 0:
+            out[s] = bool(np.any(b.knot_check[int(b.curve_off[c]) + 1 : int(b.curve_off[c + 1]) - 1]))
+    return out
+
+
+def knot_peak_np(cand: np.ndarray, e_lo: np.ndarray, e_hi: np.ndarray, xk: np.ndarray, yk: np.ndarray) -> np.ndarray:
+    """NumPy twin of :func:`crashstudy.kernel.scalar.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
+    ak = np.abs(yk)
+    return np.where((xk > e_lo) & (xk < e_hi) & (ak > cand), ak, cand)
+
+
+def _knot_crossing(b: Batch, s: int, e: np.ndarray, ep: np.ndarray, F: np.ndarray, Fp: np.ndarray,
+                   st: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """Knots of spring ``s``'s curve passed over on its elastic (loading) path from ``ep`` to ``e``.
+
+    ``st`` is the material state before this step. The path segment ``(lo, hi)`` in the curve's abscissa:
+    ``nonlinear_elastic`` (min, max) of (ep, e); ``crush`` (e, e_min before the step) (empty unless the
+    spring crushes further); ``general_nonlinear`` never yielded (min, max) of (ep, e), last yielded in
+    tension (e_t*, e), in compression (e, e_c*), all minus the loading curve's shift (a reversal this
+    step gives an empty segment: skipped). Returns (candidate |force| (0 if none), crossing fraction
+    ``theta`` of the largest knot, its force minus ``(1 - theta) Fp + theta F`` (0 if none)).
+    """
+    kind = b.material[s]
+    c = int(b.curve_a[s])
+    if kind == CRUSH:
+        lo, hi, sh = e, st[0], 0.0
+    elif kind == GENERAL:
+        mode, et, ec, sh = st[0], st[1], st[3], st[5]
+        lo = np.where(mode > 0, et, np.where(mode < 0, e, np.minimum(ep, e))) - sh
+        hi = np.where(mode > 0, e, np.where(mode < 0, ec, np.maximum(ep, e))) - sh
+    else:
+        lo, hi, sh = np.minimum(ep, e), np.maximum(ep, e), 0.0
+    ea = e - sh
+    epa = ep - sh
+    cand = np.zeros_like(e)
+    xb = epa
+    yb = np.zeros_like(e)
+    for k in range(int(b.curve_off[c]) + 1, int(b.curve_off[c + 1]) - 1):
+        if not b.knot_check[k]:
+            continue
+        yk = np.minimum(0.0, b.knot_y[k]) if kind == CRUSH else b.knot_y[k]
+        c1 = knot_peak_np(cand, lo, hi, b.cx[k], yk)
+        xb = np.where(c1 > cand, b.cx[k], xb)
+        yb = np.where(c1 > cand, yk, yb)
+        cand = c1
+    hit = cand > 0.0
+    th = (xb - epa) / np.where(hit, ea - epa, 1.0)
+    dF = np.where(hit, yb - ((1.0 - th) * Fp + th * F), 0.0)
+    return cand, th, dF
 
 
 def _force(b: Batch, s: int, e: np.ndarray, edot: np.ndarray, st: np.ndarray, cargs: tuple) -> np.ndarray:

@@ -1,5 +1,6 @@
-"""Compiled scalar helpers of the numba kernel (one variant at a time): time curves, curve inverses
-and the rare ``general_nonlinear`` reversal (rule 4). They follow :mod:`crashstudy.kernel.materials`.
+"""Compiled scalar helpers of the numba kernel (one variant at a time): time curves, curve inverses,
+the rare ``general_nonlinear`` reversal (rule 4) and the knot peak test. They follow
+:mod:`crashstudy.kernel.materials` (and :func:`crashstudy.kernel.reference.knot_peak_np`).
 """
 
 from __future__ import annotations
@@ -8,6 +9,23 @@ import numba as nb
 import numpy as np
 
 _jit = nb.njit(cache=True, nogil=True, inline="always")
+
+
+@_jit
+def knot_peak(cand, e_lo, e_hi, xk, yk):  # pragma: no cover - compiled
+    """Peak-force candidate of one curve knot, scalars only (inlined into the variant loop).
+
+    ``cand`` the candidate so far [force, >= 0]; ``(e_lo, e_hi)`` the part of the elongation path
+    between two steps on which the spring follows the curve elastically, in the curve's own
+    abscissa (for a shifted ``general_nonlinear`` loading curve: elongation - shift) [length];
+    ``xk``, ``yk`` the knot [length], [force] (``Batch.knot_y``: 0 where the knot is not a local
+    maximum of |curve|; a crush spring passes ``min(0, yk)``). Returns ``max(cand, |yk|)`` when
+    ``e_lo < xk < e_hi``, else ``cand``. Exact (a compare and a select): the NumPy twin is
+    :func:`crashstudy.kernel.reference.knot_peak_np`; a returned value > ``cand`` means this knot
+    is the new candidate.
+    """
+    ak = abs(yk)
+    return ak if ((xk > e_lo) & (xk < e_hi) & (ak > cand)) else cand
 
 
 @_jit
