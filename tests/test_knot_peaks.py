@@ -291,13 +291,14 @@ TWINS = {
 }  # fmt: skip
 
 
+@pytest.mark.parametrize("kernel", ["generic", "generated"])
 @pytest.mark.parametrize("case", list(TWINS))
-def test_reference_and_compiled_agree_bitwise_with_knot_crossings(case: str) -> None:
-    """Every summary array and history of the NumPy reference equals the numba kernel's bit for bit on
-    5 variants that pass over flagged knots (the knot candidate raised the peak force above every
-    sample in each variant)."""
+def test_reference_and_compiled_agree_bitwise_with_knot_crossings(case: str, kernel: str) -> None:
+    """Every summary array and history of the NumPy reference equals the numba kernels' (generic and
+    generated) bit for bit on 5 variants that pass over flagged knots (the knot candidate raised the
+    peak force above every sample in each variant)."""
     model, path, values = TWINS[case]
-    compiled, batch, _ = run_model(model, kernel="compiled", variants={path: values})
+    compiled, batch, _ = run_model(model, kernel=kernel, variants={path: values})
     reference, _, _ = run_model(model, kernel="reference", variants={path: values})
     assert np.all(compiled.status == 0)
     assert batch.knot_check.any()

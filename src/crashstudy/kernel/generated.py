@@ -48,7 +48,7 @@ from crashstudy.kernel.output import HISTORY_ORDER, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH
 from crashstudy.kernel.scalar import reverse_yield
 
-GEN_VERSION = 3  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 4  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
@@ -103,7 +103,7 @@ def _constant_curves(b: Batch, vary: frozenset[int] | None) -> list[int]:
         a0, b0 = b.curve_off[c], b.curve_off[c + 1]
         if vary is not None and c in vary:
             continue
-        rows = [b.cx[a0:b0], b.cy[a0:b0], b.cds[a0:b0], b.cs0[c : c + 1]]
+        rows = [b.cx[a0:b0], b.cy[a0:b0], b.cds[a0:b0], b.knot_y[a0:b0], b.cs0[c : c + 1]]
         if all(np.all(r == r[:, :1]) for r in rows):
             out.append(c)
     return out
@@ -123,6 +123,8 @@ def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
             out.append((f"cx{k}", "cx", k))
             if k > off[c]:
                 out.append((f"ds{k}", "cds", k))
+            if k in shape["kcheck"]:
+                out.append((f"kyv{k}", "knot_y", k))
     return out
 
 
@@ -137,7 +139,7 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
     sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
             for s in range(len(b.spring_i))]  # fmt: skip
     return {
-        "const": _constant_curves(b, vary), "sign": sign,
+        "const": _constant_curves(b, vary), "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
         "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
         "gravity": bool(np.any(b.gravity != 0.0)),
         "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
@@ -172,6 +174,13 @@ def _source(shape: dict[str, Any]) -> str:
     const, sign, grav = shape["const"], shape["sign"], shape["gravity"]
     general = [s for s in range(S) if mat[s] == GENERAL]
     dampers = any(mat[s] == DAMPER for s in range(S))
+    kcheck = set(shape["kcheck"])
+    # knots that can hold a peak of |force| (Batch.knot_check), per spring following that curve
+    knots = {s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
+             for s in range(S) if mat[s] in (NONLINEAR, CRUSH, GENERAL) and ca[s] >= 0}  # fmt: skip
+    knotted = [s for s in range(S) if knots.get(s)]
+    keep_a = {n for n in range(N) if not static[n] and (dampers or (movable[n] and any(
+        n in (si[s], sj[s]) for s in knotted)))}  # fmt: skip  (a^{n-1} kept: dampers, knot crossings)
     R = _Rows()
     for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl"):
         R.add(name)
@@ -187,7 +196,7 @@ def _source(shape: dict[str, Any]) -> str:
         for f in ("m", "pa"):
             R.add(f"{f}{n}")
         for d in range(D):
-            for f in ("x", "x0", "v", "im") + (("a",) if dampers else ()) + (("v0",) if grav else ()):
+            for f in ("x", "x0", "v", "im") + (("a", "ao") if n in keep_a else ()) + (("v0",) if grav else ()):
                 R.add(f"{f}{n}_{d}")
     curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0})
     cname = {nm: f"k_{nm}" for nm, _, _ in _const_layout(shape)}  # coefficient -> local constant
@@ -200,9 +209,14 @@ def _source(shape: dict[str, Any]) -> str:
             R.add(f"cx{k}")
             if k > off[c]:
                 R.add(f"ds{k}")
+            if k in kcheck:
+                R.add(f"kyv{k}")
     for s in range(S):
-        for f in ("kp", "fp", "ep", "ie", "pf", "mc") + (("sg",) if D == 1 else ("l0",)):
+        for f in ("kp", "fp", "ep", "ie", "pf", "mc") + (("sg",) if D == 1 else ("l0",)) + (
+                ("kh", "kth") if s in knotted else ()):  # fmt: skip
             R.add(f"{f}{s}")
+        for d in range(D if s in knotted else 0):
+            R.add(f"kdf{s}_{d}")
         for d in range(D if D > 1 else 0):
             R.add(f"ap{s}_{d}")  # previous direction (un-normalised)
         if mat[s] == CRUSH:
@@ -210,7 +224,7 @@ def _source(shape: dict[str, Any]) -> str:
             R.add(f"st{s}_1")
     gs_row = {}
     for s in general:
-        for f in ("yt", "yc", "F", "E", "rev"):
+        for f in ("yt", "yc", "F", "E", "rev") + (("gkc", "gkx", "gky", "gksh") if s in knotted else ()):
             R.add(f"{f}{s}")
         for d in range(D if D > 1 else 0):
             R.add(f"ax{s}_{d}")
@@ -277,6 +291,38 @@ def _source(shape: dict[str, Any]) -> str:
                 emit(f"{ind}ax{s}_{d} = u{d} / dn")
             emit(f"{ind}e{s} = ln - {R[f'l0{s}']}")
 
+    def knot_search(ind: str, s: int, lo: str, hi: str, shift: str, ep: str, out: tuple[str, str, str]) -> None:
+        """Candidate |force| of the flagged knots of spring s's curve on the path (lo, hi) (abscissa of
+        the curve), with the abscissa and force of the knot that gave it: ``out`` (kc, kx, ky), as
+        kernel.compiled's knot loop (``knot_peak``, the first knot starting from 0)."""
+        kc, kx, ky = out
+        for idx, k in enumerate(knots[s]):
+            yk = f"_min(0.0, {co(f'kyv{k}')})" if mat[s] == CRUSH else co(f"kyv{k}")
+            emit(f"{ind}yk = {yk}")
+            emit(f"{ind}xk = {co(f'cx{k}')}")
+            c0, xs0, ys0 = ("0.0", f"({ep} - {shift})", "0.0") if idx == 0 else (kc, kx, ky)
+            emit(f"{ind}c1 = knot_peak({c0}, {lo}, {hi}, xk, yk)")
+            emit(f"{ind}{kx} = xk if c1 > {c0} else {xs0}")
+            emit(f"{ind}{ky} = yk if c1 > {c0} else {ys0}")
+            emit(f"{ind}{kc} = c1")
+
+    def knot_post(ind: str, s: int, kc: str, kx: str, ky: str, sh: str) -> None:
+        """The crossing of spring s's winning knot: peak-force candidate, crossing fraction ``th{s}`` and
+        (knot force - force interpolated in time) x axis ``dfax{s}_{d}`` (see kernel.compiled)."""
+        fp = R[f"fp{s}"]
+        emit(f"{ind}hit{s} = ({kc} > 0.0) & (wt > 0.0)")
+        emit(f"{ind}epa = {R[f'ep{s}']} - {sh}")
+        emit(f"{ind}ea = e{s} - {sh}")
+        emit(f"{ind}th = ({kx} - epa) / ((ea - epa) if {kc} > 0.0 else 1.0)")
+        emit(f"{ind}dF = ({ky} - ((1.0 - th) * {fp} + th * F{s})) if {kc} > 0.0 else 0.0")
+        emit(f"{ind}{R[f'kth{s}']} = th")
+        emit(f"{ind}{R[f'kh{s}']} = 1.0 if hit{s} else 0.0")
+        emit(f"{ind}nhit += 1 if hit{s} else 0")
+        for d in range(D):
+            axis = f"ax{s}_{d}" if D > 1 else {1: "1.0", -1: "-1.0", 0: R[f"sg{s}"]}[sign[s]]
+            emit(f"{ind}{R[f'kdf{s}_{d}']} = dF * {axis}")
+        emit(f"{ind}{R[f'pf{s}']} = _max({R[f'pf{s}']}, {kc} * afw)")
+
     def vp(n: int, d: int) -> str:
         return "0.0" if static[n] else f"({R[f'v{n}_{d}']} + 0.5 * dtw * {R[f'a{n}_{d}']})"
 
@@ -300,6 +346,14 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{i2}fc = {st[4]}")
             emit(f"{i2}ytw = {R[f'yt{s}']}")
             emit(f"{i2}ycw = {R[f'yc{s}']}")
+            if s in knotted:  # on the loading curve, in its own (shifted) abscissa; state before the step
+                ep = R[f"ep{s}"]
+                emit(f"{i2}sh = {st[5]}")
+                emit(f"{i2}lo_ = et if mode > 0 else (e if mode < 0 else _min({ep}, e))")
+                emit(f"{i2}hi_ = e if mode > 0 else (ec if mode < 0 else _max({ep}, e))")
+                knot_search(i2, s, "lo_ - sh", "hi_ - sh", "sh", ep,
+                            (R[f"gkc{s}"], R[f"gkx{s}"], R[f"gky{s}"]))  # fmt: skip
+                emit(f"{i2}{R[f'gksh{s}']} = sh")
             emit(f"{i2}L = {ramp(ca[s], f'(e - {st[5]})')}")
             emit(f"{i2}Ut = {ramp(cb[s], '(e - et)')}")
             emit(f"{i2}Uc = {ramp(cb[s], '(e - ec)')}")
@@ -335,8 +389,28 @@ def _source(shape: dict[str, Any]) -> str:
                  f"{R[f'yt{s}']}, {R[f'yc{s}']}, lo + w, cx, cy, cds, cs0, cs1, off)")  # fmt: skip
 
     # ---- pass B: every other spring, summaries, node updates, energy balance ----
+    def pass_k(ind: str) -> None:
+        """|a| at this step's knot crossings (only run when a lane crossed one): a interpolated in time
+        plus the kinked spring's correction, as kernel.compiled (rows kth, kdf, kh, ao, a)."""
+        emit(f"{ind}if nhit > 0:")
+        emit(f"{ind}    for w in range(B):")
+        i2 = ind + "        "
+        emit(f"{i2}af = 1.0 if fn <= {R['lim']} else 0.0")
+        for s in knotted:
+            emit(f"{i2}th = {R[f'kth{s}']}")
+            for p, op in ((si[s], "+"), (sj[s], "-")):
+                if static[p] or not movable[p]:
+                    continue
+                emit(f"{i2}a2 = 0.0")
+                for d in range(D):
+                    emit(f"{i2}ai = (1.0 - th) * {R[f'ao{p}_{d}']} + th * {R[f'a{p}_{d}']}")
+                    emit(f"{i2}ai = ai {op} {R[f'kdf{s}_{d}']} * {R[f'im{p}_{d}']}")
+                    emit(f"{i2}a2 = a2 + ai * ai")
+                emit(f"{i2}{R[f'pa{p}']} = _max({R[f'pa{p}']}, (a2 if {R[f'kh{s}']} > 0.0 else 0.0) * af)")
+
     def pass_b(ind: str) -> None:
         emit(f"{ind}nbad = 0")
+        emit(f"{ind}nhit = 0")
         emit(f"{ind}for w in range(B):")
         i2 = ind + "    "
         emit(f"{i2}af = 1.0 if fn <= {R['lim']} else 0.0")
@@ -352,6 +426,8 @@ def _source(shape: dict[str, Any]) -> str:
                 if D > 1:
                     for d in range(D):
                         emit(f"{i2}ax{s}_{d} = {R[f'ax{s}_{d}']}")
+                if s in knotted:
+                    knot_post(i2, s, R[f"gkc{s}"], R[f"gkx{s}"], R[f"gky{s}"], R[f"gksh{s}"])
                     emit(f"{i2}{R['crushed']} = {float(s)!r} if ({R[f'rev{s}']} >= 2.0 and {R['crushed']} < 0.0)"
                          f" else {R['crushed']}")  # fmt: skip
                 continue
@@ -369,6 +445,10 @@ def _source(shape: dict[str, Any]) -> str:
                     emit(f"{i2}F{s} = {R[f'kp{s}']} * {edot}")
             elif k == NONLINEAR:
                 emit(f"{i2}F{s} = {ramp(ca[s], f'e{s}')}")
+                if s in knotted:  # the whole path
+                    ep = R[f"ep{s}"]
+                    knot_search(i2, s, f"_min({ep}, e{s})", f"_max({ep}, e{s})", "0.0", ep, ("kc", "kx", "ky"))
+                    knot_post(i2, s, "kc", "kx", "ky", "0.0")
             elif k == CRUSH:
                 emin, fstar = R[f"st{s}_0"], R[f"st{s}_1"]
                 emit(f"{i2}emin = {emin}")
@@ -379,6 +459,9 @@ def _source(shape: dict[str, Any]) -> str:
                 emit(f"{i2}F{s} = f_load if on else f_unl")
                 emit(f"{i2}{emin} = e{s} if on else emin")
                 emit(f"{i2}{fstar} = f_load if on else fstar")
+                if s in knotted:  # (e, e_min before the step): crushing further
+                    knot_search(i2, s, f"e{s}", "emin", "0.0", R[f"ep{s}"], ("kc", "kx", "ky"))
+                    knot_post(i2, s, "kc", "kx", "ky", "0.0")
             else:  # pragma: no cover - the compiler knows no other material
                 raise ValueError(f"material code {k}")
         # summaries in spring order (the reference kernel's order of operations)
@@ -411,7 +494,8 @@ def _source(shape: dict[str, Any]) -> str:
                 if grav:  # external work of gravity: trapezoid, f_ext^0 over the first half step
                     emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo) if n1 else vo")
                     emit(f"{i2}bal = bal + 0.5 * (({fext}) * vo + (({fext}) * wt) * vb)")
-                if dampers:
+                if n in keep_a:  # a^{n-1}: dampers' velocity estimate, knot crossings (R ao)
+                    emit(f"{i2}{R[f'ao{n}_{d}']} = {R[f'a{n}_{d}']}")
                     emit(f"{i2}{R[f'a{n}_{d}']} = a")
                 emit(f"{i2}{x} = {x} + (dtw * af) * vn")
                 emit(f"{i2}{v} = vn * af + vo * (1.0 - af)")
@@ -459,6 +543,7 @@ def _source(shape: dict[str, Any]) -> str:
         "import numba as nb",
         "import numpy as np",
         "from crashstudy.kernel.generated import reverse_yield_lane",
+        "from crashstudy.kernel.scalar import knot_peak",
         "",
         f"_SHAPE = {shape!r}",
         "",
@@ -475,7 +560,7 @@ def _source(shape: dict[str, Any]) -> str:
         "",
         '@nb.njit(nogil=True, error_model="numpy", cache=True)',
         "def run_blocks(b_lo, b_hi, starts, n_out, cst, mass, inv_mass, x0, v0, sign, length0, kpar, yield_t,",
-        "               yield_c, cx, cy, cds, cs0, cs1, off, gravity, dt, n_steps, out_every, invalid, e_floor,",
+        "               yield_c, cx, cy, cds, cs0, cs1, off, knot_y, gravity, dt, n_steps, out_every, invalid, e_floor,",
         "               unstable_energy, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
         "               fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy):",
         *[f"    {cname[nm]} = cst[{i}]" for i, nm in enumerate(cname)],
@@ -517,6 +602,8 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{i2}{R[f'cx{k}']} = cx[{k}, q]")
             if k > a0:
                 emit(f"{i2}{R[f'ds{k}']} = cds[{k}, q]")
+            if k in kcheck:
+                emit(f"{i2}{R[f'kyv{k}']} = knot_y[{k}, q]")
     for s in range(S):
         emit(f"{i2}{R[f'kp{s}']} = kpar[{s}, q]")
         if D == 1:
@@ -564,6 +651,8 @@ def _source(shape: dict[str, Any]) -> str:
                 emit(f"{i3}        {R[f'xh{n}_{d}']} = {R[f'x{n}_{d}']}")
                 emit(f"{i3}        {R[f'vh{n}_{d}']} = {R[f'v{n}_{d}']}")
     pass_b(i3)
+    if knotted:
+        pass_k(i3)
     # failures (rare): the lanes whose energy balance broke (or, in 2-D, whose spring collapsed) stop here
     emit(f"{i3}if nbad > 0:")
     emit(f"{i3}    for w in range(B):")
@@ -728,7 +817,7 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
 
     starts = np.unique(np.minimum(np.arange(0, V + BLOCK, BLOCK), V)).astype(np.int64)
     args = (starts, n_out, _constants(b, shape), b.mass, b.inv_mass, b.x0, b.v0, b.sign, b.length0, b.kpar,
-            b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.curve_off, b.gravity, b.dt, b.n_steps,
+            b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.curve_off, b.knot_y, b.gravity, b.dt, b.n_steps,
             b.out_every, b.invalid, b.energy_floor, UNSTABLE_ENERGY, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
             buf("acceleration", 4), buf("spring_force", 3), buf("spring_elongation", 3), h_energy, out.status,
             out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
