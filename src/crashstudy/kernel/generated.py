@@ -426,10 +426,10 @@ def _source(shape: dict[str, Any]) -> str:
                 if D > 1:
                     for d in range(D):
                         emit(f"{i2}ax{s}_{d} = {R[f'ax{s}_{d}']}")
-                if s in knotted:
-                    knot_post(i2, s, R[f"gkc{s}"], R[f"gkx{s}"], R[f"gky{s}"], R[f"gksh{s}"])
                     emit(f"{i2}{R['crushed']} = {float(s)!r} if ({R[f'rev{s}']} >= 2.0 and {R['crushed']} < 0.0)"
                          f" else {R['crushed']}")  # fmt: skip
+                if s in knotted:
+                    knot_post(i2, s, R[f"gkc{s}"], R[f"gkx{s}"], R[f"gky{s}"], R[f"gksh{s}"])
                 continue
             geometry(i2, [s], False)
             k = mat[s]
