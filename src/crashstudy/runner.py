@@ -40,7 +40,8 @@ def chunk_size(plan: Plan) -> int:
     return int(max(1, min(MAX_CHUNK, HISTORY_BUDGET // max(per_variant, 1))))
 
 
-GENERATED_MIN_WORK = 2e10  # element-steps of a run above which compiling the model's own kernel pays
+GENERATED_MIN_WORK = 5e9  # element-steps of a run above which compiling the model's own kernel pays (~10 s
+# of compilation against ~3.5e8 vs ~1e9 element-steps/s of the generic and generated kernels)
 
 
 def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
