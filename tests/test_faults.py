@@ -89,6 +89,13 @@ def cli(*args: str | Path, cwd: Path | None = None, timeout: float = 300) -> sub
                           cwd=cwd, timeout=timeout)  # fmt: skip
 
 
+def default_sigint() -> None:
+    """In the child: Ctrl-C's SIGINT handled as in a terminal. A test run started from a script in the
+    background inherits SIGINT ignored (the shell's rule for background jobs), and Python then never
+    raises KeyboardInterrupt; the interrupt tests need the user's situation."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 class Run:
     """``crashstudy run`` in the background, its progress line read as it comes."""
 
@@ -96,7 +103,7 @@ class Run:
         self.out = out
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "crashstudy.cli", "run", str(study), "-o", str(out), "--progress", "on", *extra],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=default_sigint,
         )  # fmt: skip
         assert self.proc.stderr is not None
         flags = fcntl.fcntl(self.proc.stderr, fcntl.F_GETFL)

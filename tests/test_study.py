@@ -370,7 +370,8 @@ def test_interrupted_run_resumes_to_results_identical_to_an_uninterrupted_run(
     reader = subprocess.Popen([sys.executable, "-c", DONE_READER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                               text=True, env={**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"})  # fmt: skip
     proc = subprocess.Popen([sys.executable, "-c", SLOW_CLI, "run", str(study), "-o", str(out), "--progress", "off"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip  (as in a terminal)
     try:
         done, deadline = 0, time.monotonic() + 120
         while done < 10:  # two chunks written and flushed (24 chunks in all: > 5 s to go)
