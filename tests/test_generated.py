@@ -248,3 +248,65 @@ def test_kernel_environment_variable_generated_falls_back_where_unsupported(monk
     got, _, _ = run_model(_mount_reversal(), kernel="compiled")
     ref, _, _ = run_model(_mount_reversal(), kernel="reference")
     _assert_bitwise(ref, got)
+
+
+def test_lanes_of_ended_variants_leave_the_block_and_results_do_not_change() -> None:
+    """48 frontal variants with bumper masses 3-40 kg (so different steps and step counts, unsorted):
+    as variants end, the generated kernel compacts its block (at least 8 ended lanes move out). Every
+    output bitwise the reference's, histories included."""
+    model = yaml.safe_load(FRONTAL.read_text())
+    model["output"] = {"interval": 1.0e-3, "histories": ["spring_force", "velocity"]}
+    model["end_time"] = 0.03
+    masses = list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 48)))
+    variants = {"nodes.bumper.mass": masses}
+    ref, batch, _ = run_model(model, kernel="reference", variants=variants)
+    got, _, _ = run_model(model, kernel="generated", variants=variants)
+    assert len(np.unique(batch.n_steps)) >= 8, "variants end at different steps"
+    _assert_bitwise(ref, got)
+
+
+def _crush_bounce(v0: float = 10.0) -> dict[str, Any]:
+    """A 100 kg mass at v0 onto a crush spring with a 20 kN plateau (reached after 0.1 mm) and unloading
+    stiffness 2e6 N/m, then free flight: crush for m v0 / F0, spring-back for a quarter period of
+    sqrt(k_u / m), then the spring is separated and opening."""
+    return {
+        "name": "crush-bounce",
+        "curves": {"plateau": {"x": [-2.0, -1.0e-4, 0.0], "y": [-2.0e4, -2.0e4, 0.0]}},
+        "nodes": {"wall": {"position": [0.0], "fixed": True}, "body": {"position": [1.0], "mass": 100.0}},
+        "springs": {"pad": {"nodes": ["wall", "body"],
+                            "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": 2.0e6}}},
+        "initial_velocity": {"body": [-v0]},
+        "end_time": 0.5,
+        "time_step": {"tolerance": 1.0e-5},
+        "termination": {"kinetic_energy_fraction": 1.0e-3},
+        "output": {"interval": 1.0e-3, "histories": ["spring_force"]},
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize("kernel", ["reference", "generic", "generated"])
+def test_early_termination_stops_when_the_spring_has_separated(kernel: str) -> None:
+    """Termination (spring force ~0 and the spring opening): the run ends at the separation time
+    m v0 / F0 + (pi / 2) sqrt(m / k_u) = 0.05 + 0.01111 s (closed form; the 0.1 mm ramp adds ~1e-5 s),
+    within 2 steps, instead of at end_time 0.5 s; peaks equal those of the run without termination."""
+    v0, m, f0, ku = 10.0, 100.0, 2.0e4, 2.0e6
+    t_sep = m * v0 / f0 + 0.5 * np.pi * np.sqrt(m / ku)
+    out, batch, _ = run_model(_crush_bounce(v0), kernel=kernel)
+    full_model = {k: v for k, v in _crush_bounce(v0).items() if k != "termination"}
+    full, _, _ = run_model(full_model, kernel="reference")
+    assert out.status[0] == 0
+    assert abs(out.t_end[0] - t_sep) <= 2.0 * batch.dt[0] + 2.0e-5, (out.t_end[0], t_sep)
+    assert full.t_end[0] == pytest.approx(0.5)
+    assert out.peak_force[0, 0] == full.peak_force[0, 0] and out.max_crush[0, 0] == full.max_crush[0, 0]
+    assert np.all(np.isnan(out.histories["spring_force"][int(out.t_end[0] / 1.0e-3) + 2 :, 0, 0]))
+
+
+def test_early_termination_bitwise_equal_to_reference_and_lanes_leave_the_block() -> None:
+    """40 bounce variants (impact speed 4-16 m/s: each stops at its own separation time, so ended lanes
+    leave the generated kernel's block): every output bitwise the reference's."""
+    model = _crush_bounce()
+    model["end_time"] = 0.3
+    variants = {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}
+    ref, batch, _ = run_model(model, kernel="reference", variants=variants)
+    got, _, _ = run_model(model, kernel="generated", variants=variants)
+    assert np.all(ref.t_end < 0.2) and len(np.unique(ref.t_end)) >= 30
+    _assert_bitwise(ref, got)

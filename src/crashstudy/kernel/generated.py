@@ -48,7 +48,7 @@ from crashstudy.kernel.output import HISTORY_ORDER, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH
 from crashstudy.kernel.scalar import reverse_yield
 
-GEN_VERSION = 4  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 5  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
@@ -69,8 +69,6 @@ def unsupported(b: Batch) -> str | None:
         return "rigid walls"
     if len(b.load_node) > 0 or len(b.pm_node) > 0:
         return "loads or prescribed motion"
-    if np.any(b.ke_fraction > 0.0):
-        return "early termination"
     return None
 
 
@@ -141,7 +139,7 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
     return {
         "const": _constant_curves(b, vary), "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
         "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
-        "gravity": bool(np.any(b.gravity != 0.0)),
+        "gravity": bool(np.any(b.gravity != 0.0)), "term": bool(np.any(b.ke_fraction > 0.0)),
         "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
         "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
         "movable": [bool(np.any(b.free[n] > 0.0)) for n in range(N)], "static": static,
@@ -171,7 +169,7 @@ def _source(shape: dict[str, Any]) -> str:
     N, S, D = shape["N"], shape["S"], shape["D"]
     si, sj, mat, ca, cb, off = shape["si"], shape["sj"], shape["mat"], shape["ca"], shape["cb"], shape["off"]
     static, movable, hist = shape["static"], shape["movable"], shape["hist"]
-    const, sign, grav = shape["const"], shape["sign"], shape["gravity"]
+    const, sign, grav, term = shape["const"], shape["sign"], shape["gravity"], shape["term"]
     general = [s for s in range(S) if mat[s] == GENERAL]
     dampers = any(mat[s] == DAMPER for s in range(S))
     kcheck = set(shape["kcheck"])
@@ -179,10 +177,10 @@ def _source(shape: dict[str, Any]) -> str:
     knots = {s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
              for s in range(S) if mat[s] in (NONLINEAR, CRUSH, GENERAL) and ca[s] >= 0}  # fmt: skip
     knotted = [s for s in range(S) if knots.get(s)]
-    keep_a = {n for n in range(N) if not static[n] and (dampers or (movable[n] and any(
+    keep_a = {n for n in range(N) if not static[n] and (dampers or term or (movable[n] and any(
         n in (si[s], sj[s]) for s in knotted)))}  # fmt: skip  (a^{n-1} kept: dampers, knot crossings)
     R = _Rows()
-    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl"):
+    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl") + (("kef", "tmin", "stop") if term else ()):
         R.add(name)
     if grav:
         for name in ("work", "wmax"):
@@ -192,6 +190,10 @@ def _source(shape: dict[str, Any]) -> str:
     if D > 1:
         R.add("crushed")
     live = [n for n in range(N) if not static[n]]
+    for n in range(N if D > 1 else 0):
+        if static[n]:
+            for d in range(D):
+                R.add(f"xs{n}_{d}")
     for n in live:
         for f in ("m", "pa"):
             R.add(f"{f}{n}")
@@ -224,7 +226,8 @@ def _source(shape: dict[str, Any]) -> str:
             R.add(f"st{s}_1")
     gs_row = {}
     for s in general:
-        for f in ("yt", "yc", "F", "E", "rev") + (("gkc", "gkx", "gky", "gksh") if s in knotted else ()):
+        for f in ("yt", "yc", "F", "E", "rev") + (("gkc", "gkx", "gky", "gksh") if s in knotted else ()) + (
+                ("ed",) if term else ()):  # fmt: skip
             R.add(f"{f}{s}")
         for d in range(D if D > 1 else 0):
             R.add(f"ax{s}_{d}")
@@ -272,8 +275,8 @@ def _source(shape: dict[str, Any]) -> str:
         for s in springs:
             i, j = si[s], sj[s]
             for d in range(D):
-                xj = f"x0[{j}, {d}, lo + w]" if static[j] else R[f"x{j}_{d}"]
-                xi = f"x0[{i}, {d}, lo + w]" if static[i] else R[f"x{i}_{d}"]
+                xj = R[f"xs{j}_{d}"] if static[j] else R[f"x{j}_{d}"]
+                xi = R[f"xs{i}_{d}"] if static[i] else R[f"x{i}_{d}"]
                 emit(f"{ind}u{d} = {xj} - {xi}")
             emit(f"{ind}ln = np.sqrt(" + "".join("(" for _ in range(D)) + "0.0"
                  + "".join(f" + u{d} * u{d})" for d in range(D)) + ")")  # fmt: skip
@@ -326,12 +329,24 @@ def _source(shape: dict[str, Any]) -> str:
     def vp(n: int, d: int) -> str:
         return "0.0" if static[n] else f"({R[f'v{n}_{d}']} + 0.5 * dtw * {R[f'a{n}_{d}']})"
 
+    def edot(s: int) -> str:
+        """Elongation rate of spring s from v^{n-1/2} + dt/2 a^{n-1} (dampers; termination's opening test)."""
+        if D == 1:
+            sg = {1: "1.0", -1: "-1.0", 0: R[f"sg{s}"]}[sign[s]]
+            return f"({sg} * ({vp(sj[s], 0)} - {vp(si[s], 0)}))"
+        return "".join("(" for _ in range(D)) + "0.0" + "".join(
+            f" + ax{s}_{d} * ({vp(sj[s], d)} - {vp(si[s], d)}))" for d in range(D))
+
     # ---- pass A: general_nonlinear springs (rules 1-3 branch-free; reversals flagged) ----
     def pass_a(ind: str) -> None:
         emit(f"{ind}nrev = 0")
         emit(f"{ind}for w in range(B):")
         i2 = ind + "    "
+        emit(f"{i2}dtw = {R['dt']}")
         geometry(i2, general, True)
+        if term:
+            for s in general:
+                emit(f"{i2}{R[f'ed{s}']} = {edot(s)}")
         for s in general:
             st = [R[f"st{s}_{k}"] for k in range(8)]
             emit(f"{i2}e = e{s}")
@@ -386,7 +401,7 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{ind}    for w in range(B):")
             emit(f"{ind}        if {R[f'rev{s}']} == 1.0 or {R[f'rev{s}']} == 3.0:")
             emit(f"{ind}            {R[f'F{s}']} = reverse_yield_lane({R[f'E{s}']}, gst{s}, w, {ca[s]}, {cb[s]}, "
-                 f"{R[f'yt{s}']}, {R[f'yc{s}']}, lo + w, cx, cy, cds, cs0, cs1, off)")  # fmt: skip
+                 f"{R[f'yt{s}']}, {R[f'yc{s}']}, vi[w], cx, cy, cds, cs0, cs1, off)")  # fmt: skip
 
     # ---- pass B: every other spring, summaries, node updates, energy balance ----
     def pass_k(ind: str) -> None:
@@ -411,6 +426,7 @@ def _source(shape: dict[str, Any]) -> str:
     def pass_b(ind: str) -> None:
         emit(f"{ind}nbad = 0")
         emit(f"{ind}nhit = 0")
+        emit(f"{ind}nstop = 0")
         emit(f"{ind}for w in range(B):")
         i2 = ind + "    "
         emit(f"{i2}af = 1.0 if fn <= {R['lim']} else 0.0")
@@ -436,13 +452,7 @@ def _source(shape: dict[str, Any]) -> str:
             if k == LINEAR:
                 emit(f"{i2}F{s} = {R[f'kp{s}']} * e{s}")
             elif k == DAMPER:
-                if D == 1:
-                    sg = {1: "1.0", -1: "-1.0", 0: R[f"sg{s}"]}[sign[s]]
-                    emit(f"{i2}F{s} = {R[f'kp{s}']} * ({sg} * ({vp(sj[s], 0)} - {vp(si[s], 0)}))")
-                else:
-                    edot = "".join("(" for _ in range(D)) + "0.0" + "".join(
-                        f" + ax{s}_{d} * ({vp(sj[s], d)} - {vp(si[s], d)}))" for d in range(D))
-                    emit(f"{i2}F{s} = {R[f'kp{s}']} * {edot}")
+                emit(f"{i2}F{s} = {R[f'kp{s}']} * {edot(s)}")
             elif k == NONLINEAR:
                 emit(f"{i2}F{s} = {ramp(ca[s], f'e{s}')}")
                 if s in knotted:  # the whole path
@@ -521,6 +531,21 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{i2}nbad += (1 if af > 0.0 else 0) if {bad} else 0")
         emit(f"{i2}{R['ken']} = ke")
         emit(f"{i2}{R['ien']} = ie_tot")
+        if term:  # early termination (SPEC: termination): decided for running lanes after the failure check
+            emit(f"{i2}edmin = np.inf")
+            for s in range(S):
+                emit(f"{i2}edmin = _min(edmin, {R[f'ed{s}'] if mat[s] == GENERAL else edot(s)})")
+            emit(f"{i2}fsum = " + "".join("(" for _ in range(S)) + "0.0"
+                 + "".join(f" + abs(F{s}))" for s in range(S)))  # fmt: skip
+            emit(f"{i2}psum = " + "".join("(" for _ in range(S)) + "0.0"
+                 + "".join(f" + {R[f'pf{s}']})" for s in range(S)))  # fmt: skip
+            emit(f"{i2}kef = {R['kef']}")
+            emit(f"{i2}small_f = fsum <= kef * psum")
+            emit(f"{i2}small_ke = ke <= kef * ({R['ke0']} + {R['wmax'] if grav else '0.0'})")
+            emit(f"{i2}opening = " + ("False" if grav else "edmin >= 0.0"))
+            emit(f"{i2}stop = (wt > 0.0) & (kef > 0.0) & (not (fn * dtw < {R['tmin']})) & small_f & (small_ke | opening)")
+            emit(f"{i2}{R['stop']} = 1.0 if stop else 0.0")
+            emit(f"{i2}nstop += 1 if stop else 0")
 
     def _chain(n: int, d: int, force: Any, axis: Any) -> str:
         """Nodal force on dof (n, d) in the reference scatter's order: f[i] += F ax, f[j] -= F ax."""
@@ -537,6 +562,22 @@ def _source(shape: dict[str, Any]) -> str:
                 else:  # a - b == a + (-b): the sign folds into the operator exactly
                     out = f"({out} {op if sign[s] == 1 else ('-' if op == '+' else '+')} {term})"
         return out
+
+    def emit_results(ind: str) -> None:
+        """Write lane w's summaries to its variant's columns (the lane's variant has ended)."""
+        emit(f"{ind}q = vi[w]")
+        wm = R["wmax"] if grav else "0.0"
+        emit(f"{ind}energy_error[q] = {R['err']} / max({R['ke0']} + {wm}, 1e-300)")
+        emit(f"{ind}if status[q] == 0:")
+        emit(f"{ind}    t_end[q] = int({R['lim']}) * {R['dt']}")
+        emit(f"{ind}elif n_fail[w] > 0:")
+        emit(f"{ind}    t_end[q] = (n_fail[w] - 1) * {R['dt']}")
+        for s in range(S):
+            emit(f"{ind}absorbed[{s}, q] = {R[f'ie{s}']}")
+            emit(f"{ind}peak_force[{s}, q] = {R[f'pf{s}']}")
+            emit(f"{ind}max_crush[{s}, q] = {R[f'mc{s}']}")
+        for n in range(N):
+            emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if static[n] or not movable[n] else f"np.sqrt({R[f'pa{n}']})"))
 
     head = [
         '"""Generated by crashstudy.kernel.generated (do not edit): one model shape, see _SHAPE."""',
@@ -561,7 +602,7 @@ def _source(shape: dict[str, Any]) -> str:
         '@nb.njit(nogil=True, error_model="numpy", cache=True)',
         "def run_blocks(b_lo, b_hi, starts, n_out, cst, mass, inv_mass, x0, v0, sign, length0, kpar, yield_t,",
         "               yield_c, cx, cy, cds, cs0, cs1, off, knot_y, gravity, dt, n_steps, out_every, invalid, e_floor,",
-        "               unstable_energy, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
+        "               unstable_energy, ke_fraction, min_time, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
         "               fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy):",
         *[f"    {cname[nm]} = cst[{i}]" for i, nm in enumerate(cname)],
         "    for bi in range(b_lo, b_hi):",
@@ -575,10 +616,18 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{ind}gst{s} = Z[{gs_row[s] * ROW}:{(gs_row[s] + 8) * ROW}].reshape((8, ROW))")
     emit(f"{ind}next_rec = np.zeros(B, dtype=np.int64)")
     emit(f"{ind}n_fail = np.full(B, -1, dtype=np.int64)")
+    emit(f"{ind}vi = np.arange(lo, lo + B)  # the variant of each lane (lanes are compacted as variants end)")
     emit(f"{ind}nmax = -1")
     emit(f"{ind}for w in range(B):")
     i2 = ind + "    "
     emit(f"{i2}q = lo + w")
+    if term:
+        emit(f"{i2}{R['kef']} = ke_fraction[q]")
+        emit(f"{i2}{R['tmin']} = min_time[q]")
+    for n in range(N if D > 1 else 0):
+        if static[n]:
+            for d in range(D):
+                emit(f"{i2}{R[f'xs{n}_{d}']} = x0[{n}, {d}, q]")
     emit(f"{i2}{R['dt']} = dt[q]")
     emit(f"{i2}{R['efl']} = e_floor[q]")
     for d in range(D if grav else 0):
@@ -632,6 +681,7 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{ind}alive = nmax")
     emit(f"{ind}n_end = _next_end(Z, B, -1.0)")
     emit(f"{ind}next_min = 0")
+    emit(f"{ind}ended = False")
     emit(f"{ind}for n in range(nmax + 1):")
     i3 = ind + "    "
     emit(f"{i3}if n > alive:")
@@ -661,25 +711,26 @@ def _source(shape: dict[str, Any]) -> str:
     bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + 0.0) - {R['ke0']}) - "
                 + (R["work"] if grav else "0.0") + ")")  # fmt: skip
     emit(f"{i3}        if not ({bal_expr} <= {R['thr']}):")
-    emit(f"{i3}            status[lo + w] = 1")
+    emit(f"{i3}            status[vi[w]] = 1")
     if D > 1:
         emit(f"{i3}        elif {R['crushed']} >= 0.0:")
-        emit(f"{i3}            status[lo + w] = 2")
-        emit(f"{i3}            fail_item[lo + w] = int({R['crushed']})")
+        emit(f"{i3}            status[vi[w]] = 2")
+        emit(f"{i3}            fail_item[vi[w]] = int({R['crushed']})")
     emit(f"{i3}        else:")
     emit(f"{i3}            continue")
-    emit(f"{i3}        fail_time[lo + w] = n * {R['dt']}")
+    emit(f"{i3}        fail_time[vi[w]] = n * {R['dt']}")
     emit(f"{i3}        n_fail[w] = n")
     emit(f"{i3}        {R['lim']} = -1.0")
     emit(f"{i3}    alive = -1")
     emit(f"{i3}    for w in range(B):")
     emit(f"{i3}        alive = max(alive, int({R['lim']}))")
     emit(f"{i3}    n_end = _next_end(Z, B, fn - 1.0)")
+    emit(f"{i3}    ended = True")
     if hist:
         emit(f"{i3}if rec:")
         emit(f"{i3}    next_min = nmax + 1")
         emit(f"{i3}    for w in range(B):")
-        emit(f"{i3}        q = lo + w")
+        emit(f"{i3}        q = vi[w]")
         emit(f"{i3}        if fn > {R['lim']}:")
         emit(f"{i3}            continue")
         emit(f"{i3}        if n == next_rec[w]:")
@@ -715,29 +766,53 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{i5}h_energy[r, 3, q] = 0.0")
         emit(f"{i3}        if fn + 1.0 <= {R['lim']}:")
         emit(f"{i3}            next_min = min(next_min, next_rec[w])")
+    if term:  # lanes that met the termination test (and did not fail) end at this step
+        emit(f"{i3}if nstop > 0:")
+        emit(f"{i3}    for w in range(B):")
+        emit(f"{i3}        if {R['stop']} > 0.0 and fn <= {R['lim']}:")
+        emit(f"{i3}            {R['lim']} = fn")
+        emit(f"{i3}            n_end = fn")
+        emit(f"{i3}    alive = -1")
+        emit(f"{i3}    for w in range(B):")
+        emit(f"{i3}        alive = max(alive, int({R['lim']}))")
     emit(f"{i3}if fn == n_end:")
     emit(f"{i3}    for w in range(B):")
     emit(f"{i3}        if fn == {R['lim']}:")
-    emit(f"{i3}            final_energy[0, lo + w] = {R['ken']}")
-    emit(f"{i3}            final_energy[1, lo + w] = {R['ien']}")
-    emit(f"{i3}            final_energy[2, lo + w] = {R['work'] if grav else '0.0'}")
-    emit(f"{i3}            final_energy[3, lo + w] = 0.0")
+    emit(f"{i3}            final_energy[0, vi[w]] = {R['ken']}")
+    emit(f"{i3}            final_energy[1, vi[w]] = {R['ien']}")
+    emit(f"{i3}            final_energy[2, vi[w]] = {R['work'] if grav else '0.0'}")
+    emit(f"{i3}            final_energy[3, vi[w]] = 0.0")
     emit(f"{i3}    n_end = _next_end(Z, B, fn)")
-    # results of the block
+    emit(f"{i3}    ended = True")
+    # lanes whose variant ended leave the block once they are an eighth of it: their results are
+    # written now and the running lanes move down, so later steps run over fewer lanes
+    emit(f"{i3}if ended:")
+    emit(f"{i3}    ended = False")
+    emit(f"{i3}    gone = 0")
+    emit(f"{i3}    for w in range(B):")
+    emit(f"{i3}        gone += 1 if fn + 1.0 > {R['lim']} else 0")
+    emit(f"{i3}    if gone >= max(8, B // 8) and gone < B:")
+    emit(f"{i3}        k = 0")
+    emit(f"{i3}        for w in range(B):")
+    emit(f"{i3}            if fn + 1.0 > {R['lim']}:")
+    emit_results(i3 + "                ")
+    emit(f"{i3}                continue")
+    emit(f"{i3}            if k != w:")
+    emit(f"{i3}                for r in range(NROWS):")
+    emit(f"{i3}                    Z[r * ROW + k] = Z[r * ROW + w]")
+    emit(f"{i3}                vi[k] = vi[w]")
+    emit(f"{i3}                next_rec[k] = next_rec[w]")
+    emit(f"{i3}                n_fail[k] = n_fail[w]")
+    emit(f"{i3}            k += 1")
+    emit(f"{i3}        B = k")
+    emit(f"{i3}        n_end = _next_end(Z, B, fn)")
+    if hist:
+        emit(f"{i3}        next_min = nmax + 1")
+        emit(f"{i3}        for w in range(B):")
+        emit(f"{i3}            next_min = min(next_min, next_rec[w])")
+    # results of the block's remaining lanes
     emit(f"{ind}for w in range(B):")
-    emit(f"{ind}    q = lo + w")
-    wm = R["wmax"] if grav else "0.0"
-    emit(f"{ind}    energy_error[q] = {R['err']} / max({R['ke0']} + {wm}, 1e-300)")
-    emit(f"{ind}    if status[q] == 0:")
-    emit(f"{ind}        t_end[q] = n_steps[q] * {R['dt']}")
-    emit(f"{ind}    elif n_fail[w] > 0:")
-    emit(f"{ind}        t_end[q] = (n_fail[w] - 1) * {R['dt']}")
-    for s in range(S):
-        emit(f"{ind}    absorbed[{s}, q] = {R[f'ie{s}']}")
-        emit(f"{ind}    peak_force[{s}, q] = {R[f'pf{s}']}")
-        emit(f"{ind}    max_crush[{s}, q] = {R[f'mc{s}']}")
-    for n in range(N):
-        emit(f"{ind}    peak_acc[{n}, q] = " + ("0.0" if static[n] or not movable[n] else f"np.sqrt({R[f'pa{n}']})"))
+    emit_results(ind + "    ")
     L.extend([
         "",
         "",
@@ -818,7 +893,7 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
     starts = np.unique(np.minimum(np.arange(0, V + BLOCK, BLOCK), V)).astype(np.int64)
     args = (starts, n_out, _constants(b, shape), b.mass, b.inv_mass, b.x0, b.v0, b.sign, b.length0, b.kpar,
             b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.curve_off, b.knot_y, b.gravity, b.dt, b.n_steps,
-            b.out_every, b.invalid, b.energy_floor, UNSTABLE_ENERGY, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
+            b.out_every, b.invalid, b.energy_floor, UNSTABLE_ENERGY, b.ke_fraction, b.min_time, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
             buf("acceleration", 4), buf("spring_force", 3), buf("spring_elongation", 3), h_energy, out.status,
             out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
             out.peak_acceleration, out.energy_error, out.final_energy)  # fmt: skip
