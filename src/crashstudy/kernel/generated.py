@@ -15,8 +15,10 @@ The arithmetic is that of the reference kernel, operation for operation, so resu
 those of :func:`crashstudy.kernel.reference.run_reference` (``tests/test_generated.py``). The
 numbers stay per variant: one compiled kernel serves every study of the same model shape.
 
-Scope (:func:`unsupported`): 1-D and 2-D models, every material, gravity; not rigid walls, loads,
-prescribed motion or early termination (those run on the generic kernel).
+Scope (:func:`unsupported`): 1-D and 2-D models, every material, gravity, early termination; not
+rigid walls, loads or prescribed motion (those run on the generic kernel). Variants that end (end
+time, termination, failure) leave their block once they are an eighth of it ("lane compaction":
+their results are written, the running lanes move down), so later steps run over fewer lanes.
 
 Units: whatever consistent system the model uses (the kernel only multiplies and adds; SI in the
 examples: m, s, kg, N, J).
