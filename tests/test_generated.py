@@ -156,7 +156,7 @@ def test_general_nonlinear_reversal_bitwise_equal_to_reference() -> None:
     _assert_bitwise(ref, got)
 
 
-@pytest.mark.parametrize("histories", ["none", ["spring_force", "kinetic_energy"], "all"])
+@pytest.mark.parametrize("histories", [["spring_force", "kinetic_energy"], "all"])  # "none": the runner test
 def test_frontal_model_with_curve_and_mass_axes_bitwise_equal_to_reference(histories: Any) -> None:
     """The frontal example (crush, general_nonlinear, linear; a fixed barrier node) with the front-rail
     curve scaled per variant (its coefficients stay per-variant rows) and the engine mass varied (the
@@ -254,11 +254,11 @@ def test_lanes_of_ended_variants_leave_the_block_and_results_do_not_change() -> 
     """48 frontal variants with bumper masses 3-40 kg (so different steps and step counts, unsorted):
     as variants end, the generated kernel compacts its block (at least 8 ended lanes move out). Every
     output bitwise the reference's, histories included."""
-    model = yaml.safe_load(FRONTAL.read_text())
-    model["output"] = {"interval": 1.0e-3, "histories": ["spring_force", "velocity"]}
+    model = yaml.safe_load(FRONTAL.read_text())  # the shape of the frontal test above (its kernel is reused)
+    model["output"] = {"interval": 1.0e-3, "histories": ["spring_force", "kinetic_energy"]}
     model["end_time"] = 0.03
     masses = list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 48)))
-    variants = {"nodes.bumper.mass": masses}
+    variants = {"nodes.bumper.mass": masses, "curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 48))}
     ref, batch, _ = run_model(model, kernel="reference", variants=variants)
     got, _, _ = run_model(model, kernel="generated", variants=variants)
     assert len(np.unique(batch.n_steps)) >= 8, "variants end at different steps"
