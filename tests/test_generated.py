@@ -43,10 +43,13 @@ def _assert_bitwise(ref: KernelOutput, got: KernelOutput) -> None:
         assert np.array_equal(r, got.histories[name], equal_nan=True), f"history {name} differs"
 
 
-def _without_walls_and_loads(model: dict[str, Any], keep_gravity: bool = True) -> dict[str, Any]:
-    """``model`` without what generated kernels leave to the generic one (walls, loads, prescribed motion)."""
+def _without_walls_and_loads(model: dict[str, Any], keep_gravity: bool = True, keep_walls: bool = False
+                             ) -> dict[str, Any]:  # fmt: skip
+    """``model`` without what generated kernels leave to the generic one (loads, prescribed motion), and
+    without its walls / gravity unless kept."""
     m = copy.deepcopy(model)
-    for key in ("loads", "prescribed_motion", "rigid_walls") + (() if keep_gravity else ("gravity",)):
+    for key in ("loads", "prescribed_motion") + (() if keep_walls else ("rigid_walls",)) + (
+            () if keep_gravity else ("gravity",)):  # fmt: skip
         m.pop(key, None)
     for node in m["nodes"].values():  # a prescribed dof of the twin becomes a free one
         node.pop("fixed", None) if node.get("fixed") is not True else None
@@ -55,9 +58,10 @@ def _without_walls_and_loads(model: dict[str, Any], keep_gravity: bool = True) -
 
 
 def _one_d_materials(mirror: bool = False, gravity: bool = False) -> dict[str, Any]:
-    """TWIN_1D without walls, loads and prescribed motion: crush, linear + damper in parallel, nonlinear
-    elastic, general_nonlinear. ``mirror`` draws the model right to left (every spring's 1-D sign is -1)."""
-    m = _without_walls_and_loads(TWIN_1D, keep_gravity=gravity)
+    """TWIN_1D without loads and prescribed motion: crush, linear + damper in parallel, nonlinear elastic,
+    general_nonlinear; ``gravity`` keeps its gravity and its rigid wall. ``mirror`` draws the model right
+    to left (every spring's 1-D sign is -1)."""
+    m = _without_walls_and_loads(TWIN_1D, keep_gravity=gravity, keep_walls=gravity)
     if mirror:
         for node in m["nodes"].values():
             node["position"] = [-node["position"][0]]
@@ -87,11 +91,9 @@ def _mount_reversal() -> dict[str, Any]:
 
 
 def test_unsupported_models_are_named_and_refused() -> None:
-    """Models with walls, loads or prescribed motion stay on the generic kernel; asking for a generated
-    kernel for one is a clear error."""
+    """Models with loads or prescribed motion stay on the generic kernel; asking for a generated kernel
+    for one is a clear error."""
     _, batch, _ = run_model(TWIN_1D, kernel="reference")
-    assert generated.unsupported(batch) == "rigid walls"
-    _, batch, _ = run_model({k: v for k, v in TWIN_1D.items() if k != "rigid_walls"}, kernel="reference")
     assert generated.unsupported(batch) == "loads or prescribed motion"
     with pytest.raises(ValueError, match="no generated kernel for this model: loads or prescribed motion"):
         generated.run_generated(batch, (), 1)
@@ -100,11 +102,11 @@ def test_unsupported_models_are_named_and_refused() -> None:
 
 
 @pytest.mark.parametrize(("mirror", "gravity"), [(False, False), (True, False), (False, True)],
-                         ids=["left-to-right", "right-to-left", "gravity"])  # fmt: skip
+                         ids=["left-to-right", "right-to-left", "gravity-and-wall"])  # fmt: skip
 def test_every_1d_material_bitwise_equal_to_reference(mirror: bool, gravity: bool) -> None:
     """Crush, linear, damper, nonlinear elastic and general_nonlinear springs, 5 variants with different
-    masses (so different steps and sampling strides), every history (with gravity: its external work
-    too): bitwise the reference's."""
+    masses (so different steps and sampling strides), every history (with gravity: its external work and
+    a rigid wall that node a hits, its wall energy and force): bitwise the reference's."""
     model = _one_d_materials(mirror, gravity)
     variants = {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}
     ref, batch, _ = run_model(model, kernel="reference", variants=variants)
@@ -113,22 +115,31 @@ def test_every_1d_material_bitwise_equal_to_reference(mirror: bool, gravity: boo
     assert len(np.unique(batch.out_every)) > 1, "variants sample at different strides"
     assert np.all(ref.status == 0) and np.all(ref.peak_force > 0)
     assert (np.nanmax(np.abs(ref.histories["external_work"])) > 0) == gravity
+    if gravity:
+        assert np.sum(ref.peak_wall_force > 0) >= 3 and np.nanmax(ref.histories["wall_energy"]) > 0  # heavy a
     _assert_bitwise(ref, got)
 
 
-@pytest.mark.parametrize("case", ["helicopter-gravity", "mixed-materials"])
+@pytest.mark.parametrize("case", ["helicopter-gravity-two-walls", "mixed-materials"])
 def test_2d_models_bitwise_equal_to_reference(case: str) -> None:
-    """2-D: the helicopter twin (two general_nonlinear springs, gravity) and the mixed twin (crush, damper,
-    linear, nonlinear elastic; a node fixed in x only) without walls, loads and prescribed motion, 5
-    variants, every history: bitwise the reference's."""
-    if case == "helicopter-gravity":
-        model, path, values = _without_walls_and_loads(TWIN_2D_HELI), "nodes.cabin.mass", [200.0, 250, 300, 350, 400]
+    """2-D: the helicopter twin (two general_nonlinear springs, gravity; its floor and a side wall, each
+    holding both nodes: the walls act in the reference's order) and the mixed twin (crush, damper,
+    linear, nonlinear elastic; a node fixed in x only), 5 variants, every history: bitwise the
+    reference's."""
+    if case == "helicopter-gravity-two-walls":
+        model = _without_walls_and_loads(TWIN_2D_HELI, keep_walls=True)
+        model["rigid_walls"][0]["nodes"] = ["transmission", "cabin"]  # the floor
+        model["rigid_walls"].append({"id": "side", "point": [0.03, 0.0], "normal": [-1.0, 0.0],
+                                     "nodes": ["transmission", "cabin"]})  # fmt: skip
+        path, values = "nodes.cabin.mass", [200.0, 250, 300, 350, 400]
     else:
         model, path, values = _without_walls_and_loads(TWIN_2D_MIXED, False), "nodes.bob.mass", [0.5, 1, 1.5, 2, 3]
     ref, batch, _ = run_model(model, kernel="reference", variants={path: values})
     got, _, _ = run_model(model, kernel="generated", variants={path: values})
     assert generated.unsupported(batch) is None and batch.x0.shape[1] == 2
     assert np.all(ref.status == 0)
+    if case.startswith("helicopter"):
+        assert np.all(np.max(ref.peak_wall_force, axis=1) > 0), "both walls are hit"
     _assert_bitwise(ref, got)
 
 

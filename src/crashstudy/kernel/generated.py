@@ -15,8 +15,8 @@ The arithmetic is that of the reference kernel, operation for operation, so resu
 those of :func:`crashstudy.kernel.reference.run_reference` (``tests/test_generated.py``). The
 numbers stay per variant: one compiled kernel serves every study of the same model shape.
 
-Scope (:func:`unsupported`): 1-D and 2-D models, every material, gravity, early termination; not
-rigid walls, loads or prescribed motion (those run on the generic kernel). Variants that end (end
+Scope (:func:`unsupported`): 1-D and 2-D models, every material, gravity, rigid walls, early
+termination; not loads or prescribed motion (time curves; those run on the generic kernel). Variants that end (end
 time, termination, failure) leave their block once they are an eighth of it ("lane compaction":
 their results are written, the running lanes move down), so later steps run over fewer lanes.
 
@@ -50,7 +50,7 @@ from crashstudy.kernel.output import HISTORY_ORDER, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH
 from crashstudy.kernel.scalar import reverse_yield
 
-GEN_VERSION = 5  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 6  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
@@ -67,8 +67,6 @@ def reverse_yield_lane(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):
 
 def unsupported(b: Batch) -> str | None:
     """Why a generated kernel cannot run ``b`` (None if it can)."""
-    if b.wall_nodes.shape[0] > 0:
-        return "rigid walls"
     if len(b.load_node) > 0 or len(b.pm_node) > 0:
         return "loads or prescribed motion"
     return None
@@ -142,6 +140,8 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
         "const": _constant_curves(b, vary), "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
         "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
         "gravity": bool(np.any(b.gravity != 0.0)), "term": bool(np.any(b.ke_fraction > 0.0)),
+        "walls": [[n for n in range(N) if b.wall_nodes[k, n] != 0.0] for k in range(b.wall_nodes.shape[0])],
+        "free": b.free.tolist(),
         "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
         "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
         "movable": [bool(np.any(b.free[n] > 0.0)) for n in range(N)], "static": static,
@@ -172,6 +172,8 @@ def _source(shape: dict[str, Any]) -> str:
     si, sj, mat, ca, cb, off = shape["si"], shape["sj"], shape["mat"], shape["ca"], shape["cb"], shape["off"]
     static, movable, hist = shape["static"], shape["movable"], shape["hist"]
     const, sign, grav, term = shape["const"], shape["sign"], shape["gravity"], shape["term"]
+    walls, free = shape["walls"], shape["free"]
+    W = len(walls)
     general = [s for s in range(S) if mat[s] == GENERAL]
     dampers = any(mat[s] == DAMPER for s in range(S))
     kcheck = set(shape["kcheck"])
@@ -191,6 +193,18 @@ def _source(shape: dict[str, Any]) -> str:
             R.add(f"g{d}")
     if D > 1:
         R.add("crushed")
+    if W:
+        R.add("wall_e")
+    for wl in range(W):
+        R.add(f"pw{wl}")
+        if "wall_force" in hist:
+            R.add(f"wf{wl}")
+        for d in range(D):
+            R.add(f"wn{wl}_{d}")
+            R.add(f"wp{wl}_{d}")
+        for n in walls[wl]:
+            for d in range(D if not static[n] else 0):
+                R.add(f"jp{wl}_{n}_{d}")
     live = [n for n in range(N) if not static[n]]
     for n in range(N if D > 1 else 0):
         if static[n]:
@@ -493,37 +507,70 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{i2}ke = 0.0")
         if grav:
             emit(f"{i2}bal = 0.0")
+        for wl in range(W):
+            emit(f"{i2}wf{wl} = 0.0")
         for n in live:
             for d in range(D):
                 chain = _chain(n, d, lambda s: f"F{s}", lambda s, d: f"ax{s}_{d}")
-                x, v = R[f"x{n}_{d}"], R[f"v{n}_{d}"]
                 fext = f"{R[f'm{n}']} * {R[f'g{d}']}" if grav else "0.0"
                 emit(f"{i2}a = ({chain} + {fext}) * {R[f'im{n}_{d}']}")
                 emit(f"{i2}a_{d} = a")
-                emit(f"{i2}vo = {v}")
-                emit(f"{i2}vn = vo + (h * dtw) * a")
-                emit(f"{i2}ke = ke + 0.5 * {R[f'm{n}']} * vo * vn")
+                emit(f"{i2}vo_{d} = {R[f'v{n}_{d}']}")
+                emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * a")
                 if grav:  # external work of gravity: trapezoid, f_ext^0 over the first half step
-                    emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo) if n1 else vo")
-                    emit(f"{i2}bal = bal + 0.5 * (({fext}) * vo + (({fext}) * wt) * vb)")
+                    emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
+                    emit(f"{i2}bal = bal + 0.5 * (({fext}) * vo_{d} + (({fext}) * wt) * vb)")
                 if n in keep_a:  # a^{n-1}: dampers' velocity estimate, knot crossings (R ao)
                     emit(f"{i2}{R[f'ao{n}_{d}']} = {R[f'a{n}_{d}']}")
                     emit(f"{i2}{R[f'a{n}_{d}']} = a")
-                emit(f"{i2}{x} = {x} + (dtw * af) * vn")
-                emit(f"{i2}{v} = vn * af + vo * (1.0 - af)")
+            for wl in range(W):  # rigid walls, in wall order: land on the plane, no velocity into it
+                if n not in walls[wl]:
+                    continue
+                nr = [R[f"wn{wl}_{d}"] for d in range(D)]
+                pt = [R[f"wp{wl}_{d}"] for d in range(D)]
+                x = [R[f"x{n}_{d}"] for d in range(D)]
+                op = "".join("(" for _ in range(D)) + "0.0"
+                emit(f"{i2}wv = {op}" + "".join(f" + vn_{d} * {nr[d]})" for d in range(D)))
+                emit(f"{i2}gap = {op}" + "".join(f" + ({x[d]} - {pt[d]}) * {nr[d]})" for d in range(D)))
+                emit(f"{i2}dist = {op}" + "".join(f" + (({x[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]})" for d in range(D)))
+                emit(f"{i2}dvn = (-gap / dtw - wv) if ((dist < 0.0) & (wv < 0.0)) else 0.0")
+                emit(f"{i2}we = 0.0")
+                for d in range(D):
+                    jp = R[f"jp{wl}_{n}_{d}"]
+                    emit(f"{i2}jmp = dvn * {nr[d]} * {float(free[n][d])!r}")
+                    emit(f"{i2}vn_{d} = vn_{d} + jmp")
+                    emit(f"{i2}we = we + vo_{d} * (jmp + {jp})")
+                    emit(f"{i2}{jp} = jmp")
+                emit(f"{i2}we{wl}_{n} = -0.5 * {R[f'm{n}']} * we")
+                emit(f"{i2}wf{wl} = wf{wl} + {R[f'm{n}']} * abs(dvn) / dtw")
+            for d in range(D):
+                x, v = R[f"x{n}_{d}"], R[f"v{n}_{d}"]
+                emit(f"{i2}ke = ke + 0.5 * {R[f'm{n}']} * vo_{d} * vn_{d}")
+                emit(f"{i2}{x} = {x} + (dtw * af) * vn_{d}")
+                emit(f"{i2}{v} = vn_{d} * af + vo_{d} * (1.0 - af)")
             if movable[n]:
                 a2 = "".join("(" for _ in range(D)) + "0.0" + "".join(f" + a_{d} * a_{d})" for d in range(D))
                 emit(f"{i2}{R[f'pa{n}']} = _max({R[f'pa{n}']}, {a2} * af)")
+        if W:  # wall work in the reference's order (wall by wall, node by node), running variants only
+            emit(f"{i2}wall_e = {R['wall_e']}")
+            for wl in range(W):
+                for n in walls[wl]:
+                    if not static[n]:
+                        emit(f"{i2}wall_e = wall_e + we{wl}_{n} if af > 0.0 else wall_e")
+                emit(f"{i2}{R[f'pw{wl}']} = _max({R[f'pw{wl}']}, wf{wl} * af)")
+                if "wall_force" in hist:
+                    emit(f"{i2}{R[f'wf{wl}']} = wf{wl}")
+            emit(f"{i2}{R['wall_e']} = wall_e")
         emit(f"{i2}ke = ke if wt > 0.0 else {R['ke0']}")
         if grav:
             emit(f"{i2}work = {R['work']} + (bal * dtw) * afw")
             emit(f"{i2}{R['work']} = work")
             emit(f"{i2}wmax = _max({R['wmax']}, abs(work))")
             emit(f"{i2}{R['wmax']} = wmax")
-            emit(f"{i2}bal = abs((((ke + ie_tot) + 0.0) - {R['ke0']}) - work)")
+            emit(f"{i2}bal = abs((((ke + ie_tot) + {'wall_e' if W else '0.0'}) - {R['ke0']}) - work)")
             emit(f"{i2}thr = unstable_energy * ({R['ke0']} + wmax) + {R['efl']}")
         else:
-            emit(f"{i2}bal = abs((((ke + ie_tot) + 0.0) - {R['ke0']}) - 0.0)")
+            emit(f"{i2}bal = abs((((ke + ie_tot) + {'wall_e' if W else '0.0'}) - {R['ke0']}) - 0.0)")
             emit(f"{i2}thr = {R['thr']}")
         emit(f"{i2}{R['err']} = _max({R['err']}, bal * af)")
         emit(f"{i2}{R['thr']} = thr")
@@ -580,6 +627,8 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{ind}max_crush[{s}, q] = {R[f'mc{s}']}")
         for n in range(N):
             emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if static[n] or not movable[n] else f"np.sqrt({R[f'pa{n}']})"))
+        for wl in range(W):
+            emit(f"{ind}peak_wall[{wl}, q] = {R[f'pw{wl}']}")
 
     head = [
         '"""Generated by crashstudy.kernel.generated (do not edit): one model shape, see _SHAPE."""',
@@ -604,7 +653,7 @@ def _source(shape: dict[str, Any]) -> str:
         '@nb.njit(nogil=True, error_model="numpy", cache=True)',
         "def run_blocks(b_lo, b_hi, starts, n_out, cst, mass, inv_mass, x0, v0, sign, length0, kpar, yield_t,",
         "               yield_c, cx, cy, cds, cs0, cs1, off, knot_y, gravity, dt, n_steps, out_every, invalid, e_floor,",
-        "               unstable_energy, ke_fraction, min_time, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
+        "               unstable_energy, ke_fraction, min_time, wall_point, wall_normal, h_wall, peak_wall, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
         "               fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy):",
         *[f"    {cname[nm]} = cst[{i}]" for i, nm in enumerate(cname)],
         "    for bi in range(b_lo, b_hi):",
@@ -634,6 +683,10 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{i2}{R['efl']} = e_floor[q]")
     for d in range(D if grav else 0):
         emit(f"{i2}{R[f'g{d}']} = gravity[{d}, q]")
+    for wl in range(W):
+        for d in range(D):
+            emit(f"{i2}{R[f'wn{wl}_{d}']} = wall_normal[{wl}, {d}, q]")
+            emit(f"{i2}{R[f'wp{wl}_{d}']} = wall_point[{wl}, {d}, q]")
     for n in live:
         emit(f"{i2}{R[f'm{n}']} = mass[{n}, q]")
         for d in range(D):
@@ -710,7 +763,7 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{i3}    for w in range(B):")
     emit(f"{i3}        if not fn <= {R['lim']}:")
     emit(f"{i3}            continue")
-    bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + 0.0) - {R['ke0']}) - "
+    bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + {R['wall_e'] if W else '0.0'}) - {R['ke0']}) - "
                 + (R["work"] if grav else "0.0") + ")")  # fmt: skip
     emit(f"{i3}        if not ({bal_expr} <= {R['thr']}):")
     emit(f"{i3}            status[vi[w]] = 1")
@@ -765,7 +818,9 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{i5}h_energy[r, 0, q] = {R['ken']}")
             emit(f"{i5}h_energy[r, 1, q] = {R['ien']}")
             emit(f"{i5}h_energy[r, 2, q] = {R['work'] if grav else '0.0'}")
-            emit(f"{i5}h_energy[r, 3, q] = 0.0")
+            emit(f"{i5}h_energy[r, 3, q] = {R['wall_e'] if W else '0.0'}")
+        for wl in range(W if "wall_force" in hist else 0):
+            emit(f"{i5}h_wall[r, {wl}, q] = {R[f'wf{wl}']}")
         emit(f"{i3}        if fn + 1.0 <= {R['lim']}:")
         emit(f"{i3}            next_min = min(next_min, next_rec[w])")
     if term:  # lanes that met the termination test (and did not fail) end at this step
@@ -783,7 +838,7 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{i3}            final_energy[0, vi[w]] = {R['ken']}")
     emit(f"{i3}            final_energy[1, vi[w]] = {R['ien']}")
     emit(f"{i3}            final_energy[2, vi[w]] = {R['work'] if grav else '0.0'}")
-    emit(f"{i3}            final_energy[3, vi[w]] = 0.0")
+    emit(f"{i3}            final_energy[3, vi[w]] = {R['wall_e'] if W else '0.0'}")
     emit(f"{i3}    n_end = _next_end(Z, B, fn)")
     emit(f"{i3}    ended = True")
     # lanes whose variant ended leave the block once they are an eighth of it: their results are
@@ -885,7 +940,7 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
     mod = _module(shape)
     N, D, V = b.x0.shape
     S = len(b.spring_i)
-    out = allocate(S, N, D, 0, V, histories, n_out)
+    out = allocate(S, N, D, b.wall_nodes.shape[0], V, histories, n_out)
     want_energy = any(h in histories for h in ENERGIES)
     h_energy = np.full((n_out, 4, V), np.nan) if want_energy else np.empty((1, 4, 1))
 
@@ -895,7 +950,8 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
     starts = np.unique(np.minimum(np.arange(0, V + BLOCK, BLOCK), V)).astype(np.int64)
     args = (starts, n_out, _constants(b, shape), b.mass, b.inv_mass, b.x0, b.v0, b.sign, b.length0, b.kpar,
             b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.curve_off, b.knot_y, b.gravity, b.dt, b.n_steps,
-            b.out_every, b.invalid, b.energy_floor, UNSTABLE_ENERGY, b.ke_fraction, b.min_time, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
+            b.out_every, b.invalid, b.energy_floor, UNSTABLE_ENERGY, b.ke_fraction, b.min_time, b.wall_point,
+            b.wall_normal, buf("wall_force", 3), out.peak_wall_force, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
             buf("acceleration", 4), buf("spring_force", 3), buf("spring_elongation", 3), h_energy, out.status,
             out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
             out.peak_acceleration, out.energy_error, out.final_energy)  # fmt: skip
