@@ -45,10 +45,10 @@ def _assert_bitwise(ref: KernelOutput, got: KernelOutput) -> None:
 
 def _without_walls_and_loads(model: dict[str, Any], keep_gravity: bool = True, keep_walls: bool = False
                              ) -> dict[str, Any]:  # fmt: skip
-    """``model`` without what generated kernels leave to the generic one (loads, prescribed motion), and
-    without its walls / gravity unless kept."""
+    """``model`` without what generated kernels leave to the generic one (prescribed motion), and without
+    its walls and loads / gravity unless kept."""
     m = copy.deepcopy(model)
-    for key in ("loads", "prescribed_motion") + (() if keep_walls else ("rigid_walls",)) + (
+    for key in ("prescribed_motion",) + (() if keep_walls else ("rigid_walls", "loads")) + (
             () if keep_gravity else ("gravity",)):  # fmt: skip
         m.pop(key, None)
     for node in m["nodes"].values():  # a prescribed dof of the twin becomes a free one
@@ -59,8 +59,8 @@ def _without_walls_and_loads(model: dict[str, Any], keep_gravity: bool = True, k
 
 def _one_d_materials(mirror: bool = False, gravity: bool = False) -> dict[str, Any]:
     """TWIN_1D without loads and prescribed motion: crush, linear + damper in parallel, nonlinear elastic,
-    general_nonlinear; ``gravity`` keeps its gravity and its rigid wall. ``mirror`` draws the model right
-    to left (every spring's 1-D sign is -1)."""
+    general_nonlinear; ``gravity`` keeps its gravity, its rigid wall and its load pulse. ``mirror`` draws
+    the model right to left (every spring's 1-D sign is -1)."""
     m = _without_walls_and_loads(TWIN_1D, keep_gravity=gravity, keep_walls=gravity)
     if mirror:
         for node in m["nodes"].values():
@@ -91,22 +91,22 @@ def _mount_reversal() -> dict[str, Any]:
 
 
 def test_unsupported_models_are_named_and_refused() -> None:
-    """Models with loads or prescribed motion stay on the generic kernel; asking for a generated kernel
-    for one is a clear error."""
+    """Models with prescribed motion stay on the generic kernel; asking for a generated kernel for one is
+    a clear error."""
     _, batch, _ = run_model(TWIN_1D, kernel="reference")
-    assert generated.unsupported(batch) == "loads or prescribed motion"
-    with pytest.raises(ValueError, match="no generated kernel for this model: loads or prescribed motion"):
+    assert generated.unsupported(batch) == "prescribed motion"
+    with pytest.raises(ValueError, match="no generated kernel for this model: prescribed motion"):
         generated.run_generated(batch, (), 1)
     _, batch, _ = run_model(_one_d_materials(), kernel="reference")
     assert generated.unsupported(batch) is None
 
 
 @pytest.mark.parametrize(("mirror", "gravity"), [(False, False), (True, False), (False, True)],
-                         ids=["left-to-right", "right-to-left", "gravity-and-wall"])  # fmt: skip
+                         ids=["left-to-right", "right-to-left", "gravity-wall-load"])  # fmt: skip
 def test_every_1d_material_bitwise_equal_to_reference(mirror: bool, gravity: bool) -> None:
     """Crush, linear, damper, nonlinear elastic and general_nonlinear springs, 5 variants with different
-    masses (so different steps and sampling strides), every history (with gravity: its external work and
-    a rigid wall that node a hits, its wall energy and force): bitwise the reference's."""
+    masses (so different steps and sampling strides), every history (with gravity, a load pulse on node b
+    and a rigid wall that node a hits: external work, wall energy and force): bitwise the reference's."""
     model = _one_d_materials(mirror, gravity)
     variants = {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}
     ref, batch, _ = run_model(model, kernel="reference", variants=variants)
@@ -120,13 +120,13 @@ def test_every_1d_material_bitwise_equal_to_reference(mirror: bool, gravity: boo
     _assert_bitwise(ref, got)
 
 
-@pytest.mark.parametrize("case", ["helicopter-gravity-two-walls", "mixed-materials"])
+@pytest.mark.parametrize("case", ["helicopter-gravity-load-two-walls", "mixed-materials"])
 def test_2d_models_bitwise_equal_to_reference(case: str) -> None:
-    """2-D: the helicopter twin (two general_nonlinear springs, gravity; its floor and a side wall, each
-    holding both nodes: the walls act in the reference's order) and the mixed twin (crush, damper,
+    """2-D: the helicopter twin (two general_nonlinear springs, gravity, a gust load; its floor and a side
+    wall, each holding both nodes: the walls act in the reference's order) and the mixed twin (crush, damper,
     linear, nonlinear elastic; a node fixed in x only), 5 variants, every history: bitwise the
     reference's."""
-    if case == "helicopter-gravity-two-walls":
+    if case == "helicopter-gravity-load-two-walls":
         model = _without_walls_and_loads(TWIN_2D_HELI, keep_walls=True)
         model["rigid_walls"][0]["nodes"] = ["transmission", "cabin"]  # the floor
         model["rigid_walls"].append({"id": "side", "point": [0.03, 0.0], "normal": [-1.0, 0.0],
@@ -248,7 +248,7 @@ def test_bad_kernel_environment_variable_is_an_input_error_before_anything_is_wr
 
 
 def test_kernel_environment_variable_generated_falls_back_where_unsupported(monkeypatch: pytest.MonkeyPatch) -> None:
-    """``CRASHSTUDY_KERNEL=generated`` runs a model with walls and loads on the generic kernel (equal to the
+    """``CRASHSTUDY_KERNEL=generated`` runs a model with prescribed motion on the generic kernel (equal to the
     reference) instead of failing; ``generic`` keeps a supported model off the generated kernel."""
     monkeypatch.setenv("CRASHSTUDY_KERNEL", "generated")
     got, _, _ = run_model(TWIN_1D, kernel="compiled")

@@ -15,8 +15,8 @@ The arithmetic is that of the reference kernel, operation for operation, so resu
 those of :func:`crashstudy.kernel.reference.run_reference` (``tests/test_generated.py``). The
 numbers stay per variant: one compiled kernel serves every study of the same model shape.
 
-Scope (:func:`unsupported`): 1-D and 2-D models, every material, gravity, rigid walls, early
-termination; not loads or prescribed motion (time curves; those run on the generic kernel). Variants that end (end
+Scope (:func:`unsupported`): 1-D and 2-D models, every material, gravity, loads, rigid walls, early
+termination; not prescribed motion (those models run on the generic kernel). Variants that end (end
 time, termination, failure) leave their block once they are an eighth of it ("lane compaction":
 their results are written, the running lanes move down), so later steps run over fewer lanes.
 
@@ -50,7 +50,7 @@ from crashstudy.kernel.output import HISTORY_ORDER, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH
 from crashstudy.kernel.scalar import reverse_yield
 
-GEN_VERSION = 6  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 7  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
@@ -67,8 +67,8 @@ def reverse_yield_lane(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):
 
 def unsupported(b: Batch) -> str | None:
     """Why a generated kernel cannot run ``b`` (None if it can)."""
-    if len(b.load_node) > 0 or len(b.pm_node) > 0:
-        return "loads or prescribed motion"
+    if len(b.pm_node) > 0:
+        return "prescribed motion"
     return None
 
 
@@ -111,11 +111,14 @@ def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
     """(coefficient name, Batch array, row) of every constant-curve coefficient the springs read, in
     the order of the kernel's ``cst`` argument."""
     off, S = shape["off"], shape["S"]
-    used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0}
+    tcurves = {c for _, c in shape["loads"] if c >= 0}
+    used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0} | tcurves
     out = []
     for c in shape["const"]:
         if c not in used:
             continue
+        if c in tcurves:
+            out.append((f"cx{off[c + 1] - 1}", "cx", off[c + 1] - 1))
         out += [(f"cy0_{c}", "cy", off[c]), (f"s0_{c}", "cs0", c)]
         for k in range(off[c], off[c + 1] - 1):
             out.append((f"cx{k}", "cx", k))
@@ -141,7 +144,7 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
         "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
         "gravity": bool(np.any(b.gravity != 0.0)), "term": bool(np.any(b.ke_fraction > 0.0)),
         "walls": [[n for n in range(N) if b.wall_nodes[k, n] != 0.0] for k in range(b.wall_nodes.shape[0])],
-        "free": b.free.tolist(),
+        "free": b.free.tolist(), "loads": [[int(n), int(c)] for n, c in zip(b.load_node, b.load_curve, strict=True)],
         "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
         "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
         "movable": [bool(np.any(b.free[n] > 0.0)) for n in range(N)], "static": static,
@@ -172,8 +175,11 @@ def _source(shape: dict[str, Any]) -> str:
     si, sj, mat, ca, cb, off = shape["si"], shape["sj"], shape["mat"], shape["ca"], shape["cb"], shape["off"]
     static, movable, hist = shape["static"], shape["movable"], shape["hist"]
     const, sign, grav, term = shape["const"], shape["sign"], shape["gravity"], shape["term"]
-    walls, free = shape["walls"], shape["free"]
+    walls, free, loads = shape["walls"], shape["free"], shape["loads"]
     W = len(walls)
+    ext = grav or bool(loads)  # external work to book
+    tcurves = sorted({c for _, c in loads if c >= 0})
+    loaded = {n for n, _ in loads}
     general = [s for s in range(S) if mat[s] == GENERAL]
     dampers = any(mat[s] == DAMPER for s in range(S))
     kcheck = set(shape["kcheck"])
@@ -186,11 +192,15 @@ def _source(shape: dict[str, Any]) -> str:
     R = _Rows()
     for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl") + (("kef", "tmin", "stop") if term else ()):
         R.add(name)
-    if grav:
+    if ext:
         for name in ("work", "wmax"):
             R.add(name)
+    if grav:
         for d in range(D):
             R.add(f"g{d}")
+    for k in range(len(loads)):
+        for d in range(D):
+            R.add(f"lf{k}_{d}")
     if D > 1:
         R.add("crushed")
     if W:
@@ -214,9 +224,10 @@ def _source(shape: dict[str, Any]) -> str:
         for f in ("m", "pa"):
             R.add(f"{f}{n}")
         for d in range(D):
-            for f in ("x", "x0", "v", "im") + (("a", "ao") if n in keep_a else ()) + (("v0",) if grav else ()):
+            for f in ("x", "x0", "v", "im") + (("a", "ao") if n in keep_a else ()) + (("v0",) if ext else ()) + (
+                    ("fx",) if n in loaded else ()):  # fmt: skip
                 R.add(f"{f}{n}_{d}")
-    curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0})
+    curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0} | set(tcurves))
     cname = {nm: f"k_{nm}" for nm, _, _ in _const_layout(shape)}  # coefficient -> local constant
     for c in curves:
         if c in const:
@@ -229,6 +240,8 @@ def _source(shape: dict[str, Any]) -> str:
                 R.add(f"ds{k}")
             if k in kcheck:
                 R.add(f"kyv{k}")
+        if c in tcurves:
+            R.add(f"cx{off[c + 1] - 1}")
     for s in range(S):
         for f in ("kp", "fp", "ep", "ie", "pf", "mc") + (("sg",) if D == 1 else ("l0",)) + (
                 ("kh", "kth") if s in knotted else ()):  # fmt: skip
@@ -448,6 +461,14 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{i2}af = 1.0 if fn <= {R['lim']} else 0.0")
         emit(f"{i2}afw = af * wt  # no absorbed work in step 0 (adds an exact 0)")
         emit(f"{i2}dtw = {R['dt']}")
+        for k, (_, c) in enumerate(loads):  # load scales: time curves at t = n dt (0 outside the curve)
+            if c < 0:
+                emit(f"{i2}sc{k} = 1.0")
+                continue
+            cx0, cxl = co(f"cx{off[c]}"), co(f"cx{off[c + 1] - 1}")
+            emit(f"{i2}tt = fn * dtw")
+            emit(f"{i2}eps = 1e-9 * ({cxl} - {cx0})")
+            emit(f"{i2}sc{k} = 0.0 if ((tt < {cx0} - eps) | (tt > {cxl} + eps)) else {ramp(c, 'tt')}")
         if D > 1:
             emit(f"{i2}{R['crushed']} = -1.0")
         # the reference walks the springs in order; 2-D's "first collapsed spring" needs that order
@@ -505,7 +526,7 @@ def _source(shape: dict[str, Any]) -> str:
                     emit(f"{i2}{R[f'axh{s}_{d}']} = ax{s}_{d}")
         # nodal forces in the reference scatter's order, then the central-difference update
         emit(f"{i2}ke = 0.0")
-        if grav:
+        if ext:
             emit(f"{i2}bal = 0.0")
         for wl in range(W):
             emit(f"{i2}wf{wl} = 0.0")
@@ -513,11 +534,21 @@ def _source(shape: dict[str, Any]) -> str:
             for d in range(D):
                 chain = _chain(n, d, lambda s: f"F{s}", lambda s, d: f"ax{s}_{d}")
                 fext = f"{R[f'm{n}']} * {R[f'g{d}']}" if grav else "0.0"
+                if n in loaded:  # gravity, then the loads on this node in load order
+                    for k, (p, _) in enumerate(loads):
+                        if p == n:
+                            fext = f"({fext} + {R[f'lf{k}_{d}']} * sc{k})"
+                    emit(f"{i2}fx_{d} = {fext}")
+                    fext = f"fx_{d}"
                 emit(f"{i2}a = ({chain} + {fext}) * {R[f'im{n}_{d}']}")
                 emit(f"{i2}a_{d} = a")
                 emit(f"{i2}vo_{d} = {R[f'v{n}_{d}']}")
                 emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * a")
-                if grav:  # external work of gravity: trapezoid, f_ext^0 over the first half step
+                if n in loaded:  # external work: trapezoid with the previous step's force (R fx)
+                    emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
+                    emit(f"{i2}bal = bal + 0.5 * (fx_{d} * vo_{d} + {R[f'fx{n}_{d}']} * vb)")
+                    emit(f"{i2}{R[f'fx{n}_{d}']} = fx_{d}")
+                elif grav:  # external work of gravity: trapezoid, f_ext^0 over the first half step
                     emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
                     emit(f"{i2}bal = bal + 0.5 * (({fext}) * vo_{d} + (({fext}) * wt) * vb)")
                 if n in keep_a:  # a^{n-1}: dampers' velocity estimate, knot crossings (R ao)
@@ -562,7 +593,7 @@ def _source(shape: dict[str, Any]) -> str:
                     emit(f"{i2}{R[f'wf{wl}']} = wf{wl}")
             emit(f"{i2}{R['wall_e']} = wall_e")
         emit(f"{i2}ke = ke if wt > 0.0 else {R['ke0']}")
-        if grav:
+        if ext:
             emit(f"{i2}work = {R['work']} + (bal * dtw) * afw")
             emit(f"{i2}{R['work']} = work")
             emit(f"{i2}wmax = _max({R['wmax']}, abs(work))")
@@ -590,8 +621,8 @@ def _source(shape: dict[str, Any]) -> str:
                  + "".join(f" + {R[f'pf{s}']})" for s in range(S)))  # fmt: skip
             emit(f"{i2}kef = {R['kef']}")
             emit(f"{i2}small_f = fsum <= kef * psum")
-            emit(f"{i2}small_ke = ke <= kef * ({R['ke0']} + {R['wmax'] if grav else '0.0'})")
-            emit(f"{i2}opening = " + ("False" if grav else "edmin >= 0.0"))
+            emit(f"{i2}small_ke = ke <= kef * ({R['ke0']} + {R['wmax'] if ext else '0.0'})")
+            emit(f"{i2}opening = " + ("False" if ext else "edmin >= 0.0"))
             emit(f"{i2}stop = (wt > 0.0) & (kef > 0.0) & (not (fn * dtw < {R['tmin']})) & small_f & (small_ke | opening)")
             emit(f"{i2}{R['stop']} = 1.0 if stop else 0.0")
             emit(f"{i2}nstop += 1 if stop else 0")
@@ -615,7 +646,7 @@ def _source(shape: dict[str, Any]) -> str:
     def emit_results(ind: str) -> None:
         """Write lane w's summaries to its variant's columns (the lane's variant has ended)."""
         emit(f"{ind}q = vi[w]")
-        wm = R["wmax"] if grav else "0.0"
+        wm = R["wmax"] if ext else "0.0"
         emit(f"{ind}energy_error[q] = {R['err']} / max({R['ke0']} + {wm}, 1e-300)")
         emit(f"{ind}if status[q] == 0:")
         emit(f"{ind}    t_end[q] = int({R['lim']}) * {R['dt']}")
@@ -653,7 +684,8 @@ def _source(shape: dict[str, Any]) -> str:
         '@nb.njit(nogil=True, error_model="numpy", cache=True)',
         "def run_blocks(b_lo, b_hi, starts, n_out, cst, mass, inv_mass, x0, v0, sign, length0, kpar, yield_t,",
         "               yield_c, cx, cy, cds, cs0, cs1, off, knot_y, gravity, dt, n_steps, out_every, invalid, e_floor,",
-        "               unstable_energy, ke_fraction, min_time, wall_point, wall_normal, h_wall, peak_wall, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
+        "               unstable_energy, ke_fraction, min_time, wall_point, wall_normal, h_wall, peak_wall, load_force,",
+        "               h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
         "               fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy):",
         *[f"    {cname[nm]} = cst[{i}]" for i, nm in enumerate(cname)],
         "    for bi in range(b_lo, b_hi):",
@@ -683,6 +715,12 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{i2}{R['efl']} = e_floor[q]")
     for d in range(D if grav else 0):
         emit(f"{i2}{R[f'g{d}']} = gravity[{d}, q]")
+    for k in range(len(loads)):
+        for d in range(D):
+            emit(f"{i2}{R[f'lf{k}_{d}']} = load_force[{k}, {d}, q]")
+    for c in tcurves:
+        if c not in const:
+            emit(f"{i2}{R[f'cx{off[c + 1] - 1}']} = cx[{off[c + 1] - 1}, q]")
     for wl in range(W):
         for d in range(D):
             emit(f"{i2}{R[f'wn{wl}_{d}']} = wall_normal[{wl}, {d}, q]")
@@ -694,7 +732,7 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{i2}{R[f'x0{n}_{d}']} = x0[{n}, {d}, q]")
             emit(f"{i2}{R[f'v{n}_{d}']} = v0[{n}, {d}, q]")
             emit(f"{i2}{R[f'im{n}_{d}']} = inv_mass[{n}, {d}, q]")
-            if grav:
+            if ext:
                 emit(f"{i2}{R[f'v0{n}_{d}']} = v0[{n}, {d}, q]")
     for c in curves:
         if c in const:
@@ -764,7 +802,7 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{i3}        if not fn <= {R['lim']}:")
     emit(f"{i3}            continue")
     bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + {R['wall_e'] if W else '0.0'}) - {R['ke0']}) - "
-                + (R["work"] if grav else "0.0") + ")")  # fmt: skip
+                + (R["work"] if ext else "0.0") + ")")  # fmt: skip
     emit(f"{i3}        if not ({bal_expr} <= {R['thr']}):")
     emit(f"{i3}            status[vi[w]] = 1")
     if D > 1:
@@ -804,6 +842,7 @@ def _source(shape: dict[str, Any]) -> str:
                     vel = f"(0.5 * ({R[f'vh{n}_{d}']} + {R[f'v{n}_{d}']}) if n > 0 else {R[f'vh{n}_{d}']})"
                     chain = _chain(n, d, lambda s: R[f"fp{s}"], lambda s, d: R[f"axh{s}_{d}"])
                     fext = f"{R[f'm{n}']} * {R[f'g{d}']}" if grav else "0.0"
+                    fext = R[f"fx{n}_{d}"] if n in loaded else fext  # this step's external force
                     acc = f"({chain} + {fext}) * {R[f'im{n}_{d}']}"
                 for name, arr, val in (("position", "h_pos", pos), ("displacement", "h_disp", dsp),
                                        ("velocity", "h_vel", vel), ("acceleration", "h_acc", acc)):  # fmt: skip
@@ -817,7 +856,7 @@ def _source(shape: dict[str, Any]) -> str:
         if "kinetic_energy" in hist:
             emit(f"{i5}h_energy[r, 0, q] = {R['ken']}")
             emit(f"{i5}h_energy[r, 1, q] = {R['ien']}")
-            emit(f"{i5}h_energy[r, 2, q] = {R['work'] if grav else '0.0'}")
+            emit(f"{i5}h_energy[r, 2, q] = {R['work'] if ext else '0.0'}")
             emit(f"{i5}h_energy[r, 3, q] = {R['wall_e'] if W else '0.0'}")
         for wl in range(W if "wall_force" in hist else 0):
             emit(f"{i5}h_wall[r, {wl}, q] = {R[f'wf{wl}']}")
@@ -837,7 +876,7 @@ def _source(shape: dict[str, Any]) -> str:
     emit(f"{i3}        if fn == {R['lim']}:")
     emit(f"{i3}            final_energy[0, vi[w]] = {R['ken']}")
     emit(f"{i3}            final_energy[1, vi[w]] = {R['ien']}")
-    emit(f"{i3}            final_energy[2, vi[w]] = {R['work'] if grav else '0.0'}")
+    emit(f"{i3}            final_energy[2, vi[w]] = {R['work'] if ext else '0.0'}")
     emit(f"{i3}            final_energy[3, vi[w]] = {R['wall_e'] if W else '0.0'}")
     emit(f"{i3}    n_end = _next_end(Z, B, fn)")
     emit(f"{i3}    ended = True")
@@ -951,7 +990,7 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
     args = (starts, n_out, _constants(b, shape), b.mass, b.inv_mass, b.x0, b.v0, b.sign, b.length0, b.kpar,
             b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.curve_off, b.knot_y, b.gravity, b.dt, b.n_steps,
             b.out_every, b.invalid, b.energy_floor, UNSTABLE_ENERGY, b.ke_fraction, b.min_time, b.wall_point,
-            b.wall_normal, buf("wall_force", 3), out.peak_wall_force, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
+            b.wall_normal, buf("wall_force", 3), out.peak_wall_force, b.load_force, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
             buf("acceleration", 4), buf("spring_force", 3), buf("spring_elongation", 3), h_energy, out.status,
             out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
             out.peak_acceleration, out.energy_error, out.final_energy)  # fmt: skip
