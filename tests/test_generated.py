@@ -21,7 +21,7 @@ from crashstudy.kernel import generated
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, UNSTABLE, KernelOutput
 from crashstudy.runner import run_chunk, run_kernel, varying_curves
 from crashstudy.study import load_study
-from test_physics import TWIN_1D, TWIN_2D_HELI, TWIN_2D_MIXED
+from test_physics import TWIN_1D, TWIN_2D_HELI, TWIN_2D_MIXED, TWINS
 from test_stress import forced_batch, outputs_equal
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -90,15 +90,17 @@ def _mount_reversal() -> dict[str, Any]:
     }  # fmt: skip
 
 
-def test_unsupported_models_are_named_and_refused() -> None:
-    """Models with prescribed motion stay on the generic kernel; asking for a generated kernel for one is
-    a clear error."""
-    _, batch, _ = run_model(TWIN_1D, kernel="reference")
-    assert generated.unsupported(batch) == "prescribed motion"
-    with pytest.raises(ValueError, match="no generated kernel for this model: prescribed motion"):
-        generated.run_generated(batch, (), 1)
-    _, batch, _ = run_model(_one_d_materials(), kernel="reference")
-    assert generated.unsupported(batch) is None
+@pytest.mark.parametrize("case", list(TWINS))
+def test_the_full_twin_models_bitwise_equal_to_reference(case: str) -> None:
+    """The three twin models of test_physics with every feature at once (all materials, gravity, loads,
+    prescribed displacement / velocity / acceleration, rigid walls incl. an inclined one, 1-D and 2-D), 5
+    variants with different masses, every history: the generated kernel is bitwise the reference's."""
+    model, path, values = TWINS[case]
+    ref, batch, _ = run_model(model, kernel="reference", variants={path: values})
+    got, _, _ = run_model(model, kernel="generated", variants={path: values})
+    assert generated.unsupported(batch) is None and len(batch.pm_node) + len(batch.load_node) > 0
+    assert np.all(ref.status == 0) and np.nanmax(np.abs(ref.histories["external_work"])) > 0
+    _assert_bitwise(ref, got)
 
 
 @pytest.mark.parametrize(("mirror", "gravity"), [(False, False), (True, False), (False, True)],
@@ -247,18 +249,22 @@ def test_bad_kernel_environment_variable_is_an_input_error_before_anything_is_wr
     assert "Traceback" not in proc.stderr and not out.exists()
 
 
-def test_kernel_environment_variable_generated_falls_back_where_unsupported(monkeypatch: pytest.MonkeyPatch) -> None:
-    """``CRASHSTUDY_KERNEL=generated`` runs a model with prescribed motion on the generic kernel (equal to the
-    reference) instead of failing; ``generic`` keeps a supported model off the generated kernel."""
-    monkeypatch.setenv("CRASHSTUDY_KERNEL", "generated")
-    got, _, _ = run_model(TWIN_1D, kernel="compiled")
-    ref, _, _ = run_model(TWIN_1D, kernel="reference")
-    _assert_bitwise(ref, got)
-    monkeypatch.setenv("CRASHSTUDY_KERNEL", "generic")
-    monkeypatch.setattr(generated, "run_generated", lambda *a, **k: pytest.fail("generated kernel used"))
-    got, _, _ = run_model(_mount_reversal(), kernel="compiled")
+def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A small run goes to the generic kernel by itself; ``CRASHSTUDY_KERNEL=generated`` sends it to the
+    generated one and ``generic`` keeps it off even when that shape is compiled; results are the
+    reference's either way."""
+    import crashstudy.kernel.compiled as compiled
+
+    calls: list[str] = []
+    real_gen, real_generic = generated.run_generated, compiled.run_compiled
+    monkeypatch.setattr(generated, "run_generated", lambda *a, **k: calls.append("generated") or real_gen(*a, **k))
+    monkeypatch.setattr(compiled, "run_compiled", lambda *a, **k: calls.append("generic") or real_generic(*a, **k))
     ref, _, _ = run_model(_mount_reversal(), kernel="reference")
-    _assert_bitwise(ref, got)
+    for env, expected in (("generated", "generated"), ("generic", "generic")):
+        monkeypatch.setenv("CRASHSTUDY_KERNEL", env)
+        got, _, _ = run_model(_mount_reversal(), kernel="compiled")
+        assert calls[-1] == expected
+        _assert_bitwise(ref, got)
 
 
 def test_lanes_of_ended_variants_leave_the_block_and_results_do_not_change() -> None:

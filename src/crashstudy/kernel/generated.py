@@ -15,8 +15,8 @@ The arithmetic is that of the reference kernel, operation for operation, so resu
 those of :func:`crashstudy.kernel.reference.run_reference` (``tests/test_generated.py``). The
 numbers stay per variant: one compiled kernel serves every study of the same model shape.
 
-Scope (:func:`unsupported`): 1-D and 2-D models, every material, gravity, loads, rigid walls, early
-termination; not prescribed motion (those models run on the generic kernel). Variants that end (end
+Scope: every model the schema accepts (1-D and 2-D, every material, gravity, loads, prescribed
+motion, rigid walls, early termination); :func:`unsupported` is where a future exception would go. Variants that end (end
 time, termination, failure) leave their block once they are an eighth of it ("lane compaction":
 their results are written, the running lanes move down), so later steps run over fewer lanes.
 
@@ -44,13 +44,13 @@ import numba as nb
 import numpy as np
 
 from crashstudy.batch import Batch
-from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR
+from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
 from crashstudy.kernel.compiled import get_threads
 from crashstudy.kernel.output import HISTORY_ORDER, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH
 from crashstudy.kernel.scalar import reverse_yield
 
-GEN_VERSION = 7  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 8  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
@@ -67,8 +67,7 @@ def reverse_yield_lane(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):
 
 def unsupported(b: Batch) -> str | None:
     """Why a generated kernel cannot run ``b`` (None if it can)."""
-    if len(b.pm_node) > 0:
-        return "prescribed motion"
+    _ = b  # every model is supported today; kept as the one place that would say why not
     return None
 
 
@@ -111,7 +110,7 @@ def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
     """(coefficient name, Batch array, row) of every constant-curve coefficient the springs read, in
     the order of the kernel's ``cst`` argument."""
     off, S = shape["off"], shape["S"]
-    tcurves = {c for _, c in shape["loads"] if c >= 0}
+    tcurves = {c for _, c in shape["loads"] if c >= 0} | {c for _, _, _, c in shape["pm"]}
     used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0} | tcurves
     out = []
     for c in shape["const"]:
@@ -136,7 +135,8 @@ def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
 
 def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None) -> dict[str, Any]:
     N, D, _ = b.x0.shape
-    static = [bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0)) for n in range(N)]
+    pm_nodes = set(b.pm_node.tolist())
+    static = [bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0) and n not in pm_nodes) for n in range(N)]
     sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
             for s in range(len(b.spring_i))]  # fmt: skip
     return {
@@ -147,7 +147,8 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
         "free": b.free.tolist(), "loads": [[int(n), int(c)] for n, c in zip(b.load_node, b.load_curve, strict=True)],
         "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
         "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
-        "movable": [bool(np.any(b.free[n] > 0.0)) for n in range(N)], "static": static,
+        "movable": [bool(np.any(b.free[n] > 0.0)) or n in pm_nodes for n in range(N)], "static": static,
+        "pm": [[int(b.pm_node[k]), int(b.pm_dir[k]), int(b.pm_kind[k]), int(b.pm_curve[k])] for k in range(len(b.pm_node))],
         "hist": [h for h in HISTORY_ORDER if h in histories or (h in ENERGIES and any(e in histories for e in ENERGIES))],
     }  # fmt: skip
 
@@ -175,11 +176,11 @@ def _source(shape: dict[str, Any]) -> str:
     si, sj, mat, ca, cb, off = shape["si"], shape["sj"], shape["mat"], shape["ca"], shape["cb"], shape["off"]
     static, movable, hist = shape["static"], shape["movable"], shape["hist"]
     const, sign, grav, term = shape["const"], shape["sign"], shape["gravity"], shape["term"]
-    walls, free, loads = shape["walls"], shape["free"], shape["loads"]
+    walls, free, loads, pm = shape["walls"], shape["free"], shape["loads"], shape["pm"]
     W = len(walls)
-    ext = grav or bool(loads)  # external work to book
-    tcurves = sorted({c for _, c in loads if c >= 0})
-    loaded = {n for n, _ in loads}
+    ext = grav or bool(loads) or bool(pm)  # external work to book
+    tcurves = sorted({c for _, c in loads if c >= 0} | {c for _, _, _, c in pm})
+    loaded = {n for n, _ in loads} | {p for p, _, _, _ in pm}  # nodes whose external force changes in time
     general = [s for s in range(S) if mat[s] == GENERAL]
     dampers = any(mat[s] == DAMPER for s in range(S))
     kcheck = set(shape["kcheck"])
@@ -201,6 +202,11 @@ def _source(shape: dict[str, Any]) -> str:
     for k in range(len(loads)):
         for d in range(D):
             R.add(f"lf{k}_{d}")
+    for k in range(len(pm)):
+        R.add(f"pms{k}")
+        R.add(f"pma{k}")
+    if pm:
+        R.add("nst")
     if D > 1:
         R.add("crushed")
     if W:
@@ -355,6 +361,14 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{ind}{R[f'kdf{s}_{d}']} = dF * {axis}")
         emit(f"{ind}{R[f'pf{s}']} = _max({R[f'pf{s}']}, {kc} * afw)")
 
+    def time_curve(ind: str, name: str, c: int, t: str) -> None:
+        """``name`` = time curve c at time ``t`` (0 outside its first..last knot, with kernel.scalar's
+        1e-9 margin), branch-free."""
+        cx0, cxl = co(f"cx{off[c]}"), co(f"cx{off[c + 1] - 1}")
+        emit(f"{ind}tt = {t}")
+        emit(f"{ind}eps = 1e-9 * ({cxl} - {cx0})")
+        emit(f"{ind}{name} = 0.0 if ((tt < {cx0} - eps) | (tt > {cxl} + eps)) else {ramp(c, 'tt')}")
+
     def vp(n: int, d: int) -> str:
         return "0.0" if static[n] else f"({R[f'v{n}_{d}']} + 0.5 * dtw * {R[f'a{n}_{d}']})"
 
@@ -465,10 +479,7 @@ def _source(shape: dict[str, Any]) -> str:
             if c < 0:
                 emit(f"{i2}sc{k} = 1.0")
                 continue
-            cx0, cxl = co(f"cx{off[c]}"), co(f"cx{off[c + 1] - 1}")
-            emit(f"{i2}tt = fn * dtw")
-            emit(f"{i2}eps = 1e-9 * ({cxl} - {cx0})")
-            emit(f"{i2}sc{k} = 0.0 if ((tt < {cx0} - eps) | (tt > {cxl} + eps)) else {ramp(c, 'tt')}")
+            time_curve(i2, f"sc{k}", c, "fn * dtw")
         if D > 1:
             emit(f"{i2}{R['crushed']} = -1.0")
         # the reference walks the springs in order; 2-D's "first collapsed spring" needs that order
@@ -540,10 +551,30 @@ def _source(shape: dict[str, Any]) -> str:
                             fext = f"({fext} + {R[f'lf{k}_{d}']} * sc{k})"
                     emit(f"{i2}fx_{d} = {fext}")
                     fext = f"fx_{d}"
-                emit(f"{i2}a = ({chain} + {fext}) * {R[f'im{n}_{d}']}")
-                emit(f"{i2}a_{d} = a")
+                emit(f"{i2}fs = {chain}")
+                emit(f"{i2}a = (fs + {fext}) * {R[f'im{n}_{d}']}")
                 emit(f"{i2}vo_{d} = {R[f'v{n}_{d}']}")
                 emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * a")
+                for k, (p, dd, kind, c) in enumerate(pm):  # prescribed motion of this dof, in order
+                    if (p, dd) != (n, d):
+                        continue
+                    sc = R[f"pms{k}"]
+                    if kind == PM_DISPLACEMENT:
+                        time_curve(i2, "tc", c, "fn * dtw + dtw")
+                        emit(f"{i2}vn_{d} = (({R[f'x0{n}_{d}']} + {sc} * tc) - {R[f'x{n}_{d}']}) / dtw")
+                    elif kind == PM_ACCELERATION:
+                        time_curve(i2, "tc", c, "fn * dtw")
+                        emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * {sc} * tc")
+                    else:
+                        time_curve(i2, "tc", c, "fn * dtw + 0.5 * dtw")
+                        emit(f"{i2}vn_{d} = {sc} * tc")
+                    pa = R[f"pma{k}"]
+                    emit(f"{i2}last = fn == {R['nst']}  # the last step continues with the previous acceleration")
+                    emit(f"{i2}{pa} = {pa} if last else (vn_{d} - vo_{d}) / (h * dtw)")
+                    emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * {pa} if last else vn_{d}")
+                    emit(f"{i2}a = {pa}")
+                    emit(f"{i2}fx_{d} = fx_{d} + ({R[f'm{n}']} * a - (fs + fx_{d}))")
+                emit(f"{i2}a_{d} = a")
                 if n in loaded:  # external work: trapezoid with the previous step's force (R fx)
                     emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
                     emit(f"{i2}bal = bal + 0.5 * (fx_{d} * vo_{d} + {R[f'fx{n}_{d}']} * vb)")
@@ -685,7 +716,7 @@ def _source(shape: dict[str, Any]) -> str:
         "def run_blocks(b_lo, b_hi, starts, n_out, cst, mass, inv_mass, x0, v0, sign, length0, kpar, yield_t,",
         "               yield_c, cx, cy, cds, cs0, cs1, off, knot_y, gravity, dt, n_steps, out_every, invalid, e_floor,",
         "               unstable_energy, ke_fraction, min_time, wall_point, wall_normal, h_wall, peak_wall, load_force,",
-        "               h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
+        "               pm_scale, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, status, fail_time,",
         "               fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy):",
         *[f"    {cname[nm]} = cst[{i}]" for i, nm in enumerate(cname)],
         "    for bi in range(b_lo, b_hi):",
@@ -718,6 +749,10 @@ def _source(shape: dict[str, Any]) -> str:
     for k in range(len(loads)):
         for d in range(D):
             emit(f"{i2}{R[f'lf{k}_{d}']} = load_force[{k}, {d}, q]")
+    for k in range(len(pm)):
+        emit(f"{i2}{R[f'pms{k}']} = pm_scale[{k}, q]")
+    if pm:
+        emit(f"{i2}{R['nst']} = float(n_steps[q])")
     for c in tcurves:
         if c not in const:
             emit(f"{i2}{R[f'cx{off[c + 1] - 1}']} = cx[{off[c + 1] - 1}, q]")
@@ -844,6 +879,9 @@ def _source(shape: dict[str, Any]) -> str:
                     fext = f"{R[f'm{n}']} * {R[f'g{d}']}" if grav else "0.0"
                     fext = R[f"fx{n}_{d}"] if n in loaded else fext  # this step's external force
                     acc = f"({chain} + {fext}) * {R[f'im{n}_{d}']}"
+                    for k, (p, dd, _, _) in enumerate(pm):  # a prescribed dof: its kinematic acceleration
+                        if (p, dd) == (n, d):
+                            acc = R[f"pma{k}"]
                 for name, arr, val in (("position", "h_pos", pos), ("displacement", "h_disp", dsp),
                                        ("velocity", "h_vel", vel), ("acceleration", "h_acc", acc)):  # fmt: skip
                     if name in hist:
@@ -990,7 +1028,7 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
     args = (starts, n_out, _constants(b, shape), b.mass, b.inv_mass, b.x0, b.v0, b.sign, b.length0, b.kpar,
             b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.curve_off, b.knot_y, b.gravity, b.dt, b.n_steps,
             b.out_every, b.invalid, b.energy_floor, UNSTABLE_ENERGY, b.ke_fraction, b.min_time, b.wall_point,
-            b.wall_normal, buf("wall_force", 3), out.peak_wall_force, b.load_force, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
+            b.wall_normal, buf("wall_force", 3), out.peak_wall_force, b.load_force, b.pm_scale, buf("position", 4), buf("displacement", 4), buf("velocity", 4),
             buf("acceleration", 4), buf("spring_force", 3), buf("spring_elongation", 3), h_energy, out.status,
             out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
             out.peak_acceleration, out.energy_error, out.final_energy)  # fmt: skip
