@@ -15,6 +15,8 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any, Protocol
 
+from crashstudy import interrupt
+
 
 class Backend(Protocol):
     def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]: ...
@@ -68,7 +70,10 @@ class ProcessPool:
                 pending.add(self.pool.submit(_call_limited, self.threads, fn, t))
             if not pending:
                 return
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            finished: set[Future[Any]] = set()
+            while not finished:  # wake up now and then: a stop request is acted on here, not in a lock
+                interrupt.check()
+                finished, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
             for f in finished:
                 yield f.result()
 

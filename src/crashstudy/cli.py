@@ -72,7 +72,12 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    signal.signal(signal.SIGTERM, _sigterm)
+    from crashstudy import interrupt
+
+    interrupt.reset()
+    signal.signal(signal.SIGTERM, interrupt.request)  # acted on between chunks (crashstudy/interrupt.py)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not when started with SIGINT ignored
+        signal.signal(signal.SIGINT, interrupt.request)
     try:
         return int(COMMANDS[args.command](args))
     except InputError as exc:
@@ -98,10 +103,6 @@ def main(argv: list[str] | None = None) -> int:
                   "Finished variants are kept: continue with --resume", file=sys.stderr)  # fmt: skip
             return EXIT_FAILED
         raise
-
-
-def _sigterm(signum: int, frame: Any) -> None:
-    raise KeyboardInterrupt
 
 
 def _run(args: argparse.Namespace) -> int:

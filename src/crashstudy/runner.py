@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from crashstudy import interrupt
 from crashstudy.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
@@ -326,6 +327,7 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
             writer.write(res)
             n_failed += int(np.count_nonzero(res.out.status))
             bar.update(len(res.index))
+            interrupt.check()  # a signal's stop request: after a whole chunk is written
     except BaseException:
         writer.abort()
         backend.close()

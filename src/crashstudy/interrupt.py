@@ -1,0 +1,33 @@
+"""A stop request from a signal, acted on at safe points.
+
+The command line turns SIGINT and SIGTERM into a request (:func:`request`) instead of raising
+``KeyboardInterrupt`` wherever the main thread happens to be: an exception raised inside
+``concurrent.futures`` while it holds a lock can leave that lock held, and shutting the process pool
+down then waits forever (seen once in CI: ``--jobs 2`` and SIGTERM). The runner checks the request
+between chunks (:func:`check`) and the process pool while it waits for workers, and raises
+``KeyboardInterrupt`` there, from its own code. A second signal raises at once.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+STOP = threading.Event()
+
+
+def request(signum: int = 0, frame: Any = None) -> None:
+    """Signal handler: ask the run to stop at the next safe point (a second request raises now)."""
+    if STOP.is_set():
+        raise KeyboardInterrupt
+    STOP.set()
+
+
+def check() -> None:
+    """Raise ``KeyboardInterrupt`` if a stop was requested."""
+    if STOP.is_set():
+        raise KeyboardInterrupt
+
+
+def reset() -> None:
+    STOP.clear()
