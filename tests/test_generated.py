@@ -103,8 +103,8 @@ def test_the_full_twin_models_bitwise_equal_to_reference(case: str) -> None:
     _assert_bitwise(ref, got)
 
 
-@pytest.mark.parametrize(("mirror", "gravity"), [(False, False), (True, False), (False, True)],
-                         ids=["left-to-right", "right-to-left", "gravity-wall-load"])  # fmt: skip
+@pytest.mark.parametrize(("mirror", "gravity"), [(False, False), (True, False)],
+                         ids=["left-to-right", "right-to-left"])  # fmt: skip  (gravity, load, wall: the full twins)
 def test_every_1d_material_bitwise_equal_to_reference(mirror: bool, gravity: bool) -> None:
     """Crush, linear, damper, nonlinear elastic and general_nonlinear springs, 5 variants with different
     masses (so different steps and sampling strides), every history (with gravity, a load pulse on node b
@@ -122,7 +122,7 @@ def test_every_1d_material_bitwise_equal_to_reference(mirror: bool, gravity: boo
     _assert_bitwise(ref, got)
 
 
-@pytest.mark.parametrize("case", ["helicopter-gravity-load-two-walls", "mixed-materials"])
+@pytest.mark.parametrize("case", ["helicopter-gravity-load-two-walls"])  # the mixed twin: the full-twin test
 def test_2d_models_bitwise_equal_to_reference(case: str) -> None:
     """2-D: the helicopter twin (two general_nonlinear springs, gravity, a gust load; its floor and a side
     wall, each holding both nodes: the walls act in the reference's order) and the mixed twin (crush, damper,
