@@ -170,6 +170,11 @@ class _Rows:
         return f"Z[{self.at[name] * ROW} + w]"
 
 
+def _lsum(terms: list[str]) -> str:
+    """Source of ``0.0 + t0 + t1 + ...`` added left to right, as the reference's accumulating loops."""
+    return "(" * len(terms) + "0.0" + "".join(f" + {t})" for t in terms)
+
+
 def _source(shape: dict[str, Any]) -> str:
     """The module source of the kernel for ``shape`` (see the module docstring)."""
     N, S, D = shape["N"], shape["S"], shape["D"]
@@ -313,10 +318,8 @@ def _source(shape: dict[str, Any]) -> str:
                 xj = R[f"xs{j}_{d}"] if static[j] else R[f"x{j}_{d}"]
                 xi = R[f"xs{i}_{d}"] if static[i] else R[f"x{i}_{d}"]
                 emit(f"{ind}u{d} = {xj} - {xi}")
-            emit(f"{ind}ln = np.sqrt(" + "".join("(" for _ in range(D)) + "0.0"
-                 + "".join(f" + u{d} * u{d})" for d in range(D)) + ")")  # fmt: skip
-            emit(f"{ind}turn = " + "".join("(" for _ in range(D)) + "0.0"
-                 + "".join(f" + u{d} * {R[f'ap{s}_{d}']})" for d in range(D)))  # fmt: skip
+            emit(f"{ind}ln = np.sqrt({_lsum([f'u{d} * u{d}' for d in range(D)])})")
+            emit(f"{ind}turn = {_lsum([f'u{d} * ' + R[f'ap{s}_{d}'] for d in range(D)])}")
             for d in range(D):
                 emit(f"{ind}{R[f'ap{s}_{d}']} = u{d}")
             emit(f"{ind}gone = (ln <= {TINY_LENGTH!r} * {R[f'l0{s}']}) | (turn <= 0.0)")
@@ -377,8 +380,7 @@ def _source(shape: dict[str, Any]) -> str:
         if D == 1:
             sg = {1: "1.0", -1: "-1.0", 0: R[f"sg{s}"]}[sign[s]]
             return f"({sg} * ({vp(sj[s], 0)} - {vp(si[s], 0)}))"
-        return "".join("(" for _ in range(D)) + "0.0" + "".join(
-            f" + ax{s}_{d} * ({vp(sj[s], d)} - {vp(si[s], d)}))" for d in range(D))
+        return _lsum([f"ax{s}_{d} * ({vp(sj[s], d)} - {vp(si[s], d)})" for d in range(D)])
 
     # ---- pass A: general_nonlinear springs (rules 1-3 branch-free; reversals flagged) ----
     def pass_a(ind: str) -> None:
@@ -591,10 +593,9 @@ def _source(shape: dict[str, Any]) -> str:
                 nr = [R[f"wn{wl}_{d}"] for d in range(D)]
                 pt = [R[f"wp{wl}_{d}"] for d in range(D)]
                 x = [R[f"x{n}_{d}"] for d in range(D)]
-                op = "".join("(" for _ in range(D)) + "0.0"
-                emit(f"{i2}wv = {op}" + "".join(f" + vn_{d} * {nr[d]})" for d in range(D)))
-                emit(f"{i2}gap = {op}" + "".join(f" + ({x[d]} - {pt[d]}) * {nr[d]})" for d in range(D)))
-                emit(f"{i2}dist = {op}" + "".join(f" + (({x[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]})" for d in range(D)))
+                emit(f"{i2}wv = {_lsum([f'vn_{d} * {nr[d]}' for d in range(D)])}")
+                emit(f"{i2}gap = {_lsum([f'({x[d]} - {pt[d]}) * {nr[d]}' for d in range(D)])}")
+                emit(f"{i2}dist = {_lsum([f'(({x[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]}' for d in range(D)])}")
                 emit(f"{i2}dvn = (-gap / dtw - wv) if ((dist < 0.0) & (wv < 0.0)) else 0.0")
                 emit(f"{i2}we = 0.0")
                 for d in range(D):
@@ -611,7 +612,7 @@ def _source(shape: dict[str, Any]) -> str:
                 emit(f"{i2}{x} = {x} + (dtw * af) * vn_{d}")
                 emit(f"{i2}{v} = vn_{d} * af + vo_{d} * (1.0 - af)")
             if movable[n]:
-                a2 = "".join("(" for _ in range(D)) + "0.0" + "".join(f" + a_{d} * a_{d})" for d in range(D))
+                a2 = _lsum([f"a_{d} * a_{d}" for d in range(D)])
                 emit(f"{i2}{R[f'pa{n}']} = _max({R[f'pa{n}']}, {a2} * af)")
         if W:  # wall work in the reference's order (wall by wall, node by node), running variants only
             emit(f"{i2}wall_e = {R['wall_e']}")
@@ -646,10 +647,8 @@ def _source(shape: dict[str, Any]) -> str:
             emit(f"{i2}edmin = np.inf")
             for s in range(S):
                 emit(f"{i2}edmin = _min(edmin, {R[f'ed{s}'] if mat[s] == GENERAL else edot(s)})")
-            emit(f"{i2}fsum = " + "".join("(" for _ in range(S)) + "0.0"
-                 + "".join(f" + abs(F{s}))" for s in range(S)))  # fmt: skip
-            emit(f"{i2}psum = " + "".join("(" for _ in range(S)) + "0.0"
-                 + "".join(f" + {R[f'pf{s}']})" for s in range(S)))  # fmt: skip
+            emit(f"{i2}fsum = {_lsum([f'abs(F{s})' for s in range(S)])}")
+            emit(f"{i2}psum = {_lsum([R[f'pf{s}'] for s in range(S)])}")
             emit(f"{i2}kef = {R['kef']}")
             emit(f"{i2}small_f = fsum <= kef * psum")
             emit(f"{i2}small_ke = ke <= kef * ({R['ke0']} + {R['wmax'] if ext else '0.0'})")
