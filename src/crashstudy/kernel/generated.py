@@ -30,6 +30,7 @@ next to the generated source, in :func:`cache_dir`).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import os
@@ -74,8 +75,13 @@ def unsupported(b: Batch) -> str | None:
 def cache_dir() -> Path:
     """Where generated sources (and numba's compiled cache beside them) live:
     ``$CRASHSTUDY_KERNEL_CACHE``, else ``~/.cache/crashstudy/kernels``, else a temporary folder."""
-    env = os.environ.get("CRASHSTUDY_KERNEL_CACHE")
-    for cand in ([Path(env)] if env else []) + [Path.home() / ".cache" / "crashstudy" / "kernels",
+    return _cache_dir(os.environ.get("CRASHSTUDY_KERNEL_CACHE"), str(Path.home()))
+
+
+@functools.lru_cache(maxsize=8)
+def _cache_dir(env: str | None, home: str) -> Path:
+    """:func:`cache_dir`, probed once per setting (it is asked for every chunk)."""
+    for cand in ([Path(env)] if env else []) + [Path(home) / ".cache" / "crashstudy" / "kernels",
                                                  Path(tempfile.gettempdir()) / "crashstudy-kernels"]:  # fmt: skip
         try:
             cand.mkdir(parents=True, exist_ok=True)
@@ -975,6 +981,7 @@ def _module(shape: dict[str, Any]) -> Any:
         if key in _LOADED:
             return _LOADED[key]
         folder = cache_dir()
+        folder.mkdir(parents=True, exist_ok=True)  # (probed once per process; it may have been removed since)
         path = folder / f"k_{key}.py"
         if not path.exists() or path.read_text() != src:
             tmp = folder / f".k_{key}.{os.getpid()}.tmp"
