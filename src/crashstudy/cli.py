@@ -70,11 +70,29 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _plain_warnings() -> None:
+    """Print crashstudy's own warnings as one line ``warning: ...`` (no source line, no traceback)."""
+    import warnings
+
+    from crashstudy.errors import CrashstudyWarning
+
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
+        if issubclass(category, CrashstudyWarning):
+            print(f"warning: {message}", file=file or sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     from crashstudy import interrupt
 
     interrupt.reset()
+    _plain_warnings()
     signal.signal(signal.SIGTERM, interrupt.request)  # acted on between chunks (crashstudy/interrupt.py)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not when started with SIGINT ignored
         signal.signal(signal.SIGINT, interrupt.request)

@@ -25,20 +25,17 @@ examples: m, s, kg, N, J).
 
 Compilation costs seconds per model shape, so the runner uses a generated kernel when the study is
 large enough to earn it back, or when this shape's kernel is already compiled (numba's on-disk cache
-next to the generated source, in :func:`cache_dir`).
+next to the generated source, in the user's private folder of :mod:`crashstudy.kernel.cache`).
 """
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import importlib.util
 import os
 import sys
-import tempfile
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 from typing import Any
 
 import numba as nb
@@ -46,6 +43,7 @@ import numpy as np
 
 from crashstudy.batch import Batch
 from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
+from crashstudy.kernel.cache import cache_dir, checked_dir, why_not_private
 from crashstudy.kernel.compiled import get_threads
 from crashstudy.kernel.output import HISTORY_ORDER, KernelOutput, allocate
 from crashstudy.kernel.reference import TINY_LENGTH
@@ -70,28 +68,6 @@ def unsupported(b: Batch) -> str | None:
     """Why a generated kernel cannot run ``b`` (None if it can)."""
     _ = b  # every model is supported today; kept as the one place that would say why not
     return None
-
-
-def cache_dir() -> Path:
-    """Where generated sources (and numba's compiled cache beside them) live:
-    ``$CRASHSTUDY_KERNEL_CACHE``, else ``~/.cache/crashstudy/kernels``, else a temporary folder."""
-    return _cache_dir(os.environ.get("CRASHSTUDY_KERNEL_CACHE"), str(Path.home()))
-
-
-@functools.lru_cache(maxsize=8)
-def _cache_dir(env: str | None, home: str) -> Path:
-    """:func:`cache_dir`, probed once per setting (it is asked for every chunk)."""
-    for cand in ([Path(env)] if env else []) + [Path(home) / ".cache" / "crashstudy" / "kernels",
-                                                 Path(tempfile.gettempdir()) / "crashstudy-kernels"]:  # fmt: skip
-        try:
-            cand.mkdir(parents=True, exist_ok=True)
-            probe = cand / f".probe-{os.getpid()}"
-            probe.write_text("")
-            probe.unlink()
-            return cand
-        except OSError:
-            continue
-    raise OSError("no writable folder for generated kernels (set CRASHSTUDY_KERNEL_CACHE)")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -980,8 +956,7 @@ def _module(shape: dict[str, Any]) -> Any:
     with _LOCK:
         if key in _LOADED:
             return _LOADED[key]
-        folder = cache_dir()
-        folder.mkdir(parents=True, exist_ok=True)  # (probed once per process; it may have been removed since)
+        folder = checked_dir()  # private to this user: numba unpickles what it finds there
         path = folder / f"k_{key}.py"
         if not path.exists() or path.read_text() != src:
             tmp = folder / f".k_{key}.{os.getpid()}.tmp"
@@ -1003,9 +978,8 @@ def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | Non
     key = hashlib.sha256(src.encode()).hexdigest()[:20]
     if key in _LOADED:
         return True
-    try:
-        folder = cache_dir()
-    except OSError:
+    folder = cache_dir()
+    if why_not_private(folder) is not None:
         return False
     return any(folder.glob(f"__pycache__/k_{key}.run_blocks-*.nbi"))
 

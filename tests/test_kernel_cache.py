@@ -1,0 +1,135 @@
+"""The compiled-kernel cache is private to its user (a planted numba index must never be loaded).
+
+numba unpickles its cache index; whoever can write into the cache folder can run code as the user
+of crashstudy. These tests plant folders as another local user would (group/other-writable, another
+owner, a symbolic link) and a malicious index, and check that none is used.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import pickle
+import stat
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import model_plan
+from crashstudy.batch import build_batch
+from crashstudy.kernel import cache, generated
+
+MODEL = {"name": "cache-probe", "units": "SI",
+         "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+         "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
+         "initial_velocity": {"b": [1.0]}, "end_time": 0.05, "output": {"histories": "none"}}  # fmt: skip
+
+
+class _Pwn:
+    """Unpickling this writes a marker file: proof that a planted index was loaded."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self):  # type: ignore[no-untyped-def]
+        return (Path.write_text, (self.marker, "code from a planted cache ran"))
+
+
+def _fresh(env: str | None, home: Path) -> tuple[Path, list[str]]:
+    cache._cache_dir.cache_clear()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        folder = cache._cache_dir(env, str(home))
+    cache._cache_dir.cache_clear()
+    return folder, [str(w.message) for w in caught if issubclass(w.category, cache.KernelCacheWarning)]
+
+
+def test_new_cache_folder_is_created_private(tmp_path: Path) -> None:
+    folder, said = _fresh(None, tmp_path)
+    assert folder == tmp_path / ".cache" / "crashstudy" / "kernels"
+    assert stat.S_IMODE(folder.stat().st_mode) == 0o700
+    assert said == []
+
+
+def test_writable_by_others_cache_is_skipped_with_a_warning(tmp_path: Path) -> None:
+    planted = tmp_path / "shared"
+    planted.mkdir()
+    os.chmod(planted, 0o777)
+    folder, said = _fresh(str(planted), tmp_path / "home")
+    assert folder != planted and folder == tmp_path / "home" / ".cache" / "crashstudy" / "kernels"
+    assert len(said) == 1 and "group or others may write" in said[0] and "0777" in said[0]
+
+
+def test_symlinked_cache_is_skipped(tmp_path: Path) -> None:
+    real = tmp_path / "real"
+    real.mkdir(mode=0o700)
+    link = tmp_path / "link"
+    link.symlink_to(real)
+    folder, said = _fresh(str(link), tmp_path / "home")
+    assert folder != link and len(said) == 1 and "symbolic link" in said[0]
+
+
+def test_cache_of_another_user_is_skipped(tmp_path: Path) -> None:
+    if os.geteuid() == 0:  # root can hand a folder to another user id
+        other = tmp_path / "other"
+        other.mkdir(mode=0o700)
+        os.chown(other, 4242, -1)
+        owner = 4242
+    else:  # a folder that exists and belongs to root
+        other, owner = Path("/"), 0
+    folder, said = _fresh(str(other), tmp_path / "home")
+    assert folder != other and len(said) == 1 and f"belongs to user id {owner}" in said[0]
+
+
+def test_unusable_home_falls_back_to_a_fresh_private_temp_folder(tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    folder, said = _fresh(None, blocker / "home")  # a home under a regular file cannot be created
+    assert folder.name.startswith("crashstudy-kernels-") and folder != Path(os.environ.get("TMPDIR", "/tmp"))
+    assert stat.S_IMODE(folder.stat().st_mode) == 0o700 and cache.why_not_private(folder) is None
+    assert len(said) == 1 and "cannot create it" in said[0]
+    again, _ = _fresh(None, blocker / "home")
+    assert again != folder  # never a predictable shared path
+
+
+def test_planted_numba_index_in_the_old_shared_temp_folder_is_never_loaded(tmp_path: Path) -> None:
+    """Before the fix: with HOME unusable the cache fell back to $TMPDIR/crashstudy-kernels; a local user
+    who created it first and planted a numba index there ran code as the crashstudy user (exit 0)."""
+    plan = model_plan(MODEL)
+    batch, _ = build_batch(plan.topology, plan.params(0, 1), plan.interval)
+    src = generated._source(generated._shape(batch, plan.topology.histories, frozenset()))
+    key = hashlib.sha256(src.encode()).hexdigest()[:20]
+    lines = src.splitlines()
+    first = next(i for i, line in enumerate(lines) if line.startswith("def run_blocks"))
+    deco = first - 1 if lines[first - 1].startswith("@") else first
+    tmpdir = tmp_path / "tmp"
+    planted = tmpdir / "crashstudy-kernels"
+    (planted / "__pycache__").mkdir(parents=True)
+    for d in (planted, planted / "__pycache__"):
+        os.chmod(d, 0o777)  # as another user would leave it
+    (planted / f"k_{key}.py").write_text(src)
+    marker = tmp_path / "pwned"
+    tag = f"py{sys.version_info.major}{sys.version_info.minor}"
+    for lineno in {deco + 1, first + 1}:
+        (planted / "__pycache__" / f"k_{key}.run_blocks-{lineno}.{tag}.nbi").write_bytes(pickle.dumps(_Pwn(marker)))
+    model = tmp_path / "model.yaml"
+    model.write_text(yaml.safe_dump(MODEL, sort_keys=False))
+    blocker = tmp_path / "blocker"
+    blocker.write_text("")
+    env = {k: v for k, v in os.environ.items() if k != "CRASHSTUDY_KERNEL_CACHE"}
+    env.update(HOME=str(blocker / "home"), TMPDIR=str(tmpdir), CRASHSTUDY_KERNEL="generated")
+    done = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(model), "-o", str(tmp_path / "out")],
+                          capture_output=True, text=True, env=env, timeout=600)  # fmt: skip
+    assert not marker.exists(), "a planted numba index was unpickled"
+    assert done.returncode == 0, done.stderr
+    assert "Traceback" not in done.stderr and "warning: kernel cache" in done.stderr
+    # the run still computed the right answer: F(t) = v0 sqrt(k m) sin(omega t), omega = 10 rad/s, rising until 0.05 s
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "out" / "results.nc") as ds:
+        assert float(ds["peak_force"].values.ravel()[0]) == pytest.approx(10.0 * np.sin(0.5), rel=2e-3)
