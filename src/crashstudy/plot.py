@@ -39,6 +39,7 @@ from matplotlib.figure import Figure
 from matplotlib.layout_engine import ConstrainedLayoutEngine
 
 from crashstudy.errors import InputError, Problem
+from crashstudy.safefs import clear_entry
 
 PlotKind = Literal["history", "force-displacement", "matrix"]
 Aggregate = Literal["max", "mean", "min"]
@@ -644,6 +645,7 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
         paths = []
         for stem, fig in figures:
             path = out / f"{_safe(stem)}.png"
+            clear_entry(path)  # a planted link is removed, never written through
             fig.savefig(path, dpi=100)
             paths.append(path)
         return paths

@@ -24,6 +24,7 @@ from crashstudy import __version__
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES, KernelOutput
 from crashstudy.provenance import HASH_LEN, text_hash
+from crashstudy.safefs import PlantedEntryError, create_new, is_regular, open_new
 from crashstudy.study import Plan
 from crashstudy.units import UNIT_SYSTEMS
 
@@ -105,6 +106,10 @@ class ResultWriter:
         netCDF4.set_chunk_cache(4 * 2**20)
         self.dir.mkdir(parents=True, exist_ok=True)
         self.path = self.dir / PARTIAL
+        if resume and os.path.islink(self.path):
+            raise InputError([Problem(plan.study_file or plan.model_file, None, "",
+                                      f"{self.path} is a symbolic link, not a partial result of crashstudy; "
+                                      "refusing to write through it (remove it, or use --force)")])  # fmt: skip
         if resume and self.path.exists() and not _readable(self.path):
             # cut off before its first chunk was flushed (SIGKILL, full disk): nothing in it can be used
             print(f"note: {self.path} could not be read (cut off while being written); starting it again",
@@ -128,6 +133,7 @@ class ResultWriter:
         p = self.plan
         topo = p.topology
         units = _units(p)
+        create_new(self.path)  # a planted link at the partial's name is removed, never written through
         nc = netCDF4.Dataset(self.path, "w", format="NETCDF4")
         V = p.n_variants
         nc.createDimension("variant", V)
@@ -252,6 +258,8 @@ class ResultWriter:
         final = self.dir / FINAL
         with xr.open_dataset(self.path) as ds:
             write_summary_csv(ds, self.dir / SUMMARY)
+        if not is_regular(self.path):
+            raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
         os.replace(self.path, final)
         return final
 
@@ -325,7 +333,7 @@ def write_summary_csv(ds: xr.Dataset, path: Path, chunk: int = 200_000) -> None:
     """Write ``summary.csv`` chunk by chunk (bounded memory), atomically."""
     tmp = path.with_suffix(".csv.partial")
     n = ds.sizes["variant"]
-    with open(tmp, "w", newline="") as fh:
+    with open_new(tmp, newline="") as fh:
         for lo in range(0, max(n, 1), chunk):
             summary_frame(ds, lo, min(n, lo + chunk)).to_csv(fh, index=False, header=lo == 0)
     os.replace(tmp, path)

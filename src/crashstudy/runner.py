@@ -23,6 +23,7 @@ from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 from crashstudy.provenance import variant_hashes
 from crashstudy.results import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
+from crashstudy.safefs import clear_entry
 from crashstudy.schema import load_model
 from crashstudy.study import Plan, load_study, plan_from_model
 
@@ -245,15 +246,14 @@ def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_
         raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
     if force and out_dir.exists():
         for p in (final, partial, out_dir / "summary.csv"):
-            if p.exists():
-                p.unlink()
+            clear_entry(p)  # a link is removed, never followed (a dangling one too)
         return
     if final.exists() and not resume:
         other = _study_of(final)
         if other != study_name:
             raise InputError([Problem(source, None, "", f"{out_dir} holds the results of {other!r}, not of study "
                                       f"{study_name!r}; use --force to overwrite or choose another -o")])  # fmt: skip
-    if partial.exists() and not resume:
+    if os.path.lexists(partial) and not resume:
         raise InputError([Problem(source, None, "", f"an unfinished run is in {out_dir}; use --resume to finish it or --force to start again")])
 
 
