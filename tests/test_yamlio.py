@@ -342,12 +342,13 @@ def test_tab_indentation_is_syntax_error() -> None:
 @pytest.mark.parametrize(
     ("text", "line", "found"),
     [("", 1, "an empty document"), ("# only a comment\n", 1, "an empty document"), ("---\n", 1, "an empty document"),
-     ("~\n", 1, "the value '~'"),
-     ("- a\n- b\n", 1, "a list"), ("\n\njust text\n", 3, "the value 'just text'")],
+     ("~\n", 1, "plain text"),
+     ("- a\n- b\n", 1, "a list"), ("\n\njust text\n", 3, "plain text")],
 )
 def test_top_level_must_be_a_mapping(text: str, line: int, found: str) -> None:
     problem = only_problem(text)
-    assert problem == Problem("m.yaml", line, "", f"expected a mapping at top level (key: value lines), found {found}")
+    assert problem == Problem("m.yaml", line, "", f"expected a mapping at top level (key: value lines), found {found}"
+                                                  " (is this a crashstudy model or study file?)")  # fmt: skip
 
 
 def test_explicit_document_markers_around_one_document_are_fine() -> None:

@@ -7,6 +7,7 @@ and exit with code 2. Nothing else in crashstudy should raise on bad user input.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 
@@ -37,9 +38,20 @@ class Problem:
     message: str
 
     def format(self) -> str:
-        where = f"{self.file}:{self.line}" if self.line is not None else f"{self.file}"
-        fld = f" {self.field}:" if self.field else ""
-        return f"{where}:{fld} {self.message}"
+        where = f"{printable(self.file)}:{self.line}" if self.line is not None else printable(self.file)
+        fld = f" {printable(self.field)}:" if self.field else ""
+        return f"{where}:{fld} {printable(self.message, MAX_MESSAGE)}"
+
+
+MAX_MESSAGE = 600  #: characters of one problem's message that are printed (a longer one ends in "...")
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def printable(text: str, limit: int | None = None) -> str:
+    """``text`` safe for a terminal: control characters (ESC sequences, newlines, NUL) shown as escapes
+    (``\\x1b``), so a quoted key or path can neither rewrite the screen nor split a message line."""
+    out = _CONTROL.sub(lambda m: m.group().encode("unicode_escape").decode("ascii"), str(text))
+    return out if limit is None or len(out) <= limit else out[: limit - 3] + "..."
 
 
 @dataclass

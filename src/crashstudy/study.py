@@ -21,7 +21,7 @@ from pydantic import ValidationError
 
 from crashstudy.compiler import PathRef, Topology, apply_axis, compile_model
 from crashstudy.errors import InputError, Problem
-from crashstudy.schema import LoadedModel, parse_model, validate_model_data
+from crashstudy.schema import LoadedModel, parse_model, refuse_foreign, validate_model_data
 from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.schema.study import Study
@@ -215,6 +215,7 @@ def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
     else:
         sdoc = load_yaml(source)
         base_dir = Path(source).resolve().parent
+    refuse_foreign(sdoc)
     try:
         study = Study.model_validate(sdoc.data)
     except ValidationError as exc:

@@ -284,8 +284,9 @@ def _parse(text: str, file: str) -> LoadedYaml:
             loader.dispose()
         if not isinstance(node, MappingNode):
             empty = node is None or (isinstance(node, ScalarNode) and node.tag == NULL and not node.value)
-            raise fail(1 if empty else _line(node), "expected a mapping at top level (key: value lines), "
-                       f"found {'an empty document' if empty else _kind(node)}")
+            found = "an empty document" if empty else "a list" if isinstance(node, SequenceNode) else "plain text"
+            raise fail(1 if empty else _line(node), f"expected a mapping at top level (key: value lines), found {found}"
+                       " (is this a crashstudy model or study file?)")  # nothing of a foreign file is quoted
         data = builder.build(node, ())
     except _Refused as exc:
         raise fail(exc.mark.line + 1, exc.message) from None

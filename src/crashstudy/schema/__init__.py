@@ -7,13 +7,13 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from crashstudy.errors import InputError
+from crashstudy.errors import InputError, Problem
 from crashstudy.schema.checks import model_problems, raw_reference_problems
 from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.yamlio import LoadedYaml, load_yaml
 
-__all__ = ["LoadedModel", "Model", "load_model", "parse_model", "validate_model_data"]
+__all__ = ["LoadedModel", "Model", "load_model", "parse_model", "refuse_foreign", "validate_model_data"]
 
 
 @dataclass(frozen=True)
@@ -33,8 +33,23 @@ def validate_model_data(data: Any) -> tuple[Model | None, list[tuple[tuple[Any, 
     return m, model_problems(m)
 
 
+def refuse_foreign(doc: LoadedYaml) -> None:
+    """Raise one :class:`InputError` for a mapping that has none of a model's or a study's top-level keys.
+
+    Such a file is not ours (a configuration file, ``key: value`` lines of another program): listing
+    each of its keys as "unknown" would echo the file, so nothing of it is quoted."""
+    from crashstudy.schema.study import Study
+
+    ours = {name for cls in (Model, Study) for name in cls.model_fields}
+    if isinstance(doc.data, dict) and doc.data and not ours.intersection(doc.data):
+        raise InputError([Problem(doc.file, None, "", f"not a crashstudy model or study file: none of its "
+                                  f"{len(doc.data)} top-level keys is one of ours (a model has name, nodes, springs, "
+                                  "...; a study has name, model, matrix, ...)")])  # fmt: skip
+
+
 def parse_model(doc: LoadedYaml) -> LoadedModel:
     """Validate a loaded document as a model file; raise :class:`InputError` with every problem."""
+    refuse_foreign(doc)
     m, found = validate_model_data(doc.data)
     if isinstance(found, ValidationError):
         problems = pydantic_problems(found, doc, Model)
