@@ -202,12 +202,13 @@ def test_instability_fails_that_variant_only_as_in_the_reference() -> None:
     assert outputs_equal(got, 2, alone, 0) == []
 
 
-def test_runner_picks_the_generated_kernel_for_a_big_run_and_results_do_not_change(
+def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """``run_chunk`` with the default kernel uses the generated one once a run's work passes
-    GENERATED_MIN_WORK (lowered here so a small study qualifies) and gives the generic kernel's numbers."""
-    import crashstudy.runner as runner
+    """``run_chunk`` with the default kernel takes the fastest kernel that is compiled: the generated one
+    when this shape's is, else the generic one, else (while another process compiles) the NumPy
+    reference; the numbers are bitwise the same every time."""
+    from crashstudy.kernel import choice
 
     study = {"name": "pick", "model": str(FRONTAL), "matrix": {"curves.rail-loading.scale": [0.8, 1.2],
              "impact_velocity": [12.0, 15.0, 18.0]}, "set": {"end_time": 0.03}}  # fmt: skip
@@ -218,13 +219,17 @@ def test_runner_picks_the_generated_kernel_for_a_big_run_and_results_do_not_chan
     monkeypatch.setattr(generated, "run_generated", lambda *a, **k: calls.append("generated") or real_generated(*a, **k))
     monkeypatch.setattr("crashstudy.kernel.compiled.run_compiled",
                         lambda *a, **k: calls.append("generic") or real_generic(*a, **k))  # fmt: skip
-    monkeypatch.setattr(runner, "GENERATED_MIN_WORK", 1.0)
+    monkeypatch.setattr(choice, "generated_ready", lambda *a, **k: True)
     fast = run_chunk(plan, 0, plan.n_variants)
-    monkeypatch.setattr(runner, "GENERATED_MIN_WORK", float("inf"))
-    monkeypatch.setattr(generated, "is_compiled", lambda *a, **k: False)
+    monkeypatch.setattr(choice, "generated_ready", lambda *a, **k: False)
+    monkeypatch.setattr(choice, "generic_ready", lambda: True)
     slow = run_chunk(plan, 0, plan.n_variants)
+    monkeypatch.setattr(choice, "generic_ready", lambda: False)
+    monkeypatch.setattr(choice, "compiling", lambda: True)
+    plain = run_chunk(plan, 0, plan.n_variants)
     assert calls == ["generated", "generic"]
     _assert_bitwise(slow.out, fast.out)
+    _assert_bitwise(plain.out, fast.out)
 
 
 def runner_generic():  # the generic kernel's entry point (looked up at call time by the runner)
@@ -245,14 +250,14 @@ def test_bad_kernel_environment_variable_is_an_input_error_before_anything_is_wr
     proc = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(HELICOPTER), "--output", str(out)],
                           capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
     assert proc.returncode == 2, proc.stderr
-    assert "environment: CRASHSTUDY_KERNEL: unknown kernel 'fastest': expected generic or generated" in proc.stderr
+    assert "environment: CRASHSTUDY_KERNEL: unknown kernel 'fastest': expected reference, generic or generated" in proc.stderr
     assert "Traceback" not in proc.stderr and not out.exists()
 
 
 def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A small run goes to the generic kernel by itself; ``CRASHSTUDY_KERNEL=generated`` sends it to the
-    generated one and ``generic`` keeps it off even when that shape is compiled; results are the
-    reference's either way."""
+    """``CRASHSTUDY_KERNEL`` decides the kernel of a run that leaves the choice open: ``generated`` sends
+    it to the generated one, ``generic`` keeps it off even when that shape is compiled, ``reference``
+    to NumPy; results are the reference's either way."""
     import crashstudy.kernel.compiled as compiled
 
     calls: list[str] = []
@@ -260,10 +265,10 @@ def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(monkeypat
     monkeypatch.setattr(generated, "run_generated", lambda *a, **k: calls.append("generated") or real_gen(*a, **k))
     monkeypatch.setattr(compiled, "run_compiled", lambda *a, **k: calls.append("generic") or real_generic(*a, **k))
     ref, _, _ = run_model(_mount_reversal(), kernel="reference")
-    for env, expected in (("generated", "generated"), ("generic", "generic")):
+    for env, expected in (("generated", "generated"), ("generic", "generic"), ("reference", "generic")):
         monkeypatch.setenv("CRASHSTUDY_KERNEL", env)
         got, _, _ = run_model(_mount_reversal(), kernel="compiled")
-        assert calls[-1] == expected
+        assert calls[-1] == expected and len(calls) == 1 + (env != "generated")
         _assert_bitwise(ref, got)
 
 

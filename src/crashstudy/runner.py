@@ -20,6 +20,7 @@ import numpy as np
 from crashstudy import interrupt
 from crashstudy.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
+from crashstudy.kernel import choice
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 from crashstudy.provenance import variant_hashes
 from crashstudy.results import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
@@ -42,50 +43,29 @@ def chunk_size(plan: Plan) -> int:
     return int(max(1, min(MAX_CHUNK, HISTORY_BUDGET // max(per_variant, 1))))
 
 
-GENERATED_MIN_WORK = 5e9  # element-steps of a run above which compiling the model's own kernel pays (~10 s
-# of compilation against ~3.5e8 vs ~1e9 element-steps/s of the generic and generated kernels)
-
-
 def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
-               work: float = 0.0, vary: frozenset[int] | None = None) -> KernelOutput:  # fmt: skip
-    """Integrate ``batch`` with ``kernel``: "compiled" (the model's generated kernel when it supports the
-    model and is already compiled or the run's ``work`` [element-steps] earns its compilation back,
-    else the generic one), "generic", "generated" or "reference" (NumPy; tests). ``vary``: indices
-    of the curves the study varies (see :func:`varying_curves`). The environment variable
-    ``CRASHSTUDY_KERNEL`` (generic / generated) overrides "compiled" (docs/kernels.md)."""
-    if kernel == "compiled":  # the environment may choose; a generated kernel only where it applies
-        kernel = kernel_override()
-        if kernel == "generated" and _generated().unsupported(batch) is not None:
-            kernel = "generic"
+               vary: frozenset[int] | None = None) -> KernelOutput:  # fmt: skip
+    """Integrate ``batch`` with ``kernel``: "compiled" (the fastest kernel that is compiled, or the
+    NumPy reference while none is: :func:`crashstudy.kernel.choice.pick`), "generic", "generated" or
+    "reference". ``vary``: indices of the curves the study varies (see :func:`varying_curves`). The
+    environment variable ``CRASHSTUDY_KERNEL`` overrides "compiled" (docs/kernels.md)."""
+    kernel = choice.pick(batch, histories, vary, kernel)
     if kernel == "reference":
         from crashstudy.kernel.reference import run_reference
 
-        return run_reference(batch, histories, n_out)
-    generated = _generated()
-    if kernel == "generated" or (
-        kernel == "compiled"
-        and generated.unsupported(batch) is None
-        and (work >= GENERATED_MIN_WORK or generated.is_compiled(batch, histories, vary))
-    ):
-        return generated.run_generated(batch, histories, n_out, vary)
+        with np.errstate(all="ignore"):  # overflow is found by the energy check (status), as in the compiled kernels
+            return run_reference(batch, histories, n_out, interrupt.check)
+    if kernel == "generated":
+        from crashstudy.kernel.generated import run_generated
+
+        return run_generated(batch, histories, n_out, vary)
     from crashstudy.kernel.compiled import run_compiled
 
+    choice.note_loaded("generic")
     return run_compiled(batch, histories, n_out)
 
 
-def _generated() -> Any:
-    from crashstudy.kernel import generated
-
-    return generated
-
-
-def kernel_override() -> str:
-    """The kernel ``CRASHSTUDY_KERNEL`` asks for ("compiled" = choose; "generic", "generated")."""
-    value = os.environ.get("CRASHSTUDY_KERNEL", "").strip() or "compiled"
-    if value not in ("compiled", "generic", "generated"):
-        raise InputError([Problem("environment", None, "CRASHSTUDY_KERNEL",
-                                  f"unknown kernel {value!r}: expected generic or generated (or unset)")])  # fmt: skip
-    return value
+kernel_override = choice.kernel_override
 
 
 def varying_curves(plan: Plan) -> frozenset[int]:
@@ -128,8 +108,7 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
     batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
     order = np.argsort(batch.n_steps, kind="stable")
     sorted_batch = batch.take(order)
-    work = float(np.sum(batch.n_steps)) * topo.n_springs * plan.n_variants / max(batch.n_variants, 1)
-    out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, work, varying_curves(plan))
+    out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, varying_curves(plan))
     estimate = error_estimate(sorted_batch, out, kernel) if topo.accuracy_check else np.full(len(order), np.nan)
     pos = np.empty_like(order)
     pos[order] = np.arange(len(order))
@@ -159,7 +138,7 @@ def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled") ->
     import dataclasses
 
     half = dataclasses.replace(batch, dt=batch.dt / 2, n_steps=batch.n_steps * 2, out_every=batch.out_every * 2)
-    fine = run_kernel(half, (), 1, kernel, float(np.sum(half.n_steps)) * len(batch.spring_i))
+    fine = run_kernel(half, (), 1, kernel)
     worst = np.zeros(batch.n_variants)
     for name in ("peak_force", "peak_acceleration"):
         coarse, ref = getattr(out, name), getattr(fine, name)
@@ -187,12 +166,23 @@ def _reason(out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float,
 
 
 class Progress:
-    """One status line on a terminal (variants done, variants/s, ETA); silent otherwise."""
+    """One status line (variants done, variants/s, ETA) on a terminal; a line per update when
+    forced on into a file or pipe; silent otherwise. Before the first chunk ends the ETA is the
+    run's ``estimate`` [s] (when known), never "inf"."""
 
-    def __init__(self, total: int, enabled: bool | None = None, stream: Any = None) -> None:
+    def __init__(self, total: int, enabled: bool | None = None, stream: Any = None, estimate: float | None = None
+                 ) -> None:  # fmt: skip
         self.stream = stream or sys.stderr
-        self.enabled = self.stream.isatty() if enabled is None else enabled
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.enabled = self.tty if enabled is None else enabled
         self.total, self.done, self.t0, self.last = total, 0, time.perf_counter(), 0.0
+        self.first, self.estimate = 0, estimate
+
+    def start(self, done: int) -> None:
+        """``done`` variants were finished before this run (resume, reuse); show the line."""
+        self.done = self.first = done
+        self.last = -1.0
+        self.update(0)
 
     def update(self, n: int) -> None:
         self.done += n
@@ -200,15 +190,48 @@ class Progress:
         if not self.enabled or (now - self.last < 0.2 and self.done < self.total):
             return
         self.last = now
-        rate = self.done / max(now - self.t0, 1e-9)
-        eta = (self.total - self.done) / rate if rate > 0 else float("inf")
-        self.stream.write(f"\r  {self.done}/{self.total} variants  {rate:,.0f} variants/s  ETA {eta:,.0f} s   ")
+        new = self.done - self.first
+        if new > 0:
+            rate = new / max(now - self.t0, 1e-9)
+            text = f"{rate:,.0f} variants/s  ETA {(self.total - self.done) / rate:,.0f} s"
+        elif self.estimate is not None:
+            text = f"starting  ETA ~{max(self.estimate - (now - self.t0), 0.0):,.0f} s"
+        else:
+            text = "starting"
+        line = f"  {self.done}/{self.total} variants  {text}"
+        self.stream.write(f"\r{line}   " if self.tty else line + "\n")
         self.stream.flush()
 
     def close(self) -> None:
-        if self.enabled:
+        if self.enabled and self.tty:
             self.stream.write("\n")
             self.stream.flush()
+
+
+def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | None]:
+    """Compile what this run's kernel choice is missing: in the background (the run starts on the NumPy
+    reference) or, when background compiles are off and compiling pays, now in a child process that
+    Ctrl-C stops at once. Returns (whether chunks should stay small, the run's estimated seconds)."""
+    topo = plan.topology
+    sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
+    vary = varying_curves(plan)
+    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel)
+    if start is None:
+        return False, None
+    say = (lambda text: print(f"note: {text}", file=notes)) if notes is not None else (lambda text: None)
+    kinds = " and ".join(f"the {k} kernel" for k in start.compile)
+    what = f"{kinds} for this model shape ({start.shape}; first run on this machine), ~{start.seconds:.0f} s"
+    if choice.background_min_seconds() < float("inf"):
+        if choice.start_background(start, sample, topo.histories, vary) is not None:
+            say(f"compiling {what} in the background; the run starts on the NumPy reference "
+                f"(~{start.reference_seconds:.0f} s alone) and switches when it is ready")  # fmt: skip
+            return True, min(start.reference_seconds, start.seconds + start.fast_seconds)
+        return False, start.reference_seconds
+    if start.seconds + start.fast_seconds < start.now_seconds:
+        say(f"compiling {what}; Ctrl-C stops")
+        choice.compile_foreground(start, sample, topo.histories, vary, interrupt.check)
+        return False, start.fast_seconds
+    return False, start.now_seconds
 
 
 @dataclass
@@ -292,8 +315,9 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
              resume: bool = False, force: bool = False, progress: bool | None = None,
-             kernel: str = "compiled", chunk: int | None = None) -> RunReport:  # fmt: skip
-    """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`)."""
+             kernel: str = "compiled", chunk: int | None = None, notes: Any = None) -> RunReport:  # fmt: skip
+    """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
+    one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent."""
     from crashstudy.backends import make_backend
 
     t0 = time.perf_counter()
@@ -314,6 +338,7 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     n_failed = 0
     bar = Progress(plan.n_variants, progress)
     try:
+        small, bar.estimate = _start_kernels(plan, kernel, notes)
         if not resume and (out / FINAL).exists():
             reused = _reuse_finished(writer, plan, out / FINAL, chunk or MAX_CHUNK)
         todo = ~writer.done()
@@ -321,8 +346,10 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
         if chunk is None and (scheduler or jobs > 1):  # several chunks per worker thread keep every worker busy
             slots = backend.worker_threads() if hasattr(backend, "worker_threads") else jobs
             size = min(size, max(1, -(-int(todo.sum()) // (4 * max(1, slots)))))
+        if small:
+            size = min(size, choice.REF_CHUNK)
         ranges = _ranges(todo, size)
-        bar.update(int((~todo).sum()))
+        bar.start(int((~todo).sum()))
         for res in backend.imap_unordered(run_chunk, ((plan, lo, hi, kernel) for lo, hi in ranges)):
             writer.write(res)
             n_failed += int(np.count_nonzero(res.out.status))
@@ -366,12 +393,13 @@ def simulate(model: str | os.PathLike[str], out_dir: str | os.PathLike[str] | No
     return report.results
 
 
-def simulate_report(model: str, out_dir: str | os.PathLike[str] | None = None, force: bool = True) -> RunReport:
+def simulate_report(model: str, out_dir: str | os.PathLike[str] | None = None, force: bool = True,
+                    notes: Any = None) -> RunReport:  # fmt: skip
     lm = load_model(model)
     plan = plan_from_model(lm)
     refuse_fixed_dt(plan, lm.doc)
     out = Path(out_dir) if out_dir else default_out(plan.name)
-    return run_plan(plan, out, force=force, progress=False)
+    return run_plan(plan, out, force=force, progress=False, notes=notes)
 
 
 def refuse_fixed_dt(plan: Plan, doc: Any) -> None:

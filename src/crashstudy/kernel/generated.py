@@ -64,9 +64,14 @@ def reverse_yield_lane(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):
     return reverse_yield(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off)
 
 
+MAX_KNOTS = 150  # knots of one curve above which the emitted sums nest too deep for Python's parser
+
+
 def unsupported(b: Batch) -> str | None:
     """Why a generated kernel cannot run ``b`` (None if it can)."""
-    _ = b  # every model is supported today; kept as the one place that would say why not
+    knots = int(np.max(np.diff(b.curve_off), initial=0))
+    if knots > MAX_KNOTS:
+        return f"a curve has {knots} knots (the generated kernel takes at most {MAX_KNOTS})"
     return None
 
 
@@ -115,14 +120,17 @@ def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
     return np.array([getattr(b, arr)[row, 0] for _, arr, row in _const_layout(shape)] + [0.0])
 
 
-def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None) -> dict[str, Any]:
+def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None,
+           const: list[int] | None = None) -> dict[str, Any]:  # fmt: skip
+    """What the generated source depends on. ``const``: the constant curves when already known (a
+    background compile gets them from the run, whose batch it does not have)."""
     N, D, _ = b.x0.shape
     pm_nodes = set(b.pm_node.tolist())
     static = [bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0) and n not in pm_nodes) for n in range(N)]
     sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
             for s in range(len(b.spring_i))]  # fmt: skip
     return {
-        "const": _constant_curves(b, vary), "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
+        "const": _constant_curves(b, vary) if const is None else const, "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
         "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
         "gravity": bool(np.any(b.gravity != 0.0)), "term": bool(np.any(b.ke_fraction > 0.0)),
         "walls": [[n for n in range(N) if b.wall_nodes[k, n] != 0.0] for k in range(b.wall_nodes.shape[0])],
@@ -972,20 +980,29 @@ def _module(shape: dict[str, Any]) -> Any:
         return mod
 
 
+def shape_key(shape: dict[str, Any]) -> str:
+    """The name of a shape's kernel: a hash of its source."""
+    return hashlib.sha256(_source(shape).encode()).hexdigest()[:20]
+
+
 def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None) -> bool:
-    """Whether this model shape's kernel was compiled before (in this process or in the disk cache)."""
-    src = _source(_shape(b, histories, vary))
-    key = hashlib.sha256(src.encode()).hexdigest()[:20]
-    if key in _LOADED:
+    """Whether this model shape's kernel is compiled: loaded in this process, or in numba's disk cache
+    (wherever ``NUMBA_CACHE_DIR`` puts it; the index is written after the compiled code)."""
+    shape = _shape(b, histories, vary)
+    key = shape_key(shape)
+    if key in _LOADED and _LOADED[key].run_blocks.signatures:
         return True
-    folder = cache_dir()
-    if why_not_private(folder) is not None:
+    if why_not_private(cache_dir()) is not None:
         return False
-    return any(folder.glob(f"__pycache__/k_{key}.run_blocks-*.nbi"))
+    try:
+        mod = _module(shape)
+        return bool(mod.run_blocks.signatures) or os.path.exists(mod.run_blocks._cache._cache_file._index_path)
+    except Exception:  # numba internals moved: treat as not compiled
+        return False
 
 
-def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozenset[int] | None = None
-                  ) -> KernelOutput:  # fmt: skip
+def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozenset[int] | None = None,
+                  const: list[int] | None = None) -> KernelOutput:  # fmt: skip
     """Integrate every variant of ``b`` with its model's generated kernel (results bitwise those of
     the reference kernel). ``b`` must be supported (:func:`unsupported` returns None)."""
     why = unsupported(b)
@@ -993,7 +1010,7 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
         raise ValueError(f"no generated kernel for this model: {why}")
     from crashstudy.kernel.reference import UNSTABLE_ENERGY
 
-    shape = _shape(b, histories, vary)
+    shape = _shape(b, histories, vary, const)
     mod = _module(shape)
     N, D, V = b.x0.shape
     S = len(b.spring_i)

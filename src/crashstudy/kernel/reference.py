@@ -22,6 +22,8 @@ Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0`
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from crashstudy.batch import Batch
@@ -29,13 +31,16 @@ from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_AC
 from crashstudy.kernel import materials as mat
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 
+STOP_EVERY = 256  # steps between calls of run_reference's ``check``
 TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
 UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + |W_ext| (+ a round-off
 # floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
 
 
-def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOutput:
-    """Integrate every variant of ``b``; see the module docstring for the step."""
+def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Callable[[], None] | None = None
+                  ) -> KernelOutput:  # fmt: skip
+    """Integrate every variant of ``b``; see the module docstring for the step. ``check`` is called
+    every ``STOP_EVERY`` steps; it raises to abandon the batch (Ctrl-C)."""
     N, D, V = b.x0.shape
     S = len(b.spring_i)
     W = b.wall_nodes.shape[0]
@@ -72,6 +77,8 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int) -> KernelOut
     movable[b.pm_node] = True
 
     for n in range(int(nst.max(initial=-1)) + 1):
+        if check is not None and n % STOP_EVERY == 0:
+            check()
         act = (n <= nst) & (out.status == 0)
         if not act.any():
             break

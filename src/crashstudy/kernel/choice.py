@@ -1,0 +1,242 @@
+"""Which kernel integrates a batch: the one expected to finish first on this machine, compilation
+included.
+
+The three kernels give bitwise equal results (docs/kernels.md), so the choice changes only time. A
+cost model in seconds, measured on the 2-core reference machine (benchmarks/results/cold_start.md):
+
+- NumPy reference: no compilation; ``REF_STEP + REF_SPRING_STEP * S`` per time step of the longest
+  variant (Python overhead), plus ``REF_ELEMENT_STEP`` per element-step (spring x step x variant);
+- generic (numba): compiled once per machine, ``GENERIC_COMPILE`` s, then ``GENERIC_RATE``
+  element-steps/s;
+- generated (numba, one per model shape): compiled once per shape, :func:`generated_compile_seconds`,
+  then ``GENERATED_RATE`` element-steps/s.
+
+:func:`pick` takes, per chunk, the fastest kernel that is already compiled; the NumPy reference is
+always ready, so a tiny run never waits for a compiler. When a whole run would take the reference
+more than ``background_min_seconds()`` and a fast kernel is missing, :func:`plan_start` says what to
+compile and :func:`start_background` compiles it in a separate, low-priority process (one at a time
+per cache, under a lock) while the run goes on with the reference in small chunks; the next chunk
+after the compile finished runs compiled. The compiled kernel stays in the cache, so a repeat of the
+study (and every study of the same model shape) runs compiled from its first chunk.
+
+Without a background process (``CRASHSTUDY_BACKGROUND_COMPILE=0``, or a worker of a process pool or
+Dask cluster, which never starts one) a chunk compiles the generic kernel in the foreground only when
+the reference would take longer than compiling and running it (:func:`pick`), so a study is never
+slower than the generic kernel alone by more than the estimate's error.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from crashstudy.batch import Batch
+from crashstudy.errors import InputError, Problem
+from crashstudy.kernel.cache import cache_dir, why_not_private
+
+REF_STEP = 60e-6  # [s] per time step of the NumPy reference, whatever the batch
+REF_SPRING_STEP = 50e-6  # [s] per time step and spring
+REF_ELEMENT_STEP = 0.1e-6  # [s] per element-step (spring x step x variant)
+GENERIC_RATE = 3.5e8  # [element-steps/s] generic kernel, 2 threads
+GENERATED_RATE = 1.0e9  # [element-steps/s] generated kernel, 2 threads
+GENERIC_COMPILE = 25.0  # [s] compiling the generic kernel (once per machine)
+LOAD = 0.3  # [s] loading a compiled kernel from the disk cache (once per process)
+BACKGROUND_MIN = 2.0  # [s] of reference time of a run above which missing kernels compile in the background
+KERNELS = ("reference", "generic", "generated")
+LOCK_NAME = "compile.lock"
+REF_CHUNK = 1024  # variants per chunk while the reference runs and a compile may finish
+_LOADED_GENERIC: list[bool] = [False]
+
+
+def kernel_override() -> str:
+    """The kernel ``CRASHSTUDY_KERNEL`` asks for: "compiled" (unset: choose), or one of ``KERNELS``."""
+    value = os.environ.get("CRASHSTUDY_KERNEL", "").strip() or "compiled"
+    if value not in ("compiled", *KERNELS):
+        raise InputError([Problem("environment", None, "CRASHSTUDY_KERNEL",
+                                  f"unknown kernel {value!r}: expected reference, generic or generated (or unset)")])  # fmt: skip
+    return value
+
+
+def background_min_seconds() -> float:
+    """Reference seconds of a run above which missing kernels compile in the background (inf: never).
+
+    ``CRASHSTUDY_BACKGROUND_COMPILE``: ``0`` never, ``always`` for any run, unset or ``1`` above
+    ``BACKGROUND_MIN``."""
+    value = os.environ.get("CRASHSTUDY_BACKGROUND_COMPILE", "1").strip().lower()
+    if value in ("0", "no", "off", "false"):
+        return float("inf")
+    return 0.0 if value == "always" else BACKGROUND_MIN
+
+
+def generated_compile_seconds(n_springs: int, dim: int, n_walls: int) -> float:
+    """Expected seconds to compile one model shape's generated kernel (fit to 1-spring 1-D: 6 s,
+    helicopter: 23 s, frontal: 44 s)."""
+    return 4.0 + 4.5 * n_springs * dim + 4.0 * n_walls
+
+
+def reference_seconds(n_steps: float, n_springs: int, element_steps: float) -> float:
+    """Expected seconds of the NumPy reference for a batch whose longest variant has ``n_steps``."""
+    return n_steps * (REF_STEP + REF_SPRING_STEP * n_springs) + element_steps * REF_ELEMENT_STEP
+
+
+def _generic() -> Any:
+    from crashstudy.kernel import compiled
+
+    return compiled._run
+
+
+def generic_ready() -> bool:
+    """Whether the generic kernel is compiled (in this process or in numba's disk cache)."""
+    run = _generic()
+    if run.signatures:
+        return True
+    try:
+        return os.path.exists(run._cache._cache_file._index_path)
+    except AttributeError:  # numba internals moved: assume it must be compiled
+        return False
+
+
+def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None) -> bool:
+    from crashstudy.kernel import generated
+
+    return generated.unsupported(b) is None and generated.is_compiled(b, histories, vary)
+
+
+def compiling() -> bool:
+    """Whether a compile of this cache is under way in another process (it holds the lock)."""
+    folder = cache_dir()
+    if why_not_private(folder) is not None or not (folder / LOCK_NAME).exists():
+        return False
+    with open(folder / LOCK_NAME, "a") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            return True
+        fcntl.flock(fh, fcntl.LOCK_UN)
+    return False
+
+
+def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: str = "compiled") -> str:
+    """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
+    fastest compiled one, else the reference, or the generic kernel compiled now when the reference
+    would take longer than that (and no other process is compiling)."""
+    from crashstudy.kernel import generated
+
+    if kernel == "compiled":
+        kernel = kernel_override()
+    if kernel == "generated" and generated.unsupported(b) is not None:
+        return "generic"
+    if kernel != "compiled":
+        return kernel
+    S = len(b.spring_i)
+    work = float(np.sum(b.n_steps)) * max(S, 1)
+    t_ref = reference_seconds(float(np.max(b.n_steps, initial=0)), S, work)
+    if t_ref < LOAD:  # nothing compiled can win once loading it is counted
+        return "reference"
+    if generated_ready(b, histories, vary):
+        return "generated"
+    t_generic = work / GENERIC_RATE + (0.0 if _LOADED_GENERIC[0] else LOAD)
+    if generic_ready():
+        return "generic" if t_generic < t_ref else "reference"
+    if t_ref > GENERIC_COMPILE + t_generic and not compiling():
+        return "generic"
+    return "reference"
+
+
+def note_loaded(kernel: str) -> None:
+    if kernel == "generic":
+        _LOADED_GENERIC[0] = True
+
+
+@dataclass
+class StartPlan:
+    """What a run should compile before (or while) it starts, and what to tell the user."""
+
+    compile: tuple[str, ...]  # "generic" and/or "generated", cheapest first
+    seconds: float  # expected compile time
+    reference_seconds: float  # expected time of the whole run on the reference
+    now_seconds: float  # ... on the fastest kernel compiled now (the reference or the generic one)
+    fast_seconds: float  # ... on the fastest kernel once the compile is done (compile not included)
+    shape: str  # the model shape in words
+
+
+def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, n_variants: int,
+               kernel: str = "compiled") -> StartPlan | None:  # fmt: skip
+    """Which kernels a run of ``n_variants`` like ``b`` (a sample of them) should compile in the
+    background, or None (a kernel was named, everything needed is compiled, or the run is short)."""
+    from crashstudy.kernel import generated
+
+    if kernel != "compiled" or kernel_override() != "compiled":
+        return None
+    S, (N, D, V) = len(b.spring_i), b.x0.shape
+    per_variant = float(np.mean(b.n_steps)) if V else 0.0
+    work = per_variant * max(S, 1) * n_variants
+    chunks = -(-n_variants // REF_CHUNK)
+    t_ref = reference_seconds(chunks * float(np.max(b.n_steps, initial=0)), S, work)
+    have_generic = generic_ready()
+    t_now = min(t_ref, work / GENERIC_RATE + LOAD) if have_generic else t_ref
+    if t_now < min(background_min_seconds(), BACKGROUND_MIN):
+        return None
+    todo: list[tuple[float, str]] = []
+    if not have_generic:
+        todo.append((GENERIC_COMPILE, "generic"))
+    gen_ok = generated.unsupported(b) is None
+    if gen_ok and not generated.is_compiled(b, histories, vary):
+        todo.append((generated_compile_seconds(S, D, b.wall_nodes.shape[0]), "generated"))
+    if not todo or (gen_ok and generated.is_compiled(b, histories, vary)):
+        return None
+    todo.sort()
+    walls = b.wall_nodes.shape[0]
+    shape = f"{N} nodes, {S} springs, {D}-D" + (f", {walls} wall{'s' * (walls > 1)}" if walls else "")
+    t_fast = work / (GENERATED_RATE if gen_ok else GENERIC_RATE) + LOAD
+    return StartPlan(tuple(k for _, k in todo), sum(t for t, _ in todo), t_ref, t_now, t_fast, shape)
+
+
+def start_background(plan: StartPlan, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
+                     ) -> subprocess.Popen[bytes] | None:  # fmt: skip
+    """Compile ``plan.compile`` in a detached low-priority process (it outlives this run, so the
+    kernel is ready for the next one); None when no private cache folder is available."""
+    from crashstudy.kernel import generated
+
+    folder = cache_dir()
+    if why_not_private(folder) is not None:
+        return None
+    sample = b.take(np.arange(min(1, b.n_variants)))
+    fd, npz = tempfile.mkstemp(prefix=".warm-", suffix=".npz", dir=folder)
+    with os.fdopen(fd, "wb") as fh:
+        np.savez(fh, **{k: v for k, v in vars(sample).items()})
+    job = {"kernels": list(plan.compile), "histories": list(histories), "vary": sorted(vary or ()),
+           "const": generated._constant_curves(b, vary), "npz": npz}  # fmt: skip
+    cmd = [sys.executable, "-m", "crashstudy.kernel.warm", json.dumps(job)]
+    return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True, preexec_fn=_lower_priority)  # fmt: skip
+
+
+def _lower_priority() -> None:  # pragma: no cover - runs in the child
+    os.nice(10)
+
+
+def compile_foreground(plan: StartPlan, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
+                       stop: Any) -> None:  # fmt: skip
+    """Compile ``plan.compile`` in a child process and wait; ``stop()`` raising (Ctrl-C) kills it at once."""
+    proc = start_background(plan, b, histories, vary)
+    if proc is None:
+        return
+    try:
+        while proc.poll() is None:
+            try:
+                proc.wait(timeout=0.2)
+            except subprocess.TimeoutExpired:
+                stop()
+    except BaseException:
+        proc.kill()
+        proc.wait()
+        raise

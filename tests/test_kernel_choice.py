@@ -1,0 +1,190 @@
+"""Kernel choice by expected time (crashstudy.kernel.choice): a tiny run never waits for a compiler, a
+compile in the background makes the next chunk (and the next run) compiled, Ctrl-C stops a compile or
+a reference run at once, and the numbers never depend on which kernel ran."""
+
+from __future__ import annotations
+
+import io
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, model_plan
+from crashstudy.batch import build_batch
+from crashstudy.compiler import apply_axis
+from crashstudy.kernel import choice
+from crashstudy.kernel.output import KernelOutput
+from crashstudy.kernel.reference import STOP_EVERY, run_reference
+from crashstudy.runner import Progress, run_kernel
+
+
+def _chain(n_springs: int, end_time: float, stiffness: float = 2.0e5) -> dict:
+    """A 1-D chain of unit masses hit at 10 m/s (its own shape: no other test compiles it)."""
+    nodes = {"n0": {"position": [0.0], "fixed": True}}
+    springs = {}
+    for k in range(1, n_springs + 1):
+        nodes[f"n{k}"] = {"position": [0.1 * k], "mass": 1.0 + 0.25 * k}
+        springs[f"s{k}"] = {"nodes": [f"n{k - 1}", f"n{k}"],
+                            "material": {"type": "linear_elastic", "stiffness": stiffness * (1 + 0.1 * k)}}  # fmt: skip
+    return {"name": f"chain{n_springs}", "nodes": nodes, "springs": springs, "end_time": end_time,
+            "initial_velocity": {f"n{n_springs}": [-10.0]},
+            "output": {"histories": ["spring_force"]}}  # fmt: skip
+
+
+def _batch(model: dict, n: int):
+    plan = model_plan(model)
+    P = np.repeat(plan.base[:, None], n, axis=1)
+    apply_axis(P, plan.topology.paths["nodes.n1.mass"], np.linspace(1.0, 2.0, n))
+    batch, _ = build_batch(plan.topology, P, plan.interval)
+    return batch, plan
+
+
+def _bitwise(a: KernelOutput, b: KernelOutput) -> None:
+    for name in ("status", "peak_force", "max_crush", "absorbed_energy", "peak_acceleration", "energy_error"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    for h in a.histories:
+        np.testing.assert_array_equal(a.histories[h], b.histories[h], err_msg=h)
+
+
+def test_reference_time_model_matches_its_calibration_points() -> None:
+    """The cost model reproduces the reference timings it was fitted to (2-core machine, commit 48eb447):
+    one linear spring 109 us/step, frontal (8 springs) one variant 473 us/step and 1000 variants
+    1216 us/step, each within 10%."""
+    assert choice.reference_seconds(1, 1, 1) == pytest.approx(109e-6, rel=0.1)
+    assert choice.reference_seconds(1, 8, 8) == pytest.approx(473e-6, rel=0.1)
+    assert choice.reference_seconds(1, 8, 8000) == pytest.approx(1216e-6, rel=0.1)
+
+
+def test_a_tiny_run_takes_the_reference_even_when_nothing_is_compiled(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One variant of 400 steps: expected reference time ~0.04 s, below loading any compiled kernel,
+    so the reference runs whatever is compiled; its numbers equal the generic kernel's bitwise."""
+    batch, plan = _batch(_chain(1, 0.02), 1)
+    assert choice.reference_seconds(float(batch.n_steps.max()), 1, float(batch.n_steps.sum())) < choice.LOAD
+    for ready in (False, True):
+        monkeypatch.setattr(choice, "generic_ready", lambda r=ready: r)
+        assert choice.pick(batch, plan.topology.histories, None) == "reference"
+    _bitwise(run_kernel(batch, plan.topology.histories, plan.n_out, "generic"),
+             run_kernel(batch, plan.topology.histories, plan.n_out))  # fmt: skip
+
+
+def test_a_long_run_compiles_the_generic_kernel_only_when_that_beats_the_reference(monkeypatch: pytest.MonkeyPatch
+                                                                                   ) -> None:  # fmt: skip
+    """With nothing compiled and no other process compiling, a chunk whose reference time exceeds the
+    generic kernel's compile + run time goes to the generic kernel; a shorter one to the reference;
+    while another process compiles, always the reference."""
+    monkeypatch.setattr(choice, "generic_ready", lambda: False)
+    monkeypatch.setattr(choice, "generated_ready", lambda *a: False)
+    monkeypatch.setattr(choice, "compiling", lambda: False)
+    short, plan = _batch(_chain(3, 0.2), 8)
+    t_short = choice.reference_seconds(float(short.n_steps.max()), 3, float(short.n_steps.sum()) * 3)
+    assert choice.LOAD < t_short < choice.GENERIC_COMPILE
+    assert choice.pick(short, (), None) == "reference"
+    long_batch = short.take(np.zeros(8, dtype=np.int64))
+    long_batch.n_steps[:] = int(1.2 * choice.GENERIC_COMPILE / (choice.REF_STEP + 3 * choice.REF_SPRING_STEP))
+    assert choice.pick(long_batch, (), None) == "generic"
+    monkeypatch.setattr(choice, "compiling", lambda: True)
+    assert choice.pick(long_batch, (), None) == "reference"
+
+
+def test_background_compile_makes_the_generated_kernel_ready_and_its_numbers_are_the_references(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A fresh private kernel cache: the shape is not compiled; :func:`start_background` compiles it in a
+    child process; afterwards :func:`pick` takes the generated kernel for a chunk worth loading it and
+    its results are bitwise the reference's."""
+    monkeypatch.setenv("CRASHSTUDY_KERNEL_CACHE", str(tmp_path / "kernels"))
+    batch, plan = _batch(_chain(2, 0.2, stiffness=3.0e5), 64)
+    hist = plan.topology.histories
+    assert not choice.generated_ready(batch, hist, None)
+    start = choice.StartPlan(("generated",), 10.0, 1.0, 1.0, 0.1, "test")
+    proc = choice.start_background(start, batch, hist, None)
+    assert proc is not None
+    assert proc.wait(timeout=500) == 0
+    assert choice.generated_ready(batch, hist, None)
+    assert not list((tmp_path / "kernels").glob(".warm-*.npz")), "the job file is removed"
+    monkeypatch.setattr(choice, "LOAD", 0.0)
+    assert choice.pick(batch, hist, None) == "generated"
+    _bitwise(run_reference(batch, hist, plan.n_out), run_kernel(batch, hist, plan.n_out))
+
+
+def test_ctrl_c_stops_a_foreground_compile_and_kills_the_compiler(tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    """``stop`` raising (what Ctrl-C does through crashstudy.interrupt) ends the wait with
+    KeyboardInterrupt and the compiler process is killed: the shape never becomes compiled."""
+    monkeypatch.setenv("CRASHSTUDY_KERNEL_CACHE", str(tmp_path / "kernels"))
+    batch, plan = _batch(_chain(4, 0.2), 4)
+    started: list[subprocess.Popen] = []
+    real = choice.start_background
+    monkeypatch.setattr(choice, "start_background", lambda *a: started.append(real(*a)) or started[-1])
+    calls = []
+
+    def stop() -> None:
+        calls.append(1)
+        raise KeyboardInterrupt
+
+    start = choice.StartPlan(("generated",), 10.0, 1.0, 1.0, 0.1, "test")
+    with pytest.raises(KeyboardInterrupt):
+        choice.compile_foreground(start, batch, plan.topology.histories, None, stop)
+    assert calls == [1] and started[0].returncode is not None and started[0].returncode < 0
+    assert not choice.generated_ready(batch, plan.topology.histories, None)
+
+
+def test_ctrl_c_stops_the_reference_within_its_stop_interval() -> None:
+    """The reference calls ``check`` every STOP_EVERY steps: a check that raises on its third call
+    ends a 20,000-step run there."""
+    batch, plan = _batch(_chain(1, 1.0), 2)
+    assert batch.n_steps.max() > 10 * STOP_EVERY
+    calls = []
+
+    def stop() -> None:
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_reference(batch, (), 1, stop)
+    assert len(calls) == 3
+
+
+def test_progress_line_never_shows_an_infinite_eta_and_writes_lines_into_a_file() -> None:
+    """Before the first chunk the ETA is the estimate ('starting  ETA ~12 s'); afterwards a rate; into a
+    file (not a terminal) one line per update, no carriage returns."""
+    out = io.StringIO()
+    bar = Progress(100, enabled=True, stream=out, estimate=12.0)
+    bar.start(0)
+    bar.update(100)
+    bar.close()
+    lines = out.getvalue().splitlines()
+    assert "\r" not in out.getvalue() and len(lines) == 2
+    assert lines[0].startswith("  0/100 variants  starting  ETA ~1") and "inf" not in out.getvalue()
+    assert lines[1].startswith("  100/100 variants") and "ETA 0 s" in lines[1]
+
+
+def test_cli_run_of_a_small_study_on_empty_caches_compiles_nothing(tmp_path: Path) -> None:
+    """The README's example study on empty kernel and numba caches, background compiles allowed: the run
+    is short, so nothing is compiled (no kernel source, no numba cache file) and no note is printed;
+    its peaks equal an in-process reference run of variant 0."""
+    env = dict(os.environ, HOME=str(tmp_path / "home"), NUMBA_CACHE_DIR=str(tmp_path / "numba"),
+               CRASHSTUDY_KERNEL_CACHE=str(tmp_path / "kernels"), CRASHSTUDY_BACKGROUND_COMPILE="1")  # fmt: skip
+    env.pop("CRASHSTUDY_KERNEL", None)
+    out = tmp_path / "res"
+    proc = subprocess.run([sys.executable, "-m", "crashstudy.cli", "run", str(ROOT / "studies/subfloor-small.yaml"),
+                           "-o", str(out)], capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert "note:" not in proc.stderr
+    assert not list((tmp_path / "numba").rglob("*.nbi")) and not list((tmp_path / "kernels").glob("k_*.py"))
+    import pandas as pd
+
+    from crashstudy.study import load_study
+
+    summary = pd.read_csv(out / "summary.csv")
+    plan = load_study(ROOT / "studies/subfloor-small.yaml")
+    batch, _ = build_batch(plan.topology, plan.params(0, plan.n_variants), plan.interval)
+    ref = run_reference(batch, (), 1)
+    assert len(summary) == 12 and (summary["status"] == "ok").all()
+    for s, sid in enumerate(plan.topology.spring_ids):
+        np.testing.assert_allclose(summary[f"peak_force.{sid}"], ref.peak_force[s], rtol=1e-12)
