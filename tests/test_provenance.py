@@ -67,8 +67,9 @@ def test_results_record_version_content_hashes_and_per_variant_hashes(tmp_path: 
     assert ds.attrs["crashstudy_version"]
     assert ds.attrs["study_sha256"] == hashlib.sha256(study.read_text().encode()).hexdigest()
     assert ds.attrs["model_sha256"] == hashlib.sha256(MODEL.encode()).hexdigest()
-    hashes = [str(h) for h in ds["input_hash"].values]
-    assert len(set(hashes)) == 4 and all(len(h) == 32 for h in hashes)
+    hashes = ds["input_hash"].values
+    assert hashes.shape == (4, 2) and hashes.dtype == np.uint64
+    assert len({tuple(h) for h in hashes}) == 4  # 128-bit hashes of the four different variants
 
 
 def test_force_recomputes_and_another_study_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -110,8 +110,13 @@ def assert_identical(a: xr.Dataset, b: xr.Dataset) -> None:
             assert (va == vb).all(), name
         else:
             np.testing.assert_array_equal(va, vb, err_msg=name)
-        assert a[name].attrs == b[name].attrs, name
+        assert _attrs(a[name].attrs) == _attrs(b[name].attrs), name
     assert a.attrs == b.attrs
+
+
+def _attrs(attrs: dict) -> dict:
+    """Attributes with arrays (CF flag_values) as lists, so that dicts compare."""
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in attrs.items()}
 
 
 @pytest.fixture(scope="module")

@@ -33,6 +33,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="recompute everything (default: reuse unchanged variants of this study's earlier results)")
     r.add_argument("--dry-run", action="store_true", help="validate and print the number of variants, run nothing")
     r.add_argument("--progress", choices=["auto", "on", "off"], default="auto")
+    csv = r.add_mutually_exclusive_group()
+    csv.add_argument("--csv", dest="csv", action="store_true", default=None,
+                     help="also write summary.csv however many variants (default: up to 100,000)")
+    csv.add_argument("--no-csv", dest="csv", action="store_false",
+                     help="write summary.parquet only (it is always written)")
 
     v = sub.add_parser("validate", help="check a model or study file and report every problem")
     v.add_argument("file")
@@ -138,13 +143,18 @@ def _run(args: argparse.Namespace) -> int:
     progress = None if args.progress == "auto" else args.progress == "on"
     out = Path(args.output) if args.output else default_out(plan.name)
     rep = run_plan(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume, force=args.force,
-                   progress=progress, notes=sys.stderr)  # fmt: skip
+                   progress=progress, notes=sys.stderr, csv=args.csv)  # fmt: skip
     reused = f", {rep.n_reused} unchanged variants reused" if rep.n_reused else ""
-    print(f"wrote {rep.results.path} and summary.csv ({rep.n_computed} variants computed in {rep.seconds:.1f} s{reused})")
+    print(f"wrote {rep.results.path} and {_tables(rep.results.dir)} ({rep.n_computed} variants computed in "
+          f"{rep.seconds:.1f} s{reused})")  # fmt: skip
     if rep.n_failed:
         print(f"{rep.n_failed} of {rep.n_variants} variants failed (see status / failure_reason)", file=sys.stderr)
         return EXIT_FAILED
     return EXIT_OK
+
+
+def _tables(folder: Path) -> str:
+    return " and ".join(n for n in ("summary.parquet", "summary.csv") if (folder / n).exists())
 
 
 def _validate(args: argparse.Namespace) -> int:
@@ -173,7 +183,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
     rep = simulate_report(args.model, args.output, notes=sys.stderr)
     s = rep.results.summary.iloc[0]
-    print(f"wrote {rep.results.path} and summary.csv")
+    print(f"wrote {rep.results.path} and {_tables(rep.results.dir)}")
     print(f"  status {s['status']}  dt {s['dt']:.4g}  energy_error {s['energy_error']:.2e}  ({s['dt_control']})")
     if s["status"] != "ok":
         print(f"  failed: {s['failure_reason']}", file=sys.stderr)

@@ -1,9 +1,12 @@
 """Provenance and reuse: content hashes of a run's inputs, per study and per variant.
 
 Every result records the crashstudy version, SHA-256 hashes of the model and study texts, and an
-input hash per variant: a BLAKE2b digest of everything that determines that variant's numbers (its
-parameter column, the shared topology, the sampling, the code version). Re-running a study into a
-folder that holds its earlier results reuses every variant whose input hash is unchanged.
+input hash per variant: 128 bits (two 64-bit words) of everything that determines that variant's
+numbers. A variant's parameters are a function of the study's base parameter vector and its axis
+values, so the hash is a BLAKE2b digest of the shared part (topology, base parameters, the axes'
+paths, sampling, options, code version), mixed with the variant's axis values by a vectorised
+splitmix64 finaliser: about 20 ns per variant instead of ~2 us for a digest per variant. Re-running a
+study into a folder that holds its earlier results reuses every variant whose input hash is unchanged.
 """
 
 from __future__ import annotations
@@ -15,7 +18,9 @@ import numpy as np
 from crashstudy import __version__
 from crashstudy.study import Plan
 
-HASH_LEN = 32  # hex characters of a variant input hash
+HASH_WORDS = 2  # 64-bit words of a variant input hash
+_M1, _M2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
 def text_hash(text: str) -> str:
@@ -32,13 +37,34 @@ def topology_signature(plan: Plan) -> bytes:
         h.update(np.ascontiguousarray(arr).tobytes())
         h.update(b"|")
     meta = (t.dim, t.node_ids, t.spring_ids, t.curve_ids, t.wall_ids, t.units, t.time_step_mode, t.histories,
-            t.termination, repr(plan.interval), plan.n_out, __version__)  # fmt: skip
+            t.termination, t.accuracy_check, repr(plan.interval), plan.n_out, __version__)  # fmt: skip
     h.update(repr(meta).encode())
     return h.digest()
 
 
-def variant_hashes(plan: Plan, P: np.ndarray, signature: bytes | None = None) -> list[str]:
-    """Input hash of each variant (column of the parameter matrix ``P``)."""
-    sig = signature if signature is not None else topology_signature(plan)
-    cols = np.ascontiguousarray(P.T)
-    return [hashlib.blake2b(sig + col.tobytes(), digest_size=HASH_LEN // 2).hexdigest() for col in cols]
+def _mix(z: np.ndarray) -> np.ndarray:
+    """splitmix64's finaliser (a bijection of uint64 with full avalanche), in place."""
+    z ^= z >> np.uint64(30)
+    z *= _M1
+    z ^= z >> np.uint64(27)
+    z *= _M2
+    z ^= z >> np.uint64(31)
+    return z
+
+
+def variant_hashes(plan: Plan, lo: int, hi: int, signature: bytes | None = None) -> np.ndarray:
+    """Input hashes of variants ``lo`` .. ``hi - 1``: uint64 array (V, HASH_WORDS)."""
+    h = hashlib.blake2b(signature if signature is not None else topology_signature(plan), digest_size=8 * HASH_WORDS)
+    h.update(np.ascontiguousarray(plan.base).tobytes())
+    h.update(repr([a.path for a in plan.axes]).encode())
+    seeds = np.frombuffer(h.digest(), dtype=np.uint64)
+    values = plan.axis_values(lo, hi)
+    out = np.empty((hi - lo, HASH_WORDS), dtype=np.uint64)
+    for w in range(HASH_WORDS):
+        z = np.full(hi - lo, seeds[w], dtype=np.uint64)
+        for k, path in enumerate(p.path for p in plan.axes):
+            x = np.ascontiguousarray(values[path], dtype=np.float64).view(np.uint64)
+            z += x * (_GOLDEN + np.uint64(2 * k + 1))
+            _mix(z)
+        out[:, w] = z
+    return out

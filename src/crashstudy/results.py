@@ -1,9 +1,18 @@
-"""Result files: ``results.nc`` written chunk by chunk, ``summary.csv``, and reading them back.
+"""Result files: ``results.nc`` written chunk by chunk, ``summary.parquet`` / ``summary.csv``, and
+reading them back.
 
 The netCDF file is built as ``results.nc.partial`` (netCDF4, variants written as they finish, a
 ``done`` flag per variant flushed with them) and renamed to ``results.nc`` only when every variant
 is in it: an interrupted run never leaves a file that looks complete, and ``--resume`` continues the
-partial file. ``summary.csv`` is written after, through a temporary file and a rename.
+partial file. The summary tables are written after, through temporary files and renames:
+``summary.parquet`` always, ``summary.csv`` up to ``CSV_MAX`` variants unless asked otherwise.
+
+Texts that repeat across variants are stored compactly (docs/results.md): ``status`` is a CF flag
+variable (``int8``, ``flag_values`` 0 1, ``flag_meanings`` "ok failed"); ``failure_reason`` and
+``dt_control`` are ``int32`` indices into a table of their distinct texts (``failure_reason_text``,
+``dt_control_text``, named by the index variable's ``texts`` attribute); ``input_hash`` is two
+``uint64`` words. :attr:`Results.dataset` and :attr:`Results.summary` give them back as texts
+(categorical in the summary). Files of crashstudy 0.1 (texts as character arrays) are read too.
 """
 
 from __future__ import annotations
@@ -23,17 +32,21 @@ import xarray as xr
 from crashstudy import __version__
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES, KernelOutput
-from crashstudy.provenance import HASH_LEN, text_hash
-from crashstudy.safefs import PlantedEntryError, create_new, is_regular, open_new
+from crashstudy.provenance import HASH_WORDS, text_hash
+from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular, open_new
 from crashstudy.study import Plan
 from crashstudy.units import UNIT_SYSTEMS
 
 PARTIAL = "results.nc.partial"
 FINAL = "results.nc"
 SUMMARY = "summary.csv"
-STATUS_TEXT = {0: "ok", 1: "failed", 2: "failed", 3: "failed"}
+PARQUET = "summary.parquet"
+CSV_MAX = 100_000  # variants up to which summary.csv is written by default
+STATUS_MEANINGS = ("ok", "failed")  # flag_meanings of ``status`` (value = index)
+TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
+               "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
 ID_LEN = 64  # longest id (the schema allows 64 characters)
-TEXT_LEN = 160  # longest stored message
+TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
 
 
 def _chars(texts: list[str], width: int) -> np.ndarray:
@@ -88,17 +101,19 @@ class ChunkResult:
     out: KernelOutput
     dt: np.ndarray
     dt_crit: np.ndarray
-    dt_control: list[str]
-    reasons: list[str]
-    hashes: list[str]
+    dt_control: np.ndarray  # (V,) object: texts
+    reasons: np.ndarray  # (V,) object: texts, "" where ok
+    hashes: np.ndarray  # (V, HASH_WORDS) uint64
     error_estimate: np.ndarray  # (V,) NaN unless the model asks for accuracy_check
 
 
 class ResultWriter:
     """Writes a plan's results into ``directory`` chunk by chunk (see the module docstring)."""
 
-    def __init__(self, directory: str | os.PathLike[str], plan: Plan, resume: bool = False) -> None:
+    def __init__(self, directory: str | os.PathLike[str], plan: Plan, resume: bool = False,
+                 csv: bool | None = None) -> None:  # fmt: skip
         self.dir = Path(directory)
+        self.csv = plan.n_variants <= CSV_MAX if csv is None else csv
         self.plan = plan
         self.plan_axes = {a.path for a in plan.axes}
         # netCDF's default 64 MiB chunk cache per variable keeps written chunks in memory (a 10^6-variant
@@ -124,6 +139,7 @@ class ResultWriter:
                                           "model; use --force to start again")])  # fmt: skip
         else:
             self.nc = self._create()
+        self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in TEXT_TABLES}
 
     def done(self) -> np.ndarray:
         """Boolean (V,): variants already written."""
@@ -151,7 +167,6 @@ class ResultWriter:
         # strings are fixed-width character arrays (CF): variable-length strings crash libhdf5 when a
         # file is opened many times (netcdf4-python issue 1444)
         nc.createDimension("id_len", ID_LEN)
-        nc.createDimension("text_len", TEXT_LEN)
         for dim, ids in (("node", topo.node_ids), ("spring", topo.spring_ids), ("axis", ("x", "y")[: topo.dim]),
                          ("wall", topo.wall_ids)):  # fmt: skip
             v = nc.createVariable(dim, "S1", (dim, "id_len"))
@@ -176,16 +191,22 @@ class ResultWriter:
             shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
             v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
             v.units, v.long_name = units[kind], long
-        for name, long in (("status", "ok or failed"), ("failure_reason", "why a variant failed (empty if ok)"),
-                           ("dt_control", "node (and its stiffest spring) that controls the critical step")):  # fmt: skip
-            v = nc.createVariable(name, "S1", ("variant", "text_len"), chunksizes=[cv, TEXT_LEN])
-            v._Encoding = "utf-8"
-            v.units, v.long_name = "", long
-        nc.createDimension("hash_len", HASH_LEN)
-        hv = nc.createVariable("input_hash", "S1", ("variant", "hash_len"), chunksizes=[cv, HASH_LEN])
-        hv._Encoding = "utf-8"
-        hv.units, hv.long_name = "", "hash of everything that determines the variant's results (reuse key)"
-        d = nc.createVariable("done", "i1", ("variant",), fill_value=0, chunksizes=[cv])
+        small = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
+        st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
+        st.units, st.long_name = "1", "ok or failed (failure_reason says why)"
+        st.flag_values, st.flag_meanings = np.arange(len(STATUS_MEANINGS), dtype="i1"), " ".join(STATUS_MEANINGS)
+        nc.createDimension("text_len", TEXT_LEN)
+        for name, long in TEXT_TABLES.items():
+            nc.createDimension(f"{name}_kind", None)
+            tv = nc.createVariable(f"{name}_text", "S1", (f"{name}_kind", "text_len"), chunksizes=[16, TEXT_LEN])
+            tv._Encoding = "utf-8"
+            tv.units, tv.long_name = "", f"the distinct texts of {name}"
+            v = nc.createVariable(name, "i4", ("variant",), fill_value=-1, **small)
+            v.units, v.long_name, v.texts = "1", f"{long}: index into {name}_text", f"{name}_text"
+        nc.createDimension("hash_word", HASH_WORDS)
+        hv = nc.createVariable("input_hash", "u8", ("variant", "hash_word"), chunksizes=[cv, HASH_WORDS])
+        hv.units, hv.long_name = "1", "hash of everything that determines the variant's results (reuse key)"
+        d = nc.createVariable("done", "i1", ("variant",), fill_value=0, **small)
         d.units, d.long_name = "1", "1 once the variant's results are written"
         if p.axes:  # CF: the study axes are coordinates of every per-variant variable
             coords = " ".join(a.path for a in p.axes)
@@ -225,12 +246,24 @@ class ResultWriter:
             if name not in ("dt", "dt_crit"):
                 a[failed] = np.nan  # a failed variant has no trustworthy summary
             nc.variables[name][lo:hi] = a
-        nc.variables["status"][lo:hi] = _chars([STATUS_TEXT[int(s)] for s in o.status], TEXT_LEN)
-        nc.variables["failure_reason"][lo:hi] = _chars(res.reasons, TEXT_LEN)
-        nc.variables["dt_control"][lo:hi] = _chars(res.dt_control, TEXT_LEN)
-        nc.variables["input_hash"][lo:hi] = _chars(res.hashes, HASH_LEN)
+        nc.variables["status"][lo:hi] = failed.astype("i1")
+        nc.variables["failure_reason"][lo:hi] = self._codes("failure_reason", res.reasons)
+        nc.variables["dt_control"][lo:hi] = self._codes("dt_control", res.dt_control)
+        nc.variables["input_hash"][lo:hi] = res.hashes
         nc.variables["done"][lo:hi] = 1
         nc.sync()
+
+    def _codes(self, name: str, texts: Any) -> np.ndarray:
+        """Indices of ``texts`` in the file's table of ``name``; new texts are appended to it."""
+        codes, uniq = pd.factorize(np.asarray(texts, dtype=object))
+        table = self.tables[name]
+        new = [t for t in uniq if t not in table]
+        if new:
+            start = len(table)
+            self.nc.variables[f"{name}_text"][start : start + len(new)] = _chars(new, TEXT_LEN)
+            table.update({t: start + k for k, t in enumerate(new)})
+        ids = np.array([table[t] for t in uniq], dtype=np.int32)
+        return ids[codes] if len(codes) else np.zeros(0, dtype=np.int32)
 
     def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> None:
         """Copy finished variants ``old_idx`` of an earlier result into variants ``new_idx``."""
@@ -240,12 +273,35 @@ class ResultWriter:
                  if v.dimensions[:1] == ("variant",) and n != "variant" and n not in self.plan_axes
                  and n in old.variables]  # fmt: skip
         brk = np.nonzero((np.diff(new_idx) != 1) | (np.diff(old_idx) != 1))[0] + 1
-        for nrun, orun in zip(np.split(new_idx, brk), np.split(old_idx, brk)):
+        for nrun, orun in zip(np.split(new_idx, brk), np.split(old_idx, brk), strict=True):
             a, b = int(nrun[0]), int(nrun[-1]) + 1
             c, d = int(orun[0]), int(orun[-1]) + 1
             for n in names:
-                self.nc.variables[n][a:b] = old.variables[n][c:d]
+                if n in TEXT_TABLES:
+                    self.nc.variables[n][a:b] = self._codes(n, read_texts(old, n, c, d))
+                elif n == "status":
+                    self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
+                else:
+                    self.nc.variables[n][a:b] = old.variables[n][c:d]
         self.nc.sync()
+
+    def _sort_tables(self, block: int = 1_000_000) -> None:
+        """Put each text table in sorted order (and renumber its indices), so that a file does not depend
+        on the order in which chunks finished (process pools, resume)."""
+        for name, table in self.tables.items():
+            texts = sorted(table, key=lambda t: table[t])
+            order = sorted(range(len(texts)), key=lambda k: texts[k])
+            if order == list(range(len(texts))):
+                continue
+            new_id = np.empty(len(texts), dtype=np.int32)
+            new_id[order] = np.arange(len(texts), dtype=np.int32)
+            var = self.nc.variables[name]
+            for lo in range(0, self.plan.n_variants, block):
+                codes = np.asarray(var[lo : lo + block].filled(-1) if np.ma.isMaskedArray(var[lo : lo + block])
+                                   else var[lo : lo + block])  # fmt: skip
+                var[lo : lo + block] = np.where(codes >= 0, new_id[np.clip(codes, 0, None)], -1)
+            self.nc.variables[f"{name}_text"][: len(texts)] = _chars([texts[k] for k in order], TEXT_LEN)
+            self.tables[name] = {texts[k]: i for i, k in enumerate(order)}
 
     def abort(self) -> None:
         """Close the partial file (kept for ``--resume``)."""
@@ -253,11 +309,13 @@ class ResultWriter:
             self.nc.close()
 
     def finish(self) -> Path:
-        """Close, write ``summary.csv`` and rename the partial file to ``results.nc``."""
+        """Close, write ``summary.parquet`` (and ``summary.csv`` when wanted, else remove an old one) and
+        rename the partial file to ``results.nc``."""
+        self._sort_tables()
         self.nc.close()
         final = self.dir / FINAL
         with xr.open_dataset(self.path) as ds:
-            write_summary_csv(ds, self.dir / SUMMARY)
+            write_summary(ds, self.dir, self.csv)
         if not is_regular(self.path):
             raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
         os.replace(self.path, final)
@@ -306,6 +364,54 @@ def plan_fingerprint(plan: Plan) -> str:
     return h.hexdigest()[:32]
 
 
+def _table(nc: netCDF4.Dataset, name: str) -> list[str]:
+    """The distinct texts of ``name`` stored in ``nc`` (empty for files without a table)."""
+    if f"{name}_text" not in nc.variables:
+        return []
+    raw = nc.variables[f"{name}_text"]
+    raw.set_auto_chartostring(False)
+    return [bytes(r).rstrip(b"\0").decode("utf-8", "replace") for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]]
+
+
+def read_texts(nc: netCDF4.Dataset, name: str, lo: int, hi: int) -> np.ndarray:
+    """Texts of ``status``, ``failure_reason`` or ``dt_control`` of variants ``lo`` .. ``hi - 1`` from an
+    open netCDF file, in either storage (index + table, flags, or the character arrays of 0.1)."""
+    v = nc.variables[name]
+    if v.dtype == np.dtype("S1") or v.dtype is str:  # crashstudy 0.1: fixed-width characters
+        return np.asarray(netCDF4.chartostring(np.asarray(v[lo:hi])), dtype=object)
+    codes = np.asarray(v[lo:hi]).astype(np.int64)
+    table = np.array(list(STATUS_MEANINGS) if name == "status" else _table(nc, name) or [""], dtype=object)
+    return np.where(codes >= 0, table[np.clip(codes, 0, len(table) - 1)], "")
+
+
+def _categorical(ds: xr.Dataset, sub: xr.Dataset, name: str) -> Any:
+    """``sub[name]`` as texts: categorical when stored as codes, plain strings for files of 0.1."""
+    arr = sub[name].values
+    if arr.dtype.kind in "iuf":  # codes (xarray turns the -1 fill of an unwritten variant into NaN)
+        arr = np.where(np.isfinite(arr), arr, -1).astype(np.int64)
+        if name == "status":
+            cats = list(STATUS_MEANINGS)
+        else:
+            raw = ds[f"{name}_text"].values
+            cats = [str(t) for t in raw] if len(raw) else [""]
+        codes = np.where((arr >= 0) & (arr < len(cats)), arr, -1)
+        if len(set(cats)) < len(cats):  # a table never repeats a text; guard a hand-edited file
+            return np.asarray(cats, dtype=object)[np.clip(codes, 0, None)]
+        return pd.Categorical.from_codes(codes, categories=cats)
+    return arr.astype(str)
+
+
+def decode_texts(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` with ``status``, ``failure_reason`` and ``dt_control`` as texts (the tables dropped)."""
+    out = ds
+    for name in ("status", *TEXT_TABLES):
+        if name in ds and ds[name].dtype.kind in "iuf":
+            texts = np.asarray(_categorical(ds, ds, name), dtype=str)
+            long = ds[name].attrs.get("long_name", "").split(": index into")[0]
+            out = out.assign({name: (ds[name].dims, texts, {"units": "", "long_name": long})})
+    return out.drop_vars([f"{n}_text" for n in TEXT_TABLES if f"{n}_text" in out])
+
+
 def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.DataFrame:
     """Tidy summary table, one row per variant: axis values, status, then one column per metric and item."""
     sub = ds.isel(variant=slice(lo, hi))
@@ -314,7 +420,7 @@ def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.Data
     for ax in axes:
         cols[ax] = sub[ax].values
     for name in ("status", "failure_reason"):
-        cols[name] = sub[name].values.astype(str)
+        cols[name] = _categorical(ds, sub, name)
     for name, (dims, _, _) in SUMMARY_META.items():
         if name not in sub:
             continue
@@ -325,18 +431,43 @@ def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.Data
             ids = sub[dims[0]].values.astype(str)
             for k, item in enumerate(ids):
                 cols[f"{name}.{item}"] = arr[:, k]
-    cols["dt_control"] = sub["dt_control"].values.astype(str)
+    cols["dt_control"] = _categorical(ds, sub, "dt_control")
     return pd.DataFrame(cols)
 
 
-def write_summary_csv(ds: xr.Dataset, path: Path, chunk: int = 200_000) -> None:
-    """Write ``summary.csv`` chunk by chunk (bounded memory), atomically."""
-    tmp = path.with_suffix(".csv.partial")
+def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000) -> None:
+    """Write ``summary.parquet`` and, when ``csv``, ``summary.csv`` chunk by chunk (bounded memory),
+    each through a temporary file and a rename; without ``csv`` an older ``summary.csv`` is removed."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     n = ds.sizes["variant"]
-    with open_new(tmp, newline="") as fh:
+    tmp_pq, tmp_csv = folder / (PARQUET + ".partial"), folder / (SUMMARY + ".partial")
+    writer = None
+    with open_new(tmp_pq, mode="wb") as raw, (open_new(tmp_csv, newline="") if csv else _Null()) as fh:
         for lo in range(0, max(n, 1), chunk):
-            summary_frame(ds, lo, min(n, lo + chunk)).to_csv(fh, index=False, header=lo == 0)
-    os.replace(tmp, path)
+            frame = summary_frame(ds, lo, min(n, lo + chunk))
+            table = pa.Table.from_pandas(frame, preserve_index=False)
+            if writer is None:
+                writer = pq.ParquetWriter(raw, table.schema)
+            writer.write_table(table)
+            if csv:
+                frame.to_csv(fh, index=False, header=lo == 0)
+        if writer is not None:
+            writer.close()
+    os.replace(tmp_pq, folder / PARQUET)
+    if csv:
+        os.replace(tmp_csv, folder / SUMMARY)
+    else:
+        clear_entry(folder / SUMMARY)
+
+
+class _Null:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: Any) -> None:
+        return None
 
 
 class Results:
@@ -349,6 +480,7 @@ class Results:
             raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})")
         self.path = final
         self._ds: xr.Dataset | None = None
+        self._raw: xr.Dataset | None = None
 
     @property
     def dataset(self) -> xr.Dataset:
@@ -356,23 +488,31 @@ class Results:
         if self._ds is None:
             ds = xr.open_dataset(self.path)
             axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
-            self._ds = ds.set_coords([a for a in axes if a in ds])
+            self._raw = ds
+            self._ds = decode_texts(ds).set_coords([a for a in axes if a in ds])
         return self._ds
 
     @property
     def summary(self) -> pd.DataFrame:
-        """One row per variant: the axis values as columns, then status and summary metrics."""
+        """One row per variant: the axis values as columns, then status and summary metrics (from
+        ``summary.parquet``, else ``summary.csv``, else the dataset)."""
+        if (self.dir / PARQUET).exists():
+            return pd.read_parquet(self.dir / PARQUET)
         csv = self.dir / SUMMARY
         if csv.exists():
             df = pd.read_csv(csv, dtype={"status": str, "failure_reason": str, "dt_control": str})
             df["failure_reason"] = df["failure_reason"].fillna("")
             return df
-        return summary_frame(self.dataset)
+        _ = self.dataset  # opens the raw file
+        assert self._raw is not None
+        return summary_frame(self._raw)
 
     def close(self) -> None:
         if self._ds is not None:
             self._ds.close()
-            self._ds = None
+            if self._raw is not None:
+                self._raw.close()
+            self._ds = self._raw = None
 
     def __repr__(self) -> str:
         return f"Results({str(self.dir)!r})"

@@ -23,7 +23,7 @@ from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 from crashstudy.provenance import variant_hashes
-from crashstudy.results import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
+from crashstudy.results import FINAL, PARQUET, PARTIAL, SUMMARY, ChunkResult, Results, ResultWriter
 from crashstudy.safefs import clear_entry
 from crashstudy.schema import load_model
 from crashstudy.study import Plan, load_study, plan_from_model
@@ -115,15 +115,21 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
     N, D, S, W = topo.n_nodes, topo.dim, topo.n_springs, len(topo.wall_ids)
     full = _reorder(out, pos[inverse], V, topo.histories, plan.n_out, S, N, D, W)
     dt, dt_crit = steps.dt[inverse], steps.dt_crit[inverse]
-    ctrl_n, ctrl_s = steps.control_node[inverse], steps.control_spring[inverse]
-    control = [
-        ("none" if n < 0 else f"node {topo.node_ids[n]}") + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "")
-        for n, s in zip(ctrl_n, ctrl_s, strict=True)
-    ]
+    control = _control_texts(topo, steps.control_node[inverse], steps.control_spring[inverse])
     user_dt = P[topo.blocks["time_step"].start]
-    reasons = [_reason(full, k, topo.spring_ids, user_dt[k], dt_crit[k], control[k]) for k in range(V)]
-    return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, P),
+    reasons = np.full(V, "", dtype=object)
+    for k in np.flatnonzero(full.status):  # texts only for the failed variants
+        reasons[k] = _reason(full, int(k), topo.spring_ids, user_dt[k], dt_crit[k], control[k])
+    return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, lo, hi),
                        estimate[pos[inverse]])  # fmt: skip
+
+
+def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarray:
+    """'node X / spring Y' per variant (object array), each distinct text made once."""
+    pairs, inv = np.unique(np.stack([node, spring]), axis=1, return_inverse=True)
+    texts = np.array([("none" if n < 0 else f"node {topo.node_ids[n]}")
+                      + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "") for n, s in pairs.T], dtype=object)  # fmt: skip
+    return texts[inv.reshape(-1)] if len(node) else np.zeros(0, dtype=object)
 
 
 def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled") -> np.ndarray:
@@ -268,7 +274,7 @@ def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
     if force and out_dir.exists():
-        for p in (final, partial, out_dir / "summary.csv"):
+        for p in (final, partial, out_dir / SUMMARY, out_dir / PARQUET):
             clear_entry(p)  # a link is removed, never followed (a dangling one too)
         return
     if final.exists() and not resume:
@@ -299,25 +305,37 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
     with netCDF4.Dataset(final) as old:
         if "input_hash" not in old.variables:
             return 0
-        old_hashes = {h: k for k, h in reversed(list(enumerate(old.variables["input_hash"][:])))}
+        old_h = np.asarray(old.variables["input_hash"][:])
+        if old_h.dtype != np.uint64 or old_h.ndim != 2:  # crashstudy 0.1 hashed differently: nothing matches
+            return 0
+        order = np.argsort(old_h[:, 0], kind="stable")
+        keys = old_h[order, 0]
         sig = topology_signature(plan)
-        new_idx: list[int] = []
-        old_idx: list[int] = []
+        new_parts: list[np.ndarray] = []
+        old_parts: list[np.ndarray] = []
         for lo in range(0, plan.n_variants, size):
             hi = min(plan.n_variants, lo + size)
-            for k, h in enumerate(variant_hashes(plan, plan.params(lo, hi), sig)):
-                if h in old_hashes:
-                    new_idx.append(lo + k)
-                    old_idx.append(old_hashes[h])
-        writer.reuse(old, np.asarray(new_idx, dtype=np.int64), np.asarray(old_idx, dtype=np.int64))
+            h = variant_hashes(plan, lo, hi, sig)
+            pos = np.minimum(np.searchsorted(keys, h[:, 0]), max(len(keys) - 1, 0))
+            if not len(keys):
+                break
+            cand = order[pos]
+            hit = (keys[pos] == h[:, 0]) & (old_h[cand, 1] == h[:, 1])
+            new_parts.append(lo + np.flatnonzero(hit))
+            old_parts.append(cand[hit])
+        new_idx = np.concatenate(new_parts) if new_parts else np.zeros(0, dtype=np.int64)
+        old_idx = np.concatenate(old_parts) if old_parts else np.zeros(0, dtype=np.int64)
+        writer.reuse(old, new_idx.astype(np.int64), old_idx.astype(np.int64))
     return len(new_idx)
 
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
              resume: bool = False, force: bool = False, progress: bool | None = None,
-             kernel: str = "compiled", chunk: int | None = None, notes: Any = None) -> RunReport:  # fmt: skip
+             kernel: str = "compiled", chunk: int | None = None, notes: Any = None, csv: bool | None = None
+             ) -> RunReport:  # fmt: skip
     """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
-    one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent."""
+    one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent. ``csv``: write
+    ``summary.csv`` (None: up to ``results.CSV_MAX`` variants); ``summary.parquet`` is always written."""
     from crashstudy.backends import make_backend
 
     t0 = time.perf_counter()
@@ -330,7 +348,7 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
         return RunReport(res, plan.n_variants, n_failed, 0, time.perf_counter() - t0)
     backend = make_backend(jobs, scheduler)  # before any file is written: a backend that cannot start leaves none
     try:
-        writer = ResultWriter(out, plan, resume=resume)
+        writer = ResultWriter(out, plan, resume=resume, csv=csv)
     except BaseException:
         backend.close()
         raise

@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import stat
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 
@@ -49,8 +49,8 @@ def create_new(path: Path) -> None:
     os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644))
 
 
-def open_new(path: Path, newline: str | None = None) -> IO[str]:
-    """A new text file at ``path`` opened for writing (see :func:`create_new`)."""
+def open_new(path: Path, newline: str | None = None, mode: str = "w") -> IO[Any]:
+    """A new file at ``path`` opened for writing (``mode`` "w" text, "wb" binary; see :func:`create_new`)."""
     clear_entry(path)
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644)
-    return os.fdopen(fd, "w", newline=newline)
+    return os.fdopen(fd, mode, newline=newline) if "b" not in mode else os.fdopen(fd, mode)
