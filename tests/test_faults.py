@@ -482,7 +482,7 @@ def test_output_is_written_only_inside_the_chosen_folder(fault_dir: Path, tmp_pa
     p = cli("run", "../project/small.yaml", "--progress", "off", cwd=cwd)
     assert p.returncode == 0, p.stderr
     assert files_under(cwd) == {"results", "results/small-study", "results/small-study/results.nc",
-                                "results/small-study/summary.csv"}  # fmt: skip
+                                "results/small-study/summary.csv", "results/small-study/summary.parquet"}  # fmt: skip
 
 
 @pytest.mark.parametrize("name", ["../escape", "a/b", "/abs", ".."])
