@@ -297,3 +297,65 @@ def test_a_model_path_that_is_a_symbolic_link_loop_exits_2(tmp_path: Path, cli: 
     p = cli("validate", study)
     assert_exit_2(p, f"{study}:2: model:")
     assert re.search(r"symbolic link|Too many levels", p.stderr), p.stderr
+
+
+RICH_MODEL = """\
+name: rich
+curves:
+  nl: {x: [-0.1, 0.0, 0.1], y: [-100.0, 0.0, 100.0]}
+  gl: {x: [-0.1, 0.0, 0.1], y: [-200.0, 0.0, 200.0]}
+  gu: {x: [-0.1, 0.0, 0.1], y: [-300.0, 0.0, 300.0]}
+  cr: {x: [-0.2, -0.1, 0.0], y: [-500.0, -400.0, 0.0]}
+  pulse: {x: [0.0, 0.01, 0.02], y: [0.0, 1.0, 0.0]}
+nodes:
+  anchor: {position: [0.0], fixed: true}
+  a: {position: [0.1], mass: 1.0}
+  b: {position: [0.2], mass: 2.0}
+  c: {position: [0.3], mass: 1.5}
+  d: {position: [0.4], mass: 1.0}
+springs:
+  lin: {nodes: [anchor, a], material: {type: linear_elastic, stiffness: 1.0e4}}
+  nle: {nodes: [a, b], material: {type: nonlinear_elastic, curve: nl}}
+  gen: {nodes: [b, c], material: {type: general_nonlinear, loading: gl, unloading: gu, tension_yield: 150.0,
+                                  compression_yield: -150.0}}
+  cru: {nodes: [c, d], material: {type: crush, loading: cr, unloading_stiffness: 1.0e5}}
+  dmp: {nodes: [anchor, d], material: {type: damper, damping: 10.0}}
+initial_velocity: {anchor: [0.0], d: [1.0]}
+gravity: [-9.81]
+loads: [{node: a, force: [10.0], curve: pulse}]
+rigid_walls: [{id: w, point: [-1.0], normal: [1.0]}]
+end_time: 0.1
+time_step: {safety_factor: 0.9}
+output: {interval: 0.01, histories: none}
+termination: {kinetic_energy_fraction: 0.01, min_time: 0.02}
+"""
+
+
+def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_every_field() -> None:
+    """check_parameters (what every distinct axis value now goes through) against the schema (the truth) on
+    each numeric field of a model with all five materials, a wall, a load curve and termination."""
+    from conftest import model_plan
+    from crashstudy.batch import check_parameters
+    from crashstudy.compiler import apply_axis
+    from crashstudy.study import _model_message
+    from crashstudy.yamlio import loads_yaml
+
+    plan = model_plan(RICH_MODEL)
+    data = loads_yaml(RICH_MODEL).data
+    topo, compared, invalid = plan.topology, 0, 0
+    for path, ref in topo.paths.items():
+        if ref.op != "set":
+            continue
+        base = float(plan.base[ref.slots[0]])
+        probes = sorted({-1.0, 0.0, 1e-3, 0.05, 0.5, 1.0, 2.0, 10.0, base, -base, 2 * base, base + 1e-3, base - 1e-3})
+        if path == "nodes.anchor.mass":  # a fixed node without mass compiles to 0.0 ("no mass"): 0 is not refused
+            probes.remove(0.0)
+        P = np.repeat(plan.base[:, None], len(probes), axis=1)
+        apply_axis(P, ref, np.asarray(probes))
+        check = check_parameters(topo, P, plan.interval)
+        for c, val in enumerate(probes):
+            schema_says = _model_message(data, path, val)
+            assert bool(schema_says) == bool(check.bad[c]), (path, val, schema_says, check.reason(c))
+            compared += 1
+            invalid += bool(schema_says)
+    assert compared > 400 and invalid > 100, (compared, invalid)  # every rule kind was exercised

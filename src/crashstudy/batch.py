@@ -267,7 +267,7 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     rule(~np.isfinite(P[plain]), lambda r, c: f"{name.get(int(plain[r]), 'a parameter')} is not finite "
          f"({P[plain[r], c]:g}): an axis value or a scale factor made it overflow")  # fmt: skip
     mass = P[b["mass"]]
-    movable = ~topo.fixed.all(axis=1)
+    movable = np.asarray(~topo.fixed.all(axis=1), dtype=bool)
     ranged("mass", np.arange(N), (movable[:, None] & ~(mass > 0)) | (mass < 0), "a mass > 0")
     k, mat = P[b["k"]], topo.material
     stiff, damper, general = np.isin(mat, (LINEAR, CRUSH)), mat == DAMPER, mat == GENERAL
@@ -306,9 +306,14 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, P[b["cx"]]))
     assert steps.too_many is not None
     over = steps.too_many & ~bad  # a variant that breaks another rule has no meaningful step
-    rule(over, lambda r, c: f"end_time {end[c]:g} needs more than {MAX_STEPS:.2g} time steps at the critical step "
-         f"{steps.dt_crit[c]:.3g} (of node {topo.node_ids[steps.control_node[c]] if steps.control_node[c] >= 0 else '-'}): "
-         "check the masses, stiffnesses and end_time")  # fmt: skip
+    def too_small(c: int) -> str:
+        n = int(steps.control_node[c])
+        crit = ("0: stiffness / mass overflows" if steps.dt_crit[c] == 0 else f"{steps.dt_crit[c]:.3g}") + (
+            f", node {topo.node_ids[n]}" if n >= 0 else "")  # fmt: skip
+        return (f"end_time {end[c]:g} (sampled every {interval:g}) needs more than {MAX_STEPS:.2g} time steps at the "
+                f"critical step ({crit}): check the masses, stiffnesses and end_time")  # fmt: skip
+
+    rule(over, lambda r, c: too_small(c))
     return ParameterCheck(bad | over, rules)
 
 

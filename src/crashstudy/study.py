@@ -127,9 +127,9 @@ def _set_in(data: dict[str, Any], path: tuple[str | int, ...], value: Any) -> st
             return (f"{here} is {_kind(cur)}, not a mapping or a list: {'.'.join(str(p) for p in path)} "
                     "cannot be set")  # fmt: skip
         if depth == len(path) - 1:
-            cur[part] = value
+            cur[part] = value  # type: ignore[index]
         else:
-            cur = cur[part] if isinstance(cur, list) else cur.setdefault(part, {})
+            cur = cur[part] if isinstance(cur, list) else cur.setdefault(part, {})  # type: ignore[index]
     return None
 
 
