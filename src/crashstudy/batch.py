@@ -16,12 +16,13 @@ for at least one variant; the kernels test only those (see docs/solver.md, "Peak
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 import numpy as np
 
-from crashstudy.compiler import CRUSH, GENERAL, NONLINEAR, Topology
-from crashstudy.timestep import StepChoice, choose_steps, spring_stiffness_bound
+from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, Topology
+from crashstudy.timestep import MAX_STEPS, StepChoice, choose_steps, spring_stiffness_bound
 
 
 @dataclass
@@ -102,6 +103,8 @@ INVALID_REASONS = {
     4: "a spring has zero initial length",
     5: "a wall normal is the zero vector",
     6: "end_time must be > 0",
+    7: f"more than {MAX_STEPS:.2g} time steps (end_time / dt, or the sampling interval / dt): the step is too small "
+       "for end_time; check the masses, stiffnesses and end_time",
 }
 
 
@@ -156,7 +159,8 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
     spacing = time_curve_spacing(topo, cx)
     steps = choose_steps(topo, mass, kmax, damp, end_time, P[b["time_step"].start], interval, spacing)
 
-    for code, bad in ((6, ~(end_time > 0)), (5, bad_normal), (4, np.any(length0 == 0, axis=0)),
+    too_many = steps.too_many if steps.too_many is not None else np.zeros(V, dtype=bool)
+    for code, bad in ((7, too_many), (6, ~(end_time > 0)), (5, bad_normal), (4, np.any(length0 == 0, axis=0)),
                       (3, bad_mass), (2, bad_curve), (1, steps.refused)):  # fmt: skip
         invalid = np.where(bad, code, invalid)
     steps.n_steps = np.where(invalid > 0, 0, steps.n_steps)
@@ -219,3 +223,141 @@ def time_curve_spacing(topo: Topology, cx: np.ndarray) -> np.ndarray:
         a, e = int(topo.curve_offsets[c]), int(topo.curve_offsets[c + 1])
         out = np.minimum(out, np.min(np.diff(cx[a:e], axis=0), axis=0))
     return out
+
+
+@dataclass
+class ParameterCheck:
+    """Which variants of a parameter matrix break a rule of the model schema (see :func:`check_parameters`)."""
+
+    bad: np.ndarray  # (V,) bool
+    rules: list[tuple[np.ndarray, Callable[[int, int], str]]]  # (R, V) broken-rule masks, text(row, column)
+
+    def reason(self, column: int) -> str:
+        """What the first broken rule of variant ``column`` expected (``""`` if it breaks none)."""
+        for mask, text in self.rules:
+            if mask[:, column].any():
+                return text(int(np.argmax(mask[:, column])), column)
+        return ""
+
+
+def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> ParameterCheck:
+    """The rules a model file obeys, checked on the parameter matrix ``P`` (n_params, V), vectorised.
+
+    The same rules as the schema (:mod:`crashstudy.schema`: signs and ranges of fields, curves
+    strictly increasing, general_nonlinear curves through the origin and an increasing unloading
+    curve, a crush curve with a compression part, non-zero spring lengths and wall normals, no initial
+    velocity along a fixed axis, output.interval <= end_time) plus what only numbers can break: every
+    value finite (a scale factor can overflow) and a step count that fits (:data:`MAX_STEPS`). A study
+    checks every distinct value of each axis with it; one value costs a column, not a model validation.
+    """
+    b, V = topo.blocks, P.shape[1]
+    N, D = topo.n_nodes, topo.dim
+    name = {ref.slots[0]: path for path, ref in topo.paths.items() if ref.op == "set" and len(ref.slots) == 1}
+    rules: list[tuple[np.ndarray, Callable[[int, int], str]]] = []
+
+    def rule(mask: np.ndarray, text: Callable[[int, int], str]) -> None:
+        rules.append((np.asarray(mask, dtype=bool).reshape(-1, V), text))
+
+    def ranged(block: str, rows: np.ndarray, bad: np.ndarray, expect: str) -> None:
+        start = b[block].start
+        rule(bad[rows], lambda r, c: f"{name.get(start + int(rows[r]), block)}: expected {expect}, "
+             f"got {P[start + int(rows[r]), c]:g}")  # fmt: skip
+
+    plain = np.array([s for blk, sl in b.items() if blk not in ("ty", "cy") for s in range(sl.start, sl.stop)], dtype=np.int64)
+    rule(~np.isfinite(P[plain]), lambda r, c: f"{name.get(int(plain[r]), 'a parameter')} is not finite "
+         f"({P[plain[r], c]:g}): an axis value or a scale factor made it overflow")  # fmt: skip
+    mass = P[b["mass"]]
+    movable = np.asarray(~topo.fixed.all(axis=1), dtype=bool)
+    ranged("mass", np.arange(N), (movable[:, None] & ~(mass > 0)) | (mass < 0), "a mass > 0")
+    k, mat = P[b["k"]], topo.material
+    stiff, damper, general = np.isin(mat, (LINEAR, CRUSH)), mat == DAMPER, mat == GENERAL
+    ranged("k", np.flatnonzero(stiff), ~(k > 0), "a value > 0")
+    ranged("k", np.flatnonzero(damper), ~(k >= 0), "a value >= 0")
+    ranged("ty", np.flatnonzero(general), ~(P[b["ty"]] > 0), "a tension_yield > 0")
+    ranged("cy", np.flatnonzero(general), ~(P[b["cy"]] < 0), "a compression_yield < 0")
+    _curve_rules(topo, P, rule)
+    x0 = P[b["position"]].reshape(N, D, V)
+    dx = x0[topo.spring_nodes[:, 1]] - x0[topo.spring_nodes[:, 0]]
+    rule(np.all(dx == 0, axis=1), lambda r, c: f"springs.{topo.spring_ids[r]}: its nodes are at the same position "
+         "(a spring needs a non-zero initial length)")  # fmt: skip
+    v0 = P[b["velocity"]].reshape(N * D, V)
+    fixed = np.flatnonzero(topo.fixed.reshape(-1))
+    rule(v0[fixed] != 0, lambda r, c: f"initial_velocity.{topo.node_ids[fixed[r] // D]}.{fixed[r] % D}: the node is "
+         "fixed along this axis; its initial velocity there must be 0")  # fmt: skip
+    normal = P[b["wall_normal"]].reshape(len(topo.wall_ids), D, V)
+    rule(np.all(normal == 0, axis=1), lambda r, c: f"rigid_walls.{r}.normal must not be the zero vector")
+    end, step = P[b["end_time"].start], P[b["time_step"].start]
+    rule(~(end > 0), lambda r, c: f"end_time: expected a value > 0, got {end[c]:g}")
+    if topo.output_interval is not None:
+        rule(~(end >= topo.output_interval), lambda r, c: f"end_time: expected an end_time no shorter than "
+             f"output.interval ({topo.output_interval:g}), got {end[c]:g}")  # fmt: skip
+    low, high = {"safety_factor": (0.0, 1.0), "dt": (0.0, np.inf), "tolerance": (0.0, 1.0)}[topo.time_step_mode]
+    ok = (step > low) & ((step <= high) if topo.time_step_mode == "safety_factor" else (step < high))
+    rule(~ok, lambda r, c: f"time_step.{topo.time_step_mode}: expected a value in ({low:g}, {high:g}"
+         f"{']' if topo.time_step_mode == 'safety_factor' else ')'}, got {step[c]:g}")  # fmt: skip
+    if topo.termination:
+        f, t = P[b["ke_fraction"].start], P[b["min_time"].start]
+        rule(~((f > 0) & (f < 1)), lambda r, c: f"termination.kinetic_energy_fraction: expected a value in (0, 1), got {f[c]:g}")
+        rule(~(t >= 0), lambda r, c: f"termination.min_time: expected a value >= 0, got {t[c]:g}")
+    bad = np.zeros(V, dtype=bool)
+    for mask, _ in rules:
+        bad |= mask.any(axis=0)
+    kmax, damp = spring_stiffness_bound(topo, k, P[b["cx"]], P[b["cy_"]])
+    steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, P[b["cx"]]))
+    assert steps.too_many is not None
+    over = steps.too_many & ~bad  # a variant that breaks another rule has no meaningful step
+    def too_small(c: int) -> str:
+        n = int(steps.control_node[c])
+        crit = ("0: stiffness / mass overflows" if steps.dt_crit[c] == 0 else f"{steps.dt_crit[c]:.3g}") + (
+            f", node {topo.node_ids[n]}" if n >= 0 else "")  # fmt: skip
+        return (f"end_time {end[c]:g} (sampled every {interval:g}) needs more than {MAX_STEPS:.2g} time steps at the "
+                f"critical step ({crit}): check the masses, stiffnesses and end_time")  # fmt: skip
+
+    rule(over, lambda r, c: too_small(c))
+    return ParameterCheck(bad | over, rules)
+
+
+def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> None:
+    """Curves: x strictly increasing; general_nonlinear curves through the origin, the unloading one
+    increasing; a crush loading curve starting in compression (x < 0)."""
+    b, off = topo.blocks, topo.curve_offsets
+    cx, cy = P[b["cx"]], P[b["cy_"]]
+    ids = topo.curve_ids
+    for c, cid in enumerate(ids):
+        a, e = int(off[c]), int(off[c + 1])
+        xs = cx[a:e]
+        rule(~(np.diff(xs, axis=0) > 0), lambda r, col, cid=cid, xs=xs: f"curves.{cid}.x must be strictly increasing "
+             f"(x.{r} = {xs[r, col]:g} is followed by {xs[r + 1, col]:g})")  # fmt: skip
+    origin, rising, crush = set(), set(), set()
+    for s in range(topo.n_springs):
+        c0, c1 = (int(v) for v in topo.spring_curves[s])
+        if topo.material[s] == GENERAL:
+            origin |= {c0, c1}
+            rising.add(c1)
+        elif topo.material[s] == CRUSH:
+            crush.add(c0)
+    for c in sorted(origin):
+        a, e = int(off[c]), int(off[c + 1])
+        at0 = _value_at_zero(cx[a:e], cy[a:e])
+        scale = np.max(np.abs(cy[a:e]), axis=0)
+        scale = np.where(scale > 0, scale, 1.0)
+        rule(np.abs(at0) > 1e-9 * scale, lambda r, col, cid=ids[c], at0=at0: f"curves.{cid} must pass through the "
+             f"origin (a general_nonlinear curve; its force at e=0 is {at0[col]:g})")  # fmt: skip
+    for c in sorted(rising):
+        a, e = int(off[c]), int(off[c + 1])
+        rule(~(np.diff(cy[a:e], axis=0) > 0), lambda r, col, cid=ids[c]: f"curves.{cid}.y must be strictly increasing "
+             "(the unloading curve of a general_nonlinear spring)")  # fmt: skip
+    for c in sorted(crush):
+        a = int(off[c])
+        rule(~(cx[a] < 0), lambda r, col, cid=ids[c], a=a: f"curves.{cid} needs a compression part (x < 0): the "
+             f"loading curve of a crush spring starts at x = {cx[a, col]:g}")  # fmt: skip
+
+
+def _value_at_zero(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Piecewise-linear value at 0 of curves with knots ``xs``, ``ys`` (n, V), extrapolated along the ends."""
+    n, V = xs.shape
+    k = np.clip(np.sum(xs <= 0.0, axis=0) - 1, 0, n - 2)
+    cols = np.arange(V)
+    x0, x1, y0, y1 = xs[k, cols], xs[k + 1, cols], ys[k, cols], ys[k + 1, cols]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return y0 + (y1 - y0) / (x1 - x0) * (0.0 - x0)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import difflib
 import json
+import math
 import os
 import re
 import xml.etree.ElementTree as ET
@@ -70,6 +71,7 @@ class _Side:
     summary: pd.DataFrame
     axes: list[str]
     attrs: dict[str, Any]
+    damage: str = ""  # why the summary does not hold every variant of results.nc ("" when it does)
 
     @classmethod
     def read(cls, res: ResultsLike, role: str) -> _Side:
@@ -77,16 +79,30 @@ class _Side:
         try:
             attrs = dict(res.dataset.attrs)
             summary = res.summary
+            n_variants = int(res.dataset.sizes.get("variant", len(summary)))
         except (OSError, ValueError, KeyError) as exc:
-            raise InputError(
-                [Problem(str(res.dir), None, "", f"cannot read the {role} results: {exc}")]
-            ) from None
-        return cls(res.dir, summary, list(json.loads(attrs.get("crashstudy_axes", "[]"))), attrs)
+            raise InputError([Problem(str(res.dir), None, "", f"cannot read the {role} results: {exc}")]) from None
+        axes = list(json.loads(attrs.get("crashstudy_axes", "[]")))
+        return cls(res.dir, summary, axes, attrs, _damage(summary, n_variants, role))
 
     @property
     def study_name(self) -> str:
         title = str(self.attrs.get("title", ""))
         return title.removeprefix("crashstudy results of ") or self.dir.name
+
+
+def _damage(summary: pd.DataFrame, n_variants: int, role: str) -> str:
+    """Why ``summary`` does not list each of the ``n_variants`` variants of results.nc once ("" if it does)."""
+    raw = summary["variant"] if "variant" in summary else pd.Series([], dtype=float)
+    numbers = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
+    present = np.unique(numbers[np.isfinite(numbers)])
+    missing = np.setdiff1d(np.arange(n_variants), present)
+    if not len(missing) and len(numbers) == n_variants:
+        return ""
+    shown = ", ".join(str(int(v)) for v in missing[:10]) + (", ..." if len(missing) > 10 else "")
+    what = f"; missing: variants {shown}" if len(missing) else f"; {len(numbers)} rows (rows repeated or foreign)"
+    return (f"the {role} summary.csv lists {len(np.intersect1d(present, np.arange(n_variants)))} of the "
+            f"{n_variants} variants in its results.nc{what}: the result folder is damaged")
 
 
 @dataclass
@@ -147,6 +163,7 @@ class Comparison:
     missing_columns: list[str]
     extra_columns: list[str]
     notes: list[str] = field(default_factory=list)
+    damaged: list[str] = field(default_factory=list)  #: a side whose summary lost (or repeats) variants: failures
     rtol: float = DEFAULT_RTOL
     atol: float = DEFAULT_ATOL
     study_name: str = ""
@@ -187,7 +204,8 @@ class Comparison:
     def failed(self) -> int:
         """Number of findings that fail the check: metric values past tolerance, variants missing
         from the new result, ``ok`` -> ``failed`` status changes and metric columns gone missing."""
-        return self.failed_values + len(self.missing) + self.status_failures + len(self.missing_columns)
+        return (self.failed_values + len(self.missing) + self.status_failures + len(self.missing_columns)
+                + len(self.damaged))  # fmt: skip
 
     def failing_columns(self) -> dict[str, int]:
         """Metric column -> number of its values past tolerance (only columns with any)."""
@@ -262,7 +280,7 @@ class Comparison:
             extra = f"; {len(self.extra)} new variants not in the baseline" if len(self.extra) else ""
             return (f"OK: {len(self.matched)} variants x {n_cols} metrics within tolerance of the baseline"
                     f"{extra}")  # fmt: skip
-        parts = []
+        parts = list(self.damaged)
         if self.failed_values:
             parts.append(f"{self.failed_values} values in {len(self.failing_columns())} of {n_cols} metrics "
                          f"moved past tolerance")  # fmt: skip
@@ -354,6 +372,8 @@ class Comparison:
              "\n".join(f"baseline variant {int(r['baseline_variant'])}: {self._params(r)}" for _, r in self.missing.iterrows()))  # fmt: skip
         case("variants only in the new result", None,
              out="\n".join(f"variant {int(r['variant'])}: {self._params(r)}" for _, r in self.extra.iterrows()))  # fmt: skip
+        if self.damaged:
+            case("complete result folders", f"{len(self.damaged)} result folders are damaged", "\n".join(self.damaged))
 
         failures = sum(1 for tc in cases if tc.find("failure") is not None)
         root = ET.Element(
@@ -466,6 +486,18 @@ def _check_keys(tolerances: dict[str, Tolerance], columns: set[str], attrs: dict
     raise InputError(problems)
 
 
+def check_tolerance(name: str, value: Any, option: str | None = None) -> float:
+    """``value`` as a float if it is a finite number >= 0, else an :class:`InputError` naming ``option``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if not (math.isfinite(number) and number >= 0):
+        raise InputError([Problem("crashstudy compare", None, option or name,
+                                  f"expected a finite number >= 0 for the {name}, got {value!r}")])  # fmt: skip
+    return number
+
+
 def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, atol: float | None = None,
             tolerances: dict[str, dict[str, float]] | None = None) -> Comparison:  # fmt: skip
     """Compare a result with its baseline, variant by variant (matched by parameter values).
@@ -490,8 +522,8 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
     InputError
         A folder holds no finished results, or a tolerance key names no metric.
     """
-    rtol = DEFAULT_RTOL if rtol is None else float(rtol)
-    atol = DEFAULT_ATOL if atol is None else float(atol)
+    rtol = DEFAULT_RTOL if rtol is None else check_tolerance("rtol", rtol)
+    atol = DEFAULT_ATOL if atol is None else check_tolerance("atol", atol)
     n_side, b_side = _Side.read(new, "new"), _Side.read(baseline, "baseline")
     tol = (study_tolerances(n_side.attrs) if tolerances is None
            else TypeAdapter(dict[str, Tolerance]).validate_python(tolerances))  # fmt: skip
@@ -548,6 +580,7 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
         missing=missing, extra=extra, status=status,
         columns=columns, missing_columns=[c for c in b_cols if c not in n_cols],
         extra_columns=[c for c in n_cols if c not in b_cols], notes=notes, rtol=rtol, atol=atol,
+        damaged=[s.damage for s in (n_side, b_side) if s.damage],
         study_name=n_side.study_name,
     )  # fmt: skip
 
@@ -555,6 +588,9 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
 def compare_command(args: Any) -> int:
     """``crashstudy compare NEW BASELINE [--rtol R] [--atol A] [--junit FILE]``: print the values that
     moved most and a verdict, write JUnit XML if asked; return 1 when anything failed, else 0."""
+    for name in ("rtol", "atol"):  # bad options are refused before any file is opened
+        if getattr(args, name, None) is not None:
+            check_tolerance(name, getattr(args, name), f"--{name}")
     new = load_results(args.new, "new")
     base = load_results(args.baseline, "baseline")
     try:

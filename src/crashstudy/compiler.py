@@ -227,6 +227,11 @@ def apply_axis(P: np.ndarray, ref: PathRef, values: np.ndarray) -> None:
     ``values`` has shape ``(V,)``: the axis value of each variant.
     """
     idx = list(ref.slots)
+    with np.errstate(over="ignore", invalid="ignore"):  # a value that overflows is refused by the study's check
+        _apply(P, ref, idx, values)
+
+
+def _apply(P: np.ndarray, ref: PathRef, idx: list[int], values: np.ndarray) -> None:
     if ref.op == "set":
         P[idx, :] = values[None, :]
     elif ref.op == "scale":

@@ -47,6 +47,7 @@ TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
                "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
 ID_LEN = 64  # longest id (the schema allows 64 characters)
 TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
+AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
 
 
 def _chars(texts: list[str], width: int) -> np.ndarray:
@@ -178,7 +179,9 @@ class ResultWriter:
             v = nc.createVariable(ax.path, "f8", ("variant",), zlib=False)
             v.long_name = f"study axis {ax.path}"
             v.units = units[axis_unit(ax.path, p)]
-            v[:] = p.axis_values(0, V)[ax.path] if V <= 2_000_000 else 0.0
+        for lo in range(0, V, AXIS_BLOCK):  # in blocks: bounded memory for any number of variants
+            for path, values in p.axis_values(lo, min(V, lo + AXIS_BLOCK)).items():
+                nc.variables[path][lo : lo + len(values)] = values
         cv = min(V, 4096)
         for name in topo.histories:
             dims = ("variant", "time", *HISTORY_SHAPES[name])

@@ -342,10 +342,15 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     out = Path(out_dir)
     kernel_override()  # a bad CRASHSTUDY_KERNEL is an input error before anything is written
     prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
-    if resume and (out / FINAL).exists() and not (out / PARTIAL).exists():
-        res = Results(out)
-        n_failed = int((res.summary["status"] != "ok").sum())
-        return RunReport(res, plan.n_variants, n_failed, 0, time.perf_counter() - t0)
+    if resume and (out / FINAL).exists() and not os.path.lexists(out / PARTIAL):
+        # nothing to resume: the run finished. Run it again like a plain re-run of the same study (its
+        # unchanged variants are reused by input hash, changed ones computed); another study is refused
+        other = _study_of(out / FINAL)
+        if other != plan.name:
+            raise InputError([Problem(plan.study_file or plan.model_file, None, "",
+                                      f"{out} holds the finished results of {other!r}, not of study {plan.name!r}: "
+                                      "nothing to resume; use --force to overwrite or choose another -o")])  # fmt: skip
+        resume = False
     backend = make_backend(jobs, scheduler)  # before any file is written: a backend that cannot start leaves none
     try:
         writer = ResultWriter(out, plan, resume=resume, csv=csv)

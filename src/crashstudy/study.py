@@ -19,8 +19,10 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
+from crashstudy.batch import ParameterCheck, check_parameters
 from crashstudy.compiler import PathRef, Topology, apply_axis, compile_model
 from crashstudy.errors import InputError, Problem
+from crashstudy.kernel.output import HISTORY_SHAPES
 from crashstudy.schema import LoadedModel, parse_model, refuse_foreign, validate_model_data
 from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
@@ -29,6 +31,10 @@ from crashstudy.yamlio import LoadedYaml, load_yaml, loads_yaml
 
 DEFAULT_SAMPLES = 1000
 MAX_VARIANTS = 100_000_000  # one results.nc; its axis coordinates alone take 0.8 GB each
+MAX_SAMPLE_BYTES = 256 * 2**20  # history samples of one variant (histories and the kernel's 4 energy records):
+# the runner's HISTORY_BUDGET of a chunk, so that one variant always fits a chunk
+CHECK_BLOCK = 4096  # distinct axis values checked at once
+MAX_REPORTED = 5  # invalid values listed per axis
 
 
 @dataclass(frozen=True)
@@ -99,18 +105,37 @@ def _dict_path(data: Any, dotted: str) -> tuple[str | int, ...]:
     return tuple(out)
 
 
-def _set_in(data: dict[str, Any], path: tuple[str | int, ...], value: Any) -> None:
+def _kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true or false"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return "text" if isinstance(value, str) else "null" if value is None else type(value).__name__
+
+
+def _set_in(data: dict[str, Any], path: tuple[str | int, ...], value: Any) -> str | None:
+    """Set ``value`` at ``path``; a path that runs into a scalar or past a list's end is refused: the reason."""
     cur: Any = data
-    for part in path[:-1]:
-        if isinstance(cur, dict):
-            cur = cur.setdefault(part, {})
+    for depth, part in enumerate(path):
+        here = ".".join(str(p) for p in path[:depth])
+        if isinstance(cur, list):
+            if not isinstance(part, int):
+                return f"{here} is a list: expected an item number after it, got {part!r}"
+            if part >= len(cur):
+                return f"{here} has {len(cur)} item{'s' if len(cur) != 1 else ''} (0 .. {len(cur) - 1}): no item {part}"
+        elif not isinstance(cur, dict):
+            return (f"{here} is {_kind(cur)}, not a mapping or a list: {'.'.join(str(p) for p in path)} "
+                    "cannot be set")  # fmt: skip
+        if depth == len(path) - 1:
+            cur[part] = value  # type: ignore[index]
         else:
-            cur = cur[part]
-    cur[path[-1]] = value
+            cur = cur[part] if isinstance(cur, list) else cur.setdefault(part, {})  # type: ignore[index]
+    return None
 
 
-def _apply_set(data: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+def _apply_set(data: dict[str, Any], overrides: dict[str, Any], sdoc: LoadedYaml) -> dict[str, Any]:
     data = copy.deepcopy(data)
+    problems: list[Problem] = []
     for key, value in overrides.items():
         if key == "time_step" or key.startswith("time_step."):
             # a different time-step mode replaces the model's (the modes are exclusive)
@@ -121,14 +146,38 @@ def _apply_set(data: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any
         if isinstance(value, dict) and key in ("output", "termination") and isinstance(data.get(key), dict):
             data[key] = {**data[key], **value}
             continue
-        _set_in(data, _dict_path(data, key), value)
+        why = _set_in(data, _dict_path(data, key), value)
+        if why:
+            problems.append(_study_problem(sdoc, ("set", key), why))
+    if problems:
+        raise InputError(problems)
     return data
 
 
-def _check_values(
-    doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, Any], path: str, ref: PathRef, values: list[float]
-) -> list[Problem]:
-    """Each distinct value of an axis must make a valid model (checked on the plain data)."""
+def _check(topo: Topology, base: np.ndarray, ref: PathRef, values: np.ndarray, interval: float) -> ParameterCheck:
+    P = np.repeat(base[:, None], len(values), axis=1)
+    apply_axis(P, ref, values)
+    return check_parameters(topo, P, interval)
+
+
+def _model_message(data: dict[str, Any], path: str, val: float) -> str:
+    """The model validation's first message for ``val`` at ``path`` ("" if the model stays valid)."""
+    trial = copy.deepcopy(data)
+    if _set_in(trial, _dict_path(trial, path), val):
+        return ""
+    _, found = validate_model_data(trial)
+    msgs = [e["msg"] for e in found.errors()] if isinstance(found, ValidationError) else [m for _, m in found]
+    return msgs[0] if msgs else ""
+
+
+def _check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, Any], path: str, ref: PathRef,
+                  values: list[float], topo: Topology, base: np.ndarray, interval: float) -> list[Problem]:  # fmt: skip
+    """Each distinct value of an axis must make a valid model, the rest of the model as written.
+
+    Every distinct value is checked, vectorised, on the parameter vector (:func:`check_parameters`:
+    the schema's rules, finite values, a step count that fits); the message of an invalid value is
+    the model validation's own where it has one. At most :data:`MAX_REPORTED` values per axis are listed.
+    """
     problems: list[Problem] = []
     if ref.op in ("scale", "speed"):
         for k, val in enumerate(values):
@@ -136,23 +185,29 @@ def _check_values(
             if not ok:
                 what = "a scale factor > 0" if ref.op == "scale" else "a speed >= 0"
                 problems.append(_study_problem(doc, where + (k,), f"expected {what}, got {val!r}"))
+        if problems:
+            return problems
+    uniq, first = np.unique(np.asarray(values, dtype=np.float64), return_index=True)
+    bad = np.zeros(len(uniq), dtype=bool)
+    for lo in range(0, len(uniq), CHECK_BLOCK):
+        bad[lo : lo + CHECK_BLOCK] = _check(topo, base, ref, uniq[lo : lo + CHECK_BLOCK], interval).bad
+    if not bad.any():
         return problems
-    dpath = _dict_path(data, path)
-    seen: set[float] = set()
-    for k, val in enumerate(values):
-        if val in seen or len(seen) > 200:
-            continue
-        seen.add(val)
-        trial = copy.deepcopy(data)
-        _set_in(trial, dpath, val)
-        _, found = validate_model_data(trial)
-        msgs = [e["msg"] for e in found.errors()] if isinstance(found, ValidationError) else [m for _, m in found]
-        if msgs:
-            problems.append(_study_problem(doc, where + (k,), f"value {val!r} makes the model invalid: {msgs[0]}"))
+    shown = np.sort(first[bad])[:MAX_REPORTED]  # the first invalid values in file order
+    shown_values = np.asarray(values, dtype=np.float64)[shown]
+    check = _check(topo, base, ref, shown_values, interval)
+    for c, k in enumerate(shown):
+        val = values[int(k)]
+        msg = (_model_message(data, path, val) if ref.op == "set" else "") or check.reason(c)
+        problems.append(_study_problem(doc, where + (int(k),), f"value {val!r} makes the model invalid: {msg}"))
+    if bad.sum() > MAX_REPORTED:
+        problems.append(_study_problem(doc, where, f"{int(bad.sum()) - MAX_REPORTED} more distinct values of "
+                                       f"{path!r} make the model invalid"))  # fmt: skip
     return problems
 
 
-def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any]) -> tuple[list[Axis], list[int], list[Problem]]:
+def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], base: np.ndarray,
+          interval: float) -> tuple[list[Axis], list[int], list[Problem]]:  # fmt: skip
     groups: list[tuple[tuple[str | int, ...], dict[str, list[float]]]] = [
         (("matrix", key), {key: vals}) for key, vals in study.matrix.items()
     ] + [(("zip", g), grp) for g, grp in enumerate(study.zip)]
@@ -174,7 +229,7 @@ def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any]) -
             if ref is None:
                 problems.append(_study_problem(doc, loc, _unknown_path(path, topo)))
                 continue
-            problems.extend(_check_values(doc, loc, data, path, ref, vals))
+            problems.extend(_check_values(doc, loc, data, path, ref, vals, topo, base, interval))
             axes.append(Axis(path, np.asarray(vals, dtype=np.float64), dim, ref))
     return axes, shape, problems
 
@@ -187,6 +242,11 @@ def _unknown_path(path: str, topo: Topology) -> str:
     return f"unknown axis {path!r}: not a numeric field of the model{hint}"
 
 
+def _interval(m: Model, end: float) -> float:
+    """History sampling interval: the model's, or about DEFAULT_SAMPLES samples up to ``end``."""
+    return m.output.interval or end / DEFAULT_SAMPLES
+
+
 def plan_from_model(lm: LoadedModel) -> Plan:
     """A one-variant plan for ``crashstudy simulate``."""
     return _plan(lm.model, lm.doc, None, [], [], None, {})
@@ -195,14 +255,46 @@ def plan_from_model(lm: LoadedModel) -> Plan:
 def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis], shape: list[int],
           name: str | None, regression: dict[str, dict[str, float]]) -> Plan:  # fmt: skip
     topo, base = compile_model(m)
-    end = [m.end_time] + [float(v) for ax in axes if ax.path == "end_time" for v in ax.values]
-    interval = m.output.interval or max(end) / DEFAULT_SAMPLES
-    n_out = int(math.floor(max(end) / interval + 1e-9)) + 1
+    end = max([m.end_time] + [float(v) for ax in axes if ax.path == "end_time" for v in ax.values])
+    interval = _interval(m, end)
+    n_out = int(math.floor(end / interval + 1e-9)) + 1
+    per = {"node": topo.n_nodes * topo.dim, "spring": topo.n_springs, "wall": len(topo.wall_ids)}
+    width = sum(per[HISTORY_SHAPES[h][0]] if HISTORY_SHAPES[h] else 1 for h in topo.histories) + 4
+    if n_out * 8 * width > MAX_SAMPLE_BYTES:
+        keys = [k for k in (sdoc.data.get("set") or {} if sdoc else {}) if k.split(".")[0] == "output"]
+        doc, at = (sdoc, ("set", keys[0])) if sdoc and keys else (mdoc, ("output", "interval"))
+        raise InputError([_study_problem(doc, at, f"{n_out:.3g} history samples (end_time {end:g} / output.interval "
+                                         f"{interval:g}) of {width} values take {n_out * 8 * width / 2**20:.3g} MiB per "
+                                         f"variant, at most {MAX_SAMPLE_BYTES / 2**20:g} MiB: use a longer interval")])  # fmt: skip
+    if sdoc is None:  # a lone model: what only its numbers can break (a step count that overflows)
+        check = check_parameters(topo, base[:, None], interval)
+        if check.bad[0]:
+            raise InputError([_study_problem(mdoc, ("end_time",), check.reason(0))])
     return Plan(
         name=name or m.name, topology=topo, base=base, axes=tuple(axes), shape=tuple(shape), interval=interval,
         n_out=n_out, model_text=mdoc.text, study_text=sdoc.text if sdoc else "", model_file=mdoc.file,
         study_file=sdoc.file if sdoc else "", regression=regression,
     )  # fmt: skip
+
+
+def _model_path(sdoc: LoadedYaml, base_dir: Path, name: str) -> Path:
+    """The study's model file, or an :class:`InputError` at its ``model:`` line saying why it cannot be used."""
+    if "\0" in name:
+        raise InputError([_study_problem(sdoc, ("model",), "the model path contains a NUL character (\\0); "
+                                         "expected the path of a YAML file")])  # fmt: skip
+    try:
+        path = (base_dir / name).resolve() if not os.path.isabs(name) else Path(name)
+        path.stat()
+    except FileNotFoundError:
+        raise InputError([_study_problem(sdoc, ("model",), f"model file not found: {base_dir / name}")]) from None
+    except (OSError, RuntimeError, ValueError) as exc:  # a symbolic-link loop, a path too long, ...
+        why = "a loop of symbolic links" if "loop" in str(exc).lower() or getattr(exc, "errno", 0) == 40 else (
+            getattr(exc, "strerror", None) or str(exc))  # fmt: skip
+        raise InputError([_study_problem(sdoc, ("model",), f"cannot use the model path {base_dir / name}: {why} "
+                                         "(symbolic links are followed to a file)")]) from None  # fmt: skip
+    if not path.is_file():
+        raise InputError([_study_problem(sdoc, ("model",), f"model file not found: {path}")])
+    return path
 
 
 def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
@@ -220,12 +312,10 @@ def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
         study = Study.model_validate(sdoc.data)
     except ValidationError as exc:
         raise InputError(pydantic_problems(exc, sdoc, Study)) from None
-    model_path = (base_dir / study.model).resolve() if not os.path.isabs(study.model) else Path(study.model)
-    if not model_path.is_file():
-        raise InputError([_study_problem(sdoc, ("model",), f"model file not found: {model_path}")])
+    model_path = _model_path(sdoc, base_dir, study.model)
     mdoc = load_yaml(str(model_path))
     parse_model(mdoc)  # the model alone must be valid: its own errors point into its own file
-    data = _apply_set(mdoc.data, study.set)
+    data = _apply_set(mdoc.data, study.set, sdoc)
     m, found = validate_model_data(data)
     if isinstance(found, ValidationError) or found:
         errs = (pydantic_problems(found, LoadedYaml(data, mdoc.text, mdoc.file, {}), Model)
@@ -233,13 +323,18 @@ def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
         raise InputError([_study_problem(sdoc, ("set",), f"after 'set' the model is invalid: {p.field}: {p.message}")
                           for p in errs])  # fmt: skip
     assert m is not None
-    topo, _ = compile_model(m)
-    axes, shape, problems = _axes(study, sdoc, topo, data)
+    topo, base = compile_model(m)
+    ends = [v for grp in [study.matrix, *study.zip] for path, vals in grp.items() if path == "end_time" for v in vals]
+    axes, shape, problems = _axes(study, sdoc, topo, data, base, _interval(m, max([m.end_time, *ends])))
     if problems:
         raise InputError(problems)
+
     if math.prod(shape) > MAX_VARIANTS:
         raise InputError([_study_problem(sdoc, ("matrix",), f"{math.prod(shape):,} variants: at most "
                                          f"{MAX_VARIANTS:,} fit in one result file; split the study")])  # fmt: skip
     regression = {k: v.model_dump() for k, v in study.regression.items()}
     plan = _plan(m, mdoc, sdoc, axes, shape, study.name, regression)
+    check = check_parameters(topo, base[:, None], plan.interval)
+    if not axes and check.bad[0]:  # with axes, each of their values was checked with the rest of the model
+        raise InputError([_study_problem(sdoc, ("model",), f"the model (after 'set') is invalid: {check.reason(0)}")])
     return plan

@@ -29,6 +29,7 @@ from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, Topol
 CRITICAL_MARGIN = 0.99  # the nodal bound is attained exactly by two free masses on one spring,
 # where omega dt = 2 is neutrally unstable (linear growth): dt_crit keeps a 1% margin below 2 / omega
 TOLERANCE_FACTOR = 2.0  # dt = TOLERANCE_FACTOR * sqrt(tol / 2) * dt_crit  (calibrated in benchmarks)
+MAX_STEPS = 2.0**53  # most time steps of a variant (and steps between two samples): counts stay exact int64
 
 
 @dataclass
@@ -42,12 +43,14 @@ class StepChoice:
     out_every: np.ndarray  # int steps between history samples
     n_steps: np.ndarray  # int steps to end_time
     refused: np.ndarray  # bool: fixed dt above dt_crit
+    too_many: np.ndarray | None = None  # bool: more than MAX_STEPS steps (or dt 0): n_steps is 0, not run
 
 
 def curve_max_slope(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, c: int) -> np.ndarray:
     """Largest |slope| of curve ``c`` per variant; ``cx``, ``cy`` are (Ptot, V) knot arrays."""
     a, b = int(off[c]), int(off[c + 1])
-    slopes = np.diff(cy[a:b], axis=0) / np.diff(cx[a:b], axis=0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a bad curve is refused by its caller
+        slopes = np.diff(cy[a:b], axis=0) / np.diff(cx[a:b], axis=0)
     return np.max(np.abs(slopes), axis=0)
 
 
@@ -102,7 +105,7 @@ def choose_steps(
     np.add.at(Cn, i, damp)
     np.add.at(Cn, j, damp)
     movable = ~topo.fixed.all(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         m = np.where(movable[:, None], mass, np.inf)
         omega = np.sqrt(2.0 * K / m)
         gamma = 2.0 * Cn / m  # nodal bound on the damping rate, like 2 K_n / m_n for the stiffness
@@ -136,7 +139,12 @@ def choose_steps(
         dt = np.minimum(dt, 0.25 * time_curve_spacing)
     # a model with nothing stiff (free flight): step at the sampling interval / 10
     dt = np.where(np.isfinite(dt), dt, interval / 10.0)
-    out_every = np.maximum(1, np.ceil(interval / dt - 1e-9)).astype(np.int64)
-    dt = interval / out_every
-    n_steps = np.ceil(end_time / dt - 1e-9).astype(np.int64)
-    return StepChoice(dt, dt_crit, ctrl.astype(np.int64), ctrl_spring, out_every, n_steps, refused)
+    # a step of 0 (stiffness / mass overflowed) or a count beyond int64: refused, never cast to garbage
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        every = np.maximum(1, np.ceil(interval / dt - 1e-9))
+        steps = np.ceil(end_time / (interval / every) - 1e-9)
+        too_many = ~(every <= MAX_STEPS) | ~(steps <= MAX_STEPS)
+        out_every = np.where(too_many, 1, every).astype(np.int64)
+        dt = interval / out_every
+        n_steps = np.where(too_many, 0, np.ceil(end_time / dt - 1e-9)).astype(np.int64)
+    return StepChoice(dt, dt_crit, ctrl.astype(np.int64), ctrl_spring, out_every, n_steps, refused, too_many)
