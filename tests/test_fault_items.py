@@ -250,9 +250,13 @@ def test_compare_fails_a_baseline_whose_summary_lost_variants(two_results: tuple
     shutil.copytree(base, damaged)
     df = pd.read_csv(damaged / "summary.csv")
     df.iloc[:3].to_csv(damaged / "summary.csv", index=False)
+    pd.read_parquet(damaged / "summary.parquet").iloc[:3].to_parquet(damaged / "summary.parquet", index=False)
     p = cli("compare", new, damaged)
     assert p.returncode == 1, p.stdout
     verdict = p.stdout.strip().splitlines()[-1]
+    assert verdict.startswith("FAILED") and "summary.parquet lists 3 of the 6 variants" in verdict, verdict
+    (damaged / "summary.parquet").unlink()  # an older folder without parquet: its summary.csv is read
+    verdict = cli("compare", new, damaged).stdout.strip().splitlines()[-1]
     assert verdict.startswith("FAILED") and "summary.csv lists 3 of the 6 variants" in verdict, verdict
 
 

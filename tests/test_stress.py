@@ -447,7 +447,7 @@ def test_helicopter_2d_below_bottoming_speed_is_stable_and_the_floor_keeps_its_l
     energy_error <= 5e-15.
     """
     res, plan = _heli_run(tmp_path, SPEEDS[:2], time_step)
-    assert list(res.out.status) == [0, 0] and res.reasons == ["", ""]
+    assert list(res.out.status) == [0, 0] and list(res.reasons) == ["", ""]
     assert np.all(res.out.energy_error < 1e-3), res.out.energy_error
     assert np.all(_lowest(res, plan) > 0.0)
 
@@ -565,7 +565,7 @@ def test_fixed_dt_above_critical_refuses_only_the_light_variants_of_a_study(tmp_
         assert m, res.reasons[k]
         assert float(m.group(1)) == pytest.approx(crit[k], rel=1e-5)
         assert res.out.t_end[k] == 0.0 and res.out.peak_force[:, k].max() == 0.0
-    assert res.reasons[2:] == ["", "", ""]
+    assert list(res.reasons[2:]) == ["", "", ""]
     assert np.all(res.out.energy_error[2:] < 1e-9)
     assert np.all(res.dt[2:] == pytest.approx(1.0e-3))
 

@@ -83,7 +83,7 @@ class _Side:
         except (OSError, ValueError, KeyError) as exc:
             raise InputError([Problem(str(res.dir), None, "", f"cannot read the {role} results: {exc}")]) from None
         axes = list(json.loads(attrs.get("crashstudy_axes", "[]")))
-        return cls(res.dir, summary, axes, attrs, _damage(summary, n_variants, role))
+        return cls(res.dir, summary, axes, attrs, _damage(summary, n_variants, role, res.summary_source))
 
     @property
     def study_name(self) -> str:
@@ -91,7 +91,7 @@ class _Side:
         return title.removeprefix("crashstudy results of ") or self.dir.name
 
 
-def _damage(summary: pd.DataFrame, n_variants: int, role: str) -> str:
+def _damage(summary: pd.DataFrame, n_variants: int, role: str, source: str = "summary.csv") -> str:
     """Why ``summary`` does not list each of the ``n_variants`` variants of results.nc once ("" if it does)."""
     raw = summary["variant"] if "variant" in summary else pd.Series([], dtype=float)
     numbers = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
@@ -101,7 +101,7 @@ def _damage(summary: pd.DataFrame, n_variants: int, role: str) -> str:
         return ""
     shown = ", ".join(str(int(v)) for v in missing[:10]) + (", ..." if len(missing) > 10 else "")
     what = f"; missing: variants {shown}" if len(missing) else f"; {len(numbers)} rows (rows repeated or foreign)"
-    return (f"the {role} summary.csv lists {len(np.intersect1d(present, np.arange(n_variants)))} of the "
+    return (f"the {role} {source} lists {len(np.intersect1d(present, np.arange(n_variants)))} of the "
             f"{n_variants} variants in its results.nc{what}: the result folder is damaged")
 
 

@@ -496,6 +496,11 @@ class Results:
         return self._ds
 
     @property
+    def summary_source(self) -> str:
+        """The file :attr:`summary` reads: summary.parquet, summary.csv, or results.nc."""
+        return next((n for n in (PARQUET, SUMMARY) if (self.dir / n).exists()), FINAL)
+
+    @property
     def summary(self) -> pd.DataFrame:
         """One row per variant: the axis values as columns, then status and summary metrics (from
         ``summary.parquet``, else ``summary.csv``, else the dataset)."""

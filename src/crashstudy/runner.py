@@ -214,30 +214,38 @@ class Progress:
             self.stream.flush()
 
 
-def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | None]:
-    """Compile what this run's kernel choice is missing: in the background (the run starts on the NumPy
-    reference) or, when background compiles are off and compiling pays, now in a child process that
-    Ctrl-C stops at once. Returns (whether chunks should stay small, the run's estimated seconds)."""
+def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | None, Any]:
+    """Carry out :func:`crashstudy.kernel.choice.decide` for this run and say what it compiles.
+    Returns (whether chunks should stay small, the run's estimated seconds, what to start after it)."""
     topo = plan.topology
     sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
     vary = varying_curves(plan)
     start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel)
     if start is None:
-        return False, None
+        return False, None, None
+    do = choice.decide(start, choice.background_min_seconds() < float("inf"))
     say = (lambda text: print(f"note: {text}", file=notes)) if notes is not None else (lambda text: None)
-    kinds = " and ".join(f"the {k} kernel" for k in start.compile)
-    what = f"{kinds} for this model shape ({start.shape}; first run on this machine), ~{start.seconds:.0f} s"
-    if choice.background_min_seconds() < float("inf"):
-        if choice.start_background(start, sample, topo.histories, vary) is not None:
-            say(f"compiling {what} in the background; the run starts on the NumPy reference "
-                f"(~{start.reference_seconds:.0f} s alone) and switches when it is ready")  # fmt: skip
-            return True, min(start.reference_seconds, start.seconds + start.fast_seconds)
-        return False, start.reference_seconds
-    if start.seconds + start.fast_seconds < start.now_seconds:
-        say(f"compiling {what}; Ctrl-C stops")
-        choice.compile_foreground(start, sample, topo.histories, vary, interrupt.check)
-        return False, start.fast_seconds
-    return False, start.now_seconds
+
+    def what(kinds: tuple[str, ...]) -> str:
+        names = " and ".join(f"the {k} kernel" for k in kinds)
+        return (f"{names} for this model shape ({start.shape}; first run on this machine), "
+                f"~{sum(start.costs[k] for k in kinds):.0f} s")  # fmt: skip
+
+    if do.foreground:
+        say(f"compiling {what(do.foreground)}; Ctrl-C stops")
+        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check)
+    if do.now and choice.start_background(do.now, sample, topo.histories, vary) is not None:
+        say(f"compiling {what(do.now)} in the background"
+            + (f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
+               "when it is ready" if do.small_chunks else ""))  # fmt: skip
+    elif do.small_chunks:
+        return False, start.reference_seconds, None
+
+    def later() -> None:
+        if choice.start_background(do.after, sample, topo.histories, vary) is not None:
+            say(f"compiling {what(do.after)} in the background for the next run")
+
+    return do.small_chunks, do.estimate, later if do.after else None
 
 
 @dataclass
@@ -361,7 +369,7 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     n_failed = 0
     bar = Progress(plan.n_variants, progress)
     try:
-        small, bar.estimate = _start_kernels(plan, kernel, notes)
+        small, bar.estimate, later = _start_kernels(plan, kernel, notes)
         if not resume and (out / FINAL).exists():
             reused = _reuse_finished(writer, plan, out / FINAL, chunk or MAX_CHUNK)
         todo = ~writer.done()
@@ -386,6 +394,8 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     backend.close()
     bar.close()
     writer.finish()
+    if later is not None:
+        later()
     results = Results(out)
     if resume or reused:
         n_failed = int((results.summary["status"] != "ok").sum())

@@ -158,20 +158,72 @@ def note_loaded(kernel: str) -> None:
 
 @dataclass
 class StartPlan:
-    """What a run should compile before (or while) it starts, and what to tell the user."""
+    """What a run is missing and what each choice would cost [s] (from a sample of its variants)."""
 
-    compile: tuple[str, ...]  # "generic" and/or "generated", cheapest first
-    seconds: float  # expected compile time
-    reference_seconds: float  # expected time of the whole run on the reference
-    now_seconds: float  # ... on the fastest kernel compiled now (the reference or the generic one)
-    fast_seconds: float  # ... on the fastest kernel once the compile is done (compile not included)
+    costs: dict[str, float]  # compile seconds of each missing kernel ("generic", "generated")
+    reference_seconds: float  # the whole run on the NumPy reference
+    generic_seconds: float  # ... on the generic kernel (compile not included)
+    fast_seconds: float  # ... on the fastest kernel once everything is compiled
     shape: str  # the model shape in words
+
+    @property
+    def compile(self) -> tuple[str, ...]:
+        """The missing kernels, cheapest first."""
+        return tuple(sorted(self.costs, key=lambda k: self.costs[k]))
+
+    @property
+    def seconds(self) -> float:
+        return sum(self.costs.values())
+
+
+@dataclass
+class Decision:
+    """How a run gets its kernels: compile some first (in a child process, Ctrl-C stops it), some in the
+    background while it runs, some in the background once it has finished (for the next run)."""
+
+    estimate: float  # expected seconds of the run
+    foreground: tuple[str, ...] = ()
+    now: tuple[str, ...] = ()
+    after: tuple[str, ...] = ()
+    small_chunks: bool = False  # run the reference in chunks of REF_CHUNK so a finished compile is taken soon
+
+
+def decide(p: StartPlan, background: bool) -> Decision:
+    """The fastest way through the run that is never slower than compiling the generic kernel first
+    and running it, the way every run went before kernel choice (up to the estimates' error).
+
+    - Nothing compiled, and the reference would take longer than compiling the generic kernel and
+      running it: compile it first; this shape's generated kernel in the background, during the run
+      when the run is long enough for it to pay back twice, else after it.
+    - Nothing compiled, a shorter run: start on the reference and compile in the background (on the
+      other core), switching to a compiled kernel when one is ready.
+    - The generic kernel compiled, this shape's generated one not: run on the generic kernel and compile
+      the generated one in the background, during the run when it pays back twice, else after it.
+    Without background compiles, only the first and a foreground generated compile that pays remain."""
+    gen_cost = p.costs.get("generated")
+    if "generic" in p.costs:
+        alone = p.costs["generic"] + p.generic_seconds
+        if p.reference_seconds > alone:
+            rest: tuple[str, ...] = ("generated",) if background and gen_cost is not None else ()
+            during = gen_cost is not None and p.generic_seconds > 2 * gen_cost
+            return Decision(alone, foreground=("generic",), now=rest if during else (), after=() if during else rest)
+        if background:
+            return Decision(min(p.reference_seconds, p.seconds + p.fast_seconds), now=p.compile, small_chunks=True)
+        return Decision(p.reference_seconds)
+    t_now = min(p.reference_seconds, p.generic_seconds)
+    if gen_cost is None:
+        return Decision(t_now)
+    if background:
+        return Decision(t_now, now=("generated",)) if t_now > 2 * gen_cost else Decision(t_now, after=("generated",))
+    if gen_cost + p.fast_seconds < t_now:
+        return Decision(gen_cost + p.fast_seconds, foreground=("generated",))
+    return Decision(t_now)
 
 
 def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, n_variants: int,
                kernel: str = "compiled") -> StartPlan | None:  # fmt: skip
-    """Which kernels a run of ``n_variants`` like ``b`` (a sample of them) should compile in the
-    background, or None (a kernel was named, everything needed is compiled, or the run is short)."""
+    """What a run of ``n_variants`` like ``b`` (a sample of them) is missing, or None (a kernel was
+    named, everything is compiled, or the run is too short to care)."""
     from crashstudy.kernel import generated
 
     if kernel != "compiled" or kernel_override() != "compiled":
@@ -181,29 +233,30 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     work = per_variant * max(S, 1) * n_variants
     chunks = -(-n_variants // REF_CHUNK)
     t_ref = reference_seconds(chunks * float(np.max(b.n_steps, initial=0)), S, work)
+    t_generic = work / GENERIC_RATE + LOAD
     have_generic = generic_ready()
-    t_now = min(t_ref, work / GENERIC_RATE + LOAD) if have_generic else t_ref
-    if t_now < min(background_min_seconds(), BACKGROUND_MIN):
+    if (min(t_ref, t_generic) if have_generic else t_ref) < min(background_min_seconds(), BACKGROUND_MIN):
         return None
-    todo: list[tuple[float, str]] = []
+    costs: dict[str, float] = {}
     if not have_generic:
-        todo.append((GENERIC_COMPILE, "generic"))
+        costs["generic"] = GENERIC_COMPILE
     gen_ok = generated.unsupported(b) is None
-    if gen_ok and not generated.is_compiled(b, histories, vary):
-        todo.append((generated_compile_seconds(S, D, b.wall_nodes.shape[0]), "generated"))
-    if not todo or (gen_ok and generated.is_compiled(b, histories, vary)):
+    if gen_ok:
+        if generated.is_compiled(b, histories, vary):
+            return None
+        costs["generated"] = generated_compile_seconds(S, D, b.wall_nodes.shape[0])
+    if not costs:
         return None
-    todo.sort()
     walls = b.wall_nodes.shape[0]
     shape = f"{N} nodes, {S} springs, {D}-D" + (f", {walls} wall{'s' * (walls > 1)}" if walls else "")
-    t_fast = work / (GENERATED_RATE if gen_ok else GENERIC_RATE) + LOAD
-    return StartPlan(tuple(k for _, k in todo), sum(t for t, _ in todo), t_ref, t_now, t_fast, shape)
+    t_fast = work / GENERATED_RATE + LOAD if gen_ok else t_generic
+    return StartPlan(costs, t_ref, t_generic, t_fast, shape)
 
 
-def start_background(plan: StartPlan, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
+def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
                      ) -> subprocess.Popen[bytes] | None:  # fmt: skip
-    """Compile ``plan.compile`` in a detached low-priority process (it outlives this run, so the
-    kernel is ready for the next one); None when no private cache folder is available."""
+    """Compile ``kernels`` in a detached low-priority process (it outlives this run, so the kernels
+    are ready for the next one); None when no private cache folder is available."""
     from crashstudy.kernel import generated
 
     folder = cache_dir()
@@ -213,7 +266,7 @@ def start_background(plan: StartPlan, b: Batch, histories: tuple[str, ...], vary
     fd, npz = tempfile.mkstemp(prefix=".warm-", suffix=".npz", dir=folder)
     with os.fdopen(fd, "wb") as fh:
         np.savez(fh, **{k: v for k, v in vars(sample).items()})
-    job = {"kernels": list(plan.compile), "histories": list(histories), "vary": sorted(vary or ()),
+    job = {"kernels": list(kernels), "histories": list(histories), "vary": sorted(vary or ()),
            "const": generated._constant_curves(b, vary), "npz": npz}  # fmt: skip
     cmd = [sys.executable, "-m", "crashstudy.kernel.warm", json.dumps(job)]
     return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
@@ -224,10 +277,10 @@ def _lower_priority() -> None:  # pragma: no cover - runs in the child
     os.nice(10)
 
 
-def compile_foreground(plan: StartPlan, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                       stop: Any) -> None:  # fmt: skip
-    """Compile ``plan.compile`` in a child process and wait; ``stop()`` raising (Ctrl-C) kills it at once."""
-    proc = start_background(plan, b, histories, vary)
+def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...],
+                       vary: frozenset[int] | None, stop: Any) -> None:  # fmt: skip
+    """Compile ``kernels`` in a child process and wait; ``stop()`` raising (Ctrl-C) kills it at once."""
+    proc = start_background(kernels, b, histories, vary)
     if proc is None:
         return
     try:

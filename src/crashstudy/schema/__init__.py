@@ -42,7 +42,8 @@ def refuse_foreign(doc: LoadedYaml) -> None:
 
     ours = {name for cls in (Model, Study) for name in cls.model_fields}
     if isinstance(doc.data, dict) and doc.data and not ours.intersection(doc.data):
-        raise InputError([Problem(doc.file, None, "", f"not a crashstudy model or study file: none of its "
+        first = doc.line_of((next(iter(doc.data)),))
+        raise InputError([Problem(doc.file, first, "", f"not a crashstudy model or study file: none of its "
                                   f"{len(doc.data)} top-level keys is one of ours (a model has name, nodes, springs, "
                                   "...; a study has name, model, matrix, ...)")])  # fmt: skip
 
