@@ -73,7 +73,7 @@ class NonlinearElastic(Strict):
     """``F = C(e)``; loads and unloads along the same curve."""
 
     type: Literal["nonlinear_elastic"] = Field(description="material law: F = C(e), same path loading and unloading")
-    curve: Id = Field(description="id of the force [force] vs elongation [length] curve C, through the origin")
+    curve: Id = Field(description="id of the curve C: force [force] vs elongation [length]")
 
 
 class GeneralNonlinear(Strict):
