@@ -56,9 +56,8 @@ class Node(Strict):
     """A nodal mass. ``position`` [length] is ``[x]`` (1-D) or ``[x, y]``; ``mass`` [mass]."""
 
     position: Vector = Field(description="initial position [length]: [x] in a 1-D model, [x, y] in a 2-D one")
-    mass: Positive | None = Field(None, description="nodal mass [mass] > 0; required unless fixed in every direction")
-    fixed: bool | Annotated[list[Axis], Field(min_length=1, max_length=2)] = Field(
-        False, description="true (all directions), false, or the fixed directions, e.g. [y]"
+    mass: Positive | None = Field(default=None, description="nodal mass [mass] > 0; required unless fixed in every direction")
+    fixed: bool | Annotated[list[Axis], Field(min_length=1, max_length=2)] = Field(default=        False, description="true (all directions), false, or the fixed directions, e.g. [y]"
     )
 
 
@@ -82,9 +81,8 @@ class GeneralNonlinear(Strict):
     type: Literal["general_nonlinear"] = Field(description="material law: LS-DYNA S06 loading/unloading curves with yield")
     loading: Id = Field(description="id of the loading curve, force [force] vs elongation [length], through the origin")
     unloading: Id = Field(description="id of the unloading curve, force vs elongation, through the origin, increasing")
-    tension_yield: Positive | None = Field(None, description="yield force in tension [force] > 0; absent: never yields")
-    compression_yield: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = Field(
-        None, description="yield force in compression [force] < 0; absent: never yields"
+    tension_yield: Positive | None = Field(default=None, description="yield force in tension [force] > 0; absent: never yields")
+    compression_yield: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = Field(default=        None, description="yield force in compression [force] < 0; absent: never yields"
     )
 
 
@@ -124,7 +122,7 @@ class Load(Strict):
 
     node: Id = Field(description="id of the loaded node")
     force: Vector = Field(description="force vector [force], one component per dimension")
-    curve: Id | None = Field(None, description="id of a time curve scaling the force (zero outside it); absent: constant")
+    curve: Id | None = Field(default=None, description="id of a time curve scaling the force (zero outside it); absent: constant")
 
 
 class PrescribedMotion(Strict):
@@ -136,7 +134,7 @@ class PrescribedMotion(Strict):
     )
     direction: Axis = Field(description="driven direction: x or y (only x in a 1-D model)")
     curve: Id = Field(description="id of the time curve (x: time [time]; zero outside its range)")
-    scale: Finite = Field(1.0, description="factor on the curve's values [1]")
+    scale: Finite = Field(default=1.0, description="factor on the curve's values [1]")
 
 
 class RigidWall(Strict):
@@ -145,18 +143,16 @@ class RigidWall(Strict):
     id: Id = Field(description="wall id (names the wall in results)")
     point: Vector = Field(description="a point of the wall plane [length]")
     normal: Vector = Field(description="direction the wall faces (nodes stay on this side) [1], any length but not zero")
-    nodes: list[Id] | None = Field(None, description="ids of the nodes the wall stops; absent: every node")
+    nodes: list[Id] | None = Field(default=None, description="ids of the nodes the wall stops; absent: every node")
 
 
 class TimeStep(Strict):
     """Exactly one of ``safety_factor`` (0 < s <= 1), ``dt`` [time] or ``tolerance`` (relative)."""
 
-    safety_factor: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] | None = Field(
-        None, description="dt = safety_factor * dt_crit, 0 < s <= 1 [1]"
+    safety_factor: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] | None = Field(default=        None, description="dt = safety_factor * dt_crit, 0 < s <= 1 [1]"
     )
-    dt: Positive | None = Field(None, description="fixed time step [time]; must not exceed dt_crit")
-    tolerance: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(
-        None, description="target relative error of the peaks, 0 < tol < 1 [1]; dt is chosen to meet it"
+    dt: Positive | None = Field(default=None, description="fixed time step [time]; must not exceed dt_crit")
+    tolerance: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(default=        None, description="target relative error of the peaks, 0 < tol < 1 [1]; dt is chosen to meet it"
     )
 
     @model_validator(mode="after")
@@ -184,9 +180,8 @@ HISTORY_NAMES = (
 class Output(Strict):
     """History sampling: ``interval`` [time] (default end_time/1000) and which histories to keep."""
 
-    interval: Positive | None = Field(None, description="history sampling interval [time]; absent: end_time / 1000")
-    histories: Literal["all", "none"] | Annotated[list[str], Field(min_length=1)] = Field(
-        "all", description="histories to keep: all, none (summaries only) or a list of history names"
+    interval: Positive | None = Field(default=None, description="history sampling interval [time]; absent: end_time / 1000")
+    histories: Literal["all", "none"] | Annotated[list[str], Field(min_length=1)] = Field(default=        "all", description="histories to keep: all, none (summaries only) or a list of history names"
     )
 
     @field_validator("histories")
@@ -208,32 +203,29 @@ class Termination(Strict):
     opening. ``min_time`` [time]: never stop before it.
     """
 
-    kinetic_energy_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = Field(
-        1.0e-3, description="stop threshold f, 0 < f < 1 [1]: spring forces and kinetic energy below f of their peaks"
+    kinetic_energy_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = Field(default=        1.0e-3, description="stop threshold f, 0 < f < 1 [1]: spring forces and kinetic energy below f of their peaks"
     )
-    min_time: NonNegative = Field(0.0, description="never stop before this time [time]")
+    min_time: NonNegative = Field(default=0.0, description="never stop before this time [time]")
 
 
 class Model(Strict):
     """A crashstudy model file: nodes, springs, curves, loads and run settings (docs/format.md)."""
 
     name: Id = Field(description="model name: letters, digits, '-', '_' (names the result folder of simulate)")
-    description: str = Field("", description="free text, stored with the results")
-    units: UnitSystemName = Field("SI", description="unit system of every number: SI, mm-ms-kg-kN or mm-s-t-N")
-    curves: dict[Id, Curve] = Field({}, description="id -> tabulated curve (material or time curve)")
+    description: str = Field(default="", description="free text, stored with the results")
+    units: UnitSystemName = Field(default="SI", description="unit system of every number: SI, mm-ms-kg-kN or mm-s-t-N")
+    curves: dict[Id, Curve] = Field(default={}, description="id -> tabulated curve (material or time curve)")
     nodes: Annotated[dict[Id, Node], Field(min_length=1)] = Field(description="id -> nodal mass (at least one)")
-    springs: dict[Id, Spring] = Field({}, description="id -> massless spring or damper between two nodes")
-    initial_velocity: dict[Id, Vector] = Field({}, description="node id -> initial velocity [length/time]")
-    gravity: Vector | None = Field(None, description="body acceleration on every mass [length/time^2]; absent: none")
-    loads: list[Load] = Field([], description="concentrated forces on nodes")
-    prescribed_motion: list[PrescribedMotion] = Field([], description="nodes driven along x or y by a time curve")
-    rigid_walls: list[RigidWall] = Field([], description="stonewalls that nodes cannot cross")
+    springs: dict[Id, Spring] = Field(default={}, description="id -> massless spring or damper between two nodes")
+    initial_velocity: dict[Id, Vector] = Field(default={}, description="node id -> initial velocity [length/time]")
+    gravity: Vector | None = Field(default=None, description="body acceleration on every mass [length/time^2]; absent: none")
+    loads: list[Load] = Field(default=[], description="concentrated forces on nodes")
+    prescribed_motion: list[PrescribedMotion] = Field(default=[], description="nodes driven along x or y by a time curve")
+    rigid_walls: list[RigidWall] = Field(default=[], description="stonewalls that nodes cannot cross")
     end_time: Positive = Field(description="simulated duration [time] > 0, from t = 0")
-    time_step: TimeStep = Field(
-        TimeStep(tolerance=1.0e-3), description="one of safety_factor, dt or tolerance; default tolerance 1e-3"
+    time_step: TimeStep = Field(default=        TimeStep(tolerance=1.0e-3), description="one of safety_factor, dt or tolerance; default tolerance 1e-3"
     )
-    output: Output = Field(Output(), description="history sampling interval and which histories to keep")
-    termination: Termination | None = Field(None, description="optional early end once the crash is over")
-    accuracy_check: bool = Field(
-        False, description="re-run each variant at dt/2 and report a Richardson error estimate [1]"
+    output: Output = Field(default=Output(), description="history sampling interval and which histories to keep")
+    termination: Termination | None = Field(default=None, description="optional early end once the crash is over")
+    accuracy_check: bool = Field(default=        False, description="re-run each variant at dt/2 and report a Richardson error estimate [1]"
     )
