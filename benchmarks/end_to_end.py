@@ -82,7 +82,7 @@ def base_model() -> dict[str, Any]:
 
 
 def variant_model(engine: float, room: float, speed: float) -> dict[str, Any]:
-    """The model dict of one variant (the study axes applied by hand, as SPEC 5 defines them)."""
+    """The model dict of one variant (the study axes applied by hand, as docs/format.md defines them)."""
     m = copy.deepcopy(base_model())
     m["nodes"]["engine"]["mass"] = engine
     m["nodes"]["survival_room"]["mass"] = room

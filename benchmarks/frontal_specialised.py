@@ -5,7 +5,7 @@ joins, which material it has), the curves are compile-time constants, and one fu
 variants of a block (innermost, contiguous, ``BLOCK`` columns) does every spring, every node update
 and every summary of a time step, with branch-free curves and material laws (selects, ``min``/``max``)
 so that LLVM can put several variants in one SIMD instruction. It computes the same physics as the
-generic kernel (central difference, SPEC sections 3 and 4; summaries as
+generic kernel (central difference, docs/format.md and docs/solver.md; summaries as
 :mod:`crashstudy.kernel.compiled`) and takes the same per-variant steps, so element-steps are equal;
 ``check_against_generic`` compares peak forces.
 
@@ -161,7 +161,7 @@ def _line(e, c):  # pragma: no cover - compiled
 
 @_jit
 def _crush(e, emin, fstar, ramp, c, ku):  # pragma: no cover - compiled
-    """Crush law (SPEC 3), branch-free: returns (F, e_min, F*) after this step."""
+    """Crush law (docs/format.md), branch-free: returns (F, e_min, F*) after this step."""
     on = e <= emin
     f_load = _min(0.0, ramp(e, c))
     f_unl = _min(0.0, fstar + ku * (e - emin))
@@ -172,7 +172,7 @@ def _crush(e, emin, fstar, ramp, c, ku):  # pragma: no cover - compiled
 def _general(
     e, mode, et, ft, ec, fc, shift, yld_t, yld_c, ramp, cl, ramp_inv, cinv, cu, ku, yt, yc
 ):  # pragma: no cover - compiled
-    """general_nonlinear rules 1-4 (SPEC 3) for a monotone loading curve and a straight unloading
+    """general_nonlinear rules 1-4 (docs/format.md) for a monotone loading curve and a straight unloading
     line: every branch is evaluated and the result selected. State: mode, e*_t, F*_t, e*_c, F*_c,
     shift, yielded_t, yielded_c (as the generic kernel's); returns (F, new state...)."""
     L = ramp(e - shift, cl)

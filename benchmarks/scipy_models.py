@@ -1,6 +1,6 @@
 """scipy ``solve_ivp`` per variant, as a user would write it: the baseline of the benchmarks.
 
-A lean right-hand side (small NumPy arrays, no leading time axis) for the models of SPEC sections 2-3
+A lean right-hand side (small NumPy arrays, no leading time axis) for the models of docs/format.md
 without prescribed motion or walls, in 1-D and 2-D. The state is the one of
 ``tests/reference_scipy.py`` (displacements, velocities, external work, work done on every spring), so
 for smooth models the two take the same steps. History-dependent materials (``crush``,
@@ -8,7 +8,7 @@ for smooth models the two take the same steps. History-dependent materials (``cr
 branch of its law (a continuous function of its elongation), and terminal ``solve_ivp`` events end the
 segment where a branch changes (a crush spring starts or stops crushing; a general_nonlinear spring
 yields, turns, rejoins its loading curve or reaches the other direction's yield force); the branch
-state is updated there, as SPEC section 3 describes in continuous time, and integration restarts.
+state is updated there, as docs/format.md describes in continuous time, and integration restarts.
 
 :func:`solve` is what is timed; :meth:`Solution.peaks` (dense-output search for peak |F| and |a|)
 and the absorbed energies are evaluated afterwards and not timed.
@@ -87,7 +87,7 @@ class Spring:
 
 @dataclass
 class Branch:
-    """The branch of a history-dependent spring (SPEC 3 in continuous time)."""
+    """The branch of a history-dependent spring (docs/format.md, in continuous time)."""
 
     mode: int = 0  # crush: -1 crushing, 0 not; general_nonlinear: 0 elastic, +1 / -1 yielded direction
     loading: bool = True  # general_nonlinear, mode != 0: on the (shifted) loading curve, else unloading

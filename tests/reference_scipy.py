@@ -2,12 +2,12 @@
 
 This module is the *independent truth* the test suite and the benchmarks compare the explicit
 central-difference solver against. It deliberately does not import ``crashstudy``: it reads the
-plain dict a model file loads to (SPEC section 2) and integrates the equations of motion with a
+plain dict a model file loads to (docs/format.md) and integrates the equations of motion with a
 high-order adaptive Runge-Kutta method (DOP853 by default) at tight tolerances.
 
 Scope
 -----
-Only the smooth material laws of SPEC section 3 are supported:
+Only the smooth material laws of docs/format.md are supported:
 
 * ``linear_elastic``: ``F = k e``;
 * ``nonlinear_elastic``: ``F = C(e)``, ``C`` interpolated linearly and extrapolated beyond its ends
@@ -18,7 +18,7 @@ Only the smooth material laws of SPEC section 3 are supported:
 :class:`NotImplementedError` (they are history dependent or non-smooth; an ODE reference would
 need event handling to be trustworthy there).
 
-Physics (SPEC section 3)
+Physics (docs/format.md, spring materials)
 ------------------------
 Elongation ``e`` (negative = compression); positive ``F`` is tension and pulls the nodes together.
 
@@ -630,7 +630,7 @@ class RefResult:
         return parts["kinetic"] + parts["strain"]
 
     def energy_balance(self, t: np.ndarray | Sequence[float] | float | None = None) -> dict[str, np.ndarray]:
-        """Energy bookkeeping in the terms of SPEC section 6.
+        """Energy bookkeeping in the terms of docs/format.md (results).
 
         Parameters
         ----------
@@ -780,7 +780,7 @@ def solve_reference(
     Parameters
     ----------
     model : mapping
-        The plain dict of a model file as YAML loads it (SPEC section 2). ``units`` is ignored (all
+        The plain dict of a model file as YAML loads it (docs/format.md). ``units`` is ignored (all
         numbers are in one consistent system); ``time_step`` and ``output`` are ignored.
     t_eval : numpy.ndarray, optional
         Output times [T] in ``[0, end_time]``; default: 1001 equally spaced times. Any other time can

@@ -219,7 +219,7 @@ def test_missing_file_exits_2_naming_it(tmp_path: Path, capsys: pytest.CaptureFi
 def test_shape_and_relational_problems_are_reported_together(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """SPEC 7: ``validate`` reports every problem at once: here a negative mass (a field's own
+    """``validate`` reports every problem at once: here a negative mass (a field's own
     range), a spring naming an unknown node and a load naming an unknown curve (relations)."""
     path = tmp_path / "mixed.yaml"
     path.write_text(edit(("mass: 10.0", "mass: -10.0"), ("[ground, mass]", "[ground, mas]"),
@@ -249,7 +249,7 @@ def test_validate_refuses_a_fixed_dt_above_the_critical_step_like_simulate(
 
 
 # --------------------------------------------------------------------------------------------------
-# Study files (SPEC 5)
+# Study files (docs/format.md)
 # --------------------------------------------------------------------------------------------------
 
 

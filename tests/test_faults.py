@@ -1,7 +1,7 @@
 """Faults, with real processes and real files: interrupted runs, a killed worker, a read-only or full disk,
 paths, and YAML attacks through the command line (issue 5, item 4).
 
-The contract under test (SPEC 6-7, issue 5): an interrupted or failed run never leaves a ``results.nc`` (only
+The contract under test (docs/studies.md, issue 5): an interrupted or failed run never leaves a ``results.nc`` (only
 ``results.nc.partial``, which ``crashstudy summary`` and ``open_results`` refuse), says what happened in a
 short message without a traceback, and ``crashstudy run --resume`` then completes with results identical to
 an uninterrupted run, variable by variable (NaN where the reference has NaN) and attribute by attribute.

@@ -72,7 +72,7 @@ def _one_d_materials(mirror: bool = False, gravity: bool = False) -> dict[str, A
 def _mount_reversal() -> dict[str, Any]:
     """A 170 kg engine driven at 3 m/s into an engine mount (general_nonlinear, yield +-20 kN): it yields
     in compression, unloads along the 4.5e6 N/m line and the spring-back (about 100 J stored against
-    44 J needed) carries it past the tension yield: SPEC rule 4 (the reversal path) runs."""
+    44 J needed) carries it past the tension yield: general_nonlinear rule 4 (the reversal path) runs."""
     return {
         "name": "mount-reversal",
         "curves": {

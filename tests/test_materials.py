@@ -1,7 +1,7 @@
-"""Every path of the spring material laws (SPEC section 3), checked against an independent oracle.
+"""Every path of the spring material laws (docs/format.md), checked against an independent oracle.
 
-The oracle below is a small pure-Python, scalar, event-by-event implementation of the SPEC text
-(``general_nonlinear`` rules 1-4, ``crush``, ``nonlinear_elastic``), written from the SPEC and not
+The oracle below is a small pure-Python, scalar, event-by-event implementation of docs/format.md
+(``general_nonlinear`` rules 1-4, ``crush``, ``nonlinear_elastic``), written from that text and not
 from :mod:`crashstudy.kernel.materials`. Each test drives one 1-D spring through a prescribed
 elongation history: node ``a`` fixed at x = 0, node ``b`` at x = 1 whose displacement follows a
 piecewise-linear time curve ``path``. The output interval equals the time step, so every step the
@@ -33,7 +33,7 @@ KERNEL_RTOL = 1e-12  # compiled vs reference kernel, relative to the peak
 
 
 # --------------------------------------------------------------------------------------------------
-# Independent oracle (from SPEC sections 2 and 3 only)
+# Independent oracle (from docs/format.md only)
 # --------------------------------------------------------------------------------------------------
 
 
@@ -84,7 +84,7 @@ class PL:
 
 
 class GeneralNonlinearOracle:
-    """SPEC 3 ``general_nonlinear``, one elongation at a time.
+    """``general_nonlinear`` (docs/format.md), one elongation at a time.
 
     State: which direction the spring is currently referenced to (``None`` before any yield, +1
     tension, -1 compression), per direction whether it has yielded and its extreme (e*, F*), and the
@@ -139,7 +139,7 @@ class GeneralNonlinearOracle:
 
 
 class CrushOracle:
-    """SPEC 3 ``crush``: F = min(0, L(e)) at new crush, elastic spring-back line, separation."""
+    """``crush`` (docs/format.md): F = min(0, L(e)) at new crush, elastic spring-back line, separation."""
 
     def __init__(self, loading: PL, unloading_stiffness: float) -> None:
         self.L, self.k = loading, unloading_stiffness
@@ -413,7 +413,7 @@ def test_crush_loads_springs_back_separates_and_recontacts_on_the_same_line() ->
 
 
 def test_nonlinear_elastic_extrapolates_beyond_both_ends_of_its_curve() -> None:
-    """Material curves extrapolate along their first/last segment (SPEC 2): slope 60 beyond +-1."""
+    """Material curves extrapolate along their first/last segment (docs/format.md): slope 60 beyond +-1."""
     C = {"x": [-1.0, -0.5, 0.0, 0.5, 1.0], "y": [-80.0, -50.0, 0.0, 60.0, 90.0]}
     mat = {"type": "nonlinear_elastic", "curve": "C"}
     path = [(0.0, 0.0), (3.0, 3.0), (9.0, -3.0), (12.24, 0.24)]

@@ -278,7 +278,7 @@ def test_random_valid_model_runs_or_fails_with_a_clear_status(model: dict[str, A
                 # (about 5 % at safety_factor 1). An accounting bug shows as 1e-3 ... 1 (see the xfails below)
                 dampers = any(sp["material"]["type"] == "damper" for sp in model["springs"].values())
                 COUNTS["models_energy_balance_checked"] += 1
-                assert row["energy_error"] < (0.1 if dampers else 1e-3), (row["energy_error"], dump(model))  # SPEC target 1e-3
+                assert row["energy_error"] < (0.1 if dampers else 1e-3), (row["energy_error"], dump(model))  # energy balance target 1e-3
 
 
 def _well_posed(model: dict[str, Any]) -> bool:

@@ -35,7 +35,7 @@ def _crossings(
 def _energy_error(res: RefResult) -> float:
     """Largest energy-balance error over the run, relative to the largest ``KE0 + |W_ext|`` reached.
 
-    (SPEC's pointwise ``relative_error`` is ill-conditioned where KE0 = 0 and W_ext passes through 0.)
+    (A pointwise ``relative_error`` is ill-conditioned where KE0 = 0 and W_ext passes through 0.)
     """
     balance = res.sample(np.linspace(0.0, res.end_time, 4001)).energy_balance()
     ke0 = balance["kinetic"][0]

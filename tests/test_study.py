@@ -1,4 +1,4 @@
-"""Studies end to end (SPEC 5-7, issue 3): numbering, axes, overrides, backends, resume, failures, API, CLI.
+"""Studies end to end (docs/studies.md, issue 3): numbering, axes, overrides, backends, resume, failures, API, CLI.
 
 Every check compares numbers with a stated tolerance:
 
@@ -77,7 +77,7 @@ def dump(path: Path, data: dict[str, Any]) -> Path:
 
 
 def variant_model(mass: float, scale: float, speed: float, k: float, m_front: float) -> dict[str, Any]:
-    """MODEL with one variant's axis values written in by hand (what SPEC 5 says each axis means)."""
+    """MODEL with one variant's axis values written in by hand (what docs/format.md says each axis means)."""
     d = copy.deepcopy(MODEL)
     d["nodes"]["body"]["mass"] = mass
     d["curves"]["crush-loading"]["y"] = [y * scale for y in MODEL["curves"]["crush-loading"]["y"]]
@@ -88,7 +88,7 @@ def variant_model(mass: float, scale: float, speed: float, k: float, m_front: fl
 
 
 def expected_variants() -> list[tuple[float, float, float, float, float]]:
-    """Row-major over the matrix axes as written, then the zip group (SPEC 5), spelled out by hand."""
+    """Row-major over the matrix axes as written, then the zip group (docs/format.md), spelled out by hand."""
     out = []
     for m, s, v in itertools.product(MASSES, SCALES, SPEEDS):
         for z in range(len(ZIP_K)):
@@ -201,7 +201,7 @@ def test_each_variant_equals_the_model_run_alone_with_simulate(matrix_run: Path,
 
 
 # --------------------------------------------------------------------------------------------------
-# what the special axes and `set` do (SPEC 5)
+# what the special axes and `set` do (docs/format.md)
 
 
 def test_curve_scale_and_x_scale_axes_equal_the_curve_edited_by_hand(work: Path) -> None:
@@ -253,7 +253,7 @@ MODEL_2D: dict[str, Any] = {
 
 
 def test_impact_velocity_sets_every_initial_speed_keeping_each_direction(work: Path) -> None:
-    """SPEC 5: the speed given to every node with an initial velocity, direction kept (2-D, two
+    """impact_velocity: the speed given to every node with an initial velocity, direction kept (2-D, two
     different directions and speeds; a node without an initial velocity stays at rest)."""
     model = dump(work / "oblique.yaml", MODEL_2D)
     out = work / "oblique-out"
@@ -562,7 +562,7 @@ DROP_2D: dict[str, Any] = {
 
 def test_2d_spring_crushed_through_zero_length_by_an_impact_fails(work: Path) -> None:
     """A 150 kg drop on a soft 0.3 m spring (10 kN/m, 450 J to close it): 1 m/s stops at 0.12 m crush;
-    10 m/s (7.5 kJ) crushes it to zero length at about 0.03 s, which must fail that variant (SPEC 3).
+    10 m/s (7.5 kJ) crushes it to zero length at about 0.03 s, which must fail that variant (docs/format.md).
 
     Between two steps the node passes *through* the node below (it never sits at zero length at a
     step); before 83f33cc this went undetected: status 'ok', max_crush 0.2995 m, the node ending

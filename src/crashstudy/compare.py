@@ -1,4 +1,4 @@
-"""Regression check of a result folder against a baseline (``crashstudy compare``, SPEC section 7).
+"""Regression check of a result folder against a baseline (``crashstudy compare``, docs/regression.md).
 
 Variants are matched by their parameter values (the study axes named in ``crashstudy_axes``),
 never by position: a baseline may list its variants in another order or hold another set.

@@ -1,4 +1,4 @@
-"""Time step selection (SPEC section 4), vectorised over variants.
+"""Time step selection (docs/format.md, time_step; docs/solver.md), vectorised over variants.
 
 Critical step: the nodal bound ``omega_max^2 <= max_n 2 K_n / m_n`` where ``K_n`` sums, over the
 springs at node ``n``, the steepest slope ``k_max`` any curve of the spring can use. It is safe for

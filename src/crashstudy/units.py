@@ -1,4 +1,4 @@
-"""Consistent unit systems (SPEC section 1).
+"""Consistent unit systems (docs/format.md, units).
 
 Every number in a model file is in the file's ``units`` system; outputs carry the unit names.
 """

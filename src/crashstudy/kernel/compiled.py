@@ -387,7 +387,7 @@ def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, fre
                             F_tmp[w] = f_load if on else f_unl
                             state[s, 0, w] = e if on else emin
                             state[s, 1, w] = f_load if on else fstar
-                else:  # GENERAL: SPEC 3 rules 1-4, branch-free over the block; reversals (rare) per lane
+                else:  # GENERAL: rules 1-4 of docs/format.md, branch-free over the block; reversals (rare) per lane
                     ca = curve_a[s]
                     cb = curve_b[s]
                     for w in range(B):

@@ -633,7 +633,7 @@ def _source(shape: dict[str, Any]) -> str:
         emit(f"{i2}nbad += (1 if af > 0.0 else 0) if {bad} else 0")
         emit(f"{i2}{R['ken']} = ke")
         emit(f"{i2}{R['ien']} = ie_tot")
-        if term:  # early termination (SPEC: termination): decided for running lanes after the failure check
+        if term:  # early termination (docs/format.md): decided for running lanes after the failure check
             emit(f"{i2}edmin = np.inf")
             for s in range(S):
                 emit(f"{i2}edmin = _min(edmin, {R[f'ed{s}'] if mat[s] == GENERAL else edot(s)})")

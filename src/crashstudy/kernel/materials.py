@@ -90,7 +90,7 @@ def general_nonlinear(e: np.ndarray, st: np.ndarray, ca: int, cb: int, yt: np.nd
                       off: np.ndarray) -> np.ndarray:
     """Force of a ``general_nonlinear`` spring at elongation ``e``; updates ``st`` (NSTATE, V) in place.
 
-    Implements SPEC section 3 rules 1-4 (elastic band, yield, shifted unloading line, reverse yield).
+    Implements rules 1-4 of docs/format.md (elastic band, yield, shifted unloading line, reverse yield).
     """
     mode, et, ft, ec, fc, shift, yld_t, yld_c = (st[k].copy() for k in range(NSTATE))
     L = curve_eval(ca, e - shift, cx, cy, cds, cs0, off)

@@ -1,6 +1,6 @@
 """Plain NumPy twin of the compiled kernel: the executable definition of the time integration.
 
-Explicit central difference (SPEC section 4), vectorised over variants, one Python iteration per
+Explicit central difference (docs/solver.md), vectorised over variants, one Python iteration per
 time step. It is slow and only meant for tests (the compiled kernel must agree with it) and for
 readers: every formula of the compiled kernel appears here once, in the same order.
 

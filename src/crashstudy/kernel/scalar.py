@@ -89,7 +89,7 @@ def unloading_inverse(c, f, v, cx, cy, cs0, cs1, off):  # pragma: no cover - com
 
 @_jit
 def reverse_yield(e, st, w, ca, cb, yt, yc, v, cx, cy, cds, cs0, cs1, off):  # pragma: no cover - compiled
-    """SPEC 3 rule 4 for one lane whose unloading branch reached the other direction's yield force.
+    """Rule 4 (docs/format.md) for one lane whose unloading branch reached the other direction's yield force.
 
     ``st[:, w]`` holds the state before this step (a reversing lane is on its unloading line, so the
     vectorised step left it unchanged). Returns the force; updates the state.

@@ -1,4 +1,4 @@
-"""Pydantic models of a model file (SPEC sections 2, 3, 3b, 4, 6).
+"""Pydantic models of a model file (documented for users in docs/format.md).
 
 These classes check the *shape* of each entry (types, signs, lengths). Relations between entries
 (a spring naming a node that exists, 1-D vs 2-D consistency, curves through the origin) are checked
@@ -35,8 +35,12 @@ class Curve(Strict):
     curve maps time [time] to a dimensionless factor (load) or displacement/velocity/acceleration.
     """
 
-    x: Annotated[list[Finite], Field(min_length=2, max_length=10_000)]
-    y: Annotated[list[Finite], Field(min_length=2, max_length=10_000)]
+    x: Annotated[list[Finite], Field(min_length=2, max_length=10_000)] = Field(
+        description="abscissae, strictly increasing: elongation [length] (material curve) or time [time] (load, motion)"
+    )
+    y: Annotated[list[Finite], Field(min_length=2, max_length=10_000)] = Field(
+        description="values at x, same count: force [force], load factor [1] or displacement/velocity/acceleration"
+    )
 
     @model_validator(mode="after")
     def _increasing(self) -> Curve:
@@ -51,48 +55,50 @@ class Curve(Strict):
 class Node(Strict):
     """A nodal mass. ``position`` [length] is ``[x]`` (1-D) or ``[x, y]``; ``mass`` [mass]."""
 
-    position: Vector
-    mass: Positive | None = None
-    fixed: bool | Annotated[list[Axis], Field(min_length=1, max_length=2)] = False
+    position: Vector = Field(description="initial position [length]: [x] in a 1-D model, [x, y] in a 2-D one")
+    mass: Positive | None = Field(default=None, description="nodal mass [mass] > 0; required unless fixed in every direction")
+    fixed: bool | Annotated[list[Axis], Field(min_length=1, max_length=2)] = Field(default=        False, description="true (all directions), false, or the fixed directions, e.g. [y]"
+    )
 
 
 class LinearElastic(Strict):
     """``F = k e``; ``stiffness`` k [force/length] > 0."""
 
-    type: Literal["linear_elastic"]
-    stiffness: Positive
+    type: Literal["linear_elastic"] = Field(description="material law: F = k e")
+    stiffness: Positive = Field(description="spring rate k [force/length] > 0")
 
 
 class NonlinearElastic(Strict):
     """``F = C(e)``; loads and unloads along the same curve."""
 
-    type: Literal["nonlinear_elastic"]
-    curve: Id
+    type: Literal["nonlinear_elastic"] = Field(description="material law: F = C(e), same path loading and unloading")
+    curve: Id = Field(description="id of the curve C: force [force] vs elongation [length]")
 
 
 class GeneralNonlinear(Strict):
     """LS-DYNA S06-style spring: loading/unloading curves, yield forces [force] (absent = never)."""
 
-    type: Literal["general_nonlinear"]
-    loading: Id
-    unloading: Id
-    tension_yield: Positive | None = None
-    compression_yield: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = None
+    type: Literal["general_nonlinear"] = Field(description="material law: LS-DYNA S06 loading/unloading curves with yield")
+    loading: Id = Field(description="id of the loading curve, force [force] vs elongation [length], through the origin")
+    unloading: Id = Field(description="id of the unloading curve, force vs elongation, through the origin, increasing")
+    tension_yield: Positive | None = Field(default=None, description="yield force in tension [force] > 0; absent: never yields")
+    compression_yield: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = Field(default=        None, description="yield force in compression [force] < 0; absent: never yields"
+    )
 
 
 class Crush(Strict):
     """Crushable structure that cannot pull; ``unloading_stiffness`` [force/length] > 0."""
 
-    type: Literal["crush"]
-    loading: Id
-    unloading_stiffness: Positive
+    type: Literal["crush"] = Field(description="material law: crushable structure, compression only, no tension")
+    loading: Id = Field(description="id of the crush curve, force [force] vs elongation [length]; its x < 0 part is used")
+    unloading_stiffness: Positive = Field(description="slope of elastic spring-back after crushing [force/length] > 0")
 
 
 class Damper(Strict):
     """Viscous damper ``F = c de/dt``; ``damping`` c [force*time/length] >= 0."""
 
-    type: Literal["damper"]
-    damping: NonNegative
+    type: Literal["damper"] = Field(description="material law: viscous damper F = c de/dt")
+    damping: NonNegative = Field(description="damping coefficient c [force*time/length] >= 0")
 
 
 Material = Annotated[
@@ -105,43 +111,49 @@ MATERIAL_TYPES = ("linear_elastic", "nonlinear_elastic", "general_nonlinear", "c
 class Spring(Strict):
     """Massless discrete element between two nodes."""
 
-    nodes: Annotated[list[Id], Field(min_length=2, max_length=2)]
-    material: Material
+    nodes: Annotated[list[Id], Field(min_length=2, max_length=2)] = Field(
+        description="ids of the two different nodes it joins; elongation e > 0 when they move apart"
+    )
+    material: Material = Field(description="force law, chosen by 'type'")
 
 
 class Load(Strict):
     """Concentrated force [force] on a node, constant or scaled by a time curve (zero outside it)."""
 
-    node: Id
-    force: Vector
-    curve: Id | None = None
+    node: Id = Field(description="id of the loaded node")
+    force: Vector = Field(description="force vector [force], one component per dimension")
+    curve: Id | None = Field(default=None, description="id of a time curve scaling the force (zero outside it); absent: constant")
 
 
 class PrescribedMotion(Strict):
     """A node's displacement [length], velocity [length/time] or acceleration along x or y."""
 
-    node: Id
-    quantity: Literal["displacement", "velocity", "acceleration"]
-    direction: Axis
-    curve: Id
-    scale: Finite = 1.0
+    node: Id = Field(description="id of the driven node (must not be fixed in this direction)")
+    quantity: Literal["displacement", "velocity", "acceleration"] = Field(
+        description="what the curve gives: displacement [length], velocity [length/time], acceleration [length/time^2]"
+    )
+    direction: Axis = Field(description="driven direction: x or y (only x in a 1-D model)")
+    curve: Id = Field(description="id of the time curve (x: time [time]; zero outside its range)")
+    scale: Finite = Field(default=1.0, description="factor on the curve's values [1]")
 
 
 class RigidWall(Strict):
     """A stonewall: plane through ``point`` [length] with outward ``normal``; ``nodes`` default all."""
 
-    id: Id
-    point: Vector
-    normal: Vector
-    nodes: list[Id] | None = None
+    id: Id = Field(description="wall id (names the wall in results)")
+    point: Vector = Field(description="a point of the wall plane [length]")
+    normal: Vector = Field(description="direction the wall faces (nodes stay on this side) [1], any length but not zero")
+    nodes: list[Id] | None = Field(default=None, description="ids of the nodes the wall stops; absent: every node")
 
 
 class TimeStep(Strict):
     """Exactly one of ``safety_factor`` (0 < s <= 1), ``dt`` [time] or ``tolerance`` (relative)."""
 
-    safety_factor: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] | None = None
-    dt: Positive | None = None
-    tolerance: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = None
+    safety_factor: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] | None = Field(default=        None, description="dt = safety_factor * dt_crit, 0 < s <= 1 [1]"
+    )
+    dt: Positive | None = Field(default=None, description="fixed time step [time]; must not exceed dt_crit")
+    tolerance: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(default=        None, description="target relative error of the peaks, 0 < tol < 1 [1]; dt is chosen to meet it"
+    )
 
     @model_validator(mode="after")
     def _exactly_one(self) -> TimeStep:
@@ -168,8 +180,9 @@ HISTORY_NAMES = (
 class Output(Strict):
     """History sampling: ``interval`` [time] (default end_time/1000) and which histories to keep."""
 
-    interval: Positive | None = None
-    histories: Literal["all", "none"] | Annotated[list[str], Field(min_length=1)] = "all"
+    interval: Positive | None = Field(default=None, description="history sampling interval [time]; absent: end_time / 1000")
+    histories: Literal["all", "none"] | Annotated[list[str], Field(min_length=1)] = Field(default=        "all", description="histories to keep: all, none (summaries only) or a list of history names"
+    )
 
     @field_validator("histories")
     @classmethod
@@ -182,33 +195,37 @@ class Output(Strict):
 
 
 class Termination(Strict):
-    """Optional early end of a run once the crash is over (an extension of SPEC section 2).
+    """Optional early end of a run once the crash is over.
 
-    ``kinetic_energy_fraction``: stop when the kinetic energy falls below this fraction of the
-    initial kinetic energy *and* every spring is unloading or separated (the force magnitude is
-    not increasing). ``min_time`` [time]: never stop before it.
+    With ``f = kinetic_energy_fraction`` a variant stops once the sum of the spring force magnitudes
+    is below ``f`` times the sum of their peaks *and* either the kinetic energy is below
+    ``f (KE0 + max |W_ext|)`` or, with no loads, gravity or prescribed motion, every spring is
+    opening. ``min_time`` [time]: never stop before it.
     """
 
-    kinetic_energy_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 1.0e-3
-    min_time: NonNegative = 0.0
+    kinetic_energy_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = Field(default=        1.0e-3, description="stop threshold f, 0 < f < 1 [1]: spring forces and kinetic energy below f of their peaks"
+    )
+    min_time: NonNegative = Field(default=0.0, description="never stop before this time [time]")
 
 
 class Model(Strict):
-    """A whole model file. See SPEC section 2 for the meaning of every key."""
+    """A crashstudy model file: nodes, springs, curves, loads and run settings (docs/format.md)."""
 
-    name: Id
-    description: str = ""
-    units: UnitSystemName = "SI"
-    curves: dict[Id, Curve] = {}
-    nodes: Annotated[dict[Id, Node], Field(min_length=1)]
-    springs: dict[Id, Spring] = {}
-    initial_velocity: dict[Id, Vector] = {}
-    gravity: Vector | None = None
-    loads: list[Load] = []
-    prescribed_motion: list[PrescribedMotion] = []
-    rigid_walls: list[RigidWall] = []
-    end_time: Positive
-    time_step: TimeStep = TimeStep(tolerance=1.0e-3)
-    output: Output = Output()
-    termination: Termination | None = None
-    accuracy_check: bool = False  # re-run at half the step; report a Richardson error estimate per variant
+    name: Id = Field(description="model name: letters, digits, '-', '_' (names the result folder of simulate)")
+    description: str = Field(default="", description="free text, stored with the results")
+    units: UnitSystemName = Field(default="SI", description="unit system of every number: SI, mm-ms-kg-kN or mm-s-t-N")
+    curves: dict[Id, Curve] = Field(default={}, description="id -> tabulated curve (material or time curve)")
+    nodes: Annotated[dict[Id, Node], Field(min_length=1)] = Field(description="id -> nodal mass (at least one)")
+    springs: dict[Id, Spring] = Field(default={}, description="id -> massless spring or damper between two nodes")
+    initial_velocity: dict[Id, Vector] = Field(default={}, description="node id -> initial velocity [length/time]")
+    gravity: Vector | None = Field(default=None, description="body acceleration on every mass [length/time^2]; absent: none")
+    loads: list[Load] = Field(default=[], description="concentrated forces on nodes")
+    prescribed_motion: list[PrescribedMotion] = Field(default=[], description="nodes driven along x or y by a time curve")
+    rigid_walls: list[RigidWall] = Field(default=[], description="stonewalls that nodes cannot cross")
+    end_time: Positive = Field(description="simulated duration [time] > 0, from t = 0")
+    time_step: TimeStep = Field(default=        TimeStep(tolerance=1.0e-3), description="one of safety_factor, dt or tolerance; default tolerance 1e-3"
+    )
+    output: Output = Field(default=Output(), description="history sampling interval and which histories to keep")
+    termination: Termination | None = Field(default=None, description="optional early end once the crash is over")
+    accuracy_check: bool = Field(default=        False, description="re-run each variant at dt/2 and report a Richardson error estimate [1]"
+    )
