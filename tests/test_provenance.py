@@ -82,3 +82,20 @@ def test_force_recomputes_and_another_study_is_refused(tmp_path: Path, capsys: p
     assert main(["run", str(other), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "holds the results of 'reuse'" in err and "--force" in err
+
+
+def test_adding_accuracy_check_in_set_recomputes_every_variant_with_its_estimate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Everything that changes results is in the reuse key (issue 14 item 11): a re-run with
+    ``accuracy_check: true`` added in ``set:`` recomputes all 4 variants, and each gets an error
+    estimate; for this linear spring the estimate is that of a second-order method, below 1e-3."""
+    study = _study(tmp_path, "[1.0, 2.0]")
+    out = tmp_path / "out"
+    assert main(["run", str(study), "-o", str(out)]) == 0
+    assert open_results(out).summary["error_estimate"].isna().all()
+    study.write_text(study.read_text() + "set: {accuracy_check: true}\n")
+    assert main(["run", str(study), "-o", str(out)]) == 0
+    assert "4 variants computed" in capsys.readouterr().out
+    est = open_results(out).summary["error_estimate"].to_numpy()
+    assert np.all(np.isfinite(est)) and np.all(est < 1e-3)
