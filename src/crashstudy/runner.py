@@ -44,12 +44,13 @@ def chunk_size(plan: Plan) -> int:
 
 
 def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
-               vary: frozenset[int] | None = None) -> KernelOutput:  # fmt: skip
+               vary: frozenset[int] | None = None, repeat: float = 1.0) -> KernelOutput:  # fmt: skip
     """Integrate ``batch`` with ``kernel``: "compiled" (the fastest kernel that is compiled, or the
     NumPy reference while none is: :func:`crashstudy.kernel.choice.pick`), "generic", "generated" or
     "reference". ``vary``: indices of the curves the study varies (see :func:`varying_curves`). The
-    environment variable ``CRASHSTUDY_KERNEL`` overrides "compiled" (docs/kernels.md)."""
-    kernel = choice.pick(batch, histories, vary, kernel)
+    environment variable ``CRASHSTUDY_KERNEL`` overrides "compiled" (docs/kernels.md). ``repeat``: how
+    many batches like this one the run holds (for the choice)."""
+    kernel = choice.pick(batch, histories, vary, kernel, repeat)
     if kernel == "reference":
         from crashstudy.kernel.reference import run_reference
 
@@ -58,7 +59,9 @@ def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str
     if kernel == "generated":
         from crashstudy.kernel.generated import run_generated
 
-        return run_generated(batch, histories, n_out, vary)
+        out = run_generated(batch, histories, n_out, vary)
+        choice.note_loaded("generated")
+        return out
     from crashstudy.kernel.compiled import run_compiled
 
     choice.note_loaded("generic")
@@ -98,18 +101,21 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
     V = hi - lo
     # a variant's parameters are a function of its axis values: dedupe on those (few columns)
     axes = plan.axis_values(lo, hi)
-    if axes:
+    if axes and not plan.variants_distinct:
         _, first, inverse = np.unique(np.stack(list(axes.values()), axis=1), axis=0, return_index=True,
                                       return_inverse=True)  # fmt: skip
         uniq = P[:, first]
+    elif axes:  # every variant differs from every other: nothing to dedupe
+        uniq, inverse = P, np.arange(V)
     else:
         uniq, inverse = P[:, :1], np.zeros(V, dtype=np.int64)
     inverse = inverse.reshape(-1)
     batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
     order = np.argsort(batch.n_steps, kind="stable")
     sorted_batch = batch.take(order)
-    out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, varying_curves(plan))
-    estimate = error_estimate(sorted_batch, out, kernel) if topo.accuracy_check else np.full(len(order), np.nan)
+    repeat = plan.n_variants / max(V, 1)
+    out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, varying_curves(plan), repeat)
+    estimate = error_estimate(sorted_batch, out, kernel, repeat) if topo.accuracy_check else np.full(len(order), np.nan)
     pos = np.empty_like(order)
     pos[order] = np.arange(len(order))
     N, D, S, W = topo.n_nodes, topo.dim, topo.n_springs, len(topo.wall_ids)
@@ -126,13 +132,15 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
 
 def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarray:
     """'node X / spring Y' per variant (object array), each distinct text made once."""
-    pairs, inv = np.unique(np.stack([node, spring]), axis=1, return_inverse=True)
+    width = len(topo.spring_ids) + 1
+    keys, inv = np.unique((node.astype(np.int64) + 1) * width + spring + 1, return_inverse=True)
+    pairs = np.stack([keys // width - 1, keys % width - 1])
     texts = np.array([("none" if n < 0 else f"node {topo.node_ids[n]}")
                       + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "") for n, s in pairs.T], dtype=object)  # fmt: skip
     return texts[inv.reshape(-1)] if len(node) else np.zeros(0, dtype=object)
 
 
-def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled") -> np.ndarray:
+def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled", repeat: float = 1.0) -> np.ndarray:
     """Richardson estimate of the relative error of the reported peaks, per variant.
 
     The variants are run again at half the step; for a second-order method the error of a value
@@ -144,7 +152,7 @@ def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled") ->
     import dataclasses
 
     half = dataclasses.replace(batch, dt=batch.dt / 2, n_steps=batch.n_steps * 2, out_every=batch.out_every * 2)
-    fine = run_kernel(half, (), 1, kernel)
+    fine = run_kernel(half, (), 1, kernel, repeat=repeat)
     worst = np.zeros(batch.n_variants)
     for name in ("peak_force", "peak_acceleration"):
         coarse, ref = getattr(out, name), getattr(fine, name)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import functools
 import math
 import os
 from dataclasses import dataclass
@@ -71,6 +72,16 @@ class Plan:
     @property
     def times(self) -> np.ndarray:
         return np.arange(self.n_out) * self.interval
+
+    @functools.cached_property
+    def variants_distinct(self) -> bool:
+        """Whether no two variants have the same axis values: along every dimension (a matrix axis or a
+        zip group) the rows of values are distinct, so their combinations are too."""
+        for dim in range(len(self.shape)):
+            rows = np.stack([ax.values for ax in self.axes if ax.dim == dim], axis=1)
+            if len(np.unique(rows, axis=0)) < len(rows):
+                return False
+        return True
 
     def axis_values(self, lo: int, hi: int) -> dict[str, np.ndarray]:
         """Value of every axis for variants ``lo`` .. ``hi - 1``."""

@@ -53,7 +53,7 @@ BACKGROUND_MIN = 2.0  # [s] of reference time of a run above which missing kerne
 KERNELS = ("reference", "generic", "generated")
 LOCK_NAME = "compile.lock"
 REF_CHUNK = 1024  # variants per chunk while the reference runs and a compile may finish
-_LOADED_GENERIC: list[bool] = [False]
+_LOADED: set[str] = set()  # kinds of compiled kernel loaded in this process
 
 
 def kernel_override() -> str:
@@ -124,10 +124,13 @@ def compiling() -> bool:
     return False
 
 
-def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: str = "compiled") -> str:
+def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: str = "compiled",
+         repeat: float = 1.0) -> str:  # fmt: skip
     """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
-    fastest compiled one, else the reference, or the generic kernel compiled now when the reference
-    would take longer than that (and no other process is compiling)."""
+    one expected to finish the run first among those compiled and the reference; the generic kernel
+    compiled now only when the reference would take longer than that (and no other process is
+    compiling). ``repeat``: how many batches like ``b`` the run holds (loading a compiled kernel is
+    paid once per process, so it is weighed against the whole run, not one chunk)."""
     from crashstudy.kernel import generated
 
     if kernel == "compiled":
@@ -137,23 +140,28 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
     if kernel != "compiled":
         return kernel
     S = len(b.spring_i)
-    work = float(np.sum(b.n_steps)) * max(S, 1)
-    t_ref = reference_seconds(float(np.max(b.n_steps, initial=0)), S, work)
-    if t_ref < LOAD:  # nothing compiled can win once loading it is counted
+    work = float(np.sum(b.n_steps)) * max(S, 1) * max(repeat, 1.0)
+    t_ref = reference_seconds(float(np.max(b.n_steps, initial=0)), S, float(np.sum(b.n_steps)) * max(S, 1))
+    t_ref *= max(repeat, 1.0)
+
+    def run_time(kind: str, rate: float) -> float:
+        return work / rate + (0.0 if kind in _LOADED else LOAD)
+
+    if t_ref <= LOAD:  # nothing compiled can win once loading it is counted
         return "reference"
+    times = {"reference": t_ref}
     if generated_ready(b, histories, vary):
-        return "generated"
-    t_generic = work / GENERIC_RATE + (0.0 if _LOADED_GENERIC[0] else LOAD)
+        times["generated"] = run_time("generated", GENERATED_RATE)
     if generic_ready():
-        return "generic" if t_generic < t_ref else "reference"
-    if t_ref > GENERIC_COMPILE + t_generic and not compiling():
+        times["generic"] = run_time("generic", GENERIC_RATE)
+    elif len(times) == 1 and t_ref > GENERIC_COMPILE + run_time("generic", GENERIC_RATE) and not compiling():
         return "generic"
-    return "reference"
+    return min(times, key=lambda k: times[k])
 
 
 def note_loaded(kernel: str) -> None:
-    if kernel == "generic":
-        _LOADED_GENERIC[0] = True
+    """A compiled kernel of this kind was loaded in this process (no load time for it any more)."""
+    _LOADED.add(kernel)
 
 
 @dataclass
