@@ -67,7 +67,7 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("--items", nargs="+", help="nodes or springs to plot")
     pl.add_argument("--x", dest="x_axis", help="matrix plot: study axis on the x axis")
     pl.add_argument("--y", dest="y_axis", help="matrix plot: second study axis (heat map)")
-    pl.add_argument("--max-variants", type=int, default=50)
+    pl.add_argument("--max-variants", type=int, default=50, help="most variants drawn in one figure (default 50)")
     pl.add_argument("-o", "--output", help="folder for the PNGs (default DIR/plots)")
     pl.add_argument("--force", action="store_true", help="write the PNGs even into another result's folder")
 
