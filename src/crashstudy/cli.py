@@ -153,14 +153,23 @@ def _checked(plan: Any) -> None:
 
 
 def _after_run(res: Any) -> None:
-    """Warn when the peak decelerations of a result contradict its unit system."""
-    from crashstudy.schema.plausible import peak_g_warnings
+    """Warn when the peak deceleration of the model's body mass contradicts the result's unit system."""
+    from crashstudy.schema import validate_model_data
+    from crashstudy.schema.plausible import body_node, peak_g_warnings
+    from crashstudy.yamlio import loads_yaml
 
+    attrs = res.dataset.attrs
+    try:
+        m, _ = validate_model_data(loads_yaml(str(attrs.get("model_yaml", "")), "results.nc").data)
+    except InputError:
+        return
+    node = body_node(m) if m is not None else None
     s = res.summary
-    ok = s[s["status"] == "ok"] if "status" in s else s
-    peaks = [(c, float(ok[c].max()), int(ok.loc[ok[c].idxmax(), "variant"])) for c in ok.columns
-             if c.startswith("peak_deceleration_g.") and ok[c].notna().any()]  # fmt: skip
-    _warn(peak_g_warnings(str(res.dataset.attrs.get("units", "SI")), peaks))
+    col = f"peak_deceleration_g.{node}"
+    if node is None or col not in s or not s[col].notna().any():
+        return
+    k = s[col].idxmax()
+    _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, float(s.loc[k, col]), int(s.loc[k, "variant"])))
 
 
 def _run(args: argparse.Namespace) -> int:
