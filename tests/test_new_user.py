@@ -248,7 +248,9 @@ def test_the_example_models_raise_no_plausibility_warning(name: str, tmp_path: P
     assert "warning" not in capsys.readouterr().err
     s = crashstudy.open_results(tmp_path / name).summary
     if name == "frontal-9mass":
-        assert s["peak_deceleration_g.bumper"].iloc[0] > 1000.0 > s["peak_deceleration_g.survival_room"].iloc[0]
+        assert (
+            s["peak_deceleration_g.bumper"].iloc[0] > 1000.0 > s["peak_deceleration_g.survival_room"].iloc[0]
+        )
 
 
 # --------------------------------------------------------------------------------------------------

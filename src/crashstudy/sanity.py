@@ -42,7 +42,9 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     where = plan.study_file or plan.model_file
     warnings = unit_warnings(m, _first_dt_crit(plan), where) if m is not None else []
     if plan.study_file == DICT_STUDY:
-        problems = [Problem(p.file, None, p.field, p.message) if p.file == DICT_STUDY else p for p in problems]
+        problems = [
+            Problem(p.file, None, p.field, p.message) if p.file == DICT_STUDY else p for p in problems
+        ]
     return problems, warnings
 
 

@@ -11,6 +11,7 @@ Each check here returns plain sentences for ``warning: ...`` lines; nothing is r
 from __future__ import annotations
 
 import math
+
 from crashstudy.schema.model import Model
 from crashstudy.units import UNIT_SYSTEMS
 
@@ -52,7 +53,9 @@ def unit_warnings(m: Model, dt_crit: float | None = None, where: str = "") -> li
     if speeds and max(speeds) * length / t > MAX_SPEED_M_S:
         out.append(f"{pre}initial velocity {max(speeds):g} {u.velocity} is {max(speeds) * length / t:.3g} m/s, "
                    f"beyond any crash: {_hint(m.units)}")  # fmt: skip
-    heavy = [(nid, n.mass) for nid, n in m.nodes.items() if n.mass is not None and n.mass * mass > MAX_MASS_KG]
+    heavy = [
+        (nid, n.mass) for nid, n in m.nodes.items() if n.mass is not None and n.mass * mass > MAX_MASS_KG
+    ]
     if heavy:
         nid, mm = heavy[0]
         out.append(f"{pre}node {nid!r} has mass {mm:g} {u.mass} = {mm * mass:.3g} kg: {_hint(m.units)}")
