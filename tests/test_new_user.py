@@ -5,7 +5,8 @@ The model is the 1-D frontal impact of test_study: a crush spring (wall - front,
 5e6 N/m) and a linear spring (front - body, 2e6 N/m), 20 ms. Independent truths used below:
 
 - the critical step of a free node is ``0.99 * 2 / sqrt(2 K / m)`` with ``K`` the sum of the stiffnesses
-  of its springs (SPEC 4; the crush spring counts with its unloading stiffness, the steepest slope);
+  of its springs (the nodal bound of docs/solver.md; a crush spring counts with its unloading stiffness,
+  the steepest slope);
 - a consistent unit system does not change the arithmetic: the same numbers declared ``mm-ms-kg-kN``
   give the same accelerations, and standard gravity in mm/ms^2 is 9.80665e-3, so the peak in g is
   exactly 1000 times the SI one;
