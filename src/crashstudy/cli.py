@@ -6,6 +6,7 @@ Exit codes: 0 success, 1 a check failed or a variant failed, 2 the input is inva
 from __future__ import annotations
 
 import argparse
+import json
 import signal
 import sys
 from pathlib import Path
@@ -24,7 +25,7 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("run", help="run every variant of a study")
-    r.add_argument("study")
+    r.add_argument("study", help="study file (YAML: name, model, matrix/zip axes; see docs/studies.md)")
     r.add_argument("-o", "--output", help="result folder (default results/<study name>)")
     r.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; the kernel is multi-threaded)")
     r.add_argument("--scheduler", help="Dask scheduler address tcp://HOST:PORT, or 'local' for a LocalCluster")
@@ -32,7 +33,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true",
                    help="recompute everything (default: reuse unchanged variants of this study's earlier results)")
     r.add_argument("--dry-run", action="store_true", help="validate and print the number of variants, run nothing")
-    r.add_argument("--progress", choices=["auto", "on", "off"], default="auto")
+    r.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
+                   help="progress line (variants done, variants/s, ETA) on stderr: auto = only on a terminal")
     csv = r.add_mutually_exclusive_group()
     csv.add_argument("--csv", dest="csv", action="store_true", default=None,
                      help="also write summary.csv however many variants (default: up to 100,000)")
@@ -40,38 +42,45 @@ def _parser() -> argparse.ArgumentParser:
                      help="write summary.parquet only (it is always written)")
 
     v = sub.add_parser("validate", help="check a model or study file and report every problem")
-    v.add_argument("file")
+    v.add_argument("file", help="model or study file (YAML); which one it is, is told by its keys")
 
     s = sub.add_parser("simulate", help="run one model (no matrix)")
-    s.add_argument("model")
+    s.add_argument("model", help="model file (YAML: nodes, springs, end_time, ...); a study goes to `run`")
     s.add_argument("-o", "--output", help="result folder (default results/<model name>)")
+    s.add_argument("--force", action="store_true",
+                   help="overwrite a folder that holds other results (default: refuse, exit 2)")
 
     sm = sub.add_parser("summary", help="print the summary table of a result folder")
-    sm.add_argument("dir")
-    sm.add_argument("--sort", help="column to sort by (e.g. peak_deceleration_g.cabin)")
+    sm.add_argument("dir", help="result folder (written by run or simulate)")
+    sm.add_argument("--sort", help="column to sort by (e.g. peak_deceleration_g.cabin; a part of one name will do)")
     sm.add_argument("--ascending", action="store_true", help="sort ascending (default descending)")
     sm.add_argument("--head", type=int, default=30, help="rows to show (0 = all)")
-    sm.add_argument("--columns", nargs="+", help="columns to show (substrings match)")
+    sm.add_argument("--columns", nargs="+", help="columns to show besides variant and the study axes (substrings match)")
+    sm.add_argument("--variant", type=int, help="print this variant's row, every column on a line of its own")
 
     pl = sub.add_parser("plot", help="write PNG figures of a result folder")
-    pl.add_argument("dir")
-    pl.add_argument("--kind", choices=["history", "force-displacement", "matrix"], default="history")
+    pl.add_argument("dir", help="result folder (written by run or simulate)")
+    pl.add_argument("--kind", choices=["history", "force-displacement", "matrix"], default="history",
+                    help="history: a quantity over time per item; force-displacement: spring force over crush; "
+                    "matrix: a summary metric over the study axes (default history)")
     pl.add_argument("--quantity", help="history variable or summary metric (e.g. spring_force, peak_force.cabin)")
     pl.add_argument("--items", nargs="+", help="nodes or springs to plot")
     pl.add_argument("--x", dest="x_axis", help="matrix plot: study axis on the x axis")
     pl.add_argument("--y", dest="y_axis", help="matrix plot: second study axis (heat map)")
-    pl.add_argument("--max-variants", type=int, default=50)
+    pl.add_argument("--max-variants", type=int, default=50, help="most variants drawn in one figure (default 50)")
     pl.add_argument("-o", "--output", help="folder for the PNGs (default DIR/plots)")
+    pl.add_argument("--force", action="store_true", help="write the PNGs even into another result's folder")
 
     c = sub.add_parser("compare", help="regression check of a result against a baseline")
-    c.add_argument("new")
-    c.add_argument("baseline")
-    c.add_argument("--rtol", type=float)
-    c.add_argument("--atol", type=float)
+    c.add_argument("new", help="result folder under test")
+    c.add_argument("baseline", help="result folder of the same study to compare with")
+    c.add_argument("--rtol", type=float, help="relative tolerance of every metric the study's regression: block "
+                   "does not name: |new - old| <= atol + rtol |old| (default 1e-6)")
+    c.add_argument("--atol", type=float, help="absolute tolerance, in each metric's own unit (default 0)")
     c.add_argument("--junit", help="write JUnit XML to this file")
 
     sc = sub.add_parser("schema", help="print the JSON Schema of model or study files")
-    sc.add_argument("kind", choices=["model", "study"])
+    sc.add_argument("kind", choices=["model", "study"], help="which file format")
     return p
 
 
@@ -128,11 +137,47 @@ def main(argv: list[str] | None = None) -> int:
         raise
 
 
+def _warn(lines: list[str]) -> None:
+    for line in lines:
+        print(f"warning: {line}", file=sys.stderr)
+
+
+def _checked(plan: Any) -> None:
+    """Print the plan's plausibility warnings; raise its silent mistakes as invalid input (exit 2)."""
+    from crashstudy.sanity import check_plan
+
+    problems, warnings = check_plan(plan)
+    _warn(warnings)
+    if problems:
+        raise InputError(problems)
+
+
+def _after_run(res: Any) -> None:
+    """Warn when the peak deceleration of the model's body mass contradicts the result's unit system."""
+    from crashstudy.schema import validate_model_data
+    from crashstudy.schema.plausible import body_node, peak_g_warnings
+    from crashstudy.yamlio import loads_yaml
+
+    attrs = res.dataset.attrs
+    try:
+        m, _ = validate_model_data(loads_yaml(str(attrs.get("model_yaml", "")), "results.nc").data)
+    except InputError:
+        return
+    node = body_node(m) if m is not None else None
+    s = res.summary
+    col = f"peak_deceleration_g.{node}"
+    if node is None or col not in s or not s[col].notna().any():
+        return
+    k = s[col].idxmax()
+    _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, float(s.loc[k, col]), int(s.loc[k, "variant"])))
+
+
 def _run(args: argparse.Namespace) -> int:
     from crashstudy.runner import default_out, run_plan
     from crashstudy.study import load_study
 
     plan = load_study(args.study)
+    _checked(plan)
     print(f"study {plan.name}: {plan.n_variants} variants"
           + (" (" + " x ".join(str(s) for s in plan.shape) + ")" if plan.shape else ""))  # fmt: skip
     if args.dry_run:
@@ -147,6 +192,7 @@ def _run(args: argparse.Namespace) -> int:
     reused = f", {rep.n_reused} unchanged variants reused" if rep.n_reused else ""
     print(f"wrote {rep.results.path} and {_tables(rep.results.dir)} ({rep.n_computed} variants computed in "
           f"{rep.seconds:.1f} s{reused})")  # fmt: skip
+    _after_run(rep.results)
     if rep.n_failed:
         print(f"{rep.n_failed} of {rep.n_variants} variants failed (see status / failure_reason)", file=sys.stderr)
         return EXIT_FAILED
@@ -158,20 +204,23 @@ def _tables(folder: Path) -> str:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from crashstudy.schema import parse_model
+    from crashstudy.schema import file_kind, parse_model
     from crashstudy.study import load_study
     from crashstudy.yamlio import load_yaml
 
     doc = load_yaml(args.file)
-    if isinstance(doc.data, dict) and "model" in doc.data and "nodes" not in doc.data:
+    if file_kind(doc.data) == "study":
         plan = load_study(args.file)
+        _checked(plan)
         print(f"{args.file}: valid study ({plan.n_variants} variants)")
     else:
         from crashstudy.runner import refuse_fixed_dt
         from crashstudy.study import plan_from_model
 
         lm = parse_model(doc)
-        refuse_fixed_dt(plan_from_model(lm), doc)
+        plan = plan_from_model(lm)
+        refuse_fixed_dt(plan, doc)
+        _checked(plan)
         m = lm.model
         print(f"{args.file}: valid model ({len(m.nodes)} nodes, {len(m.springs)} springs, "
               f"{len(next(iter(m.nodes.values())).position)}-D)")  # fmt: skip
@@ -181,10 +230,11 @@ def _validate(args: argparse.Namespace) -> int:
 def _simulate(args: argparse.Namespace) -> int:
     from crashstudy.runner import simulate_report
 
-    rep = simulate_report(args.model, args.output, notes=sys.stderr)
+    rep = simulate_report(args.model, args.output, force=args.force, notes=sys.stderr, warn=lambda w: _warn([w]))
     s = rep.results.summary.iloc[0]
     print(f"wrote {rep.results.path} and {_tables(rep.results.dir)}")
     print(f"  status {s['status']}  dt {s['dt']:.4g}  energy_error {s['energy_error']:.2e}  ({s['dt_control']})")
+    _after_run(rep.results)
     if s["status"] != "ok":
         print(f"  failed: {s['failure_reason']}", file=sys.stderr)
         return EXIT_FAILED
@@ -192,25 +242,86 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _summary(args: argparse.Namespace) -> int:
+    import shutil
+
     import pandas as pd
 
     from crashstudy.results import open_results
 
-    df = open_results(args.dir).summary
+    if args.head < 0:
+        raise InputError([_arg_problem("--head", f"expected 0 (every row) or a number of rows, got {args.head}")])
+    res = open_results(args.dir)
+    try:
+        df = res.summary
+        units = _column_units(res.dataset, list(df.columns))
+        axes = [a for a in json.loads(res.dataset.attrs.get("crashstudy_axes", "[]")) if a in df.columns]
+    finally:
+        res.close()
+    if args.variant is not None:
+        return _print_variant(df, units, args)
     if args.columns:
-        keep = ["variant"] + [c for c in df.columns if any(k in c for k in args.columns) and c != "variant"]
-        df = df[keep]
+        picked = [c for c in df.columns if any(k in c for k in args.columns) and c != "variant" and c not in axes]
+        df = df[["variant", *axes, *picked]]
     if args.sort:
-        if args.sort not in df.columns:
-            import difflib
+        col = _match_column(args.dir, args.sort, list(df.columns))
+        df = df.sort_values(col, ascending=args.ascending, kind="stable")
+    shown = df if not args.head else df.head(args.head)
+    reasons = shown.pop("failure_reason") if "failure_reason" in shown else None
+    width = shutil.get_terminal_size((100, 24)).columns  # COLUMNS, else the terminal, else 100
+    table = shown.copy()
+    table.columns = pd.MultiIndex.from_tuples([(c, f"[{units[c]}]" if units.get(c) else "") for c in shown.columns])
+    with pd.option_context("display.max_columns", None, "display.width", width, "display.max_colwidth", None,
+                           "display.expand_frame_repr", True, "display.max_rows", None):  # fmt: skip
+        print(table.to_string(line_width=width))
+    if args.head and len(df) > args.head:
+        print(f"... {len(df) - args.head} more rows (--head 0 shows all)")
+    if reasons is not None and (reasons != "").any():
+        import textwrap
 
-            close = [c for c in df.columns if args.sort in c] or difflib.get_close_matches(args.sort, list(df.columns), 5)
-            raise InputError([_arg_problem(args.dir, f"no column {args.sort!r}; columns like it: {close or list(df.columns)}")])
-        df = df.sort_values(args.sort, ascending=args.ascending)
-    with pd.option_context("display.max_columns", 30, "display.width", 200, "display.max_colwidth", 40):
-        print(df if not args.head else df.head(args.head))
-        if args.head and len(df) > args.head:
-            print(f"... {len(df) - args.head} more rows (--head 0 shows all)")
+        print("failure reasons:")
+        for v, why in zip(shown["variant"], reasons, strict=True):
+            if why:
+                print(textwrap.fill(f"variant {v}: {why}", width, subsequent_indent="    ", break_long_words=False))
+    return EXIT_OK
+
+
+def _column_units(ds: Any, columns: list[str]) -> dict[str, str]:
+    """Unit of each summary column as results.nc stores it (``""`` for none or a pure number)."""
+    out = {}
+    for c in columns:
+        name = c if c in ds.variables else c.split(".", 1)[0]
+        unit = str(ds[name].attrs.get("units", "")) if name in ds.variables else ""
+        out[c] = "" if unit == "1" else unit
+    return out
+
+
+def _match_column(where: str, wanted: str, columns: list[str]) -> str:
+    """The column ``wanted`` names: itself, or the one column it is a part of."""
+    if wanted in columns:
+        return wanted
+    hits = [c for c in columns if wanted in c]
+    if len(hits) == 1:
+        return hits[0]
+    if hits:
+        raise InputError([_arg_problem(where, f"--sort {wanted!r} is ambiguous: it matches {hits}; name one")])
+    import difflib
+
+    close = difflib.get_close_matches(wanted, columns, 5)
+    raise InputError([_arg_problem(where, f"no column {wanted!r}; columns like it: {close or columns}")])
+
+
+def _print_variant(df: Any, units: dict[str, str], args: argparse.Namespace) -> int:
+    rows = df[df["variant"] == args.variant]
+    if rows.empty:
+        raise InputError([_arg_problem(args.dir, f"--variant {args.variant}: the variants are numbered 0 to "
+                                       f"{len(df) - 1}")])  # fmt: skip
+    row = rows.iloc[0]
+    labels = {c: c + (f" [{units[c]}]" if units.get(c) else "") for c in df.columns}
+    w = max(len(x) for x in labels.values())
+    for c in df.columns:
+        v = row[c]
+        text = f"{v:.6g}" if isinstance(v, float) else str(v)
+        print(f"{labels[c]:<{w}}  {text}")
     return EXIT_OK
 
 
@@ -223,14 +334,29 @@ def _arg_problem(where: str, msg: str) -> Any:
 def _plot(args: argparse.Namespace) -> int:
     from crashstudy.plot import plot_command
 
+    out = Path(args.output) if args.output else Path(args.dir) / "plots"
+    owner = _result_folder_of(out)
+    if owner is not None and not args.force and owner.resolve() != Path(args.dir).resolve():
+        raise InputError([_arg_problem(str(out), f"this folder belongs to the results in {owner}, not to "
+                                       f"{args.dir}; choose another -o or use --force")])  # fmt: skip
     for path in plot_command(args):
         print(f"wrote {path}")
     return EXIT_OK
 
 
+def _result_folder_of(path: Path) -> Path | None:
+    """The result folder (one holding results.nc or an unfinished run) that ``path`` is or sits directly in."""
+    for folder in (path, path.parent):
+        if (folder / "results.nc").exists() or (folder / "results.nc.partial").exists():
+            return folder
+    return None
+
+
 def _compare(args: argparse.Namespace) -> int:
     from crashstudy.compare import compare_command
 
+    if args.junit and Path(args.junit).name in ("results.nc", "results.nc.partial", "summary.csv"):
+        raise InputError([_arg_problem(args.junit, "--junit would overwrite a result file; name a .xml file")])
     return compare_command(args)
 
 

@@ -529,7 +529,14 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
            else TypeAdapter(dict[str, Tolerance]).validate_python(tolerances))  # fmt: skip
     notes = []
     axes = list(dict.fromkeys([*n_side.axes, *b_side.axes]))
-    if set(n_side.axes) != set(b_side.axes):
+    if bool(n_side.axes) != bool(b_side.axes):  # a single model run against a study: nothing can match
+        single, study = ("new", "baseline") if not n_side.axes else ("baseline", "new")
+        axes_of = b_side.axes if not n_side.axes else n_side.axes
+        notes.append(f"the {single} result is a single model run (crashstudy simulate: no study axes) and the "
+                     f"{study} result is a study over {axes_of}: variants are matched by their axis values, "
+                     "which a single run does not have, so no variant can be matched; compare a simulate "
+                     "result with a simulate result, or a study with a run of the same study")  # fmt: skip
+    elif set(n_side.axes) != set(b_side.axes):
         notes.append(f"the study axes differ (new: {n_side.axes or 'none'}, baseline: {b_side.axes or 'none'}): "
                      "variants match only on equal values of every axis")  # fmt: skip
     vn, vb = n_side.attrs.get("crashstudy_version"), b_side.attrs.get("crashstudy_version")

@@ -575,6 +575,33 @@ def _matrix_metrics(summary: pd.DataFrame, axes: list[str], quantity: str | None
     return [f"{base}.{i}" for i in items]
 
 
+PLOT_TAG = "crashstudy-plot-of"  #: PNG text key naming the result a figure of ``crashstudy plot`` shows
+
+
+def is_crashstudy_plot(path: Path) -> bool:
+    """Whether the PNG at ``path`` was written by ``crashstudy plot`` (it carries :data:`PLOT_TAG`).
+
+    Reads the PNG's chunks up to the image data; a file that is not a PNG is not ours."""
+    import struct
+
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(8) != b"\x89PNG\r\n\x1a\n":
+                return False
+            while True:
+                head = fh.read(8)
+                if len(head) < 8:
+                    return False
+                size, kind = struct.unpack(">I4s", head)
+                if kind in (b"IDAT", b"IEND") or size > 1 << 20:
+                    return False
+                body = fh.read(size + 4)[:size]
+                if kind in (b"tEXt", b"iTXt") and body.split(b"\x00", 1)[0] == PLOT_TAG.encode():
+                    return True
+    except OSError:
+        return False
+
+
 def plot_command(args: argparse.Namespace) -> list[Path]:
     """``crashstudy plot DIR``: write the figures of ``args.kind`` as PNGs; return their paths.
 
@@ -646,7 +673,7 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
         for stem, fig in figures:
             path = out / f"{_safe(stem)}.png"
             clear_entry(path)  # a planted link is removed, never written through
-            fig.savefig(path, dpi=100)
+            fig.savefig(path, dpi=100, metadata={PLOT_TAG: str(res.path)})
             paths.append(path)
         return paths
     except InputError as exc:  # name the folder as the user typed it

@@ -11,6 +11,7 @@ import os
 import shutil
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,6 @@ from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelO
 from crashstudy.provenance import variant_hashes
 from crashstudy.results import FINAL, PARQUET, PARTIAL, SUMMARY, ChunkResult, Results, ResultWriter
 from crashstudy.safefs import clear_entry
-from crashstudy.schema import load_model
 from crashstudy.study import Plan, load_study, plan_from_model
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
@@ -285,6 +285,8 @@ def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_
     """Refuse to overwrite another study's results or an unfinished run unless ``force``; clear when forced.
 
     A finished result of the *same* study is not refused: the run reuses its unchanged variants.
+    Whenever new results are about to be written, the plots that ``crashstudy plot`` made of the
+    earlier results in the folder (``plots/``) are removed: they would no longer show these results.
     """
     final, partial = out_dir / FINAL, out_dir / PARTIAL
     if out_dir.exists() and not out_dir.is_dir():
@@ -292,14 +294,34 @@ def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_
     if force and out_dir.exists():
         for p in (final, partial, out_dir / SUMMARY, out_dir / PARQUET):
             clear_entry(p)  # a link is removed, never followed (a dangling one too)
+        remove_stale_plots(out_dir)
         return
     if final.exists() and not resume:
         other = _study_of(final)
         if other != study_name:
-            raise InputError([Problem(source, None, "", f"{out_dir} holds the results of {other!r}, not of study "
+            raise InputError([Problem(source, None, "", f"{out_dir} holds the results of {other!r}, not of "
                                       f"{study_name!r}; use --force to overwrite or choose another -o")])  # fmt: skip
     if os.path.lexists(partial) and not resume:
         raise InputError([Problem(source, None, "", f"an unfinished run is in {out_dir}; use --resume to finish it or --force to start again")])
+    if not (resume and final.exists() and not os.path.lexists(partial)):  # else: nothing will be written
+        remove_stale_plots(out_dir)
+
+
+def remove_stale_plots(out_dir: Path) -> list[Path]:
+    """Remove the PNGs in ``out_dir/plots`` that ``crashstudy plot`` wrote (never other files); return them."""
+    folder = out_dir / "plots"
+    if not folder.is_dir() or folder.is_symlink():
+        return []
+    from crashstudy.plot import is_crashstudy_plot
+
+    gone = []
+    for png in sorted(folder.glob("*.png")):
+        if not png.is_symlink() and png.is_file() and is_crashstudy_plot(png):
+            png.unlink()
+            gone.append(png)
+    if gone and not any(folder.iterdir()):
+        folder.rmdir()  # it held only those plots
+    return gone
 
 
 def _study_of(final: Path) -> str:
@@ -435,10 +457,25 @@ def simulate(model: str | os.PathLike[str], out_dir: str | os.PathLike[str] | No
 
 
 def simulate_report(model: str, out_dir: str | os.PathLike[str] | None = None, force: bool = True,
-                    notes: Any = None) -> RunReport:  # fmt: skip
-    lm = load_model(model)
+                    notes: Any = None, warn: Callable[[str], None] | None = None) -> RunReport:  # fmt: skip
+    """Run one model file; ``force=False`` refuses a folder holding other results (the command line's
+    default). ``warn`` receives the plausibility warnings of the model before it runs."""
+    from crashstudy.schema import file_kind, parse_model
+    from crashstudy.yamlio import load_yaml
+
+    doc = load_yaml(model)
+    if file_kind(doc.data) == "study":
+        raise InputError([Problem(model, None, "", f"this is a study, not a model (it has "
+                                  f"{', '.join(k for k in doc.data if k in ('model', 'matrix', 'zip', 'set'))}): "
+                                  f"run its variants with `crashstudy run {model}`")])  # fmt: skip
+    lm = parse_model(doc)
     plan = plan_from_model(lm)
     refuse_fixed_dt(plan, lm.doc)
+    if warn is not None:
+        from crashstudy.sanity import check_plan
+
+        for line in check_plan(plan)[1]:
+            warn(line)
     out = Path(out_dir) if out_dir else default_out(plan.name)
     return run_plan(plan, out, force=force, progress=False, notes=notes)
 

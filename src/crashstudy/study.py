@@ -24,7 +24,7 @@ from crashstudy.batch import ParameterCheck, check_parameters
 from crashstudy.compiler import PathRef, Topology, apply_axis, compile_model
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES
-from crashstudy.schema import LoadedModel, parse_model, refuse_foreign, validate_model_data
+from crashstudy.schema import LoadedModel, file_kind, parse_model, refuse_foreign, validate_model_data
 from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.schema.study import Study
@@ -308,17 +308,40 @@ def _model_path(sdoc: LoadedYaml, base_dir: Path, name: str) -> Path:
     return path
 
 
+DICT_STUDY = "study (dict)"  #: how a study given from Python as a dict is named in messages (it has no lines)
+
+
 def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
     """Read and validate a study (a path, or a dict as the YAML would load) into a :class:`Plan`."""
+    if not isinstance(source, dict):
+        return _load_study(source)
+    try:
+        return _load_study(source)
+    except InputError as exc:  # a dict has no file and no lines: "study (dict): matrix.x: ...", never "<...>:4:"
+        raise InputError([p if p.file != DICT_STUDY else Problem(p.file, None, p.field, p.message)
+                          for p in exc.problems]) from None  # fmt: skip
+
+
+def _not_a_study(sdoc: LoadedYaml) -> Problem:
+    keys = ", ".join(k for k in sdoc.data if k in Model.model_fields)
+    name = sdoc.file if sdoc.file != DICT_STUDY else "MODEL.yaml"
+    return Problem(sdoc.file, None, "", f"this is a model, not a study (it has {keys}): run one model with "
+                   f"`crashstudy simulate {name}`, or write a study file with `model: {name}` and the axes to "
+                   "vary under `matrix:`")  # fmt: skip
+
+
+def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
     if isinstance(source, dict):
         import yaml
 
-        sdoc = loads_yaml(yaml.safe_dump(source, sort_keys=False), file="<study dict>")
+        sdoc = loads_yaml(yaml.safe_dump(source, sort_keys=False), file=DICT_STUDY)
         base_dir = Path.cwd()
     else:
         sdoc = load_yaml(source)
         base_dir = Path(source).resolve().parent
     refuse_foreign(sdoc)
+    if file_kind(sdoc.data) == "model":
+        raise InputError([_not_a_study(sdoc)])
     try:
         study = Study.model_validate(sdoc.data)
     except ValidationError as exc:
@@ -349,3 +372,4 @@ def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
     if not axes and check.bad[0]:  # with axes, each of their values was checked with the rest of the model
         raise InputError([_study_problem(sdoc, ("model",), f"the model (after 'set') is invalid: {check.reason(0)}")])
     return plan
+

@@ -13,7 +13,7 @@ from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.yamlio import LoadedYaml, load_yaml
 
-__all__ = ["LoadedModel", "Model", "load_model", "parse_model", "refuse_foreign", "validate_model_data"]
+__all__ = ["LoadedModel", "Model", "file_kind", "load_model", "parse_model", "refuse_foreign", "validate_model_data"]
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,25 @@ def refuse_foreign(doc: LoadedYaml) -> None:
         raise InputError([Problem(doc.file, first, "", f"not a crashstudy model or study file: none of its "
                                   f"{len(doc.data)} top-level keys is one of ours (a model has name, nodes, springs, "
                                   "...; a study has name, model, matrix, ...)")])  # fmt: skip
+
+
+def file_kind(data: Any) -> str | None:
+    """``"model"`` or ``"study"`` by the top-level keys only one of the two formats has; ``None`` if neither.
+
+    A study without its ``model:`` key is still a study (it has ``matrix``, ``zip``, ``set`` ...), so
+    its error is the missing ``model:``, not every study key reported as unknown to a model."""
+    from crashstudy.schema.study import Study
+
+    if not isinstance(data, dict):
+        return None
+    shared = set(Model.model_fields) & set(Study.model_fields)
+    model_keys = (set(Model.model_fields) - shared) & set(data)
+    study_keys = (set(Study.model_fields) - shared) & set(data)
+    if model_keys and study_keys:  # a mixture: what it has most of, "nodes" deciding a tie
+        if len(model_keys) == len(study_keys):
+            return "model" if "nodes" in data else "study"
+        return "model" if len(model_keys) > len(study_keys) else "study"
+    return "model" if model_keys else "study" if study_keys else None
 
 
 def parse_model(doc: LoadedYaml) -> LoadedModel:
