@@ -168,19 +168,33 @@ def test_fixed_dt_above_some_variants_critical_step_names_dt_crit_and_the_axis_v
     crit = [0.99 * 2.0 / np.sqrt(2.0 * K_FRONT / m) for m in masses]  # 1.67e-4, 2.37e-4, 2.65e-3 s
     assert crit[0] < crit[1] < 3.0e-4 < crit[2]
     head = f"{study}:{line_of(study, 'time_step')}: time_step.dt: "
-    for argv in (["validate", str(study)], ["run", str(study), "-o", str(tmp_path / "out")]):
-        capsys.readouterr()
-        assert main(argv) == 2
-        err = capsys.readouterr().err
-        hit = [ln for ln in err.splitlines() if ln.startswith(head)]
+
+    def said(err: str) -> str:
+        hit = [ln for ln in err.splitlines() if head in ln]
         assert hit, err
         m = re.search(r"dt_crit=([0-9.eE+-]+)", hit[0])
         assert m and float(m.group(1)) == pytest.approx(crit[0], rel=1e-5)  # printed to 6 digits
         assert "4 of 6 variant" in hit[0] and "nodes.front.mass in [0.1, 0.2]" in hit[0]
-    assert not (tmp_path / "out").exists()
-    # the Python API still runs it, failing exactly those variants (failure isolation)
-    s = crashstudy.run_study(study, tmp_path / "api").summary
+        return hit[0]
+
+    # some variants can run: validate warns (exit 0); run warns before it starts, fails exactly those
+    capsys.readouterr()
+    assert main(["validate", str(study)]) == 0
+    assert said(capsys.readouterr().err).startswith("warning: ")
+    assert main(["run", str(study), "-o", str(tmp_path / "out")]) == 1
+    said(capsys.readouterr().err)
+    s = crashstudy.open_results(tmp_path / "out").summary
     assert (s["status"] == "failed").tolist() == [m < 1.0 for m in s["nodes.front.mass"]]
+    # no variant can: a mistake validate sees, reported before anything runs (exit 2, nothing written)
+    none = dump(tmp_path / "dt-none.yaml", {"name": "fixed-dt-none", "model": str(work / "model.yaml"),
+                                            "matrix": {"nodes.front.mass": masses[:2]},
+                                            "set": {"time_step": {"dt": 3.0e-4}}})  # fmt: skip
+    for argv in (["validate", str(none)], ["run", str(none), "-o", str(tmp_path / "out2")]):
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "is above the critical step of 2 of 2 variant(s)" in err and "warning" not in err, err
+    assert not (tmp_path / "out2").exists()
 
 
 def test_a_study_without_model_key_is_told_so_not_read_as_a_model(

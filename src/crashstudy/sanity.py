@@ -27,20 +27,26 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     """Problems (exit 2) and warnings of a valid plan that the schema cannot see.
 
     Problems: a study axis whose values all give the same model (it changes nothing), and a fixed
-    ``time_step.dt`` above the critical step of some variants (they would each fail at run time).
-    Warnings: numbers that contradict the model's ``units`` (:mod:`crashstudy.schema.plausible`)."""
+    ``time_step.dt`` above the critical step of every variant (no variant could run).
+    Warnings: a fixed ``dt`` above the critical step of some variants (those fail at run time with the
+    reason, the others run), and numbers that contradict the model's ``units``
+    (:mod:`crashstudy.schema.plausible`)."""
     from crashstudy.schema.plausible import unit_warnings
 
     sdoc = loads_yaml(plan.study_text, file=plan.study_file) if plan.study_text else None
     mdoc = loads_yaml(plan.model_text, file=plan.model_file)
     problems = [_axis_problem(plan, sdoc, ax) for ax in plan.axes if not _axis_changes_model(plan, ax)]
     refused, dt_crit = _dt_refused(plan)
-    if refused.size:
+    dt_warnings = []
+    if refused.size == min(plan.n_variants, MAX_DT_CHECK):
         problems.append(_dt_problem(plan, sdoc, mdoc, refused, dt_crit))
+    elif refused.size:  # the others can run: these fail with the reason (failure isolation)
+        p = _dt_problem(plan, sdoc, mdoc, refused, dt_crit)
+        dt_warnings.append(f"{p.file}:{p.line}: {p.field}: {p.message}; those variants will fail")
     data = mdoc.data if sdoc is None else _apply_set(mdoc.data, Study.model_validate(sdoc.data).set, sdoc)
     m, _ = validate_model_data(data)
     where = plan.study_file or plan.model_file
-    warnings = unit_warnings(m, _first_dt_crit(plan), where) if m is not None else []
+    warnings = dt_warnings + (unit_warnings(m, _first_dt_crit(plan), where) if m is not None else [])
     if plan.study_file == DICT_STUDY:
         problems = [
             Problem(p.file, None, p.field, p.message) if p.file == DICT_STUDY else p for p in problems
