@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import yaml
-from conftest import STUDIES, run_model
 
+from conftest import STUDIES, run_model
 from crashstudy.runner import error_estimate
 
 LINEAR = {

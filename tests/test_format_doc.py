@@ -13,8 +13,8 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
 
+from conftest import ROOT
 from crashstudy.cli import main
 from crashstudy.schema import load_model
 from crashstudy.study import load_study

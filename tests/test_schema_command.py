@@ -7,8 +7,8 @@ import json
 
 import jsonschema
 import pytest
-from conftest import STUDIES
 
+from conftest import STUDIES
 from crashstudy.cli import main
 from crashstudy.yamlio import load_yaml
 

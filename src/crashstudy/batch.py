@@ -120,7 +120,7 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
     if len(topo.pm_node):
         free[topo.pm_node, topo.pm_dir] = 0.0
     invalid = np.zeros(V, dtype=np.int64)
-    movable = ~topo.fixed.all(axis=1)
+    movable = np.asarray(~topo.fixed.all(axis=1))
     bad_mass = np.any(movable[:, None] & ~(mass > 0), axis=0)
     with np.errstate(divide="ignore"):
         inv_mass = np.where((free[:, :, None] > 0) & (mass[:, None, :] > 0), 1.0 / mass[:, None, :], 0.0)

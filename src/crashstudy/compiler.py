@@ -9,6 +9,7 @@ vector through :attr:`Topology.paths` (dotted model path -> slots).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -85,7 +86,7 @@ ALL_HISTORIES = (
 )  # fmt: skip
 
 
-def _fixed_axes(fixed: bool | list[str], dim: int) -> list[bool]:
+def _fixed_axes(fixed: bool | Sequence[str], dim: int) -> list[bool]:
     axes = ["x", "y"][:dim]
     if fixed is True:
         return [True] * dim
@@ -102,7 +103,7 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     curve_ids = tuple(m.curves)
     nidx = {n: i for i, n in enumerate(node_ids)}
     cidx = {c: i for i, c in enumerate(curve_ids)}
-    N, S, C, D = len(node_ids), len(spring_ids), len(curve_ids), dim
+    N, S, D = len(node_ids), len(spring_ids), dim
     L, P, W = len(m.loads), len(m.prescribed_motion), len(m.rigid_walls)
     lengths = [len(c.x) for c in m.curves.values()]
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
@@ -169,7 +170,7 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     for c, (cid, curve) in enumerate(m.curves.items()):
         o = int(offsets[c])
         xs, ys = [], []
-        for k, (x, y) in enumerate(zip(curve.x, curve.y)):
+        for k, (x, y) in enumerate(zip(curve.x, curve.y, strict=False)):  # lengths checked by the schema
             xs.append(put("cx", o + k, x, f"curves.{cid}.x.{k}"))
             ys.append(put("cy_", o + k, y, f"curves.{cid}.y.{k}"))
         paths[f"curves.{cid}.scale"] = PathRef("scale", tuple(ys))

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import json
 import os
-from contextlib import nullcontext
 import sys
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -195,8 +195,9 @@ class ResultWriter:
             shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
             v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
             v.units, v.long_name = units[kind], long
-        small = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
-        st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
+        # small integer variables: zlib level 1 compresses them ~50x and costs little
+        st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, zlib=True, complevel=1, shuffle=True,
+                               chunksizes=[cv])  # fmt: skip
         st.units, st.long_name = "1", "ok or failed (failure_reason says why)"
         st.flag_values, st.flag_meanings = np.arange(len(STATUS_MEANINGS), dtype="i1"), " ".join(STATUS_MEANINGS)
         nc.createDimension("text_len", TEXT_LEN)
@@ -205,12 +206,14 @@ class ResultWriter:
             tv = nc.createVariable(f"{name}_text", "S1", (f"{name}_kind", "text_len"), chunksizes=[16, TEXT_LEN])
             tv._Encoding = "utf-8"
             tv.units, tv.long_name = "", f"the distinct texts of {name}"
-            v = nc.createVariable(name, "i4", ("variant",), fill_value=-1, **small)
+            v = nc.createVariable(name, "i4", ("variant",), fill_value=-1, zlib=True, complevel=1, shuffle=True,
+                                  chunksizes=[cv])  # fmt: skip
             v.units, v.long_name, v.texts = "1", f"{long}: index into {name}_text", f"{name}_text"
         nc.createDimension("hash_word", HASH_WORDS)
         hv = nc.createVariable("input_hash", "u8", ("variant", "hash_word"), chunksizes=[cv, HASH_WORDS])
         hv.units, hv.long_name = "1", "hash of everything that determines the variant's results (reuse key)"
-        d = nc.createVariable("done", "i1", ("variant",), fill_value=0, **small)
+        d = nc.createVariable("done", "i1", ("variant",), fill_value=0, zlib=True, complevel=1, shuffle=True,
+                              chunksizes=[cv])  # fmt: skip
         d.units, d.long_name = "1", "1 once the variant's results are written"
         if p.axes:  # CF: the study axes are coordinates of every per-variant variable
             coords = " ".join(a.path for a in p.axes)

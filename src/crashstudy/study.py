@@ -94,7 +94,7 @@ class Plan:
     def params(self, lo: int, hi: int) -> np.ndarray:
         """Parameter matrix (n_params, hi - lo) of variants ``lo`` .. ``hi - 1``."""
         P = np.repeat(self.base[:, None], hi - lo, axis=1)
-        for ax, vals in zip(self.axes, self.axis_values(lo, hi).values()):
+        for ax, vals in zip(self.axes, self.axis_values(lo, hi).values(), strict=True):
             apply_axis(P, ax.ref, np.asarray(vals, dtype=np.float64))
         return P
 

@@ -104,7 +104,7 @@ def choose_steps(
     np.add.at(K, j, kmax)
     np.add.at(Cn, i, damp)
     np.add.at(Cn, j, damp)
-    movable = ~topo.fixed.all(axis=1)
+    movable = np.asarray(~topo.fixed.all(axis=1))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         m = np.where(movable[:, None], mass, np.inf)
         omega = np.sqrt(2.0 * K / m)

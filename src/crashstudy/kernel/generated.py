@@ -582,10 +582,10 @@ def _source(shape: dict[str, Any]) -> str:
                     continue
                 nr = [R[f"wn{wl}_{d}"] for d in range(D)]
                 pt = [R[f"wp{wl}_{d}"] for d in range(D)]
-                x = [R[f"x{n}_{d}"] for d in range(D)]
+                xw = [R[f"x{n}_{d}"] for d in range(D)]
                 emit(f"{i2}wv = {_lsum([f'vn_{d} * {nr[d]}' for d in range(D)])}")
-                emit(f"{i2}gap = {_lsum([f'({x[d]} - {pt[d]}) * {nr[d]}' for d in range(D)])}")
-                emit(f"{i2}dist = {_lsum([f'(({x[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]}' for d in range(D)])}")
+                emit(f"{i2}gap = {_lsum([f'({xw[d]} - {pt[d]}) * {nr[d]}' for d in range(D)])}")
+                emit(f"{i2}dist = {_lsum([f'(({xw[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]}' for d in range(D)])}")
                 emit(f"{i2}dvn = (-gap / dtw - wv) if ((dist < 0.0) & (wv < 0.0)) else 0.0")
                 emit(f"{i2}we = 0.0")
                 for d in range(D):

@@ -6,7 +6,8 @@ field in the YAML document, so the caller can name its line.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -35,7 +36,7 @@ def model_problems(m: Model) -> list[tuple[Path, str]]:
     return out
 
 
-def _fixed_axes(fixed: bool | list[str], dim: int) -> set[str]:
+def _fixed_axes(fixed: bool | Sequence[str], dim: int) -> set[str]:
     axes = ["x", "y"][:dim]
     if fixed is True:
         return set(axes)
@@ -91,7 +92,7 @@ def _springs(m: Model, dim: int) -> Found:
                         yield base + (key,), f"the {key} curve {cid!r} must pass through the origin (its force at e=0 is {curve_value(c.x, c.y, 0.0):g})"
             if mat.unloading in m.curves:
                 c = m.curves[mat.unloading]
-                if any(not b > a for a, b in zip(c.y, c.y[1:])):
+                if any(not b > a for a, b in zip(c.y, c.y[1:], strict=False)):
                     yield base + ("unloading",), f"the unloading curve {mat.unloading!r} must be increasing (y strictly increasing)"
         elif isinstance(mat, Crush):
             yield from _curve_ref(m, base + ("loading",), mat.loading)
@@ -174,8 +175,8 @@ def raw_reference_problems(data: object) -> list[tuple[Path, str]]:
     """
     if not isinstance(data, dict):
         return []
-    nodes = data.get("nodes") if isinstance(data.get("nodes"), dict) else {}
-    curves = data.get("curves") if isinstance(data.get("curves"), dict) else {}
+    nodes: dict[str, Any] = data["nodes"] if isinstance(data.get("nodes"), dict) else {}
+    curves: dict[str, Any] = data["curves"] if isinstance(data.get("curves"), dict) else {}
     out: list[tuple[Path, str]] = []
 
     def node_ref(path: Path, name: object) -> None:

@@ -46,7 +46,7 @@ class Curve(Strict):
     def _increasing(self) -> Curve:
         if len(self.x) != len(self.y):
             raise ValueError(f"x and y must have the same number of points (x has {len(self.x)}, y has {len(self.y)})")
-        for a, b in zip(self.x, self.x[1:]):
+        for a, b in zip(self.x, self.x[1:], strict=False):
             if not b > a:
                 raise ValueError(f"x must be strictly increasing (found {a} followed by {b})")
         return self

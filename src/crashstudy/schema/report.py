@@ -95,7 +95,7 @@ def _step(cls: Any, part: str | int, value: Any) -> Any:
     return None
 
 
-def _message(err: dict[str, Any], allowed: list[str] | None) -> str:
+def _message(err: Any, allowed: list[str] | None) -> str:
     kind = err["type"]
     if kind == "missing":
         return f"missing required field {err['loc'][-1]!r}"
