@@ -156,10 +156,9 @@ def main(argv: list[str] | None = None) -> int:
         for case in args.cases:
             cmd = [sys.executable, __file__, "--one", case, "--folder", tmp]
             first = json.loads(subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout)
-            from crashstudy.kernel.cache import cache_dir
-            from crashstudy.kernel.choice import LOCK_NAME
+            from crashstudy.kernel.choice import compiling
 
-            while (cache_dir() / LOCK_NAME).exists() and _locked(cache_dir() / LOCK_NAME):
+            while compiling():
                 time.sleep(1.0)  # the first run's background compile
             runs = [json.loads(subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout)
                     for _ in range(args.repeats)]  # fmt: skip
@@ -179,18 +178,6 @@ def main(argv: list[str] | None = None) -> int:
     (args.out / "small_models.md").write_text(text)
     print(f"wrote {args.out / 'small_models.md'}")
     return 0
-
-
-def _locked(path: Path) -> bool:
-    import fcntl
-
-    with open(path, "a") as fh:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            return True
-        fcntl.flock(fh, fcntl.LOCK_UN)
-    return False
 
 
 if __name__ == "__main__":

@@ -29,25 +29,8 @@ import crashstudy
 from crashstudy.cli import _parser, main
 from crashstudy.compare import compare
 from crashstudy.errors import InputError
+from test_study import MODEL  # noqa: E402 - the two-spring crush model of the study tests
 
-MODEL: dict[str, Any] = {
-    "name": "two-spring-crush",
-    "units": "SI",
-    "curves": {"crush-loading": {"x": [-0.2, -0.02, 0.0], "y": [-60000.0, -40000.0, 0.0]}},
-    "nodes": {
-        "wall": {"position": [0.0], "fixed": True},
-        "front": {"position": [0.3], "mass": 50.0},
-        "body": {"position": [0.9], "mass": 800.0},
-    },
-    "springs": {
-        "crush": {"nodes": ["wall", "front"],
-                  "material": {"type": "crush", "loading": "crush-loading", "unloading_stiffness": 5.0e6}},
-        "body": {"nodes": ["front", "body"], "material": {"type": "linear_elastic", "stiffness": 2.0e6}},
-    },
-    "initial_velocity": {"front": [-10.0], "body": [-10.0]},
-    "end_time": 0.02,
-    "output": {"interval": 2.0e-4},
-}  # fmt: skip
 K_FRONT = 5.0e6 + 2.0e6  # N/m: springs at the front node (crush unloading + body)
 RTOL = 1e-12
 
