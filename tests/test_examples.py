@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
+from crashstudy.design import n_rows
 from crashstudy.results import open_results
 from crashstudy.runner import run_plan, simulate
 from crashstudy.study import load_study
@@ -40,6 +41,8 @@ def reduced_copy(study: Path, folder: Path) -> Path:
         data["matrix"] = {path: ends(vals) for path, vals in data["matrix"].items()}
     if data.get("zip"):
         data["zip"] = [{path: ends(vals) for path, vals in group.items()} for group in data["zip"]]
+    if data.get("design"):  # a few rows of the same design (same seed and distributions)
+        data["design"]["n"] = min(int(data["design"]["n"]), 4)
     out = folder / study.name
     out.write_text(yaml.safe_dump(data, sort_keys=False))
     return out
@@ -54,14 +57,20 @@ def test_there_are_example_studies_and_models() -> None:
 @pytest.mark.parametrize("study", STUDIES, ids=[p.stem for p in STUDIES])
 def test_example_study_loads_and_its_corners_run(study: Path, tmp_path: Path) -> None:
     full = load_study(study)
-    assert full.n_variants == math.prod(len(v) for v in _groups(load_yaml(study).data))
+    design = load_yaml(study).data.get("design")
+    rows = (lambda n: n_rows(design.get("method", "lhs"), n, len(design["axes"]))) if design else (lambda n: 1)
+    assert full.n_variants == math.prod(len(v) for v in _groups(load_yaml(study).data)) * rows(design and design["n"])
     if study.stem == "frontal-matrix":
         assert full.n_variants >= 1000  # issue 3: the frontal example has at least 10^3 variants
 
     plan = load_study(reduced_copy(study, tmp_path))
-    assert plan.n_variants == 2 ** sum(1 for s in full.shape if s > 1)
+    grid = full.shape[:-1] if design else full.shape
+    assert plan.n_variants == 2 ** sum(1 for s in grid if s > 1) * rows(design and min(design["n"], 4))
     assert [a.path for a in plan.axes] == [a.path for a in full.axes]
     for small, big in zip(plan.axes, full.axes, strict=True):  # the corners of the shipped axes
+        if design and small.path in design["axes"]:  # rows of the same distributions: inside their range
+            assert big.values.min() - 1e-9 <= small.values.min() and small.values.max() <= big.values.max() + 1e-9
+            continue
         np.testing.assert_array_equal(small.values, [big.values[0], big.values[-1]][: len(small.values)])
     assert plan.n_out == full.n_out and plan.topology.histories == full.topology.histories  # `set` kept
 

@@ -222,6 +222,12 @@ def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], b
     groups: list[tuple[tuple[str | int, ...], dict[str, list[float]]]] = [
         (("matrix", key), {key: vals}) for key, vals in study.matrix.items()
     ] + [(("zip", g), grp) for g, grp in enumerate(study.zip)]
+    if study.design is not None:  # its rows: one dimension after matrix and zip, its axes varying together
+        from crashstudy.design import rows
+
+        d = study.design
+        groups.append((("design", "axes"), {k: v.tolist() for k, v in rows(
+            d.method, d.n, d.seed, {path: dist.spec() for path, dist in d.axes.items()}).items()}))  # fmt: skip
     axes: list[Axis] = []
     shape: list[int] = []
     problems: list[Problem] = []
@@ -232,7 +238,7 @@ def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], b
             problems.append(_study_problem(doc, where, f"the axes of a zip group need equal lengths, got {sorted(lengths)}"))
         shape.append(min(lengths))
         for path, vals in grp.items():
-            loc = where + (path,) if where[0] == "zip" else where
+            loc = where + (path,) if where[0] in ("zip", "design") else where
             if path in seen:
                 problems.append(_study_problem(doc, loc, f"axis {path!r} appears twice"))
             seen.add(path)

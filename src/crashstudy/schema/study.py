@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from crashstudy.schema.model import Finite, Id, NonNegative, Strict
 
@@ -16,6 +16,48 @@ class Tolerance(Strict):
 
     rtol: NonNegative = Field(default=0.0, description="allowed relative change [1] >= 0")
     atol: NonNegative = Field(default=0.0, description="allowed absolute change [the metric's units] >= 0")
+
+
+Pair = Annotated[list[Finite], Field(min_length=2, max_length=2)]
+
+
+class Distribution(Strict):
+    """One axis of a sampled design: exactly one distribution with its parameters."""
+
+    uniform: Pair | None = Field(default=None, description="[low, high] in the axis's units")
+    normal: Pair | None = Field(default=None, description="[mean, standard deviation] in the axis's units")
+    lognormal: Pair | None = Field(
+        default=None, description="[mu, sigma]: exp of a normal with mean mu and standard deviation sigma [1]"
+    )
+    truncnormal: Annotated[list[Finite], Field(min_length=4, max_length=4)] | None = Field(
+        default=None, description="[mean, standard deviation, low, high]: a normal cut to [low, high], axis units"
+    )
+
+    @model_validator(mode="after")
+    def _one(self) -> Distribution:
+        from crashstudy.design import why_invalid
+
+        given = [(k, list(v)) for k, v in self.model_dump().items() if v is not None]
+        if len(given) != 1:
+            raise ValueError("give exactly one of uniform, normal, lognormal, truncnormal")
+        why = why_invalid(*given[0])
+        if why:
+            raise ValueError(why)
+        return self
+
+    def spec(self) -> tuple[str, list[float]]:
+        return next((k, list(v)) for k, v in self.model_dump().items() if v is not None)
+
+
+class Design(Strict):
+    """Sampled rows of axis values (docs/design.md), crossed with matrix and zip."""
+
+    method: Literal["lhs", "sobol", "halton", "random", "saltelli", "morris"] = Field(
+        default="lhs", description="sampling: lhs, sobol, halton, random; saltelli / morris for crashstudy sensitivity"
+    )
+    n: int = Field(ge=1, le=1_000_000, description="rows (saltelli: base points, n (2d+2) rows; morris: trajectories)")
+    seed: int = Field(default=0, ge=0, description="seed of the random numbers: the same seed gives the same rows")
+    axes: dict[str, Distribution] = Field(min_length=1, description="axis path -> its distribution")
 
 
 class Study(Strict):
@@ -34,6 +76,7 @@ class Study(Strict):
     )
     zip: list[Annotated[dict[str, AxisValues], Field(min_length=1)]] = Field(default=        [], description="groups of axis path -> values [model units] that vary together; each group crossed with the matrix"
     )
+    design: Design | None = Field(default=None, description="sampled rows of axis values, crossed with matrix and zip")
     set: dict[str, Any] = Field(default={}, description="model field or dotted path -> value, applied to every variant")
     regression: dict[str, Tolerance] = Field(default=        {}, description="summary column (or metric name) -> tolerance used by crashstudy compare"
     )

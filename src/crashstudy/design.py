@@ -1,0 +1,107 @@
+"""Sampled designs: the rows of a study's ``design:`` block (docs/design.md).
+
+A design draws ``n`` points in the unit hypercube, one coordinate per axis, with scipy's
+quasi-Monte Carlo engines (``scipy.stats.qmc``: Latin hypercube, scrambled Sobol', scrambled
+Halton) or plain pseudo-random numbers, seeded so that the same file gives the same rows. Each
+coordinate is then mapped through its axis's distribution (the inverse CDF of ``scipy.stats``):
+
+- ``uniform: [low, high]``;
+- ``normal: [mean, sd]``;
+- ``lognormal: [mu, sigma]``: ``exp`` of a normal with mean ``mu`` and standard deviation ``sigma``;
+- ``truncnormal: [mean, sd, low, high]``: a normal cut to ``[low, high]`` (a mass or a stiffness
+  that must stay positive).
+
+Two designs exist for the sensitivity methods of SALib (``crashstudy sensitivity``), whose
+estimators need their own sample structure: ``saltelli`` (Sobol' indices; ``n`` base points give
+``n (2 d + 2)`` rows) and ``morris`` (``n`` trajectories of ``d + 1`` rows on a 4-level grid).
+
+The rows form one dimension of the study, after ``matrix`` and ``zip``: the design's axes vary
+together along it (like a zip group) and the whole design is crossed with the matrix.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+METHODS = ("lhs", "sobol", "halton", "random", "saltelli", "morris")
+DISTRIBUTIONS = {"uniform": 2, "normal": 2, "lognormal": 2, "truncnormal": 4}  # name: number of parameters
+_EDGE = 1e-12  # unit coordinates are kept inside (0, 1): the inverse CDF of a normal is infinite at 0 and 1
+
+
+def rows(method: str, n: int, seed: int, dists: dict[str, tuple[str, list[float]]]) -> dict[str, np.ndarray]:
+    """The design's rows: axis path -> values (one per row), for ``dists`` (path -> (name, parameters))."""
+    unit = unit_rows(method, n, seed, len(dists))
+    return {path: to_distribution(name, params, unit[:, k]) for k, (path, (name, params)) in enumerate(dists.items())}
+
+
+def n_rows(method: str, n: int, d: int) -> int:
+    """How many rows a design of ``n`` (base points / trajectories) over ``d`` axes has."""
+    return n * (2 * d + 2) if method == "saltelli" else n * (d + 1) if method == "morris" else n
+
+
+def unit_rows(method: str, n: int, seed: int, d: int) -> np.ndarray:
+    """(rows, d) points in the open unit hypercube."""
+    from scipy.stats import qmc
+
+    if method == "random":
+        u = np.random.default_rng(seed).random((n, d))
+    elif method == "lhs":
+        u = qmc.LatinHypercube(d, seed=np.random.default_rng(seed)).random(n)
+    elif method in ("sobol", "halton"):
+        engine = (qmc.Sobol if method == "sobol" else qmc.Halton)(d, scramble=True, seed=np.random.default_rng(seed))
+        with warnings.catch_warnings():  # Sobol' balance is best at powers of two; any n is still a valid design
+            warnings.simplefilter("ignore", UserWarning)
+            u = engine.random(n)
+    elif method in ("saltelli", "morris"):
+        u = _salib_rows(method, n, seed, d)
+    else:  # the schema only lets the names of METHODS through
+        raise ValueError(f"unknown design method {method!r}")
+    return np.clip(u, _EDGE, 1.0 - _EDGE)
+
+
+def salib_problem(d: int) -> dict[str, Any]:
+    """The SALib problem of a design over ``d`` axes, in unit coordinates (the distributions are
+    applied afterwards, so the indices are those of the mapped inputs)."""
+    return {"num_vars": d, "names": [f"x{k}" for k in range(d)], "bounds": [[0.0, 1.0]] * d}
+
+
+def _salib_rows(method: str, n: int, seed: int, d: int) -> np.ndarray:
+    if method == "saltelli":
+        from SALib.sample import sobol
+
+        with warnings.catch_warnings():  # SALib asks for powers of two; its estimator is valid for any n
+            warnings.simplefilter("ignore")
+            return np.asarray(sobol.sample(salib_problem(d), n, calc_second_order=True, seed=seed))
+    from SALib.sample import morris
+
+    return np.asarray(morris.sample(salib_problem(d), n, num_levels=4, seed=seed))
+
+
+def to_distribution(name: str, p: list[float], u: np.ndarray) -> np.ndarray:
+    """Map unit coordinates ``u`` through the inverse CDF of distribution ``name`` with parameters ``p``."""
+    from scipy import stats
+
+    if name == "uniform":
+        return p[0] + u * (p[1] - p[0])
+    if name == "normal":
+        return np.asarray(stats.norm.ppf(u, loc=p[0], scale=p[1]))
+    if name == "lognormal":
+        return np.exp(np.asarray(stats.norm.ppf(u, loc=p[0], scale=p[1])))
+    if name == "truncnormal":
+        a, b = (p[2] - p[0]) / p[1], (p[3] - p[0]) / p[1]
+        return np.asarray(stats.truncnorm.ppf(u, a, b, loc=p[0], scale=p[1]))
+    raise ValueError(f"unknown distribution {name!r}")
+
+
+def why_invalid(name: str, p: list[float]) -> str | None:
+    """What is wrong with the parameters of a distribution (None when they are valid)."""
+    if name == "uniform" and not p[0] < p[1]:
+        return f"uniform: [low, high] needs low < high, got {p}"
+    if name in ("normal", "lognormal", "truncnormal") and not p[1] > 0:
+        return f"{name}: the standard deviation (second number) must be > 0, got {p[1]}"
+    if name == "truncnormal" and not p[2] < p[3]:
+        return f"truncnormal: [mean, sd, low, high] needs low < high, got {p}"
+    return None

@@ -1,0 +1,125 @@
+"""Sampled designs (the ``design:`` block, docs/design.md): reproducible rows, the strata of a Latin
+hypercube, the moments of each distribution, variant numbering after matrix and zip, clear errors,
+and reuse of unchanged variants as for a matrix."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from crashstudy.cli import main
+from crashstudy.design import n_rows, rows
+from crashstudy.results import open_results
+from crashstudy.study import load_study
+
+MODEL = """\
+name: drop
+nodes:
+  ground: {position: [0.0], fixed: true}
+  body: {position: [0.5], mass: 100.0}
+springs:
+  pad: {nodes: [ground, body], material: {type: linear_elastic, stiffness: 1.0e6}}
+initial_velocity: {body: [-5.0]}
+end_time: 0.03
+time_step: {safety_factor: 0.9}
+output: {histories: none}
+"""
+
+
+def _study(tmp: Path, design: dict[str, Any], matrix: dict[str, list[float]] | None = None) -> Path:
+    (tmp / "model.yaml").write_text(MODEL)
+    data: dict[str, Any] = {"name": "design-test", "model": "model.yaml", "design": design}
+    if matrix:
+        data["matrix"] = matrix
+    path = tmp / "study.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize("method", ["lhs", "sobol", "halton", "random", "saltelli", "morris"])
+def test_the_same_seed_gives_the_same_rows_and_another_seed_other_rows(method: str) -> None:
+    dists = {"a": ("uniform", [0.0, 1.0]), "b": ("normal", [10.0, 2.0])}
+    one, two, other = rows(method, 16, 7, dists), rows(method, 16, 7, dists), rows(method, 16, 8, dists)
+    assert len(one["a"]) == n_rows(method, 16, 2)  # saltelli 16 (2d+2) = 96, morris 16 (d+1) = 48
+    for k in dists:
+        np.testing.assert_array_equal(one[k], two[k])
+    assert not np.array_equal(one["a"], other["a"])
+
+
+def test_latin_hypercube_puts_one_row_in_each_stratum_of_every_axis() -> None:
+    """n = 50 rows over uniform [2, 7] and [-1, 1]: floor of the scaled value is a permutation of 0..49."""
+    r = rows("lhs", 50, 1, {"a": ("uniform", [2.0, 7.0]), "b": ("uniform", [-1.0, 1.0])})
+    for k, (lo, hi) in (("a", (2.0, 7.0)), ("b", (-1.0, 1.0))):
+        strata = np.floor((r[k] - lo) / (hi - lo) * 50).astype(int)
+        assert sorted(strata.tolist()) == list(range(50))
+
+
+def test_each_distribution_has_its_stated_moments_and_bounds() -> None:
+    """4096 scrambled Sobol' rows: sample mean and sd of a normal within 3 standard errors of the spec;
+    the log of a lognormal likewise; a truncated normal stays inside its bounds and its mean is the
+    closed form mu + sigma (phi(a) - phi(b)) / (Phi(b) - Phi(a)) (scipy.stats.truncnorm.mean, 3 s.e.)."""
+    from scipy import stats
+
+    n = 4096
+    r = rows("sobol", n, 2, {"n": ("normal", [10.0, 2.0]), "ln": ("lognormal", [0.5, 0.25]),
+                             "t": ("truncnormal", [1.0, 1.0, 0.5, 3.0]), "u": ("uniform", [-3.0, 5.0])})  # fmt: skip
+    se = 3.0 / np.sqrt(n)
+    assert abs(r["n"].mean() - 10.0) < 2.0 * se and abs(r["n"].std() - 2.0) < 2.0 * se
+    assert abs(np.log(r["ln"]).mean() - 0.5) < 0.25 * se and abs(np.log(r["ln"]).std() - 0.25) < 0.25 * se
+    assert r["t"].min() >= 0.5 and r["t"].max() <= 3.0
+    mean_t = stats.truncnorm.mean(-0.5, 2.0, loc=1.0, scale=1.0)
+    assert abs(r["t"].mean() - mean_t) < se
+    assert r["u"].min() >= -3.0 and r["u"].max() <= 5.0 and abs(r["u"].mean() - 1.0) < 8.0 * se
+
+
+def test_design_rows_are_numbered_after_the_matrix_and_are_the_axis_coordinates(tmp_path: Path) -> None:
+    """matrix impact_velocity [3, 5] x 8 design rows: variant = 8 * matrix index + row; the coordinates
+    are the rows of :func:`rows` with the file's seed."""
+    study = _study(tmp_path, {"method": "lhs", "n": 8, "seed": 4,
+                              "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0]}}},
+                   {"impact_velocity": [3.0, 5.0]})  # fmt: skip
+    plan = load_study(study)
+    assert plan.shape == (2, 8) and plan.n_variants == 16
+    vals = plan.axis_values(0, 16)
+    expected = rows("lhs", 8, 4, {"m": ("uniform", [80.0, 120.0])})["m"]
+    np.testing.assert_array_equal(vals["nodes.body.mass"], np.tile(expected, 2))
+    np.testing.assert_array_equal(vals["impact_velocity"], np.repeat([3.0, 5.0], 8))
+
+
+def test_a_design_study_runs_each_row_as_the_model_alone_and_a_rerun_reuses_every_variant(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Peak force of each variant = v sqrt(k m) (undamped linear spring, closed form, 1e-3 relative at
+    safety factor 0.9 ... measured 2e-4); the same study again computes nothing."""
+    study = _study(tmp_path, {"method": "halton", "n": 12, "seed": 0,
+                              "axes": {"nodes.body.mass": {"uniform": [50.0, 150.0]},
+                                       "impact_velocity": {"truncnormal": [5.0, 1.0, 3.0, 7.0]}}})  # fmt: skip
+    out = tmp_path / "out"
+    assert main(["run", str(study), "-o", str(out), "--progress", "off"]) == 0
+    s = open_results(out).summary
+    closed = s["impact_velocity"] * np.sqrt(1.0e6 * s["nodes.body.mass"])
+    np.testing.assert_allclose(s["peak_force.pad"], closed, rtol=1e-3)
+    capsys.readouterr()
+    assert main(["run", str(study), "-o", str(out), "--progress", "off"]) == 0
+    assert "0 variants computed" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("design", "expected"), [
+    ({"n": 8, "axes": {"nodes.body.mass": {"uniform": [120.0, 80.0]}}}, "needs low < high"),
+    ({"n": 8, "axes": {"nodes.body.mass": {"normal": [100.0, -1.0]}}}, "standard deviation"),
+    ({"n": 8, "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0], "normal": [1.0, 1.0]}}}, "exactly one"),
+    ({"n": 8, "method": "grid", "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0]}}}, "design.method"),
+    ({"n": 8, "axes": {"nodes.body.mas": {"uniform": [80.0, 120.0]}}}, "unknown axis 'nodes.body.mas'"),
+    ({"n": 8, "axes": {"nodes.body.mass": {"normal": [10.0, 50.0]}}}, "makes the model invalid"),
+])  # fmt: skip
+def test_a_bad_design_is_exit_2_naming_its_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                 design: dict[str, Any], expected: str) -> None:  # fmt: skip
+    study = _study(tmp_path, design)
+    capsys.readouterr()
+    assert main(["validate", str(study)]) == 2
+    err = capsys.readouterr().err
+    assert expected in err and f"{study}:" in err and "Traceback" not in err, err
