@@ -57,6 +57,8 @@ def _parser() -> argparse.ArgumentParser:
     sm.add_argument("--head", type=int, default=30, help="rows to show (0 = all)")
     sm.add_argument("--columns", nargs="+", help="columns to show besides variant and the study axes (substrings match)")
     sm.add_argument("--variant", type=int, help="print this variant's row, every column on a line of its own")
+    sm.add_argument("--exceed", nargs=2, metavar=("COLUMN", "LIMIT"),
+                    help="print P(COLUMN > LIMIT) over the variants with its exact 95%% interval (Monte Carlo designs)")
 
     pl = sub.add_parser("plot", help="write PNG figures of a result folder")
     pl.add_argument("dir", help="result folder (written by run or simulate)")
@@ -79,6 +81,9 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--atol", type=float, help="absolute tolerance, in each metric's own unit (default 0)")
     c.add_argument("--junit", help="write JUnit XML to this file")
 
+    from crashstudy.cli_explore import add_parsers
+
+    add_parsers(sub)
     sc = sub.add_parser("schema", help="print the JSON Schema of model or study files")
     sc.add_argument("kind", choices=["model", "study"], help="which file format")
     return p
@@ -250,6 +255,11 @@ def _summary(args: argparse.Namespace) -> int:
 
     if args.head < 0:
         raise InputError([_arg_problem("--head", f"expected 0 (every row) or a number of rows, got {args.head}")])
+    if args.exceed:
+        from crashstudy.cli_explore import exceed_text
+
+        print(exceed_text(args.dir, *args.exceed))
+        return EXIT_OK
     res = open_results(args.dir)
     try:
         df = res.summary
@@ -371,8 +381,14 @@ def _schema(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _sensitivity(args: argparse.Namespace) -> int:
+    from crashstudy.cli_explore import sensitivity
+
+    return sensitivity(args)
+
+
 COMMANDS = {"run": _run, "validate": _validate, "simulate": _simulate, "summary": _summary, "plot": _plot,
-            "compare": _compare, "schema": _schema}  # fmt: skip
+            "compare": _compare, "schema": _schema, "sensitivity": _sensitivity}  # fmt: skip
 
 if __name__ == "__main__":
     sys.exit(main())

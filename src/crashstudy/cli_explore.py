@@ -1,0 +1,119 @@
+"""Command line of design exploration: ``crashstudy sensitivity`` and ``crashstudy summary --exceed``
+(parsing, printing, exit codes; the numbers come from :mod:`crashstudy.sensitivity`)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from crashstudy.errors import InputError, Problem
+
+EXIT_OK, EXIT_INVALID = 0, 2
+
+
+def add_parsers(sub: Any) -> None:
+    se = sub.add_parser("sensitivity", help="sensitivity of a summary column to the study axes (sensitivity.csv)")
+    se.add_argument("dir", help="result folder of a study")
+    se.add_argument("--metric", required=True,
+                    help="summary column, e.g. peak_deceleration_g.cabin (a part of one name will do)")
+    se.add_argument("--method", choices=["correlation", "sobol", "morris"], default="correlation",
+                    help="correlation (any study; Spearman and Pearson), sobol (design method saltelli: S1, ST), "
+                         "morris (design method morris: mu_star, sigma); default correlation")  # fmt: skip
+    se.add_argument("--history", metavar="QUANTITY",
+                    help="also: Spearman correlation of this history (e.g. spring_force) with each axis at every "
+                         "sample -> sensitivity_<quantity>.nc and .png")  # fmt: skip
+    se.add_argument("--item", help="with --history: the spring or node (default the first)")
+
+
+def exceed_text(dir_: str, column: str, limit: str) -> str:
+    """``summary --exceed COLUMN LIMIT``: the exceedance probability of a column."""
+    from crashstudy.cli import _match_column
+    from crashstudy.results import open_results
+    from crashstudy.sensitivity import exceedance
+
+    value = _number("--exceed", limit)
+    res = open_results(dir_)
+    try:
+        df = res.summary
+    finally:
+        res.close()
+    return exceedance(df, _match_column(dir_, column, list(df.columns)), value).text()
+
+
+def _number(option: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not math.isfinite(value):
+        raise InputError([Problem(option, None, "", f"expected a finite number, got {text!r}")])
+    return value
+
+
+def sensitivity(args: argparse.Namespace) -> int:
+    from crashstudy.cli import _match_column
+    from crashstudy.results import open_results
+    from crashstudy.sensitivity import indices
+
+    res = open_results(args.dir)
+    try:
+        df, attrs = res.summary, dict(res.dataset.attrs)
+        metric = _match_column(args.dir, args.metric, list(df.columns))
+        try:
+            table = indices(df, attrs, metric, args.method)
+        except ValueError as exc:
+            raise InputError([Problem(args.dir, None, "--method", str(exc))]) from None
+        if args.history:
+            _over_time(res, args)
+    finally:
+        res.close()
+    out = Path(args.dir) / "sensitivity.csv"
+    table.to_csv(out, index=False)
+    import pandas as pd
+
+    with pd.option_context("display.max_rows", None, "display.width", 120, "display.max_colwidth", 60):
+        print(table.drop(columns=["metric"]).to_string(index=False))
+    for note in sorted({n for n in table["note"] if n}):
+        print(f"note: {note}", file=sys.stderr)
+    print(f"wrote {out}")
+    return EXIT_OK
+
+
+def _over_time(res: Any, args: argparse.Namespace) -> None:
+    from crashstudy.safefs import clear_entry
+    from crashstudy.sensitivity import over_time
+
+    ds = res.dataset
+    if args.history not in ds:
+        kept = [v for v in ds.data_vars if "time" in ds[v].dims]
+        raise InputError([Problem(args.dir, None, "--history", f"no history {args.history!r} in the results; "
+                                  f"kept: {kept or 'none (output.histories: none)'}")])  # fmt: skip
+    try:
+        da = over_time(ds, args.history, args.item)
+    except ValueError as exc:
+        raise InputError([Problem(args.dir, None, "--item", str(exc))]) from None
+    stem = Path(args.dir) / f"sensitivity_{args.history}"
+    clear_entry(stem.with_suffix(".nc"))
+    da.to_netcdf(stem.with_suffix(".nc"))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    t = da["time"].values
+    for a in da["axis_path"].values:
+        ax.plot(t, da.sel(axis_path=a).values, label=str(a))
+    ax.axhline(0.0, color="0.6", lw=0.8)
+    ax.set_ylim(-1.05, 1.05)
+    ax.set_xlabel(f"time [{ds['time'].attrs.get('units', '')}]")
+    ax.set_ylabel("Spearman correlation [1]")
+    ax.set_title(f"{da.attrs['long_name']}")
+    ax.legend(loc="best", fontsize=8)
+    clear_entry(stem.with_suffix(".png"))  # a link there is removed, never written through
+    fig.savefig(stem.with_suffix(".png"), dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    print(f"wrote {stem.with_suffix('.nc')} and {stem.with_suffix('.png')}")
