@@ -81,9 +81,10 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--atol", type=float, help="absolute tolerance, in each metric's own unit (default 0)")
     c.add_argument("--junit", help="write JUnit XML to this file")
 
-    from crashstudy.cli_explore import add_parsers
+    from crashstudy.cli_explore import add_parsers, add_search_parsers
 
     add_parsers(sub)
+    add_search_parsers(sub)
     sc = sub.add_parser("schema", help="print the JSON Schema of model or study files")
     sc.add_argument("kind", choices=["model", "study"], help="which file format")
     return p
@@ -387,8 +388,21 @@ def _sensitivity(args: argparse.Namespace) -> int:
     return sensitivity(args)
 
 
+def _optimize(args: argparse.Namespace) -> int:
+    from crashstudy.cli_explore import optimize_command
+
+    return optimize_command(args)
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from crashstudy.cli_explore import calibrate_command
+
+    return calibrate_command(args)
+
+
 COMMANDS = {"run": _run, "validate": _validate, "simulate": _simulate, "summary": _summary, "plot": _plot,
-            "compare": _compare, "schema": _schema, "sensitivity": _sensitivity}  # fmt: skip
+            "compare": _compare, "schema": _schema, "sensitivity": _sensitivity,
+            "optimize": _optimize, "calibrate": _calibrate}  # fmt: skip
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -117,3 +117,109 @@ def _over_time(res: Any, args: argparse.Namespace) -> None:
     fig.savefig(stem.with_suffix(".png"), dpi=100, bbox_inches="tight")
     plt.close(fig)
     print(f"wrote {stem.with_suffix('.nc')} and {stem.with_suffix('.png')}")
+
+
+def add_search_parsers(sub: Any) -> None:
+    op = sub.add_parser("optimize", help="run a study's optimize: block (optimum.yaml, history.csv, its results)")
+    op.add_argument("study", help="study file with an optimize: block")
+    op.add_argument("-o", "--output", help="result folder (default results/<study name>)")
+    ca = sub.add_parser("calibrate", help="run a study's calibrate: block (calibrated.yaml, a data-vs-fit plot)")
+    ca.add_argument("study", help="study file with a calibrate: block")
+    ca.add_argument("-o", "--output", help="result folder (default results/<study name>)")
+
+
+def _study_dict(path: str, block: str) -> tuple[dict[str, Any], Path]:
+    """The validated study as plain data (model path absolute) and its folder."""
+    from crashstudy.study import load_study
+    from crashstudy.yamlio import load_yaml
+
+    load_study(path)  # every problem of the file at once, with lines
+    doc = load_yaml(path)
+    data = dict(doc.data)
+    if not data.get(block):
+        raise InputError([Problem(path, None, block, f"no {block}: block in this study (see docs/optimize.md)")])
+    base = Path(path).resolve().parent
+    data["model"] = str((base / data["model"]).resolve())
+    for k, (lo, hi) in data[block]["variables"].items():
+        if not lo < hi:
+            raise InputError([Problem(path, doc.line_of((block, "variables", k)), f"{block}.variables.{k}",
+                                      f"bounds [low, high] need low < high, got [{lo}, {hi}]")])  # fmt: skip
+    corners = {"name": data["name"], "model": data["model"], "set": data.get("set") or {},
+               "zip": [{k: [float(v) for v in b] for k, b in data[block]["variables"].items()}]}  # fmt: skip
+    try:
+        load_study(corners)  # both bounds of every variable give a valid model
+    except InputError as exc:
+        raise InputError([Problem(path, doc.line_of((block, "variables")), f"{block}.variables", p.message)
+                          for p in exc.problems]) from None  # fmt: skip
+    return data, base
+
+
+def _finish(data: dict[str, Any], values: dict[str, float], out: Path) -> None:
+    from crashstudy.optimization import optimum_study
+    from crashstudy.runner import run_plan
+    from crashstudy.study import load_study
+
+    run_plan(load_study(optimum_study(data, values)), out, force=True, progress=False)
+
+
+def optimize_command(args: argparse.Namespace) -> int:
+    import yaml
+
+    from crashstudy.optimization import optimize
+
+    data, _ = _study_dict(args.study, "optimize")
+    out = Path(args.output or Path("results") / data["name"])
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        result = optimize(data, out)
+    except ValueError as exc:
+        raise InputError([Problem(args.study, None, "optimize", str(exc))]) from None
+    _finish(data, result["variables"], out)
+    (out / "optimum.yaml").write_text(yaml.safe_dump(result, sort_keys=False))
+    print(yaml.safe_dump(result, sort_keys=False).rstrip())
+    print(f"wrote {out / 'optimum.yaml'}, {out / 'history.csv'} and the optimum's results in {out}")
+    return EXIT_OK if result["feasible"] else 1
+
+
+def calibrate_command(args: argparse.Namespace) -> int:
+    import yaml
+
+    from crashstudy.optimization import calibrate
+
+    data, base = _study_dict(args.study, "calibrate")
+    out = Path(args.output or Path("results") / data["name"])
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        result = calibrate(data, base, out)
+    except (ValueError, FloatingPointError, FileNotFoundError) as exc:
+        raise InputError([Problem(args.study, None, "calibrate", str(exc))]) from None
+    t, y, model, units = result.pop("_fit")
+    _finish(data, result["variables"], out)
+    (out / "calibrated.yaml").write_text(yaml.safe_dump(result, sort_keys=False))
+    _fit_plot(out / "calibration.png", t, y, model, data["calibrate"]["channel"], result, units)
+    print(yaml.safe_dump(result, sort_keys=False).rstrip())
+    print(f"wrote {out / 'calibrated.yaml'}, {out / 'calibration.png'} and the calibrated results in {out}")
+    return EXIT_OK
+
+
+def _fit_plot(path: Path, t: Any, y: Any, model: Any, channel: dict[str, Any], result: dict[str, Any],
+              units: dict[str, str]) -> None:  # fmt: skip
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from crashstudy.safefs import clear_entry
+
+    what = channel["quantity"] + (f" of spring {channel['spring']}" if channel.get("spring") else
+                                  f" of node {channel['node']} ({channel.get('direction', 'x')})")  # fmt: skip
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    ax.plot(t, y, ".", ms=3, color="0.4", label="data")
+    ax.plot(t, model, "-", color="C3", lw=1.5, label="calibrated model")
+    ax.set_xlabel(f"time [{units.get('time', '')}]")
+    ax.set_ylabel(f"{channel['quantity'].replace('_', ' ')} [{units.get('value', '')}]")
+    ax.set_title(f"{what}: rms error {result['rms_error']:.3g}, correlation {result['correlation']:.4f}", fontsize=10)
+    ax.legend(loc="best")
+    clear_entry(path)
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    plt.close(fig)

@@ -90,8 +90,9 @@ def _reorder(out: KernelOutput, take: np.ndarray, V: int, histories: tuple[str, 
     return full
 
 
-def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkResult:
-    """Compute variants ``lo`` .. ``hi - 1`` of ``plan``.
+def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled", repeat: float | None = None) -> ChunkResult:
+    """Compute variants ``lo`` .. ``hi - 1`` of ``plan``. ``repeat``: how many chunks like this one the
+    caller will compute (default: those of the plan), for the kernel choice.
 
     Identical variants are computed once; the rest are ordered by step count so that the kernel's
     blocks hold variants that finish together.
@@ -113,7 +114,7 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled") -> ChunkRe
     batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
     order = np.argsort(batch.n_steps, kind="stable")
     sorted_batch = batch.take(order)
-    repeat = plan.n_variants / max(V, 1)
+    repeat = plan.n_variants / max(V, 1) if repeat is None else repeat
     out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, varying_curves(plan), repeat)
     estimate = error_estimate(sorted_batch, out, kernel, repeat) if topo.accuracy_check else np.full(len(order), np.nan)
     pos = np.empty_like(order)

@@ -60,6 +60,41 @@ class Design(Strict):
     axes: dict[str, Distribution] = Field(min_length=1, description="axis path -> its distribution")
 
 
+Bounds = Annotated[list[Finite], Field(min_length=2, max_length=2)]
+Constraint = Annotated[str, Field(pattern=r"^\s*\S+\s*(<=|>=)\s*\S+\s*$")]
+
+
+class Optimize(Strict):
+    """``crashstudy optimize``: minimise a summary column over bounded variables (docs/optimize.md)."""
+
+    minimize: str = Field(min_length=1, description="summary column to minimise, e.g. peak_deceleration_g.cabin")
+    constraints: list[Constraint] = Field(
+        default=[], description="'COLUMN <= NUMBER' or 'COLUMN >= NUMBER' on summary columns [their units]"
+    )
+    variables: dict[str, Bounds] = Field(min_length=1, description="axis path -> [low, high] in its units")
+    budget: int = Field(default=2000, ge=10, le=10_000_000, description="model evaluations at most [1]")
+    seed: int = Field(default=0, ge=0, description="seed of the optimiser's random numbers [1]")
+
+
+class Channel(Strict):
+    """The measured quantity: a node's motion along an axis, or a spring's force or elongation."""
+
+    quantity: Literal["acceleration", "velocity", "displacement", "spring_force", "spring_elongation"] = Field(
+        description="history to fit (node quantities need node and direction, spring ones need spring)"
+    )
+    node: str | None = Field(default=None, description="node id (acceleration, velocity, displacement)")
+    spring: str | None = Field(default=None, description="spring id (spring_force, spring_elongation)")
+    direction: Literal["x", "y"] = Field(default="x", description="axis of a node quantity")
+
+
+class Calibrate(Strict):
+    """``crashstudy calibrate``: fit variables to a measured channel by least squares (docs/optimize.md)."""
+
+    data: str = Field(min_length=1, description="CSV file with columns time, value (model units), relative to the study")
+    channel: Channel = Field(description="what the data measured")
+    variables: dict[str, Bounds] = Field(min_length=1, description="axis path -> [low, high] in its units")
+
+
 class Study(Strict):
     """A study: one model crossed over a matrix of axis values.
 
@@ -77,6 +112,8 @@ class Study(Strict):
     zip: list[Annotated[dict[str, AxisValues], Field(min_length=1)]] = Field(default=        [], description="groups of axis path -> values [model units] that vary together; each group crossed with the matrix"
     )
     design: Design | None = Field(default=None, description="sampled rows of axis values, crossed with matrix and zip")
+    optimize: Optimize | None = Field(default=None, description="what crashstudy optimize minimises, under which constraints")
+    calibrate: Calibrate | None = Field(default=None, description="what crashstudy calibrate fits to which data")
     set: dict[str, Any] = Field(default={}, description="model field or dotted path -> value, applied to every variant")
     regression: dict[str, Tolerance] = Field(default=        {}, description="summary column (or metric name) -> tolerance used by crashstudy compare"
     )
