@@ -32,6 +32,7 @@ from small_models import model_yaml, study_yaml  # noqa: E402
 
 def export(commit: str, into: Path) -> Path:
     """``git archive`` of ``commit`` unpacked into ``into``; returns its ``src`` folder."""
+    into.mkdir(parents=True, exist_ok=True)
     tar = into / "src.tar"
     subprocess.run(["git", "archive", "-o", str(tar), commit, "src"], cwd=ROOT, check=True)
     with tarfile.open(tar) as t:
