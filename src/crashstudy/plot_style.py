@@ -9,7 +9,8 @@
   values) of it, with a legend of the styles.
 - Legends sit below the panels, inside the figure (their width is checked after drawing, fewer
   columns are used until they fit); the note (failed or thinned-out variants) is a line of its own
-  under them, placed by the layout engine, so nothing overlaps.
+  under them. Their heights are measured and the layout engine is given the rest of the figure
+  for the panels (:func:`finish`), so nothing overlaps and nothing is cut off.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
+from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.legend import Legend
 from matplotlib.lines import Line2D
 
@@ -101,11 +103,29 @@ def set_xlabel(axs: list, label: str) -> None:
             ax.set_xlabel(label)
 
 
+PAD = 0.01  # [figure fraction] between the note, the legends and the panels
+
+
 def finish(fig: Figure, title: str, note: str) -> None:
-    """Title on top; the note as a line of its own at the bottom (the layout keeps it clear of legends)."""
+    """Title on top; at the bottom the note, above it the legends of :func:`fitting_legend`, above
+    them the panels (the layout engine is confined to the space the measured legends leave)."""
     fig.suptitle(title)
+    renderer = fig.canvas.get_renderer() if hasattr(fig.canvas, "get_renderer") else None
+    if renderer is None:  # pragma: no cover - every figure here has an Agg canvas
+        FigureCanvasAgg(fig)
+        renderer = fig.canvas.get_renderer()
+    height = fig.bbox.height
+    bottom = PAD / 2
     if note:
-        fig.supxlabel(note, x=0.01, ha="left", fontsize="small", color="0.35")
+        text = fig.text(0.01, bottom, note, fontsize="small", color="0.35", ha="left", va="bottom")
+        bottom += text.get_window_extent(renderer).height / height + PAD / 2
+    for leg in getattr(fig, "_crashstudy_legends", []):
+        leg.set_bbox_to_anchor((0.5, bottom), transform=fig.transFigure)
+        bottom += leg.get_window_extent(renderer).height / height + PAD / 2
+    if bottom > PAD / 2:
+        engine = fig.get_layout_engine()
+        if isinstance(engine, ConstrainedLayoutEngine):
+            engine.set(rect=(0.0, bottom, 1.0, 1.0 - bottom))
 
 
 def fitting_legend(fig: Figure, handles: list, labels: list[str], title: str, max_cols: int = 4) -> Legend:
@@ -114,11 +134,11 @@ def fitting_legend(fig: Figure, handles: list, labels: list[str], title: str, ma
     chars = max(20, int(width / 6.5))  # small font: ~6.5 px per character at 100 dpi
     title = "\n".join(textwrap.wrap(title, chars)) if title else title
     for ncols in range(min(max_cols, max(len(labels), 1)), 0, -1):
-        leg = fig.legend(handles, labels, loc="outside lower center", ncols=ncols, fontsize="small",
-                         title=title or None, title_fontsize="small", frameon=False)  # fmt: skip
-        fig.draw_without_rendering()
-        box = leg.get_window_extent()
-        if (box.x0 >= 0 and box.x1 <= width) or ncols == 1:
+        leg = fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncols=ncols,
+                         fontsize="small", title=title or None, title_fontsize="small", frameon=False)  # fmt: skip
+        box = leg.get_window_extent(fig.canvas.get_renderer())
+        if box.width <= width - 10 or ncols == 1:
+            fig._crashstudy_legends = [*getattr(fig, "_crashstudy_legends", []), leg]  # type: ignore[attr-defined]
             return leg
         leg.remove()
     raise AssertionError("unreachable")  # pragma: no cover
