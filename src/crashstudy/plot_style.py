@@ -103,6 +103,12 @@ def set_xlabel(axs: list, label: str) -> None:
             ax.set_xlabel(label)
 
 
+def _renderer(fig: Figure) -> Any:
+    """The figure's Agg renderer (an Agg canvas is attached when the figure has none)."""
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    return canvas.get_renderer()
+
+
 PAD = 0.01  # [figure fraction] between the note, the legends and the panels
 
 
@@ -110,10 +116,7 @@ def finish(fig: Figure, title: str, note: str) -> None:
     """Title on top; at the bottom the note, above it the legends of :func:`fitting_legend`, above
     them the panels (the layout engine is confined to the space the measured legends leave)."""
     fig.suptitle(title)
-    renderer = fig.canvas.get_renderer() if hasattr(fig.canvas, "get_renderer") else None
-    if renderer is None:  # pragma: no cover - every figure here has an Agg canvas
-        FigureCanvasAgg(fig)
-        renderer = fig.canvas.get_renderer()
+    renderer = _renderer(fig)
     height = fig.bbox.height
     bottom = PAD / 2
     if note:
@@ -136,7 +139,7 @@ def fitting_legend(fig: Figure, handles: list, labels: list[str], title: str, ma
     for ncols in range(min(max_cols, max(len(labels), 1)), 0, -1):
         leg = fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncols=ncols,
                          fontsize="small", title=title or None, title_fontsize="small", frameon=False)  # fmt: skip
-        box = leg.get_window_extent(fig.canvas.get_renderer())
+        box = leg.get_window_extent(_renderer(fig))
         if box.width <= width - 10 or ncols == 1:
             fig._crashstudy_legends = [*getattr(fig, "_crashstudy_legends", []), leg]  # type: ignore[attr-defined]
             return leg
