@@ -474,3 +474,12 @@ def test_file_names_carry_the_items_so_later_plots_do_not_overwrite_earlier_ones
     assert names == ["history-spring_force-lower.png", "history-spring_force-upper.png",
                      "force-displacement-upper.png"]  # fmt: skip
     assert all(p.exists() for p in first + second + fd)
+
+
+def test_matrix_line_plot_legend_lies_below_the_panel_inside_the_figure(long_names, opened):
+    from crashstudy.plot_matrix import plot_matrix as pm
+
+    fig = pm(opened(long_names).summary, "peak_force.lower", x="impact_velocity")
+    whole, legends, _, axes = _boxes(fig)
+    assert len(legends) == 1 and len(fig.legends[0].get_texts()) == 4  # 2 stiffnesses x 2 masses
+    assert _inside(legends[0], whole) and not _overlap(legends[0], axes[0])

@@ -12,7 +12,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from crashstudy.plot import Aggregate, _fail
-from crashstudy.plot_style import CMAP, axis_label, display_scale, finish, unit_text
+from crashstudy.plot_style import CMAP, axis_label, display_scale, finish, fitting_legend, unit_text
 
 ANNOTATE_MAX = 144  # heat maps with at most this many cells have their values written in
 LINES_MAX = 8  # matrix line plot: one line per other-axis combination up to this many, else a band
@@ -123,6 +123,9 @@ def plot_matrix(summary: pd.DataFrame, metric: str | None = None, x: str | None 
         FigureCanvasAgg(fig)
         ax = fig.subplots()
         _matrix_lines(ax, df, metric, x, others, axis_units or {})
+        handles, names = ax.get_legend_handles_labels()
+        if len(handles) > 1:  # below the panel, as in the other figures
+            fitting_legend(fig, handles, names, "")
         ax.set_xlabel(axis_label(x, axis_units))
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
@@ -154,14 +157,12 @@ def _matrix_lines(ax, df: pd.DataFrame, metric: str, x: str, others: list[str], 
             d = d.groupby(x)[metric].mean()  # zip groups may repeat an x; one point per x
             name = ", ".join(f"{a}={float(v):g}{_plain(units.get(a))}" for a, v in zip(others, key, strict=True))
             ax.plot(d.index.to_numpy(), d.to_numpy(), "o-", color=cmap(i % 10), label=name)
-        ax.legend(fontsize="small", title=None)
         return
     stats = df.groupby(x)[metric].agg(["mean", "min", "max"])
     xs = stats.index.to_numpy()
     ax.fill_between(xs, stats["min"].to_numpy(), stats["max"].to_numpy(), alpha=0.25,
                     label=f"min-max over {len(groups)} combinations of {', '.join(others)}")  # fmt: skip
     ax.plot(xs, stats["mean"].to_numpy(), "o-", label="mean")
-    ax.legend(fontsize="small")
 
 
 def _plain(unit: str | None) -> str:
