@@ -65,8 +65,13 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("--kind", choices=["history", "force-displacement", "matrix"], default="history",
                     help="history: a quantity over time per item; force-displacement: spring force over crush; "
                     "matrix: a summary metric over the study axes (default history)")
-    pl.add_argument("--quantity", help="history variable or summary metric (e.g. spring_force, peak_force.cabin)")
-    pl.add_argument("--items", nargs="+", help="nodes or springs to plot")
+    pl.add_argument("--quantity", help="history variable or summary metric (e.g. spring_force, peak_force.cabin); "
+                    "default: history spring_force; matrix peak_deceleration_g of the node named by a "
+                    "peak_deceleration_g.<node> key of the study's regression: block, else of the heaviest free "
+                    "node (the survival room, not the bumper)")
+    pl.add_argument("--items", nargs="+", help="nodes or springs to plot (they are part of the file names)")
+    pl.add_argument("--time-unit", choices=["s", "ms"], help="unit of the time axis (default the results' own)")
+    pl.add_argument("--accel-unit", choices=["g"], help="show accelerations in g (default length/time^2)")
     pl.add_argument("--x", dest="x_axis", help="matrix plot: study axis on the x axis")
     pl.add_argument("--y", dest="y_axis", help="matrix plot: second study axis (heat map)")
     pl.add_argument("--max-variants", type=int, default=50, help="most variants drawn in one figure (default 50)")

@@ -31,3 +31,15 @@ def check() -> None:
 
 def reset() -> None:
     STOP.clear()
+
+
+def compile_first(kernel: str, batch: Any, histories: tuple[str, ...], vary: frozenset[int] | None) -> None:
+    """Compile ``kernel`` ("generic" or "generated") for ``batch`` in a child process when it is not
+    compiled yet, so that a stop request kills the compile at once (:func:`check` is polled while it
+    runs) instead of waiting for numba, which cannot be interrupted, to finish in this process."""
+    from crashstudy.kernel import choice
+
+    if kernel == "generic" and not choice.generic_ready():
+        choice.compile_foreground(("generic",), batch, histories, vary, check)
+    elif kernel == "generated" and not choice.generated_ready(batch, histories, vary):
+        choice.compile_foreground(("generated",), batch, histories, vary, check)

@@ -56,6 +56,7 @@ def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str
 
         with np.errstate(all="ignore"):  # overflow is found by the energy check (status), as in the compiled kernels
             return run_reference(batch, histories, n_out, interrupt.check)
+    interrupt.compile_first(kernel, batch, histories, vary)  # a compile in a child process: Ctrl-C kills it
     if kernel == "generated":
         from crashstudy.kernel.generated import run_generated
 
