@@ -2,10 +2,12 @@
 reading them back.
 
 The netCDF file is built as ``results.nc.partial`` (netCDF4, variants written as they finish, a
-``done`` flag per variant flushed with them) and renamed to ``results.nc`` only when every variant
-is in it: an interrupted run never leaves a file that looks complete, and ``--resume`` continues the
-partial file. The summary tables are written after, through temporary files and renames:
-``summary.parquet`` always, ``summary.csv`` up to ``CSV_MAX`` variants unless asked otherwise.
+``done`` flag per variant and a checksum per chunk flushed with them) and renamed to ``results.nc``
+only when every variant is in it: an interrupted run never leaves a file that looks complete, and
+``--resume`` continues the partial file. The summary tables are written to temporary files:
+``summary.parquet`` always, ``summary.csv`` up to ``CSV_MAX`` variants unless asked otherwise. Then
+``results.nc`` (marked ``complete``), the tables and last ``manifest.json`` are renamed into place;
+:class:`Results` refuses a folder whose files are not one finished run's (:mod:`crashstudy.integrity`).
 
 Texts that repeat across variants are stored compactly (docs/results.md): ``status`` is a CF flag
 variable (``int8``, ``flag_values`` 0 1, ``flag_meanings`` "ok failed"); ``failure_reason`` and
@@ -19,8 +21,9 @@ from __future__ import annotations
 
 import json
 import os
-from contextlib import nullcontext
 import sys
+import uuid
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,7 +33,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from crashstudy import __version__
+from crashstudy import __version__, integrity
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES, KernelOutput
 from crashstudy.provenance import HASH_WORDS, text_hash
@@ -139,9 +142,22 @@ class ResultWriter:
                 raise InputError([Problem(plan.study_file or plan.model_file, None, "",
                                           f"the unfinished run in {self.dir} was started from a different study or "
                                           "model; use --force to start again")])  # fmt: skip
+            self._verify_resumed()
         else:
             self.nc = self._create()
         self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in TEXT_TABLES}
+
+    def _verify_resumed(self) -> None:
+        """Forget the done variants of chunks whose data no longer match their checksum (computed again)."""
+        ok, bad = integrity.verified(self.nc, blank_bad=True)
+        done = self.done()
+        lost = done & ~ok
+        if lost.any():
+            where = ", ".join(f"{lo}..{hi - 1}" for lo, hi in bad[:5]) + (", ..." if len(bad) > 5 else "")
+            print(f"note: {int(lost.sum())} finished variant(s) of {self.path} no longer match their checksum "
+                  f"(variants {where or 'without a chunk record'}); computing them again", file=sys.stderr)  # fmt: skip
+            self.nc.variables["done"][:] = (done & ok).astype("i1")
+            self.nc.sync()
 
     def done(self) -> np.ndarray:
         """Boolean (V,): variants already written."""
@@ -212,6 +228,7 @@ class ResultWriter:
         hv.units, hv.long_name = "1", "hash of everything that determines the variant's results (reuse key)"
         d = nc.createVariable("done", "i1", ("variant",), fill_value=0, **small)
         d.units, d.long_name = "1", "1 once the variant's results are written"
+        integrity.add_chunk_vars(nc)
         if p.axes:  # CF: the study axes are coordinates of every per-variant variable
             coords = " ".join(a.path for a in p.axes)
             for v in nc.variables.values():
@@ -233,8 +250,9 @@ class ResultWriter:
         assert hi - lo == len(res.index), "chunks are contiguous ranges"
         nc, o = self.nc, res.out
         g = UNIT_SYSTEMS[self.plan.topology.units].g
+        data: dict[str, np.ndarray] = {}  # as stored: the chunk's checksum is taken over these
         for name, arr in o.histories.items():
-            nc.variables[name][lo:hi] = np.moveaxis(arr, -1, 0)
+            data[name] = np.ascontiguousarray(np.moveaxis(arr, -1, 0), dtype=np.float64)
         summary = {
             "peak_force": o.peak_force.T, "max_crush": o.max_crush.T, "absorbed_energy": o.absorbed_energy.T,
             "peak_deceleration": o.peak_acceleration.T, "peak_deceleration_g": o.peak_acceleration.T / g,
@@ -249,12 +267,17 @@ class ResultWriter:
             a = np.array(arr, dtype=np.float64)
             if name not in ("dt", "dt_crit"):
                 a[failed] = np.nan  # a failed variant has no trustworthy summary
-            nc.variables[name][lo:hi] = a
-        nc.variables["status"][lo:hi] = failed.astype("i1")
+            data[name] = a
+        data["status"] = failed.astype("i1")
+        data["input_hash"] = np.ascontiguousarray(res.hashes, dtype=np.uint64)
+        names = integrity.checked_names(nc)
+        assert sorted(data) == names, (sorted(data), names)
+        for name in names:
+            nc.variables[name][lo:hi] = data[name]
         nc.variables["failure_reason"][lo:hi] = self._codes("failure_reason", res.reasons)
         nc.variables["dt_control"][lo:hi] = self._codes("dt_control", res.dt_control)
-        nc.variables["input_hash"][lo:hi] = res.hashes
         nc.variables["done"][lo:hi] = 1
+        integrity.record_chunk(nc, lo, hi, integrity.crc(data[n] for n in names))
         nc.sync()
 
     def _codes(self, name: str, texts: Any) -> np.ndarray:
@@ -287,6 +310,10 @@ class ResultWriter:
                     self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
                 else:
                     self.nc.variables[n][a:b] = old.variables[n][c:d]
+            names = integrity.checked_names(self.nc)
+            for lo in range(a, b, 1024):  # a checksum record per block of copied variants
+                hi = min(b, lo + 1024)
+                integrity.record_chunk(self.nc, lo, hi, integrity.file_crc(self.nc, names, lo, hi))
         self.nc.sync()
 
     def _sort_tables(self, block: int = 1_000_000) -> None:
@@ -313,16 +340,27 @@ class ResultWriter:
             self.nc.close()
 
     def finish(self) -> Path:
-        """Close, write ``summary.parquet`` (and ``summary.csv`` when wanted, else remove an old one) and
-        rename the partial file to ``results.nc``."""
+        """Mark the partial file complete, write the summary tables under temporary names, then rename
+        ``results.nc`` first, the tables next (or remove an old ``summary.csv``) and ``manifest.json``
+        last (see :mod:`crashstudy.integrity` for why this order)."""
         self._sort_tables()
+        run_id = uuid.uuid4().hex
+        self.nc.setncatts({"complete": np.int8(1), "run_id": run_id})
         self.nc.close()
         final = self.dir / FINAL
         with xr.open_dataset(self.path) as ds:
-            write_summary(ds, self.dir, self.csv)
+            tables = write_summary(ds, self.dir, self.csv, rename=False)
         if not is_regular(self.path):
             raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
+        files = {FINAL: self.path, **tables}
+        sizes = {name: os.stat(path).st_size for name, path in files.items()}
         os.replace(self.path, final)
+        for name, tmp in tables.items():
+            os.replace(tmp, self.dir / name)
+        if SUMMARY not in tables:
+            clear_entry(self.dir / SUMMARY)
+        assert all(os.stat(self.dir / n).st_size == sizes[n] for n in files)
+        integrity.write_manifest(self.dir, run_id, {name: self.dir / name for name in files})
         return final
 
 
@@ -439,10 +477,13 @@ def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.Data
     return pd.DataFrame(cols)
 
 
-def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000) -> None:
+def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000, rename: bool = True
+                  ) -> dict[str, Path]:  # fmt: skip
     """Write ``summary.parquet`` and, when ``csv``, ``summary.csv`` chunk by chunk (bounded memory),
     each through a temporary file and a rename; without ``csv`` an older ``summary.csv`` is removed.
-    Both through pyarrow (its CSV writer is ~10x pandas' ``to_csv``; every float round-trips)."""
+    Both through pyarrow (its CSV writer is ~10x pandas' ``to_csv``; every float round-trips).
+    ``rename=False``: leave them under their temporary names and return {final name: temporary path}
+    (the caller renames them and removes an older ``summary.csv``)."""
     import pyarrow as pa
     import pyarrow.csv as pcsv
     import pyarrow.parquet as pq
@@ -467,11 +508,14 @@ def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000)
         for w in writers:
             if hasattr(w, "is_open"):
                 w.is_open = False
-    os.replace(tmp_pq, folder / PARQUET)
-    if csv:
-        os.replace(tmp_csv, folder / SUMMARY)
-    else:
+    tables = {PARQUET: tmp_pq, **({SUMMARY: tmp_csv} if csv else {})}
+    if not rename:
+        return tables
+    for name, tmp in tables.items():
+        os.replace(tmp, folder / name)
+    if not csv:
         clear_entry(folder / SUMMARY)
+    return tables
 
 
 class Results:
@@ -482,6 +526,9 @@ class Results:
         final = self.dir / FINAL
         if not final.exists():
             raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})")
+        problem = integrity.folder_problem(self.dir, FINAL, (PARQUET, SUMMARY))
+        if problem:
+            raise InputError([Problem(str(self.dir), None, "", problem)])
         self.path = final
         self._ds: xr.Dataset | None = None
         self._raw: xr.Dataset | None = None

@@ -25,7 +25,7 @@ from crashstudy.kernel import choice
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 from crashstudy.provenance import variant_hashes
 from crashstudy.results import FINAL, PARQUET, PARTIAL, SUMMARY, ChunkResult, Results, ResultWriter
-from crashstudy.safefs import clear_entry
+from crashstudy.safefs import FolderBusy, clear_entry, folder_lock
 from crashstudy.study import Plan, load_study, plan_from_model
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
@@ -340,9 +340,12 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
 
     from crashstudy.provenance import topology_signature
 
+    from crashstudy import integrity
+
     with netCDF4.Dataset(final) as old:
-        if "input_hash" not in old.variables:
-            return 0
+        if "input_hash" not in old.variables or integrity.finished_problem(old):
+            return 0  # a file without hashes, or not a finished result (a partial renamed by hand)
+        intact, _ = integrity.verified(old)  # variants of chunks whose data match their checksum
         old_h = np.asarray(old.variables["input_hash"][:])
         if old_h.dtype != np.uint64 or old_h.ndim != 2:  # crashstudy 0.1 hashed differently: nothing matches
             return 0
@@ -358,7 +361,7 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
             if not len(keys):
                 break
             cand = order[pos]
-            hit = (keys[pos] == h[:, 0]) & (old_h[cand, 1] == h[:, 1])
+            hit = (keys[pos] == h[:, 0]) & (old_h[cand, 1] == h[:, 1]) & intact[cand]
             new_parts.append(lo + np.flatnonzero(hit))
             old_parts.append(cand[hit])
         new_idx = np.concatenate(new_parts) if new_parts else np.zeros(0, dtype=np.int64)
@@ -374,11 +377,25 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
     one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent. ``csv``: write
     ``summary.csv`` (None: up to ``results.CSV_MAX`` variants); ``summary.parquet`` is always written."""
-    from crashstudy.backends import make_backend
-
     t0 = time.perf_counter()
     out = Path(out_dir)
     kernel_override()  # a bad CRASHSTUDY_KERNEL is an input error before anything is written
+    source = plan.study_file or plan.model_file
+    if out.exists() and not out.is_dir():
+        raise InputError([Problem(source, None, "", f"the output path {out} is a file, not a folder")])
+    try:
+        with folder_lock(out):  # one run at a time in a folder: held until the run ends
+            return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0)
+    except FolderBusy as exc:  # raised only by the lock
+        raise InputError([Problem(source, None, "", f"{exc}; wait for it to end or choose another -o")]) from None
+
+
+def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume: bool, force: bool,
+                progress: bool | None, kernel: str, chunk: int | None, notes: Any, csv: bool | None, t0: float
+                ) -> RunReport:  # fmt: skip
+    """:func:`run_plan` once the output folder is locked."""
+    from crashstudy.backends import make_backend
+
     prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
     if resume and (out / FINAL).exists() and not os.path.lexists(out / PARTIAL):
         # nothing to resume: the run finished. Run it again like a plain re-run of the same study (its
