@@ -5,7 +5,7 @@
   ``manifest.json`` written last names the run every final file belongs to).
 - 10: a second run into a folder that a live run is writing exits 2 (``OUT/.crashstudy.lock``).
 - 12: a ``results.nc.partial`` renamed by hand is not a finished result; a corrupted number in a
-  partial is found by its chunk's checksum on ``--resume`` and the chunk is computed again.
+  partial is found by its checksum on ``--resume`` and that variant is computed again.
 - 18: SIGKILL of the main process of ``run --jobs 2`` takes its pool workers with it.
 """
 
@@ -209,7 +209,7 @@ def test_a_kill_at_any_rename_leaves_old_results_or_a_refused_folder_never_a_mix
 
 
 # ------------------------------------------------------------------------------------------------
-# item 12: completion mark and chunk checksums
+# item 12: completion mark and checksums
 # ------------------------------------------------------------------------------------------------
 
 
@@ -253,12 +253,12 @@ def test_a_corrupted_number_in_a_partial_is_computed_again_on_resume(tmp_path: P
     with netCDF4.Dataset(out / "results.nc.partial", "a") as nc:
         assert np.ma.filled(nc.variables["done"][:], 0).tolist() == [1, 1, 0]
         good = float(nc.variables["peak_force"][1, 0])
-        nc.variables["peak_force"][0, 0] = 1.0e9  # a flipped float in the first chunk
+        nc.variables["peak_force"][0, 0] = 1.0e9  # a changed float in the first variant
     report = runner.run_plan(load_study(study), out, resume=True, progress=False)
-    assert report.n_computed == 2  # the corrupted chunk and the one never done
+    assert report.n_computed == 2  # the corrupted variant and the one never done
     assert_analytic(out)
     with netCDF4.Dataset(out / "results.nc") as nc:
-        assert float(nc.variables["peak_force"][1, 0]) == good  # the intact chunk was kept, not recomputed
+        assert float(nc.variables["peak_force"][1, 0]) == good  # the intact variant was kept, not recomputed
         assert int(nc.getncattr("complete")) == 1
 
 

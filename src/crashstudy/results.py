@@ -2,7 +2,7 @@
 reading them back.
 
 The netCDF file is built as ``results.nc.partial`` (netCDF4, variants written as they finish, a
-``done`` flag per variant and a checksum per chunk flushed with them) and renamed to ``results.nc``
+``done`` flag and a checksum per variant flushed with them) and renamed to ``results.nc``
 only when every variant is in it: an interrupted run never leaves a file that looks complete, and
 ``--resume`` continues the partial file. The summary tables are written to temporary files:
 ``summary.parquet`` always, ``summary.csv`` up to ``CSV_MAX`` variants unless asked otherwise. Then
@@ -22,7 +22,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-import uuid
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
@@ -148,15 +147,15 @@ class ResultWriter:
         self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in TEXT_TABLES}
 
     def _verify_resumed(self) -> None:
-        """Forget the done variants of chunks whose data no longer match their checksum (computed again)."""
-        ok, bad = integrity.verified(self.nc, blank_bad=True)
+        """Forget the done variants whose data no longer match their checksum: they are computed again."""
         done = self.done()
-        lost = done & ~ok
+        lost = done & ~integrity.intact(self.nc, done)
         if lost.any():
-            where = ", ".join(f"{lo}..{hi - 1}" for lo, hi in bad[:5]) + (", ..." if len(bad) > 5 else "")
-            print(f"note: {int(lost.sum())} finished variant(s) of {self.path} no longer match their checksum "
-                  f"(variants {where or 'without a chunk record'}); computing them again", file=sys.stderr)  # fmt: skip
-            self.nc.variables["done"][:] = (done & ok).astype("i1")
+            first = np.flatnonzero(lost)
+            where = ", ".join(str(k) for k in first[:5]) + (", ..." if len(first) > 5 else "")
+            print(f"note: {len(first)} finished variant(s) of {self.path} no longer match their checksum "
+                  f"(variants {where}); computing them again", file=sys.stderr)  # fmt: skip
+            self.nc.variables["done"][:] = (done & ~lost).astype("i1")
             self.nc.sync()
 
     def done(self) -> np.ndarray:
@@ -228,7 +227,8 @@ class ResultWriter:
         hv.units, hv.long_name = "1", "hash of everything that determines the variant's results (reuse key)"
         d = nc.createVariable("done", "i1", ("variant",), fill_value=0, **small)
         d.units, d.long_name = "1", "1 once the variant's results are written"
-        integrity.add_chunk_vars(nc)
+        cs = nc.createVariable(integrity.CHECKSUM, "u8", ("variant",), fill_value=0, **small)
+        cs.units, cs.long_name = "1", "sum of the variant's stored results (crashstudy.integrity)"
         if p.axes:  # CF: the study axes are coordinates of every per-variant variable
             coords = " ".join(a.path for a in p.axes)
             for v in nc.variables.values():
@@ -277,7 +277,7 @@ class ResultWriter:
         nc.variables["failure_reason"][lo:hi] = self._codes("failure_reason", res.reasons)
         nc.variables["dt_control"][lo:hi] = self._codes("dt_control", res.dt_control)
         nc.variables["done"][lo:hi] = 1
-        integrity.record_chunk(nc, lo, hi, integrity.crc(data[n] for n in names))
+        nc.variables[integrity.CHECKSUM][lo:hi] = integrity.variant_sums(data, names)
         nc.sync()
 
     def _codes(self, name: str, texts: Any) -> np.ndarray:
@@ -292,10 +292,12 @@ class ResultWriter:
         ids = np.array([table[t] for t in uniq], dtype=np.int32)
         return ids[codes] if len(codes) else np.zeros(0, dtype=np.int32)
 
-    def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> None:
-        """Copy finished variants ``old_idx`` of an earlier result into variants ``new_idx``."""
+    def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> int:
+        """Copy finished variants ``old_idx`` of an earlier result into variants ``new_idx`` and mark them
+        done, except those whose data do not match their checksum (left to compute). Returns how many
+        were kept."""
         if not len(new_idx):
-            return
+            return 0
         names = [n for n, v in self.nc.variables.items()
                  if v.dimensions[:1] == ("variant",) and n != "variant" and n not in self.plan_axes
                  and n in old.variables]  # fmt: skip
@@ -310,11 +312,14 @@ class ResultWriter:
                     self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
                 else:
                     self.nc.variables[n][a:b] = old.variables[n][c:d]
-            names = integrity.checked_names(self.nc)
-            for lo in range(a, b, 1024):  # a checksum record per block of copied variants
-                hi = min(b, lo + 1024)
-                integrity.record_chunk(self.nc, lo, hi, integrity.file_crc(self.nc, names, lo, hi))
+            if integrity.CHECKSUM not in old.variables:  # a file from before checksums: trusted, summed now
+                self.nc.variables[integrity.CHECKSUM][a:b] = integrity.file_sums(self.nc, a, b)
+        copied = np.zeros(self.plan.n_variants, dtype=bool)
+        copied[new_idx] = True
+        bad = copied & ~integrity.intact(self.nc, copied)
+        self.nc.variables["done"][:] = (self.done() & ~bad).astype("i1")
         self.nc.sync()
+        return int(copied.sum() - bad.sum())
 
     def _sort_tables(self, block: int = 1_000_000) -> None:
         """Put each text table in sorted order (and renumber its indices), so that a file does not depend
@@ -344,7 +349,7 @@ class ResultWriter:
         ``results.nc`` first, the tables next (or remove an old ``summary.csv``) and ``manifest.json``
         last (see :mod:`crashstudy.integrity` for why this order)."""
         self._sort_tables()
-        run_id = uuid.uuid4().hex
+        run_id = integrity.run_id(self.nc)
         self.nc.setncatts({"complete": np.int8(1), "run_id": run_id})
         self.nc.close()
         final = self.dir / FINAL

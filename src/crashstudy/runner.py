@@ -21,6 +21,7 @@ import numpy as np
 from crashstudy import interrupt
 from crashstudy.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
+from crashstudy.integrity import MANIFEST
 from crashstudy.kernel import choice
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 from crashstudy.provenance import variant_hashes
@@ -292,7 +293,7 @@ def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
     if force and out_dir.exists():
-        for p in (final, partial, out_dir / SUMMARY, out_dir / PARQUET):
+        for p in (final, partial, out_dir / SUMMARY, out_dir / PARQUET, out_dir / MANIFEST):
             clear_entry(p)  # a link is removed, never followed (a dangling one too)
         remove_stale_plots(out_dir)
         return
@@ -345,7 +346,6 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
     with netCDF4.Dataset(final) as old:
         if "input_hash" not in old.variables or integrity.finished_problem(old):
             return 0  # a file without hashes, or not a finished result (a partial renamed by hand)
-        intact, _ = integrity.verified(old)  # variants of chunks whose data match their checksum
         old_h = np.asarray(old.variables["input_hash"][:])
         if old_h.dtype != np.uint64 or old_h.ndim != 2:  # crashstudy 0.1 hashed differently: nothing matches
             return 0
@@ -361,13 +361,12 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
             if not len(keys):
                 break
             cand = order[pos]
-            hit = (keys[pos] == h[:, 0]) & (old_h[cand, 1] == h[:, 1]) & intact[cand]
+            hit = (keys[pos] == h[:, 0]) & (old_h[cand, 1] == h[:, 1])
             new_parts.append(lo + np.flatnonzero(hit))
             old_parts.append(cand[hit])
         new_idx = np.concatenate(new_parts) if new_parts else np.zeros(0, dtype=np.int64)
         old_idx = np.concatenate(old_parts) if old_parts else np.zeros(0, dtype=np.int64)
-        writer.reuse(old, new_idx.astype(np.int64), old_idx.astype(np.int64))
-    return len(new_idx)
+        return writer.reuse(old, new_idx.astype(np.int64), old_idx.astype(np.int64))  # checksums verified
 
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
