@@ -21,12 +21,12 @@ import numpy as np
 from crashstudy import interrupt
 from crashstudy.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
-from crashstudy.integrity import MANIFEST
 from crashstudy.kernel import choice
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
+from crashstudy.outdir import prepare_output, remove_stale_plots, study_of
 from crashstudy.provenance import variant_hashes
-from crashstudy.results import FINAL, PARQUET, PARTIAL, SUMMARY, ChunkResult, Results, ResultWriter
-from crashstudy.safefs import FolderBusy, clear_entry, folder_lock
+from crashstudy.results import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
+from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study import Plan, load_study, plan_from_model
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
@@ -70,6 +70,7 @@ def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str
 
 
 kernel_override = choice.kernel_override
+__all__ = ["prepare_output", "remove_stale_plots", "run_plan", "run_study", "simulate"]
 
 
 def varying_curves(plan: Plan) -> frozenset[int]:
@@ -282,66 +283,12 @@ def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
     return out
 
 
-def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_name: str) -> None:
-    """Refuse to overwrite another study's results or an unfinished run unless ``force``; clear when forced.
-
-    A finished result of the *same* study is not refused: the run reuses its unchanged variants.
-    Whenever new results are about to be written, the plots that ``crashstudy plot`` made of the
-    earlier results in the folder (``plots/``) are removed: they would no longer show these results.
-    """
-    final, partial = out_dir / FINAL, out_dir / PARTIAL
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
-    if force and out_dir.exists():
-        for p in (final, partial, out_dir / SUMMARY, out_dir / PARQUET, out_dir / MANIFEST):
-            clear_entry(p)  # a link is removed, never followed (a dangling one too)
-        remove_stale_plots(out_dir)
-        return
-    if final.exists() and not resume:
-        other = _study_of(final)
-        if other != study_name:
-            raise InputError([Problem(source, None, "", f"{out_dir} holds the results of {other!r}, not of "
-                                      f"{study_name!r}; use --force to overwrite or choose another -o")])  # fmt: skip
-    if os.path.lexists(partial) and not resume:
-        raise InputError([Problem(source, None, "", f"an unfinished run is in {out_dir}; use --resume to finish it or --force to start again")])
-    if not (resume and final.exists() and not os.path.lexists(partial)):  # else: nothing will be written
-        remove_stale_plots(out_dir)
-
-
-def remove_stale_plots(out_dir: Path) -> list[Path]:
-    """Remove the PNGs in ``out_dir/plots`` that ``crashstudy plot`` wrote (never other files); return them."""
-    folder = out_dir / "plots"
-    if not folder.is_dir() or folder.is_symlink():
-        return []
-    from crashstudy.plot import is_crashstudy_plot
-
-    gone = []
-    for png in sorted(folder.glob("*.png")):
-        if not png.is_symlink() and png.is_file() and is_crashstudy_plot(png):
-            png.unlink()
-            gone.append(png)
-    if gone and not any(folder.iterdir()):
-        folder.rmdir()  # it held only those plots
-    return gone
-
-
-def _study_of(final: Path) -> str:
-    import netCDF4
-
-    try:
-        with netCDF4.Dataset(final) as nc:
-            return str(nc.getncattr("study_name")) if "study_name" in nc.ncattrs() else "an unknown study"
-    except OSError:
-        return "an unreadable file"
-
-
 def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) -> int:
     """Copy the variants of an earlier result of this study whose input hash is unchanged."""
     import netCDF4
 
-    from crashstudy.provenance import topology_signature
-
     from crashstudy import integrity
+    from crashstudy.provenance import topology_signature
 
     with netCDF4.Dataset(final) as old:
         if "input_hash" not in old.variables or integrity.finished_problem(old):
@@ -399,7 +346,7 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
     if resume and (out / FINAL).exists() and not os.path.lexists(out / PARTIAL):
         # nothing to resume: the run finished. Run it again like a plain re-run of the same study (its
         # unchanged variants are reused by input hash, changed ones computed); another study is refused
-        other = _study_of(out / FINAL)
+        other = study_of(out / FINAL)
         if other != plan.name:
             raise InputError([Problem(plan.study_file or plan.model_file, None, "",
                                       f"{out} holds the finished results of {other!r}, not of study {plan.name!r}: "
