@@ -200,7 +200,7 @@ class ResultWriter:
             shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
             v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
             v.units, v.long_name = units[kind], long
-        small = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
+        small: dict[str, Any] = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
         st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
         st.units, st.long_name = "1", "ok or failed (failure_reason says why)"
         st.flag_values, st.flag_meanings = np.arange(len(STATUS_MEANINGS), dtype="i1"), " ".join(STATUS_MEANINGS)
