@@ -137,8 +137,14 @@ class ResultWriter:
         self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in TEXT_TABLES}
 
     def _verify_resumed(self) -> None:
-        """Forget the done variants whose data no longer match their checksum: they are computed again."""
+        """Forget the done variants whose data no longer match their checksum: they are computed again.
+        A partial file from before checksums gets them now (its done variants trusted)."""
         done = self.done()
+        if integrity.CHECKSUM not in self.nc.variables:
+            cs = self.nc.createVariable(integrity.CHECKSUM, "u8", ("variant",), fill_value=0)
+            cs.units, cs.long_name = "1", "sum of the variant's stored results (crashstudy.integrity)"
+            for lo, hi in _ranges_of(done):
+                cs[lo:hi] = integrity.file_sums(self.nc, lo, hi)
         lost = done & ~integrity.intact(self.nc, done)
         if lost.any():
             first = np.flatnonzero(lost)
@@ -357,6 +363,12 @@ class ResultWriter:
         assert all(os.stat(self.dir / n).st_size == sizes[n] for n in files)
         integrity.write_manifest(self.dir, run_id, {name: self.dir / name for name in files})
         return final
+
+
+def _ranges_of(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The contiguous runs of True in ``mask`` as (lo, hi) pairs."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def _readable(path: Path) -> bool:
