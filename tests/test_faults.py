@@ -237,7 +237,9 @@ def test_interrupted_run_leaves_partial_only_and_resumes_identically(
         assert rc == 130, err
         assert_clean_message(err)
         assert "interrupted" in err and "--resume" in err, err  # says how to continue
-    assert sorted(p.name for p in out.iterdir()) == ["results.nc.partial"]
+    # a SIGKILL leaves the lock file of the folder (.crashstudy.lock; the lock itself died with the run)
+    assert sorted(p.name for p in out.iterdir() if p.name != ".crashstudy.lock") == ["results.nc.partial"]
+    assert sig == signal.SIGKILL or not (out / ".crashstudy.lock").exists()
     assert_no_complete_result(out)
     kept = done_in_partial(out)
     assert seen <= kept < N_VARIANTS  # every chunk reported finished is in the partial file
@@ -245,7 +247,7 @@ def test_interrupted_run_leaves_partial_only_and_resumes_identically(
     p = cli("run", fault_dir / "study.yaml", "-o", out, "--resume", "--progress", "off")
     assert p.returncode == 0, p.stderr
     assert f"({N_VARIANTS - kept} variants computed" in p.stdout, p.stdout  # only the missing ones ran
-    assert sorted(x.name for x in out.iterdir()) == ["results.nc", "summary.csv", "summary.parquet"]
+    assert sorted(x.name for x in out.iterdir()) == ["manifest.json", "results.nc", "summary.csv", "summary.parquet"]
     assert_identical(load(out), reference[0], out, reference[1])
 
 
@@ -427,7 +429,7 @@ def test_disk_full_while_writing_the_summary_then_resume_completes(
     r = cli("run", fault_dir / "study.yaml", "-o", out, "--resume", "--progress", "off")
     assert r.returncode == 0, r.stderr
     assert "(0 variants computed" in r.stdout  # every variant was already in the partial file
-    assert sorted(x.name for x in out.iterdir()) == ["results.nc", "summary.csv", "summary.parquet"]
+    assert sorted(x.name for x in out.iterdir()) == ["manifest.json", "results.nc", "summary.csv", "summary.parquet"]
     assert_identical(load(out), reference[0], out, reference[1])
 
 
@@ -475,14 +477,15 @@ def test_output_is_written_only_inside_the_chosen_folder(fault_dir: Path, tmp_pa
         assert p.returncode == 0, (argv, p.stderr)
     new = files_under(tmp_path) - before
     assert new and all(f == "chosen" or f.startswith("chosen/") for f in new), sorted(new)
-    assert sorted(new) == ["chosen", "chosen/run", "chosen/run/results.nc", "chosen/run/summary.csv",
-                           "chosen/run/summary.parquet", "chosen/sim", "chosen/sim/results.nc", "chosen/sim/summary.csv",
-                           "chosen/sim/summary.parquet"]  # fmt: skip
+    assert sorted(new) == ["chosen", "chosen/run", "chosen/run/manifest.json", "chosen/run/results.nc",
+                           "chosen/run/summary.csv", "chosen/run/summary.parquet", "chosen/sim", "chosen/sim/manifest.json",
+                           "chosen/sim/results.nc", "chosen/sim/summary.csv", "chosen/sim/summary.parquet"]  # fmt: skip
     # without -o the folder is results/<study name> under the working directory, and nothing else
     p = cli("run", "../project/small.yaml", "--progress", "off", cwd=cwd)
     assert p.returncode == 0, p.stderr
     assert files_under(cwd) == {"results", "results/small-study", "results/small-study/results.nc",
-                                "results/small-study/summary.csv", "results/small-study/summary.parquet"}  # fmt: skip
+                                "results/small-study/summary.csv", "results/small-study/summary.parquet",
+                                "results/small-study/manifest.json"}  # fmt: skip
 
 
 @pytest.mark.parametrize("name", ["../escape", "a/b", "/abs", ".."])
@@ -526,7 +529,8 @@ def test_existing_results_are_not_overwritten_without_force(fault_dir: Path, tmp
     assert p.returncode == 0, p.stderr
     assert load(out).attrs["study_name"] == "other-study"
     assert (out / "notes.txt").read_text() == "mine\n"
-    assert sorted(x.name for x in out.iterdir()) == ["notes.txt", "results.nc", "summary.csv", "summary.parquet"]
+    assert sorted(x.name for x in out.iterdir()) == ["manifest.json", "notes.txt", "results.nc", "summary.csv",
+                                                    "summary.parquet"]
 
 
 def test_unfinished_run_is_not_restarted_without_resume_or_force(fault_dir: Path, tmp_path: Path) -> None:

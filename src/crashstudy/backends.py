@@ -3,7 +3,8 @@
 Backends are small and interchangeable (a test runs each and compares with the in-process one):
 
 - ``InProcess``: a plain loop in this process (the kernel itself uses every core through numba).
-- ``ProcessPool``: ``--jobs N`` worker processes, each kernel limited to ``cores // N`` threads.
+- ``ProcessPool``: ``--jobs N`` worker processes, each kernel limited to ``cores // N`` threads;
+  the workers end when the main process ends, however it ends (:func:`_die_with_parent`).
 - ``DaskBackend``: ``--scheduler tcp://HOST:PORT`` or ``local`` (a ``LocalCluster``); needs the
   ``dask`` extra. Workers compute; the client (this process) writes the files.
 """
@@ -41,6 +42,39 @@ def _limit_threads(n: int) -> None:
     set_threads(n)
 
 
+def _die_with_parent(parent: int) -> None:
+    """Pool initializer: end this worker when the process that started it ends, even by SIGKILL
+    (a worker busy with a long chunk would otherwise run on for minutes, holding its memory).
+
+    On Linux the kernel sends SIGKILL to the worker when its parent dies (``PR_SET_PDEATHSIG``);
+    elsewhere, or if that call fails, a daemon thread polls ``os.getppid()`` twice a second. A parent
+    that died before either was in place is seen at once (the worker's parent is no longer it)."""
+    import signal
+    import sys
+    import threading
+    import time
+
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(1, int(signal.SIGKILL), 0, 0, 0) == 0  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent:
+        os._exit(1)
+    if not armed:
+
+        def watch() -> None:
+            while os.getppid() == parent:
+                time.sleep(0.5)
+            os._exit(1)
+
+        threading.Thread(target=watch, name="crashstudy-parent-watch", daemon=True).start()
+
+
 def _call_limited(n_threads: int, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
     _limit_threads(n_threads)
     return fn(*args)
@@ -54,7 +88,8 @@ class ProcessPool:
 
         self.jobs = jobs
         self.threads = max(1, (os.cpu_count() or 1) // jobs)
-        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"))
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn"),
+                                        initializer=_die_with_parent, initargs=(os.getpid(),))  # fmt: skip
 
     def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
         pending: set[Future[Any]] = set()

@@ -348,7 +348,7 @@ def _arg_problem(where: str, msg: str) -> Any:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from crashstudy.plot import plot_command
+    from crashstudy.plot_command import plot_command
 
     out = Path(args.output) if args.output else Path(args.dir) / "plots"
     owner = _result_folder_of(out)

@@ -2,10 +2,12 @@
 reading them back.
 
 The netCDF file is built as ``results.nc.partial`` (netCDF4, variants written as they finish, a
-``done`` flag per variant flushed with them) and renamed to ``results.nc`` only when every variant
-is in it: an interrupted run never leaves a file that looks complete, and ``--resume`` continues the
-partial file. The summary tables are written after, through temporary files and renames:
-``summary.parquet`` always, ``summary.csv`` up to ``CSV_MAX`` variants unless asked otherwise.
+``done`` flag and a checksum per variant flushed with them) and renamed to ``results.nc``
+only when every variant is in it: an interrupted run never leaves a file that looks complete, and
+``--resume`` continues the partial file. The summary tables are written to temporary files:
+``summary.parquet`` always, ``summary.csv`` up to ``CSV_MAX`` variants unless asked otherwise. Then
+``results.nc`` (marked ``complete``), the tables and last ``manifest.json`` are renamed into place;
+:class:`Results` refuses a folder whose files are not one finished run's (:mod:`crashstudy.integrity`).
 
 Texts that repeat across variants are stored compactly (docs/results.md): ``status`` is a CF flag
 variable (``int8``, ``flag_values`` 0 1, ``flag_meanings`` "ok failed"); ``failure_reason`` and
@@ -20,7 +22,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,22 +31,30 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from crashstudy import __version__
+from crashstudy import __version__, integrity
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES, KernelOutput
 from crashstudy.provenance import HASH_WORDS, text_hash
-from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular, open_new
+from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study import Plan
+from crashstudy.tables import (
+    CSV_MAX,
+    PARQUET,
+    STATUS_MEANINGS,
+    SUMMARY,
+    SUMMARY_META,
+    TEXT_TABLES,
+    decode_texts,  # fmt: skip
+    summary_frame,
+    write_summary,
+)
 from crashstudy.units import UNIT_SYSTEMS
+
+__all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "ResultWriter", "Results",
+           "decode_texts", "open_results", "summary_frame", "write_summary"]  # fmt: skip
 
 PARTIAL = "results.nc.partial"
 FINAL = "results.nc"
-SUMMARY = "summary.csv"
-PARQUET = "summary.parquet"
-CSV_MAX = 100_000  # variants up to which summary.csv is written by default
-STATUS_MEANINGS = ("ok", "failed")  # flag_meanings of ``status`` (value = index)
-TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
-               "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
 ID_LEN = 64  # longest id (the schema allows 64 characters)
 TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
 AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
@@ -78,23 +87,6 @@ HISTORY_META = {
     "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
     "wall_force": ("force", "rigid wall force (momentum removed per unit time)"),
 }
-SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
-    "peak_force": (("spring",), "force", "largest |spring force| over every time step"),
-    "max_crush": (("spring",), "length", "largest shortening of the spring, max(-elongation)"),
-    "absorbed_energy": (("spring",), "energy", "work done on the spring up to the end"),
-    "peak_deceleration": (("node",), "acceleration", "largest acceleration magnitude over every time step"),
-    "peak_deceleration_g": (("node",), "g", "peak_deceleration in standard gravities"),
-    "peak_wall_force": (("wall",), "force", "largest rigid wall force"),
-    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - W_ext| / max(KE0 + |W_ext|, tiny)"),
-    "dt": ((), "time", "time step used"),
-    "dt_crit": ((), "time", "critical time step bound (nodal, whole assembly)"),
-    "t_end": ((), "time", "last time computed (early termination may end a run before end_time)"),
-    "final_kinetic_energy": ((), "energy", "kinetic energy at the end"),
-    "final_internal_energy": ((), "energy", "internal energy at the end"),
-    "error_estimate": ((), "1", "estimated relative error of the peaks (accuracy_check: re-run at dt/2)"),
-}
-
-
 @dataclass
 class ChunkResult:
     """Results of variants ``index`` (sorted global numbers) as computed by one task."""
@@ -181,9 +173,28 @@ class ResultWriter:
                 raise InputError([Problem(plan.study_file or plan.model_file, None, "",
                                           f"the unfinished run in {self.dir} was started from a different study or "
                                           "model; use --force to start again")])  # fmt: skip
+            self._verify_resumed()
         else:
             self.nc = self._create()
         self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in TEXT_TABLES}
+
+    def _verify_resumed(self) -> None:
+        """Forget the done variants whose data no longer match their checksum: they are computed again.
+        A partial file from before checksums gets them now (its done variants trusted)."""
+        done = self.done()
+        if integrity.CHECKSUM not in self.nc.variables:
+            cs = self.nc.createVariable(integrity.CHECKSUM, "u8", ("variant",), fill_value=0)
+            cs.units, cs.long_name = "1", "sum of the variant's stored results (crashstudy.integrity)"
+            for lo, hi in _ranges_of(done):
+                cs[lo:hi] = integrity.file_sums(self.nc, lo, hi)
+        lost = done & ~integrity.intact(self.nc, done)
+        if lost.any():
+            first = np.flatnonzero(lost)
+            where = ", ".join(str(k) for k in first[:5]) + (", ..." if len(first) > 5 else "")
+            print(f"note: {len(first)} finished variant(s) of {self.path} no longer match their checksum "
+                  f"(variants {where}); computing them again", file=sys.stderr)  # fmt: skip
+            self.nc.variables["done"][:] = (done & ~lost).astype("i1")
+            self.nc.sync()
 
     def done(self) -> np.ndarray:
         """Boolean (V,): variants already written."""
@@ -237,9 +248,8 @@ class ResultWriter:
             shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
             v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
             v.units, v.long_name = units[kind], long
-        # small integer variables: zlib level 1 compresses them ~50x and costs little
-        st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, zlib=True, complevel=1, shuffle=True,
-                               chunksizes=[cv])  # fmt: skip
+        small: dict[str, Any] = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
+        st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
         st.units, st.long_name = "1", "ok or failed (failure_reason says why)"
         st.flag_values, st.flag_meanings = np.arange(len(STATUS_MEANINGS), dtype="i1"), " ".join(STATUS_MEANINGS)
         nc.createDimension("text_len", TEXT_LEN)
@@ -257,6 +267,8 @@ class ResultWriter:
         d = nc.createVariable("done", "i1", ("variant",), fill_value=0, zlib=True, complevel=1, shuffle=True,
                               chunksizes=[cv])  # fmt: skip
         d.units, d.long_name = "1", "1 once the variant's results are written"
+        cs = nc.createVariable(integrity.CHECKSUM, "u8", ("variant",), fill_value=0, **small)
+        cs.units, cs.long_name = "1", "sum of the variant's stored results (crashstudy.integrity)"
         if p.axes:  # CF: the study axes are coordinates of every per-variant variable
             coords = " ".join(a.path for a in p.axes)
             for v in nc.variables.values():
@@ -277,16 +289,20 @@ class ResultWriter:
         lo, hi = int(res.index[0]), int(res.index[-1]) + 1
         assert hi - lo == len(res.index), "chunks are contiguous ranges"
         nc, o = self.nc, res.out
+        data: dict[str, np.ndarray] = {}  # as stored: the chunk's checksum is taken over these
         for name, arr in o.histories.items():
-            nc.variables[name][lo:hi] = np.moveaxis(arr, -1, 0)
-        for name, a in summary_arrays(self.plan, res).items():
-            nc.variables[name][lo:hi] = a
-        failed = o.status != 0
-        nc.variables["status"][lo:hi] = failed.astype("i1")
+            data[name] = np.ascontiguousarray(np.moveaxis(arr, -1, 0), dtype=np.float64)
+        data.update(summary_arrays(self.plan, res))
+        data["status"] = (o.status != 0).astype("i1")
+        data["input_hash"] = np.ascontiguousarray(res.hashes, dtype=np.uint64)
+        names = integrity.checked_names(nc)
+        assert sorted(data) == names, (sorted(data), names)
+        for name in names:
+            nc.variables[name][lo:hi] = data[name]
         nc.variables["failure_reason"][lo:hi] = self._codes("failure_reason", res.reasons)
         nc.variables["dt_control"][lo:hi] = self._codes("dt_control", res.dt_control)
-        nc.variables["input_hash"][lo:hi] = res.hashes
         nc.variables["done"][lo:hi] = 1
+        nc.variables[integrity.CHECKSUM][lo:hi] = integrity.variant_sums(data, names)
         nc.sync()
 
     def _codes(self, name: str, texts: Any) -> np.ndarray:
@@ -301,10 +317,12 @@ class ResultWriter:
         ids = np.array([table[t] for t in uniq], dtype=np.int32)
         return ids[codes] if len(codes) else np.zeros(0, dtype=np.int32)
 
-    def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> None:
-        """Copy finished variants ``old_idx`` of an earlier result into variants ``new_idx``."""
+    def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> int:
+        """Copy finished variants ``old_idx`` of an earlier result into variants ``new_idx`` and mark them
+        done, except those whose data do not match their checksum (left to compute). Returns how many
+        were kept."""
         if not len(new_idx):
-            return
+            return 0
         names = [n for n, v in self.nc.variables.items()
                  if v.dimensions[:1] == ("variant",) and n != "variant" and n not in self.plan_axes
                  and n in old.variables]  # fmt: skip
@@ -319,7 +337,14 @@ class ResultWriter:
                     self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
                 else:
                     self.nc.variables[n][a:b] = old.variables[n][c:d]
+            if integrity.CHECKSUM not in old.variables:  # a file from before checksums: trusted, summed now
+                self.nc.variables[integrity.CHECKSUM][a:b] = integrity.file_sums(self.nc, a, b)
+        copied = np.zeros(self.plan.n_variants, dtype=bool)
+        copied[new_idx] = True
+        bad = copied & ~integrity.intact(self.nc, copied)
+        self.nc.variables["done"][:] = (self.done() & ~bad).astype("i1")
         self.nc.sync()
+        return int(copied.sum() - bad.sum())
 
     def _sort_tables(self, block: int = 1_000_000) -> None:
         """Put each text table in sorted order (and renumber its indices), so that a file does not depend
@@ -345,17 +370,34 @@ class ResultWriter:
             self.nc.close()
 
     def finish(self) -> Path:
-        """Close, write ``summary.parquet`` (and ``summary.csv`` when wanted, else remove an old one) and
-        rename the partial file to ``results.nc``."""
+        """Mark the partial file complete, write the summary tables under temporary names, then rename
+        ``results.nc`` first, the tables next (or remove an old ``summary.csv``) and ``manifest.json``
+        last (see :mod:`crashstudy.integrity` for why this order)."""
         self._sort_tables()
+        run_id = integrity.run_id(self.nc)
+        self.nc.setncatts({"complete": np.int8(1), "run_id": run_id})
         self.nc.close()
         final = self.dir / FINAL
         with xr.open_dataset(self.path) as ds:
-            write_summary(ds, self.dir, self.csv)
+            tables = write_summary(ds, self.dir, self.csv, rename=False)
         if not is_regular(self.path):
             raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
+        files = {FINAL: self.path, **tables}
+        sizes = {name: os.stat(path).st_size for name, path in files.items()}
         os.replace(self.path, final)
+        for name, tmp in tables.items():
+            os.replace(tmp, self.dir / name)
+        if SUMMARY not in tables:
+            clear_entry(self.dir / SUMMARY)
+        assert all(os.stat(self.dir / n).st_size == sizes[n] for n in files)
+        integrity.write_manifest(self.dir, run_id, {name: self.dir / name for name in files})
         return final
+
+
+def _ranges_of(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The contiguous runs of True in ``mask`` as (lo, hi) pairs."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def _readable(path: Path) -> bool:
@@ -420,92 +462,6 @@ def read_texts(nc: netCDF4.Dataset, name: str, lo: int, hi: int) -> np.ndarray:
     return np.where(codes >= 0, table[np.clip(codes, 0, len(table) - 1)], "")
 
 
-def _categorical(ds: xr.Dataset, sub: xr.Dataset, name: str) -> Any:
-    """``sub[name]`` as texts: categorical when stored as codes, plain strings for files of 0.1."""
-    arr = sub[name].values
-    if arr.dtype.kind in "iuf":  # codes (xarray turns the -1 fill of an unwritten variant into NaN)
-        arr = np.where(np.isfinite(arr), arr, -1).astype(np.int64)
-        if name == "status":
-            cats = list(STATUS_MEANINGS)
-        else:
-            raw = ds[f"{name}_text"].values
-            cats = [str(t) for t in raw] if len(raw) else [""]
-        codes = np.where((arr >= 0) & (arr < len(cats)), arr, -1)
-        if len(set(cats)) < len(cats):  # a table never repeats a text; guard a hand-edited file
-            return np.asarray(cats, dtype=object)[np.clip(codes, 0, None)]
-        return pd.Categorical.from_codes(codes, categories=cats)
-    return arr.astype(str)
-
-
-def decode_texts(ds: xr.Dataset) -> xr.Dataset:
-    """``ds`` with ``status``, ``failure_reason`` and ``dt_control`` as texts (the tables dropped)."""
-    out = ds
-    for name in ("status", *TEXT_TABLES):
-        if name in ds and ds[name].dtype.kind in "iuf":
-            texts = np.asarray(_categorical(ds, ds, name), dtype=str)
-            long = ds[name].attrs.get("long_name", "").split(": index into")[0]
-            out = out.assign({name: (ds[name].dims, texts, {"units": "", "long_name": long})})
-    return out.drop_vars([f"{n}_text" for n in TEXT_TABLES if f"{n}_text" in out])
-
-
-def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.DataFrame:
-    """Tidy summary table, one row per variant: axis values, status, then one column per metric and item."""
-    sub = ds.isel(variant=slice(lo, hi))
-    axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
-    cols: dict[str, Any] = {"variant": sub["variant"].values}
-    for ax in axes:
-        cols[ax] = sub[ax].values
-    for name in ("status", "failure_reason"):
-        cols[name] = _categorical(ds, sub, name)
-    for name, (dims, _, _) in SUMMARY_META.items():
-        if name not in sub:
-            continue
-        arr = sub[name].values
-        if not dims:
-            cols[name] = arr
-        else:
-            ids = sub[dims[0]].values.astype(str)
-            for k, item in enumerate(ids):
-                cols[f"{name}.{item}"] = arr[:, k]
-    cols["dt_control"] = _categorical(ds, sub, "dt_control")
-    return pd.DataFrame(cols)
-
-
-def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000) -> None:
-    """Write ``summary.parquet`` and, when ``csv``, ``summary.csv`` chunk by chunk (bounded memory),
-    each through a temporary file and a rename; without ``csv`` an older ``summary.csv`` is removed.
-    Both through pyarrow (its CSV writer is ~10x pandas' ``to_csv``; every float round-trips)."""
-    import pyarrow as pa
-    import pyarrow.csv as pcsv
-    import pyarrow.parquet as pq
-
-    n = ds.sizes["variant"]
-    tmp_pq, tmp_csv = folder / (PARQUET + ".partial"), folder / (SUMMARY + ".partial")
-    writers: list[Any] = []
-    try:
-        with open_new(tmp_pq, mode="wb") as raw, (open_new(tmp_csv, mode="wb") if csv else nullcontext()) as fh:
-            for lo in range(0, max(n, 1), chunk):
-                table = pa.Table.from_pandas(summary_frame(ds, lo, min(n, lo + chunk)), preserve_index=False)
-                if not writers:
-                    # dictionary pages for the texts only: trying them on every float column doubled the time
-                    writers.append(pq.ParquetWriter(raw, table.schema, use_dictionary=["status", *TEXT_TABLES]))
-                    if csv:
-                        writers.append(pcsv.CSVWriter(fh, table.schema))
-                for w in writers:
-                    w.write_table(table)
-            while writers:
-                writers.pop(0).close()
-    finally:  # a failed write (disk full) must not leave a writer that complains when collected
-        for w in writers:
-            if hasattr(w, "is_open"):
-                w.is_open = False
-    os.replace(tmp_pq, folder / PARQUET)
-    if csv:
-        os.replace(tmp_csv, folder / SUMMARY)
-    else:
-        clear_entry(folder / SUMMARY)
-
-
 class Results:
     """A finished (or partial) result folder, for notebooks: ``.dataset`` (xarray) and ``.summary`` (pandas)."""
 
@@ -514,6 +470,9 @@ class Results:
         final = self.dir / FINAL
         if not final.exists():
             raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})")
+        problem = integrity.folder_problem(self.dir, FINAL, (PARQUET, SUMMARY))
+        if problem:
+            raise InputError([Problem(str(self.dir), None, "", problem)])
         self.path = final
         self._ds: xr.Dataset | None = None
         self._raw: xr.Dataset | None = None

@@ -23,9 +23,10 @@ from crashstudy.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
+from crashstudy.outdir import prepare_output, remove_stale_plots, study_of
 from crashstudy.provenance import variant_hashes
-from crashstudy.results import FINAL, PARQUET, PARTIAL, SUMMARY, ChunkResult, Results, ResultWriter
-from crashstudy.safefs import clear_entry
+from crashstudy.results import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
+from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study import Plan, load_study, plan_from_model
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
@@ -70,6 +71,7 @@ def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str
 
 
 kernel_override = choice.kernel_override
+__all__ = ["prepare_output", "remove_stale_plots", "run_plan", "run_study", "simulate"]
 
 
 def varying_curves(plan: Plan) -> frozenset[int]:
@@ -283,68 +285,16 @@ def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
     return out
 
 
-def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_name: str) -> None:
-    """Refuse to overwrite another study's results or an unfinished run unless ``force``; clear when forced.
-
-    A finished result of the *same* study is not refused: the run reuses its unchanged variants.
-    Whenever new results are about to be written, the plots that ``crashstudy plot`` made of the
-    earlier results in the folder (``plots/``) are removed: they would no longer show these results.
-    """
-    final, partial = out_dir / FINAL, out_dir / PARTIAL
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
-    if force and out_dir.exists():
-        for p in (final, partial, out_dir / SUMMARY, out_dir / PARQUET):
-            clear_entry(p)  # a link is removed, never followed (a dangling one too)
-        remove_stale_plots(out_dir)
-        return
-    if final.exists() and not resume:
-        other = _study_of(final)
-        if other != study_name:
-            raise InputError([Problem(source, None, "", f"{out_dir} holds the results of {other!r}, not of "
-                                      f"{study_name!r}; use --force to overwrite or choose another -o")])  # fmt: skip
-    if os.path.lexists(partial) and not resume:
-        raise InputError([Problem(source, None, "", f"an unfinished run is in {out_dir}; use --resume to finish it or --force to start again")])
-    if not (resume and final.exists() and not os.path.lexists(partial)):  # else: nothing will be written
-        remove_stale_plots(out_dir)
-
-
-def remove_stale_plots(out_dir: Path) -> list[Path]:
-    """Remove the PNGs in ``out_dir/plots`` that ``crashstudy plot`` wrote (never other files); return them."""
-    folder = out_dir / "plots"
-    if not folder.is_dir() or folder.is_symlink():
-        return []
-    from crashstudy.plot import is_crashstudy_plot
-
-    gone = []
-    for png in sorted(folder.glob("*.png")):
-        if not png.is_symlink() and png.is_file() and is_crashstudy_plot(png):
-            png.unlink()
-            gone.append(png)
-    if gone and not any(folder.iterdir()):
-        folder.rmdir()  # it held only those plots
-    return gone
-
-
-def _study_of(final: Path) -> str:
-    import netCDF4
-
-    try:
-        with netCDF4.Dataset(final) as nc:
-            return str(nc.getncattr("study_name")) if "study_name" in nc.ncattrs() else "an unknown study"
-    except OSError:
-        return "an unreadable file"
-
-
 def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) -> int:
     """Copy the variants of an earlier result of this study whose input hash is unchanged."""
     import netCDF4
 
+    from crashstudy import integrity
     from crashstudy.provenance import topology_signature
 
     with netCDF4.Dataset(final) as old:
-        if "input_hash" not in old.variables:
-            return 0
+        if "input_hash" not in old.variables or integrity.finished_problem(old):
+            return 0  # a file without hashes, or not a finished result (a partial renamed by hand)
         old_h = np.asarray(old.variables["input_hash"][:])
         if old_h.dtype != np.uint64 or old_h.ndim != 2:  # crashstudy 0.1 hashed differently: nothing matches
             return 0
@@ -365,8 +315,7 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
             old_parts.append(cand[hit])
         new_idx = np.concatenate(new_parts) if new_parts else np.zeros(0, dtype=np.int64)
         old_idx = np.concatenate(old_parts) if old_parts else np.zeros(0, dtype=np.int64)
-        writer.reuse(old, new_idx.astype(np.int64), old_idx.astype(np.int64))
-    return len(new_idx)
+        return writer.reuse(old, new_idx.astype(np.int64), old_idx.astype(np.int64))  # checksums verified
 
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
@@ -376,16 +325,30 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
     one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent. ``csv``: write
     ``summary.csv`` (None: up to ``results.CSV_MAX`` variants); ``summary.parquet`` is always written."""
-    from crashstudy.backends import make_backend
-
     t0 = time.perf_counter()
     out = Path(out_dir)
     kernel_override()  # a bad CRASHSTUDY_KERNEL is an input error before anything is written
+    source = plan.study_file or plan.model_file
+    if out.exists() and not out.is_dir():
+        raise InputError([Problem(source, None, "", f"the output path {out} is a file, not a folder")])
+    try:
+        with folder_lock(out):  # one run at a time in a folder: held until the run ends
+            return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0)
+    except FolderBusy as exc:  # raised only by the lock
+        raise InputError([Problem(source, None, "", f"{exc}; wait for it to end or choose another -o")]) from None
+
+
+def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume: bool, force: bool,
+                progress: bool | None, kernel: str, chunk: int | None, notes: Any, csv: bool | None, t0: float
+                ) -> RunReport:  # fmt: skip
+    """:func:`run_plan` once the output folder is locked."""
+    from crashstudy.backends import make_backend
+
     prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
     if resume and (out / FINAL).exists() and not os.path.lexists(out / PARTIAL):
         # nothing to resume: the run finished. Run it again like a plain re-run of the same study (its
         # unchanged variants are reused by input hash, changed ones computed); another study is refused
-        other = _study_of(out / FINAL)
+        other = study_of(out / FINAL)
         if other != plan.name:
             raise InputError([Problem(plan.study_file or plan.model_file, None, "",
                                       f"{out} holds the finished results of {other!r}, not of study {plan.name!r}: "

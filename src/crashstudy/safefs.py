@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import os
 import stat
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
@@ -54,3 +56,73 @@ def open_new(path: Path, newline: str | None = None, mode: str = "w") -> IO[Any]
     clear_entry(path)
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644)
     return os.fdopen(fd, mode, newline=newline) if "b" not in mode else os.fdopen(fd, mode)
+
+
+LOCK = ".crashstudy.lock"
+
+
+class FolderBusy(OSError):
+    """Another live process holds the lock of a result folder (``pid``: its process id, 0 if unknown)."""
+
+    def __init__(self, folder: Path, pid: int) -> None:
+        super().__init__(f"another crashstudy run is writing {folder}" + (f" (pid {pid})" if pid else ""))
+        self.folder, self.pid = folder, pid
+
+
+@contextmanager
+def folder_lock(folder: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``folder`` (created if missing) while the block runs.
+
+    ``fcntl.flock`` on ``folder/.crashstudy.lock``, which holds the owner's pid; a second holder gets
+    :class:`FolderBusy` at once. The lock dies with its process (SIGKILL included: the kernel releases
+    it), so a file left behind by a killed run locks nothing. The owner removes the file before
+    releasing it; a process that locked a file just removed (its inode no longer at the name) tries
+    again. A folder this call created is removed again if it is left empty.
+    """
+    import fcntl
+
+    created = not os.path.lexists(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOCK
+    if os.path.islink(path):
+        os.unlink(path)  # planted: a lock file is never a link
+    for _ in range(100):
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raw = os.pread(fd, 32, 0)
+            os.close(fd)
+            _remove_if_created(folder, created)
+            raise FolderBusy(folder, int(raw) if raw.strip().isdigit() else 0) from None
+        except BaseException:
+            os.close(fd)
+            raise
+        try:
+            same = os.fstat(fd).st_ino == os.lstat(path).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)  # the previous owner removed it after we opened it: lock the new one
+    else:  # pragma: no cover - a lock file replaced 100 times in a row
+        raise FolderBusy(folder, 0)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield
+    finally:
+        try:
+            os.unlink(path)
+        except FileNotFoundError:
+            pass
+        os.close(fd)  # releases the lock
+        _remove_if_created(folder, created)
+
+
+def _remove_if_created(folder: Path, created: bool) -> None:
+    if created:
+        try:
+            folder.rmdir()  # only if empty: a run refused before writing leaves nothing behind
+        except OSError:
+            pass

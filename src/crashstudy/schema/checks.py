@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from crashstudy.schema.model import Crush, GeneralNonlinear, Model, NonlinearElastic
+from crashstudy.schema.model import Crush, GeneralNonlinear, Model, NonlinearElastic, RigidWall
 
 Path = tuple[str | int, ...]
 Found = Iterator[tuple[Path, str]]
@@ -158,6 +158,32 @@ def _walls(m: Model, dim: int) -> Found:
         for k, nid in enumerate(w.nodes or []):
             if nid not in m.nodes:
                 yield path + ("nodes", k), f"unknown node {nid!r}"
+        yield from _wall_and_motion(m, dim, i, w)
+
+
+def _wall_and_motion(m: Model, dim: int, i: int, w: RigidWall) -> Found:
+    """A wall must not hold a node along a direction that a prescribed motion drives.
+
+    The motion fixes the node's velocity along its direction at every step; the wall would remove the
+    velocity into the wall. Both cannot hold: the kernel let the motion win (the node went through the
+    wall while the wall force grew without bound). A wall whose normal is across the driven direction
+    (a floor under a node driven along it) does not touch the driven velocity and is allowed.
+    """
+    held = list(m.nodes) if w.nodes is None else w.nodes
+    axes = ["x", "y"][:dim]
+    for j, pm in enumerate(m.prescribed_motion):
+        if pm.node not in held or pm.direction not in axes or len(w.normal) != dim:
+            continue
+        if w.normal[axes.index(pm.direction)] == 0.0:
+            continue
+        where: Path = ("rigid_walls", i) + (("nodes", w.nodes.index(pm.node)) if w.nodes is not None else ())
+        yield where, (
+            f"wall {w.id!r} holds node {pm.node!r}, which prescribed_motion.{j} drives along {pm.direction} "
+            f"(into or away from the wall): a node cannot both follow a prescribed motion and be stopped by a wall; "
+            + ("remove the node from the wall's nodes" if w.nodes is not None else
+               "list the nodes the wall stops (nodes: [...]) without it")
+            + " or drive another node"
+        )
 
 
 def _output(m: Model, dim: int) -> Found:

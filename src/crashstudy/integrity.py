@@ -1,0 +1,207 @@
+"""Whether a result folder holds one finished run's results: completion mark, checksums, manifest.
+
+A run ends with several renames (``results.nc.partial`` -> ``results.nc``, then the summary tables),
+and a process can be killed between any two of them; a file can also be renamed or damaged by hand.
+Three records make each case visible:
+
+- **Completion mark**: ``results.nc`` carries the global attributes ``complete = 1`` and ``run_id``,
+  set just before its rename. A ``results.nc.partial`` renamed by hand has no mark and is refused when
+  opened and never reused.
+- **Checksums**: each variant's stored status, input hash, summary metrics and histories are summed
+  into a 64-bit ``checksum`` (:func:`variant_sums`), written with the chunk that computed (or
+  copied) the variant. ``--resume`` computes again every variant whose data no longer match, and a
+  re-run does not reuse such a variant. One number per variant rather than per chunk: the file does
+  not depend on how the variants were cut into chunks or in which order the chunks finished
+  (``--jobs 2`` and a resumed run give the same file as one plain run). The text indices
+  (``failure_reason``, ``dt_control``) are left out: they are renumbered at the end.
+- **Manifest**: ``manifest.json`` (the run id, and each final file's size and, for the summaries,
+  SHA-256) is written last, after every rename. ``results.nc`` is renamed first, so a kill after
+  it leaves a ``results.nc`` whose ``run_id`` the folder's manifest does not name (or no manifest at
+  all), and a kill before it leaves the earlier set whole. :func:`folder_problem` checks this on
+  every open. The run id is a hash of the results (:func:`run_id`): two runs share it only if their
+  files hold the same results, so mixing their files would be harmless.
+
+Files written before these records existed (no ``checksum`` variable, no ``run_id``) are accepted
+when every variant is marked done, as before.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import netCDF4
+import numpy as np
+
+from crashstudy.safefs import open_new
+
+MANIFEST = "manifest.json"
+INCONSISTENT = "the result folder is inconsistent: re-run with --force"
+UNFINISHED = ("results.nc is not a finished result (it has no completion mark: an unfinished run's "
+              "results.nc.partial renamed by hand?): finish that run with --resume, or re-run with --force")  # fmt: skip
+CHECKSUM = "checksum"
+NOT_CHECKED = ("failure_reason", "dt_control")  # renumbered when the text tables are sorted at the end
+_ODD = np.uint64(0x9E3779B97F4A7C15)  # odd: every weight below is odd, so a change of any one word shows
+BLOCK_BYTES = 64 * 2**20  # stored bytes read at once when checking a file
+
+
+def checked_names(nc: netCDF4.Dataset) -> list[str]:
+    """Per-variant variables covered by the checksum, in checksum order (not the study axes, written
+    when the file is created, nor the checksum itself)."""
+    axes = json.loads(nc.getncattr("crashstudy_axes")) if "crashstudy_axes" in nc.ncattrs() else []
+    skip = set(axes) | set(NOT_CHECKED) | {"variant", "done", CHECKSUM}
+    return sorted(n for n, v in nc.variables.items()
+                  if v.dimensions[:1] == ("variant",) and n not in skip and not n.endswith("_text"))  # fmt: skip
+
+
+def variant_sums(arrays: Mapping[str, np.ndarray], names: list[str]) -> np.ndarray:
+    """Checksum (uint64, one per variant) of ``arrays[name]`` (each (V, ...) as stored), in ``names`` order.
+
+    Each variant's bytes, zero-padded to 8-byte words per array, are summed with distinct odd weights
+    (modulo 2^64): any single changed word changes the sum; vectorised, it costs a multiply-add per word."""
+    total: np.ndarray | None = None
+    offset = 0
+    for name in names:
+        a = np.ascontiguousarray(arrays[name])
+        n = a.shape[0]
+        raw = a.reshape(n, -1).view(np.uint8).reshape(n, -1)
+        pad = -raw.shape[1] % 8
+        if pad:
+            raw = np.concatenate([raw, np.zeros((n, pad), dtype=np.uint8)], axis=1)
+        words = raw.view("<u8")
+        weights = (np.arange(offset, offset + words.shape[1], dtype=np.uint64) * np.uint64(2) + np.uint64(1)) * _ODD
+        with np.errstate(over="ignore"):
+            part = (words * weights).sum(axis=1, dtype=np.uint64)
+            total = part if total is None else total + part
+        offset += words.shape[1]
+    assert total is not None
+    return total
+
+
+def stored(nc: netCDF4.Dataset, name: str, lo: int, hi: int) -> np.ndarray:
+    """The raw stored values of ``name`` for variants ``lo`` .. ``hi - 1`` (no masking of fill values)."""
+    v = nc.variables[name]
+    v.set_auto_mask(False)
+    try:
+        return np.asarray(v[lo:hi], dtype=v.dtype)
+    finally:
+        v.set_auto_mask(True)
+
+
+def _block(nc: netCDF4.Dataset, names: list[str]) -> int:
+    per = sum(int(np.prod([len(nc.dimensions[d]) for d in nc.variables[n].dimensions[1:]], dtype=np.int64))
+              * nc.variables[n].dtype.itemsize for n in names)  # fmt: skip
+    return max(1, BLOCK_BYTES // max(per, 1))
+
+
+def file_sums(nc: netCDF4.Dataset, lo: int, hi: int) -> np.ndarray:
+    """Checksums of variants ``lo`` .. ``hi - 1`` computed from the data stored in ``nc``."""
+    names = checked_names(nc)
+    parts = []
+    step = _block(nc, names)
+    for a in range(lo, hi, step):
+        b = min(hi, a + step)
+        parts.append(variant_sums({n: stored(nc, n, a, b) for n in names}, names))
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=np.uint64)
+
+
+def intact(nc: netCDF4.Dataset, among: np.ndarray) -> np.ndarray:
+    """Which variants of the boolean mask ``among`` have data that match their stored checksum
+    (boolean (V,)). A file without checksums (written before they existed) trusts every variant."""
+    ok = np.zeros(len(among), dtype=bool)
+    if CHECKSUM not in nc.variables:
+        return among.copy()
+    want = stored(nc, CHECKSUM, 0, len(among))
+    idx = np.flatnonzero(among)
+    if not len(idx):
+        return ok
+    brk = np.nonzero(np.diff(idx) != 1)[0] + 1
+    for run in np.split(idx, brk):
+        lo, hi = int(run[0]), int(run[-1]) + 1
+        ok[lo:hi] = file_sums(nc, lo, hi) == want[lo:hi]
+    return ok
+
+
+def run_id(nc: netCDF4.Dataset) -> str:
+    """A hash of everything the result files show: the plan's fingerprint, every checksum, the text
+    indices and tables (read from an open, finished partial file)."""
+    h = hashlib.sha256(str(nc.getncattr("plan_fingerprint")).encode())
+    n = len(nc.dimensions["variant"])
+    for name in (CHECKSUM, *NOT_CHECKED, *(f"{t}_text" for t in NOT_CHECKED), "status"):
+        v = nc.variables[name]
+        for lo in range(0, max(len(nc.dimensions[v.dimensions[0]]), 1), 1_000_000):
+            h.update(stored(nc, name, lo, min(lo + 1_000_000, len(nc.dimensions[v.dimensions[0]]))).tobytes())
+    h.update(str(n).encode())
+    return h.hexdigest()[:32]
+
+
+def finished_problem(nc: netCDF4.Dataset) -> str:
+    """Why an open ``results.nc`` is not a finished result ("" if it is)."""
+    attrs = nc.ncattrs()
+    if "complete" in attrs:
+        return "" if int(nc.getncattr("complete")) == 1 else UNFINISHED
+    if CHECKSUM in nc.variables or "run_id" in attrs:  # written with completion marks, yet none set
+        return UNFINISHED
+    if "done" in nc.variables and not np.ma.filled(nc.variables["done"][:], 0).all():  # an older file
+        return UNFINISHED
+    return ""
+
+
+def sha256(path: Path, block: int = 2**20) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while chunk := fh.read(block):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def write_manifest(folder: Path, run_id: str, files: dict[str, Path]) -> None:
+    """Write ``manifest.json`` (through a temporary file and a rename): the run id and, for each final
+    name in ``files`` (mapped to the file now holding it), its size and (summaries) SHA-256."""
+    entries: dict[str, dict[str, object]] = {}
+    for name, path in files.items():
+        entry: dict[str, object] = {"size": os.stat(path).st_size}
+        if not name.endswith(".nc"):
+            entry["sha256"] = sha256(path)
+        entries[name] = entry
+    tmp = folder / (MANIFEST + ".partial")
+    with open_new(tmp) as fh:
+        json.dump({"crashstudy_manifest": 1, "run_id": run_id, "files": entries}, fh, indent=1)
+        fh.write("\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, folder / MANIFEST)
+
+
+def folder_problem(folder: Path, final: str, summaries: tuple[str, ...]) -> str:
+    """Why ``folder`` does not hold one finished run's results ("" if it does): see the module docstring."""
+    try:
+        with netCDF4.Dataset(folder / final) as nc:
+            problem = finished_problem(nc)
+            run_id = str(nc.getncattr("run_id")) if "run_id" in nc.ncattrs() else None
+    except OSError as exc:
+        return f"{final} cannot be read ({exc})"
+    if problem:
+        return problem
+    path = folder / MANIFEST
+    if not os.path.lexists(path):
+        if run_id is None:
+            return ""  # written before manifests existed
+        return f"{INCONSISTENT} ({final} is from run {run_id}, and there is no {MANIFEST}: the run that wrote it " \
+               "stopped before its last rename)"
+    try:
+        with open(path, encoding="utf-8") as fh:
+            manifest = json.load(fh)
+        listed = manifest["files"]
+        their_id = str(manifest["run_id"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        return f"{INCONSISTENT} ({MANIFEST} cannot be read: {exc})"
+    if their_id != run_id:
+        return f"{INCONSISTENT} ({final} is from run {run_id}, {MANIFEST} from run {their_id})"
+    stale = [n for n in summaries if n not in listed and os.path.lexists(folder / n)]
+    if stale:
+        return f"{INCONSISTENT} ({', '.join(stale)} not written by the run that wrote {final})"
+    return ""

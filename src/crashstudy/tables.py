@@ -1,0 +1,136 @@
+"""Summary tables: one row per variant (:func:`summary_frame`), written as ``summary.parquet`` and
+``summary.csv`` (:func:`write_summary`), and the texts stored as indices decoded (:func:`decode_texts`).
+
+Texts that repeat across variants are stored compactly in ``results.nc`` (docs/results.md): ``status``
+is a CF flag variable (``STATUS_MEANINGS``); ``failure_reason`` and ``dt_control`` are indices into a
+table of their distinct texts (``TEXT_TABLES``). See :mod:`crashstudy.results` for the file itself.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from contextlib import nullcontext
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from crashstudy.safefs import clear_entry, open_new
+
+SUMMARY = "summary.csv"
+PARQUET = "summary.parquet"
+CSV_MAX = 100_000  # variants up to which summary.csv is written by default
+STATUS_MEANINGS = ("ok", "failed")  # flag_meanings of ``status`` (value = index)
+TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
+               "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
+SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
+    "peak_force": (("spring",), "force", "largest |spring force| over every time step"),
+    "max_crush": (("spring",), "length", "largest shortening of the spring, max(-elongation)"),
+    "absorbed_energy": (("spring",), "energy", "work done on the spring up to the end"),
+    "peak_deceleration": (("node",), "acceleration", "largest acceleration magnitude over every time step"),
+    "peak_deceleration_g": (("node",), "g", "peak_deceleration in standard gravities"),
+    "peak_wall_force": (("wall",), "force", "largest rigid wall force"),
+    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - W_ext| / max(KE0 + |W_ext|, tiny)"),
+    "dt": ((), "time", "time step used"),
+    "dt_crit": ((), "time", "critical time step bound (nodal, whole assembly)"),
+    "t_end": ((), "time", "last time computed (early termination may end a run before end_time)"),
+    "final_kinetic_energy": ((), "energy", "kinetic energy at the end"),
+    "final_internal_energy": ((), "energy", "internal energy at the end"),
+    "error_estimate": ((), "1", "estimated relative error of the peaks (accuracy_check: re-run at dt/2)"),
+}
+
+
+
+def _categorical(ds: xr.Dataset, sub: xr.Dataset, name: str) -> Any:
+    """``sub[name]`` as texts: categorical when stored as codes, plain strings for files of 0.1."""
+    arr = sub[name].values
+    if arr.dtype.kind in "iuf":  # codes (xarray turns the -1 fill of an unwritten variant into NaN)
+        arr = np.where(np.isfinite(arr), arr, -1).astype(np.int64)
+        if name == "status":
+            cats = list(STATUS_MEANINGS)
+        else:
+            raw = ds[f"{name}_text"].values
+            cats = [str(t) for t in raw] if len(raw) else [""]
+        codes = np.where((arr >= 0) & (arr < len(cats)), arr, -1)
+        if len(set(cats)) < len(cats):  # a table never repeats a text; guard a hand-edited file
+            return np.asarray(cats, dtype=object)[np.clip(codes, 0, None)]
+        return pd.Categorical.from_codes(codes, categories=cats)
+    return arr.astype(str)
+
+
+def decode_texts(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` with ``status``, ``failure_reason`` and ``dt_control`` as texts (the tables dropped)."""
+    out = ds
+    for name in ("status", *TEXT_TABLES):
+        if name in ds and ds[name].dtype.kind in "iuf":
+            texts = np.asarray(_categorical(ds, ds, name), dtype=str)
+            long = ds[name].attrs.get("long_name", "").split(": index into")[0]
+            out = out.assign({name: (ds[name].dims, texts, {"units": "", "long_name": long})})
+    return out.drop_vars([f"{n}_text" for n in TEXT_TABLES if f"{n}_text" in out])
+
+
+def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.DataFrame:
+    """Tidy summary table, one row per variant: axis values, status, then one column per metric and item."""
+    sub = ds.isel(variant=slice(lo, hi))
+    axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
+    cols: dict[str, Any] = {"variant": sub["variant"].values}
+    for ax in axes:
+        cols[ax] = sub[ax].values
+    for name in ("status", "failure_reason"):
+        cols[name] = _categorical(ds, sub, name)
+    for name, (dims, _, _) in SUMMARY_META.items():
+        if name not in sub:
+            continue
+        arr = sub[name].values
+        if not dims:
+            cols[name] = arr
+        else:
+            ids = sub[dims[0]].values.astype(str)
+            for k, item in enumerate(ids):
+                cols[f"{name}.{item}"] = arr[:, k]
+    cols["dt_control"] = _categorical(ds, sub, "dt_control")
+    return pd.DataFrame(cols)
+
+
+def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000, rename: bool = True
+                  ) -> dict[str, Path]:  # fmt: skip
+    """Write ``summary.parquet`` and, when ``csv``, ``summary.csv`` chunk by chunk (bounded memory),
+    each through a temporary file and a rename; without ``csv`` an older ``summary.csv`` is removed.
+    Both through pyarrow (its CSV writer is ~10x pandas' ``to_csv``; every float round-trips).
+    ``rename=False``: leave them under their temporary names and return {final name: temporary path}
+    (the caller renames them and removes an older ``summary.csv``)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+    import pyarrow.parquet as pq
+
+    n = ds.sizes["variant"]
+    tmp_pq, tmp_csv = folder / (PARQUET + ".partial"), folder / (SUMMARY + ".partial")
+    writers: list[Any] = []
+    try:
+        with open_new(tmp_pq, mode="wb") as raw, (open_new(tmp_csv, mode="wb") if csv else nullcontext()) as fh:
+            for lo in range(0, max(n, 1), chunk):
+                table = pa.Table.from_pandas(summary_frame(ds, lo, min(n, lo + chunk)), preserve_index=False)
+                if not writers:
+                    # dictionary pages for the texts only: trying them on every float column doubled the time
+                    writers.append(pq.ParquetWriter(raw, table.schema, use_dictionary=["status", *TEXT_TABLES]))
+                    if csv:
+                        writers.append(pcsv.CSVWriter(fh, table.schema))
+                for w in writers:
+                    w.write_table(table)
+            while writers:
+                writers.pop(0).close()
+    finally:  # a failed write (disk full) must not leave a writer that complains when collected
+        for w in writers:
+            if hasattr(w, "is_open"):
+                w.is_open = False
+    tables = {PARQUET: tmp_pq, **({SUMMARY: tmp_csv} if csv else {})}
+    if not rename:
+        return tables
+    for name, tmp in tables.items():
+        os.replace(tmp, folder / name)
+    if not csv:
+        clear_entry(folder / SUMMARY)
+    return tables
