@@ -262,6 +262,17 @@ def test_a_corrupted_number_in_a_partial_is_computed_again_on_resume(tmp_path: P
         assert int(nc.getncattr("complete")) == 1
 
 
+def test_a_rerun_does_not_reuse_a_variant_whose_stored_numbers_changed(tmp_path: Path) -> None:
+    study = write(tmp_path)
+    out = tmp_path / "out"
+    runner.run_study(study, out)
+    with netCDF4.Dataset(out / "results.nc", "a") as nc:
+        nc.variables["peak_force"][2, 0] = 1.0e9  # damaged after the run finished
+    report = runner.run_plan(load_study(study), out, progress=False)
+    assert (report.n_reused, report.n_computed) == (2, 1)
+    assert_analytic(out)
+
+
 # ------------------------------------------------------------------------------------------------
 # item 10: one run at a time in a folder
 # ------------------------------------------------------------------------------------------------
