@@ -262,6 +262,17 @@ def test_a_corrupted_number_in_a_partial_is_computed_again_on_resume(tmp_path: P
         assert int(nc.getncattr("complete")) == 1
 
 
+def test_a_rerun_does_not_reuse_a_variant_whose_stored_numbers_changed(tmp_path: Path) -> None:
+    study = write(tmp_path)
+    out = tmp_path / "out"
+    runner.run_study(study, out)
+    with netCDF4.Dataset(out / "results.nc", "a") as nc:
+        nc.variables["peak_force"][2, 0] = 1.0e9  # damaged after the run finished
+    report = runner.run_plan(load_study(study), out, progress=False)
+    assert (report.n_reused, report.n_computed) == (2, 1)
+    assert_analytic(out)
+
+
 # ------------------------------------------------------------------------------------------------
 # item 10: one run at a time in a folder
 # ------------------------------------------------------------------------------------------------
@@ -357,3 +368,39 @@ def test_pool_workers_exit_when_the_main_process_is_killed() -> None:
                 w.kill()
         if parent.poll() is None:
             parent.kill()
+
+
+WATCHED_CHILD = """\
+import os, sys, time
+sys.platform = "darwin"  # no PR_SET_PDEATHSIG: the watchdog thread must do it
+from crashstudy.backends import _die_with_parent
+_die_with_parent(os.getppid())
+print(os.getpid(), flush=True)
+time.sleep(600)
+"""
+MIDDLE = f"""\
+import subprocess, sys, time
+child = subprocess.Popen([sys.executable, "-c", {WATCHED_CHILD!r}], stdout=subprocess.PIPE, text=True)
+print(child.stdout.readline().strip(), flush=True)
+time.sleep(600)
+"""
+
+
+def test_without_pdeathsig_the_watchdog_ends_a_worker_whose_parent_died() -> None:
+    middle = subprocess.Popen([sys.executable, "-c", MIDDLE], stdout=subprocess.PIPE, text=True)
+    child = 0
+    try:
+        assert middle.stdout is not None
+        child = int(middle.stdout.readline())
+        assert _alive(child)
+        middle.send_signal(signal.SIGKILL)
+        middle.wait()
+        deadline = time.monotonic() + 30  # the watchdog polls twice a second; the child would sleep 600 s
+        while _alive(child) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not _alive(child), "the watched child outlived its parent"
+    finally:
+        if child and _alive(child):
+            os.kill(child, signal.SIGKILL)
+        if middle.poll() is None:
+            middle.kill()

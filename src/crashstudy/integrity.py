@@ -158,14 +158,14 @@ def sha256(path: Path, block: int = 2**20) -> str:
     return h.hexdigest()
 
 
-def write_manifest(folder: Path, run_id: str, files: dict[str, Path]) -> None:
-    """Write ``manifest.json`` (through a temporary file and a rename): the run id and, for each final
-    name in ``files`` (mapped to the file now holding it), its size and (summaries) SHA-256."""
+def write_manifest(folder: Path, run_id: str, names: list[str]) -> None:
+    """Write ``manifest.json`` (through a temporary file and a rename): the run id and, for each file
+    ``names`` in ``folder``, its size and (summaries) SHA-256."""
     entries: dict[str, dict[str, object]] = {}
-    for name, path in files.items():
-        entry: dict[str, object] = {"size": os.stat(path).st_size}
+    for name in names:
+        entry: dict[str, object] = {"size": os.stat(folder / name).st_size}
         if not name.endswith(".nc"):
-            entry["sha256"] = sha256(path)
+            entry["sha256"] = sha256(folder / name)
         entries[name] = entry
     tmp = folder / (MANIFEST + ".partial")
     with open_new(tmp) as fh:

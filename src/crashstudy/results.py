@@ -382,15 +382,12 @@ class ResultWriter:
             tables = write_summary(ds, self.dir, self.csv, rename=False)
         if not is_regular(self.path):
             raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
-        files = {FINAL: self.path, **tables}
-        sizes = {name: os.stat(path).st_size for name, path in files.items()}
-        os.replace(self.path, final)
+        os.replace(self.path, final)  # first: the old manifest names this file only if its results are the same
         for name, tmp in tables.items():
             os.replace(tmp, self.dir / name)
         if SUMMARY not in tables:
             clear_entry(self.dir / SUMMARY)
-        assert all(os.stat(self.dir / n).st_size == sizes[n] for n in files)
-        integrity.write_manifest(self.dir, run_id, {name: self.dir / name for name in files})
+        integrity.write_manifest(self.dir, run_id, [FINAL, *tables])  # last: the set is whole
         return final
 
 
