@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 import pytest
 import yaml
 
@@ -171,3 +172,17 @@ def test_sobol_indices_of_a_crash_run_match_the_closed_form_of_its_peak_force(tm
         for i, exact in (("S1", s1[k]), ("ST", st[k])):
             got = t.loc[(path, i)]
             assert abs(got["value"] - exact) <= max(3.0 * got["confidence"], 0.03), (path, i, got["value"], exact)
+
+
+def test_a_design_study_on_two_worker_processes_gives_the_in_process_numbers(tmp_path: Path) -> None:
+    """The design's rows are a dimension like a zip group, so the backends need nothing new: --jobs 2
+    (process pool) writes the same summary, bit for bit, as one process."""
+    study = _study(tmp_path, {"method": "sobol", "n": 32, "seed": 6,
+                              "axes": {"nodes.body.mass": {"lognormal": [4.6, 0.2]}}},
+                   {"impact_velocity": [3.0, 5.0]})  # fmt: skip
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert main(["run", str(study), "-o", str(one), "--progress", "off"]) == 0
+    assert main(["run", str(study), "-o", str(two), "--jobs", "2", "--progress", "off"]) == 0
+    a, b = open_results(one).summary, open_results(two).summary
+    assert len(a) == 64
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
