@@ -306,7 +306,7 @@ def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis],
             f"{plan.n_variants:,} variant{'s' if plan.n_variants != 1 else ''}), about "
             f"{format_duration(work / WORK_RATE)} at {WORK_RATE:.0e} a second; the longest variant ({worst}) takes "
             f"{steps:.3g} steps to end_time {P[b['end_time'].start]:g}; at most {limit:.3g}: shorten end_time, "
-            f"use a larger time step, or set the environment variable {WORK_ENV} (e.g. {WORK_ENV}={work * 1.05:.2g})"
+            f"use a larger time step, or set the environment variable {WORK_ENV} (e.g. {WORK_ENV}={work * 1.1:.2g})"
         ))])  # fmt: skip
     return dataclasses.replace(plan, work=work)
 

@@ -5,8 +5,14 @@ records the 1-based line of every mapping key and sequence item, for ``file:line
 Scalars follow the YAML 1.2 core schema (``1e-3`` is a float; ``yes``/``no``/``on``/``off`` and dates
 stay strings); mapping keys are always strings (their source text). Refused with an
 :class:`InputError`: duplicate keys, tags beyond plain data, ``<<`` merge keys, alias bombs, nesting
-deeper than :data:`MAX_DEPTH`, documents over :data:`MAX_BYTES`, integers over :data:`MAX_INT_DIGITS`
-digits, several documents, a top level that is not a mapping. No other exception escapes.
+deeper than :data:`MAX_DEPTH`, documents over :data:`MAX_BYTES` or of more than :data:`MAX_NODES` values
+(the environment variable ``CRASHSTUDY_MAX_VALUES`` replaces it), integers over :data:`MAX_INT_DIGITS`
+digits, several documents, a top level that is not a mapping, and anything but a regular file (a FIFO,
+a device: refused before it is opened). No other exception escapes.
+
+Parsing uses libyaml's parser when PyYAML has it (5x faster), under the same composer; syntax errors
+keep the Python parser's messages. A large document is parsed once per process (:data:`CACHE_DOCUMENTS`);
+each caller gets its own copy of the data.
 """
 
 from __future__ import annotations
@@ -132,7 +138,7 @@ def _too_many_values(limit: int, aliases: int, at_least: int = 0) -> str:
                 "possible alias bomb)")
     count = f"at least {at_least:,} values" if at_least else f"more than {limit:,} values"
     return (f"document too large: {count} (keys, numbers, texts, lists and mappings; a chain model takes about "
-            f"18 per node), at most {limit:,}: set the environment variable {MAX_VALUES_ENV} to read more")
+            f"19 per node), at most {limit:,}: set the environment variable {MAX_VALUES_ENV} to read more")
 
 
 class _Counting(Composer):
