@@ -1,6 +1,9 @@
 """Property-based tests (hypothesis) of the command line on generated models, studies and corruptions.
 
-Three properties, each through :func:`crashstudy.cli.main` in this process, as a user's command would run:
+Six properties, each through :func:`crashstudy.cli.main` in this process, as a user's command would run
+(4-6 at the end: random ``set:`` paths never crash ``validate``; one invalid value among up to 1000
+distinct axis values is caught at its position; random options of ``compare`` and ``summary`` exit 0,
+1 or 2 without a traceback):
 
 1. **Random valid models run or fail cleanly.** 1-D and 2-D trees of 2-6 nodes, every material type with
    valid curves, random masses, velocities, optional gravity, loads with time curves and rigid walls, all
@@ -672,3 +675,147 @@ def test_random_valid_study_counts_its_variants(case: tuple[dict[str, Any], list
             for dim, paths in enumerate(dims):
                 for p in paths:
                     assert got[p][k] == float(table[p][idx[dim]]), (p, k, idx)
+
+
+# ------------------------------------------------------------------------------------------------
+# 4. random `set:` paths, 5. an invalid value among up to 1000 distinct axis values,
+# 6. random options of `compare` and `summary`
+# ------------------------------------------------------------------------------------------------
+
+SET_PARTS = ["nodes", "body", "front", "wall", "springs", "crush", "damper", "material", "stiffness", "damping",
+             "position", "mass", "fixed", "name", "end_time", "output", "interval", "histories", "time_step", "dt",
+             "safety_factor", "loads", "force", "node", "curves", "pulse", "x", "y", "scale", "gravity",
+             "initial_velocity", "0", "1", "2", "7", "-1", "foo", ""]  # fmt: skip
+SET_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10, 10), _num(-1e3, 1e3), st.sampled_from(
+    ["text", "body", "none", "all", "", "1e400"]), st.lists(_num(-1.0, 1.0), max_size=3),
+    st.dictionaries(st.sampled_from(["x", "dt", "mass", "interval"]), _num(1e-4, 1.0), max_size=2))  # fmt: skip
+
+
+def _assert_invalid_lines(err: str, study: Path, model: Path) -> None:
+    """``error: invalid input`` then ``file[:line]: ...`` lines of the study or its model, no traceback."""
+    lines = err.splitlines()
+    assert lines[0] == "error: invalid input" and len(lines) >= 2, err
+    for ln in lines[1:]:
+        assert ln.startswith("... and ") or ln.startswith((f"{study}:", f"{model}:")), (ln, err)
+
+
+SET_PATHS = st.one_of(st.lists(st.sampled_from(SET_PARTS), min_size=1, max_size=5).map(".".join), st.sampled_from(
+    ["end_time", "nodes.body.mass", "springs.body.material.stiffness", "output.interval", "time_step.safety_factor",
+     "gravity.0", "nodes.front.position.0", "loads.0.force.0", "curves.pulse.scale"]))  # fmt: skip
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.dictionaries(SET_PATHS, st.one_of(SET_VALUES, _num(1e-3, 1.0)), min_size=1, max_size=3))
+def test_random_set_paths_never_crash_validate(overrides: dict[str, Any]) -> None:
+    with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp:
+        d = Path(tmp)
+        (d / "model.yaml").write_text(SMALL_MODEL)
+        study = {"name": "set-study", "model": "model.yaml", "set": overrides,
+                 "matrix": {"nodes.body.mass": [800.0, 900.0]}}  # fmt: skip
+        (d / "study.yaml").write_text(dump(study))
+        rc, out, err = run_main("validate", str(d / "study.yaml"))
+    COUNTS["set_paths_validated"] += 1
+    COUNTS[f"set_paths_exit_{rc}"] += 1
+    assert rc in (0, 2), (rc, out, err)
+    assert "Traceback" not in err
+    if rc == 2:
+        _assert_invalid_lines(err, d / "study.yaml", d / "model.yaml")
+        # a problem of a `set:` entry is at its line in the study (line 3 holds `set:`)
+        set_lines = [ln for ln in err.splitlines() if ln.startswith(f"{d / 'study.yaml'}:") and ": set" in ln]
+        assert all(re.match(re.escape(str(d / "study.yaml")) + r":\d+: set", ln) for ln in set_lines), err
+    else:
+        assert out.startswith(f"{d / 'study.yaml'}: valid study (2 variants)"), out
+
+
+INVALID_AXIS_VALUES = {  # path -> (a valid value, invalid values)
+    "springs.body.material.stiffness": (2.0e6, [0.0, -1.0, -5.0e6]),
+    "nodes.front.mass": (50.0, [0.0, -50.0]),
+    "time_step.safety_factor": (0.5, [0.0, 1.5, 2.0]),
+    "springs.damper.material.damping": (100.0, [-1.0, -1e-3]),
+}
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.sampled_from(sorted(INVALID_AXIS_VALUES)), st.integers(2, 1000), st.data())
+def test_an_invalid_value_anywhere_among_up_to_1000_distinct_axis_values_is_caught(path: str, n: int,
+                                                                                  data: st.DataObject) -> None:  # fmt: skip
+    from crashstudy.errors import InputError
+    from crashstudy.study import load_study
+
+    good, bad_values = INVALID_AXIS_VALUES[path]
+    at = data.draw(st.integers(0, n - 1), label="position")
+    bad = data.draw(st.sampled_from(bad_values), label="invalid value")
+    step = 1e-6 if path == "time_step.safety_factor" else 1e-4
+    values = [round(good * (1.0 + step * k), 12) for k in range(n)]  # distinct and valid
+    values[at] = bad
+    with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp:
+        d = Path(tmp)
+        (d / "model.yaml").write_text(SMALL_MODEL)
+        (d / "study.yaml").write_text(f"name: axis\nmodel: model.yaml\nmatrix:\n  {path}: {values}\n")
+        with pytest.raises(InputError) as info:
+            load_study(d / "study.yaml")
+    COUNTS["axis_values_checked"] += n
+    COUNTS["axis_studies_with_one_invalid_value"] += 1
+    problems = info.value.problems
+    assert [(p.line, p.field) for p in problems] == [(4, f"matrix.{path}.{at}")], problems
+    assert f"value {bad!r} makes the model invalid" in problems[0].message
+
+
+@pytest.fixture(scope="module")
+def two_results(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("options")
+    (root / "model.yaml").write_text(SMALL_MODEL)
+    (root / "study.yaml").write_text("name: opts\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: [800.0, 900.0, "
+                                     "1000.0]\n  impact_velocity: [5.0, 10.0]\n")  # fmt: skip
+    for name in ("new", "base"):
+        rc, _, err = run_main("run", str(root / "study.yaml"), "-o", str(root / name), "--progress", "off")
+        assert rc == 0, err
+    return root / "new", root / "base"
+
+
+WORDS = st.sampled_from(["peak", "peak_force", "crush", "body", "variant", "status", "nodes.body.mass", "x", "",
+                         "energy_error", "dt", "-1", "nan", "impact_velocity", "failure_reason", "zzz"])  # fmt: skip
+NUMBERS = st.sampled_from(["0", "1", "-1", "1e-6", "0.5", "nan", "inf", "-inf", "1e308", "abc", "", "5", "100",
+                           "-3", "2.5"])  # fmt: skip
+
+
+@st.composite
+def options(draw: st.DrawFn, command: str) -> list[str]:
+    picked = draw(st.lists(st.sampled_from({
+        "summary": ["--sort", "--ascending", "--head", "--columns", "--variant"],
+        "compare": ["--rtol", "--atol", "--junit"]}[command]), unique=True, max_size=4))  # fmt: skip
+    args: list[str] = []
+    for opt in picked:
+        if opt == "--ascending":
+            args.append(opt)
+        elif opt == "--columns":
+            args += [opt, *draw(st.lists(WORDS, min_size=1, max_size=3))]
+        elif opt in ("--sort",):
+            args += [opt, draw(WORDS)]
+        elif opt == "--junit":
+            args += [opt, draw(st.sampled_from(["report.xml", "summary.csv", "results.nc", "sub/none/r.xml"]))]
+        else:
+            args.append(f"{opt}={draw(NUMBERS)}")
+    return args
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=list(HealthCheck))
+@given(st.sampled_from(["summary", "compare"]), st.data())
+def test_random_options_of_compare_and_summary_exit_0_1_or_2_without_a_traceback(
+    two_results: tuple[Path, Path], command: str, data: st.DataObject
+) -> None:
+    new, base = two_results
+    args = data.draw(options(command), label="options")
+    with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp, contextlib.chdir(tmp):
+        try:
+            rc, out, err = run_main(command, str(new), *((str(base),) if command == "compare" else ()), *args)
+        except SystemExit as exc:  # argparse: a value that is not a number, an option without its value
+            rc, out, err = int(exc.code or 0), "", ""
+    COUNTS[f"{command}_options_run"] += 1
+    COUNTS[f"{command}_options_exit_{rc}"] += 1
+    assert rc in ((0, 2) if command == "summary" else (0, 1, 2)), (args, rc, out, err)
+    assert "Traceback" not in err
+    if rc == 2 and err:
+        assert err.startswith("error: invalid input\n"), (args, err)
+    if rc == 1:  # compare only (two runs of one study): a verdict, never a crash
+        assert out.splitlines()[-1].startswith("FAILED"), out

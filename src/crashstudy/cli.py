@@ -6,7 +6,9 @@ Exit codes: 0 success, 1 a check failed or a variant failed, 2 the input is inva
 from __future__ import annotations
 
 import argparse
+import errno
 import json
+import os
 import signal
 import sys
 from pathlib import Path
@@ -133,7 +135,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     except OSError as exc:  # disk full, read-only folder: say so plainly
+        if exc.errno in _PATH_ERRORS:  # the path itself cannot be used: invalid input, not a failed write
+            print(f"error: invalid input\n{_short(exc.filename)}: {_PATH_ERRORS[exc.errno]}", file=sys.stderr)
+            return EXIT_INVALID
         print(f"error: cannot write results: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    except MemoryError:
+        print("error: out of memory: the model or study needs more memory than this machine has (fewer variants "
+              "or nodes, or histories: none, need less)", file=sys.stderr)  # fmt: skip
         return EXIT_FAILED
     except RuntimeError as exc:
         from concurrent.futures.process import BrokenProcessPool
@@ -146,6 +155,20 @@ def main(argv: list[str] | None = None) -> int:
                   "Finished variants are kept: continue with --resume", file=sys.stderr)  # fmt: skip
             return EXIT_FAILED
         raise
+
+
+_PATH_ERRORS = {
+    errno.ENAMETOOLONG: "path too long (the system allows 255 bytes per name and 4096 per path)",
+    errno.ELOOP: "a loop of symbolic links",
+}
+
+
+def _short(path: object) -> str:
+    """A path for a message: printable, at most 100 characters (its start and end)."""
+    from crashstudy.errors import printable
+
+    text = printable(os.fsdecode(path) if isinstance(path, (str, bytes)) else str(path), 10_000)
+    return text if len(text) <= 100 else f"{text[:48]}...{text[-48:]}"
 
 
 def _warn(lines: list[str]) -> None:
@@ -191,6 +214,7 @@ def _run(args: argparse.Namespace) -> int:
     _checked(plan)
     print(f"study {plan.name}: {plan.n_variants} variants"
           + (" (" + " x ".join(str(s) for s in plan.shape) + ")" if plan.shape else ""))  # fmt: skip
+    _work(plan)
     if args.dry_run:
         for ax in plan.axes:
             shown = ", ".join(repr(float(v)) for v in ax.values[:6])
@@ -224,6 +248,7 @@ def _validate(args: argparse.Namespace) -> int:
         plan = load_study(args.file)
         _checked(plan)
         print(f"{args.file}: valid study ({plan.n_variants} variants)")
+        _work(plan)
     else:
         from crashstudy.runner import refuse_fixed_dt
         from crashstudy.study import plan_from_model
@@ -235,7 +260,18 @@ def _validate(args: argparse.Namespace) -> int:
         m = lm.model
         print(f"{args.file}: valid model ({len(m.nodes)} nodes, {len(m.springs)} springs, "
               f"{len(next(iter(m.nodes.values())).position)}-D)")  # fmt: skip
+        _work(plan)
     return EXIT_OK
+
+
+def _work(plan: Any) -> None:
+    """Say how long a run of ``plan`` takes when that is long (its refusal beyond the limit is an input error)."""
+    from crashstudy.study import WORK_ENV, WORK_RATE, WORK_REPORT, format_duration, max_work
+
+    if plan.work >= WORK_REPORT:
+        print(f"  about {plan.work:.3g} element-steps (springs x time steps, summed over the variants): about "
+              f"{format_duration(plan.work / WORK_RATE)} at {WORK_RATE:.0e} a second; the limit is {max_work():.3g} "
+              f"({WORK_ENV})")  # fmt: skip
 
 
 def _simulate(args: argparse.Namespace) -> int:

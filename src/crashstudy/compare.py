@@ -315,10 +315,21 @@ class Comparison:
         bad = self.by_metric().query("failed > 0")
         if len(bad):
             lines.append("metrics past tolerance:")
-            lines += [f"  {r.metric}: {r.failed} of {r.compared} variants, largest |rel diff| {r.max_rel_diff:.3e} "
-                      f"(rtol={r.rtol:g}, atol={r.atol:g})" for r in bad.itertuples()]  # fmt: skip
+            lines += [self._past_tolerance(r) for r in bad.itertuples()]
         lines.append(self.verdict())
         return "\n".join(lines)
+
+    def _past_tolerance(self, r: Any) -> str:
+        """The summary line of one failing metric: how many values failed, and by how much (a value
+        that is a number on one side and NaN on the other has no relative difference: counted apart)."""
+        c = self.columns[r.metric]
+        failed = ~c.passed
+        nan = failed & np.isnan(c.rel_diff)
+        rel = np.abs(c.rel_diff[failed & ~nan])
+        parts = [f"largest |rel diff| {rel.max():.3e}"] if len(rel) else []
+        if nan.any():
+            parts.append(f"{int(nan.sum())} a number on one side and NaN on the other")
+        return f"  {r.metric}: {r.failed} of {r.compared} variants, {'; '.join(parts)} (rtol={r.rtol:g}, atol={r.atol:g})"
 
     def to_junit(self, path: str | os.PathLike[str] | None = None) -> ET.ElementTree:
         """JUnit XML: one ``<testsuite name="crashstudy compare">``, one ``<testcase>`` per metric column

@@ -50,6 +50,46 @@ def _call_on_worker(fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
     return fn(*args)
 
 
+class NoAnswer(TimeoutError):
+    """The address accepted a connection but sent no Dask handshake in time."""
+
+
+def _handshake(address: str, timeout: float) -> None:
+    """Connect to ``address`` and exchange Dask's handshake within ``timeout`` seconds, then disconnect.
+
+    ``distributed.Client`` bounds the TCP connection by its timeout but waits for the handshake without
+    one: a listener that accepts and never answers held it for good. This runs the same connection in
+    a thread of its own and gives up about 1 s after ``timeout`` (raising :class:`NoAnswer`).
+    """
+    import asyncio
+    import threading
+
+    from distributed.comm import connect
+
+    async def attempt() -> None:
+        comm = await connect(address, timeout=timeout)
+        await comm.close()
+
+    failure: list[BaseException] = []
+    silent = "it accepted the connection but sent no Dask handshake (is it a Dask scheduler?)"
+
+    def target() -> None:
+        try:
+            asyncio.run(asyncio.wait_for(attempt(), timeout + 1.0))  # connect() gives up at `timeout` itself
+        except asyncio.TimeoutError:
+            failure.append(NoAnswer(silent))
+        except BaseException as exc:  # reported by the caller, in its thread
+            failure.append(exc)
+
+    thread = threading.Thread(target=target, name="crashstudy-dask-handshake", daemon=True)
+    thread.start()
+    thread.join(timeout + 3.0)  # asyncio.wait_for ends it at `timeout` + 1 s; 2 s more for the loop to close
+    if thread.is_alive():
+        raise NoAnswer(silent)
+    if failure:
+        raise failure[0]
+
+
 class DaskBackend:
     """Map a function over tasks on a Dask cluster, yielding results as they finish.
 
@@ -59,8 +99,9 @@ class DaskBackend:
         ``"local"``: start a ``distributed.LocalCluster`` on 127.0.0.1 with 2 worker processes of one
         thread each, no dashboard, closed by :meth:`close`. Otherwise the address of a running
         scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
-    timeout : float, default 10.0
-        Seconds to wait for a remote scheduler before giving up with :class:`InputError`.
+    timeout : float, optional
+        Seconds to wait for a remote scheduler before giving up with :class:`InputError`
+        (default :data:`CONNECT_TIMEOUT`, 10 s): for the connection and for its answer.
     n_workers : int, default 2
         Worker processes of the local cluster (ignored for a remote scheduler).
 
@@ -79,8 +120,9 @@ class DaskBackend:
     """
 
     def __init__(
-        self, scheduler: str, timeout: float = CONNECT_TIMEOUT, n_workers: int = LOCAL_WORKERS
+        self, scheduler: str, timeout: float | None = None, n_workers: int = LOCAL_WORKERS
     ) -> None:
+        timeout = CONNECT_TIMEOUT if timeout is None else timeout
         try:
             import distributed
         except ImportError:
@@ -103,6 +145,7 @@ class DaskBackend:
                 raise
             return
         try:
+            _handshake(scheduler, timeout)
             self.client = distributed.Client(scheduler, timeout=timeout, set_as_default=False)
         except Exception as exc:  # refused, timed out, malformed address, or not a Dask scheduler
             raise _problem(

@@ -9,6 +9,7 @@ matrix axes first, then one axis per zip group.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import difflib
 import functools
 import math
@@ -28,13 +29,19 @@ from crashstudy.schema import LoadedModel, file_kind, parse_model, refuse_foreig
 from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.schema.study import Study
-from crashstudy.yamlio import LoadedYaml, load_yaml, loads_yaml
+from crashstudy.yamlio import LoadedYaml, load_yaml, loads_yaml, not_regular
 
 DEFAULT_SAMPLES = 1000
 MAX_VARIANTS = 100_000_000  # one results.nc; its axis coordinates alone take 0.8 GB each
 MAX_SAMPLE_BYTES = 256 * 2**20  # history samples of one variant (histories and the kernel's 4 energy records):
 # the runner's HISTORY_BUDGET of a chunk, so that one variant always fits a chunk
 CHECK_BLOCK = 4096  # distinct axis values checked at once
+MAX_WORK = 1e13  # element-steps (springs x time steps, summed over variants) a run may take: ~3 h at 1e9/s
+WORK_ENV = "CRASHSTUDY_MAX_WORK"  # environment variable that replaces MAX_WORK
+WORK_REPORT = 1e10  # element-steps from which validate and run say how long the run takes
+WORK_RATE = 1e9  # element-steps a second, for the hours quoted in messages (one core of the compiled kernel)
+WORK_ENTRIES = 2**26  # parameters x variants whose steps are counted (exactly up to this, else a sample)
+WORK_BLOCK = 2**16  # variants per step count
 MAX_REPORTED = 5  # invalid values listed per axis
 
 
@@ -64,6 +71,7 @@ class Plan:
     model_file: str
     study_file: str
     regression: dict[str, dict[str, float]]
+    work: float = 0.0  # estimated element-steps of the whole run (springs x time steps, summed over variants)
 
     @property
     def n_variants(self) -> int:
@@ -287,11 +295,92 @@ def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis],
         check = check_parameters(topo, base[:, None], interval)
         if check.bad[0]:
             raise InputError([_study_problem(mdoc, ("end_time",), check.reason(0))])
-    return Plan(
+    plan = Plan(
         name=name or m.name, topology=topo, base=base, axes=tuple(axes), shape=tuple(shape), interval=interval,
         n_out=n_out, model_text=mdoc.text, study_text=sdoc.text if sdoc else "", model_file=mdoc.file,
         study_file=sdoc.file if sdoc else "", regression=regression,
     )  # fmt: skip
+    work, worst, steps = estimate_work(plan)
+    limit = max_work()
+    if work > limit:
+        at = [a for a in axes if a.path == "end_time"]
+        doc, loc = (sdoc, _axis_where(sdoc, "end_time")) if sdoc and at else (mdoc, ("end_time",))
+        P = plan.params(worst, worst + 1)[:, 0]
+        b = topo.blocks
+        raise InputError([_study_problem(doc, loc, (
+            f"the run would take about {work:.3g} element-steps (springs x time steps, summed over the "
+            f"{plan.n_variants:,} variant{'s' if plan.n_variants != 1 else ''}), about "
+            f"{format_duration(work / WORK_RATE)} at {WORK_RATE:.0e} a second; the longest variant ({worst}) takes "
+            f"{steps:.3g} steps to end_time {P[b['end_time'].start]:g}; at most {limit:.3g}: shorten end_time, "
+            f"use a larger time step, or set the environment variable {WORK_ENV} (e.g. {WORK_ENV}={work * 1.1:.2g})"
+        ))])  # fmt: skip
+    return dataclasses.replace(plan, work=work)
+
+
+def max_work() -> float:
+    """The most element-steps a run may take: :data:`MAX_WORK`, or the environment's :data:`WORK_ENV`."""
+    raw = os.environ.get(WORK_ENV, "").strip()
+    if not raw:
+        return MAX_WORK
+    try:
+        value = float(raw)
+    except ValueError:
+        value = math.nan
+    if not value > 0:  # also NaN
+        raise InputError([Problem(WORK_ENV, None, "", f"expected a number of element-steps > 0 (the default is "
+                                  f"{MAX_WORK:g}), got {raw[:40]!r}")])  # fmt: skip
+    return value
+
+
+def estimate_work(plan: Plan) -> tuple[float, int, float]:
+    """Element-steps of a run (springs x time steps, summed over variants), the variant with the most
+    steps and its steps. Counted exactly for up to :data:`WORK_ENTRIES` parameters x variants, else on
+    that many variants drawn evenly at random (always with the first and the last) and scaled."""
+    from crashstudy.batch import build_batch
+
+    V = plan.n_variants
+    per = max(1, WORK_ENTRIES // max(1, len(plan.base)))
+    if V <= per:
+        idx = np.arange(V, dtype=np.int64)
+    else:
+        rng = np.random.default_rng(0)
+        idx = np.unique(np.concatenate([[0, V - 1], rng.integers(0, V, per - 2)]))
+    total, worst, most = 0.0, 0, -1.0
+    for lo in range(0, len(idx), WORK_BLOCK):
+        at = idx[lo : lo + WORK_BLOCK]
+        batch, _ = build_batch(plan.topology, _params_at(plan, at), plan.interval)
+        steps = np.asarray(batch.n_steps, dtype=np.float64)
+        total += float(steps.sum())
+        k = int(np.argmax(steps))
+        if steps[k] > most:
+            worst, most = int(at[k]), float(steps[k])
+    return total * max(1, plan.topology.n_springs) * V / len(idx), worst, most
+
+
+def _params_at(plan: Plan, idx: np.ndarray) -> np.ndarray:
+    """Parameter matrix (n_params, len(idx)) of the variants numbered ``idx``."""
+    P = np.repeat(plan.base[:, None], len(idx), axis=1)
+    if plan.shape:
+        multi = np.unravel_index(idx, plan.shape)
+        for ax in plan.axes:
+            apply_axis(P, ax.ref, np.asarray(ax.values[multi[ax.dim]], dtype=np.float64))
+    return P
+
+
+def format_duration(seconds: float) -> str:
+    """``seconds`` in the largest unit it fills: "3.2 hours"."""
+    for unit, size in (("years", 3.15e7), ("days", 86400.0), ("hours", 3600.0), ("minutes", 60.0)):
+        if seconds >= size:
+            return f"{seconds / size:.3g} {unit}"
+    return f"{seconds:.3g} s"
+
+
+def _axis_where(sdoc: LoadedYaml, path: str) -> tuple[str | int, ...]:
+    """Where the study file gives axis ``path``: ``matrix.PATH`` or ``zip.G.PATH``."""
+    for g, grp in enumerate(sdoc.data.get("zip") or []):
+        if isinstance(grp, dict) and path in grp:
+            return ("zip", g, path)
+    return ("matrix", path)
 
 
 def _model_path(sdoc: LoadedYaml, base_dir: Path, name: str) -> Path:
@@ -301,7 +390,7 @@ def _model_path(sdoc: LoadedYaml, base_dir: Path, name: str) -> Path:
                                          "expected the path of a YAML file")])  # fmt: skip
     try:
         path = (base_dir / name).resolve() if not os.path.isabs(name) else Path(name)
-        path.stat()
+        mode = path.stat().st_mode
     except FileNotFoundError:
         raise InputError([_study_problem(sdoc, ("model",), f"model file not found: {base_dir / name}")]) from None
     except (OSError, RuntimeError, ValueError) as exc:  # a symbolic-link loop, a path too long, ...
@@ -309,8 +398,9 @@ def _model_path(sdoc: LoadedYaml, base_dir: Path, name: str) -> Path:
             getattr(exc, "strerror", None) or str(exc))  # fmt: skip
         raise InputError([_study_problem(sdoc, ("model",), f"cannot use the model path {base_dir / name}: {why} "
                                          "(symbolic links are followed to a file)")]) from None  # fmt: skip
-    if not path.is_file():
-        raise InputError([_study_problem(sdoc, ("model",), f"model file not found: {path}")])
+    why = not_regular(mode)  # a directory, or a FIFO or device (reading one would wait or never end)
+    if why:
+        raise InputError([_study_problem(sdoc, ("model",), f"model path {path}: {why}")])
     return path
 
 

@@ -118,6 +118,9 @@ def _message(err: Any, allowed: list[str] | None) -> str:
     return msg
 
 
+MAX_HINTED = 100  #: problems of a file given a "did you mean" hint (more are never shown: errors.InputError.format)
+
+
 def pydantic_problems(
     exc: ValidationError, doc: LoadedYaml, root: type[BaseModel], prefix: Path = ()
 ) -> list[Problem]:
@@ -130,7 +133,8 @@ def pydantic_problems(
     for err in exc.errors(include_url=False):
         path = data_path(data, tuple(err["loc"]))
         parent = path[:-1] if err["type"] in ("extra_forbidden", "missing") else path
-        allowed = _fields_at(root, data, parent) if err["type"] == "extra_forbidden" else None
+        hinted = err["type"] == "extra_forbidden" and len(problems) < MAX_HINTED  # difflib is slow: the shown ones
+        allowed = _fields_at(root, data, parent) if hinted else None
         msg = _message(err, allowed)
         if (path, msg) in seen:
             continue
