@@ -64,9 +64,9 @@ class Evaluator:
 
     def run(self, x: np.ndarray) -> tuple[pd.DataFrame, Any]:
         """(summary table, ChunkResult) of the candidates ``x`` (n_candidates, n_variables)."""
-        from crashstudy.results import chunk_frame
         from crashstudy.runner import run_chunk
         from crashstudy.study import Axis
+        from crashstudy.tables import chunk_frame
 
         axes = tuple(Axis(a.path, np.ascontiguousarray(x[:, k], dtype=np.float64), 0, a.ref)
                      for k, a in enumerate(self.plan.axes))  # fmt: skip

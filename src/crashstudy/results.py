@@ -45,6 +45,7 @@ from crashstudy.tables import (
     SUMMARY_META,
     TEXT_TABLES,
     decode_texts,  # fmt: skip
+    summary_arrays,
     summary_frame,
     write_summary,
 )
@@ -99,48 +100,6 @@ class ChunkResult:
     reasons: np.ndarray  # (V,) object: texts, "" where ok
     hashes: np.ndarray  # (V, HASH_WORDS) uint64
     error_estimate: np.ndarray  # (V,) NaN unless the model asks for accuracy_check
-
-
-def summary_arrays(plan: Plan, res: ChunkResult) -> dict[str, np.ndarray]:
-    """The summary variables of a chunk, (variants[, items]) each, NaN where a variant failed (but its
-    ``dt``, ``dt_crit``): what :class:`ResultWriter` stores and :func:`chunk_frame` tabulates."""
-    o = res.out
-    g = UNIT_SYSTEMS[plan.topology.units].g
-    summary = {
-        "peak_force": o.peak_force.T, "max_crush": o.max_crush.T, "absorbed_energy": o.absorbed_energy.T,
-        "peak_deceleration": o.peak_acceleration.T, "peak_deceleration_g": o.peak_acceleration.T / g,
-        "energy_error": o.energy_error, "dt": res.dt, "dt_crit": res.dt_crit, "t_end": o.t_end,
-        "final_kinetic_energy": o.final_energy[0], "final_internal_energy": o.final_energy[1],
-        "error_estimate": res.error_estimate,
-    }  # fmt: skip
-    if plan.topology.wall_ids:
-        summary["peak_wall_force"] = o.peak_wall_force.T
-    failed = o.status != 0
-    out = {}
-    for name, arr in summary.items():
-        a = np.array(arr, dtype=np.float64)
-        if name not in ("dt", "dt_crit"):
-            a[failed] = np.nan  # a failed variant has no trustworthy summary
-        out[name] = a
-    return out
-
-
-def chunk_frame(plan: Plan, res: ChunkResult) -> pd.DataFrame:
-    """The summary table of a computed chunk, without writing files: the columns of ``summary.parquet``
-    (optimisation and calibration evaluate candidates this way)."""
-    topo = plan.topology
-    dims = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
-    data: dict[str, Any] = {name: (("variant", *SUMMARY_META[name][0]), a)
-                            for name, a in summary_arrays(plan, res).items()}  # fmt: skip
-    data["status"] = ("variant", np.where(res.out.status != 0, "failed", "ok"))
-    data["failure_reason"] = ("variant", np.asarray(res.reasons, dtype=str))
-    data["dt_control"] = ("variant", np.asarray(res.dt_control, dtype=str))
-    lo, hi = int(res.index[0]), int(res.index[-1]) + 1
-    for path, values in plan.axis_values(lo, hi).items():
-        data[path] = ("variant", values)
-    ds = xr.Dataset(data, coords={"variant": res.index, **{d: list(ids) for d, ids in dims.items() if ids}},
-                    attrs={"crashstudy_axes": json.dumps([a.path for a in plan.axes])})  # fmt: skip
-    return summary_frame(ds)
 
 
 class ResultWriter:

@@ -303,8 +303,8 @@ def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis],
     work, worst, steps = estimate_work(plan)
     limit = max_work()
     if work > limit:
-        at = [a for a in axes if a.path == "end_time"]
-        doc, loc = (sdoc, _axis_where(sdoc, "end_time")) if sdoc and at else (mdoc, ("end_time",))
+        on_axis = any(a.path == "end_time" for a in axes)
+        doc, loc = (sdoc, _axis_where(sdoc, "end_time")) if sdoc and on_axis else (mdoc, ("end_time",))
         P = plan.params(worst, worst + 1)[:, 0]
         b = topo.blocks
         raise InputError([_study_problem(doc, loc, (

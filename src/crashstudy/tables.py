@@ -19,6 +19,7 @@ import pandas as pd
 import xarray as xr
 
 from crashstudy.safefs import clear_entry, open_new
+from crashstudy.units import UNIT_SYSTEMS
 
 SUMMARY = "summary.csv"
 PARQUET = "summary.parquet"
@@ -134,3 +135,45 @@ def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000,
     if not csv:
         clear_entry(folder / SUMMARY)
     return tables
+
+
+def summary_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
+    """The summary variables of a chunk (a :class:`crashstudy.results.ChunkResult` of ``plan``), (variants[, items]) each, NaN where a variant failed (but its
+    ``dt``, ``dt_crit``): what :class:`crashstudy.results.ResultWriter` stores and :func:`chunk_frame` tabulates."""
+    o = res.out
+    g = UNIT_SYSTEMS[plan.topology.units].g
+    summary = {
+        "peak_force": o.peak_force.T, "max_crush": o.max_crush.T, "absorbed_energy": o.absorbed_energy.T,
+        "peak_deceleration": o.peak_acceleration.T, "peak_deceleration_g": o.peak_acceleration.T / g,
+        "energy_error": o.energy_error, "dt": res.dt, "dt_crit": res.dt_crit, "t_end": o.t_end,
+        "final_kinetic_energy": o.final_energy[0], "final_internal_energy": o.final_energy[1],
+        "error_estimate": res.error_estimate,
+    }  # fmt: skip
+    if plan.topology.wall_ids:
+        summary["peak_wall_force"] = o.peak_wall_force.T
+    failed = o.status != 0
+    out = {}
+    for name, arr in summary.items():
+        a = np.array(arr, dtype=np.float64)
+        if name not in ("dt", "dt_crit"):
+            a[failed] = np.nan  # a failed variant has no trustworthy summary
+        out[name] = a
+    return out
+
+
+def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
+    """The summary table of a computed chunk, without writing files: the columns of ``summary.parquet``
+    (optimisation and calibration evaluate candidates this way)."""
+    topo = plan.topology
+    dims = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
+    data: dict[str, Any] = {name: (("variant", *SUMMARY_META[name][0]), a)
+                            for name, a in summary_arrays(plan, res).items()}  # fmt: skip
+    data["status"] = ("variant", np.where(res.out.status != 0, "failed", "ok"))
+    data["failure_reason"] = ("variant", np.asarray(res.reasons, dtype=str))
+    data["dt_control"] = ("variant", np.asarray(res.dt_control, dtype=str))
+    lo, hi = int(res.index[0]), int(res.index[-1]) + 1
+    for path, values in plan.axis_values(lo, hi).items():
+        data[path] = ("variant", values)
+    ds = xr.Dataset(data, coords={"variant": res.index, **{d: list(ids) for d, ids in dims.items() if ids}},
+                    attrs={"crashstudy_axes": json.dumps([a.path for a in plan.axes])})  # fmt: skip
+    return summary_frame(ds)

@@ -128,7 +128,7 @@ def pydantic_problems(
     data = doc.data
     for p in prefix:
         data = data[p]
-    problems = []
+    problems: list[Problem] = []
     seen: set[tuple[Path, str]] = set()
     for err in exc.errors(include_url=False):
         path = data_path(data, tuple(err["loc"]))
