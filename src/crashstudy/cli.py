@@ -198,9 +198,14 @@ def _after_run(res: Any) -> None:
     except InputError:
         return
     node = body_node(m) if m is not None else None
-    s = res.summary
     col = f"peak_deceleration_g.{node}"
-    if node is None or col not in s or not s[col].notna().any():
+    if node is None:
+        return
+    try:
+        s = res.summary_columns(["variant", col])
+    except (KeyError, ValueError):  # pyarrow: no such column (the node has no summary column)
+        return
+    if not s[col].notna().any():
         return
     k = s[col].idxmax()
     _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, float(s.loc[k, col]), int(s.loc[k, "variant"])))
