@@ -79,7 +79,7 @@ class _Column:
     def __post_init__(self) -> None:
         old, new = self.old, self.new
         both_nan = np.isnan(old) & np.isnan(new)
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # rtol 1e308 * old -> inf: passes
             self.diff = np.where(both_nan, 0.0, new - old)
             self.abs_diff = np.abs(self.diff)
             self.rel_diff = np.where(self.diff == 0.0, 0.0, self.diff / np.abs(old))
