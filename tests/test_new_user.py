@@ -368,3 +368,17 @@ def test_compare_of_a_single_run_with_a_study_says_why_nothing_matches(
         cmp = compare(new, base)
         assert len(cmp.matched) == 0 and cmp.failed > 0
         assert "single model run" in cmp.report() and "no variant can be matched" in cmp.report()
+
+
+def test_a_crush_curve_with_positive_forces_in_compression_is_refused(tmp_path: Path,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    """Found by a new user trying the docs: a crush curve drawn with positive forces (x < 0, y > 0) was
+    valid, the spring carried min(0, curve) = 0 and the car went through the barrier with status ok."""
+    bad = copy.deepcopy(MODEL)
+    bad["curves"]["crush-loading"]["y"] = [60000.0, 40000.0, 0.0]
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(bad, sort_keys=False))
+    capsys.readouterr()
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "springs.crush.material.loading" in err and "no negative force in compression" in err, err

@@ -100,6 +100,10 @@ def _springs(m: Model, dim: int) -> Found:
                 c = m.curves[mat.loading]
                 if c.x[0] >= 0:
                     yield base + ("loading",), f"the crush curve {mat.loading!r} needs a compression part (x < 0)"
+                elif not any(y < 0 for x, y in zip(c.x, c.y, strict=False) if x < 0):
+                    yield base + ("loading",), (
+                        f"the crush curve {mat.loading!r} has no negative force in compression (x < 0): a crush spring "
+                        "carries min(0, curve), so it would carry no force; compression forces are negative")  # fmt: skip
 
 
 def _vectors(m: Model, dim: int) -> Found:
