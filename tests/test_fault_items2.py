@@ -17,7 +17,6 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -30,25 +29,8 @@ from crashstudy import runner
 from crashstudy.errors import InputError
 from crashstudy.results import Results
 from crashstudy.study import load_study
+from test_fault_items import MASSES, TINY_MODEL, TINY_STUDY, V0, Cli, K, assert_exit_2  # noqa: E402 - the shared tiny model
 
-Cli = Callable[..., Any]
-
-K, V0 = 2.0e4, 1.0  # spring stiffness [N/m], initial speed [m/s] of TINY_MODEL
-TINY_MODEL = f"""\
-name: tiny
-nodes:
-  anchor: {{position: [0.0], fixed: true}}
-  body:   {{position: [0.1], mass: 2.0}}
-springs:
-  spring:
-    nodes: [anchor, body]
-    material: {{type: linear_elastic, stiffness: {K}}}
-initial_velocity: {{body: [{V0}]}}
-end_time: 0.05
-output: {{histories: none}}
-"""
-MASSES = [1.0, 2.0, 3.0]
-TINY_STUDY = f"name: tiny-study\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: {MASSES}\n"
 RTOL = 0.02  # the sampled peak of a harmonic oscillation at the default step: within 2 % of the analytic one
 
 
@@ -76,13 +58,6 @@ def assert_analytic(out: Path, k: float = K) -> None:
         assert list(summary["status"]) == ["ok"] * len(MASSES)
     finally:
         res.close()
-
-
-def assert_exit_2(p: Any, *expect: str) -> None:
-    assert p.returncode == 2, (p.returncode, p.stdout, p.stderr)
-    assert "Traceback" not in p.stderr, p.stderr
-    for text in expect:
-        assert text in p.stderr, (text, p.stderr)
 
 
 # ------------------------------------------------------------------------------------------------

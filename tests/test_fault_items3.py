@@ -18,9 +18,8 @@ import socket
 import subprocess
 import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -29,8 +28,7 @@ import pytest
 from crashstudy import yamlio
 from crashstudy.errors import InputError
 from crashstudy.study import load_study
-
-Cli = Callable[..., Any]
+from test_fault_items import Cli, assert_exit_2  # noqa: E402 - shared helpers
 
 K = 2.0e4  # spring stiffness [N/m]
 MODEL = f"""\
@@ -54,14 +52,6 @@ def write(folder: Path, study: str = STUDY, model: str = MODEL) -> Path:
     path = folder / "study.yaml"
     path.write_text(study)
     return path
-
-
-def assert_exit_2(p: Any, *expect: str) -> None:
-    assert p.returncode == 2, (p.returncode, p.stdout, p.stderr)
-    assert p.stderr.startswith("error: invalid input\n"), p.stderr
-    assert "Traceback" not in p.stderr
-    for text in expect:
-        assert text in p.stderr, (text, p.stderr)
 
 
 # ------------------------------------------------------------------------------------------------
