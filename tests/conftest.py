@@ -24,6 +24,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # for `import referenc
 # runs started by tests never leave a compiler running behind them (tests of it set this themselves)
 os.environ["CRASHSTUDY_BACKGROUND_COMPILE"] = "0"
 
+# property tests draw the same examples on every run (CI must not fail on a new random draw);
+# HYPOTHESIS_PROFILE=explore draws new ones, as for the counts in docs/robustness.md
+from hypothesis import settings  # noqa: E402
+
+settings.register_profile("default", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
 
 def model_plan(model: str | dict[str, Any]) -> Plan:
     """A one-variant plan from YAML text or a plain dict (validated like a file)."""
