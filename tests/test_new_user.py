@@ -382,3 +382,17 @@ def test_a_crush_curve_with_positive_forces_in_compression_is_refused(tmp_path: 
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     assert "springs.crush.material.loading" in err and "no negative force in compression" in err, err
+
+
+def test_an_axis_that_matters_only_for_some_values_of_another_is_not_refused(
+    work: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Found by the property tests on a clean clone: the body's initial speed [0, 1] crossed with
+    impact_velocity [0, 1, 0] matters where impact_velocity is 1 (a node at rest gets no speed, one
+    moving does), but the check tried the other axis at its first and last value only (both 0) and
+    refused the axis as doing nothing. Every occurring setting of the other axes is tried now."""
+    study = dump(tmp_path / "s.yaml", {"name": "speeds", "model": str(work / "model.yaml"),
+                                       "matrix": {"initial_velocity.body.0": [0.0, -1.0],
+                                                  "impact_velocity": [0.0, 1.0, 0.0]}})  # fmt: skip
+    capsys.readouterr()
+    assert main(["validate", str(study)]) == 0, capsys.readouterr().err

@@ -54,18 +54,40 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     return problems, warnings
 
 
+NOOP_COLUMNS = 200_000  #: parameter columns at most built to check an axis for doing nothing
+
+
 def _axis_changes_model(plan: Plan, ax: Axis) -> bool:
-    """Whether the values of ``ax`` give different parameters (the other axes at their first, then last value)."""
+    """Whether the values of ``ax`` give different parameters for some setting of the other axes that
+    occurs in the study (an axis may matter only for some values of another: an initial velocity
+    scaled by an ``impact_velocity`` of 0 or 1). Every occurring setting is tried while that stays under
+    NOOP_COLUMNS parameter columns, else the first and last and 64 random ones. The axes are applied in
+    the study's order, as for the variants themselves."""
     vals = np.unique(ax.values)
     if len(vals) < 2:
         return True  # one value: a fixed setting, like `set`
-    for pick in (0, -1):
-        P = np.repeat(plan.base[:, None], len(vals), axis=1)
-        for other in plan.axes:
-            apply_axis(P, other.ref, vals if other is ax else np.full(len(vals), other.values[pick]))
-        if not np.all(P == P[:, :1]):
-            return True
-    return False
+    others = [o for o in plan.axes if o is not ax]
+    if others:  # the settings of the other axes in the variants (a sample of a very big study)
+        n = plan.n_variants
+        idx = np.arange(n) if n <= 4 * NOOP_COLUMNS else np.random.default_rng(0).choice(n, 4 * NOOP_COLUMNS)
+        multi = np.unravel_index(idx, plan.shape)
+        rows = np.unique(np.stack([o.values[multi[o.dim]] for o in others], axis=1), axis=0)
+    else:
+        rows = np.zeros((1, 0))
+    if len(rows) * len(vals) > NOOP_COLUMNS:
+        pick = np.random.default_rng(0).choice(len(rows), size=min(64, len(rows)), replace=False)
+        rows = np.concatenate([rows[:1], rows[-1:], rows[np.sort(pick)]])
+    S, k = len(rows), len(vals)
+    P = np.repeat(plan.base[:, None], S * k, axis=1)
+    j = 0
+    for other in plan.axes:
+        if other is ax:
+            apply_axis(P, other.ref, np.tile(vals, S))
+        else:
+            apply_axis(P, other.ref, np.repeat(rows[:, j], k))
+            j += 1
+    P = P.reshape(P.shape[0], S, k)
+    return bool(np.any(P != P[:, :, :1]))
 
 
 def _axis_loc(sdoc: LoadedYaml | None, path: str) -> tuple[str | int, ...]:
