@@ -957,10 +957,22 @@ def _source(shape: dict[str, Any]) -> str:
     return "\n".join(L) + "\n"
 
 
+_SOURCES: dict[str, tuple[str, str]] = {}  # repr(shape) -> (source, key)
+
+
+def _source_key(shape: dict[str, Any]) -> tuple[str, str]:
+    """A shape's source and its name (a hash of the source), generated once per process: the kernel
+    choice, the compile check and the run all ask for it every chunk."""
+    r = repr(shape)
+    if r not in _SOURCES:
+        src = _source(shape)
+        _SOURCES[r] = (src, hashlib.sha256(src.encode()).hexdigest()[:20])
+    return _SOURCES[r]
+
+
 def _module(shape: dict[str, Any]) -> Any:
     """The compiled module for ``shape`` (generated, written and imported once per process)."""
-    src = _source(shape)
-    key = hashlib.sha256(src.encode()).hexdigest()[:20]
+    src, key = _source_key(shape)
     with _LOCK:
         if key in _LOADED:
             return _LOADED[key]
@@ -982,7 +994,7 @@ def _module(shape: dict[str, Any]) -> Any:
 
 def shape_key(shape: dict[str, Any]) -> str:
     """The name of a shape's kernel: a hash of its source."""
-    return hashlib.sha256(_source(shape).encode()).hexdigest()[:20]
+    return _source_key(shape)[1]
 
 
 def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None) -> bool:
