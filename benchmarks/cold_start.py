@@ -24,7 +24,6 @@ Writes ``benchmarks/results/cold_start.{csv,md}``.
 from __future__ import annotations
 
 import argparse
-import fcntl
 import os
 import subprocess
 import sys
@@ -59,21 +58,12 @@ def cases(tmp: Path) -> dict[str, list[str]]:
 
 def wait_compiles(kernels: Path, limit: float = 900.0) -> float:
     """Wait until no background compile holds the cache's lock; seconds waited."""
+    from crashstudy.kernel.choice import compiling
+
     t0 = time.perf_counter()
-    lock = kernels / "compile.lock"
-    while time.perf_counter() - t0 < limit:
-        if not lock.exists():
-            time.sleep(1.0)
-            if not lock.exists():
-                break
-            continue
-        with open(lock, "a") as fh:
-            try:
-                fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                fcntl.flock(fh, fcntl.LOCK_UN)
-                break
-            except OSError:
-                time.sleep(1.0)
+    time.sleep(1.0)  # a detached compile may take a moment to take the lock
+    while compiling(kernels) and time.perf_counter() - t0 < limit:
+        time.sleep(1.0)
     return time.perf_counter() - t0
 
 

@@ -18,7 +18,6 @@ run in this process on a few variants (the kernels agree bitwise, docs/kernels.m
 
 from __future__ import annotations
 
-import fcntl
 import os
 import re
 import signal
@@ -118,16 +117,9 @@ def _generic_in_cache(numba_dir: Path) -> bool:
 
 
 def _lock_free(kernels: Path) -> bool:
-    lock = kernels / "compile.lock"
-    if not lock.exists():
-        return True
-    with open(lock, "a") as fh:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            return False
-        fcntl.flock(fh, fcntl.LOCK_UN)
-    return True
+    from crashstudy.kernel.choice import compiling
+
+    return not compiling(kernels)
 
 
 def _resume_and_check(study: Path, out: Path, n: int) -> None:

@@ -34,6 +34,7 @@ import subprocess
 import sys
 import tempfile
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -113,9 +114,10 @@ def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] |
     return generated.unsupported(b) is None and generated.is_compiled(b, histories, vary)
 
 
-def compiling() -> bool:
-    """Whether a compile of this cache is under way in another process (it holds the lock)."""
-    folder = cache_dir()
+def compiling(folder: Path | None = None) -> bool:
+    """Whether a compile of the kernel cache ``folder`` (default: this user's, :func:`cache_dir`) is under
+    way in another process (it holds the lock)."""
+    folder = cache_dir() if folder is None else folder
     if why_not_private(folder) is not None or not (folder / LOCK_NAME).exists():
         return False
     with open(folder / LOCK_NAME, "a") as fh:
