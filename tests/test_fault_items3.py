@@ -28,22 +28,9 @@ import pytest
 from crashstudy import yamlio
 from crashstudy.errors import InputError
 from crashstudy.study import load_study
-from test_fault_items import Cli, assert_exit_2  # noqa: E402 - shared helpers
+from test_fault_items import TINY_MODEL, Cli, K, assert_exit_2  # noqa: E402 - shared helpers
 
-K = 2.0e4  # spring stiffness [N/m]
-MODEL = f"""\
-name: tiny
-nodes:
-  anchor: {{position: [0.0], fixed: true}}
-  body:   {{position: [0.1], mass: 2.0}}
-springs:
-  spring:
-    nodes: [anchor, body]
-    material: {{type: linear_elastic, stiffness: {K}}}
-initial_velocity: {{body: [1.0]}}
-end_time: 0.05
-output: {{histories: none}}
-"""
+MODEL = TINY_MODEL  # the tiny model of test_fault_items (K = 2e4 N/m, 2 kg at 1 m/s)
 STUDY = "name: tiny-study\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: [1.0, 2.0]\n"
 
 
