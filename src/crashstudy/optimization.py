@@ -20,7 +20,6 @@ chosen as usual) in memory, and tabulated like ``summary.parquet`` (histories ke
 from __future__ import annotations
 
 import dataclasses
-import math
 import re
 import sys
 import time
@@ -166,10 +165,6 @@ def optimum_study(study: dict[str, Any], values: dict[str, float]) -> dict[str, 
     base = {k: v for k, v in study.items() if k in ("name", "description", "model", "set", "regression")}
     base["zip"] = [{k: [float(v)] for k, v in values.items()}]
     return base
-
-
-def finite(x: float) -> float:
-    return float(x) if math.isfinite(x) else float("nan")
 
 
 def channel_history(plan: Any, res: Any, channel: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:

@@ -334,7 +334,7 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     ``summary.csv`` (None: up to ``results.CSV_MAX`` variants); ``summary.parquet`` is always written."""
     t0 = time.perf_counter()
     out = Path(out_dir)
-    kernel_override()  # a bad CRASHSTUDY_KERNEL is an input error before anything is written
+    choice.kernel_override()  # a bad CRASHSTUDY_KERNEL is an input error before anything is written
     source = plan.study_file or plan.model_file
     if out.exists() and not out.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out} is a file, not a folder")])
