@@ -17,6 +17,7 @@ from scipy import stats
 from crashstudy.cli import main
 from crashstudy.design import unit_rows
 from crashstudy.sensitivity import exceedance, indices, over_time
+from test_design import MODEL as DROP
 
 
 def _frame(method: str, n: int, y_of: Any, d: int = 3) -> tuple[pd.DataFrame, dict[str, Any]]:
@@ -88,18 +89,8 @@ def test_exceedance_is_the_binomial_fraction_with_its_exact_interval() -> None:
     assert e.if_failed_exceed == pytest.approx(12 / 102)
 
 
-MODEL = """\
-name: drop
-nodes:
-  ground: {position: [0.0], fixed: true}
-  body: {position: [0.5], mass: 100.0}
-springs:
-  pad: {nodes: [ground, body], material: {type: linear_elastic, stiffness: 1.0e6}}
-initial_velocity: {body: [-5.0]}
-end_time: 0.02
-time_step: {safety_factor: 0.9}
-output: {interval: 1.0e-3, histories: [spring_force]}
-"""
+MODEL = DROP.replace("end_time: 0.03", "end_time: 0.02").replace(
+    "output: {histories: none}", "output: {interval: 1.0e-3, histories: [spring_force]}")  # the drop of test_design, sampled
 
 
 def test_command_line_writes_sensitivity_csv_and_the_history_over_time(tmp_path: Path,
