@@ -278,8 +278,9 @@ def plan_from_model(lm: LoadedModel) -> Plan:
 
 
 def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis], shape: list[int],
-          name: str | None, regression: dict[str, dict[str, float]]) -> Plan:  # fmt: skip
-    topo, base = compile_model(m)
+          name: str | None, regression: dict[str, dict[str, float]],
+          compiled: tuple[Topology, np.ndarray] | None = None) -> Plan:  # fmt: skip
+    topo, base = compiled or compile_model(m)
     end = max([m.end_time] + [float(v) for ax in axes if ax.path == "end_time" for v in ax.values])
     interval = _interval(m, end)
     n_out = int(math.floor(end / interval + 1e-9)) + 1
@@ -463,7 +464,7 @@ def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
         raise InputError([_study_problem(sdoc, ("matrix",), f"{math.prod(shape):,} variants: at most "
                                          f"{MAX_VARIANTS:,} fit in one result file; split the study")])  # fmt: skip
     regression = {k: v.model_dump() for k, v in study.regression.items()}
-    plan = _plan(m, mdoc, sdoc, axes, shape, study.name, regression)
+    plan = _plan(m, mdoc, sdoc, axes, shape, study.name, regression, (topo, base))
     check = check_parameters(topo, base[:, None], plan.interval)
     if not axes and check.bad[0]:  # with axes, each of their values was checked with the rest of the model
         raise InputError([_study_problem(sdoc, ("model",), f"the model (after 'set') is invalid: {check.reason(0)}")])
