@@ -75,6 +75,11 @@ def decode_texts(ds: xr.Dataset) -> xr.Dataset:
 
 def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.DataFrame:
     """Tidy summary table, one row per variant: axis values, status, then one column per metric and item."""
+    return pd.DataFrame(summary_columns(ds, lo, hi))
+
+
+def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[str, Any]:
+    """The columns of :func:`summary_frame`, in order (arrays; the texts as categoricals)."""
     sub = ds.isel(variant=slice(lo, hi))
     axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
     cols: dict[str, Any] = {"variant": sub["variant"].values}
@@ -93,7 +98,7 @@ def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.Data
             for k, item in enumerate(ids):
                 cols[f"{name}.{item}"] = arr[:, k]
     cols["dt_control"] = _categorical(ds, sub, "dt_control")
-    return pd.DataFrame(cols)
+    return cols
 
 
 def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000, rename: bool = True
@@ -113,7 +118,8 @@ def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000,
     try:
         with open_new(tmp_pq, mode="wb") as raw, (open_new(tmp_csv, mode="wb") if csv else nullcontext()) as fh:
             for lo in range(0, max(n, 1), chunk):
-                table = pa.Table.from_pandas(summary_frame(ds, lo, min(n, lo + chunk)), preserve_index=False)
+                # straight from the arrays: a DataFrame in between copied every column once more
+                table = pa.table(summary_columns(ds, lo, min(n, lo + chunk)))
                 if not writers:
                     # dictionary pages for the texts only: trying them on every float column doubled the time
                     writers.append(pq.ParquetWriter(raw, table.schema, use_dictionary=["status", *TEXT_TABLES]))

@@ -100,10 +100,11 @@ def choose_steps(
     K = np.zeros((N, V))
     Cn = np.zeros((N, V))
     i, j = topo.spring_nodes[:, 0], topo.spring_nodes[:, 1]
-    np.add.at(K, i, kmax)
-    np.add.at(K, j, kmax)
-    np.add.at(Cn, i, damp)
-    np.add.at(Cn, j, damp)
+    for s in range(len(i)):  # row adds over the variants (np.add.at is ~10x slower for few springs)
+        K[i[s]] += kmax[s]
+        K[j[s]] += kmax[s]
+        Cn[i[s]] += damp[s]
+        Cn[j[s]] += damp[s]
     movable = np.asarray(~topo.fixed.all(axis=1))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         m = np.where(movable[:, None], mass, np.inf)
