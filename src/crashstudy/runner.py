@@ -44,26 +44,31 @@ def chunk_size(plan: Plan) -> int:
     work = float(np.mean(sample.n_steps)) * max(topo.n_springs, 1)
     by_work = max(BASE_CHUNK, int(WORK_PER_CHUNK / max(work, 1.0)))
     per = {"node": topo.n_nodes * topo.dim, "spring": topo.n_springs, "wall": len(topo.wall_ids)}
-    from crashstudy.kernel.output import HISTORY_SHAPES
+    from crashstudy.kernel.output import ALL_SHAPES
 
-    width = sum(per[HISTORY_SHAPES[h][0]] if HISTORY_SHAPES[h] else 1 for h in topo.histories)
+    width = sum(per[ALL_SHAPES[h][0]] if ALL_SHAPES[h] else 1 for h in topo.histories + topo.extra_histories)
     per_variant = 8 * plan.n_out * (width + 4)  # + the kernel's energy buffer
-    return int(max(1, min(MAX_CHUNK, by_work, HISTORY_BUDGET // max(per_variant, 1))))
+    # the per-step record of the metric nodes (crashstudy.metrics runs a bigger chunk in several batches)
+    record = 8 * (float(np.max(sample.n_steps, initial=0)) + 1) * len(topo.metric_nodes) * topo.dim
+    return int(max(1, min(MAX_CHUNK, by_work, HISTORY_BUDGET // max(per_variant, 1),
+                          HISTORY_BUDGET // max(record, 1.0))))  # fmt: skip
 
 
 def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
-               vary: frozenset[int] | None = None, repeat: float = 1.0) -> KernelOutput:  # fmt: skip
+               vary: frozenset[int] | None = None, repeat: float = 1.0, record: tuple[int, ...] = ()
+               ) -> KernelOutput:  # fmt: skip
     """Integrate ``batch`` with ``kernel``: "compiled" (the fastest kernel that is compiled, or the
     NumPy reference while none is: :func:`crashstudy.kernel.choice.pick`), "generic", "generated" or
     "reference". ``vary``: indices of the curves the study varies (see :func:`varying_curves`). The
     environment variable ``CRASHSTUDY_KERNEL`` overrides "compiled" (docs/kernels.md). ``repeat``: how
-    many batches like this one the run holds (for the choice)."""
-    kernel = choice.pick(batch, histories, vary, kernel, repeat)
+    many batches like this one the run holds (for the choice). ``record``: nodes whose acceleration is
+    kept at every step (the crash criteria); only a kernel of ``choice.RECORDING`` is used then."""
+    kernel = choice.pick(batch, histories, vary, kernel, repeat, record=bool(record))
     if kernel == "reference":
         from crashstudy.kernel.reference import run_reference
 
         with np.errstate(all="ignore"):  # overflow is found by the energy check (status), as in the compiled kernels
-            return run_reference(batch, histories, n_out, interrupt.check)
+            return run_reference(batch, histories, n_out, interrupt.check, record)
     interrupt.compile_first(kernel, batch, histories, vary)  # a compile in a child process: Ctrl-C kills it
     if kernel == "generated":
         from crashstudy.kernel.generated import run_generated
@@ -125,12 +130,20 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled", repeat: fl
     order = np.argsort(batch.n_steps, kind="stable")
     sorted_batch = batch.take(order)
     repeat = plan.n_variants / max(V, 1) if repeat is None else repeat
-    out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, varying_curves(plan), repeat)
+    vary = varying_curves(plan)
+    crit = None
+    if topo.metrics:
+        from crashstudy.metrics import run_recorded
+
+        out, crit = run_recorded(sorted_batch, lambda sub: run_kernel(
+            sub, topo.histories, plan.n_out, kernel, vary, repeat, topo.metric_nodes), topo, plan.n_out)  # fmt: skip
+    else:
+        out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, vary, repeat)
     estimate = error_estimate(sorted_batch, out, kernel, repeat) if topo.accuracy_check else np.full(len(order), np.nan)
     pos = np.empty_like(order)
     pos[order] = np.arange(len(order))
     N, D, S, W = topo.n_nodes, topo.dim, topo.n_springs, len(topo.wall_ids)
-    full = _reorder(out, pos[inverse], V, topo.histories, plan.n_out, S, N, D, W)
+    full = _reorder(out, pos[inverse], V, topo.histories + topo.extra_histories, plan.n_out, S, N, D, W)
     dt, dt_crit = steps.dt[inverse], steps.dt_crit[inverse]
     control = _control_texts(topo, steps.control_node[inverse], steps.control_spring[inverse])
     user_dt = P[topo.blocks["time_step"].start]
@@ -138,7 +151,7 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled", repeat: fl
     for k in np.flatnonzero(full.status):  # texts only for the failed variants
         reasons[k] = _reason(full, int(k), topo.spring_ids, user_dt[k], dt_crit[k], control[k])
     return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, lo, hi),
-                       estimate[pos[inverse]])  # fmt: skip
+                       estimate[pos[inverse]], crit.take(pos[inverse]) if crit is not None else None)  # fmt: skip
 
 
 def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarray:
@@ -239,7 +252,7 @@ def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | N
     topo = plan.topology
     sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
     vary = varying_curves(plan)
-    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel)
+    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, bool(topo.metrics))
     if start is None:
         return False, None, None
     do = choice.decide(start, choice.background_min_seconds() < float("inf"))

@@ -54,6 +54,7 @@ BACKGROUND_MIN = 2.0  # [s] of reference time of a run above which missing kerne
 KERNELS = ("reference", "generic", "generated")
 LOCK_NAME = "compile.lock"
 REF_CHUNK = 1024  # variants per chunk while the reference runs and a compile may finish
+RECORDING = ("reference",)  # kernels that record the per-step acceleration of metric nodes (crash criteria)
 _LOADED: set[str] = set()  # kinds of compiled kernel loaded in this process
 
 
@@ -130,16 +131,20 @@ def compiling(folder: Path | None = None) -> bool:
 
 
 def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: str = "compiled",
-         repeat: float = 1.0) -> str:  # fmt: skip
+         repeat: float = 1.0, record: bool = False) -> str:  # fmt: skip
     """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
     one expected to finish the run first among those compiled and the reference; the generic kernel
     compiled now only when the reference would take longer than that (and no other process is
     compiling). ``repeat``: how many batches like ``b`` the run holds (loading a compiled kernel is
-    paid once per process, so it is weighed against the whole run, not one chunk)."""
+    paid once per process, so it is weighed against the whole run, not one chunk). ``record``: the
+    batch needs the per-step acceleration of its metric nodes; only the kernels of ``RECORDING`` keep
+    it, so another is never picked (not even when named: the criteria are never silently missing)."""
     from crashstudy.kernel import generated
 
     if kernel == "compiled":
         kernel = kernel_override()
+    if record and kernel not in (*RECORDING, "compiled"):
+        return "reference"
     if kernel == "generated" and generated.unsupported(b) is not None:
         return "generic"
     if kernel != "compiled":
@@ -154,12 +159,13 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
 
     if t_ref <= LOAD:  # nothing compiled can win once loading it is counted
         return "reference"
+    usable = RECORDING if record else KERNELS
     times = {"reference": t_ref}
-    if generated_ready(b, histories, vary):
+    if "generated" in usable and generated_ready(b, histories, vary):
         times["generated"] = run_time("generated", GENERATED_RATE)
-    if generic_ready():
+    if "generic" in usable and generic_ready():
         times["generic"] = run_time("generic", GENERIC_RATE)
-    elif len(times) == 1 and t_ref > GENERIC_COMPILE + run_time("generic", GENERIC_RATE) and not compiling():
+    elif "generic" in usable and len(times) == 1 and t_ref > GENERIC_COMPILE + run_time("generic", GENERIC_RATE) and not compiling():
         return "generic"
     return min(times, key=lambda k: times[k])
 
@@ -234,12 +240,13 @@ def decide(p: StartPlan, background: bool) -> Decision:
 
 
 def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, n_variants: int,
-               kernel: str = "compiled") -> StartPlan | None:  # fmt: skip
+               kernel: str = "compiled", record: bool = False) -> StartPlan | None:  # fmt: skip
     """What a run of ``n_variants`` like ``b`` (a sample of them) is missing, or None (a kernel was
-    named, everything is compiled, or the run is too short to care)."""
+    named, everything is compiled, the run is too short to care, or it records the per-step
+    acceleration of metric nodes, which only the reference does)."""
     from crashstudy.kernel import generated
 
-    if kernel != "compiled" or kernel_override() != "compiled":
+    if kernel != "compiled" or kernel_override() != "compiled" or (record and RECORDING == ("reference",)):
         return None
     S, (N, D, V) = len(b.spring_i), b.x0.shape
     per_variant = float(np.mean(b.n_steps)) if V else 0.0

@@ -37,14 +37,18 @@ UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + |W
 # floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
 
 
-def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Callable[[], None] | None = None
-                  ) -> KernelOutput:  # fmt: skip
+def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Callable[[], None] | None = None,
+                  record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
     """Integrate every variant of ``b``; see the module docstring for the step. ``check`` is called
-    every ``STOP_EVERY`` steps; it raises to abandon the batch (Ctrl-C)."""
+    every ``STOP_EVERY`` steps; it raises to abandon the batch (Ctrl-C). ``record``: nodes whose
+    acceleration is kept at every step (``KernelOutput.step_acceleration``, for the crash criteria)."""
     N, D, V = b.x0.shape
     S = len(b.spring_i)
     W = b.wall_nodes.shape[0]
     out = allocate(S, N, D, W, V, histories, n_out)
+    rec_nodes = np.asarray(record, dtype=np.int64)
+    if len(record):
+        out.step_acceleration = np.zeros((int(b.n_steps.max(initial=-1)) + 1, len(record), D, V))
     out.status[:] = np.where(b.invalid > 0, INVALID, 0)
     out.fail_item[:] = np.where(b.invalid > 0, b.invalid, -1)
     out.fail_time[:] = np.where(b.invalid > 0, 0.0, np.nan)
@@ -200,6 +204,8 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         out.fail_item[:] = np.where(gone, crushed, out.fail_item)
         out.fail_time[:] = np.where(bad | gone, t, out.fail_time)
         ok = act & ~bad & ~gone
+        if out.step_acceleration is not None:
+            out.step_acceleration[n] = np.where(ok, a[rec_nodes], 0.0)
 
         rec = ok & (n % b.out_every == 0) & (n // b.out_every < n_out)  # the last step may pass the last sample
         if rec.any() and histories:
