@@ -64,9 +64,10 @@ def _parser() -> argparse.ArgumentParser:
 
     pl = sub.add_parser("plot", help="write PNG figures of a result folder")
     pl.add_argument("dir", help="result folder (written by run or simulate)")
-    pl.add_argument("--kind", choices=["history", "force-displacement", "matrix"], default="history",
+    pl.add_argument("--kind", choices=["history", "force-displacement", "matrix", "pulse"], default="history",
                     help="history: a quantity over time per item; force-displacement: spring force over crush; "
-                    "matrix: a summary metric over the study axes (default history)")
+                    "matrix: a summary metric over the study axes; pulse: the SAE J211 filtered acceleration "
+                    "of the metrics nodes in g over time in ms, beside the raw channel (default history)")
     pl.add_argument("--quantity", help="history variable or summary metric (e.g. spring_force, peak_force.cabin); "
                     "default: history spring_force; matrix peak_deceleration_g of the node named by a "
                     "peak_deceleration_g.<node> key of the study's regression: block, else of the heaviest free "
