@@ -120,3 +120,84 @@ def test_summary_columns_are_the_criteria_of_the_asking_nodes_and_equal_the_data
     assert np.isnan(ds["filtered_acceleration"].sel(node="base")).all()
     csv = __import__("pandas").read_csv(tmp_path / "out" / "summary.csv")
     assert csv["hic15.sled"].to_numpy() == pytest.approx(df["hic15.sled"].to_numpy(), rel=1e-15)
+
+
+SCALES = [0.6, 0.8, 1.0]  # axis curves.pulse.scale: the pulse amplitude as a fraction of A_G
+
+
+@pytest.fixture(scope="module")
+def sweeps(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A study over the pulse amplitude, run twice: "baseline", and "bigger" with every pulse 1% larger
+    and a regression: block that lets hic15 move 5% (hic36 and peak_g keep the default 1e-6)."""
+    from crashstudy.runner import run_study
+
+    root = tmp_path_factory.mktemp("sweeps")
+    out = {}
+    for name, factor, regression in (("baseline", 1.0, ""), ("bigger", 1.01, "regression:\n  hic15: {rtol: 0.05}\n")):
+        model = pulse_model(metrics="  - {node: sled, cfc: 1000, criteria: [peak_g, hic15, hic36]}", scale_a=factor)
+        (root / f"{name}.yaml").write_text(model)
+        values = ", ".join(f"{s:g}" for s in SCALES)
+        (root / f"{name}-study.yaml").write_text(
+            f"name: sweep\nmodel: {name}.yaml\nmatrix:\n  curves.pulse.scale: [{values}]\n{regression}")
+        run_study(root / f"{name}-study.yaml", root / name)
+        out[name] = root / name
+    return out
+
+
+def test_study_sweep_criteria_follow_the_closed_form_over_the_axis(sweeps: dict[str, Path]) -> None:
+    df = open_results(sweeps["baseline"]).summary
+    for k, s in enumerate(SCALES):
+        assert df["peak_g.sled"][k] == pytest.approx(s * A_G, rel=1e-3)
+        assert df["hic15.sled"][k] == pytest.approx(hic_closed_form(s * A_G, T_PULSE, 0.015)[0], rel=5e-3)
+
+
+def test_compare_flags_a_criterion_that_moved_and_the_regression_block_tolerates_it(sweeps: dict[str, Path]) -> None:
+    from crashstudy.compare import compare
+
+    cmp = compare(sweeps["bigger"], sweeps["baseline"])
+    failing = cmp.failing_columns()
+    # HIC grows as the amplitude to the power 2.5: 1.01^2.5 = +2.52%, past the default 1e-6 ...
+    assert failing.get("hic36.sled") == len(SCALES) and failing.get("peak_g.sled") == len(SCALES)
+    # ... but within the study's regression: block for hic15 (rtol 5%)
+    assert "hic15.sled" not in failing
+    rows = cmp.frame
+    moved = rows[rows["metric"] == "hic36.sled"]
+    assert (moved["new"] / moved["old"] - 1).to_numpy() == pytest.approx(1.01**2.5 - 1, rel=2e-3)
+
+
+def test_summary_sort_orders_by_a_criterion(sweeps: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    assert main(["summary", str(sweeps["baseline"]), "--sort", "hic15.sled", "--columns", "hic15.sled"]) == 0
+    lines = [ln.split() for ln in capsys.readouterr().out.splitlines()[2:]]
+    assert [int(ln[1]) for ln in lines] == [2, 1, 0]  # the largest pulse (variant 2) has the largest HIC
+
+
+def test_matrix_plot_draws_a_criterion_over_the_axis(sweeps: dict[str, Path], tmp_path: Path) -> None:
+    from crashstudy.plot_matrix import plot_matrix
+
+    assert main(["plot", str(sweeps["baseline"]), "--kind", "matrix", "--quantity", "hic15.sled",
+                 "-o", str(tmp_path)]) == 0  # fmt: skip
+    assert (tmp_path / "matrix-hic15.sled.png").stat().st_size > 0
+    fig = plot_matrix(open_results(sweeps["baseline"]).summary, "hic15.sled")
+    y = fig.axes[0].lines[0].get_ydata()
+    truth = [hic_closed_form(s * A_G, T_PULSE, 0.015)[0] for s in SCALES]
+    assert np.asarray(y) == pytest.approx(truth, rel=5e-3)
+
+
+def test_pulse_plot_shows_the_filtered_pulse_in_g_over_ms_beside_the_raw_channel(
+    sweeps: dict[str, Path], tmp_path: Path
+) -> None:
+    from crashstudy.plot_pulse import plot_pulse
+
+    assert main(["plot", str(sweeps["baseline"]), "--kind", "pulse", "-o", str(tmp_path)]) == 0
+    assert (tmp_path / "pulse.png").stat().st_size > 0
+    res = open_results(sweeps["baseline"])
+    fig = plot_pulse(res.dataset)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "time [ms]" and ax.get_ylabel() == "resultant acceleration [g]"
+    for j, s in enumerate(SCALES):
+        raw, filt = ax.lines[2 * j], ax.lines[2 * j + 1]
+        assert max(raw.get_xdata()) == pytest.approx(30.0)  # end_time 0.03 s in ms
+        # sampled every 30 us: the raw channel's samples of the half-sine peak within (1 - cos(pi 15us/T))
+        assert max(raw.get_ydata()) == pytest.approx(s * A_G, rel=2e-4)
+        assert np.nanmax(filt.get_ydata()) == pytest.approx(res.summary["peak_g.sled"][j], rel=2e-4)
