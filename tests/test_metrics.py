@@ -201,3 +201,83 @@ def test_pulse_plot_shows_the_filtered_pulse_in_g_over_ms_beside_the_raw_channel
         # sampled every 30 us: the raw channel's samples of the half-sine peak within (1 - cos(pi 15us/T))
         assert max(raw.get_ydata()) == pytest.approx(s * A_G, rel=2e-4)
         assert np.nanmax(filt.get_ydata()) == pytest.approx(res.summary["peak_g.sled"][j], rel=2e-4)
+
+
+def _plan(tmp_path: Path, text: str, study: str = ""):
+    from crashstudy.study import load_study
+
+    (tmp_path / "m.yaml").write_text(text)
+    (tmp_path / "s.yaml").write_text(study or "name: s\nmodel: m.yaml\nmatrix:\n  curves.pulse.scale: [0.5, 1.0, 0.75]\n")
+    return load_study(tmp_path / "s.yaml")
+
+
+def test_a_batch_with_metrics_runs_on_the_reference_kernel_even_when_another_is_named(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from crashstudy.batch import build_batch
+    from crashstudy.kernel import choice
+
+    plan = _plan(tmp_path, pulse_model())
+    batch, _ = build_batch(plan.topology, plan.params(0, 3), plan.interval)
+    for named in ("compiled", "generic", "generated"):
+        monkeypatch.setenv("CRASHSTUDY_KERNEL", named)
+        assert choice.pick(batch, plan.topology.histories, None, "compiled", 1e6, record=True) == "reference"
+        assert choice.plan_start(batch, plan.topology.histories, None, 10**6, record=True) is None
+
+
+def test_step_record_is_the_acceleration_history_at_its_samples(tmp_path: Path) -> None:
+    from crashstudy.batch import build_batch
+    from crashstudy.kernel.reference import run_reference
+
+    plan = _plan(tmp_path, pulse_model())
+    batch, _ = build_batch(plan.topology, plan.params(0, 3), plan.interval)
+    sled = plan.topology.node_ids.index("sled")
+    out = run_reference(batch, ("acceleration",), plan.n_out, record=(sled,))
+    rec = out.step_acceleration
+    assert rec is not None and rec.shape == (int(batch.n_steps.max()) + 1, 1, 1, 3)
+    every = int(batch.out_every[0])
+    sampled = rec[::every][: plan.n_out, 0]  # (time, axis, variant)
+    assert np.array_equal(sampled, out.histories["acceleration"][: len(sampled), sled])
+    # the prescribed half-sine exactly, at every step (the curve's knots every 50 steps)
+    t = np.arange(rec.shape[0]) * batch.dt[0]
+    truth = np.where(t <= T_PULSE, -A_G * G * np.sin(np.pi * np.minimum(t, T_PULSE) / T_PULSE), 0.0)
+    assert rec[:-1, 0, 0, 1] == pytest.approx(truth[:-1], abs=A_G * G * 2e-4)
+
+
+def test_a_chunk_whose_record_passes_the_budget_runs_in_batches_with_the_same_results(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from crashstudy import metrics
+    from crashstudy.runner import run_chunk
+
+    plan = _plan(tmp_path, pulse_model())
+    whole = run_chunk(plan, 0, 3)
+    groups = metrics.batch_groups(np.array([3000, 3000, 3000]), 1, budget=8 * 3001 * 2)
+    assert groups == [slice(0, 2), slice(2, 3)]
+    monkeypatch.setattr(metrics, "RECORD_BUDGET", 8 * 3001)  # one variant per batch
+    calls = []
+    real = metrics.criteria_of
+    monkeypatch.setattr(metrics, "criteria_of", lambda *a: calls.append(a[1].n_variants) or real(*a))
+    split = run_chunk(plan, 0, 3)
+    assert calls == [1, 1, 1]
+    for name, arr in whole.criteria.values.items():
+        assert np.array_equal(arr, split.criteria.values[name], equal_nan=True), name
+    assert np.array_equal(whole.out.histories["filtered_acceleration"], split.out.histories["filtered_acceleration"],
+                          equal_nan=True)  # fmt: skip
+    assert np.array_equal(whole.out.peak_acceleration, split.out.peak_acceleration)
+
+
+def test_bad_metrics_in_a_study_set_exit_2_at_their_own_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    study = ("name: s\nmodel: m.yaml\nmatrix:\n  curves.pulse.scale: [0.5, 1.0]\nset:\n  metrics:\n"
+             "    - {node: sled, criteria: [peak_g]}\n    - node: sledd\n      criteria: [hic15]\n"
+             "      direction: [1.0, 0.0]\n")  # fmt: skip
+    (tmp_path / "m.yaml").write_text(pulse_model())
+    (tmp_path / "s.yaml").write_text(study)
+    for argv in (["validate", str(tmp_path / "s.yaml")], ["run", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "o")]):
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err
+        assert f"{tmp_path / 's.yaml'}:8: set.metrics.1.node: after 'set' the model is invalid: unknown node 'sledd'" in err
+        assert (f"{tmp_path / 's.yaml'}:10: set.metrics.1.direction: after 'set' the model is invalid: expected 1 "
+                "component(s) (the model is 1-D), got 2") in err  # fmt: skip

@@ -102,10 +102,12 @@ def batch_groups(n_steps: np.ndarray, width: int, budget: int = RECORD_BUDGET) -
 
 
 def run_recorded(batch: Any, run: Callable[[Any], KernelOutput], topo: Any, n_out: int,
-                 budget: int = RECORD_BUDGET) -> tuple[KernelOutput, ChunkCriteria]:  # fmt: skip
-    """Run ``batch`` through ``run`` (a kernel call that records the metric nodes) in groups of bounded
-    record size; the criteria of each group are computed at once and its record dropped."""
+                 budget: int | None = None) -> tuple[KernelOutput, ChunkCriteria]:  # fmt: skip
+    """Run ``batch`` through ``run`` (a kernel call that records the metric nodes) in groups whose
+    record stays within ``budget`` bytes (default :data:`RECORD_BUDGET`); the criteria of each group
+    are computed at once and its record dropped."""
     width = len(topo.metric_nodes) * topo.dim
+    budget = RECORD_BUDGET if budget is None else budget
     outs: list[KernelOutput] = []
     crits: list[ChunkCriteria] = []
     for g in batch_groups(np.asarray(batch.n_steps), width, budget):
