@@ -281,3 +281,14 @@ def test_bad_metrics_in_a_study_set_exit_2_at_their_own_line(tmp_path: Path, cap
         assert f"{tmp_path / 's.yaml'}:8: set.metrics.1.node: after 'set' the model is invalid: unknown node 'sledd'" in err
         assert (f"{tmp_path / 's.yaml'}:10: set.metrics.1.direction: after 'set' the model is invalid: expected 1 "
                 "component(s) (the model is 1-D), got 2") in err  # fmt: skip
+
+
+def test_schema_and_result_tables_name_every_criterion_of_the_maths() -> None:
+    from typing import get_args
+
+    from crashstudy import criteria
+    from crashstudy.metrics import METRIC_META
+    from crashstudy.schema.model import CRITERION_NAMES, Criterion
+
+    assert CRITERION_NAMES == criteria.CRITERIA == get_args(Criterion)
+    assert set(METRIC_META) == set(criteria.CRITERIA) | {e for x in criteria.EXTRA.values() for e in x}

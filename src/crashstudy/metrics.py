@@ -35,23 +35,19 @@ G_SI = 9.80665  # standard gravity [m/s^2]
 METRE = {"m": 1.0, "mm": 1e-3}  # length unit -> metres
 SECOND = {"s": 1.0, "ms": 1e-3}  # time unit -> seconds
 
-J211 = "SAE J211-1 (2014) Appendix C filter"
-METRIC_META = {  # name: (unit kind, long name, standard)
-    "peak_g": ("g", "peak of the filtered resultant acceleration", J211),
-    "hic15": ("1", "head injury criterion, window up to 15 ms", "FMVSS 208 S6.2 (49 CFR 571.208); " + J211),
-    "hic15_t1": ("time", "start of the hic15 window", "FMVSS 208 S6.2"),
-    "hic15_t2": ("time", "end of the hic15 window", "FMVSS 208 S6.2"),
-    "hic36": ("1", "head injury criterion, window up to 36 ms", "FMVSS 208 S6.2 (49 CFR 571.208); " + J211),
-    "hic36_t1": ("time", "start of the hic36 window", "FMVSS 208 S6.2"),
-    "hic36_t2": ("time", "end of the hic36 window", "FMVSS 208 S6.2"),
-    "clip3ms": ("g", "highest level the filtered resultant stays at or above for a continuous 3 ms",
-                "3 ms clip, continuous (ECE R94 / Euro NCAP wording); " + J211),
-    "clip3ms_cumulative": ("g", "highest level the filtered resultant exceeds for a cumulative 3 ms",
-                           "FMVSS 208 S6.3 chest acceleration (cumulative 3 ms); " + J211),
-    "olc": ("g", "occupant load criterion (65 mm free flight, 235 mm restrained)", "Euro NCAP TB027 OLC; " + J211),
-    "dri": ("1", "dynamic response index (omega 52.9 rad/s, zeta 0.224)", "MIL-STD-1290A / NATO STANAG 4569 DRI"),
-    "delta_v": ("velocity", "largest change of velocity along the direction from the initial value",
-                "delta-v (SAE J211-1 sign convention)"),
+METRIC_META = {  # name: (unit kind, long name); the standard each follows: crashstudy.criteria.STANDARDS
+    "peak_g": ("g", "peak of the filtered resultant acceleration"),
+    "hic15": ("1", "head injury criterion, window up to 15 ms"),
+    "hic15_t1": ("time", "start of the hic15 window"),
+    "hic15_t2": ("time", "end of the hic15 window"),
+    "hic36": ("1", "head injury criterion, window up to 36 ms"),
+    "hic36_t1": ("time", "start of the hic36 window"),
+    "hic36_t2": ("time", "end of the hic36 window"),
+    "clip3ms": ("g", "highest level the filtered resultant stays at or above for a continuous 3 ms"),
+    "clip3ms_cumulative": ("g", "highest level the filtered resultant exceeds for a cumulative 3 ms"),
+    "olc": ("g", "occupant load criterion (65 mm free flight, 235 mm restrained)"),
+    "dri": ("1", "dynamic response index (omega 52.9 rad/s, zeta 0.224) of the unfiltered deceleration"),
+    "delta_v": ("velocity", "largest change of velocity along the direction from the initial value"),
 }  # fmt: skip
 NOTE_TEXT = "criteria_note"
 NOTE_LONG = "why a crash criterion of the variant is not trusted (empty if every one is)"
@@ -64,6 +60,13 @@ def result_names(topo: Any) -> tuple[str, ...]:
     asked = {c for mt in topo.metrics for c in mt.criteria}
     asked |= {e for c in list(asked) for e in EXTRA.get(c, ())}
     return tuple(n for n in METRIC_META if n in asked)
+
+
+def standard(name: str) -> str:
+    """The standard a criterion variable follows (a HIC window: its criterion's)."""
+    from crashstudy.criteria import EXTRA, STANDARDS
+
+    return STANDARDS[next((c for c, extra in EXTRA.items() if name in extra), name)]
 
 
 def asked_nodes(topo: Any, name: str) -> list[str]:
@@ -155,7 +158,7 @@ def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria
         acc = np.ascontiguousarray(rec[:, m][..., ok].transpose(2, 0, 1)) * (metre / second**2)  # (v, T, D) SI
         v0 = b.v0[mt.node][:, ok].T * (metre / second)
         res = criteria.compute(acc, count[ok], b.dt[ok] * second, v0, _directions(mt, v0), mt.cfc,
-                               list(mt.criteria), G_SI, 1.0)  # fmt: skip
+                               list(mt.criteria), G_SI)  # fmt: skip
         scale = {"velocity": second / metre, "time": 1.0 / second}
         wanted = set(mt.criteria) | {e for c in mt.criteria for e in criteria.EXTRA.get(c, ())}
         for name in (n for n in values if n in res and n in wanted):

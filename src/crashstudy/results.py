@@ -34,7 +34,7 @@ import xarray as xr
 from crashstudy import __version__, integrity
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import ALL_SHAPES, KernelOutput
-from crashstudy.metrics import METRIC_META, NOTE_TEXT, asked_nodes, result_names
+from crashstudy.metrics import METRIC_META, NOTE_TEXT, asked_nodes, result_names, standard
 from crashstudy.provenance import HASH_WORDS, text_hash
 from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study import Plan
@@ -200,9 +200,9 @@ class ResultWriter:
             v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
             v.units, v.long_name = units[kind], long
         for name in result_names(topo):  # the crash criteria (crashstudy.metrics)
-            kind, long, standard = METRIC_META[name]
+            kind, long = METRIC_META[name]
             v = nc.createVariable(name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes])
-            v.units, v.long_name, v.standard = units[kind], long, standard
+            v.units, v.long_name, v.standard = units[kind], long, standard(name)
             v.nodes = " ".join(asked_nodes(topo, name))  # the others are NaN (and have no summary column)
         small: dict[str, Any] = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
         st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
