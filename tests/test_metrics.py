@@ -292,3 +292,25 @@ def test_schema_and_result_tables_name_every_criterion_of_the_maths() -> None:
 
     assert CRITERION_NAMES == criteria.CRITERIA == get_args(Criterion)
     assert set(METRIC_META) == set(criteria.CRITERIA) | {e for x in criteria.EXTRA.values() for e in x}
+
+
+def test_a_rerun_reuses_finished_variants_with_their_criteria_and_notes(tmp_path: Path) -> None:
+    """A variant copied from an earlier result keeps its criteria and its note (the note is an index
+    into a table of texts: it is re-coded into the new file's table, not copied as a number)."""
+    from crashstudy.runner import run_study
+
+    (tmp_path / "m.yaml").write_text(pulse_model(extra="output: {interval: 1.0e-3}\n"))
+    study = "name: s\nmodel: m.yaml\nmatrix:\n  time_step.dt: [{}]\n"
+    (tmp_path / "s.yaml").write_text(study.format("2.0e-4"))  # 5 kHz: below 10 x CFC 1000, a note
+    first = run_study(tmp_path / "s.yaml", tmp_path / "o").summary
+    note = first["criteria_note"][0]
+    assert note.startswith("sled: ") and "10 x CFC" in note
+    (tmp_path / "s.yaml").write_text(study.format("1.0e-5, 2.0e-4"))  # a new variant first, no note
+    from crashstudy.runner import run_plan
+    from crashstudy.study import load_study
+
+    report = run_plan(load_study(tmp_path / "s.yaml"), tmp_path / "o")
+    assert (report.n_reused, report.n_computed) == (1, 1)
+    second = report.results.summary
+    assert list(second["criteria_note"]) == ["", note]
+    assert second["hic15.sled"][1] == first["hic15.sled"][0]

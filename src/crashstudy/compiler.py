@@ -224,7 +224,8 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     histories = ALL_HISTORIES if hist == "all" else () if hist == "none" else tuple(hist)
     if not m.rigid_walls:
         histories = tuple(h for h in histories if h != "wall_force")
-    extra = ("filtered_acceleration",) if m.metrics and (hist == "all" or "filtered_acceleration" in hist) else ()
+    keep = hist == "all" or (isinstance(hist, list) and "filtered_acceleration" in hist)
+    extra = ("filtered_acceleration",) if m.metrics and keep else ()
     histories = tuple(h for h in histories if h != "filtered_acceleration")
     metrics = tuple(MetricSpec(nidx[mt.node], _unit(mt.direction, D), mt.cfc, tuple(mt.criteria))
                     for mt in m.metrics)  # fmt: skip

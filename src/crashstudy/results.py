@@ -291,7 +291,7 @@ class ResultWriter:
             a, b = int(nrun[0]), int(nrun[-1]) + 1
             c, d = int(orun[0]), int(orun[-1]) + 1
             for n in names:
-                if n in TEXT_TABLES:
+                if n in self.tables:  # texts: re-coded into this file's tables
                     self.nc.variables[n][a:b] = self._codes(n, read_texts(old, n, c, d))
                 elif n == "status":
                     self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
@@ -464,8 +464,10 @@ class Results:
             return pd.read_parquet(self.dir / PARQUET)
         csv = self.dir / SUMMARY
         if csv.exists():
-            df = pd.read_csv(csv, dtype={"status": str, "failure_reason": str, "dt_control": str})
-            df["failure_reason"] = df["failure_reason"].fillna("")
+            df = pd.read_csv(csv, dtype={"status": str, "failure_reason": str, "dt_control": str, NOTE_TEXT: str})
+            for name in ("failure_reason", NOTE_TEXT):
+                if name in df:
+                    df[name] = df[name].fillna("")
             return df
         _ = self.dataset  # opens the raw file
         assert self._raw is not None
