@@ -45,7 +45,6 @@ from crashstudy.tables import (
     STATUS_MEANINGS,
     SUMMARY,
     SUMMARY_META,
-    TEXT_TABLES,
     decode_texts,  # fmt: skip
     metric_arrays,
     summary_arrays,
