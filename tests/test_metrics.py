@@ -314,3 +314,33 @@ def test_a_rerun_reuses_finished_variants_with_their_criteria_and_notes(tmp_path
     second = report.results.summary
     assert list(second["criteria_note"]) == ["", note]
     assert second["hic15.sled"][1] == first["hic15.sled"][0]
+
+
+def test_2d_default_direction_is_the_initial_velocity_direction(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A 2-D drop: the sled falls at 10 m/s (-y) and the half-sine decelerates it (+y acceleration).
+    Against the direction of travel the deceleration is positive: ``delta_v = 2 A T / pi``; the default
+    direction equals an explicit [0, -2] (normalised) and differs from +y (dri sees the pulse reversed)."""
+    text = pulse_model(metrics=(
+        "  - {node: sled, criteria: [delta_v, dri]}\n"
+        "  - {node: other, direction: [0.0, -2.0], criteria: [delta_v, dri]}\n"
+        "  - {node: third, direction: y, criteria: [dri]}"))  # fmt: skip
+    text = (text.replace("position: [0.0], fixed", "position: [0.0, 0.0], fixed")
+            .replace("position: [1.0]", "position: [0.0, 1.0]").replace("position: [2.0]", "position: [0.0, 2.0]")
+            .replace("direction: x, curve: pulse", "direction: y, curve: pulse")
+            .replace("initial_velocity: {sled: [10.0], other: [10.0]}",
+                     "initial_velocity: {sled: [0.0, -10.0], other: [0.0, -10.0], third: [0.0, -10.0]}"))  # fmt: skip
+    text = text.replace("scale: -", "scale: ")  # +y acceleration
+    # other and third follow the same pulse
+    text = text.replace("prescribed_motion:\n", "prescribed_motion:\n"
+                        "  - {node: other, quantity: acceleration, direction: y, curve: pulse, scale: %.12g}\n"
+                        "  - {node: third, quantity: acceleration, direction: y, curve: pulse, scale: %.12g}\n"
+                        % (A_G * G, A_G * G))  # fmt: skip
+    text = text.replace("  other: {position: [0.0, 2.0], mass: 1.0}",
+                        "  other: {position: [0.0, 2.0], mass: 1.0}\n  third: {position: [0.0, 3.0], mass: 1.0}")
+    model = tmp_path / "drop.yaml"
+    model.write_text(text)
+    assert main(["simulate", str(model), "-o", str(tmp_path / "out")]) == 0, capsys.readouterr().err
+    ds = open_results(tmp_path / "out").dataset.sel(variant=0)
+    assert float(ds["delta_v"].sel(node="sled")) == pytest.approx(2 * A_G * G * T_PULSE / math.pi, rel=1e-3)
+    assert float(ds["dri"].sel(node="sled")) == float(ds["dri"].sel(node="other")) > 1.0
+    assert float(ds["dri"].sel(node="third")) < 0.5 * float(ds["dri"].sel(node="sled"))
