@@ -331,10 +331,10 @@ def test_2d_default_direction_is_the_initial_velocity_direction(tmp_path: Path, 
                      "initial_velocity: {sled: [0.0, -10.0], other: [0.0, -10.0], third: [0.0, -10.0]}"))  # fmt: skip
     text = text.replace("scale: -", "scale: ")  # +y acceleration
     # other and third follow the same pulse
+    amp = f"{A_G * G:.12g}"
     text = text.replace("prescribed_motion:\n", "prescribed_motion:\n"
-                        "  - {node: other, quantity: acceleration, direction: y, curve: pulse, scale: %.12g}\n"
-                        "  - {node: third, quantity: acceleration, direction: y, curve: pulse, scale: %.12g}\n"
-                        % (A_G * G, A_G * G))  # fmt: skip
+                        f"  - {{node: other, quantity: acceleration, direction: y, curve: pulse, scale: {amp}}}\n"
+                        f"  - {{node: third, quantity: acceleration, direction: y, curve: pulse, scale: {amp}}}\n")  # fmt: skip
     text = text.replace("  other: {position: [0.0, 2.0], mass: 1.0}",
                         "  other: {position: [0.0, 2.0], mass: 1.0}\n  third: {position: [0.0, 3.0], mass: 1.0}")
     model = tmp_path / "drop.yaml"
@@ -344,3 +344,17 @@ def test_2d_default_direction_is_the_initial_velocity_direction(tmp_path: Path, 
     assert float(ds["delta_v"].sel(node="sled")) == pytest.approx(2 * A_G * G * T_PULSE / math.pi, rel=1e-3)
     assert float(ds["dri"].sel(node="sled")) == float(ds["dri"].sel(node="other")) > 1.0
     assert float(ds["dri"].sel(node="third")) < 0.5 * float(ds["dri"].sel(node="sled"))
+
+
+def test_validate_warns_when_the_step_is_too_long_for_the_filter_class(tmp_path: Path,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    model = tmp_path / "coarse.yaml"
+    model.write_text(pulse_model(extra="output: {interval: 1.0e-3}\n").replace("dt: 1e-05", "dt: 0.0002"))
+    capsys.readouterr()
+    assert main(["validate", str(model)]) == 0
+    err = capsys.readouterr().err
+    # dt = 0.2 ms: 5 kHz, half the 10 kHz (10 x CFC 1000) SAE J211-1 asks for
+    assert "metrics.0.cfc: CFC 1000 asks for a sample rate of 10000 Hz, the time step gives 5000 Hz" in err
+    model.write_text(pulse_model())  # dt = 10 us: 100 kHz
+    assert main(["validate", str(model)]) == 0
+    assert "metrics" not in capsys.readouterr().err

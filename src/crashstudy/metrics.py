@@ -187,3 +187,40 @@ def _filtered_samples(acc: np.ndarray, count: np.ndarray, dt: np.ndarray, every:
     inside = steps < count[None, :]
     cols = np.arange(mag.shape[0])[None, :]
     return np.where(inside, mag[cols, np.minimum(steps, mag.shape[1] - 1)], np.nan)
+
+
+REFERENCE_NOTE_SECONDS = 10.0  # estimated reference-kernel seconds from which validate and run say so
+
+
+def plan_warnings(plan: Any) -> list[str]:
+    """What ``validate`` and ``run`` say about a plan's metrics: a time step too long for a filter class
+    (sample rate below 10 CFC, SAE J211-1; the variants' criteria_note says it too), and a long run on
+    the NumPy reference kernel (the only one that records every step)."""
+    from crashstudy.batch import build_batch
+    from crashstudy.kernel import choice
+
+    topo = plan.topology
+    if not topo.metrics:
+        return []
+    where = plan.study_file or plan.model_file
+    sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
+    second = SECOND[UNIT_SYSTEMS[topo.units].time]
+    rate = 1.0 / (float(np.max(sample.dt)) * second)
+    out = []
+    for k, mt in enumerate(topo.metrics):
+        if rate < 10.0 * mt.cfc:
+            out.append(f"{where}: metrics.{k}.cfc: CFC {mt.cfc} asks for a sample rate of {10 * mt.cfc:g} Hz, the "
+                       f"time step gives {rate:.4g} Hz: the filtered pulse and its criteria depend on the step "
+                       "(criteria_note says so); a smaller dt or tolerance resolves it")  # fmt: skip
+    if "reference" not in choice.RECORDING or choice.RECORDING != ("reference",):
+        return out
+    from crashstudy.runner import chunk_size
+
+    steps = float(np.mean(sample.n_steps))
+    chunks = -(-plan.n_variants // chunk_size(plan))
+    S = max(topo.n_springs, 1)
+    seconds = choice.reference_seconds(chunks * float(np.max(sample.n_steps)), S, steps * S * plan.n_variants)
+    if seconds >= REFERENCE_NOTE_SECONDS:
+        out.append(f"{where}: metrics: the run takes the NumPy reference kernel (the compiled kernels do not record "
+                   f"the acceleration at every step yet), about {seconds:.3g} s")  # fmt: skip
+    return out
