@@ -6,15 +6,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-# failure codes (status); 0 = ok
-OK, UNSTABLE, CRUSHED_TO_ZERO, INVALID = 0, 1, 2, 3
+from crashstudy.kernel.codes import CRUSHED_TO_ZERO, HISTORY_ORDER, HISTORY_SHAPES, INVALID, OK, UNSTABLE
 
-HISTORY_SHAPES = {  # dims between time and variant
-    "position": ("node", "axis"), "displacement": ("node", "axis"), "velocity": ("node", "axis"),
-    "acceleration": ("node", "axis"), "spring_force": ("spring",), "spring_elongation": ("spring",),
-    "kinetic_energy": (), "internal_energy": (), "external_work": (), "wall_energy": (), "wall_force": ("wall",),
-}  # fmt: skip
-HISTORY_ORDER = tuple(HISTORY_SHAPES)
+__all__ = ["CRUSHED_TO_ZERO", "HISTORY_ORDER", "HISTORY_SHAPES", "INVALID", "OK", "UNSTABLE", "KernelOutput", "allocate"]
 
 
 @dataclass
