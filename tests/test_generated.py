@@ -18,7 +18,7 @@ import pytest
 from conftest import run_model
 from crashstudy.kernel import generated
 from crashstudy.kernel.output import KernelOutput
-from crashstudy.runner import run_chunk, varying_curves
+from crashstudy.runner import run_chunk
 from crashstudy.study import load_study
 from test_physics import TWIN_1D
 
@@ -99,7 +99,7 @@ def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(
     study = {"name": "pick", "model": str(FRONTAL), "matrix": {"curves.rail-loading.scale": [0.8, 1.2],
              "impact_velocity": [12.0, 15.0, 18.0]}, "set": {"end_time": 0.03}}  # fmt: skip
     plan = load_study(study)
-    assert varying_curves(plan) == frozenset({plan.topology.curve_ids.index("rail-loading")})
+    assert plan.varying_curves == frozenset({plan.topology.curve_ids.index("rail-loading")})
     calls: list[str] = []
     real_generated, real_generic = generated.run_generated, runner_generic()
     monkeypatch.setattr(generated, "run_generated", lambda *a, **k: calls.append("generated") or real_generated(*a, **k))
