@@ -104,6 +104,24 @@ def batch_groups(n_steps: np.ndarray, width: int, budget: int = RECORD_BUDGET) -
     return out
 
 
+@dataclass
+class Recorder:
+    """What :func:`crashstudy.kernel.entry.run_ordered` calls to run a batch of a topology with metrics:
+    the kernel records ``nodes``; the output comes back with ``criteria`` and ``filtered_acceleration``."""
+
+    topo: Any
+    n_out: int
+
+    @property
+    def nodes(self) -> tuple[int, ...]:
+        return tuple(self.topo.metric_nodes)
+
+    def __call__(self, batch: Any, run: Callable[[Any], KernelOutput]) -> KernelOutput:
+        out, crit = run_recorded(batch, run, self.topo, self.n_out)
+        out.criteria = crit
+        return out
+
+
 def run_recorded(batch: Any, run: Callable[[Any], KernelOutput], topo: Any, n_out: int,
                  budget: int | None = None) -> tuple[KernelOutput, ChunkCriteria]:  # fmt: skip
     """Run ``batch`` through ``run`` (a kernel call that records the metric nodes) in groups whose

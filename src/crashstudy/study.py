@@ -91,6 +91,15 @@ class Plan:
                 return False
         return True
 
+    @functools.cached_property
+    def varying_curves(self) -> frozenset[int]:
+        """Indices of the curves whose knots some axis changes (the axes' parameter slots that fall in a
+        curve's knots): the generated kernel keeps the other curves as constants."""
+        touched = {s for ax in self.axes for s in ax.ref.slots}
+        off, blocks = self.topology.curve_offsets, self.topology.blocks
+        return frozenset(c for c in range(len(off) - 1) for b in ("cx", "cy_") if b in blocks
+                         and any(blocks[b].start + k in touched for k in range(int(off[c]), int(off[c + 1]))))  # fmt: skip
+
     def axis_values(self, lo: int, hi: int) -> dict[str, np.ndarray]:
         """Value of every axis for variants ``lo`` .. ``hi - 1``."""
         idx = np.arange(lo, hi)

@@ -3,21 +3,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-# failure codes (status); 0 = ok
-OK, UNSTABLE, CRUSHED_TO_ZERO, INVALID = 0, 1, 2, 3
+from crashstudy.kernel.codes import CRUSHED_TO_ZERO, HISTORY_ORDER, HISTORY_SHAPES, INVALID, OK, UNSTABLE
 
-HISTORY_SHAPES = {  # dims between time and variant
-    "position": ("node", "axis"), "displacement": ("node", "axis"), "velocity": ("node", "axis"),
-    "acceleration": ("node", "axis"), "spring_force": ("spring",), "spring_elongation": ("spring",),
-    "kinetic_energy": (), "internal_energy": (), "external_work": (), "wall_energy": (), "wall_force": ("wall",),
-}  # fmt: skip
-HISTORY_ORDER = tuple(HISTORY_SHAPES)
 # histories made after the kernel from its per-step record (crashstudy.metrics): never passed to a kernel
 EXTRA_SHAPES = {"filtered_acceleration": ("node",)}
 ALL_SHAPES = {**HISTORY_SHAPES, **EXTRA_SHAPES}
+
+__all__ = ["ALL_SHAPES", "CRUSHED_TO_ZERO", "EXTRA_SHAPES", "HISTORY_ORDER", "HISTORY_SHAPES", "INVALID", "OK",
+           "UNSTABLE", "KernelOutput", "allocate", "concatenate"]  # fmt: skip
 
 
 @dataclass
@@ -43,6 +40,8 @@ class KernelOutput:
     # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes at every step n = 0 .. T - 1,
     # as the acceleration history has it; zero after a variant's last step (t_end). None: not recorded
     step_acceleration: np.ndarray | None = None
+    # derived from the record after the kernel (crashstudy.metrics.ChunkCriteria: .take(columns)); None: none
+    criteria: Any = None
 
 
 def concatenate(parts: list[KernelOutput]) -> KernelOutput:
@@ -50,7 +49,7 @@ def concatenate(parts: list[KernelOutput]) -> KernelOutput:
     if len(parts) == 1:
         return parts[0]
     first = parts[0]
-    names = [f for f in vars(first) if f not in ("histories", "step_acceleration")]
+    names = [f for f in vars(first) if f not in ("histories", "step_acceleration", "criteria")]
     out = KernelOutput(**{n: np.concatenate([getattr(p, n) for p in parts], axis=-1) for n in names},
                        histories={h: np.concatenate([p.histories[h] for p in parts], axis=-1)
                                   for h in first.histories})  # fmt: skip

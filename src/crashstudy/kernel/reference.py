@@ -23,18 +23,30 @@ Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0`
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crashstudy.batch import Batch
-from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
 from crashstudy.kernel import materials as mat
+from crashstudy.kernel.codes import (
+    CRUSH,
+    DAMPER,
+    GENERAL,
+    LINEAR,
+    NONLINEAR,
+    PM_ACCELERATION,
+    PM_DISPLACEMENT,
+    TINY_LENGTH,
+    UNSTABLE_ENERGY,
+)
+
+if TYPE_CHECKING:
+    from crashstudy.batch import Batch
+
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 
 STOP_EVERY = 256  # steps between calls of run_reference's ``check``
-TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
-UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + |W_ext| (+ a round-off
-# floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
+__all__ = ["TINY_LENGTH", "UNSTABLE_ENERGY", "run_reference"]
 
 
 def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Callable[[], None] | None = None,
@@ -243,7 +255,7 @@ def spring_knotted(b: Batch) -> np.ndarray:
 
 
 def knot_peak_np(cand: np.ndarray, e_lo: np.ndarray, e_hi: np.ndarray, xk: np.ndarray, yk: np.ndarray) -> np.ndarray:
-    """NumPy twin of :func:`crashstudy.kernel.scalar.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
+    """NumPy twin of :func:`crashstudy.kernel.laws.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
     ak = np.abs(yk)
     return np.where((xk > e_lo) & (xk < e_hi) & (ak > cand), ak, cand)
 
