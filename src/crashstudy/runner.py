@@ -184,7 +184,8 @@ def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | N
     topo = plan.topology
     sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
     vary = plan.varying_curves
-    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, bool(topo.metrics))
+    rec = topo.metric_nodes  # metrics: the kernels record these nodes at every step (their own generated kernel)
+    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, rec)
     if start is None:
         return False, None, None
     do = choice.decide(start, choice.background_min_seconds() < float("inf"))
@@ -197,8 +198,8 @@ def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | N
 
     if do.foreground:
         say(f"compiling {what(do.foreground)}; Ctrl-C stops")
-        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check)
-    if do.now and choice.start_background(do.now, sample, topo.histories, vary) is not None:
+        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec)
+    if do.now and choice.start_background(do.now, sample, topo.histories, vary, rec) is not None:
         say(f"compiling {what(do.now)} in the background"
             + (f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
                "when it is ready" if do.small_chunks else ""))  # fmt: skip
@@ -206,7 +207,7 @@ def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | N
         return False, start.reference_seconds, None
 
     def later() -> None:
-        if choice.start_background(do.after, sample, topo.histories, vary) is not None:
+        if choice.start_background(do.after, sample, topo.histories, vary, rec) is not None:
             say(f"compiling {what(do.after)} in the background for the next run")
 
     return do.small_chunks, do.estimate, later if do.after else None

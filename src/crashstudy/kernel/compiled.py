@@ -212,6 +212,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             gn.checks(n, lo, B, D, fused, any_hit, T, P, In, Z, Out)
             if any_hist:
                 gn.record(n, lo, B, n_out, P, In, Z, H)
+            if H.step_nodes.shape[0] > 0:
+                gn.record_steps(n, lo, B, Z, H)
             if has_term and n > 0:
                 n_end = gn.terminate(n, n_end, lo, B, no_ext, P, In, Z)
             for w in range(B):
@@ -250,9 +252,11 @@ def _results(lo, B, In, Z, Out):  # pragma: no cover - compiled
             Out.peak_wall[wl, lo + w] = Z.pwall[wl, w]
 
 
-def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK) -> KernelOutput:
-    """Integrate every variant of ``b`` with the compiled kernel (same results as the reference)."""
-    out, hist, summ = outputs(b, histories, n_out)
+def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK,
+                 record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
+    """Integrate every variant of ``b`` with the compiled kernel (same results as the reference);
+    ``record``: nodes whose acceleration is kept at every step (``step_acceleration``)."""
+    out, hist, summ = outputs(b, histories, n_out, record)
     topo, var = records(b)
     run_blocks(_run, block_starts(b.x0.shape[2], block), n_out, topo, var, hist, summ)
     return finish(out, hist)

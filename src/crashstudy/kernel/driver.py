@@ -38,7 +38,9 @@ VARS_FIELDS = ("mass", "inv_mass", "x0", "v0", "length0", "sign", "kpar", "yield
 Topo = namedtuple("Topo", TOPO_FIELDS)  # type: ignore[misc]
 Vars = namedtuple("Vars", VARS_FIELDS)  # type: ignore[misc]
 # rec: which histories are kept (HISTORY_ORDER); energy: (T, 4, V) for the four ENERGIES
-Hist = namedtuple("Hist", ("rec", "pos", "disp", "vel", "acc", "force", "elong", "energy", "wall"))  # type: ignore[misc]
+# step_nodes (M,) and steps (T, M, D, V): the acceleration of nodes step_nodes at every step (crash criteria)
+Hist = namedtuple("Hist", ("rec", "pos", "disp", "vel", "acc", "force", "elong", "energy", "wall", "step_nodes",
+                           "steps"))  # type: ignore[misc]  # fmt: skip
 Summ = namedtuple("Summ", ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed",
                            "peak_acc", "peak_wall", "energy_error", "final_energy"))  # type: ignore[misc]  # fmt: skip
 
@@ -57,12 +59,17 @@ def records(b: Batch) -> tuple[Any, Any]:
     return Topo(*(getattr(b, f) for f in TOPO_FIELDS)), Vars(*(getattr(b, f) for f in VARS_FIELDS))
 
 
-def outputs(b: Batch, histories: tuple[str, ...], n_out: int) -> tuple[KernelOutput, Any, Any]:
+def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int, ...] = ()
+            ) -> tuple[KernelOutput, Any, Any]:  # fmt: skip
     """The kernel output (summaries zeroed, histories NaN) and its (Hist, Summ) records. Histories not
-    kept get a small placeholder the kernel never writes."""
+    kept get a small placeholder the kernel never writes. ``record``: nodes whose acceleration is kept
+    at every step (``out.step_acceleration``, zero after a variant's end, as the reference has it)."""
     N, D, V = b.x0.shape
     S = len(b.spring_i)
     out = allocate(S, N, D, b.wall_nodes.shape[0], V, histories, n_out)
+    if record:
+        out.step_acceleration = np.zeros((int(np.max(b.n_steps, initial=-1)) + 1, len(record), D, V))
+    steps = out.step_acceleration if out.step_acceleration is not None else np.empty((1, 1, 1, 1))
     want_energy = any(h in histories for h in ENERGIES)
     energy = np.full((n_out, 4, V), np.nan) if want_energy else np.empty((1, 4, 1))
     rec = np.array([h in histories or (want_energy and h in ENERGIES) for h in HISTORY_ORDER], dtype=np.bool_)
@@ -71,7 +78,8 @@ def outputs(b: Batch, histories: tuple[str, ...], n_out: int) -> tuple[KernelOut
         return out.histories[name] if name in out.histories else np.empty((1,) * nd)
 
     hist = Hist(rec, buf("position", 4), buf("displacement", 4), buf("velocity", 4), buf("acceleration", 4),
-                buf("spring_force", 3), buf("spring_elongation", 3), energy, buf("wall_force", 3))  # fmt: skip
+                buf("spring_force", 3), buf("spring_elongation", 3), energy, buf("wall_force", 3),
+                np.asarray(record, dtype=np.int64), steps)  # fmt: skip
     summ = Summ(out.status, out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush,
                 out.absorbed_energy, out.peak_acceleration, out.peak_wall_force, out.energy_error, out.final_energy)  # fmt: skip
     return out, hist, summ

@@ -41,13 +41,13 @@ SUMMARIES = ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_cru
 
 
 def compile_first(kernel: str, batch: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                  check: Callable[[], None]) -> None:  # fmt: skip
+                  check: Callable[[], None], record: tuple[int, ...] = ()) -> None:  # fmt: skip
     """Compile ``kernel`` ("generic" or "generated") for ``batch`` in a child process when it is not
     compiled yet, polling ``check`` while it runs (numba cannot be interrupted in this process)."""
     if kernel == "generic" and not choice.generic_ready():
-        choice.compile_foreground(("generic",), batch, histories, vary, check)
-    elif kernel == "generated" and not choice.generated_ready(batch, histories, vary):
-        choice.compile_foreground(("generated",), batch, histories, vary, check)
+        choice.compile_foreground(("generic",), batch, histories, vary, check, record)
+    elif kernel == "generated" and not choice.generated_ready(batch, histories, vary, record):
+        choice.compile_foreground(("generated",), batch, histories, vary, check, record)
 
 
 def run_batch(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
@@ -58,24 +58,24 @@ def run_batch(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str 
     batches like this one the run holds (for the choice); ``check``: raises to abandon the run;
     ``record``: nodes whose acceleration is kept at every step (``KernelOutput.step_acceleration``, for
     the crash criteria): only a kernel of ``choice.RECORDING`` is used then."""
-    kernel = choice.pick(batch, histories, vary, kernel, repeat, record=bool(record))
+    kernel = choice.pick(batch, histories, vary, kernel, repeat, record=record)
     if kernel == "reference":
         from crashstudy.kernel.reference import run_reference
 
         with np.errstate(all="ignore"):  # overflow is found by the energy check (status), as in the compiled kernels
             return run_reference(batch, histories, n_out, check, record)
     if check is not None:
-        compile_first(kernel, batch, histories, vary, check)
+        compile_first(kernel, batch, histories, vary, check, record)
     if kernel == "generated":
         from crashstudy.kernel.generated import run_generated
 
-        out = run_generated(batch, histories, n_out, vary)
+        out = run_generated(batch, histories, n_out, vary, record=record)
         choice.note_loaded("generated")
         return out
     from crashstudy.kernel.compiled import run_compiled
 
     choice.note_loaded("generic")
-    return run_compiled(batch, histories, n_out)
+    return run_compiled(batch, histories, n_out, record=record)
 
 
 def spread_columns(out: KernelOutput, take: np.ndarray, histories: tuple[str, ...], n_out: int) -> KernelOutput:

@@ -163,6 +163,8 @@ def node(g: Any, i2: str, n: int) -> None:
             emit(f"{i2}a = {pa}")
             emit(f"{i2}fx_{d} = fx_{d} + ({R[f'm{n}']} * a - (fs + fx_{d}))")
         emit(f"{i2}a_{d} = a")
+        if n in g.record:  # kept for the per-step record (crash criteria), written after the failure check
+            emit(f"{i2}{R[f'am{n}_{d}']} = a")
         if n in loaded:  # external work: trapezoid with the previous step's force (R fx)
             emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
             emit(f"{i2}bal = ext_power(bal, fx_{d}, vo_{d}, {R[f'fx{n}_{d}']}, vb)")

@@ -77,9 +77,10 @@ def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
 
 
 def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None,
-           const: list[int] | None = None) -> dict[str, Any]:  # fmt: skip
+           const: list[int] | None = None, record: tuple[int, ...] = ()) -> dict[str, Any]:  # fmt: skip
     """What the generated source depends on. ``const``: the constant curves when already known (a
-    background compile gets them from the run, whose batch it does not have)."""
+    background compile gets them from the run, whose batch it does not have). ``record``: nodes whose
+    acceleration is kept at every step (a key only when there are some: other shapes keep their source)."""
     N, D, _ = b.x0.shape
     pm_nodes = set(b.pm_node.tolist())
     static = [bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0) and n not in pm_nodes) for n in range(N)]
@@ -96,6 +97,7 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
         "movable": [bool(np.any(b.free[n] > 0.0)) or n in pm_nodes for n in range(N)], "static": static,
         "pm": [[int(b.pm_node[k]), int(b.pm_dir[k]), int(b.pm_kind[k]), int(b.pm_curve[k])] for k in range(len(b.pm_node))],
         "hist": [h for h in HISTORY_ORDER if h in histories or (h in ENERGIES and any(e in histories for e in ENERGIES))],
+        **({"record": [int(n) for n in record]} if record else {}),
     }  # fmt: skip
 
 
@@ -218,6 +220,10 @@ def layout(shape: dict[str, Any]) -> Any:
             R.add(f"ax{s}_{d}")
         for k in range(8):
             R.add(f"st{s}_{k}")
+    record = shape.get("record", [])  # a^n of these nodes at every step (crash criteria)
+    for n in record:
+        for d in range(D):
+            R.add(f"am{n}_{d}")
     if hist:
         for n in live:
             for d in range(D):

@@ -102,10 +102,11 @@ def shape_key(shape: dict[str, Any]) -> str:
     return _source_key(shape)[1]
 
 
-def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None) -> bool:
+def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None,
+                record: tuple[int, ...] = ()) -> bool:  # fmt: skip
     """Whether this model shape's kernel is compiled: loaded in this process, or in numba's disk cache
     (wherever ``NUMBA_CACHE_DIR`` puts it; the index is written after the compiled code)."""
-    shape = _shape(b, histories, vary)
+    shape = _shape(b, histories, vary, record=record)
     key = shape_key(shape)
     if key in _LOADED and _LOADED[key].run_blocks.signatures:
         return True
@@ -119,15 +120,16 @@ def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | Non
 
 
 def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozenset[int] | None = None,
-                  const: list[int] | None = None) -> KernelOutput:  # fmt: skip
+                  const: list[int] | None = None, record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
     """Integrate every variant of ``b`` with its model's generated kernel (results bitwise those of
-    the reference kernel). ``b`` must be supported (:func:`unsupported` returns None)."""
+    the reference kernel). ``b`` must be supported (:func:`unsupported` returns None). ``record``:
+    nodes whose acceleration is kept at every step (``step_acceleration``)."""
     why = unsupported(b)
     if why is not None:
         raise ValueError(f"no generated kernel for this model: {why}")
-    shape = _shape(b, histories, vary, const)
+    shape = _shape(b, histories, vary, const, record)
     mod = _module(shape)
-    out, hist, summ = outputs(b, histories, n_out)
+    out, hist, summ = outputs(b, histories, n_out, record)
     topo, var = records(b)
     run_blocks(mod.run_blocks, block_starts(b.x0.shape[2], BLOCK), n_out, _constants(b, shape), topo, var, hist, summ)
     return finish(out, hist)

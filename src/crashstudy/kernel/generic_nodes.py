@@ -257,6 +257,18 @@ def record(n, lo, B, n_out, P, In, Z, H):  # pragma: no cover - compiled
 
 
 @_jit
+def record_steps(n, lo, B, Z, H):  # pragma: no cover - compiled
+    """a^n of the recorded nodes (crash criteria) for the lanes still running after this step's checks."""
+    acc = Z.acc
+    for m in range(H.step_nodes.shape[0]):
+        p = H.step_nodes[m]
+        for d in range(acc.shape[1]):
+            for w in range(B):
+                if Z.act[w]:
+                    H.steps[n, m, d, lo + w] = acc[p, d, w]
+
+
+@_jit
 def terminate(n, n_end, lo, B, no_ext, P, In, Z):  # pragma: no cover - compiled
     """Early termination (docs/format.md) of the running lanes; returns the new first end step."""
     for w in range(B):

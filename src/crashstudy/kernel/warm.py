@@ -35,6 +35,7 @@ def main(argv: list[str]) -> int:
     b: Any = SimpleNamespace(**arrays)  # a Batch's arrays (the kernels read only its fields)
     b.n_steps[:] = 1
     histories = tuple(job["histories"])
+    record = tuple(job.get("record", []))
     with open(folder / LOCK_NAME, "a") as lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -44,11 +45,11 @@ def main(argv: list[str]) -> int:
             if kernel == "generic":
                 from crashstudy.kernel.compiled import run_compiled
 
-                run_compiled(b, histories, 1)
+                run_compiled(b, histories, 1, record=record)
             else:
                 from crashstudy.kernel.generated import run_generated
 
-                run_generated(b, histories, 1, frozenset(job["vary"]), list(job["const"]))
+                run_generated(b, histories, 1, frozenset(job["vary"]), list(job["const"]), record)
     return 0
 
 
