@@ -223,10 +223,9 @@ def test_fast_kernels_record_every_step_bitwise_as_the_reference(case: str, kern
     loads, gravity, walls, a variant crushed to zero length (record zero from its failure step), early
     termination and lane compaction (tests/test_kernel_twins.py's cases)."""
     from conftest import model_plan
-    from test_kernel_twins import CASES, assert_bitwise
-
     from crashstudy.compiler import apply_axis
     from crashstudy.kernel.entry import run_batch
+    from test_kernel_twins import CASES, assert_bitwise
 
     build, axes, _ = CASES[case]
     plan = model_plan(build())
@@ -377,3 +376,20 @@ def test_validate_warns_when_the_step_is_too_long_for_the_filter_class(tmp_path:
     model.write_text(pulse_model())  # dt = 10 us: 100 kHz
     assert main(["validate", str(model)]) == 0
     assert "metrics" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kernel", ["generic", "generated"])
+def test_criteria_of_a_chunk_are_the_same_on_every_kernel(kernel: str, tmp_path: Path) -> None:
+    """The criteria, notes and filtered pulse of a chunk computed on a fast kernel equal the reference's
+    bit for bit (the record is bitwise equal, the criteria a function of it)."""
+    from crashstudy.runner import run_chunk
+
+    plan = _plan(tmp_path, pulse_model(metrics="  - {node: sled, cfc: 600, criteria: [peak_g, hic15, clip3ms, "
+                                                "clip3ms_cumulative, olc, dri, delta_v]}"))  # fmt: skip
+    ref, got = run_chunk(plan, 0, 3, kernel="reference"), run_chunk(plan, 0, 3, kernel=kernel)
+    assert set(ref.criteria.values) == set(got.criteria.values)
+    for name, arr in ref.criteria.values.items():
+        assert np.array_equal(arr, got.criteria.values[name], equal_nan=True), name
+    assert list(ref.criteria.notes) == list(got.criteria.notes)
+    f_ref, f_got = ref.out.histories["filtered_acceleration"], got.out.histories["filtered_acceleration"]
+    assert np.array_equal(f_ref, f_got, equal_nan=True)

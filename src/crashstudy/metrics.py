@@ -207,15 +207,10 @@ def _filtered_samples(acc: np.ndarray, count: np.ndarray, dt: np.ndarray, every:
     return np.where(inside, mag[cols, np.minimum(steps, mag.shape[1] - 1)], np.nan)
 
 
-REFERENCE_NOTE_SECONDS = 10.0  # estimated reference-kernel seconds from which validate and run say so
-
-
 def plan_warnings(plan: Any) -> list[str]:
     """What ``validate`` and ``run`` say about a plan's metrics: a time step too long for a filter class
-    (sample rate below 10 CFC, SAE J211-1; the variants' criteria_note says it too), and a long run on
-    the NumPy reference kernel (the only one that records every step)."""
+    (sample rate below 10 CFC, SAE J211-1; the variants' criteria_note says it too)."""
     from crashstudy.batch import build_batch
-    from crashstudy.kernel import choice
 
     topo = plan.topology
     if not topo.metrics:
@@ -230,15 +225,4 @@ def plan_warnings(plan: Any) -> list[str]:
             out.append(f"{where}: metrics.{k}.cfc: CFC {mt.cfc} asks for a sample rate of {10 * mt.cfc:g} Hz, the "
                        f"time step gives {rate:.4g} Hz: the filtered pulse and its criteria depend on the step "
                        "(criteria_note says so); a smaller dt or tolerance resolves it")  # fmt: skip
-    if "reference" not in choice.RECORDING or choice.RECORDING != ("reference",):
-        return out
-    from crashstudy.runner import chunk_size
-
-    steps = float(np.mean(sample.n_steps))
-    chunks = -(-plan.n_variants // chunk_size(plan))
-    S = max(topo.n_springs, 1)
-    seconds = choice.reference_seconds(chunks * float(np.max(sample.n_steps)), S, steps * S * plan.n_variants)
-    if seconds >= REFERENCE_NOTE_SECONDS:
-        out.append(f"{where}: metrics: the run takes the NumPy reference kernel (the compiled kernels do not record "
-                   f"the acceleration at every step yet), about {seconds:.3g} s")  # fmt: skip
     return out
