@@ -329,9 +329,12 @@ def clip_cumulative_row(x, n, dt, window, floor, lo, hi):  # pragma: no cover - 
     a = fixed
     b = 0.0
     for q in range(m):
-        r = dt / (hi[q] - lo[q])
-        a += r * hi[q]
-        b += r
+        if lo[q] >= ch:
+            a += dt
+        elif hi[q] > cl and hi[q] > lo[q]:
+            r = dt / (hi[q] - lo[q])
+            a += r * hi[q]
+            b += r
     if b <= 0.0:
         return cl
     c = (a - window) / b
