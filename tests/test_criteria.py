@@ -246,10 +246,34 @@ def test_hic_search_equals_brute_force_on_random_signals() -> None:
         else:
             x = np.maximum(0, np.sin(np.linspace(0, rng.uniform(1, 20), n))) * 80 + rng.uniform(0, 5, n)
         for window in (0.015, 0.036, 0.003):
-            got = R.hic_row(x, n, dt, window, np.empty(n + 1), np.empty(n + 1))
+            got = R.hic_row(x, n, dt, window, np.empty(n + 1), np.empty(n + 1), False)
             want = hic_brute(x, dt, window)
             assert got[0] == pytest.approx(want[0], rel=1e-12)  # the same maximum
             assert got[1:] == pytest.approx(want[1:], abs=1e-12)  # at the same t1, t2
+
+
+def test_hic_window_limited_optimum_is_exact_between_samples() -> None:
+    """With the window limit active, HIC = window^-1.5 max S(t1)^2.5, S the integral of the
+    piecewise-linear curve over [t1, t1 + window]: against a 400-points-per-step scan of t1."""
+    rng = np.random.default_rng(8)
+    dt = 1e-3
+    for _ in range(10):
+        n = 60
+        x = 40 + 20 * np.sin(np.arange(n) * rng.uniform(0.05, 0.2)) + rng.uniform(0, 2, n)  # long, flat-ish
+        t = np.arange(n) * dt
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * dt * (x[1:] + x[:-1]))])
+
+        def integral(tt: np.ndarray) -> np.ndarray:
+            k = np.minimum((tt / dt).astype(int), n - 2)
+            ph = tt / dt - k
+            return cum[k] + dt * ph * (x[k] + 0.5 * ph * (x[k + 1] - x[k]))
+
+        t1 = np.arange(0.0, t[-1] - 0.015 + 1e-12, dt / 400)
+        scan = (integral(t1 + 0.015) - integral(t1)).max() ** 2.5 / 0.015**1.5
+        got = R.hic_row(x, n, dt, 0.015, np.empty(n + 1), np.empty(n + 1))
+        plain = R.hic_row(x, n, dt, 0.015, np.empty(n + 1), np.empty(n + 1), False)
+        assert got[2] - got[1] == pytest.approx(0.015, abs=1e-12)  # the limit is active
+        assert scan - 1e-9 * scan <= got[0] <= scan * (1 + 1e-6) and got[0] >= plain[0]  # scan from below
 
 
 @pytest.mark.parametrize("tau", [0.01, 0.05])
@@ -439,3 +463,84 @@ def test_delta_v_of_half_sine_and_of_a_rebound() -> None:
     peak = 1.5 * 15.0 * math.pi / (2 * 0.06)
     r = one(-half_sine(t, peak, 0.06), dt, names=("delta_v",), v0=15.0)
     assert r["delta_v"] == pytest.approx(22.5, rel=1e-7)
+
+
+# --------------------------------------------------------------------------- convergence, batching
+
+
+def smooth_pulse(t: np.ndarray) -> np.ndarray:
+    """A smooth (C1) 70 ms deceleration with an 80 Hz ripple, peak ~ 35 g."""
+    tau = 0.07
+    s = np.clip(t / tau, 0.0, 1.0)
+    return np.where(t <= tau, 30 * G * np.sin(np.pi * s) ** 2 * (1 + 0.2 * np.sin(2 * np.pi * 80 * t)), 0.0)
+
+
+def test_every_criterion_converges_as_dt_is_halved() -> None:
+    """dt = 40, 20, 10, 5 us (CFC 180; 25-200 kHz) against dt = 2.5 us: at 40 us every criterion is
+    within 0.2 % of the reference, and the error divided by dt^2 does not grow as dt is halved
+    (at most 4x its value at 40/20 us, allowing for the samples' phase; a first-order error would
+    grow 8x over three halvings), up to 1e-8 of the value for the reference's own error."""
+    names = list(C.CRITERIA)
+    keys = names + ["hic15_t1", "hic15_t2", "hic36_t1", "hic36_t2"]
+    vals: dict[str, list[float]] = {k: [] for k in keys}
+    dts = np.array([4e-5, 2e-5, 1e-5, 5e-6, 2.5e-6])
+    for dt in dts:
+        t = np.arange(int(round(0.12 / dt)) + 1) * dt
+        r = one(-smooth_pulse(t), dt, names=names, cfc=180, v0=16.0)
+        assert r["criteria_note"] == ""
+        for k in keys:
+            vals[k].append(r[k])
+    for k in names:
+        v = np.array(vals[k])
+        err = np.abs(v[:-1] - v[-1])
+        assert err[0] <= 2e-3 * abs(v[-1]), (k, v)
+        scaled = np.maximum(err - 1e-8 * abs(v[-1]), 0.0) / dts[:-1] ** 2
+        assert (scaled <= 4 * scaled[:2].max() + 1e-30).all(), (k, v)
+    for k in keys[len(names) :]:  # the interval's ends settle to within a step
+        assert abs(vals[k][-2] - vals[k][-1]) <= 5e-6, (k, vals[k])
+
+
+def test_batch_rows_with_own_steps_counts_directions_equal_single_runs() -> None:
+    """Variants with different dt, count, 2-D directions and NaN past their count: each equals
+    the 1-D run of the same pulse along its direction (resultant and projection are rotation-free)."""
+    rng = np.random.default_rng(4)
+    nv, nt = 6, 9000
+    dts = rng.uniform(1e-5, 2e-5, nv)
+    counts = rng.integers(5000, nt + 1, nv)
+    counts[2] = 1  # too short
+    angles = rng.uniform(0, 2 * np.pi, nv)
+    acc = np.full((nv, nt, 2), np.nan)
+    v0 = np.zeros((nv, 2))
+    dirs = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    pulses = []
+    for v in range(nv):
+        t = np.arange(counts[v]) * dts[v]
+        p = -smooth_pulse(t * rng.uniform(0.8, 1.2))
+        pulses.append(p)
+        acc[v, : counts[v]] = p[:, None] * dirs[v]
+        v0[v] = 16.0 * dirs[v]
+    r = C.compute(acc, counts, dts, v0, dirs, 180, C.CRITERIA, G)
+    for v in range(nv):
+        if counts[v] < 2:
+            assert all(np.isnan(r[k][v]) for k in r if k != "criteria_note")
+            assert r["criteria_note"][v] == "fewer than 2 samples"
+            continue
+        ref = one(pulses[v], dts[v], cfc=180, v0=16.0)
+        for k in ref:
+            if k != "criteria_note":
+                assert r[k][v] == pytest.approx(ref[k], rel=1e-9, abs=1e-12, nan_ok=True), (v, k)
+        assert r["criteria_note"][v] == ref["criteria_note"]
+    # a single (D,) direction broadcasts to every variant
+    r1 = C.compute(acc[:1], counts[:1], dts[:1], v0[:1], dirs[0], 180, ["olc", "dri"], G)
+    assert r1["olc"][0] == pytest.approx(r["olc"][0], rel=1e-12)
+
+
+def test_unknown_criterion_or_class_is_refused() -> None:
+    acc = np.zeros((1, 10, 1))
+    with pytest.raises(ValueError, match="unknown criteria"):
+        C.compute(acc, np.array([10]), np.array([1e-5]), np.zeros((1, 1)), np.ones(1), 180, ["hic"], G)
+    with pytest.raises(ValueError, match="cfc"):
+        C.compute(acc, np.array([10]), np.array([1e-5]), np.zeros((1, 1)), np.ones(1), 100, ["hic15"], G)
+    r = C.compute(acc, np.array([10]), np.array([1e-5]), np.zeros((1, 1)), np.ones(1), 180, ["hic15", "peak_g"], G)
+    assert set(r) == {"hic15", "hic15_t1", "hic15_t2", "peak_g", "criteria_note"}
+    assert r["hic15"][0] == 0.0 and np.isnan(r["hic15_t1"][0]) and r["peak_g"][0] == 0.0  # a quiet record

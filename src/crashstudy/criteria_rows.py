@@ -31,6 +31,22 @@ def _hic_value(s, ln):  # pragma: no cover - compiled
 
 
 @_jit
+def peak_row(x, n):  # pragma: no cover - compiled
+    """Largest value of ``x[:n]``, refined by the parabola through the largest sample and its two
+    neighbours when it is interior and curved (``y1 - (y0 - y2)^2 / (8 (y0 - 2 y1 + y2))``)."""
+    k = 0
+    for i in range(1, n):
+        if x[i] > x[k]:
+            k = i
+    if 0 < k < n - 1:
+        y0, y1, y2 = x[k - 1], x[k], x[k + 1]
+        den = y0 - 2.0 * y1 + y2
+        if den < 0.0:
+            return y1 - (y0 - y2) * (y0 - y2) / (8.0 * den)
+    return x[k]
+
+
+@_jit
 def _beats(s, ln, best2):  # pragma: no cover - compiled
     """``S^2.5 / L^1.5 > best`` without roots: ``S^5 > best^2 L^3`` (all positive)."""
     s2 = s * s
@@ -38,12 +54,15 @@ def _beats(s, ln, best2):  # pragma: no cover - compiled
 
 
 @_jit
-def hic_row(x, n, dt, window, cum, blk):  # pragma: no cover - compiled
+def hic_row(x, n, dt, window, cum, blk, refine=True):  # pragma: no cover - compiled
     """HIC of ``x[:n] >= 0`` [g] sampled every ``dt`` [s] over ``0 < t2 - t1 <= window`` [s].
 
     Returns ``(hic, t1, t2)`` [-, s, s]. The candidates are every pair of samples ``t1 < t2``
     no more than ``window`` apart, plus the intervals of exactly ``window`` that start or end on a
-    sample (the other end interpolated), so that an active window limit is met exactly. The search
+    sample (the other end interpolated), so that an active window limit is met exactly, and (with
+    ``refine``) the intervals of exactly ``window`` whose start lies between samples where the
+    integral over the window is stationary (``x(t1) = x(t1 + window)``, solved on each piece of the
+    piecewise-linear curve): the window-limited HIC is then exact for that curve. The search
     is exact (tests hold it equal to a brute force): the sample pairs are grouped into blocks
     ``B x B`` (``B ~ sqrt(window / dt)``); a block's bound is ``min(S_max^2.5 / L_min^1.5,
     L_max M^2.5)`` with ``S_max`` the integral over its widest interval, ``L_min``/``L_max`` its
@@ -81,6 +100,26 @@ def hic_row(x, n, dt, window, cum, blk):  # pragma: no cover - compiled
             s = cum[j] - _int_at(cum, x, jj, phi, dt)
             if s > sw:
                 sw, wi, wj = s, jj + phi, j
+        if refine:  # t1 between samples: S'(t1) = x(t1 + window) - x(t1) = 0 on a piece
+            for i in range(n - 1):
+                for piece in range(2):
+                    if piece == 0:
+                        s0, s1, j, off = 0.0, 1.0 - frac, i + p, frac
+                    else:
+                        if frac == 0.0:
+                            break
+                        s0, s1, j, off = 1.0 - frac, 1.0, i + p + 1, frac - 1.0
+                    if j + 1 > n - 1:
+                        break
+                    da = x[i + 1] - x[i]
+                    db = x[j + 1] - x[j]
+                    if db - da >= 0.0:
+                        continue  # no interior maximum of S on this piece
+                    st = (x[j] + db * off - x[i]) / (da - db)
+                    if s0 < st < s1:
+                        s = _int_at(cum, x, j, st + off, dt) - _int_at(cum, x, i, st, dt)
+                        if s > sw:
+                            sw, wi, wj = s, i + st, j + st + off
     best = _hic_value(sw, window) if sw > 0.0 else 0.0
     bi = wi
     bj = wj
