@@ -87,7 +87,9 @@ _NOTES = {
 }
 
 
-def dri_matrices(dt_s: np.ndarray, omega: float = DRI_OMEGA, zeta: float = DRI_ZETA) -> tuple[np.ndarray, ...]:
+def dri_matrices(
+    dt_s: np.ndarray, omega: float = DRI_OMEGA, zeta: float = DRI_ZETA
+) -> tuple[np.ndarray, ...]:
     """Exact one-step matrices of ``x'' + 2 zeta omega x' + omega^2 x = d`` for ``d`` linear over the step.
 
     Returns ``(Phi (V, 2, 2), G0 (V, 2), Gs (V, 2))`` with ``z+ = Phi z + G0 d_k + Gs (d_k+1 - d_k)``,
@@ -136,7 +138,9 @@ def dri_matrices(dt_s: np.ndarray, omega: float = DRI_OMEGA, zeta: float = DRI_Z
 
 
 @nb.njit(cache=True, nogil=True)
-def _driver(acc, count, dt, dt_s, u0, dirs, cfc, pad, g, want, s_free, s_rest, phi, g0, gs, out, status):  # pragma: no cover
+def _driver(
+    acc, count, dt, dt_s, u0, dirs, cfc, pad, g, want, s_free, s_rest, phi, g0, gs, out, status
+):  # pragma: no cover
     nv, nt, nd = acc.shape
     xin = np.empty(nt)
     fc = np.empty((nd, nt))
@@ -273,7 +277,9 @@ def compute(
     u0 = np.einsum("vd,vd->v", np.asarray(v0, dtype=np.float64).reshape(nv, nd), dirs)
     dt_s = dt / float(second)
     want = np.array([c in names for c in CRITERIA])
-    phi, g0, gs = dri_matrices(dt_s) if want[6] else (np.zeros((nv, 2, 2)), np.zeros((nv, 2)), np.zeros((nv, 2)))
+    phi, g0, gs = (
+        dri_matrices(dt_s) if want[6] else (np.zeros((nv, 2, 2)), np.zeros((nv, 2)), np.zeros((nv, 2)))
+    )
     out = np.full((nv, len(_COLS)), np.nan)
     status = np.zeros(nv, dtype=np.int64)
     _driver(np.ascontiguousarray(acc), count, dt, dt_s, u0, dirs, float(cfc), pad_code(pad), float(g), want,

@@ -48,7 +48,9 @@ _jit = nb.njit(cache=True, nogil=True)
 
 
 @_jit
-def coefficients(dt_s: float, cfc: float) -> tuple[float, float, float, float, float, bool]:  # pragma: no cover
+def coefficients(
+    dt_s: float, cfc: float
+) -> tuple[float, float, float, float, float, bool]:  # pragma: no cover
     """J211-1 Appendix C coefficients ``(a0, a1, a2, b1, b2, defined)`` for step ``dt_s`` [s].
 
     ``defined`` is False when ``wd dt / 2 >= pi / 2`` (sample rate below ``4.155 CFC``); then the
