@@ -16,8 +16,6 @@ from crashstudy import criteria as C
 from crashstudy import criteria_rows as R
 
 G = 9.80665
-F_N = {60: 100.0, 180: 300.0, 600: 1000.0, 1000: 1650.0}  # J211-1 -3 dB frequencies [Hz]
-STOP_DB = {60: -30.0, 180: -30.0, 600: -40.0, 1000: -40.0}
 
 
 def one(acc_1d: np.ndarray, dt: float, names=C.CRITERIA, cfc: int = 1000, v0: float = 15.0, **kw):

@@ -155,7 +155,8 @@ def _driver(
     dq = np.empty(nt, dtype=np.int64)
     lo = np.empty(nt)
     hi = np.empty(nt)
-    need_filter = want[0] or want[1] or want[2] or want[3] or want[4] or want[5]
+    need_res = want[0] or want[1] or want[2] or want[3] or want[4]
+    need_filter = need_res or want[5]
     for v in range(nv):
         n = count[v]
         if n < 2:
@@ -163,27 +164,40 @@ def _driver(
             continue
         h = dt_s[v]
         a0, a1, a2, b1, b2, defined = coefficients(h, cfc)
-        if not defined:
+        if need_filter and not defined:
             status[v] |= 1
         m = min(decay_length(b2, 1e-12), n - 1) if pad == 2 else 0
-        for d in range(nd):
-            for k in range(n):
-                xin[k] = acc[v, k, d]
-            if need_filter and defined:
-                filter_row(xin, n, a0, a1, a2, b1, b2, pad, m, fc[d], work)
-            else:
-                fc[d, :n] = xin[:n]
-        for k in range(n):
-            r = 0.0
-            sf = 0.0
-            sr = 0.0
+        if need_filter:
             for d in range(nd):
-                r += fc[d, k] * fc[d, k]
-                sf -= fc[d, k] * dirs[v, d]
-                sr -= acc[v, k, d] * dirs[v, d]
-            res[k] = np.sqrt(r) / g
-            dfil[k] = sf
-            draw[k] = sr
+                for k in range(n):
+                    xin[k] = acc[v, k, d]
+                if defined:
+                    filter_row(xin, n, a0, a1, a2, b1, b2, pad, m, fc[d], work)
+                else:
+                    fc[d, :n] = xin[:n]
+        if need_res:
+            ig = 1.0 / g
+            if nd == 1:
+                for k in range(n):
+                    res[k] = abs(fc[0, k]) * ig
+            else:
+                for k in range(n):
+                    r = 0.0
+                    for d in range(nd):
+                        r += fc[d, k] * fc[d, k]
+                    res[k] = np.sqrt(r) * ig
+        if want[5]:
+            for k in range(n):
+                sf = 0.0
+                for d in range(nd):
+                    sf -= fc[d, k] * dirs[v, d]
+                dfil[k] = sf
+        if want[6] or want[7]:
+            for k in range(n):
+                sr = 0.0
+                for d in range(nd):
+                    sr -= acc[v, k, d] * dirs[v, d]
+                draw[k] = sr
         if want[0]:
             out[v, 0] = peak_row(res, n)
         if want[1]:
