@@ -9,7 +9,8 @@ per-variant direction in 2-D.
   loaded).
 - ``with compile``: a fresh process with an empty numba cache: import + first call (compile +
   run), and the same process's second call, so the compile time is the difference.
-- one row per criterion alone (warm median of 3, D = 1), to see where the time goes.
+- one row per criterion alone and two typical sets (an occupant's peak_g, hic15 and clips; a
+  cabin's peak_g, olc, delta_v), warm median of 3, D = 1, to see where the time goes.
 
 Run: ``python benchmarks/criteria.py [--variants 10000 --steps 5000]``.
 Writes ``benchmarks/results/criteria.json`` (machine, commit, all numbers).
@@ -115,6 +116,15 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(json.dumps(row), flush=True)
         if nd == 1:
+            # a frontal study with an occupant: the occupant's head/chest criteria and the cabin's
+            sets = {"occupant: peak_g hic15 clip3ms clip3ms_cumulative": ["peak_g", "hic15", "clip3ms",
+                    "clip3ms_cumulative"], "cabin: peak_g olc delta_v": ["peak_g", "olc", "delta_v"]}  # fmt: skip
+            for label, names in sets.items():
+                ts1 = [timed(lambda d=data, n=names: criteria.compute(*d, 180, n, G)) for _ in range(3)]
+                r = {"variants": args.variants, "steps": args.steps, "D": 1, "criteria": label,
+                     "warm_median_s": median(ts1)}  # fmt: skip
+                rows.append(r)
+                print(json.dumps(r), flush=True)
             for name in criteria.CRITERIA:
                 ts1 = [timed(lambda d=data, n=name: criteria.compute(*d, 180, [n], G)) for _ in range(3)]
                 r = {"variants": args.variants, "steps": args.steps, "D": 1, "criteria": name,
