@@ -18,7 +18,8 @@ STOP_DB = {60: -30.0, 180: -30.0, 600: -40.0, 1000: -40.0}
 
 
 def corridor(f: float, cfc: int) -> tuple[float, float]:
-    """SAE J211-1 channel-class magnitude corridor [dB] at ``f`` [Hz] (lower, upper): +-0.5 dB up
+    """SAE J211-1 channel-class magnitude corridor [dB] at ``f`` [Hz] (lower, upper), as its table is
+    usually quoted (not checked against the standard's text here): +-0.5 dB up
     to F_H = CFC, +0.5/-4 dB at F_N, then the upper bound falls 9 dB/octave to the stop level
     (-30 dB for CFC 60/180, -40 dB for 600/1000) and the lower bound 24 dB/octave."""
     fh, fn = float(cfc), F_N[cfc]

@@ -27,8 +27,8 @@ the record (a node at rest or in free flight outside the record). ``"reflect"`` 
 ``count - 1``), the passes starting in the steady state of the pad's first value. See
 docs/criteria.md for the effect on a pulse that starts at ``t = 0``.
 
-Sample rate: J211-1 asks for a sample rate of at least about 10 CFC (6 times the -3 dB
-frequency). Below it :func:`rate_too_low` is true (the criteria say so in their note); below
+Sample rate: post-processors implementing J211-1 ask for at least 10 CFC (about 6 times the
+-3 dB frequency; docs/criteria.md). Below it :func:`rate_too_low` is true (the criteria say so in their note); below
 ``4.155 CFC`` (``wd T / 2 >= pi / 2``) the design is undefined and the row is left unfiltered.
 """
 
@@ -42,7 +42,7 @@ import numpy as np
 CFC_CLASSES = (60, 180, 600, 1000)
 PADS = ("constant", "zero", "reflect")
 J211_FACTOR = 2.0775
-MIN_RATE_PER_CFC = 10.0  # samples per second per hertz of channel class (J211-1 sample-rate advice)
+MIN_RATE_PER_CFC = 10.0  # samples per second per hertz of channel class (J211 post-processors' rule)
 
 _jit = nb.njit(cache=True, nogil=True)
 
@@ -237,7 +237,7 @@ def j211_filter(
 
 
 def rate_too_low(dt: np.ndarray, cfc: float, second: float = 1.0) -> np.ndarray:
-    """True where the sample rate ``second / dt`` is below ``10 CFC`` (J211-1's advice)."""
+    """True where the sample rate ``second / dt`` is below ``10 CFC`` (the J211 post-processors' rule)."""
     return np.asarray(second / np.asarray(dt, dtype=np.float64)) < MIN_RATE_PER_CFC * cfc
 
 
