@@ -6,7 +6,8 @@ D = 2, all criteria, CFC 180. The pulses are a sin^2 deceleration of 25-40 g ove
 per-variant direction in 2-D.
 
 - ``warm``: median (and min/max) of 5 calls in one process after a first call (compiled code
-  loaded).
+  loaded), wall time and process CPU time (compute() is single-threaded, so on a shared machine
+  the CPU time is the steadier figure).
 - ``with compile``: a fresh process with an empty numba cache: import + first call (compile +
   run), and the same process's second call, so the compile time is the difference.
 - one row per criterion alone and two typical sets (an occupant's peak_g, hic15 and clips; a
@@ -60,10 +61,20 @@ def batch(nv: int, nt: int, nd: int, seed: int = 0) -> tuple[np.ndarray, ...]:
     return acc, count, dt, v0, dirs
 
 
+CPU: list[float] = []  # process CPU seconds of each timed call (the machine is shared: wall time
+# includes waiting for a core; compute() is single-threaded, so CPU time is its own work)
+
+
 def timed(fn: Any) -> float:
+    c0 = time.process_time()
     t0 = time.perf_counter()
     fn()
+    CPU.append(time.process_time() - c0)
     return time.perf_counter() - t0
+
+
+def cpu_median(k: int) -> float:
+    return median(CPU[-k:])
 
 
 def child(nv: int, nt: int, nd: int) -> None:
@@ -107,7 +118,8 @@ def main(argv: list[str] | None = None) -> int:
         row = {
             "variants": args.variants, "steps": args.steps, "D": nd, "criteria": "all", "cfc": 180,
             "warm_median_s": median(ts), "warm_min_s": min(ts), "warm_max_s": max(ts),
-            "warm_us_per_variant": 1e6 * median(ts) / args.variants,
+            "warm_cpu_median_s": cpu_median(len(ts)),
+            "warm_cpu_us_per_variant": 1e6 * cpu_median(len(ts)) / args.variants,
             "fresh_process_import_s": cold["import_s"],
             "fresh_process_first_call_s (compile + run)": cold["first_call_s"],
             "fresh_process_second_call_s": cold["second_call_s"],
@@ -122,13 +134,13 @@ def main(argv: list[str] | None = None) -> int:
             for label, names in sets.items():
                 ts1 = [timed(lambda d=data, n=names: criteria.compute(*d, 180, n, G)) for _ in range(3)]
                 r = {"variants": args.variants, "steps": args.steps, "D": 1, "criteria": label,
-                     "warm_median_s": median(ts1)}  # fmt: skip
+                     "warm_median_s": median(ts1), "warm_cpu_median_s": cpu_median(3)}  # fmt: skip
                 rows.append(r)
                 print(json.dumps(r), flush=True)
             for name in criteria.CRITERIA:
                 ts1 = [timed(lambda d=data, n=name: criteria.compute(*d, 180, [n], G)) for _ in range(3)]
                 r = {"variants": args.variants, "steps": args.steps, "D": 1, "criteria": name,
-                     "warm_median_s": median(ts1)}  # fmt: skip
+                     "warm_median_s": median(ts1), "warm_cpu_median_s": cpu_median(3)}  # fmt: skip
                 rows.append(r)
                 print(json.dumps(r), flush=True)
         del data

@@ -76,7 +76,7 @@ OLC_RESTRAINED = 0.235  # m
 _COLS = ("peak_g", "hic15", "hic15_t1", "hic15_t2", "hic36", "hic36_t1", "hic36_t2", "clip3ms",
          "clip3ms_cumulative", "olc", "dri", "delta_v")  # fmt: skip
 # status bits of a variant (the note)
-_NO_FILTER, _LOW_RATE, _OLC_FREE, _OLC_END, _SHORT_CLIP, _SHORT = 1, 2, 4, 8, 16, 32
+_NO_FILTER, _LOW_RATE, _OLC_FREE, _OLC_END, _SHORT_CLIP, _SHORT, _NOT_FINITE = 1, 2, 4, 8, 16, 32, 64
 _NOTES = {
     _NO_FILTER: "sample rate below 4.155 x CFC: the J211 filter is undefined, criteria use the raw signal",
     _LOW_RATE: "sample rate below 10 x CFC (SAE J211-1): the filtered pulse depends on the step",
@@ -84,6 +84,7 @@ _NOTES = {
     _OLC_END: "olc: the occupant does not reach the node's velocity within the record",
     _SHORT_CLIP: "clip3ms: the record is shorter than 3 ms",
     _SHORT: "fewer than 2 samples",
+    _NOT_FINITE: "the acceleration is not finite (NaN or inf) within the record",
 }
 
 
@@ -161,6 +162,14 @@ def _driver(
         n = count[v]
         if n < 2:
             status[v] |= 32
+            continue
+        finite = True
+        for k in range(n):
+            for d in range(nd):
+                if not np.isfinite(acc[v, k, d]):
+                    finite = False
+        if not finite:
+            status[v] |= 64
             continue
         h = dt_s[v]
         a0, a1, a2, b1, b2, defined = coefficients(h, cfc)
@@ -270,7 +279,7 @@ def compute(
     Returns
     -------
     ``{name: (V,) float64}`` for each asked criterion and its :data:`EXTRA`, NaN where
-    ``count < 2`` or the criterion is undefined, and ``"criteria_note"``: (V,) object array of
+    ``count < 2``, the acceleration is not finite within the record, or the criterion is undefined, and ``"criteria_note"``: (V,) object array of
     ``""`` or why a value is not trusted.
     """
     names = list(dict.fromkeys(criteria))
