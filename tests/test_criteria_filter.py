@@ -172,3 +172,16 @@ def test_sample_rate_below_10_cfc_sets_note_and_still_computes() -> None:
     assert ok["criteria_note"] == ""
     r = one(-half_sine(np.arange(400) * 1e-3, 30 * G, 0.1), 1e-3, cfc=1000)  # 1 kHz < 4.155 kHz
     assert "undefined" in r["criteria_note"] and r["peak_g"] == pytest.approx(30.0, rel=1e-3)
+
+
+def test_filter_stays_accurate_far_oversampled() -> None:
+    """CFC 60 at 1 and 10 MHz (wa ~ 4e-4, 4e-5): equal to scipy lfilter forward + backward to 1e-8 of
+    the peak (the two-chain recursion is used only where it keeps that accuracy)."""
+    rng = np.random.default_rng(1)
+    for dt, n in ((1e-6, 50_000), (1e-7, 200_000)):
+        t = np.arange(n) * dt
+        x = 30 * np.sin(2 * np.pi * 40 * t) + rng.normal(size=n)
+        for pad in ("constant", "zero"):
+            y = F.j211_filter(x[None], np.array([n]), np.array([dt]), 60, pad=pad)[0]
+            ref = _lfilter_pair(x, dt, 60, pad)
+            assert np.abs(y - ref).max() <= 1e-8 * np.abs(ref).max(), (dt, pad)
