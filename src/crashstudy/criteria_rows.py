@@ -14,6 +14,7 @@ import numpy as np
 
 _jit = nb.njit(cache=True, nogil=True)
 NOT_REACHED = -1.0  # OLC: t1 or t2 not reached within the record
+BLOCK = 1.5  # HIC search: blocks of BLOCK sqrt(window / dt) samples, rows taken 16 samples at a time
 
 
 @_jit
@@ -30,17 +31,45 @@ def _hic_value(s, ln):  # pragma: no cover - compiled
 
 
 @_jit
-def hic_row(x, n, dt, window, cum, blk):  # pragma: no cover - compiled
+def peak_row(x, n):  # pragma: no cover - compiled
+    """Largest value of ``x[:n]``, refined by the parabola through the largest sample and its two
+    neighbours when it is interior and curved (``y1 - (y0 - y2)^2 / (8 (y0 - 2 y1 + y2))``)."""
+    k = 0
+    for i in range(1, n):
+        if x[i] > x[k]:
+            k = i
+    if 0 < k < n - 1:
+        y0, y1, y2 = x[k - 1], x[k], x[k + 1]
+        den = y0 - 2.0 * y1 + y2
+        if den < 0.0:
+            return y1 - (y0 - y2) * (y0 - y2) / (8.0 * den)
+    return x[k]
+
+
+@_jit
+def _beats(s, ln, best2):  # pragma: no cover - compiled
+    """``S^2.5 / L^1.5 > best`` without roots: ``S^5 > best^2 L^3`` (all positive)."""
+    s2 = s * s
+    return s2 * s2 * s > best2 * ln * ln * ln
+
+
+@_jit
+def hic_row(x, n, dt, window, cum, blk, refine=True):  # pragma: no cover - compiled
     """HIC of ``x[:n] >= 0`` [g] sampled every ``dt`` [s] over ``0 < t2 - t1 <= window`` [s].
 
     Returns ``(hic, t1, t2)`` [-, s, s]. The candidates are every pair of samples ``t1 < t2``
     no more than ``window`` apart, plus the intervals of exactly ``window`` that start or end on a
-    sample (the other end interpolated), so that an active window limit is met exactly. The search
+    sample (the other end interpolated), so that an active window limit is met exactly, and (with
+    ``refine``) the intervals of exactly ``window`` whose start lies between samples where the
+    integral over the window is stationary (``x(t1) = x(t1 + window)``, solved on each piece of the
+    piecewise-linear curve): the window-limited HIC is then exact for that curve. The search
     is exact (tests hold it equal to a brute force): the sample pairs are grouped into blocks
-    ``B x B``; a block's bound is ``min(S_max^2.5 / L_min^1.5, L_max M^2.5)`` with ``S_max`` the
-    integral over its widest interval, ``L_min``/``L_max`` its shortest/longest interval and ``M``
-    the largest sample it spans (``HIC = S^2.5/L^1.5`` grows with ``S`` and falls with ``L``, and
-    ``S <= L M``); blocks are searched in decreasing bound until the bound cannot beat the best.
+    ``B x B`` (``B ~ sqrt(window / dt)``); a block's bound is ``min(S_max^2.5 / L_min^1.5,
+    L_max M^2.5)`` with ``S_max`` the integral over its widest interval, ``L_min``/``L_max`` its
+    shortest/longest interval and ``M`` the largest sample it spans (``HIC = S^2.5/L^1.5`` grows
+    with ``S`` and falls with ``L``, and ``S <= L M``); a whole row of blocks is skipped when
+    ``S_row M_row^1.5`` cannot beat the best; blocks are searched in decreasing bound until the
+    bound cannot beat the best, each row of a block 16 samples at a time under the same bound.
     ``cum`` and ``blk`` are scratch of length >= n + 1.
     """
     if n < 2:
@@ -51,46 +80,83 @@ def hic_row(x, n, dt, window, cum, blk):  # pragma: no cover - compiled
     wn = window / dt
     p = int(math.floor(wn * (1.0 + 1e-12)))
     frac = max(wn - p, 0.0)
-    best = 0.0
-    bi = -1.0
-    bj = -1.0
-    # intervals of exactly `window` (one end on a sample, the other interpolated)
+    # intervals of exactly `window` (one end on a sample, the other interpolated): largest S
+    sw = 0.0
+    wi = -1.0
+    wj = -1.0
     if p + 1 <= n - 1 or (p <= n - 1 and frac == 0.0):
         for i in range(n):
             j = i + p
             if j > n - 1 or (j == n - 1 and frac > 0.0):
                 break
             s = _int_at(cum, x, j, frac, dt) - cum[i]
-            if s > 0.0:
-                h = _hic_value(s, window)
-                if h > best:
-                    best, bi, bj = h, i, j + frac
+            if s > sw:
+                sw, wi, wj = s, i, j + frac
+        phi = 1.0 - frac if frac > 0.0 else 0.0
         for j in range(n - 1, -1, -1):
             jj = j - p - 1 if frac > 0.0 else j - p
             if jj < 0:
                 break
-            phi = 1.0 - frac if frac > 0.0 else 0.0
             s = cum[j] - _int_at(cum, x, jj, phi, dt)
-            if s > 0.0:
-                h = _hic_value(s, window)
-                if h > best:
-                    best, bi, bj = h, jj + phi, j
+            if s > sw:
+                sw, wi, wj = s, jj + phi, j
+        if refine:  # t1 between samples: S'(t1) = x(t1 + window) - x(t1) = 0 on a piece
+            for i in range(n - 1):
+                for piece in range(2):
+                    if piece == 0:
+                        s0, s1, j, off = 0.0, 1.0 - frac, i + p, frac
+                    else:
+                        if frac == 0.0:
+                            break
+                        s0, s1, j, off = 1.0 - frac, 1.0, i + p + 1, frac - 1.0
+                    if j + 1 > n - 1:
+                        break
+                    da = x[i + 1] - x[i]
+                    db = x[j + 1] - x[j]
+                    if db - da >= 0.0:
+                        continue  # no interior maximum of S on this piece
+                    st = (x[j] + db * off - x[i]) / (da - db)
+                    if s0 < st < s1:
+                        s = _int_at(cum, x, j, st + off, dt) - _int_at(cum, x, i, st, dt)
+                        if s > sw:
+                            sw, wi, wj = s, i + st, j + st + off
+    best = _hic_value(sw, window) if sw > 0.0 else 0.0
+    bi = wi
+    bj = wj
     # sample pairs 1 <= j - i <= p: branch and bound over blocks
     pmax = min(p, n - 1)
     if pmax >= 1:
-        bs = max(4, int(math.sqrt(pmax)))
+        bs = max(4, int(BLOCK * math.sqrt(pmax)))
         nb_ = (n + bs - 1) // bs
         for b in range(nb_):
             m = 0.0
             for k in range(b * bs, min(n, (b + 1) * bs)):
                 m = max(m, x[k])
             blk[b] = m
+            # first candidates: from each block start, lengths pmax, pmax/2, ...
+            i0 = b * bs
+            ln = pmax
+            while ln >= 1:
+                jc = min(i0 + ln, n - 1)
+                if jc > i0:
+                    s = cum[jc] - cum[i0]
+                    if _beats(s, (jc - i0) * dt, best * best):
+                        best, bi, bj = _hic_value(s, (jc - i0) * dt), i0, jc
+                ln //= 2
         span = pmax // bs + 2
         npair = nb_ * span
         bound = np.full(npair, -1.0)
+        mpow = np.zeros(npair)
         for b in range(nb_):
             i0 = b * bs
             i1 = min(n, i0 + bs) - 1
+            # all pairs starting in this block: S <= S_row, S / L <= M_row, HIC = S (S/L)^1.5
+            mrow = 0.0
+            for c in range(b, min(nb_, (i1 + pmax) // bs + 1)):
+                mrow = max(mrow, blk[c])
+            srow = cum[min(n - 1, i1 + pmax)] - cum[i0]
+            if srow * mrow * math.sqrt(mrow) * (1.0 + 1e-9) <= best:
+                continue
             m = 0.0
             for d in range(span):
                 c = b + d
@@ -108,16 +174,14 @@ def hic_row(x, n, dt, window, cum, blk):  # pragma: no cover - compiled
                 smax = cum[min(j1, i1 + pmax)] - cum[i0]
                 if smax <= 0.0:
                     continue
-                ub = min(_hic_value(smax, lmin * dt), lmax * dt * m * m * math.sqrt(m))
+                m25 = m * m * math.sqrt(m)
+                ub = min(_hic_value(smax, lmin * dt), lmax * dt * m25)
                 bound[b * span + d] = ub * (1.0 + 1e-9)
-                # a corner of the block as a first candidate (raises `best` early)
-                jc = min(j1, i0 + pmax)
-                if jc > i0:
-                    s = cum[jc] - cum[i0]
-                    h = _hic_value(s, (jc - i0) * dt)
-                    if h > best:
-                        best, bi, bj = h, i0, jc
-        order = np.argsort(-bound)
+                mpow[b * span + d] = m25 * (1.0 + 1e-9)
+        # blocks that can beat the best, in decreasing bound
+        sel = np.nonzero(bound > best)[0]
+        order = sel[np.argsort(-bound[sel])]
+        best2 = best * best * (1.0 - 1e-9)  # sub-block tests: a little loose, never skip a winner
         for q in order:
             if bound[q] <= best:
                 break
@@ -127,14 +191,22 @@ def hic_row(x, n, dt, window, cum, blk):  # pragma: no cover - compiled
             i1 = min(n, i0 + bs) - 1
             j0 = c * bs
             j1 = min(n, j0 + bs) - 1
+            m25 = mpow[q]
             for i in range(i0, i1 + 1):
                 ci = cum[i]
-                for j in range(max(j0, i + 1), min(j1, i + pmax) + 1):
-                    s = cum[j] - ci
-                    if s > 0.0:
-                        h = _hic_value(s, (j - i) * dt)
-                        if h > best:
-                            best, bi, bj = h, i, j
+                jl = max(j0, i + 1)
+                jhi = min(j1, i + pmax)
+                while jl <= jhi:
+                    jh = min(jl + 15, jhi)
+                    if (jh - i) * dt * m25 > best and _beats(cum[jh] - ci, (jl - i) * dt, best2):
+                        for j in range(jl, jh + 1):
+                            s = cum[j] - ci
+                            if s > 0.0 and _beats(s, (j - i) * dt, best2):
+                                h = _hic_value(s, (j - i) * dt)
+                                if h > best:
+                                    best, bi, bj = h, i, j
+                                    best2 = best * best * (1.0 - 1e-9)
+                    jl = jh + 1
     if bi < 0.0:
         return 0.0, math.nan, math.nan
     return best, bi * dt, bj * dt
@@ -182,6 +254,8 @@ def clip_row(x, n, dt, window, mn, dq):  # pragma: no cover - compiled
     for i in range(n - 1):
         if i + p + (1 if f > 0.0 else 0) > n - 1:
             break
+        if min(max(x[i], x[i + 1]), mn[i]) <= best:
+            continue  # no window starting on this segment can beat the best
         a0 = x[i]
         da = x[i + 1] - x[i]
         # piece 1: s in [0, 1 - f], end point in segment j = i + p at fraction s + f
@@ -231,56 +305,79 @@ def clip_row(x, n, dt, window, mn, dq):  # pragma: no cover - compiled
 
 
 @_jit
-def clip_cumulative_row(x, n, dt, window, floor, buf):  # pragma: no cover - compiled
+def clip_cumulative_row(x, n, dt, window, floor, lo, hi):  # pragma: no cover - compiled
     """Cumulative clip: the highest level ``c`` with ``measure{t : x(t) >= c} >= window`` for the
     piecewise-linear curve (exact). ``floor`` is any level known to qualify (the continuous clip),
-    so only segments reaching above it are swept. ``buf`` scratch of length >= 4 n."""
+    so only segments reaching it count. ``lo``, ``hi`` scratch of length >= n.
+
+    ``measure(c)`` is a sum over segments, each ``dt`` above its top, 0 below its bottom and linear
+    between: piecewise linear in ``c`` with breaks at sample values. A bracket ``[cl, ch]`` with
+    ``measure(cl) >= window > measure(ch)`` is narrowed at the median break inside it (segments
+    entirely above the bracket count ``dt``, those below drop out) until no break is left inside;
+    then ``measure`` is linear on the bracket and is solved.
+    """
     if n < 2 or (n - 1) * dt < window * (1.0 - 1e-12):
         return math.nan
-    # events: (level, kind, rate): kind 0 = segment starts counting (at its top) with rate dt/(hi-lo),
-    # kind 1 = stops (at its bottom), kind 2 = a flat segment adds dt at once
-    ne = 0
-    lev = buf[0 : 2 * n]
-    rate = buf[2 * n : 4 * n]
+    m = 0
     for k in range(n - 1):
-        hi = max(x[k], x[k + 1])
-        lo = min(x[k], x[k + 1])
-        if hi < floor:
-            continue
-        if hi > lo:
-            r = dt / (hi - lo)
-            lev[ne] = hi
-            rate[ne] = r
-            ne += 1
-            lev[ne] = lo
-            rate[ne] = -r
-            ne += 1
+        h = max(x[k], x[k + 1])
+        if h >= floor:
+            lo[m] = min(x[k], x[k + 1])
+            hi[m] = h
+            m += 1
+    cl = floor
+    ch = math.inf
+    fixed = 0.0
+    target = window * (1.0 - 1e-12)
+    while m > 0:
+        cnt = 0
+        for q in range(m):
+            cnt += (cl < lo[q] < ch) + (cl < hi[q] < ch)
+        if cnt == 0:
+            break
+        pick = cnt // 2
+        piv = math.nan
+        for q in range(m):
+            for e in (lo[q], hi[q]):
+                if cl < e < ch:
+                    if pick == 0:
+                        piv = e
+                    pick -= 1
+            if piv == piv:
+                break
+        meas = fixed
+        for q in range(m):
+            if lo[q] >= piv:
+                meas += dt
+            elif hi[q] > piv:
+                meas += dt * (hi[q] - piv) / (hi[q] - lo[q])
+        if meas >= target:
+            cl = piv
         else:
-            lev[ne] = hi
-            rate[ne] = math.inf  # flat: marker
-            ne += 1
-    order = np.argsort(-lev[:ne])
-    meas = 0.0
-    slope = 0.0
-    cur = math.inf
-    for q in order:
-        L = lev[q]
-        if slope > 0.0 and cur != math.inf:
-            need = window - meas
-            gain_ = slope * (cur - L)
-            if gain_ >= need:
-                return cur - need / slope
-            meas += gain_
-        cur = L
-        if rate[q] == math.inf:
-            meas += dt
-            if meas >= window * (1.0 - 1e-12):
-                return L
-        else:
-            slope += rate[q]
-    if slope > 0.0:
-        return cur - (window - meas) / slope
-    return floor
+            ch = piv
+        w = 0
+        for q in range(m):
+            if lo[q] >= ch:
+                fixed += dt
+            elif hi[q] > cl:
+                lo[w] = lo[q]
+                hi[w] = hi[q]
+                w += 1
+        m = w
+    # no break inside (cl, ch): measure(c) = fixed + sum dt (hi - c) / (hi - lo) there
+    a = fixed
+    b = 0.0
+    for q in range(m):
+        if lo[q] >= ch:
+            a += dt
+        elif hi[q] > cl and hi[q] > lo[q]:
+            r = dt / (hi[q] - lo[q])
+            a += r * hi[q]
+            b += r
+    if b <= 0.0:
+        return cl
+    c = (a - window) / b
+    return min(max(c, cl), ch)
 
 
 @_jit
