@@ -170,6 +170,10 @@ def test_summary_sort_orders_by_a_criterion(sweeps: dict[str, Path], capsys: pyt
     assert main(["summary", str(sweeps["baseline"]), "--sort", "hic15.sled", "--columns", "hic15.sled"]) == 0
     lines = [ln.split() for ln in capsys.readouterr().out.splitlines()[2:]]
     assert [int(ln[1]) for ln in lines] == [2, 1, 0]  # the largest pulse (variant 2) has the largest HIC
+    # a criterion's name alone picks its one node's column (not hic15_t1.sled, hic15_t2.sled)
+    assert main(["summary", str(sweeps["baseline"]), "--sort", "hic15", "--ascending", "--columns", "hic15"]) == 0
+    lines = [ln.split() for ln in capsys.readouterr().out.splitlines()[2:]]
+    assert [int(ln[1]) for ln in lines] == [0, 1, 2]
 
 
 def test_matrix_plot_draws_a_criterion_over_the_axis(sweeps: dict[str, Path], tmp_path: Path) -> None:
