@@ -300,6 +300,9 @@ def outputs_equal(a: KernelOutput, ia: int, b: KernelOutput, ib: int) -> list[st
             for h in a.histories:
                 if not np.array_equal(a.histories[h][..., ia], b.histories[h][..., ib], equal_nan=True):
                     diff.append(h)
+        elif getattr(a, f.name) is None or getattr(b, f.name) is None:  # optional (metrics) outputs
+            if (getattr(a, f.name) is None) != (getattr(b, f.name) is None):
+                diff.append(f.name)
         else:
             x, y = getattr(a, f.name)[..., ia], getattr(b, f.name)[..., ib]
             if not np.array_equal(x, y, equal_nan=np.issubdtype(np.asarray(x).dtype, np.floating)):

@@ -64,9 +64,10 @@ def _parser() -> argparse.ArgumentParser:
 
     pl = sub.add_parser("plot", help="write PNG figures of a result folder")
     pl.add_argument("dir", help="result folder (written by run or simulate)")
-    pl.add_argument("--kind", choices=["history", "force-displacement", "matrix"], default="history",
+    pl.add_argument("--kind", choices=["history", "force-displacement", "matrix", "pulse"], default="history",
                     help="history: a quantity over time per item; force-displacement: spring force over crush; "
-                    "matrix: a summary metric over the study axes (default history)")
+                    "matrix: a summary metric over the study axes; pulse: the SAE J211 filtered acceleration "
+                    "of the metrics nodes in g over time in ms, beside the raw channel (default history)")
     pl.add_argument("--quantity", help="history variable or summary metric (e.g. spring_force, peak_force.cabin); "
                     "default: history spring_force; matrix peak_deceleration_g of the node named by a "
                     "peak_deceleration_g.<node> key of the study's regression: block, else of the heaviest free "
@@ -357,8 +358,9 @@ def _match_column(where: str, wanted: str, columns: list[str]) -> str:
     if wanted in columns:
         return wanted
     hits = [c for c in columns if wanted in c]
-    if len(hits) == 1:
-        return hits[0]
+    named = [c for c in hits if c.split(".", 1)[0] == wanted]  # "hic15": hic15.occupant, not hic15_t1.occupant
+    if len(hits) == 1 or len(named) == 1:
+        return hits[0] if len(hits) == 1 else named[0]
     if hits:
         raise InputError([_arg_problem(where, f"--sort {wanted!r} is ambiguous: it matches {hits}; name one")])
     import difflib

@@ -14,14 +14,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from crashstudy.kernel.codes import (  # noqa: F401
+    CRUSH,
+    DAMPER,
+    GENERAL,
+    LINEAR,
+    MATERIAL_CODES,
+    NONLINEAR,
+    PM_ACCELERATION,
+    PM_CODES,  # fmt: skip
+    PM_DISPLACEMENT,
+    PM_VELOCITY,
+)
 from crashstudy.schema.model import Crush, Damper, GeneralNonlinear, LinearElastic, Model, NonlinearElastic
 
-# material codes seen by the kernels
-LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER = 0, 1, 2, 3, 4
-MATERIAL_CODES = {"linear_elastic": LINEAR, "nonlinear_elastic": NONLINEAR,
-                  "general_nonlinear": GENERAL, "crush": CRUSH, "damper": DAMPER}  # fmt: skip
-# prescribed-motion quantities
-PM_DISPLACEMENT, PM_VELOCITY, PM_ACCELERATION = 0, 1, 2
 TIME_STEP_MODES = ("safety_factor", "dt", "tolerance")
 
 
@@ -36,6 +42,17 @@ class PathRef:
     op: str
     slots: tuple[int, ...]
     group: int = 1
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    """One ``metrics:`` entry: node index, unit direction (None: the node's initial velocity direction,
+    x when it has none), SAE J211 channel class and the criteria asked for."""
+
+    node: int
+    direction: tuple[float, ...] | None
+    cfc: int
+    criteria: tuple[str, ...]
 
 
 @dataclass(frozen=True)
@@ -70,6 +87,13 @@ class Topology:
     blocks: dict[str, slice] = field(repr=False)
     paths: dict[str, PathRef] = field(repr=False)
     n_params: int = 0
+    metrics: tuple[MetricSpec, ...] = ()
+    extra_histories: tuple[str, ...] = ()  # histories made after the kernel ("filtered_acceleration")
+
+    @property
+    def metric_nodes(self) -> tuple[int, ...]:
+        """Nodes whose acceleration the kernel records at every step, in first-use order."""
+        return tuple(dict.fromkeys(mt.node for mt in self.metrics))
 
     @property
     def n_nodes(self) -> int:
@@ -184,7 +208,7 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     for i, ld in enumerate(m.loads):
         for d in range(D):
             put("load", i * D + d, ld.force[d], f"loads.{i}.force.{d}")
-    kinds = {"displacement": PM_DISPLACEMENT, "velocity": PM_VELOCITY, "acceleration": PM_ACCELERATION}
+    kinds = PM_CODES
     pm = m.prescribed_motion
     for i, q in enumerate(pm):
         put("pm_scale", i, q.scale, f"prescribed_motion.{i}.scale")
@@ -206,6 +230,11 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     histories = ALL_HISTORIES if hist == "all" else () if hist == "none" else tuple(hist)
     if not m.rigid_walls:
         histories = tuple(h for h in histories if h != "wall_force")
+    keep = hist == "all" or (isinstance(hist, list) and "filtered_acceleration" in hist)
+    extra = ("filtered_acceleration",) if m.metrics and keep else ()
+    histories = tuple(h for h in histories if h != "filtered_acceleration")
+    metrics = tuple(MetricSpec(nidx[mt.node], _unit(mt.direction, D), mt.cfc, tuple(mt.criteria))
+                    for mt in m.metrics)  # fmt: skip
     topo = Topology(
         name=m.name, units=m.units, dim=D, node_ids=node_ids, spring_ids=spring_ids,
         curve_ids=curve_ids, wall_ids=tuple(w.id for w in m.rigid_walls),
@@ -218,8 +247,17 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
         wall_nodes=wall_nodes, has_gravity=m.gravity is not None and any(m.gravity),
         time_step_mode=mode, output_interval=m.output.interval, histories=histories,
         termination=term is not None, accuracy_check=m.accuracy_check, blocks=blocks, paths=paths, n_params=pos,
+        metrics=metrics, extra_histories=extra,
     )  # fmt: skip
     return topo, p
+
+
+def _unit(direction: str | Sequence[float] | None, dim: int) -> tuple[float, ...] | None:
+    """A metric's direction as a unit vector of ``dim`` components (None: from the initial velocity)."""
+    if direction is None:
+        return None
+    vec = np.array([1.0 if a == direction else 0.0 for a in "xy"[:dim]] if isinstance(direction, str) else direction)
+    return tuple(float(c) for c in vec / np.sqrt(np.sum(vec * vec)))
 
 
 def apply_axis(P: np.ndarray, ref: PathRef, values: np.ndarray) -> None:

@@ -43,7 +43,7 @@ INCONSISTENT = "the result folder is inconsistent: re-run with --force"
 UNFINISHED = ("results.nc is not a finished result (it has no completion mark: an unfinished run's "
               "results.nc.partial renamed by hand?): finish that run with --resume, or re-run with --force")  # fmt: skip
 CHECKSUM = "checksum"
-NOT_CHECKED = ("failure_reason", "dt_control")  # renumbered when the text tables are sorted at the end
+NOT_CHECKED = ("failure_reason", "dt_control", "criteria_note")  # renumbered when the text tables are sorted
 _ODD = np.uint64(0x9E3779B97F4A7C15)  # odd: every weight below is odd, so a change of any one word shows
 BLOCK_BYTES = 64 * 2**20  # stored bytes read at once when checking a file
 
@@ -131,6 +131,8 @@ def run_id(nc: netCDF4.Dataset) -> str:
     h = hashlib.sha256(str(nc.getncattr("plan_fingerprint")).encode())
     n = len(nc.dimensions["variant"])
     for name in (CHECKSUM, *NOT_CHECKED, *(f"{t}_text" for t in NOT_CHECKED), "status"):
+        if name not in nc.variables:  # criteria_note: only with metrics
+            continue
         v = nc.variables[name]
         for lo in range(0, max(len(nc.dimensions[v.dimensions[0]]), 1), 1_000_000):
             h.update(stored(nc, name, lo, min(lo + 1_000_000, len(nc.dimensions[v.dimensions[0]]))).tobytes())

@@ -34,12 +34,8 @@ def reset() -> None:
 
 
 def compile_first(kernel: str, batch: Any, histories: tuple[str, ...], vary: frozenset[int] | None) -> None:
-    """Compile ``kernel`` ("generic" or "generated") for ``batch`` in a child process when it is not
-    compiled yet, so that a stop request kills the compile at once (:func:`check` is polled while it
-    runs) instead of waiting for numba, which cannot be interrupted, to finish in this process."""
-    from crashstudy.kernel import choice
+    """Compile ``kernel`` for ``batch`` in a child process when it is not compiled yet, so that a stop
+    request kills the compile at once (:func:`crashstudy.kernel.entry.compile_first` polls :func:`check`)."""
+    from crashstudy.kernel.entry import compile_first as first
 
-    if kernel == "generic" and not choice.generic_ready():
-        choice.compile_foreground(("generic",), batch, histories, vary, check)
-    elif kernel == "generated" and not choice.generated_ready(batch, histories, vary):
-        choice.compile_foreground(("generated",), batch, histories, vary, check)
+    first(kernel, batch, histories, vary, check)

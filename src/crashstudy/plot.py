@@ -38,14 +38,15 @@ from matplotlib.figure import Figure
 from crashstudy.errors import InputError, Problem
 from crashstudy.plot_style import Variants, display_scale, finish, new_figure, set_xlabel, title_of, unit_text
 
-PlotKind = Literal["history", "force-displacement", "matrix"]
+PlotKind = Literal["history", "force-displacement", "matrix", "pulse"]
 Aggregate = Literal["max", "mean", "min"]
 
 ITEMS_PER_FIGURE = 6  # subplots in one PNG written by ``crashstudy plot``
 NODE_VARS = ("position", "displacement", "velocity", "acceleration")
 ITEM_DIM = {"position": "node", "displacement": "node", "velocity": "node", "acceleration": "node",
             "spring_force": "spring", "spring_elongation": "spring", "wall_force": "wall",
-            "kinetic_energy": None, "internal_energy": None, "external_work": None, "wall_energy": None}  # fmt: skip
+            "kinetic_energy": None, "internal_energy": None, "external_work": None, "wall_energy": None,
+            "filtered_acceleration": "node"}  # fmt: skip
 
 # ----------------------------------------------------------------------------------------------
 # helpers

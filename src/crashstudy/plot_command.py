@@ -116,6 +116,17 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
                                   axis_units=axis_units(ds, axes))  # fmt: skip
                 suffix = f"-{x}" + (f"-{y}" if y else "") if args.x_axis or args.y_axis else ""
                 figures.append((f"matrix-{metric}{suffix}", fig))
+        elif args.kind == "pulse":
+            from crashstudy.plot_pulse import metric_nodes, plot_pulse
+
+            if args.quantity:
+                raise _fail(where, "pulse draws filtered_acceleration beside acceleration; --quantity does not apply")
+            if "filtered_acceleration" not in ds.data_vars:
+                plot_pulse(ds)  # raises with the reason
+            nodes = _items(ds, "node", args.items, metric_nodes(ds))
+            for n, lo in enumerate(range(0, len(nodes), ITEMS_PER_FIGURE)):
+                fig = plot_pulse(ds, nodes[lo : lo + ITEMS_PER_FIGURE], args.max_variants)
+                figures.append((f"pulse{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig))
         elif args.kind == "force-displacement":
             if args.quantity:
                 raise _fail(

@@ -36,8 +36,10 @@ def topology_signature(plan: Plan) -> bytes:
                 t.pm_node, t.pm_dir, t.pm_kind, t.pm_curve, t.wall_nodes):  # fmt: skip
         h.update(np.ascontiguousarray(arr).tobytes())
         h.update(b"|")
-    meta = (t.dim, t.node_ids, t.spring_ids, t.curve_ids, t.wall_ids, t.units, t.time_step_mode, t.histories,
+    meta: tuple[object, ...] = (t.dim, t.node_ids, t.spring_ids, t.curve_ids, t.wall_ids, t.units, t.time_step_mode, t.histories,
             t.termination, t.accuracy_check, repr(plan.interval), plan.n_out, __version__)  # fmt: skip
+    if t.metrics:  # only when present: the hashes of results without metrics stay as they were
+        meta = (*meta, t.metrics, t.extra_histories)
     h.update(repr(meta).encode())
     return h.digest()
 

@@ -33,20 +33,23 @@ import xarray as xr
 
 from crashstudy import __version__, integrity
 from crashstudy.errors import InputError, Problem
-from crashstudy.kernel.output import HISTORY_SHAPES, KernelOutput
+from crashstudy.kernel.output import ALL_SHAPES, KernelOutput
+from crashstudy.metrics import METRIC_META, NOTE_TEXT, asked_nodes, result_names, standard
 from crashstudy.provenance import HASH_WORDS, text_hash
 from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study import Plan
 from crashstudy.tables import (
     CSV_MAX,
+    HISTORY_META,
     PARQUET,
     STATUS_MEANINGS,
     SUMMARY,
     SUMMARY_META,
-    TEXT_TABLES,
     decode_texts,  # fmt: skip
+    metric_arrays,
     summary_arrays,
     summary_frame,
+    text_tables,
     write_summary,
 )
 from crashstudy.units import UNIT_SYSTEMS
@@ -75,19 +78,6 @@ def _units(plan: Plan) -> dict[str, str]:
             "curve": "curve units (x: length or time, y: force or motion)"}  # fmt: skip
 
 
-HISTORY_META = {
-    "position": ("length", "node position"),
-    "displacement": ("length", "node displacement from the initial position"),
-    "velocity": ("velocity", "node velocity"),
-    "acceleration": ("acceleration", "node acceleration (forces / mass; prescribed dofs: kinematic)"),
-    "spring_force": ("force", "spring force (positive = tension)"),
-    "spring_elongation": ("length", "spring elongation (negative = compression)"),
-    "kinetic_energy": ("energy", "kinetic energy"),
-    "internal_energy": ("energy", "work done on all springs and dampers"),
-    "external_work": ("energy", "work of loads, gravity and prescribed motion"),
-    "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
-    "wall_force": ("force", "rigid wall force (momentum removed per unit time)"),
-}
 @dataclass
 class ChunkResult:
     """Results of variants ``index`` (sorted global numbers) as computed by one task."""
@@ -100,6 +90,7 @@ class ChunkResult:
     reasons: np.ndarray  # (V,) object: texts, "" where ok
     hashes: np.ndarray  # (V, HASH_WORDS) uint64
     error_estimate: np.ndarray  # (V,) NaN unless the model asks for accuracy_check
+    criteria: Any = None  # crashstudy.metrics.ChunkCriteria of a model with metrics, else None
 
 
 class ResultWriter:
@@ -135,7 +126,7 @@ class ResultWriter:
             self._verify_resumed()
         else:
             self.nc = self._create()
-        self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in TEXT_TABLES}
+        self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in text_tables(plan.topology)}
 
     def _verify_resumed(self) -> None:
         """Forget the done variants whose data no longer match their checksum: they are computed again.
@@ -196,9 +187,9 @@ class ResultWriter:
             for path, values in p.axis_values(lo, min(V, lo + AXIS_BLOCK)).items():
                 nc.variables[path][lo : lo + len(values)] = values
         cv = min(V, 4096)
-        for name in topo.histories:
-            dims = ("variant", "time", *HISTORY_SHAPES[name])
-            sizes = [1, p.n_out] + [len(nc.dimensions[d]) for d in HISTORY_SHAPES[name]]
+        for name in topo.histories + topo.extra_histories:
+            dims = ("variant", "time", *ALL_SHAPES[name])
+            sizes = [1, p.n_out] + [len(nc.dimensions[d]) for d in ALL_SHAPES[name]]
             v = nc.createVariable(name, "f8", dims, fill_value=np.nan, chunksizes=[max(1, s) for s in sizes])
             v.units, v.long_name = units[HISTORY_META[name][0]], HISTORY_META[name][1]
         for name, (dims, kind, long) in SUMMARY_META.items():
@@ -207,12 +198,17 @@ class ResultWriter:
             shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
             v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
             v.units, v.long_name = units[kind], long
+        for name in result_names(topo):  # the crash criteria (crashstudy.metrics)
+            kind, long = METRIC_META[name]
+            v = nc.createVariable(name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes])
+            v.units, v.long_name, v.standard = units[kind], long, standard(name)
+            v.nodes = " ".join(asked_nodes(topo, name))  # the others are NaN (and have no summary column)
         small: dict[str, Any] = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
         st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
         st.units, st.long_name = "1", "ok or failed (failure_reason says why)"
         st.flag_values, st.flag_meanings = np.arange(len(STATUS_MEANINGS), dtype="i1"), " ".join(STATUS_MEANINGS)
         nc.createDimension("text_len", TEXT_LEN)
-        for name, long in TEXT_TABLES.items():
+        for name, long in text_tables(topo).items():
             nc.createDimension(f"{name}_kind", None)
             tv = nc.createVariable(f"{name}_text", "S1", (f"{name}_kind", "text_len"), chunksizes=[16, TEXT_LEN])
             tv._Encoding = "utf-8"
@@ -252,6 +248,8 @@ class ResultWriter:
         for name, arr in o.histories.items():
             data[name] = np.ascontiguousarray(np.moveaxis(arr, -1, 0), dtype=np.float64)
         data.update(summary_arrays(self.plan, res))
+        if self.plan.topology.metrics:
+            data.update(metric_arrays(self.plan, res))
         data["status"] = (o.status != 0).astype("i1")
         data["input_hash"] = np.ascontiguousarray(res.hashes, dtype=np.uint64)
         names = integrity.checked_names(nc)
@@ -260,6 +258,8 @@ class ResultWriter:
             nc.variables[name][lo:hi] = data[name]
         nc.variables["failure_reason"][lo:hi] = self._codes("failure_reason", res.reasons)
         nc.variables["dt_control"][lo:hi] = self._codes("dt_control", res.dt_control)
+        if res.criteria is not None:
+            nc.variables[NOTE_TEXT][lo:hi] = self._codes(NOTE_TEXT, np.where(o.status != 0, "", res.criteria.notes))
         nc.variables["done"][lo:hi] = 1
         nc.variables[integrity.CHECKSUM][lo:hi] = integrity.variant_sums(data, names)
         nc.sync()
@@ -290,7 +290,7 @@ class ResultWriter:
             a, b = int(nrun[0]), int(nrun[-1]) + 1
             c, d = int(orun[0]), int(orun[-1]) + 1
             for n in names:
-                if n in TEXT_TABLES:
+                if n in self.tables:  # texts: re-coded into this file's tables
                     self.nc.variables[n][a:b] = self._codes(n, read_texts(old, n, c, d))
                 elif n == "status":
                     self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
@@ -463,8 +463,10 @@ class Results:
             return pd.read_parquet(self.dir / PARQUET)
         csv = self.dir / SUMMARY
         if csv.exists():
-            df = pd.read_csv(csv, dtype={"status": str, "failure_reason": str, "dt_control": str})
-            df["failure_reason"] = df["failure_reason"].fillna("")
+            df = pd.read_csv(csv, dtype={"status": str, "failure_reason": str, "dt_control": str, NOTE_TEXT: str})
+            for name in ("failure_reason", NOTE_TEXT):
+                if name in df:
+                    df[name] = df[name].fillna("")
             return df
         _ = self.dataset  # opens the raw file
         assert self._raw is not None

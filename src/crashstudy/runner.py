@@ -21,8 +21,8 @@ import numpy as np
 from crashstudy import interrupt
 from crashstudy.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
-from crashstudy.kernel import choice
-from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
+from crashstudy.kernel import choice, entry
+from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
 from crashstudy.outdir import prepare_output, remove_stale_plots, study_of
 from crashstudy.provenance import variant_hashes
 from crashstudy.results import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
@@ -44,60 +44,29 @@ def chunk_size(plan: Plan) -> int:
     work = float(np.mean(sample.n_steps)) * max(topo.n_springs, 1)
     by_work = max(BASE_CHUNK, int(WORK_PER_CHUNK / max(work, 1.0)))
     per = {"node": topo.n_nodes * topo.dim, "spring": topo.n_springs, "wall": len(topo.wall_ids)}
-    from crashstudy.kernel.output import HISTORY_SHAPES
+    from crashstudy.kernel.output import ALL_SHAPES
 
-    width = sum(per[HISTORY_SHAPES[h][0]] if HISTORY_SHAPES[h] else 1 for h in topo.histories)
+    width = sum(per[ALL_SHAPES[h][0]] if ALL_SHAPES[h] else 1 for h in topo.histories + topo.extra_histories)
     per_variant = 8 * plan.n_out * (width + 4)  # + the kernel's energy buffer
-    return int(max(1, min(MAX_CHUNK, by_work, HISTORY_BUDGET // max(per_variant, 1))))
+    # the per-step record of the metric nodes (crashstudy.metrics runs a bigger chunk in several batches)
+    record = 8 * (float(np.max(sample.n_steps, initial=0)) + 1) * len(topo.metric_nodes) * topo.dim
+    return int(max(1, min(MAX_CHUNK, by_work, HISTORY_BUDGET // max(per_variant, 1),
+                          HISTORY_BUDGET // max(record, 1.0))))  # fmt: skip
 
 
 def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
                vary: frozenset[int] | None = None, repeat: float = 1.0) -> KernelOutput:  # fmt: skip
-    """Integrate ``batch`` with ``kernel``: "compiled" (the fastest kernel that is compiled, or the
-    NumPy reference while none is: :func:`crashstudy.kernel.choice.pick`), "generic", "generated" or
-    "reference". ``vary``: indices of the curves the study varies (see :func:`varying_curves`). The
-    environment variable ``CRASHSTUDY_KERNEL`` overrides "compiled" (docs/kernels.md). ``repeat``: how
-    many batches like this one the run holds (for the choice)."""
-    kernel = choice.pick(batch, histories, vary, kernel, repeat)
-    if kernel == "reference":
-        from crashstudy.kernel.reference import run_reference
+    """:func:`crashstudy.kernel.entry.run_batch`, abandoned at a stop request (Ctrl-C)."""
+    return entry.run_batch(batch, histories, n_out, kernel, vary, repeat, interrupt.check)
 
-        with np.errstate(all="ignore"):  # overflow is found by the energy check (status), as in the compiled kernels
-            return run_reference(batch, histories, n_out, interrupt.check)
-    interrupt.compile_first(kernel, batch, histories, vary)  # a compile in a child process: Ctrl-C kills it
-    if kernel == "generated":
-        from crashstudy.kernel.generated import run_generated
 
-        out = run_generated(batch, histories, n_out, vary)
-        choice.note_loaded("generated")
-        return out
-    from crashstudy.kernel.compiled import run_compiled
-
-    choice.note_loaded("generic")
-    return run_compiled(batch, histories, n_out)
+def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled", repeat: float = 1.0) -> np.ndarray:
+    """:func:`crashstudy.kernel.entry.error_estimate`, abandoned at a stop request (Ctrl-C)."""
+    return entry.error_estimate(batch, out, kernel, repeat, interrupt.check)
 
 
 kernel_override = choice.kernel_override
 __all__ = ["prepare_output", "remove_stale_plots", "run_plan", "run_study", "simulate"]
-
-
-def varying_curves(plan: Plan) -> frozenset[int]:
-    """Indices of the curves a study's axes change (``curves.<id>...`` paths)."""
-    ids = plan.topology.curve_ids
-    names = {ax.path.split(".")[1] for ax in plan.axes if ax.path.startswith("curves.")}
-    return frozenset(ids.index(c) for c in names if c in ids)
-
-
-def _reorder(out: KernelOutput, take: np.ndarray, V: int, histories: tuple[str, ...], n_out: int,
-             S: int, N: int, D: int, W: int) -> KernelOutput:  # fmt: skip
-    """Spread results computed for columns ``take`` (unique, sorted) back to all ``V`` variants."""
-    full = allocate(S, N, D, W, V, histories, n_out)
-    for name in ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed_energy",
-                 "peak_acceleration", "peak_wall_force", "energy_error", "final_energy"):  # fmt: skip
-        getattr(full, name)[...] = getattr(out, name)[..., take]
-    for h in histories:
-        full.histories[h][...] = out.histories[h][..., take]
-    return full
 
 
 def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled", repeat: float | None = None) -> ChunkResult:
@@ -122,15 +91,14 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled", repeat: fl
         uniq, inverse = P[:, :1], np.zeros(V, dtype=np.int64)
     inverse = inverse.reshape(-1)
     batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
-    order = np.argsort(batch.n_steps, kind="stable")
-    sorted_batch = batch.take(order)
     repeat = plan.n_variants / max(V, 1) if repeat is None else repeat
-    out = run_kernel(sorted_batch, topo.histories, plan.n_out, kernel, varying_curves(plan), repeat)
-    estimate = error_estimate(sorted_batch, out, kernel, repeat) if topo.accuracy_check else np.full(len(order), np.nan)
-    pos = np.empty_like(order)
-    pos[order] = np.arange(len(order))
-    N, D, S, W = topo.n_nodes, topo.dim, topo.n_springs, len(topo.wall_ids)
-    full = _reorder(out, pos[inverse], V, topo.histories, plan.n_out, S, N, D, W)
+    recorder = None
+    if topo.metrics:
+        from crashstudy.metrics import Recorder
+
+        recorder = Recorder(topo, plan.n_out)
+    full, estimate = entry.run_ordered(batch, topo.histories, plan.n_out, inverse, kernel, plan.varying_curves, repeat,
+                                       topo.accuracy_check, interrupt.check, recorder)  # fmt: skip
     dt, dt_crit = steps.dt[inverse], steps.dt_crit[inverse]
     control = _control_texts(topo, steps.control_node[inverse], steps.control_spring[inverse])
     user_dt = P[topo.blocks["time_step"].start]
@@ -138,7 +106,7 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled", repeat: fl
     for k in np.flatnonzero(full.status):  # texts only for the failed variants
         reasons[k] = _reason(full, int(k), topo.spring_ids, user_dt[k], dt_crit[k], control[k])
     return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, lo, hi),
-                       estimate[pos[inverse]])  # fmt: skip
+                       estimate, full.criteria)  # fmt: skip
 
 
 def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarray:
@@ -149,29 +117,6 @@ def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarra
     texts = np.array([("none" if n < 0 else f"node {topo.node_ids[n]}")
                       + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "") for n, s in pairs.T], dtype=object)  # fmt: skip
     return texts[inv.reshape(-1)] if len(node) else np.zeros(0, dtype=object)
-
-
-def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled", repeat: float = 1.0) -> np.ndarray:
-    """Richardson estimate of the relative error of the reported peaks, per variant.
-
-    The variants are run again at half the step; for a second-order method the error of a value
-    ``X_h`` is about ``(X_h - X_{h/2}) * 4/3``. The estimate is the largest relative error over the
-    peak forces and peak decelerations (items below 1e-9 of the variant's largest value of that kind
-    are left out). Absorbed energy is not included: for an elastic spring it is the energy stored at
-    the end time, a phase-sensitive value whose relative error says little about the peaks.
-    """
-    import dataclasses
-
-    half = dataclasses.replace(batch, dt=batch.dt / 2, n_steps=batch.n_steps * 2, out_every=batch.out_every * 2)
-    fine = run_kernel(half, (), 1, kernel, repeat=repeat)
-    worst = np.zeros(batch.n_variants)
-    for name in ("peak_force", "peak_acceleration"):
-        coarse, ref = getattr(out, name), getattr(fine, name)
-        scale = np.max(np.abs(ref), axis=0, initial=0.0)
-        keep = np.abs(ref) > 1e-9 * scale
-        rel = np.divide(np.abs(coarse - ref) * 4.0 / 3.0, np.abs(ref), out=np.zeros_like(ref), where=keep)
-        worst = np.maximum(worst, np.max(rel, axis=0, initial=0.0))
-    return np.where((out.status == 0) & (fine.status == 0), worst, np.nan)
 
 
 def _reason(out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float, dt_crit: float, control: str) -> str:
@@ -238,8 +183,9 @@ def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | N
     Returns (whether chunks should stay small, the run's estimated seconds, what to start after it)."""
     topo = plan.topology
     sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
-    vary = varying_curves(plan)
-    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel)
+    vary = plan.varying_curves
+    rec = topo.metric_nodes  # metrics: the kernels record these nodes at every step (their own generated kernel)
+    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, rec)
     if start is None:
         return False, None, None
     do = choice.decide(start, choice.background_min_seconds() < float("inf"))
@@ -252,8 +198,8 @@ def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | N
 
     if do.foreground:
         say(f"compiling {what(do.foreground)}; Ctrl-C stops")
-        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check)
-    if do.now and choice.start_background(do.now, sample, topo.histories, vary) is not None:
+        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec)
+    if do.now and choice.start_background(do.now, sample, topo.histories, vary, rec) is not None:
         say(f"compiling {what(do.now)} in the background"
             + (f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
                "when it is ready" if do.small_chunks else ""))  # fmt: skip
@@ -261,7 +207,7 @@ def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | N
         return False, start.reference_seconds, None
 
     def later() -> None:
-        if choice.start_background(do.after, sample, topo.histories, vary) is not None:
+        if choice.start_background(do.after, sample, topo.histories, vary, rec) is not None:
             say(f"compiling {what(do.after)} in the background for the next run")
 
     return do.small_chunks, do.estimate, later if do.after else None

@@ -15,6 +15,7 @@ import numpy as np
 from crashstudy.batch import build_batch
 from crashstudy.compiler import apply_axis
 from crashstudy.errors import Problem
+from crashstudy.metrics import plan_warnings
 from crashstudy.schema import validate_model_data
 from crashstudy.schema.study import Study
 from crashstudy.study import DICT_STUDY, Axis, Plan, _apply_set
@@ -47,6 +48,7 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     m, _ = validate_model_data(data)
     where = plan.study_file or plan.model_file
     warnings = dt_warnings + (unit_warnings(m, _first_dt_crit(plan), where) if m is not None else [])
+    warnings += plan_warnings(plan)
     if plan.study_file == DICT_STUDY:
         problems = [
             Problem(p.file, None, p.field, p.message) if p.file == DICT_STUDY else p for p in problems

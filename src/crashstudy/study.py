@@ -91,6 +91,15 @@ class Plan:
                 return False
         return True
 
+    @functools.cached_property
+    def varying_curves(self) -> frozenset[int]:
+        """Indices of the curves whose knots some axis changes (the axes' parameter slots that fall in a
+        curve's knots): the generated kernel keeps the other curves as constants."""
+        touched = {s for ax in self.axes for s in ax.ref.slots}
+        off, blocks = self.topology.curve_offsets, self.topology.blocks
+        return frozenset(c for c in range(len(off) - 1) for b in ("cx", "cy_") if b in blocks
+                         and any(blocks[b].start + k in touched for k in range(int(off[c]), int(off[c + 1]))))  # fmt: skip
+
     def axis_values(self, lo: int, hi: int) -> dict[str, np.ndarray]:
         """Value of every axis for variants ``lo`` .. ``hi - 1``."""
         idx = np.arange(lo, hi)
@@ -171,6 +180,16 @@ def _apply_set(data: dict[str, Any], overrides: dict[str, Any], sdoc: LoadedYaml
     if problems:
         raise InputError(problems)
     return data
+
+
+def _set_problem(sdoc: LoadedYaml, overrides: dict[str, Any], p: Problem) -> Problem:
+    """A problem of the model after ``set``: at the study's ``set`` line, or inside a ``metrics`` list that
+    ``set`` gives (its entry's own line and field path: ``set.metrics.0.node``)."""
+    head = p.field.split(".")[0]
+    if head == "metrics" and "metrics" in overrides:
+        path = ("set", *(int(k) if k.isdigit() else k for k in p.field.split(".")))
+        return _study_problem(sdoc, path, f"after 'set' the model is invalid: {p.message}")
+    return _study_problem(sdoc, ("set",), f"after 'set' the model is invalid: {p.field}: {p.message}")
 
 
 def _check(topo: Topology, base: np.ndarray, ref: PathRef, values: np.ndarray, interval: float) -> ParameterCheck:
@@ -452,8 +471,7 @@ def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
     if isinstance(found, ValidationError) or found:
         errs = (pydantic_problems(found, LoadedYaml(data, mdoc.text, mdoc.file, {}), Model)
                 if isinstance(found, ValidationError) else located(LoadedYaml(data, "", mdoc.file, {}), found))  # fmt: skip
-        raise InputError([_study_problem(sdoc, ("set",), f"after 'set' the model is invalid: {p.field}: {p.message}")
-                          for p in errs])  # fmt: skip
+        raise InputError([_set_problem(sdoc, study.set, p) for p in errs])
     assert m is not None
     topo, base = compile_model(m)
     ends = [v for grp in [study.matrix, *study.zip] for path, vals in grp.items() if path == "end_time" for v in vals]

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
+from crashstudy.metrics import METRIC_META, NOTE_LONG, NOTE_TEXT, asked_nodes
 from crashstudy.safefs import clear_entry, open_new
 from crashstudy.units import UNIT_SYSTEMS
 
@@ -42,7 +43,25 @@ SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
     "final_internal_energy": ((), "energy", "internal energy at the end"),
     "error_estimate": ((), "1", "estimated relative error of the peaks (accuracy_check: re-run at dt/2)"),
 }
+HISTORY_META = {  # name: (unit kind, long name)
+    "position": ("length", "node position"),
+    "displacement": ("length", "node displacement from the initial position"),
+    "velocity": ("velocity", "node velocity"),
+    "acceleration": ("acceleration", "node acceleration (forces / mass; prescribed dofs: kinematic)"),
+    "spring_force": ("force", "spring force (positive = tension)"),
+    "spring_elongation": ("length", "spring elongation (negative = compression)"),
+    "kinetic_energy": ("energy", "kinetic energy"),
+    "internal_energy": ("energy", "work done on all springs and dampers"),
+    "external_work": ("energy", "work of loads, gravity and prescribed motion"),
+    "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
+    "wall_force": ("force", "rigid wall force (momentum removed per unit time)"),
+    "filtered_acceleration": ("g", "resultant acceleration of a metric node, SAE J211 filtered (its cfc)"),
+}
 
+
+def text_tables(topo: Any) -> dict[str, str]:
+    """The text tables of a result file: ``TEXT_TABLES``, and ``criteria_note`` with metrics."""
+    return {**TEXT_TABLES, NOTE_TEXT: NOTE_LONG} if topo.metrics else dict(TEXT_TABLES)
 
 
 def _categorical(ds: xr.Dataset, sub: xr.Dataset, name: str) -> Any:
@@ -65,12 +84,12 @@ def _categorical(ds: xr.Dataset, sub: xr.Dataset, name: str) -> Any:
 def decode_texts(ds: xr.Dataset) -> xr.Dataset:
     """``ds`` with ``status``, ``failure_reason`` and ``dt_control`` as texts (the tables dropped)."""
     out = ds
-    for name in ("status", *TEXT_TABLES):
+    for name in ("status", *TEXT_TABLES, NOTE_TEXT):
         if name in ds and ds[name].dtype.kind in "iuf":
             texts = np.asarray(_categorical(ds, ds, name), dtype=str)
             long = ds[name].attrs.get("long_name", "").split(": index into")[0]
             out = out.assign({name: (ds[name].dims, texts, {"units": "", "long_name": long})})
-    return out.drop_vars([f"{n}_text" for n in TEXT_TABLES if f"{n}_text" in out])
+    return out.drop_vars([f"{n}_text" for n in (*TEXT_TABLES, NOTE_TEXT) if f"{n}_text" in out])
 
 
 def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.DataFrame:
@@ -87,7 +106,8 @@ def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[
         cols[ax] = sub[ax].values
     for name in ("status", "failure_reason"):
         cols[name] = _categorical(ds, sub, name)
-    for name, (dims, _, _) in SUMMARY_META.items():
+    dims_of = {**{n: d for n, (d, _, _) in SUMMARY_META.items()}, **{n: ("node",) for n in METRIC_META}}
+    for name, dims in dims_of.items():
         if name not in sub:
             continue
         arr = sub[name].values
@@ -95,9 +115,13 @@ def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[
             cols[name] = arr
         else:
             ids = sub[dims[0]].values.astype(str)
+            asked = ds[name].attrs.get("nodes", "").split() if name in METRIC_META else ids
             for k, item in enumerate(ids):
-                cols[f"{name}.{item}"] = arr[:, k]
+                if item in asked:  # a criterion: only the nodes that ask for it (no columns of NaN)
+                    cols[f"{name}.{item}"] = arr[:, k]
     cols["dt_control"] = _categorical(ds, sub, "dt_control")
+    if NOTE_TEXT in sub:
+        cols[NOTE_TEXT] = _categorical(ds, sub, NOTE_TEXT)
     return cols
 
 
@@ -122,7 +146,8 @@ def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000,
                 table = pa.table(summary_columns(ds, lo, min(n, lo + chunk)))
                 if not writers:
                     # dictionary pages for the texts only: trying them on every float column doubled the time
-                    writers.append(pq.ParquetWriter(raw, table.schema, use_dictionary=["status", *TEXT_TABLES]))
+                    texts = [n for n in ("status", *TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
+                    writers.append(pq.ParquetWriter(raw, table.schema, use_dictionary=texts))
                     if csv:
                         writers.append(pcsv.CSVWriter(fh, table.schema))
                 for w in writers:
@@ -167,6 +192,17 @@ def summary_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
     return out
 
 
+def metric_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
+    """The crash criteria of a chunk, (variants, nodes) each, NaN where a variant failed."""
+    failed = res.out.status != 0
+    out = {}
+    for name, arr in res.criteria.values.items():
+        a = np.array(arr, dtype=np.float64)
+        a[failed] = np.nan
+        out[name] = a
+    return out
+
+
 def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
     """The summary table of a computed chunk, without writing files: the columns of ``summary.parquet``
     (optimisation and calibration evaluate candidates this way)."""
@@ -177,6 +213,10 @@ def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
     data["status"] = ("variant", np.where(res.out.status != 0, "failed", "ok"))
     data["failure_reason"] = ("variant", np.asarray(res.reasons, dtype=str))
     data["dt_control"] = ("variant", np.asarray(res.dt_control, dtype=str))
+    if res.criteria is not None:
+        data.update({name: (("variant", "node"), a, {"nodes": " ".join(asked_nodes(topo, name))})
+                     for name, a in metric_arrays(plan, res).items()})  # fmt: skip
+        data[NOTE_TEXT] = ("variant", np.where(res.out.status != 0, "", np.asarray(res.criteria.notes, dtype=str)))
     lo, hi = int(res.index[0]), int(res.index[-1]) + 1
     for path, values in plan.axis_values(lo, hi).items():
         data[path] = ("variant", values)

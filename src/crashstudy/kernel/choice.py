@@ -35,13 +35,15 @@ import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from crashstudy.batch import Batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.cache import cache_dir, why_not_private
+
+if TYPE_CHECKING:
+    from crashstudy.batch import Batch
 
 REF_STEP = 60e-6  # [s] per time step of the NumPy reference, whatever the batch
 REF_SPRING_STEP = 50e-6  # [s] per time step and spring
@@ -54,6 +56,7 @@ BACKGROUND_MIN = 2.0  # [s] of reference time of a run above which missing kerne
 KERNELS = ("reference", "generic", "generated")
 LOCK_NAME = "compile.lock"
 REF_CHUNK = 1024  # variants per chunk while the reference runs and a compile may finish
+RECORDING = KERNELS  # kernels that record the per-step acceleration of metric nodes (crash criteria)
 _LOADED: set[str] = set()  # kinds of compiled kernel loaded in this process
 
 
@@ -108,10 +111,11 @@ def generic_ready() -> bool:
         return False
 
 
-def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None) -> bool:
+def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
+                    record: tuple[int, ...] = ()) -> bool:  # fmt: skip
     from crashstudy.kernel import generated
 
-    return generated.unsupported(b) is None and generated.is_compiled(b, histories, vary)
+    return generated.unsupported(b) is None and generated.is_compiled(b, histories, vary, record)
 
 
 def compiling(folder: Path | None = None) -> bool:
@@ -130,16 +134,20 @@ def compiling(folder: Path | None = None) -> bool:
 
 
 def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: str = "compiled",
-         repeat: float = 1.0) -> str:  # fmt: skip
+         repeat: float = 1.0, record: tuple[int, ...] = ()) -> str:  # fmt: skip
     """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
     one expected to finish the run first among those compiled and the reference; the generic kernel
     compiled now only when the reference would take longer than that (and no other process is
     compiling). ``repeat``: how many batches like ``b`` the run holds (loading a compiled kernel is
-    paid once per process, so it is weighed against the whole run, not one chunk)."""
+    paid once per process, so it is weighed against the whole run, not one chunk). ``record``: the
+    batch needs the per-step acceleration of its metric nodes; only the kernels of ``RECORDING`` keep
+    it, so another is never picked (not even when named: the criteria are never silently missing)."""
     from crashstudy.kernel import generated
 
     if kernel == "compiled":
         kernel = kernel_override()
+    if record and kernel not in (*RECORDING, "compiled"):
+        return "reference"
     if kernel == "generated" and generated.unsupported(b) is not None:
         return "generic"
     if kernel != "compiled":
@@ -154,12 +162,13 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
 
     if t_ref <= LOAD:  # nothing compiled can win once loading it is counted
         return "reference"
+    usable = RECORDING if record else KERNELS
     times = {"reference": t_ref}
-    if generated_ready(b, histories, vary):
+    if "generated" in usable and generated_ready(b, histories, vary, record):
         times["generated"] = run_time("generated", GENERATED_RATE)
-    if generic_ready():
+    if "generic" in usable and generic_ready():
         times["generic"] = run_time("generic", GENERIC_RATE)
-    elif len(times) == 1 and t_ref > GENERIC_COMPILE + run_time("generic", GENERIC_RATE) and not compiling():
+    elif "generic" in usable and len(times) == 1 and t_ref > GENERIC_COMPILE + run_time("generic", GENERIC_RATE) and not compiling():
         return "generic"
     return min(times, key=lambda k: times[k])
 
@@ -234,9 +243,10 @@ def decide(p: StartPlan, background: bool) -> Decision:
 
 
 def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, n_variants: int,
-               kernel: str = "compiled") -> StartPlan | None:  # fmt: skip
+               kernel: str = "compiled", record: tuple[int, ...] = ()) -> StartPlan | None:  # fmt: skip
     """What a run of ``n_variants`` like ``b`` (a sample of them) is missing, or None (a kernel was
-    named, everything is compiled, or the run is too short to care)."""
+    named, everything is compiled, or the run is too short to care). ``record``: the metric nodes
+    whose acceleration the kernels keep at every step (a generated kernel of its own)."""
     from crashstudy.kernel import generated
 
     if kernel != "compiled" or kernel_override() != "compiled":
@@ -255,7 +265,7 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
         costs["generic"] = GENERIC_COMPILE
     gen_ok = generated.unsupported(b) is None
     if gen_ok:
-        if generated.is_compiled(b, histories, vary):
+        if generated.is_compiled(b, histories, vary, record):
             return None
         costs["generated"] = generated_compile_seconds(S, D, b.wall_nodes.shape[0])
     if not costs:
@@ -266,8 +276,8 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     return StartPlan(costs, t_ref, t_generic, t_fast, shape)
 
 
-def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
-                     ) -> subprocess.Popen[bytes] | None:  # fmt: skip
+def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
+                     record: tuple[int, ...] = ()) -> subprocess.Popen[bytes] | None:  # fmt: skip
     """Compile ``kernels`` in a detached low-priority process (it outlives this run, so the kernels
     are ready for the next one); None when no private cache folder is available."""
     from crashstudy.kernel import generated
@@ -280,7 +290,7 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
     with os.fdopen(fd, "wb") as fh:
         np.savez(fh, **{k: v for k, v in vars(sample).items()})
     job = {"kernels": list(kernels), "histories": list(histories), "vary": sorted(vary or ()),
-           "const": generated._constant_curves(b, vary), "npz": npz}  # fmt: skip
+           "const": generated._constant_curves(b, vary), "npz": npz, "record": [int(n) for n in record]}  # fmt: skip
     cmd = [sys.executable, "-m", "crashstudy.kernel.warm", json.dumps(job)]
     return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True, preexec_fn=_lower_priority)  # fmt: skip
@@ -291,9 +301,9 @@ def _lower_priority() -> None:  # pragma: no cover - runs in the child
 
 
 def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...],
-                       vary: frozenset[int] | None, stop: Any) -> None:  # fmt: skip
+                       vary: frozenset[int] | None, stop: Any, record: tuple[int, ...] = ()) -> None:  # fmt: skip
     """Compile ``kernels`` in a child process and wait; ``stop()`` raising (Ctrl-C) kills it at once."""
-    proc = start_background(kernels, b, histories, vary)
+    proc = start_background(kernels, b, histories, vary, record)
     if proc is None:
         return
     try:

@@ -3,18 +3,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-# failure codes (status); 0 = ok
-OK, UNSTABLE, CRUSHED_TO_ZERO, INVALID = 0, 1, 2, 3
+from crashstudy.kernel.codes import CRUSHED_TO_ZERO, HISTORY_ORDER, HISTORY_SHAPES, INVALID, OK, UNSTABLE
 
-HISTORY_SHAPES = {  # dims between time and variant
-    "position": ("node", "axis"), "displacement": ("node", "axis"), "velocity": ("node", "axis"),
-    "acceleration": ("node", "axis"), "spring_force": ("spring",), "spring_elongation": ("spring",),
-    "kinetic_energy": (), "internal_energy": (), "external_work": (), "wall_energy": (), "wall_force": ("wall",),
-}  # fmt: skip
-HISTORY_ORDER = tuple(HISTORY_SHAPES)
+# histories made after the kernel from its per-step record (crashstudy.metrics): never passed to a kernel
+EXTRA_SHAPES = {"filtered_acceleration": ("node",)}
+ALL_SHAPES = {**HISTORY_SHAPES, **EXTRA_SHAPES}
+
+__all__ = ["ALL_SHAPES", "CRUSHED_TO_ZERO", "EXTRA_SHAPES", "HISTORY_ORDER", "HISTORY_SHAPES", "INVALID", "OK",
+           "UNSTABLE", "KernelOutput", "allocate", "concatenate"]  # fmt: skip
 
 
 @dataclass
@@ -37,12 +37,34 @@ class KernelOutput:
     energy_error: np.ndarray  # (V,) max relative energy balance error
     final_energy: np.ndarray  # (4, V) KE, IE, W_ext, E_wall at the end [energy]
     histories: dict[str, np.ndarray] = field(default_factory=dict)
+    # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes at every step n = 0 .. T - 1,
+    # as the acceleration history has it; zero after a variant's last step (t_end). None: not recorded
+    step_acceleration: np.ndarray | None = None
+    # derived from the record after the kernel (crashstudy.metrics.ChunkCriteria: .take(columns)); None: none
+    criteria: Any = None
+
+
+def concatenate(parts: list[KernelOutput]) -> KernelOutput:
+    """One output of the variants of ``parts`` in order (their step records padded to the longest)."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    names = [f for f in vars(first) if f not in ("histories", "step_acceleration", "criteria")]
+    out = KernelOutput(**{n: np.concatenate([getattr(p, n) for p in parts], axis=-1) for n in names},
+                       histories={h: np.concatenate([p.histories[h] for p in parts], axis=-1)
+                                  for h in first.histories})  # fmt: skip
+    recs = [p.step_acceleration for p in parts]
+    if all(r is not None for r in recs):
+        T = max(r.shape[0] for r in recs if r is not None)
+        out.step_acceleration = np.concatenate(
+            [np.pad(r, [(0, T - r.shape[0])] + [(0, 0)] * (r.ndim - 1)) for r in recs if r is not None], axis=-1)
+    return out
 
 
 def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...], n_out: int) -> KernelOutput:
     """An output with summaries zeroed and histories filled with NaN."""
     sizes = {"node": N, "axis": D, "spring": S, "wall": W}
-    hist = {h: np.full((n_out, *(sizes[d] for d in HISTORY_SHAPES[h]), V), np.nan) for h in histories}
+    hist = {h: np.full((n_out, *(sizes[d] for d in ALL_SHAPES[h]), V), np.nan) for h in histories}
     return KernelOutput(
         status=np.zeros(V, dtype=np.int64), fail_time=np.full(V, np.nan), fail_item=np.full(V, -1, dtype=np.int64),
         t_end=np.zeros(V), peak_force=np.zeros((S, V)), max_crush=np.zeros((S, V)),

@@ -23,28 +23,44 @@ Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0`
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crashstudy.batch import Batch
-from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
 from crashstudy.kernel import materials as mat
+from crashstudy.kernel.codes import (
+    CRUSH,
+    DAMPER,
+    GENERAL,
+    LINEAR,
+    NONLINEAR,
+    PM_ACCELERATION,
+    PM_DISPLACEMENT,
+    TINY_LENGTH,
+    UNSTABLE_ENERGY,
+)
+
+if TYPE_CHECKING:
+    from crashstudy.batch import Batch
+
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 
 STOP_EVERY = 256  # steps between calls of run_reference's ``check``
-TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
-UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + |W_ext| (+ a round-off
-# floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
+__all__ = ["TINY_LENGTH", "UNSTABLE_ENERGY", "run_reference"]
 
 
-def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Callable[[], None] | None = None
-                  ) -> KernelOutput:  # fmt: skip
+def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Callable[[], None] | None = None,
+                  record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
     """Integrate every variant of ``b``; see the module docstring for the step. ``check`` is called
-    every ``STOP_EVERY`` steps; it raises to abandon the batch (Ctrl-C)."""
+    every ``STOP_EVERY`` steps; it raises to abandon the batch (Ctrl-C). ``record``: nodes whose
+    acceleration is kept at every step (``KernelOutput.step_acceleration``, for the crash criteria)."""
     N, D, V = b.x0.shape
     S = len(b.spring_i)
     W = b.wall_nodes.shape[0]
     out = allocate(S, N, D, W, V, histories, n_out)
+    rec_nodes = np.asarray(record, dtype=np.int64)
+    if len(record):
+        out.step_acceleration = np.zeros((int(b.n_steps.max(initial=-1)) + 1, len(record), D, V))
     out.status[:] = np.where(b.invalid > 0, INVALID, 0)
     out.fail_item[:] = np.where(b.invalid > 0, b.invalid, -1)
     out.fail_time[:] = np.where(b.invalid > 0, 0.0, np.nan)
@@ -200,6 +216,8 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         out.fail_item[:] = np.where(gone, crushed, out.fail_item)
         out.fail_time[:] = np.where(bad | gone, t, out.fail_time)
         ok = act & ~bad & ~gone
+        if out.step_acceleration is not None:
+            out.step_acceleration[n] = np.where(ok, a[rec_nodes], 0.0)
 
         rec = ok & (n % b.out_every == 0) & (n // b.out_every < n_out)  # the last step may pass the last sample
         if rec.any() and histories:
@@ -237,7 +255,7 @@ def spring_knotted(b: Batch) -> np.ndarray:
 
 
 def knot_peak_np(cand: np.ndarray, e_lo: np.ndarray, e_hi: np.ndarray, xk: np.ndarray, yk: np.ndarray) -> np.ndarray:
-    """NumPy twin of :func:`crashstudy.kernel.scalar.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
+    """NumPy twin of :func:`crashstudy.kernel.laws.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
     ak = np.abs(yk)
     return np.where((xk > e_lo) & (xk < e_hi) & (ak > cand), ak, cand)
 

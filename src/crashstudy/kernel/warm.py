@@ -14,12 +14,13 @@ import fcntl
 import json
 import os
 import sys
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 
 
 def main(argv: list[str]) -> int:
-    from crashstudy.batch import Batch
     from crashstudy.kernel.cache import checked_dir
     from crashstudy.kernel.choice import LOCK_NAME
 
@@ -31,9 +32,10 @@ def main(argv: list[str]) -> int:
     finally:
         if os.path.dirname(os.path.abspath(job["npz"])) == str(folder):
             os.unlink(job["npz"])
-    b = Batch(**arrays)
+    b: Any = SimpleNamespace(**arrays)  # a Batch's arrays (the kernels read only its fields)
     b.n_steps[:] = 1
     histories = tuple(job["histories"])
+    record = tuple(job.get("record", []))
     with open(folder / LOCK_NAME, "a") as lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -43,11 +45,11 @@ def main(argv: list[str]) -> int:
             if kernel == "generic":
                 from crashstudy.kernel.compiled import run_compiled
 
-                run_compiled(b, histories, 1)
+                run_compiled(b, histories, 1, record=record)
             else:
                 from crashstudy.kernel.generated import run_generated
 
-                run_generated(b, histories, 1, frozenset(job["vary"]), list(job["const"]))
+                run_generated(b, histories, 1, frozenset(job["vary"]), list(job["const"]), record)
     return 0
 
 

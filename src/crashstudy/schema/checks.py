@@ -31,7 +31,7 @@ def model_problems(m: Model) -> list[tuple[Path, str]]:
     """All relational problems of a shape-valid model, in file order."""
     dim = len(next(iter(m.nodes.values())).position)
     out: list[tuple[Path, str]] = []
-    for check in (_nodes, _springs, _vectors, _loads_and_motion, _walls, _output):
+    for check in (_nodes, _springs, _vectors, _loads_and_motion, _walls, _output, _metrics):
         out.extend(check(m, dim))
     return out
 
@@ -197,6 +197,36 @@ def _output(m: Model, dim: int) -> Found:
         yield ("output", "histories"), "'wall_force' needs at least one rigid wall"
 
 
+def _metrics(m: Model, dim: int) -> Found:
+    """A metric names a node that moves, a direction of the model's dimension that is not zero, and each
+    criterion of a node once (a criterion is one summary value per node)."""
+    seen: dict[tuple[str, str], int] = {}
+    for i, mt in enumerate(m.metrics):
+        path: Path = ("metrics", i)
+        if mt.node not in m.nodes:
+            yield path + ("node",), f"unknown node {mt.node!r}; nodes: {', '.join(sorted(m.nodes))}"
+        elif len(_fixed_axes(m.nodes[mt.node].fixed, dim)) == dim:
+            yield path + ("node",), f"node {mt.node!r} is fixed in every direction: it has no acceleration to judge"
+        d = mt.direction
+        if isinstance(d, str):
+            if dim == 1 and d == "y":
+                yield path + ("direction",), "a 1-D model has only the direction 'x'"
+        elif d is not None:
+            if len(d) != dim:
+                yield path + ("direction",), f"expected {dim} component(s) (the model is {dim}-D), got {len(d)}"
+            elif not any(d):
+                yield path + ("direction",), "the direction must not be the zero vector"
+        for k, c in enumerate(mt.criteria):
+            key = (mt.node, c)
+            if key in seen:
+                where = "this entry" if seen[key] == i else f"metrics.{seen[key]}"
+                yield path + ("criteria", k), f"criterion {c!r} of node {mt.node!r} is already asked for in {where}"
+            else:
+                seen[key] = i
+    if not m.metrics and isinstance(m.output.histories, list) and "filtered_acceleration" in m.output.histories:
+        yield ("output", "histories"), "'filtered_acceleration' needs a metrics: block (it is the filtered pulse of its nodes)"
+
+
 def raw_reference_problems(data: object) -> list[tuple[Path, str]]:
     """Unknown node and curve names, read from plain data that failed shape validation.
 
@@ -229,7 +259,7 @@ def raw_reference_problems(data: object) -> list[tuple[Path, str]]:
             for key in ("curve", "loading", "unloading"):
                 if key in mat:
                     curve_ref(("springs", sid, "material", key), mat[key])
-    for key in ("loads", "prescribed_motion"):
+    for key in ("loads", "prescribed_motion", "metrics"):
         items = data.get(key)
         for i, item in enumerate(items if isinstance(items, list) else []):
             if isinstance(item, dict):

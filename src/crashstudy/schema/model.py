@@ -174,6 +174,7 @@ HISTORY_NAMES = (
     "position", "displacement", "velocity", "acceleration",
     "spring_force", "spring_elongation",
     "kinetic_energy", "internal_energy", "external_work", "wall_energy", "wall_force",
+    "filtered_acceleration",
 )  # fmt: skip
 
 
@@ -192,6 +193,24 @@ class Output(Strict):
             if bad:
                 raise ValueError(f"unknown history {bad[0]!r}; expected 'all', 'none' or names from {list(HISTORY_NAMES)}")
         return v
+
+
+CRITERION_NAMES = ("peak_g", "hic15", "hic36", "clip3ms", "clip3ms_cumulative", "olc", "dri", "delta_v")
+Criterion = Literal["peak_g", "hic15", "hic36", "clip3ms", "clip3ms_cumulative", "olc", "dri", "delta_v"]
+CFC = Literal[60, 180, 600, 1000]
+
+
+class Metric(Strict):
+    """Crash criteria of one node, from its acceleration at every time step (docs/format.md, metrics)."""
+
+    node: Id = Field(description="id of the node whose acceleration is judged (e.g. an occupant or the cabin)")
+    direction: Axis | Vector | None = Field(default=None, description=(
+        "direction of travel: x, y or a vector [1] (deceleration positive against it); absent: the node's "
+        "initial velocity direction (x when it has none)"))  # fmt: skip
+    cfc: CFC = Field(default=180, description="SAE J211-1 channel frequency class of the filter: 60, 180, 600 or 1000")
+    criteria: Annotated[list[Criterion], Field(min_length=1)] = Field(
+        description="criteria to compute: peak_g, hic15, hic36, clip3ms, clip3ms_cumulative, olc, dri, delta_v"
+    )
 
 
 class Termination(Strict):
@@ -227,5 +246,6 @@ class Model(Strict):
     )
     output: Output = Field(default=Output(), description="history sampling interval and which histories to keep")
     termination: Termination | None = Field(default=None, description="optional early end once the crash is over")
+    metrics: list[Metric] = Field(default=[], description="crash criteria of nodes (HIC, 3 ms clip, OLC, ...)")
     accuracy_check: bool = Field(default=        False, description="re-run each variant at dt/2 and report a Richardson error estimate [1]"
     )
