@@ -24,6 +24,7 @@ import pytest
 import yaml
 
 from conftest import run_model
+from crashstudy.kernel import entry
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, UNSTABLE, KernelOutput
 from crashstudy.runner import run_kernel
 from test_generated import (
@@ -193,3 +194,20 @@ def test_instability_fails_that_variant_only_as_in_the_reference(kernel: str) ->
     assert_bitwise(ref, got)
     alone = run_kernel(batch.take(np.array([2])), hist, plan.n_out, kernel)
     assert outputs_equal(got, 2, alone, 0) == []
+
+
+def test_ordered_run_spreads_each_variant_back_to_the_callers_columns() -> None:
+    """``entry.run_ordered`` sorts the variants by step count, runs them and spreads the results back
+    (here 6 columns from 5 variants of different masses, one taken twice): column k equals, bitwise,
+    column ``spread[k]`` of the reference run in the caller's order; no error estimate was asked (NaN)."""
+    axes = {"nodes.a.mass": [8.0, 1.0, 4.0, 2.0, 6.0]}
+    ref, batch, plan = run_model(_one_d_materials(False), kernel="reference", variants=axes)
+    assert not np.all(np.diff(batch.n_steps) >= 0), "the variants are not in step-count order"
+    spread = np.array([2, 0, 2, 4, 1, 3])
+    got, estimate = entry.run_ordered(batch, plan.topology.histories, plan.n_out, spread, "generic")
+    for f in fields(KernelOutput):
+        if f.name != "histories" and not (getattr(got, f.name) is None is getattr(ref, f.name)):  # optional outputs
+            assert np.array_equal(getattr(got, f.name), getattr(ref, f.name)[..., spread], equal_nan=True), f.name
+    for name, r in ref.histories.items():
+        assert np.array_equal(got.histories[name], r[..., spread], equal_nan=True), name
+    assert estimate.shape == (6,) and np.all(np.isnan(estimate))

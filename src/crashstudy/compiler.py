@@ -18,6 +18,7 @@ from crashstudy.kernel.codes import (  # noqa: F401
     CRUSH,
     DAMPER,
     GENERAL,
+    HISTORY_ORDER,
     LINEAR,
     MATERIAL_CODES,
     NONLINEAR,
@@ -104,10 +105,7 @@ class Topology:
         return len(self.spring_ids)
 
 
-ALL_HISTORIES = (
-    "position", "displacement", "velocity", "acceleration", "spring_force", "spring_elongation",
-    "kinetic_energy", "internal_energy", "external_work", "wall_energy", "wall_force",
-)  # fmt: skip
+ALL_HISTORIES = HISTORY_ORDER
 
 
 def _fixed_axes(fixed: bool | Sequence[str], dim: int) -> list[bool]:

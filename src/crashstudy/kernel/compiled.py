@@ -1,29 +1,34 @@
-"""The generic compiled (numba) kernel: the reference step of :mod:`crashstudy.kernel.reference`, with
-the loop over variants innermost, topology read from arrays at run time.
+"""The compiled (numba) kernel: the reference step of :mod:`crashstudy.kernel.reference`, with the
+loop over variants innermost.
 
-Variants are cut into blocks of at most ``BLOCK`` columns (:mod:`crashstudy.kernel.driver` runs the
-blocks on a thread pool; the compiled function releases the GIL) and each block advances all its
-variants through time together, so the innermost loops run over contiguous variant columns and the
-CPU works on several variants per instruction. Every variant keeps its own step ``dt``, so its
-result does not depend on which block it lands in.
-
-The step is in stages: springs (:mod:`crashstudy.kernel.generic_springs`), then nodes, energies,
-checks, histories, termination and the position update (:mod:`crashstudy.kernel.generic_nodes`);
-every formula is a law of :mod:`crashstudy.kernel.laws`. What a model does not contain is skipped:
-no material state without ``general_nonlinear``/``crush``, no geometry in 1-D, no wall, load or
-prescribed-motion loops when there are none, no history writes when no history is kept.
+Blocks of at most ``BLOCK`` variants run in parallel on a thread pool (the function releases the GIL;
+``parallel=True`` took minutes to compile); each advances all its variants together, innermost loops
+over contiguous variant columns (SIMD). Every variant keeps its own ``dt``: its result does not
+depend on its block. What a model does not contain is skipped: no material state without
+``general_nonlinear``/``crush``, no geometry in 1-D, no wall, load, motion or history loops when none.
 """
 
 from __future__ import annotations
 
-from collections import namedtuple
 from typing import TYPE_CHECKING
 
 import numba as nb
 import numpy as np
 
-from crashstudy.kernel import generic_nodes as gn
-from crashstudy.kernel.codes import CURVE_MATERIALS, INVALID, NSTATE, STATE_MATERIALS
+from crashstudy.kernel import generic_block as gb
+from crashstudy.kernel import laws as lw
+from crashstudy.kernel.codes import (
+    CRUSH,
+    CRUSHED_TO_ZERO,
+    DAMPER,
+    GENERAL,
+    LINEAR,
+    NONLINEAR,
+    PM_ACCELERATION,
+    PM_DISPLACEMENT,
+    UNSTABLE,
+    UNSTABLE_ENERGY,
+)
 from crashstudy.kernel.driver import (
     block_starts,
     finish,
@@ -33,7 +38,6 @@ from crashstudy.kernel.driver import (
     run_blocks,
     set_threads,
 )
-from crashstudy.kernel.generic_springs import springs
 from crashstudy.kernel.output import KernelOutput
 
 if TYPE_CHECKING:
@@ -42,214 +46,446 @@ if TYPE_CHECKING:
 BLOCK = 256
 __all__ = ["BLOCK", "get_threads", "run_compiled", "set_threads"]
 
-# block-local copies of the per-variant inputs (contiguous, cache-resident)
-BlockIn = namedtuple("BlockIn", ("m", "im", "x0", "sg", "l0", "kp", "cx", "cy", "ds", "ky", "s0", "yt", "yc", "dt"))
-# the block's state: kinematics, spring state and summaries, knot-crossing data, per-lane scratch
-BlockState = namedtuple("BlockState", (
-    "x", "v", "vnew", "f", "fext", "fext_prev", "acc", "acc_prev", "axis_prev", "state", "forces", "elong", "f_prev",
-    "e_prev", "ie", "pf", "mc", "pacc", "pwall", "wforce", "jump_prev", "pm_acc", "k_sh", "k_c", "k_x", "k_y",
-    "k_any", "k_hit", "k_th", "k_dfax", "g_arg", "g_argt", "g_argc", "g_L", "g_Ut", "g_Uc", "g_rev", "e_tmp",
-    "ed_tmp", "F_tmp", "ax_tmp", "edot_min", "crushed", "work", "wall_e", "wmax", "ke0", "ke", "ie_tot", "err",
-    "bal", "act", "actf", "n_fail", "nst", "next_rec", "st_ok", "movable", "knotted"))  # fmt: skip
-
-
-@nb.njit(cache=True, nogil=True)
-def _block_inputs(lo, B, T, P):  # pragma: no cover - compiled
-    N, D, _ = P.x0.shape
-    S = T.spring_i.shape[0]
-    K = P.cx.shape[0]
-    C = P.cs0.shape[0]
-    In = BlockIn(np.empty((N, B)), np.empty((N, D, B)), np.empty((N, D, B)), np.empty((S, B)), np.empty((S, B)),
-                np.empty((S, B)), np.empty((K, B)), np.empty((K, B)), np.empty((K, B)), np.empty((K, B)),
-                np.empty((C, B)), np.empty((S, B)), np.empty((S, B)), np.empty(B))  # fmt: skip
-    for w in range(B):
-        In.dt[w] = P.dt[lo + w]
-    for n_ in range(N):
-        for w in range(B):
-            In.m[n_, w] = P.mass[n_, lo + w]
-        for d in range(D):
-            for w in range(B):
-                In.im[n_, d, w] = P.inv_mass[n_, d, lo + w]
-                In.x0[n_, d, w] = P.x0[n_, d, lo + w]
-    for s in range(S):
-        for w in range(B):
-            In.sg[s, w] = P.sign[s, lo + w]
-            In.yt[s, w] = P.yield_t[s, lo + w]
-            In.yc[s, w] = P.yield_c[s, lo + w]
-            In.l0[s, w] = P.length0[s, lo + w]
-            In.kp[s, w] = P.kpar[s, lo + w]
-    for k in range(K):
-        for w in range(B):
-            In.cx[k, w] = P.cx[k, lo + w]
-            In.cy[k, w] = P.cy[k, lo + w]
-            In.ds[k, w] = P.cds[k, lo + w]
-            In.ky[k, w] = P.knot_y[k, lo + w]
-    for c in range(C):
-        for w in range(B):
-            In.s0[c, w] = P.cs0[c, lo + w]
-    return In
-
-
-@nb.njit(cache=True, nogil=True)
-def _block_state(lo, B, T, P, In):  # pragma: no cover - compiled
-    N, D, _ = P.x0.shape
-    S = T.spring_i.shape[0]
-    W = T.wall_nodes.shape[0]
-    NP = T.pm_node.shape[0]
-    off = T.curve_off
-    has_state = False
-    movable = np.zeros(N, dtype=np.bool_)
-    for n_ in range(N):
-        for d in range(D):
-            if T.free[n_, d] > 0.0:
-                movable[n_] = True
-    for k in range(NP):
-        movable[T.pm_node[k]] = True
-    # springs whose curve has a knot that can be a local maximum of |force| (Batch.knot_check)
-    knotted = np.zeros(S, dtype=np.bool_)
-    any_knot = False
-    for s in range(S):
-        has_state = has_state or T.material[s] in STATE_MATERIALS
-        ca = T.curve_a[s]
-        if T.material[s] in CURVE_MATERIALS and ca >= 0:
-            for k in range(off[ca] + 1, off[ca + 1] - 1):
-                if T.knot_check[k]:
-                    knotted[s] = True
-                    any_knot = True
-    SK = S if any_knot else 0
-    NK = N if any_knot else 0
-    SS = S if has_state else 0
-    axis_prev = np.zeros((S if D > 1 else 0, D, B))  # 2-D: previous spring direction (un-normalised)
-    if D > 1:
-        for s in range(S):
-            for d in range(D):
-                for w in range(B):
-                    axis_prev[s, d, w] = In.x0[T.spring_j[s], d, w] - In.x0[T.spring_i[s], d, w]
-    Z = BlockState(
-        np.empty((N, D, B)), np.empty((N, D, B)), np.empty((N, D, B)), np.empty((N, D, B)), np.zeros((N, D, B)),
-        np.zeros((N, D, B)), np.zeros((N, D, B)), np.zeros((NK, D, B)), axis_prev,
-        np.zeros((SS, NSTATE, B)), np.zeros((S, B)), np.zeros((S, B)), np.zeros((S, B)),
-        np.zeros((S, B)), np.zeros((S, B)), np.zeros((S, B)), np.zeros((S, B)), np.zeros((N, B)), np.zeros((W, B)),
-        np.zeros((W, B)), np.zeros((W, N, D, B)), np.zeros((NP, B)), np.empty(B), np.empty(B), np.empty(B),
-        np.empty(B), np.zeros(S, dtype=np.bool_), np.zeros((SK, B), dtype=np.bool_), np.zeros((SK, B)),
-        np.zeros((SK, D, B)), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B),
-        np.zeros(B, dtype=np.bool_), np.empty(B), np.empty(B), np.empty(B), np.empty((D, B)), np.empty(B),
-        np.empty(B, dtype=np.int64), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B),
-        np.zeros(B), np.zeros(B), np.empty(B, dtype=np.bool_), np.empty(B), np.full(B, -1, dtype=np.int64),
-        np.empty(B, dtype=np.int64), np.zeros(B, dtype=np.int64), np.zeros(B, dtype=np.int64), movable, knotted,
-    )  # fmt: skip
-    for n_ in range(N):
-        for d in range(D):
-            for w in range(B):
-                Z.x[n_, d, w] = In.x0[n_, d, w]
-                Z.v[n_, d, w] = P.v0[n_, d, lo + w]
-                Z.ke0[w] += 0.5 * In.m[n_, w] * Z.v[n_, d, w] * Z.v[n_, d, w]
-    return Z
-
 
 @nb.njit(cache=True, nogil=True)
 def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compiled
-    """Blocks ``b_lo:b_hi``: records of :mod:`crashstudy.kernel.driver` (T topology, P per-variant
-    inputs, H histories, Out summaries)."""
-    N, D, _ = P.x0.shape
-    has_gravity = False
-    for d in range(D):
-        for q in range(P.gravity.shape[1]):
-            has_gravity = has_gravity or P.gravity[d, q] != 0.0
-    no_ext = T.load_node.shape[0] == 0 and T.pm_node.shape[0] == 0 and not has_gravity
-    any_hist = False
-    for h in range(H.rec.shape[0]):
-        any_hist = any_hist or H.rec[h]
-    has_term = False
-    for q in range(P.ke_fraction.shape[0]):
-        has_term = has_term or P.ke_fraction[q] > 0.0
+    """Blocks ``b_lo:b_hi`` (records of :mod:`crashstudy.kernel.driver`: T topology, P per-variant inputs,
+    H histories, Out summaries); every per-variant formula is a law of :mod:`crashstudy.kernel.laws`."""
+    si, sj, material, curve_a, curve_b, off = T.spring_i, T.spring_j, T.material, T.curve_a, T.curve_b, T.curve_off
+    free, load_node, load_curve, pm_node, pm_dir, pm_kind = T.free, T.load_node, T.load_curve, T.pm_node, T.pm_dir, T.pm_kind
+    pm_curve, wall_nodes, knot_check, x0, v0, cx = T.pm_curve, T.wall_nodes, T.knot_check, P.x0, P.v0, P.cx
+    cy, cds, cs0, cs1, gravity, load_force = P.cy, P.cds, P.cs0, P.cs1, P.gravity, P.load_force
+    pm_scale, wall_point, wall_normal, out_every, ke_fraction, min_time = P.pm_scale, P.wall_point, P.wall_normal, P.out_every, P.ke_fraction, P.min_time
+    e_floor, fail_time, fail_item, final_energy = P.energy_floor, Out.fail_time, Out.fail_item, Out.final_energy
+    N = x0.shape[0]
+    D = x0.shape[1]
+    S = si.shape[0]
+    W = wall_nodes.shape[0]
+    NL = load_node.shape[0]
+    NP = pm_node.shape[0]
+    has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot = gb.flags(T, P, H)
     # 1-D models without walls, prescribed motion or external forces take a fused node update
-    fused_1d = D == 1 and T.wall_nodes.shape[0] == 0 and no_ext
+    fused_1d = D == 1 and W == 0 and NP == 0 and no_ext
     for bi in range(b_lo, b_hi):
         lo = starts[bi]
         B = starts[bi + 1] - lo
-        In = _block_inputs(lo, B, T, P)
-        Z = _block_state(lo, B, T, P, In)
-        nmax = -1
-        for w in range(B):
-            q = lo + w
-            Z.nst[w] = P.n_steps[q]
-            if P.invalid[q] > 0:
-                Z.st_ok[w] = INVALID
-                Out.fail_item[q] = P.invalid[q]
-                Out.fail_time[q] = 0.0
-            elif Z.nst[w] > nmax:
-                nmax = Z.nst[w]
+        (m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b, cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg, g_argt, g_argc, g_L,
+         g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y, k_any, k_hit,
+         k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie, pf, mc, pacc, pwall,
+         e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act,
+         actf, n_fail, nst, next_rec, st_ok, nmax) = gb.block_arrays(lo, B, has_state, any_knot, T, P, Out)
         for n in range(nmax + 1):
             nact = 0
             n_end = nmax + 1  # the first step at which an active variant ends
             for w in range(B):
-                a_ = (n <= Z.nst[w]) & (Z.st_ok[w] == 0)
-                Z.act[w] = a_
-                Z.actf[w] = 1.0 if a_ else 0.0  # arithmetic masks vectorise
+                a_ = (n <= nst[w]) & (st_ok[w] == 0)
+                act[w] = a_
+                actf[w] = 1.0 if a_ else 0.0
                 nact += a_
-                n_end = min(n_end, Z.nst[w] if a_ else nmax + 1)
+                n_end = min(n_end, nst[w] if a_ else nmax + 1)
             if nact == 0:
                 break
             rec_now = False
             if any_hist:
                 for w in range(B):
-                    rec_now = rec_now or (Z.act[w] and n == Z.next_rec[w])
+                    rec_now = rec_now or (act[w] and n == next_rec[w])
             fused = fused_1d and n > 0 and not rec_now
             h = 1.0 if n > 0 else 0.5
-            Z.f[:] = 0.0
-            Z.crushed[:] = -1
-            Z.edot_min[:] = np.inf
-            Z.ie_tot[:] = 0.0
-            any_hit = springs(n, lo, B, D, has_term, T, P, In, Z)
+            f[:] = 0.0
+            if D > 1:
+                for w in range(B):
+                    crushed[w] = -1
+            if has_term:
+                for w in range(B):
+                    edot_min[w] = np.inf
+            for w in range(B):
+                ie_tot[w] = 0.0
+            any_hit = False
+            for s in range(S):
+                i = si[s]
+                j = sj[s]
+                kind = material[s]
+                kn = knotted[s] and n > 0
+                if D == 1:
+                    for w in range(B):
+                        sg = sg_b[s, w]
+                        e_tmp[w] = lw.elongation_1d(sg, x[j, 0, w] - x0_b[j, 0, w], x[i, 0, w] - x0_b[i, 0, w])
+                        ax_tmp[0, w] = sg
+                    if kind == DAMPER or has_term:
+                        for w in range(B):
+                            vpj = lw.end_rate(v[j, 0, w], acc[j, 0, w], dt_b[w])
+                            vpi = lw.end_rate(v[i, 0, w], acc[i, 0, w], dt_b[w])
+                            ed_tmp[w] = sg_b[s, w] * (vpj - vpi)
+                else:
+                    for w in range(B):
+                        ln2 = 0.0
+                        for d in range(D):
+                            dd = x[j, d, w] - x[i, d, w]
+                            ax_tmp[d, w] = dd
+                            ln2 += dd * dd
+                        ln = np.sqrt(ln2)
+                        turn = 0.0
+                        for d in range(D):
+                            turn += ax_tmp[d, w] * axis_prev[s, d, w]
+                            axis_prev[s, d, w] = ax_tmp[d, w]
+                        gone = lw.collapsed(ln, l0_b[s, w], turn)
+                        if gone and crushed[w] < 0:
+                            crushed[w] = s
+                        dn = 1.0 if gone else ln
+                        edot = 0.0
+                        for d in range(D):
+                            ax_tmp[d, w] = ax_tmp[d, w] / dn
+                            vpj = lw.end_rate(v[j, d, w], acc[j, d, w], dt_b[w])
+                            vpi = lw.end_rate(v[i, d, w], acc[i, d, w], dt_b[w])
+                            edot += ax_tmp[d, w] * (vpj - vpi)
+                        e_tmp[w] = lw.elongation_2d(ln, l0_b[s, w])
+                        ed_tmp[w] = edot
+                nhit = 0
+                if kn:  # did any lane pass over a flagged knot since the previous step? (cheap: no stores)
+                    ca = curve_a[s]
+                    for k in range(off[ca] + 1, off[ca + 1] - 1):
+                        if not knot_check[k]:
+                            continue
+                        if kind == CRUSH:
+                            for w in range(B):
+                                lo_, hi_, _ = lw.crush_window(e_tmp[w], state[s, 0, w])
+                                nhit += lw.knot_inside(cx_b[k, w], lo_, hi_)
+                        elif kind == GENERAL:
+                            for w in range(B):
+                                lo_, hi_, _ = lw.general_window(e_prev[s, w], e_tmp[w], state[s, 0, w], state[s, 1, w],
+                                                             state[s, 3, w], state[s, 5, w])  # fmt: skip
+                                nhit += lw.knot_inside(cx_b[k, w], lo_, hi_)
+                        else:
+                            for w in range(B):
+                                lo_, hi_, _ = lw.nonlinear_window(e_prev[s, w], e_tmp[w])
+                                nhit += lw.knot_inside(cx_b[k, w], lo_, hi_)
+                if nhit > 0:  # rare: the knots passed over, lane by lane (the state is still the one before the step)
+                    nhit = gb.knot_search(s, kind, B, off, curve_a[s], knot_check, cx_b, ky_b, e_tmp, e_prev, state,
+                                          k_c, k_x, k_y, k_sh)  # fmt: skip
+                if kind == LINEAR:
+                    for w in range(B):
+                        F_tmp[w] = lw.linear_force(kp_b[s, w], e_tmp[w])
+                elif kind == DAMPER:
+                    for w in range(B):
+                        F_tmp[w] = lw.damper_force(kp_b[s, w], ed_tmp[w])
+                elif kind == NONLINEAR:
+                    gb.ramp(curve_a[s], e_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
+                    for w in range(B):
+                        F_tmp[w] = lw.nonlinear_force(F_tmp[w])
+                elif kind == CRUSH:
+                    gb.ramp(curve_a[s], e_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
+                    for w in range(B):
+                        F_tmp[w], state[s, 0, w], state[s, 1, w] = lw.crush_law(e_tmp[w], state[s, 0, w], state[s, 1, w],
+                                                                             F_tmp[w], kp_b[s, w])  # fmt: skip
+                else:  # GENERAL: rules 1-4 of docs/format.md, branch-free over the block; reversals (rare) per lane
+                    ca = curve_a[s]
+                    cb = curve_b[s]
+                    for w in range(B):
+                        g_arg[w] = e_tmp[w] - state[s, 5, w]
+                        g_argt[w] = e_tmp[w] - state[s, 1, w]
+                        g_argc[w] = e_tmp[w] - state[s, 3, w]
+                    gb.ramp(ca, g_arg, g_L, off, cx_b, cy_b, ds_b, s0_b, B)
+                    gb.ramp(cb, g_argt, g_Ut, off, cx_b, cy_b, ds_b, s0_b, B)
+                    gb.ramp(cb, g_argc, g_Uc, off, cx_b, cy_b, ds_b, s0_b, B)
+                    nrev = 0
+                    for w in range(B):
+                        (F_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w], state[s, 4, w],
+                         state[s, 6, w], state[s, 7, w], rev) = lw.general_law(
+                            e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w], state[s, 4, w],
+                            state[s, 6, w], state[s, 7, w], g_L[w], g_Ut[w], g_Uc[w], yt_b[s, w], yc_b[s, w])
+                        g_rev[w] = rev
+                        nrev += rev
+                    if nrev > 0:
+                        for w in range(B):
+                            if g_rev[w]:
+                                (F_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w], state[s, 4, w],
+                                 state[s, 5, w], state[s, 6, w], state[s, 7, w]) = lw.general_reverse(
+                                    e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w],
+                                    state[s, 4, w], state[s, 6, w], state[s, 7, w], yt_b[s, w], yc_b[s, w], ca, cb,
+                                    lo + w, cx, cy, cds, cs0, cs1, off)
+                if kn:
+                    k_any[s] = nhit > 0
+                if nhit > 0:  # rare: peak-force candidate and the deceleration data (see reference)
+                    any_hit = True
+                    for w in range(B):
+                        kcw = k_c[w]
+                        th, dF = lw.knot_crossing(kcw, k_x[w], k_y[w], e_prev[s, w], e_tmp[w], k_sh[w], f_prev[s, w],
+                                               F_tmp[w])  # fmt: skip
+                        k_hit[s, w] = kcw > 0.0
+                        k_th[s, w] = th
+                        for d in range(D):
+                            k_dfax[s, d, w] = dF * ax_tmp[d, w]
+                        pf[s, w] = lw.peak(pf[s, w], kcw * actf[w])
+                # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
+                if D == 1 and n > 0:  # one pass: scatter and summaries
+                    for w in range(B):
+                        F = F_tmp[w]
+                        e = e_tmp[w]
+                        af = actf[w]
+                        fa = F * ax_tmp[0, w]
+                        f[i, 0, w] += fa
+                        f[j, 0, w] -= fa
+                        ie[s, w] = lw.energy_increment(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], af)
+                        ie_tot[w] += ie[s, w]
+                        pf[s, w] = lw.peak(pf[s, w], abs(F) * af)
+                        mc[s, w] = lw.peak(mc[s, w], -e * af)
+                        forces[s, w] = F
+                        elong[s, w] = e
+                        f_prev[s, w] = F
+                        e_prev[s, w] = e
+                else:
+                    for d in range(D):
+                        for w in range(B):
+                            fa = F_tmp[w] * ax_tmp[d, w]
+                            f[i, d, w] += fa
+                            f[j, d, w] -= fa
+                    for w in range(B):
+                        F = F_tmp[w]
+                        e = e_tmp[w]
+                        af = actf[w]
+                        if n > 0:
+                            ie[s, w] = lw.energy_increment(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], af)
+                        ie_tot[w] += ie[s, w]
+                        pf[s, w] = lw.peak(pf[s, w], abs(F) * af)
+                        mc[s, w] = lw.peak(mc[s, w], -e * af)
+                        forces[s, w] = F
+                        elong[s, w] = e
+                        f_prev[s, w] = F
+                        e_prev[s, w] = e
+                if has_term:
+                    for w in range(B):
+                        edot_min[w] = lw.least(edot_min[w], ed_tmp[w])
+
             if any_hit:  # a^{n-1}, for the accelerations at this step's knot crossings
-                Z.acc_prev[:] = Z.acc
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            acc_prev[n_, d, w] = acc[n_, d, w]
+            # external forces, accelerations, velocities
             if fused:
-                gn.fused_1d(h, B, In, Z)
+                # a = f/m, v^{n+1/2}, kinetic energy, peak |a| and x^{n+1} in one pass (the same
+                # arithmetic as the general path below; x and v advance before the failure check,
+                # which changes nothing a failed variant reports)
+                for w in range(B):
+                    ke[w] = 0.0
+                for n_ in range(N):
+                    mv = movable[n_]
+                    for w in range(B):
+                        a = (f[n_, 0, w] + 0.0) * im_b[n_, 0, w]
+                        acc[n_, 0, w] = a
+                        vo = v[n_, 0, w]
+                        vn = vo + (h * dt_b[w]) * a
+                        vnew[n_, 0, w] = vn
+                        ke[w] += 0.5 * m_b[n_, w] * vo * vn
+                        af = actf[w]
+                        if mv:
+                            pacc[n_, w] = lw.peak(pacc[n_, w], (a * a) * af)
+                        x[n_, 0, w] = x[n_, 0, w] + (dt_b[w] * af) * vn
+                        v[n_, 0, w] = vn * af + vo * (1.0 - af)
+            elif not no_ext:
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            fext[n_, d, w] = m_b[n_, w] * gravity[d, lo + w] if has_gravity else 0.0
+                for k in range(NL):
+                    c = load_curve[k]
+                    p = load_node[k]
+                    for w in range(B):
+                        q = lo + w
+                        scale = lw.time_curve_at(c, n * dt_b[w], q, cx, cy, cds, cs0, off) if c >= 0 else 1.0
+                        for d in range(D):
+                            fext[p, d, w] += load_force[k, d, q] * scale
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            a = (f[n_, d, w] + fext[n_, d, w]) * im_b[n_, d, w]
+                            acc[n_, d, w] = a
+                            vnew[n_, d, w] = v[n_, d, w] + (h * dt_b[w]) * a
             else:
-                gn.nodes(n, h, lo, B, no_ext, has_gravity, T, P, In, Z)
-            gn.energies(n, lo, B, fused, no_ext, P, In, Z)
-            gn.checks(n, lo, B, D, fused, any_hit, T, P, In, Z, Out)
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            a = (f[n_, d, w] + 0.0) * im_b[n_, d, w]
+                            acc[n_, d, w] = a
+                            vnew[n_, d, w] = v[n_, d, w] + (h * dt_b[w]) * a
+            for k in range(NP):
+                p = pm_node[k]
+                d = pm_dir[k]
+                c = pm_curve[k]
+                for w in range(B):
+                    q = lo + w
+                    t = n * dt_b[w]
+                    dtn = h * dt_b[w]
+                    if pm_kind[k] == PM_DISPLACEMENT:
+                        target = x0_b[p, d, w] + pm_scale[k, q] * lw.time_curve_at(c, t + dt_b[w], q, cx, cy, cds, cs0, off)
+                        vnew[p, d, w] = (target - x[p, d, w]) / dt_b[w]
+                    elif pm_kind[k] == PM_ACCELERATION:
+                        vnew[p, d, w] = v[p, d, w] + dtn * pm_scale[k, q] * lw.time_curve_at(c, t, q, cx, cy, cds, cs0, off)
+                    else:
+                        vnew[p, d, w] = pm_scale[k, q] * lw.time_curve_at(c, t + 0.5 * dt_b[w], q, cx, cy, cds, cs0, off)
+                    if n != nst[w]:
+                        pm_acc[k, w] = (vnew[p, d, w] - v[p, d, w]) / dtn
+                    else:  # the last step's update would look past end_time: continue with the previous acceleration
+                        vnew[p, d, w] = v[p, d, w] + dtn * pm_acc[k, w]
+                    acc[p, d, w] = pm_acc[k, w]
+                    ftot = f[p, d, w] + fext[p, d, w]
+                    fext[p, d, w] += m_b[p, w] * acc[p, d, w] - ftot
+            if W > 0:
+                wforce[:] = 0.0
+            for wl in range(W):
+                for n_ in range(N):
+                    if wall_nodes[wl, n_] == 0.0:
+                        continue
+                    for w in range(B):
+                        q = lo + w
+                        vn = 0.0
+                        gap = 0.0
+                        dist = 0.0
+                        for d in range(D):
+                            nr = wall_normal[wl, d, q]
+                            vn += vnew[n_, d, w] * nr
+                            gap += (x[n_, d, w] - wall_point[wl, d, q]) * nr
+                            dist += (x[n_, d, w] + dt_b[w] * vnew[n_, d, w] - wall_point[wl, d, q]) * nr
+                        dvn = lw.wall_jump(vn, gap, dist, dt_b[w])
+                        we = 0.0
+                        for d in range(D):
+                            jmp = dvn * wall_normal[wl, d, q] * free[n_, d]
+                            vnew[n_, d, w] = vnew[n_, d, w] + jmp
+                            we += v[n_, d, w] * (jmp + jump_prev[wl, n_, d, w])
+                            jump_prev[wl, n_, d, w] = jmp
+                        if act[w]:
+                            wall_e[w] += -0.5 * m_b[n_, w] * we
+                        wforce[wl, w] += lw.wall_force(m_b[n_, w], dvn, dt_b[w])
+
+            # energies (sums over nodes/springs with the variant loop innermost)
+            if fused:
+                pass  # kinetic energy summed above; no external work
+            elif n == 0:
+                for w in range(B):
+                    ke[w] = ke0[w]
+            else:
+                for w in range(B):
+                    ke[w] = 0.0
+                    bal[w] = 0.0
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            ke[w] += 0.5 * m_b[n_, w] * v[n_, d, w] * vnew[n_, d, w]
+                if not no_ext:
+                    for n_ in range(N):
+                        for d in range(D):
+                            for w in range(B):
+                                vb = 0.5 * (v0[n_, d, lo + w] + v[n_, d, w]) if n == 1 else v[n_, d, w]
+                                bal[w] = lw.ext_power(bal[w], fext[n_, d, w], v[n_, d, w], fext_prev[n_, d, w], vb)
+                    for w in range(B):
+                        work[w] = lw.work_increment(work[w], bal[w], dt_b[w], actf[w])
+            nbad = 0
+            for w in range(B):
+                wmax[w] = max(wmax[w], abs(work[w]))
+                b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - ke0[w] - work[w])
+                bal[w] = b_
+                err[w] = lw.peak(err[w], b_ * actf[w])
+                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]) + e_floor[lo + w])
+            anybad = nbad > 0
+            # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
+            for n_ in range(N):
+                if fused or not movable[n_]:
+                    continue
+                for w in range(B):
+                    a2 = 0.0
+                    for d in range(D):
+                        a2 += acc[n_, d, w] * acc[n_, d, w]
+                    pacc[n_, w] = lw.peak(pacc[n_, w], a2 * actf[w])
+            if any_hit:  # |a| at the knot crossings of this step (see reference)
+                for s in range(S):
+                    if not k_any[s]:
+                        continue
+                    for side in range(2):
+                        p = si[s] if side == 0 else sj[s]
+                        if not movable[p]:
+                            continue
+                        for w in range(B):
+                            th = k_th[s, w]
+                            a2 = 0.0
+                            for d in range(D):
+                                ai = lw.knot_accel(acc_prev[p, d, w], acc[p, d, w], th, k_dfax[s, d, w], im_b[p, d, w], side)
+                                a2 += ai * ai
+                            pacc[p, w] = lw.peak(pacc[p, w], (a2 if k_hit[s, w] else 0.0) * actf[w])
+            for wl in range(W):
+                for w in range(B):
+                    pwall[wl, w] = lw.peak(pwall[wl, w], wforce[wl, w] * actf[w])
+            if D > 1:
+                for w in range(B):
+                    anybad = anybad or (act[w] and crushed[w] >= 0)
+            if anybad:
+                for w in range(B):
+                    if not act[w]:
+                        continue
+                    if not (bal[w] <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]) + e_floor[lo + w]):
+                        st_ok[w] = UNSTABLE
+                        fail_time[lo + w] = n * dt_b[w]
+                        n_fail[w] = n
+                        act[w] = False
+                        actf[w] = 0.0
+                    elif D > 1 and crushed[w] >= 0:
+                        st_ok[w] = CRUSHED_TO_ZERO
+                        fail_item[lo + w] = crushed[w]
+                        fail_time[lo + w] = n * dt_b[w]
+                        n_fail[w] = n
+                        act[w] = False
+                        actf[w] = 0.0
             if any_hist:
-                gn.record(n, lo, B, n_out, P, In, Z, H)
-            if H.step_nodes.shape[0] > 0:
-                gn.record_steps(n, lo, B, Z, H)
+                gb.record(n, lo, B, n_out, act, next_rec, out_every, x, x0_b, v, vnew, acc, forces, elong, ke, ie_tot,
+                          work, wall_e, wforce, H)  # fmt: skip
+            step_nodes = H.step_nodes
+            for m in range(step_nodes.shape[0]):  # a^n of the recorded nodes (crash criteria), running lanes
+                p_ = step_nodes[m]
+                for d in range(D):
+                    for w in range(B):
+                        if act[w]:
+                            H.steps[n, m, d, lo + w] = acc[p_, d, w]
             if has_term and n > 0:
-                n_end = gn.terminate(n, n_end, lo, B, no_ext, P, In, Z)
+                for w in range(B):
+                    q = lo + w
+                    t = n * dt_b[w]
+                    if not act[w] or ke_fraction[q] <= 0.0 or t < min_time[q]:
+                        continue
+                    fsum = 0.0
+                    psum = 0.0
+                    for s in range(S):
+                        fsum += abs(forces[s, w])
+                        psum += pf[s, w]
+                    small_f = fsum <= ke_fraction[q] * psum
+                    small_ke = ke[w] <= ke_fraction[q] * (ke0[w] + wmax[w])
+                    opening = edot_min[w] >= 0.0 and no_ext
+                    if small_f and (small_ke or opening):
+                        nst[w] = n
+                        n_end = n
             for w in range(B):
                 if n != n_end:
                     break
-                if Z.act[w] and n == Z.nst[w]:
+                if act[w] and n == nst[w]:
                     q = lo + w
-                    Out.final_energy[0, q] = Z.ke[w]
-                    Out.final_energy[1, q] = Z.ie_tot[w]
-                    Out.final_energy[2, q] = Z.work[w]
-                    Out.final_energy[3, q] = Z.wall_e[w]
-            gn.advance(B, fused, no_ext, In, Z)
-        _results(lo, B, In, Z, Out)
+                    final_energy[0, q] = ke[w]
+                    final_energy[1, q] = ie_tot[w]
+                    final_energy[2, q] = work[w]
+                    final_energy[3, q] = wall_e[w]
+            for n_ in range(N):
+                if fused:
+                    break
+                for d in range(D):
+                    for w in range(B):
+                        af = actf[w]  # a stopped variant keeps x and v (vnew is finite for it)
+                        x[n_, d, w] = x[n_, d, w] + (dt_b[w] * af) * vnew[n_, d, w]
+                        v[n_, d, w] = vnew[n_, d, w] * af + v[n_, d, w] * (1.0 - af)
+            if not no_ext:
+                for n_ in range(N):
+                    for d in range(D):
+                        for w in range(B):
+                            fext_prev[n_, d, w] = fext[n_, d, w]
+        gb.results(lo, B, st_ok, err, ke0, wmax, nst, n_fail, dt_b, ie, pf, mc, pacc, pwall, Out)
 
 
-@nb.njit(cache=True, nogil=True)
-def _results(lo, B, In, Z, Out):  # pragma: no cover - compiled
-    for w in range(B):
-        q = lo + w
-        Out.status[q] = Z.st_ok[w]
-        Out.energy_error[q] = Z.err[w] / max(Z.ke0[w] + Z.wmax[w], 1e-300)
-        if Z.st_ok[w] == 0:
-            Out.t_end[q] = Z.nst[w] * In.dt[w]
-        elif Z.n_fail[w] > 0:
-            Out.t_end[q] = (Z.n_fail[w] - 1) * In.dt[w]
-    for s in range(Z.ie.shape[0]):
-        for w in range(B):
-            Out.absorbed[s, lo + w] = Z.ie[s, w]
-            Out.peak_force[s, lo + w] = Z.pf[s, w]
-            Out.max_crush[s, lo + w] = Z.mc[s, w]
-    for n_ in range(Z.pacc.shape[0]):
-        for w in range(B):
-            Out.peak_acc[n_, lo + w] = np.sqrt(Z.pacc[n_, w])
-    for wl in range(Z.pwall.shape[0]):
-        for w in range(B):
-            Out.peak_wall[wl, lo + w] = Z.pwall[wl, w]
 
 
 def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK,

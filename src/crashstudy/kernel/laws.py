@@ -1,15 +1,15 @@
 """Every per-variant law of the fast kernels, written once: small pure compiled scalar functions.
 
 Numbers in, a number or a tuple of numbers out (curve tables are read from arrays, column ``v``).
-The generic kernel (:mod:`crashstudy.kernel.generic_step`) calls them per lane on its block arrays,
-the generated kernels (:mod:`crashstudy.kernel.gen_springs`) emit calls to them on their local
-scalars; numba inlines them (``inline="always"``), so the machine code is that of a hand-written
+The generic kernel (:mod:`crashstudy.kernel.compiled`) calls them per lane on its block arrays,
+the generated kernels (:mod:`crashstudy.kernel.gen_springs`, :mod:`crashstudy.kernel.gen_nodes`)
+emit calls to them on their local scalars; numba inlines them (``inline="always"``), so the machine code is that of a hand-written
 formula. The NumPy reference (:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.kernel.materials`)
 is the independent twin: every function here does its operations in the same order, so both fast
 kernels stay bitwise equal to it (no fastmath).
 
 A new material is one law function here, one dispatch line in each fast kernel
-(``generic_step._force`` and ``gen_springs.spring_force``) and its NumPy twin in materials.py.
+(the force dispatch of ``compiled._run`` and ``gen_springs.pass_b_springs``) and its NumPy twin in materials.py.
 """
 
 from __future__ import annotations

@@ -12,6 +12,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from crashstudy.kernel.codes import HISTORY_ORDER, MATERIAL_CODES
 from crashstudy.units import UnitSystemName
 
 Id = Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]+$", min_length=1, max_length=64)]
@@ -105,7 +106,7 @@ Material = Annotated[
     LinearElastic | NonlinearElastic | GeneralNonlinear | Crush | Damper,
     Field(discriminator="type"),
 ]
-MATERIAL_TYPES = ("linear_elastic", "nonlinear_elastic", "general_nonlinear", "crush", "damper")
+MATERIAL_TYPES = tuple(MATERIAL_CODES)
 
 
 class Spring(Strict):
@@ -170,12 +171,7 @@ class TimeStep(Strict):
         return next(k for k in ("safety_factor", "dt", "tolerance") if getattr(self, k) is not None)
 
 
-HISTORY_NAMES = (
-    "position", "displacement", "velocity", "acceleration",
-    "spring_force", "spring_elongation",
-    "kinetic_energy", "internal_energy", "external_work", "wall_energy", "wall_force",
-    "filtered_acceleration",
-)  # fmt: skip
+HISTORY_NAMES = (*HISTORY_ORDER, "filtered_acceleration")  # the last: computed from the per-step record (metrics)
 
 
 class Output(Strict):
