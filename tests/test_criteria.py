@@ -158,7 +158,7 @@ def trapezoid(
 
 def clips(x: np.ndarray, dt: float) -> tuple[float, float]:
     n = x.size
-    cont, _ = R.clip_row(x, n, dt, 0.003, np.empty(n), np.empty(n, dtype=np.int64))
+    cont, _ = R.clip_row(x, n, dt, 0.003, np.empty(n), np.empty(n))
     return cont, R.clip_cumulative_row(x, n, dt, 0.003, cont, np.empty(n), np.empty(n))
 
 

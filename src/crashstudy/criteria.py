@@ -25,6 +25,10 @@ and ``delta_v`` use it (OLC from the filtered acceleration, ``delta_v`` from the
 Deceleration is positive: along ``direction`` it is ``-a . direction``. Resultants are
 ``|a|``. All signals are read as the piecewise-linear curve through the samples; each criterion is
 exact for that curve (see :mod:`crashstudy.criteria_rows`), so they converge as ``dt`` is halved.
+
+Developers: numba's on-disk cache of the compiled driver checks only this file's time stamp, not
+those of :mod:`crashstudy.criteria_rows` and :mod:`crashstudy.criteria_filter` whose functions it
+compiles in; after editing those, touch this file (or clear ``NUMBA_CACHE_DIR``).
 """
 
 from __future__ import annotations
@@ -153,7 +157,7 @@ def _driver(
     cum = np.empty(nt + 1)
     blk = np.empty(nt + 1)
     mn = np.empty(nt)
-    dq = np.empty(nt, dtype=np.int64)
+    hmin = np.empty(nt)
     lo = np.empty(nt)
     hi = np.empty(nt)
     need_res = want[0] or want[1] or want[2] or want[3] or want[4]
@@ -214,7 +218,7 @@ def _driver(
         if want[2]:
             out[v, 4], out[v, 5], out[v, 6] = hic_row(res, n, h, 0.036, cum, blk)
         if want[3] or want[4]:
-            lev, _ = clip_row(res, n, h, 0.003, mn, dq)
+            lev, _ = clip_row(res, n, h, 0.003, mn, hmin)
             if np.isnan(lev):
                 status[v] |= 16
             out[v, 7] = lev

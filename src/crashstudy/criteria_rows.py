@@ -213,28 +213,30 @@ def hic_row(x, n, dt, window, cum, blk, refine=True):  # pragma: no cover - comp
 
 
 @_jit
-def _sliding_min(x, n, p, out, dq):  # pragma: no cover - compiled
-    """``out[i] = min(x[i+1 .. i+p])`` for ``i + p <= n - 1`` (``+inf`` when ``p == 0``)."""
+def _sliding_min(x, n, p, out, h):  # pragma: no cover - compiled
+    """``out[i] = min(x[i+1 .. i+p])`` for ``i + p <= n - 1`` (``+inf`` when ``p == 0``), by van
+    Herk / Gil-Werman: prefix minima ``g`` (kept in ``out``) and suffix minima ``h`` within blocks of
+    ``p`` samples, ``min(x[b .. b+p-1]) = min(h[b], g[b+p-1])``; no data-dependent branches."""
     if p == 0:
         for i in range(n):
             out[i] = math.inf
         return
-    head = 0
-    tail = 0
-    for k in range(1, n):
-        while tail > head and x[dq[tail - 1]] >= x[k]:
-            tail -= 1
-        dq[tail] = k
-        tail += 1
-        i = k - p
-        if i >= 0:
-            while dq[head] < i + 1:
-                head += 1
-            out[i] = x[dq[head]]
+    c = 0
+    for k in range(n):
+        out[k] = x[k] if c == 0 else min(out[k - 1], x[k])
+        c += 1
+        if c == p:
+            c = 0
+    c = n % p  # samples in the last (partial) block: k + 1 is a multiple of p every p from there
+    for k in range(n - 1, -1, -1):
+        h[k] = x[k] if (k == n - 1 or c == 0) else min(h[k + 1], x[k])
+        c = (c - 1) if c > 0 else p - 1
+    for i in range(n - p):
+        out[i] = min(h[i + 1], out[i + p])
 
 
 @_jit
-def clip_row(x, n, dt, window, mn, dq):  # pragma: no cover - compiled
+def clip_row(x, n, dt, window, mn, h):  # pragma: no cover - compiled
     """Continuous clip: the highest level ``c`` such that the piecewise-linear curve stays ``>= c``
     over an interval of ``window`` [s] (exact for that curve). Returns ``(level, t_start)``.
 
@@ -248,13 +250,39 @@ def clip_row(x, n, dt, window, mn, dq):  # pragma: no cover - compiled
     f = max(wn - p, 0.0)
     if n < 2 or p + (1 if f > 0.0 else 0) > n - 1:
         return math.nan, math.nan
-    _sliding_min(x, n, p, mn, dq)
+    q = p + (1 if f > 0.0 else 0)
+    # a first level from the windows [t_i, t_i+q] around the largest sample (they contain
+    # [t_i, t_i + window], so their minimum is attained)
+    kp = 0
+    for k in range(1, n):
+        if x[k] > x[kp]:
+            kp = k
+    i0 = max(0, kp - q)
+    i1 = min(kp, n - 1 - q)
     best = -math.inf
     bt = math.nan
-    for i in range(n - 1):
+    if i1 >= i0:
+        _sliding_min(x[i0:], min(n, i1 + q + 1) - i0, q, mn, h)  # mn[i - i0] = min x[i+1 .. i+q]
+        for i in range(i0, i1 + 1):
+            lev = min(x[i], mn[i - i0])
+            if lev > best:
+                best = lev
+                bt = i * dt
+    # only windows starting on a segment that reaches above that level can beat it
+    lo_i = n
+    hi_i = -1
+    for i in range(n - 1 - q + 1):
+        if max(x[i], x[i + 1]) > best:
+            lo_i = min(lo_i, i)
+            hi_i = i
+    if hi_i < lo_i:
+        return best, bt
+    _sliding_min(x[lo_i:], min(n, hi_i + p + 2) - lo_i, p, mn, h)  # mn[i - lo_i] = min x[i+1 .. i+p]
+    for i in range(lo_i, hi_i + 1):
         if i + p + (1 if f > 0.0 else 0) > n - 1:
             break
-        if min(max(x[i], x[i + 1]), mn[i]) <= best:
+        mi = mn[i - lo_i]
+        if min(max(x[i], x[i + 1]), mi) <= best:
             continue  # no window starting on this segment can beat the best
         a0 = x[i]
         da = x[i + 1] - x[i]
@@ -263,12 +291,12 @@ def clip_row(x, n, dt, window, mn, dq):  # pragma: no cover - compiled
         for piece in range(2):
             if piece == 0:
                 s0, s1, j, off = 0.0, 1.0 - f, i + p, f
-                c = mn[i]
+                c = mi
             else:
                 if f == 0.0:
                     break
                 s0, s1, j, off = 1.0 - f, 1.0, i + p + 1, f - 1.0
-                c = min(mn[i], x[i + p + 1]) if i + p + 1 <= n - 1 else math.inf
+                c = min(mi, x[i + p + 1]) if i + p + 1 <= n - 1 else math.inf
             if j > n - 1:
                 break
             b0 = x[j]
