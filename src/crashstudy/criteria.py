@@ -322,9 +322,9 @@ def compute(
         status &= ~(_OLC_FREE | _OLC_END)
     if "clip3ms" not in names and "clip3ms_cumulative" not in names:
         status &= ~_SHORT_CLIP
-    notes = np.empty(nv, dtype=object)
-    for v in range(nv):
-        notes[v] = "; ".join(text for bit, text in _NOTES.items() if status[v] & bit)
+    notes = np.full(nv, "", dtype=object)
+    for code in np.unique(status[status != 0]):
+        notes[status == code] = "; ".join(text for bit, text in _NOTES.items() if code & bit)
     result["criteria_note"] = notes
     return result
 
