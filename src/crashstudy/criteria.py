@@ -24,10 +24,11 @@ and ``delta_v`` use it (OLC from the filtered acceleration, ``delta_v`` from the
 
 Deceleration is positive: along ``direction`` it is ``-a . direction``. Resultants are
 ``|a|``. All signals are read as the piecewise-linear curve through the samples; each criterion is
-exact for that curve (see :mod:`crashstudy.criteria_rows`), so they converge as ``dt`` is halved.
+exact for that curve (see :mod:`crashstudy.criteria_rows`, :mod:`crashstudy.criteria_clips`), so they converge as ``dt`` is halved.
 
 Developers: numba's on-disk cache of the compiled driver checks only this file's time stamp, not
-those of :mod:`crashstudy.criteria_rows` and :mod:`crashstudy.criteria_filter` whose functions it
+those of :mod:`crashstudy.criteria_rows`, :mod:`crashstudy.criteria_clips` and
+:mod:`crashstudy.criteria_filter` whose functions it
 compiles in; after editing those, touch this file (or clear ``NUMBA_CACHE_DIR``).
 """
 
@@ -38,6 +39,7 @@ from collections.abc import Iterable
 import numba as nb
 import numpy as np
 
+from .criteria_clips import clip_cumulative_row, clip_row
 from .criteria_filter import (
     CFC_CLASSES,
     coefficients,
@@ -47,7 +49,7 @@ from .criteria_filter import (
     pad_code,
     rate_too_low,
 )
-from .criteria_rows import NOT_REACHED, clip_cumulative_row, clip_row, dri_row, hic_row, olc_row, peak_row
+from .criteria_rows import NOT_REACHED, dri_row, hic_row, olc_row, peak_row
 
 __all__ = ["CRITERIA", "EXTRA", "STANDARDS", "UNITS", "compute", "j211_filter", "dri_matrices"]
 
