@@ -24,7 +24,8 @@ and ``delta_v`` use it (OLC from the filtered acceleration, ``delta_v`` from the
 
 Deceleration is positive: along ``direction`` it is ``-a . direction``. Resultants are
 ``|a|``. All signals are read as the piecewise-linear curve through the samples; each criterion is
-exact for that curve (see :mod:`crashstudy.criteria_rows`, :mod:`crashstudy.criteria_clips`), so they converge as ``dt`` is halved.
+exact for that curve (see :mod:`crashstudy.criteria_rows`, :mod:`crashstudy.criteria_clips`), so
+they converge as ``dt`` is halved.
 
 Developers: numba's on-disk cache of the compiled driver checks only this file's time stamp, not
 those of :mod:`crashstudy.criteria_rows`, :mod:`crashstudy.criteria_clips` and
