@@ -13,6 +13,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from crashstudy import criteria as C
+from crashstudy import criteria_clips as CL
 from crashstudy import criteria_rows as R
 
 G = 9.80665
@@ -158,8 +159,8 @@ def trapezoid(
 
 def clips(x: np.ndarray, dt: float) -> tuple[float, float]:
     n = x.size
-    cont, _ = R.clip_row(x, n, dt, 0.003, np.empty(n), np.empty(n, dtype=np.int64))
-    return cont, R.clip_cumulative_row(x, n, dt, 0.003, cont, np.empty(n), np.empty(n))
+    cont, _ = CL.clip_row(x, n, dt, 0.003, np.empty(n), np.empty(n))
+    return cont, CL.clip_cumulative_row(x, n, dt, 0.003, cont, np.empty(n), np.empty(n))
 
 
 def test_clip_levels_of_square_and_trapezoid_pulses() -> None:

@@ -24,7 +24,13 @@ and ``delta_v`` use it (OLC from the filtered acceleration, ``delta_v`` from the
 
 Deceleration is positive: along ``direction`` it is ``-a . direction``. Resultants are
 ``|a|``. All signals are read as the piecewise-linear curve through the samples; each criterion is
-exact for that curve (see :mod:`crashstudy.criteria_rows`), so they converge as ``dt`` is halved.
+exact for that curve (see :mod:`crashstudy.criteria_rows`, :mod:`crashstudy.criteria_clips`), so
+they converge as ``dt`` is halved.
+
+Developers: numba's on-disk cache of the compiled driver checks only this file's time stamp, not
+those of :mod:`crashstudy.criteria_rows`, :mod:`crashstudy.criteria_clips` and
+:mod:`crashstudy.criteria_filter` whose functions it
+compiles in; after editing those, touch this file (or clear ``NUMBA_CACHE_DIR``).
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ from collections.abc import Iterable
 import numba as nb
 import numpy as np
 
+from .criteria_clips import clip_cumulative_row, clip_row
 from .criteria_filter import (
     CFC_CLASSES,
     coefficients,
@@ -43,7 +50,7 @@ from .criteria_filter import (
     pad_code,
     rate_too_low,
 )
-from .criteria_rows import NOT_REACHED, clip_cumulative_row, clip_row, dri_row, hic_row, olc_row, peak_row
+from .criteria_rows import NOT_REACHED, dri_row, hic_row, olc_row, peak_row
 
 __all__ = ["CRITERIA", "EXTRA", "STANDARDS", "UNITS", "compute", "j211_filter", "dri_matrices"]
 
@@ -153,7 +160,7 @@ def _driver(
     cum = np.empty(nt + 1)
     blk = np.empty(nt + 1)
     mn = np.empty(nt)
-    dq = np.empty(nt, dtype=np.int64)
+    hmin = np.empty(nt)
     lo = np.empty(nt)
     hi = np.empty(nt)
     need_res = want[0] or want[1] or want[2] or want[3] or want[4]
@@ -214,7 +221,7 @@ def _driver(
         if want[2]:
             out[v, 4], out[v, 5], out[v, 6] = hic_row(res, n, h, 0.036, cum, blk)
         if want[3] or want[4]:
-            lev, _ = clip_row(res, n, h, 0.003, mn, dq)
+            lev, _ = clip_row(res, n, h, 0.003, mn, hmin)
             if np.isnan(lev):
                 status[v] |= 16
             out[v, 7] = lev
@@ -318,9 +325,9 @@ def compute(
         status &= ~(_OLC_FREE | _OLC_END)
     if "clip3ms" not in names and "clip3ms_cumulative" not in names:
         status &= ~_SHORT_CLIP
-    notes = np.empty(nv, dtype=object)
-    for v in range(nv):
-        notes[v] = "; ".join(text for bit, text in _NOTES.items() if status[v] & bit)
+    notes = np.full(nv, "", dtype=object)
+    for code in np.unique(status[status != 0]):
+        notes[status == code] = "; ".join(text for bit, text in _NOTES.items() if code & bit)
     result["criteria_note"] = notes
     return result
 
