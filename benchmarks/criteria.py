@@ -1,4 +1,4 @@
-"""Time of :func:`crashstudy.criteria.compute` for a frontal-study-sized batch.
+"""Time of :func:`crashstudy.metrics.criteria.compute` for a frontal-study-sized batch.
 
 V = 10^4 variants of T = 5000 steps (each its own dt, 16-24 us: records of 80-120 ms), D = 1 and
 D = 2, all criteria, CFC 180. The pulses are a sin^2 deceleration of 25-40 g over 60-100 ms with a
@@ -80,7 +80,7 @@ def cpu_median(k: int) -> float:
 def child(nv: int, nt: int, nd: int) -> None:
     """In a fresh process: import + first call (compile) and second call, printed as JSON."""
     t0 = time.perf_counter()
-    from crashstudy import criteria
+    from crashstudy.metrics import criteria
 
     t_import = time.perf_counter() - t0
     args = batch(nv, nt, nd)
@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
         child(*args.child)
         return 0
     start_load = load()
-    from crashstudy import criteria
+    from crashstudy.metrics import criteria
 
     rows: list[dict[str, Any]] = []
     for nd in (1, 2):

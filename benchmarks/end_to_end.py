@@ -76,7 +76,7 @@ def study(n_variants: int, tol: float) -> dict[str, Any]:
 
 
 def base_model() -> dict[str, Any]:
-    from crashstudy.yamlio import load_yaml
+    from crashstudy.schema.yamlio import load_yaml
 
     return load_yaml(str(FRONTAL)).data
 
@@ -188,8 +188,8 @@ def scipy_time(rtol: float, n: int) -> tuple[float, float]:
 
 def specialised_time(n_variants: int, tol: float, threads: int, repeats: int = 3) -> tuple[float, float]:
     """(median kernel wall s, element-steps) of the specialised loop on the study's variants."""
-    from crashstudy.batch import build_batch
-    from crashstudy.study import load_study
+    from crashstudy.arrays.batch import build_batch
+    from crashstudy.study.plan import load_study
     from frontal_specialised import run_specialised
     from frontal_specialised import set_threads as spec_threads
 
@@ -208,10 +208,10 @@ def specialised_time(n_variants: int, tol: float, threads: int, repeats: int = 3
 def profile_child(study_file: str, out: str) -> None:
     """Run a study in this (fresh) process with timers around the pipeline stages; print JSON."""
     t_start = time.perf_counter()
-    import crashstudy.cli  # noqa: F401
-    import crashstudy.results
-    import crashstudy.runner as runner
-    from crashstudy.study import load_study
+    import crashstudy.cli.main  # noqa: F401
+    import crashstudy.results.store
+    import crashstudy.run.runner as runner
+    from crashstudy.study.plan import load_study
 
     t_import = time.perf_counter() - t_start
     t0 = time.perf_counter()
@@ -236,7 +236,7 @@ def profile_child(study_file: str, out: str) -> None:
     runner.build_batch = timed("build_batch", runner.build_batch)
     runner.run_kernel = timed("kernel", runner.run_kernel)
     runner.run_chunk = timed("run_chunk", runner.run_chunk)
-    W = crashstudy.results.ResultWriter
+    W = crashstudy.results.store.ResultWriter
     W.write = timed("write", W.write)  # type: ignore[method-assign]
     W.finish = timed("finish", W.finish)  # type: ignore[method-assign]
     t0 = time.perf_counter()

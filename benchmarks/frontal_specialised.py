@@ -31,7 +31,7 @@ import numba as nb
 import numpy as np
 
 from crashstudy.kernel.output import KernelOutput, allocate
-from crashstudy.yamlio import load_yaml
+from crashstudy.schema.yamlio import load_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "studies" / "models" / "frontal-9mass.yaml"
@@ -48,7 +48,7 @@ NODE_IDS = ("barrier", "bumper", "radiator", "engine", "engine_mount", "front_wh
 
 def _ramp(x: list[float], y: list[float]) -> tuple[float, ...]:
     """Ramp-sum coefficients (y0, s0, x0, x1, ds1, x2, ds2, ...) of a piecewise-linear curve, as
-    :func:`crashstudy.batch.build_batch` computes them (same floating-point operations)."""
+    :func:`crashstudy.arrays.batch.build_batch` computes them (same floating-point operations)."""
     xa = np.asarray(x, dtype=np.float64)
     ya = np.asarray(y, dtype=np.float64)
     slope = np.diff(ya) / np.diff(xa)
@@ -442,7 +442,7 @@ def set_threads(n: int) -> None:
 
 
 def run_specialised(b: Any, histories: tuple[str, ...], n_out: int, block: int = BLOCK) -> KernelOutput:
-    """Run the frontal model's variants of batch ``b`` (a :class:`crashstudy.batch.Batch` built from
+    """Run the frontal model's variants of batch ``b`` (a :class:`crashstudy.arrays.batch.Batch` built from
     frontal-9mass.yaml) with the specialised loop; histories all or none."""
     N, D, V = b.x0.shape
     assert (N, D, len(b.spring_i)) == (N_NODES, 1, N_SPRINGS), "not the frontal model"

@@ -69,13 +69,13 @@ REPORT = ROOT / "benchmarks" / "results" / "skipping.md"
 sys.path.insert(0, str(ROOT / "tests"))
 
 from conftest import model_plan  # noqa: E402  (tests/conftest.py: a one-variant plan from a dict)
-from crashstudy.batch import build_batch  # noqa: E402
-from crashstudy.compiler import apply_axis  # noqa: E402
+from crashstudy.arrays.batch import build_batch  # noqa: E402
+from crashstudy.arrays.compiler import apply_axis  # noqa: E402
 from crashstudy.kernel.compiled import set_threads  # noqa: E402
 from crashstudy.kernel.output import KernelOutput  # noqa: E402
-from crashstudy.runner import run_chunk, run_kernel  # noqa: E402
-from crashstudy.study import load_study  # noqa: E402
-from crashstudy.yamlio import load_yaml  # noqa: E402
+from crashstudy.run.runner import run_chunk, run_kernel  # noqa: E402
+from crashstudy.schema.yamlio import load_yaml  # noqa: E402
+from crashstudy.study.plan import load_study  # noqa: E402
 
 PEAKS = ("peak_force", "peak_acceleration", "max_crush")
 PLOTTED: list[tuple[str, list[Case]]] = []  # kernel comparisons, for the figure
@@ -502,7 +502,7 @@ def cmp_cache(cold_repeats: int, repeats: int, log: list[str]) -> list[Row]:
             else:
                 env["NUMBA_CACHE_DIR"] = str(Path(tmp) / "cache0")
             warm.append(run_process([*exe, str(Path(tmp) / f"out{r}b")], env))  # second call: cache reused
-            imp.append(run_process([sys.executable, "-c", "import crashstudy.runner, crashstudy.cli"], env))
+            imp.append(run_process([sys.executable, "-c", "import crashstudy.run.runner, crashstudy.cli.main"], env))
     after = loadavg()
 
     def med(xs: list[tuple[float, float]], k: int) -> float:
@@ -515,7 +515,7 @@ def cmp_cache(cold_repeats: int, repeats: int, log: list[str]) -> list[Row]:
     log.append(
         f"   second call ({len(warm)} runs): wall {[round(x[0], 2) for x in warm]}, CPU {[round(x[1], 2) for x in warm]}"
     )
-    log.append(f"   python -c 'import crashstudy.runner, crashstudy.cli' ({len(imp)} runs): wall median "
+    log.append(f"   python -c 'import crashstudy.run.runner, crashstudy.cli.main' ({len(imp)} runs): wall median "
                f"{med(imp, 0):.2f} s, CPU {med(imp, 1):.2f} s")  # fmt: skip
     return [Row(f"numba cache: second `crashstudy simulate` of {SMALL_MODEL.name} (separate processes)",
                 f"first call, empty NUMBA_CACHE_DIR: process wall {med(cold, 0):.1f} s, CPU {med(cold, 1):.1f} s",

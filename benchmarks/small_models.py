@@ -85,8 +85,8 @@ CASES = {  # name: (springs, variants, end_time [s])
 
 def one(case: str, folder: Path) -> dict[str, Any]:
     """Run ``case`` once in this process; times in seconds."""
-    from crashstudy import runner
-    from crashstudy.study import load_study
+    from crashstudy.run import runner
+    from crashstudy.study.plan import load_study
 
     springs, n, end_time = CASES[case]
     model = folder / f"chain-{springs}-{end_time}.yaml"
@@ -120,7 +120,7 @@ def one(case: str, folder: Path) -> dict[str, Any]:
 
 def specialised(plan: Any, summary: Any) -> dict[str, Any]:
     """The hand-specialised loop on the same variants and steps (batch built outside the timing)."""
-    from crashstudy.batch import build_batch
+    from crashstudy.arrays.batch import build_batch
     from two_spring_specialised import run_specialised
 
     batch, _ = build_batch(plan.topology, plan.params(0, plan.n_variants), plan.interval)

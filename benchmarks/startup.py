@@ -4,7 +4,7 @@ Each repeat gives numba a fresh, empty cache directory (``NUMBA_CACHE_DIR``), ru
 ``crashstudy simulate`` once ("first": the kernels are compiled and written to that cache) and then
 twice more with the same directory ("second", "third": the kernels are loaded from it). Process
 wall time from start to exit (results written), under ``/usr/bin/time -v`` for the peak RSS. For
-scale: the bare interpreter start (``python -c pass``) and ``import crashstudy.runner``.
+scale: the bare interpreter start (``python -c pass``) and ``import crashstudy.run.runner``.
 
 Run: ``python benchmarks/startup.py [--model studies/models/helicopter-subfloor.yaml] [--repeats 2]``.
 Writes ``benchmarks/results/startup.{csv,md}``.
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="startup-") as tmp:
         base_env = dict(os.environ)
         for what, cmd in (("python -c pass", [sys.executable, "-c", "pass"]),
-                          ("python -c 'import crashstudy.runner'", [sys.executable, "-c", "import crashstudy.runner"]),
+                          ("python -c 'import crashstudy.run.runner'", [sys.executable, "-c", "import crashstudy.run.runner"]),
                           ("python -c 'import crashstudy.kernel.compiled' (numba)",
                            [sys.executable, "-c", "import crashstudy.kernel.compiled"])):  # fmt: skip
             walls = [timed(cmd, base_env)[0] for _ in range(3)]

@@ -1,5 +1,5 @@
 """Stability stress table (issue 4, item 2): every case of ``tests/test_stress.py`` and the long ones the
-tests leave out, each run through ``crashstudy.runner.run_chunk`` (the path a study takes), with its
+tests leave out, each run through ``crashstudy.run.runner.run_chunk`` (the path a study takes), with its
 outcome, energy error, steps, wall time and a check against an independent truth where one exists.
 
 Outcomes: ``stable`` (status ok and the check holds), ``refused: <reason>`` / ``failed: <reason>`` (the
@@ -42,11 +42,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-import crashstudy.runner as runner  # noqa: E402
+import crashstudy.run.runner as runner  # noqa: E402
 import test_stress as cases  # noqa: E402  (the tests' model builders: the table runs the same models)
 from crashstudy.kernel.output import INVALID  # noqa: E402
-from crashstudy.results import ChunkResult  # noqa: E402
-from crashstudy.study import Axis, Plan  # noqa: E402
+from crashstudy.results.store import ChunkResult  # noqa: E402
+from crashstudy.study.plan import Axis, Plan  # noqa: E402
 
 ROWS: list[dict[str, str]] = []
 
@@ -218,7 +218,7 @@ def long_runs(quick: bool) -> None:
 
 def fixed_dt(tmp: Path) -> None:
     print("fixed dt above dt_crit (study over the end mass)")
-    from crashstudy.study import load_study
+    from crashstudy.study.plan import load_study
 
     masses = [1e-4, 1e-3, 1e-2, 0.1, 1.0]
     plan = load_study(cases.mass_axis_study(tmp, 1.0e-3, masses))

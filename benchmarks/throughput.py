@@ -41,12 +41,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import FRONTAL, RESULTS, load, machine, machine_md, md_table, median, write_csv  # noqa: E402
-from crashstudy.batch import Batch, build_batch  # noqa: E402
+from crashstudy.arrays.batch import Batch, build_batch  # noqa: E402
 from crashstudy.kernel.compiled import run_compiled  # noqa: E402
 from crashstudy.kernel.compiled import set_threads as gen_threads  # noqa: E402
 from crashstudy.kernel.generated import run_generated  # noqa: E402
-from crashstudy.runner import MAX_CHUNK, chunk_size  # noqa: E402
-from crashstudy.study import Plan, load_study  # noqa: E402
+from crashstudy.run.runner import MAX_CHUNK, chunk_size  # noqa: E402
+from crashstudy.study.plan import Plan, load_study  # noqa: E402
 from frontal_specialised import run_specialised  # noqa: E402
 from frontal_specialised import set_threads as spec_threads  # noqa: E402
 

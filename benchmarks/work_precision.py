@@ -59,11 +59,11 @@ sys.path.insert(0, str(HERE.parent / "tests"))  # reference_scipy (independent o
 
 import scipy_models  # noqa: E402
 from common import RESULTS, load, machine, machine_md, md_table, median, write_csv  # noqa: E402
-from crashstudy.batch import build_batch  # noqa: E402
+from crashstudy.arrays.batch import build_batch  # noqa: E402
 from crashstudy.kernel.compiled import run_compiled, set_threads  # noqa: E402
 from crashstudy.schema import parse_model  # noqa: E402
-from crashstudy.study import Plan, plan_from_model  # noqa: E402
-from crashstudy.yamlio import loads_yaml  # noqa: E402
+from crashstudy.schema.yamlio import loads_yaml  # noqa: E402
+from crashstudy.study.plan import Plan, plan_from_model  # noqa: E402
 from wp_models import models  # noqa: E402
 
 SAFETY = (0.9, 0.5, 0.1, 0.01)

@@ -18,7 +18,7 @@ G = 9.80665  # m/s^2
 
 
 def _load(name: str) -> dict[str, Any]:
-    from crashstudy.yamlio import load_yaml
+    from crashstudy.schema.yamlio import load_yaml
 
     return load_yaml(str(MODELS / f"{name}.yaml")).data
 

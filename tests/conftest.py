@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 import yaml
 
-from crashstudy.batch import build_batch
+from crashstudy.arrays.batch import build_batch
 from crashstudy.kernel.output import KernelOutput
 from crashstudy.schema import parse_model
-from crashstudy.study import Plan, plan_from_model
-from crashstudy.yamlio import loads_yaml
+from crashstudy.schema.yamlio import loads_yaml
+from crashstudy.study.plan import Plan, plan_from_model
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = ROOT / "studies"
@@ -45,8 +45,8 @@ def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: d
 
     Returns (kernel output, batch, plan); histories follow the model's ``output.histories``.
     """
-    from crashstudy.compiler import apply_axis
-    from crashstudy.runner import run_kernel
+    from crashstudy.arrays.compiler import apply_axis
+    from crashstudy.run.runner import run_kernel
 
     plan = model_plan(model)
     topo = plan.topology

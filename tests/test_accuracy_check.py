@@ -7,7 +7,7 @@ import numpy as np
 import yaml
 
 from conftest import STUDIES, run_model
-from crashstudy.runner import error_estimate
+from crashstudy.run.runner import error_estimate
 
 LINEAR = {
     "name": "acc-linear",
@@ -48,7 +48,7 @@ def test_error_estimate_bounds_the_helicopter_peaks_against_a_fine_run() -> None
 
 
 def test_accuracy_check_writes_error_estimate_to_the_summary(tmp_path) -> None:
-    from crashstudy.runner import simulate
+    from crashstudy.run.runner import simulate
 
     path = tmp_path / "m.yaml"
     path.write_text(yaml.safe_dump({**LINEAR, "accuracy_check": True}))

@@ -22,11 +22,11 @@ from typing import Any
 import pytest
 import xarray as xr
 
-import crashstudy.backends
+import crashstudy.run.backends
 from crashstudy.errors import InputError
-from crashstudy.results import PARTIAL
-from crashstudy.runner import run_plan
-from crashstudy.study import load_study
+from crashstudy.results.store import PARTIAL
+from crashstudy.run.runner import run_plan
+from crashstudy.study.plan import load_study
 
 MODEL = """\
 name: two-spring-crush
@@ -92,7 +92,7 @@ def assert_same_results(ds: xr.Dataset, ref: xr.Dataset) -> None:
 class InterruptAfter:
     """A backend wrapper that raises KeyboardInterrupt once ``n`` chunk results have been handed out."""
 
-    def __init__(self, inner: crashstudy.backends.Backend, n: int) -> None:
+    def __init__(self, inner: crashstudy.run.backends.Backend, n: int) -> None:
         self.inner, self.n = inner, n
 
     def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
@@ -129,9 +129,9 @@ class BackendSuite:
 
     def test_interrupted_run_resumes_to_identical_results(self, study_file: Path, reference: xr.Dataset,
                                                           tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
-        real = crashstudy.backends.make_backend
+        real = crashstudy.run.backends.make_backend
         with monkeypatch.context() as m:
-            m.setattr(crashstudy.backends, "make_backend", lambda *a, **k: InterruptAfter(real(*a, **k), 2))
+            m.setattr(crashstudy.run.backends, "make_backend", lambda *a, **k: InterruptAfter(real(*a, **k), 2))
             with pytest.raises(KeyboardInterrupt):
                 self.run(study_file, tmp_path, chunk=SMALL_CHUNK)
         assert (tmp_path / PARTIAL).exists() and not (tmp_path / "results.nc").exists()
@@ -167,7 +167,7 @@ def _die_once(marker: str, fn: Callable[..., Any], *args: Any) -> Any:
 class KillOneWorker:
     """Wraps a backend so that the worker running the first task dies in it."""
 
-    def __init__(self, inner: crashstudy.backends.Backend, marker: Path) -> None:
+    def __init__(self, inner: crashstudy.run.backends.Backend, marker: Path) -> None:
         self.inner, self.marker = inner, str(marker)
 
     def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
@@ -180,9 +180,9 @@ class KillOneWorker:
 def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, reference: xr.Dataset,
                                                               tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
     marker = tmp_path / "worker-killed"
-    real = crashstudy.backends.make_backend
+    real = crashstudy.run.backends.make_backend
     monkeypatch.setattr(
-        crashstudy.backends, "make_backend", lambda *a, **k: KillOneWorker(real(*a, **k), marker)
+        crashstudy.run.backends, "make_backend", lambda *a, **k: KillOneWorker(real(*a, **k), marker)
     )
     out = tmp_path / "out"
     rep = run_plan(
@@ -195,7 +195,7 @@ def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, r
 
 def test_dask_backend_without_distributed_asks_for_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "distributed", None)  # `import distributed` now raises ImportError
-    from crashstudy.dask_backend import DaskBackend
+    from crashstudy.run.dask_backend import DaskBackend
 
     with pytest.raises(InputError) as exc:
         DaskBackend("local")
@@ -203,13 +203,13 @@ def test_dask_backend_without_distributed_asks_for_the_extra(monkeypatch: pytest
         ("--scheduler", "the Dask backend needs the optional extra: pip install 'crashstudy[dask]'")
     ]
     with pytest.raises(InputError, match=r"crashstudy\[dask\]"):
-        crashstudy.backends.make_backend(1, "tcp://127.0.0.1:8786")
+        crashstudy.run.backends.make_backend(1, "tcp://127.0.0.1:8786")
 
 
 def test_cli_without_distributed_exits_2_with_the_install_hint(study_file: Path, tmp_path: Path,
                                                                 monkeypatch: pytest.MonkeyPatch,
                                                                 capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
-    from crashstudy.cli import main
+    from crashstudy.cli.main import main
 
     monkeypatch.setitem(sys.modules, "distributed", None)
     code = main(
@@ -228,7 +228,7 @@ def test_backend_that_cannot_start_leaves_no_partial_result(study_file: Path, tm
 
 
 def test_unreachable_scheduler_is_an_input_error_naming_the_address() -> None:
-    from crashstudy.dask_backend import DaskBackend
+    from crashstudy.run.dask_backend import DaskBackend
 
     with pytest.raises(InputError, match=r"cannot connect to a Dask scheduler at 'tcp://127\.0\.0\.1:9'"):
         DaskBackend("tcp://127.0.0.1:9", timeout=2)  # port 9 (discard): nothing listens on loopback
@@ -245,8 +245,8 @@ def test_cli_run_with_local_scheduler_exits_0(
 
 
 def test_dask_local_workers_run_the_kernel_with_one_thread_each() -> None:
-    from crashstudy.dask_backend import DaskBackend
     from crashstudy.kernel.compiled import get_threads
+    from crashstudy.run.dask_backend import DaskBackend
 
     backend = DaskBackend("local")
     try:

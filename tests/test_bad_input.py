@@ -22,7 +22,7 @@ try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
     from conftest import STUDIES, run_cli
 except ImportError:  # ... or as a package
     from tests.conftest import STUDIES, run_cli  # type: ignore[no-redef]
-from crashstudy.cli import main
+from crashstudy.cli.main import main
 
 BASE = """\
 name: bad-input-base

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 import yaml
 
-from crashstudy.compare import compare
+from crashstudy.analysis.compare import compare
 from crashstudy.errors import InputError
-from crashstudy.results import FINAL, PARTIAL, open_results
-from crashstudy.runner import run_study
+from crashstudy.results.store import FINAL, PARTIAL, open_results
+from crashstudy.run.runner import run_study
 
 PLATEAU = 50_000.0  # N
 MASSES = [800.0, 1000.0]  # kg

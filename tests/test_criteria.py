@@ -12,9 +12,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from crashstudy import criteria as C
-from crashstudy import criteria_clips as CL
-from crashstudy import criteria_rows as R
+from crashstudy.metrics import criteria as C
+from crashstudy.metrics import criteria_clips as CL
+from crashstudy.metrics import criteria_rows as R
 
 G = 9.80665
 

@@ -10,7 +10,7 @@ import pytest
 import scipy.signal
 from scipy.optimize import brentq
 
-from crashstudy import criteria_filter as F
+from crashstudy.metrics import criteria_filter as F
 from test_criteria import G, half_sine, one
 
 F_N = {60: 100.0, 180: 300.0, 600: 1000.0, 1000: 1650.0}  # J211-1 -3 dB frequencies [Hz]

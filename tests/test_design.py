@@ -12,10 +12,10 @@ import pandas as pd
 import pytest
 import yaml
 
-from crashstudy.cli import main
-from crashstudy.design import n_rows, rows
-from crashstudy.results import open_results
-from crashstudy.study import load_study
+from crashstudy.cli.main import main
+from crashstudy.results.store import open_results
+from crashstudy.study.design import n_rows, rows
+from crashstudy.study.plan import load_study
 
 MODEL = """\
 name: drop
@@ -154,7 +154,7 @@ def test_sobol_indices_of_a_crash_run_match_the_closed_form_of_its_peak_force(tm
     factors v, sqrt(k), sqrt(m) with v, k, m uniform: its Sobol' indices are exact (moments of a uniform:
     E sqrt(x) = 2/3 (b^1.5 - a^1.5) / (b - a), E x = (a + b) / 2). The crash study (saltelli design, 128
     base points = 1024 variants) gives indices within max(3 confidence half-widths, 0.03) of them."""
-    from crashstudy.sensitivity import indices
+    from crashstudy.analysis.sensitivity import indices
 
     bounds = {"impact_velocity": [3.0, 7.0], "springs.pad.material.stiffness": [5.0e5, 2.0e6],
               "nodes.body.mass": [50.0, 150.0]}  # fmt: skip

@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 import yaml
 
-from crashstudy.design import n_rows
-from crashstudy.results import open_results
-from crashstudy.runner import run_plan, simulate
-from crashstudy.study import load_study
-from crashstudy.yamlio import load_yaml
+from crashstudy.results.store import open_results
+from crashstudy.run.runner import run_plan, simulate
+from crashstudy.schema.yamlio import load_yaml
+from crashstudy.study.design import n_rows
+from crashstudy.study.plan import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml"))

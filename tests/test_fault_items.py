@@ -23,7 +23,7 @@ import pandas as pd
 import pytest
 
 from crashstudy.errors import InputError
-from crashstudy.study import load_study
+from crashstudy.study.plan import load_study
 
 Cli = Callable[..., Any]
 
@@ -120,7 +120,7 @@ def test_resume_into_the_finished_folder_of_another_study_exits_2_and_keeps_it(t
 
 
 def test_axis_coordinates_of_a_study_over_two_million_variants_are_written(tmp_path: Path) -> None:
-    from crashstudy.results import ResultWriter
+    from crashstudy.results.store import ResultWriter
 
     (tmp_path / "model.yaml").write_text(TINY_MODEL)
     masses = [1.0 + 0.001 * i for i in range(1500)]
@@ -221,7 +221,7 @@ def test_variants_whose_step_count_overflows_fail_with_the_reason_and_the_others
 
 @pytest.fixture(scope="module")
 def two_results(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    from crashstudy.runner import run_plan
+    from crashstudy.run.runner import run_plan
 
     root = tmp_path_factory.mktemp("compare")
     study = write(root, TINY_STUDY.replace(f"{MASSES}", "[1.0, 1.5, 2.0, 2.5, 3.0, 3.5]"))
@@ -339,10 +339,10 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
     """check_parameters (what every distinct axis value now goes through) against the schema (the truth) on
     each numeric field of a model with all five materials, a wall, a load curve and termination."""
     from conftest import model_plan
-    from crashstudy.batch import check_parameters
-    from crashstudy.compiler import apply_axis
-    from crashstudy.study import _model_message
-    from crashstudy.yamlio import loads_yaml
+    from crashstudy.arrays.batch import check_parameters
+    from crashstudy.arrays.compiler import apply_axis
+    from crashstudy.schema.yamlio import loads_yaml
+    from crashstudy.study.plan import _model_message
 
     plan = model_plan(RICH_MODEL)
     data = loads_yaml(RICH_MODEL).data

@@ -25,10 +25,10 @@ import numpy as np
 import psutil
 import pytest
 
-from crashstudy import runner
 from crashstudy.errors import InputError
-from crashstudy.results import Results
-from crashstudy.study import load_study
+from crashstudy.results.store import Results
+from crashstudy.run import runner
+from crashstudy.study.plan import load_study
 from test_fault_items import MASSES, TINY_MODEL, TINY_STUDY, V0, Cli, K, assert_exit_2  # noqa: E402 - the shared tiny model
 
 RTOL = 0.02  # the sampled peak of a harmonic oscillation at the default step: within 2 % of the analytic one
@@ -255,8 +255,8 @@ def test_a_rerun_does_not_reuse_a_variant_whose_stored_numbers_changed(tmp_path:
 HELD_RUN = """\
 import sys, time
 from pathlib import Path
-import crashstudy.runner as r
-from crashstudy.study import load_study
+import crashstudy.run.runner as r
+from crashstudy.study.plan import load_study
 study, out, started, go = sys.argv[1:5]
 real = r.run_chunk
 def held(*args):
@@ -305,7 +305,7 @@ def test_a_second_run_into_a_folder_a_live_run_writes_exits_2_and_leaves_it_alon
 
 POOL_PARENT = """\
 import time
-from crashstudy.backends import make_backend
+from crashstudy.run.backends import make_backend
 pool = make_backend(jobs=2)
 for _ in pool.imap_unordered(time.sleep, [(600.0,), (600.0,), (600.0,)]):
     pass
@@ -348,7 +348,7 @@ def test_pool_workers_exit_when_the_main_process_is_killed() -> None:
 WATCHED_CHILD = """\
 import os, sys, time
 sys.platform = "darwin"  # no PR_SET_PDEATHSIG: the watchdog thread must do it
-from crashstudy.backends import _die_with_parent
+from crashstudy.run.backends import _die_with_parent
 _die_with_parent(os.getppid())
 print(os.getpid(), flush=True)
 time.sleep(600)

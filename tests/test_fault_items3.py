@@ -25,9 +25,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from crashstudy import yamlio
 from crashstudy.errors import InputError
-from crashstudy.study import load_study
+from crashstudy.schema import yamlio
+from crashstudy.study.plan import load_study
 from test_fault_items import TINY_MODEL, Cli, K, assert_exit_2  # noqa: E402 - shared helpers
 
 MODEL = TINY_MODEL  # the tiny model of test_fault_items (K = 2e4 N/m, 2 kg at 1 m/s)
@@ -80,7 +80,7 @@ def test_a_scheduler_that_accepts_and_never_answers_exits_2_after_the_stated_tim
     study = write(tmp_path)
     # the command line with the connect timeout at 1 s (10 s by default); it hung for good before the fix:
     # the subprocess timeout (60 s) only stops a hang, the test asserts no time
-    code = ("import sys, crashstudy.dask_backend as d; d.CONNECT_TIMEOUT = 1.0; from crashstudy.cli import main; "
+    code = ("import sys, crashstudy.run.dask_backend as d; d.CONNECT_TIMEOUT = 1.0; from crashstudy.cli.main import main; "
             "sys.exit(main(sys.argv[1:]))")  # fmt: skip
     p = subprocess.run([sys.executable, "-c", code, "run", str(study), "-o", str(tmp_path / "out"), "--scheduler",
                         silent_listener, "--progress", "off"], capture_output=True, text=True, timeout=60)  # fmt: skip
@@ -173,7 +173,7 @@ def test_a_document_with_far_more_values_than_the_limit_is_refused_before_it_is_
 
 def test_validate_parses_a_big_study_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                           capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
-    from crashstudy.cli import main
+    from crashstudy.cli.main import main
 
     masses = [1.0 + 1e-4 * i for i in range(20_000)]  # 20,000 variants; before: parsed 3 times by validate
     study = write(tmp_path, f"name: big\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: {masses}\n")
@@ -275,7 +275,7 @@ def test_a_path_too_long_is_invalid_input_not_a_failed_write(tmp_path: Path, cli
 
 
 def test_compare_names_metrics_that_failed_by_nan_instead_of_a_zero_rel_diff(tmp_path: Path, cli: Cli) -> None:
-    from crashstudy.runner import run_plan
+    from crashstudy.run.runner import run_plan
 
     plan = load_study(write(tmp_path))
     run_plan(plan, tmp_path / "base", progress=False)
@@ -295,7 +295,7 @@ def test_compare_names_metrics_that_failed_by_nan_instead_of_a_zero_rel_diff(tmp
 
 
 def test_summary_head_minus_one_exits_2(tmp_path: Path, cli: Cli) -> None:
-    from crashstudy.runner import run_plan
+    from crashstudy.run.runner import run_plan
 
     run_plan(load_study(write(tmp_path)), tmp_path / "out", progress=False)
     assert_exit_2(cli("summary", tmp_path / "out", "--head", "-1"), "--head: expected 0 (every row) or a number")

@@ -208,8 +208,8 @@ def reference(fault_dir: Path) -> tuple[xr.Dataset, Path]:
 
 
 def test_fault_study_writes_many_chunks(fault_dir: Path) -> None:
-    from crashstudy.runner import chunk_size
-    from crashstudy.study import load_study
+    from crashstudy.run.runner import chunk_size
+    from crashstudy.study.plan import load_study
 
     plan = load_study(fault_dir / "study.yaml")
     assert plan.n_variants == N_VARIANTS and chunk_size(plan) == CHUNK

@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT
-from crashstudy.cli import main
+from crashstudy.cli.main import main
 from crashstudy.schema import load_model
-from crashstudy.study import load_study
-from crashstudy.yamlio import loads_yaml
+from crashstudy.schema.yamlio import loads_yaml
+from crashstudy.study.plan import load_study
 
 DOC = ROOT / "docs" / "format.md"
 BLOCK = re.compile(r"(?:<!-- example: (?P<marker>[^>]*?) -->\n)?```yaml\n(?P<body>.*?)```", re.S)

@@ -31,8 +31,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from crashstudy.runner import run_chunk
-from crashstudy.study import load_study
+from crashstudy.run.runner import run_chunk
+from crashstudy.study.plan import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "studies" / "models" / "frontal-9mass.yaml"

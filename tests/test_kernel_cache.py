@@ -22,7 +22,7 @@ import pytest
 import yaml
 
 from conftest import model_plan
-from crashstudy.batch import build_batch
+from crashstudy.arrays.batch import build_batch
 from crashstudy.kernel import cache, generated
 
 MODEL = {"name": "cache-probe", "units": "SI",

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, model_plan
-from crashstudy.batch import build_batch
-from crashstudy.compiler import apply_axis
+from crashstudy.arrays.batch import build_batch
+from crashstudy.arrays.compiler import apply_axis
 from crashstudy.kernel import choice
 from crashstudy.kernel.output import KernelOutput
 from crashstudy.kernel.reference import STOP_EVERY, run_reference
-from crashstudy.runner import Progress, run_kernel
+from crashstudy.run.runner import Progress, run_kernel
 
 
 def _chain(n_springs: int, end_time: float, stiffness: float = 2.0e5) -> dict:
@@ -198,7 +198,7 @@ def test_cli_run_of_a_small_study_on_empty_caches_compiles_nothing(tmp_path: Pat
     assert not list((tmp_path / "numba").rglob("*.nbi")) and not list((tmp_path / "kernels").glob("k_*.py"))
     import pandas as pd
 
-    from crashstudy.study import load_study
+    from crashstudy.study.plan import load_study
 
     summary = pd.read_csv(out / "summary.csv")
     plan = load_study(ROOT / "studies/subfloor-small.yaml")

@@ -26,7 +26,7 @@ import yaml
 from conftest import run_model
 from crashstudy.kernel import entry
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, UNSTABLE, KernelOutput
-from crashstudy.runner import run_kernel
+from crashstudy.run.runner import run_kernel
 from test_generated import (
     FRONTAL,
     HELICOPTER,

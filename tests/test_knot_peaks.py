@@ -19,7 +19,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
 from conftest import model_plan, run_model
-from crashstudy.batch import build_batch
+from crashstudy.arrays.batch import build_batch
 
 # A curve whose |force| has a local maximum of 1500 N at the knot x = -0.01 m (and, mirrored, at +0.01):
 # from there the force falls to 1000 N (crush) or 500 N (elastic, general) over the next 0.09 m.

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crashstudy.cli import main
-from crashstudy.results import open_results
+from crashstudy.cli.main import main
+from crashstudy.results.store import open_results
 
 G = 9.80665
 T_PULSE = 0.010  # [s]
@@ -129,7 +129,7 @@ SCALES = [0.6, 0.8, 1.0]  # axis curves.pulse.scale: the pulse amplitude as a fr
 def sweeps(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """A study over the pulse amplitude, run twice: "baseline", and "bigger" with every pulse 1% larger
     and a regression: block that lets hic15 move 5% (hic36 and peak_g keep the default 1e-6)."""
-    from crashstudy.runner import run_study
+    from crashstudy.run.runner import run_study
 
     root = tmp_path_factory.mktemp("sweeps")
     out = {}
@@ -152,7 +152,7 @@ def test_study_sweep_criteria_follow_the_closed_form_over_the_axis(sweeps: dict[
 
 
 def test_compare_flags_a_criterion_that_moved_and_the_regression_block_tolerates_it(sweeps: dict[str, Path]) -> None:
-    from crashstudy.compare import compare
+    from crashstudy.analysis.compare import compare
 
     cmp = compare(sweeps["bigger"], sweeps["baseline"])
     failing = cmp.failing_columns()
@@ -177,7 +177,7 @@ def test_summary_sort_orders_by_a_criterion(sweeps: dict[str, Path], capsys: pyt
 
 
 def test_matrix_plot_draws_a_criterion_over_the_axis(sweeps: dict[str, Path], tmp_path: Path) -> None:
-    from crashstudy.plot_matrix import plot_matrix
+    from crashstudy.analysis.plot_matrix import plot_matrix
 
     assert main(["plot", str(sweeps["baseline"]), "--kind", "matrix", "--quantity", "hic15.sled",
                  "-o", str(tmp_path)]) == 0  # fmt: skip
@@ -191,7 +191,7 @@ def test_matrix_plot_draws_a_criterion_over_the_axis(sweeps: dict[str, Path], tm
 def test_pulse_plot_shows_the_filtered_pulse_in_g_over_ms_beside_the_raw_channel(
     sweeps: dict[str, Path], tmp_path: Path
 ) -> None:
-    from crashstudy.plot_pulse import plot_pulse
+    from crashstudy.analysis.plot_pulse import plot_pulse
 
     assert main(["plot", str(sweeps["baseline"]), "--kind", "pulse", "-o", str(tmp_path)]) == 0
     assert (tmp_path / "pulse.png").stat().st_size > 0
@@ -208,7 +208,7 @@ def test_pulse_plot_shows_the_filtered_pulse_in_g_over_ms_beside_the_raw_channel
 
 
 def _plan(tmp_path: Path, text: str, study: str = ""):
-    from crashstudy.study import load_study
+    from crashstudy.study.plan import load_study
 
     (tmp_path / "m.yaml").write_text(text)
     (tmp_path / "s.yaml").write_text(study or "name: s\nmodel: m.yaml\nmatrix:\n  curves.pulse.scale: [0.5, 1.0, 0.75]\n")
@@ -227,7 +227,7 @@ def test_fast_kernels_record_every_step_bitwise_as_the_reference(case: str, kern
     loads, gravity, walls, a variant crushed to zero length (record zero from its failure step), early
     termination and lane compaction (tests/test_kernel_twins.py's cases)."""
     from conftest import model_plan
-    from crashstudy.compiler import apply_axis
+    from crashstudy.arrays.compiler import apply_axis
     from crashstudy.kernel.entry import run_batch
     from test_kernel_twins import CASES, assert_bitwise
 
@@ -237,7 +237,7 @@ def test_fast_kernels_record_every_step_bitwise_as_the_reference(case: str, kern
     P = np.repeat(plan.base[:, None], len(next(iter(axes.values()))), axis=1)
     for path, vals in axes.items():
         apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
-    from crashstudy.batch import build_batch
+    from crashstudy.arrays.batch import build_batch
 
     batch, _ = build_batch(topo, P, plan.interval)
     record = tuple(n for n in range(topo.n_nodes) if not topo.fixed[n].all() or n in batch.pm_node)
@@ -248,7 +248,7 @@ def test_fast_kernels_record_every_step_bitwise_as_the_reference(case: str, kern
 
 
 def test_step_record_is_the_acceleration_history_at_its_samples(tmp_path: Path) -> None:
-    from crashstudy.batch import build_batch
+    from crashstudy.arrays.batch import build_batch
     from crashstudy.kernel.reference import run_reference
 
     plan = _plan(tmp_path, pulse_model())
@@ -269,8 +269,8 @@ def test_step_record_is_the_acceleration_history_at_its_samples(tmp_path: Path) 
 def test_a_chunk_whose_record_passes_the_budget_runs_in_batches_with_the_same_results(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from crashstudy import metrics
-    from crashstudy.runner import run_chunk
+    from crashstudy.metrics import record as metrics
+    from crashstudy.run.runner import run_chunk
 
     plan = _plan(tmp_path, pulse_model())
     whole = run_chunk(plan, 0, 3)
@@ -308,8 +308,8 @@ def test_bad_metrics_in_a_study_set_exit_2_at_their_own_line(tmp_path: Path, cap
 def test_schema_and_result_tables_name_every_criterion_of_the_maths() -> None:
     from typing import get_args
 
-    from crashstudy import criteria
-    from crashstudy.metrics import METRIC_META
+    from crashstudy.metrics import criteria
+    from crashstudy.metrics.record import METRIC_META
     from crashstudy.schema.model import CRITERION_NAMES, Criterion
 
     assert CRITERION_NAMES == criteria.CRITERIA == get_args(Criterion)
@@ -319,7 +319,7 @@ def test_schema_and_result_tables_name_every_criterion_of_the_maths() -> None:
 def test_a_rerun_reuses_finished_variants_with_their_criteria_and_notes(tmp_path: Path) -> None:
     """A variant copied from an earlier result keeps its criteria and its note (the note is an index
     into a table of texts: it is re-coded into the new file's table, not copied as a number)."""
-    from crashstudy.runner import run_study
+    from crashstudy.run.runner import run_study
 
     (tmp_path / "m.yaml").write_text(pulse_model(extra="output: {interval: 1.0e-3}\n"))
     study = "name: s\nmodel: m.yaml\nmatrix:\n  time_step.dt: [{}]\n"
@@ -328,8 +328,8 @@ def test_a_rerun_reuses_finished_variants_with_their_criteria_and_notes(tmp_path
     note = first["criteria_note"][0]
     assert note.startswith("sled: ") and "10 x CFC" in note
     (tmp_path / "s.yaml").write_text(study.format("1.0e-5, 2.0e-4"))  # a new variant first, no note
-    from crashstudy.runner import run_plan
-    from crashstudy.study import load_study
+    from crashstudy.run.runner import run_plan
+    from crashstudy.study.plan import load_study
 
     report = run_plan(load_study(tmp_path / "s.yaml"), tmp_path / "o")
     assert (report.n_reused, report.n_computed) == (1, 1)
@@ -386,7 +386,7 @@ def test_validate_warns_when_the_step_is_too_long_for_the_filter_class(tmp_path:
 def test_criteria_of_a_chunk_are_the_same_on_every_kernel(kernel: str, tmp_path: Path) -> None:
     """The criteria, notes and filtered pulse of a chunk computed on a fast kernel equal the reference's
     bit for bit (the record is bitwise equal, the criteria a function of it)."""
-    from crashstudy.runner import run_chunk
+    from crashstudy.run.runner import run_chunk
 
     plan = _plan(tmp_path, pulse_model(metrics="  - {node: sled, cfc: 600, criteria: [peak_g, hic15, clip3ms, "
                                                 "clip3ms_cumulative, olc, dri, delta_v]}"))  # fmt: skip

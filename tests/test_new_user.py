@@ -26,8 +26,8 @@ import pytest
 import yaml
 
 import crashstudy
-from crashstudy.cli import _parser, main
-from crashstudy.compare import compare
+from crashstudy.analysis.compare import compare
+from crashstudy.cli.main import _parser, main
 from crashstudy.errors import InputError
 from test_study import MODEL  # noqa: E402 - the two-spring crush model of the study tests
 

@@ -11,8 +11,8 @@ import pytest
 import yaml
 from scipy.integrate import solve_ivp
 
-from crashstudy.cli import main
-from crashstudy.optimization import INFEASIBLE, scores
+from crashstudy.analysis.optimization import INFEASIBLE, scores
+from crashstudy.cli.main import main
 
 CRUSH = """\
 name: crush-stop
@@ -137,7 +137,7 @@ def _small_copy(src: Path, tmp: Path, **changes: object) -> Path:
 def test_the_frontal_optimize_example_at_small_size_beats_the_base_design(tmp_path: Path) -> None:
     """studies/frontal-optimize.yaml with a budget of 150: the optimum is feasible and its survival-room
     peak deceleration is below the base design's (both scales 1.0, run here as the reference)."""
-    from crashstudy.runner import simulate
+    from crashstudy.run.runner import simulate
 
     study = _small_copy(STUDIES / "frontal-optimize.yaml", tmp_path, optimize={"budget": 150})
     out = tmp_path / "out"

@@ -1,4 +1,4 @@
-"""crashstudy.plot: the figures draw the result data exactly, write real PNGs, and refuse bad names."""
+"""crashstudy.analysis.plot: the figures draw the result data exactly, write real PNGs, and refuse bad names."""
 
 from __future__ import annotations
 
@@ -11,16 +11,16 @@ import pytest
 import yaml
 
 import crashstudy
-import crashstudy.results
-from crashstudy import cli as cli_module
-from crashstudy.errors import InputError
-from crashstudy.plot import (
+import crashstudy.results.store
+from crashstudy.analysis.plot import (
     plot_command,
     plot_force_displacement,
     plot_history,
     plot_matrix,
     select_variants,
 )
+from crashstudy.cli import main as cli_module
+from crashstudy.errors import InputError
 
 # Two masses on two linear springs in 1-D, dropped onto a fixed ground node.
 MODEL_1D = {
@@ -95,9 +95,9 @@ def opened():
     Many simultaneous open handles on one results.nc crash libhdf5 (its variable-length string
     variables; Unidata/netcdf4-python#1444), so tests, like notebooks, should not leak them.
     """
-    cache: dict[Path, crashstudy.results.Results] = {}
+    cache: dict[Path, crashstudy.results.store.Results] = {}
 
-    def open_(directory: Path) -> crashstudy.results.Results:
+    def open_(directory: Path) -> crashstudy.results.store.Results:
         if directory not in cache:
             cache[directory] = crashstudy.open_results(directory)
         return cache[directory]
@@ -200,7 +200,7 @@ def test_matrix_heat_map_cells_equal_the_summary_pivot(small, opened):
 
 def test_matrix_default_metric_is_the_free_node_that_decelerates_most(small, opened):
     summary = opened(small).summary
-    from crashstudy.plot import default_metric
+    from crashstudy.analysis.plot import default_metric
 
     assert summary["peak_deceleration_g.top"].max() > summary["peak_deceleration_g.base"].max()
     assert default_metric(summary) == "peak_deceleration_g.top"
@@ -422,7 +422,7 @@ def test_history_labels_carry_units_and_convert_to_g_and_ms(long_names, opened):
 
 
 def test_forces_take_an_engineering_prefix():
-    from crashstudy.plot_style import display_scale
+    from crashstudy.analysis.plot_style import display_scale
 
     assert display_scale("N", [12.0, -999.0]) == (1.0, "N")
     assert display_scale("N", [1.0, -2.5e3]) == (1e-3, "kN")
@@ -445,8 +445,8 @@ def test_matrix_axes_carry_units(long_names, opened):
     res = opened(long_names)
     paths = plot_command(_args(long_names, kind="matrix", output=None))
     assert [p.name for p in paths] == ["matrix-peak_deceleration_g.top.png"]  # named in regression:
-    from crashstudy.plot_matrix import plot_matrix as pm
-    from crashstudy.plot_style import axis_units
+    from crashstudy.analysis.plot_matrix import plot_matrix as pm
+    from crashstudy.analysis.plot_style import axis_units
 
     axes = list(LONG_AXES)
     fig = pm(res.summary, "peak_force.lower", x=axes[0], y=axes[2], axes=axes, units="N",
@@ -460,7 +460,7 @@ def test_matrix_axes_carry_units(long_names, opened):
 
 
 def test_matrix_default_is_the_regression_node_else_the_heaviest_free_node(long_names, small, opened):
-    from crashstudy.plot import crash_node
+    from crashstudy.analysis.plot import crash_node
 
     assert crash_node(opened(long_names).dataset) == "top"  # regression: peak_deceleration_g.top
     assert crash_node(opened(small).dataset) == "base"  # 2 kg; top is 0.5 or 1 kg; ground is fixed
@@ -477,7 +477,7 @@ def test_file_names_carry_the_items_so_later_plots_do_not_overwrite_earlier_ones
 
 
 def test_matrix_line_plot_legend_lies_below_the_panel_inside_the_figure(long_names, opened):
-    from crashstudy.plot_matrix import plot_matrix as pm
+    from crashstudy.analysis.plot_matrix import plot_matrix as pm
 
     fig = pm(opened(long_names).summary, "peak_force.lower", x="impact_velocity")
     whole, legends, _, axes = _boxes(fig)

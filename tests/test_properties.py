@@ -42,8 +42,8 @@ import yaml
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from crashstudy.cli import main
-from crashstudy.results import Results
+from crashstudy.cli.main import main
+from crashstudy.results.store import Results
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = ROOT / "studies"
@@ -647,7 +647,7 @@ def _assert_axis_changes_no_parameter(plan: Any, path: str) -> None:
 @settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
 @given(valid_study())
 def test_random_valid_study_counts_its_variants(case: tuple[dict[str, Any], list[int], list[list[str]]]) -> None:
-    from crashstudy.study import load_study
+    from crashstudy.study.plan import load_study
 
     study, lengths, dims = case
     with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp:
@@ -742,7 +742,7 @@ INVALID_AXIS_VALUES = {  # path -> (a valid value, invalid values)
 def test_an_invalid_value_anywhere_among_up_to_1000_distinct_axis_values_is_caught(path: str, n: int,
                                                                                   data: st.DataObject) -> None:  # fmt: skip
     from crashstudy.errors import InputError
-    from crashstudy.study import load_study
+    from crashstudy.study.plan import load_study
 
     good, bad_values = INVALID_AXIS_VALUES[path]
     at = data.draw(st.integers(0, n - 1), label="position")

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from crashstudy.cli import main
-from crashstudy.results import open_results
+from crashstudy.cli.main import main
+from crashstudy.results.store import open_results
 
 MODEL = """\
 name: reuse-model

@@ -9,8 +9,8 @@ import jsonschema
 import pytest
 
 from conftest import STUDIES
-from crashstudy.cli import main
-from crashstudy.yamlio import load_yaml
+from crashstudy.cli.main import main
+from crashstudy.schema.yamlio import load_yaml
 
 
 def _schema(kind: str, capsys: pytest.CaptureFixture[str]) -> dict:

@@ -1,4 +1,4 @@
-"""Sensitivity and exceedance (crashstudy.sensitivity, ``crashstudy sensitivity``, ``summary --exceed``):
+"""Sensitivity and exceedance (crashstudy.analysis.sensitivity, ``crashstudy sensitivity``, ``summary --exceed``):
 indices against closed forms, the failed-variant policy, and the command line end to end."""
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ import xarray as xr
 import yaml
 from scipy import stats
 
-from crashstudy.cli import main
-from crashstudy.design import unit_rows
-from crashstudy.sensitivity import exceedance, indices, over_time
+from crashstudy.analysis.sensitivity import exceedance, indices, over_time
+from crashstudy.cli.main import main
+from crashstudy.study.design import unit_rows
 from test_design import MODEL as DROP
 
 

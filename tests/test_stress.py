@@ -29,13 +29,13 @@ import yaml
 from scipy.linalg import eigvalsh_tridiagonal
 
 from conftest import STUDIES
-from crashstudy.batch import build_batch
-from crashstudy.compiler import apply_axis
+from crashstudy.arrays.batch import build_batch
+from crashstudy.arrays.compiler import apply_axis
+from crashstudy.arrays.timestep import CRITICAL_MARGIN
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
 from crashstudy.schema import parse_model
-from crashstudy.study import Plan, plan_from_model
-from crashstudy.timestep import CRITICAL_MARGIN
-from crashstudy.yamlio import LoadedYaml, load_yaml
+from crashstudy.schema.yamlio import LoadedYaml, load_yaml
+from crashstudy.study.plan import Plan, plan_from_model
 
 FRONTAL = STUDIES / "models" / "frontal-9mass.yaml"
 HELICOPTER = STUDIES / "models" / "helicopter-subfloor.yaml"
@@ -57,7 +57,7 @@ def run_model(
     model: dict[str, Any], kernel: str = "compiled", variants: dict[str, list[float]] | None = None
 ):
     """conftest.run_model for a model dict: (KernelOutput, batch, plan)."""
-    from crashstudy.runner import run_kernel
+    from crashstudy.run.runner import run_kernel
 
     plan = model_plan(model)
     topo = plan.topology
@@ -424,8 +424,8 @@ def test_frontal_model_to_100_m_per_s_is_stable_and_energy_consistent(
 
 
 def _heli_run(tmp_path: Path, speeds: list[float], time_step: dict[str, float] | None = None):
-    from crashstudy.runner import run_chunk
-    from crashstudy.study import load_study
+    from crashstudy.run.runner import run_chunk
+    from crashstudy.study.plan import load_study
 
     plan = load_study(helicopter_study(tmp_path, speeds, time_step))
     return run_chunk(plan, 0, plan.n_variants), plan
@@ -549,8 +549,8 @@ def test_fixed_dt_above_critical_refuses_only_the_light_variants_of_a_study(tmp_
     """dt = 1 ms fixed, end mass b = 1e-4 .. 1 kg: dt_crit(b) = 0.99 x 2 / sqrt(2 x 1e4 / m_b) is 0.14 and
     0.44 ms for the two lightest (refused: status INVALID, reason naming dt and dt_crit and the controlling
     node / spring, nothing computed), 1.4 ms and more for the others (ok, energy_error < 1e-9)."""
-    from crashstudy.runner import run_chunk
-    from crashstudy.study import load_study
+    from crashstudy.run.runner import run_chunk
+    from crashstudy.study.plan import load_study
 
     masses = [1e-4, 1e-3, 1e-2, 0.1, 1.0]
     plan = load_study(mass_axis_study(tmp_path, 1.0e-3, masses))
@@ -580,7 +580,7 @@ def test_fixed_dt_above_critical_refuses_only_the_light_variants_of_a_study(tmp_
 def test_instability_forced_by_hand_fails_that_variant_only(kernel: str) -> None:
     """One variant of four gets dt = 3 x dt_crit by hand (omega_max dt about 4.4): status UNSTABLE at a finite
     time, NaN histories after it; the three others are bitwise equal to running each alone."""
-    from crashstudy.runner import run_kernel
+    from crashstudy.run.runner import run_kernel
 
     batch, steps, plan = forced_batch(3.0)
     out = run_kernel(batch, plan.topology.histories, plan.n_out, kernel)
@@ -600,8 +600,8 @@ def test_instability_forced_by_hand_is_reported_by_the_runner_with_its_reason(
     """Through ``run_chunk`` on a study plan (the step of the 3 m/s variant multiplied by 3 where the runner
     builds its batch): that variant fails with "numerical instability: energy balance lost (...) at t=... (dt_crit=...,
     node ... / spring ...)", the others are ok and bitwise equal to an unpatched run."""
-    import crashstudy.runner as runner
-    from crashstudy.study import load_study
+    import crashstudy.run.runner as runner
+    from crashstudy.study.plan import load_study
 
     model = conservative(2000)
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(model, sort_keys=False))
@@ -630,7 +630,7 @@ def test_instability_forced_by_hand_is_reported_by_the_runner_with_its_reason(
 
 
 def test_finite_blow_up_is_not_reported_ok() -> None:
-    from crashstudy.runner import run_kernel
+    from crashstudy.run.runner import run_kernel
 
     batch, _, plan = forced_batch(1.0)
     K = np.array([[4.0e4, -3.0e4], [-3.0e4, 3.0e4]])

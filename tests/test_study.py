@@ -34,10 +34,10 @@ import xarray as xr
 import yaml
 
 import crashstudy
-from crashstudy.cli import main
+from crashstudy.cli.main import main
 from crashstudy.errors import InputError
-from crashstudy.runner import run_plan, simulate
-from crashstudy.study import load_study
+from crashstudy.run.runner import run_plan, simulate
+from crashstudy.study.plan import load_study
 
 RTOL = 1e-12  # "to round-off": a study variant against the same model run alone
 
@@ -329,14 +329,14 @@ def test_jobs_2_gives_results_identical_to_jobs_1(matrix_study: Path, matrix_run
 # command line (crashstudy.cli.main), with the chunk size and a delay patched in before it starts.
 SLOW_CLI = """\
 import sys, time
-import crashstudy.runner as runner
+import crashstudy.run.runner as runner
 runner.MAX_CHUNK = 5
 _run_chunk = runner.run_chunk
 def slow_chunk(*args, **kw):
     time.sleep(0.25)
     return _run_chunk(*args, **kw)
 runner.run_chunk = slow_chunk
-from crashstudy.cli import main
+from crashstudy.cli.main import main
 sys.exit(main(sys.argv[1:]))
 """
 
@@ -423,7 +423,7 @@ def test_resume_after_the_study_changed_is_refused_as_invalid_input(work: Path, 
     study = dump(work / "changed.yaml", {"name": "changed", "model": "model.yaml",
                                          "matrix": {"impact_velocity": [4.0, 6.0, 8.0]}})  # fmt: skip
     out = work / "changed-out"
-    import crashstudy.runner as runner
+    import crashstudy.run.runner as runner
 
     calls = []
     real = runner.run_chunk
@@ -600,7 +600,7 @@ UNITS_SI = {"position": "m", "displacement": "m", "velocity": "m/s", "accelerati
 @pytest.fixture(scope="module")
 def api_run(
     work: Path, tmp_path_factory: pytest.TempPathFactory
-) -> tuple[crashstudy.runner.Results, dict[str, Any]]:
+) -> tuple[crashstudy.run.runner.Results, dict[str, Any]]:
     study = {"name": "api-check", "model": str(work / "model.yaml"),
              "matrix": {"nodes.body.mass": [700.0, 900.0], "impact_velocity": [5.0, 8.0, 11.0]}}  # fmt: skip
     cwd = Path.cwd()

@@ -1,4 +1,4 @@
-"""Tests of crashstudy.yamlio: core-schema scalars, line numbers, and refusal of bad input."""
+"""Tests of crashstudy.schema.yamlio: core-schema scalars, line numbers, and refusal of bad input."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from crashstudy.errors import InputError, Problem
-from crashstudy.yamlio import MAX_BYTES, LoadedYaml, format_path, load_yaml, loads_yaml
+from crashstudy.schema.yamlio import MAX_BYTES, LoadedYaml, format_path, load_yaml, loads_yaml
 
 MODEL = """\
 name: helicopter-subfloor

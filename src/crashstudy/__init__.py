@@ -17,11 +17,11 @@ __all__ = ["__version__", "open_results", "run_study", "simulate"]
 
 def __getattr__(name: str):  # lazy: `crashstudy --help` must not pay for numba/xarray imports
     if name in ("run_study", "simulate"):
-        from crashstudy import runner
+        from crashstudy.run import runner
 
         return getattr(runner, name)
     if name == "open_results":
-        from crashstudy.results import open_results
+        from crashstudy.results.store import open_results
 
         return open_results
     raise AttributeError(name)

@@ -43,7 +43,7 @@ from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.cache import cache_dir, why_not_private
 
 if TYPE_CHECKING:
-    from crashstudy.batch import Batch
+    from crashstudy.arrays.batch import Batch
 
 REF_STEP = 60e-6  # [s] per time step of the NumPy reference, whatever the batch
 REF_SPRING_STEP = 50e-6  # [s] per time step and spring

@@ -41,7 +41,7 @@ from crashstudy.kernel.driver import (
 from crashstudy.kernel.output import KernelOutput
 
 if TYPE_CHECKING:
-    from crashstudy.batch import Batch
+    from crashstudy.arrays.batch import Batch
 
 BLOCK = 256
 __all__ = ["BLOCK", "get_threads", "run_compiled", "set_threads"]

@@ -7,7 +7,7 @@ compiled functions release the GIL). The arrays a kernel reads and writes travel
 (named tuples of arrays; numba passes them as one argument):
 
 - :class:`Topo` the topology (what every variant shares), :class:`Vars` the per-variant inputs,
-  both straight from a :class:`crashstudy.batch.Batch`;
+  both straight from a :class:`crashstudy.arrays.batch.Batch`;
 - :class:`Hist` the per-step outputs kept (histories; a new optional per-step output is one more
   field here, one ``allocate`` line and the writes in each kernel's record stage);
 - :class:`Summ` the per-variant summaries (the arrays of :class:`crashstudy.kernel.output.KernelOutput`).
@@ -26,7 +26,7 @@ from crashstudy.kernel.codes import ENERGIES, HISTORY_ORDER
 from crashstudy.kernel.output import KernelOutput, allocate
 
 if TYPE_CHECKING:
-    from crashstudy.batch import Batch
+    from crashstudy.arrays.batch import Batch
 
 _THREADS = [os.cpu_count() or 1]
 

@@ -24,11 +24,11 @@ from crashstudy.kernel.driver import get_threads, set_threads
 from crashstudy.kernel.output import KernelOutput, allocate
 
 if TYPE_CHECKING:
-    from crashstudy.batch import Batch
+    from crashstudy.arrays.batch import Batch
 
 
 class Recorder(Protocol):
-    """Turns a batch's per-step record of ``nodes`` into results (:class:`crashstudy.metrics.Recorder`)."""
+    """Turns a batch's per-step record of ``nodes`` into results (:class:`crashstudy.metrics.record.Recorder`)."""
 
     @property
     def nodes(self) -> tuple[int, ...]: ...
@@ -95,7 +95,7 @@ def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np
                 ) -> tuple[KernelOutput, np.ndarray]:  # fmt: skip
     """Run ``batch`` sorted by step count; returns the output and the error estimate (NaN unless
     ``accuracy``) for columns ``spread`` of ``batch`` (column k = variant ``spread[k]``).
-    ``recorder`` (crash criteria, :class:`crashstudy.metrics.Recorder`): records its nodes at every
+    ``recorder`` (crash criteria, :class:`crashstudy.metrics.record.Recorder`): records its nodes at every
     step and turns each record into ``KernelOutput.criteria`` (and extra histories)."""
     order = np.argsort(batch.n_steps, kind="stable")
     sorted_batch = batch.take(order)

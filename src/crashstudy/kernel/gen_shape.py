@@ -13,7 +13,7 @@ import numpy as np
 from crashstudy.kernel.codes import CRUSH, DAMPER, ENERGIES, GENERAL, HISTORY_ORDER, NONLINEAR
 
 if TYPE_CHECKING:
-    from crashstudy.batch import Batch
+    from crashstudy.arrays.batch import Batch
 
 GEN_VERSION = 9  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block

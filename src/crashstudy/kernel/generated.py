@@ -53,7 +53,7 @@ from crashstudy.kernel.gen_source import source
 from crashstudy.kernel.output import KernelOutput
 
 if TYPE_CHECKING:
-    from crashstudy.batch import Batch
+    from crashstudy.arrays.batch import Batch
 
 __all__ = ["BLOCK", "GEN_VERSION", "MAX_KNOTS", "ROW", "_constant_curves", "_shape", "_source", "is_compiled",
            "run_generated", "shape_key", "unsupported"]  # fmt: skip

@@ -9,7 +9,7 @@ import numpy as np
 
 from crashstudy.kernel.codes import CRUSHED_TO_ZERO, HISTORY_ORDER, HISTORY_SHAPES, INVALID, OK, UNSTABLE
 
-# histories made after the kernel from its per-step record (crashstudy.metrics): never passed to a kernel
+# histories made after the kernel from its per-step record (crashstudy.metrics.record): never passed to a kernel
 EXTRA_SHAPES = {"filtered_acceleration": ("node",)}
 ALL_SHAPES = {**HISTORY_SHAPES, **EXTRA_SHAPES}
 
@@ -40,7 +40,7 @@ class KernelOutput:
     # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes at every step n = 0 .. T - 1,
     # as the acceleration history has it; zero after a variant's last step (t_end). None: not recorded
     step_acceleration: np.ndarray | None = None
-    # derived from the record after the kernel (crashstudy.metrics.ChunkCriteria: .take(columns)); None: none
+    # derived from the record after the kernel (crashstudy.metrics.record.ChunkCriteria: .take(columns)); None: none
     criteria: Any = None
 
 

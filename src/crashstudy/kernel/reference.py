@@ -41,7 +41,7 @@ from crashstudy.kernel.codes import (
 )
 
 if TYPE_CHECKING:
-    from crashstudy.batch import Batch
+    from crashstudy.arrays.batch import Batch
 
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 

@@ -11,7 +11,7 @@ from crashstudy.errors import InputError, Problem
 from crashstudy.schema.checks import model_problems, raw_reference_problems
 from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
-from crashstudy.yamlio import LoadedYaml, load_yaml
+from crashstudy.schema.yamlio import LoadedYaml, load_yaml
 
 __all__ = ["LoadedModel", "Model", "file_kind", "load_model", "parse_model", "refuse_foreign", "validate_model_data"]
 

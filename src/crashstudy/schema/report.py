@@ -10,7 +10,7 @@ from pydantic import BaseModel, ValidationError
 
 from crashstudy.errors import Problem
 from crashstudy.kernel.codes import MATERIAL_CODES
-from crashstudy.yamlio import LoadedYaml
+from crashstudy.schema.yamlio import LoadedYaml
 
 Path = tuple[str | int, ...]
 

@@ -35,7 +35,7 @@ class Distribution(Strict):
 
     @model_validator(mode="after")
     def _one(self) -> Distribution:
-        from crashstudy.design import why_invalid
+        from crashstudy.study.design import why_invalid
 
         given = [(k, list(v)) for k, v in self.model_dump().items() if v is not None]
         if len(given) != 1:

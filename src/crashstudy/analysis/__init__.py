@@ -1,0 +1,1 @@
+"""What is computed from stored results: comparison, sensitivity, optimisation, plots."""

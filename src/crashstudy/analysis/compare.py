@@ -1,0 +1,483 @@
+"""Regression check of a result folder against a baseline (``crashstudy compare``, docs/regression.md).
+
+Variants are matched by their parameter values (the study axes named in ``crashstudy_axes``),
+never by position: a baseline may list its variants in another order or hold another set.
+
+What is compared
+----------------
+* Every numeric summary column except the bookkeeping in :data:`NOT_COMPARED` (``variant`` and
+  the solver's ``dt`` and ``dt_crit``: how the run was integrated, not what it found; a change of
+  time step shows up in the metrics it affects) and the axis columns (they are the match key).
+  ``t_end`` *is* compared: a run that now stops at another time behaved differently. A column of
+  :data:`NOT_COMPARED` is compared after all when the ``regression:`` block names it.
+* ``status``: a variant that was ``ok`` in the baseline and ``failed`` now is a failure; the
+  reverse is reported as fixed, not as a failure.
+* Variants: one in the baseline but not in the new result is a failure (the new run lost it); one
+  only in the new result is reported, not a failure. A metric column of the baseline missing from
+  the new result is a failure; a new column is reported.
+
+A metric value passes when ``|new - old| <= atol + rtol * |old|`` (NaN against NaN is equal, NaN
+against a number is not). Per-metric tolerances come from the *new* result's study file, its
+``regression:`` block (stored verbatim in the ``study_yaml`` attribute): a key is a metric name
+(``peak_force``, for all its items) or a full column (``peak_force.cabin``, which wins over the
+metric name); a key gives ``rtol`` and ``atol``, each 0 when left out. Every other column uses
+the defaults, ``rtol=1e-6`` and ``atol=0``: the kernel is deterministic, so an unchanged code and
+model reproduce a result to round-off (1e-12 and below, e.g. across CPUs or compiler versions),
+while a change of the model or the physics moves the metrics by far more than 1e-6. ``atol`` is 0
+because the columns carry different units (N, m, J, 1): no single absolute tolerance fits them all.
+One exception, :data:`ATOL_FLOOR`: ``energy_error`` (dimensionless) gets at least ``atol=1e-9``,
+since its value in a conservative model is round-off that any reordering of sums changes by 100 %.
+"""
+
+from __future__ import annotations
+
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pydantic import TypeAdapter
+
+from crashstudy.analysis.compare_inputs import (  # noqa: F401 - re-exported
+    _XML_BAD,
+    ATOL_FLOOR,
+    DEFAULT_ATOL,
+    DEFAULT_RTOL,
+    JUNIT_LIST,
+    JUNIT_SUITE,
+    NOT_COMPARED,
+    TEXT_COLUMNS,
+    ResultsLike,
+    _axis_frame,
+    _check_keys,
+    _damage,
+    _keys,
+    _metric_columns,
+    _round_key,
+    _Side,
+    _tolerance_for,
+    _xml_text,
+    check_tolerance,
+    load_results,
+    study_tolerances,
+)
+from crashstudy.schema.study import Tolerance
+
+
+@dataclass
+class _Column:
+    """Aligned old/new values of one metric column over the matched variants."""
+
+    old: np.ndarray
+    new: np.ndarray
+    rtol: float
+    atol: float
+
+    def __post_init__(self) -> None:
+        old, new = self.old, self.new
+        both_nan = np.isnan(old) & np.isnan(new)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # rtol 1e308 * old -> inf: passes
+            self.diff = np.where(both_nan, 0.0, new - old)
+            self.abs_diff = np.abs(self.diff)
+            self.rel_diff = np.where(self.diff == 0.0, 0.0, self.diff / np.abs(old))
+            self.tolerance = self.atol + self.rtol * np.abs(np.where(np.isnan(old), 0.0, old))
+            self.passed = both_nan | (self.abs_diff <= self.tolerance)  # False when one side only is NaN
+            score = np.where(self.abs_diff == 0.0, 0.0, self.abs_diff / self.tolerance)
+        self.score = np.where(np.isnan(score), np.inf, score)  # NaN against a number: worst
+
+
+@dataclass
+class Comparison:
+    """Result of :func:`compare`.
+
+    Attributes
+    ----------
+    new_dir, baseline_dir : Path
+        The two result folders.
+    axes : list[str]
+        Study axes the variants were matched on (union of both sides).
+    matched : pandas.DataFrame
+        One row per matched variant: the axis values, ``variant`` (new) and ``baseline_variant``.
+    missing : pandas.DataFrame
+        Baseline variants absent from the new result (axis values, ``baseline_variant``): failures.
+    extra : pandas.DataFrame
+        New variants absent from the baseline (axis values, ``variant``): reported, not failures.
+    status : pandas.DataFrame
+        Matched variants whose ``status`` changed: axis values, ``variant``, ``old``, ``new``,
+        ``failure_reason`` (new) and ``passed`` (False for ``ok`` -> ``failed``).
+    missing_columns, extra_columns : list[str]
+        Metric columns only in the baseline (failures) or only in the new result (reported).
+    notes : list[str]
+        Anything else worth reading (axes that differ, different crashstudy versions).
+    """
+
+    new_dir: Path
+    baseline_dir: Path
+    axes: list[str]
+    matched: pd.DataFrame
+    missing: pd.DataFrame
+    extra: pd.DataFrame
+    status: pd.DataFrame
+    columns: dict[str, _Column]
+    missing_columns: list[str]
+    extra_columns: list[str]
+    notes: list[str] = field(default_factory=list)
+    damaged: list[str] = field(default_factory=list)  #: a side whose summary lost (or repeats) variants: failures
+    rtol: float = DEFAULT_RTOL
+    atol: float = DEFAULT_ATOL
+    study_name: str = ""
+    _frame: pd.DataFrame | None = field(default=None, repr=False)
+
+    @property
+    def frame(self) -> pd.DataFrame:
+        """Tidy table, one row per (matched variant, metric column).
+
+        Columns: the axis values, ``variant``, ``baseline_variant``, ``metric``, ``old``, ``new``,
+        ``diff`` (new - old), ``abs_diff``, ``rel_diff`` (diff / |old|, signed; inf when old is 0),
+        ``rtol``, ``atol``, ``tolerance`` (atol + rtol |old|), ``score`` (abs_diff / tolerance) and
+        ``passed``. Built on first use (a study of 10^6 variants makes a large table).
+        """
+        if self._frame is None:
+            parts = []
+            for name, c in self.columns.items():
+                part = self.matched.copy()
+                part["metric"] = name
+                part["old"], part["new"], part["diff"], part["abs_diff"] = c.old, c.new, c.diff, c.abs_diff
+                part["rel_diff"], part["rtol"], part["atol"] = c.rel_diff, c.rtol, c.atol
+                part["tolerance"], part["score"], part["passed"] = c.tolerance, c.score, c.passed
+                parts.append(part)
+            self._frame = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
+        return self._frame
+
+    @property
+    def failed_values(self) -> int:
+        """Metric values (variant x column) that moved past their tolerance."""
+        return int(sum(int((~c.passed).sum()) for c in self.columns.values()))
+
+    @property
+    def status_failures(self) -> int:
+        """Variants that went from ``ok`` to ``failed``."""
+        return int((~self.status["passed"]).sum()) if len(self.status) else 0
+
+    @property
+    def failed(self) -> int:
+        """Number of findings that fail the check: metric values past tolerance, variants missing
+        from the new result, ``ok`` -> ``failed`` status changes and metric columns gone missing."""
+        return (self.failed_values + len(self.missing) + self.status_failures + len(self.missing_columns)
+                + len(self.damaged))  # fmt: skip
+
+    def failing_columns(self) -> dict[str, int]:
+        """Metric column -> number of its values past tolerance (only columns with any)."""
+        counts = {n: int((~c.passed).sum()) for n, c in self.columns.items()}
+        return {n: k for n, k in counts.items() if k}
+
+    def by_metric(self) -> pd.DataFrame:
+        """One row per compared metric column: ``metric``, ``failed`` (values past tolerance),
+        ``compared``, ``max_rel_diff`` (largest |rel diff|), ``rtol``, ``atol``, ``worst_score``;
+        the worst first."""
+        rows = [{"metric": n, "failed": int((~c.passed).sum()), "compared": len(c.old),
+                 "max_rel_diff": float(np.nanmax(np.abs(c.rel_diff), initial=0.0)), "rtol": c.rtol, "atol": c.atol,
+                 "worst_score": float(c.score.max(initial=0.0))} for n, c in self.columns.items()]  # fmt: skip
+        df = pd.DataFrame(
+            rows, columns=["metric", "failed", "compared", "max_rel_diff", "rtol", "atol", "worst_score"]
+        )
+        return df.sort_values(["failed", "worst_score"], ascending=False, kind="stable").reset_index(
+            drop=True
+        )
+
+    def top(self, n: int = 20, column: str | None = None, only_failed: bool = False) -> pd.DataFrame:
+        """The ``n`` values that moved most relative to their tolerance (largest ``score`` first);
+        unchanged values are left out."""
+        rows = []
+        for name, c in self.columns.items():
+            if column is not None and name != column:
+                continue
+            keep = ~c.passed if only_failed else c.score > 0
+            idx = np.flatnonzero(keep)
+            if len(idx) > n:
+                idx = idx[np.argsort(-c.score[idx], kind="stable")[:n]]
+            for i in idx:
+                rows.append((c.score[i], name, int(i)))
+        rows.sort(key=lambda r: -r[0])
+        rows = rows[:n]
+        out = self.matched.iloc[[i for _, _, i in rows]].reset_index(drop=True)
+        for key in ("metric", "old", "new", "rel_diff", "tolerance", "score", "passed"):
+            out[key] = [self._value(key, name, i) for _, name, i in rows]
+        return out
+
+    def _value(self, key: str, name: str, i: int) -> Any:
+        if key == "metric":
+            return name
+        return getattr(self.columns[name], key)[i]
+
+    def table(self, n: int = 20) -> str:
+        """Text table of the ``n`` values that moved most (by |new - old| / tolerance)."""
+        top = self.top(n)
+        if top.empty:
+            return "no metric value changed"
+        text = pd.DataFrame({
+            "variant": top["variant"].astype(str),
+            "parameters": [self._params(r) for _, r in top.iterrows()],
+            "metric": top["metric"],
+            "old": [f"{v:.7g}" for v in top["old"]],
+            "new": [f"{v:.7g}" for v in top["new"]],
+            "rel diff": [f"{v:+.3e}" for v in top["rel_diff"]],
+            "tolerance": [f"{v:.3g}" for v in top["tolerance"]],
+            "diff/tol": [f"{v:.3g}" for v in top["score"]],
+            "": ["ok" if p else "FAIL" for p in top["passed"]],
+        })  # fmt: skip
+        head = f"what moved most (|new - old| / tolerance, largest first; {len(top)} shown):"
+        return head + "\n" + text.to_string(index=False)
+
+    def _params(self, row: pd.Series) -> str:
+        return " ".join(f"{ax}={row[ax]:.6g}" for ax in self.axes if ax in row and pd.notna(row[ax])) or "-"
+
+    def verdict(self) -> str:
+        """One line: FAILED or OK, with what failed."""
+        n_cols = len(self.columns)
+        if not self.failed:
+            extra = f"; {len(self.extra)} new variants not in the baseline" if len(self.extra) else ""
+            return (f"OK: {len(self.matched)} variants x {n_cols} metrics within tolerance of the baseline"
+                    f"{extra}")  # fmt: skip
+        parts = list(self.damaged)
+        if self.failed_values:
+            parts.append(f"{self.failed_values} values in {len(self.failing_columns())} of {n_cols} metrics "
+                         f"moved past tolerance")  # fmt: skip
+        if self.status_failures:
+            parts.append(f"{self.status_failures} variants went from ok to failed")
+        if len(self.missing):
+            parts.append(f"{len(self.missing)} baseline variants missing from the new result")
+        if self.missing_columns:
+            parts.append(f"metric columns missing from the new result: {', '.join(self.missing_columns)}")
+        return f"FAILED: {'; '.join(parts)} ({len(self.matched)} variants matched)"
+
+    def report(self, n: int = 20) -> str:
+        """Everything ``crashstudy compare`` prints."""
+        lines = [f"comparing {self.new_dir} against baseline {self.baseline_dir}", *("note: " + s for s in self.notes),
+                 self.table(n)]  # fmt: skip
+        for title, df, col in (("baseline variants missing from the new result", self.missing, "baseline_variant"),
+                               ("new variants not in the baseline (not a failure)", self.extra, "variant")):  # fmt: skip
+            if len(df):
+                lines.append(f"{title} ({len(df)}):")
+                lines += [f"  variant {int(r[col])}: {self._params(r)}" for _, r in df.head(n).iterrows()]
+                if len(df) > n:
+                    lines.append(f"  ... and {len(df) - n} more")
+        if len(self.status):
+            lines.append(f"status changes ({len(self.status)}):")
+            for _, r in self.status.head(n).iterrows():
+                why = f" ({r['failure_reason']})" if r["failure_reason"] else ""
+                lines.append(
+                    f"  variant {int(r['variant'])} {self._params(r)}: {r['old']} -> {r['new']}{why}"
+                )
+        if self.extra_columns:
+            lines.append(f"new metric columns, not compared: {', '.join(self.extra_columns)}")
+        bad = self.by_metric().query("failed > 0")
+        if len(bad):
+            lines.append("metrics past tolerance:")
+            lines += [self._past_tolerance(r) for r in bad.itertuples()]
+        lines.append(self.verdict())
+        return "\n".join(lines)
+
+    def _past_tolerance(self, r: Any) -> str:
+        """The summary line of one failing metric: how many values failed, and by how much (a value
+        that is a number on one side and NaN on the other has no relative difference: counted apart)."""
+        c = self.columns[r.metric]
+        failed = ~c.passed
+        nan = failed & np.isnan(c.rel_diff)
+        rel = np.abs(c.rel_diff[failed & ~nan])
+        parts = [f"largest |rel diff| {rel.max():.3e}"] if len(rel) else []
+        if nan.any():
+            parts.append(f"{int(nan.sum())} a number on one side and NaN on the other")
+        return f"  {r.metric}: {r.failed} of {r.compared} variants, {'; '.join(parts)} (rtol={r.rtol:g}, atol={r.atol:g})"
+
+    def to_junit(self, path: str | os.PathLike[str] | None = None) -> ET.ElementTree:
+        """JUnit XML: one ``<testsuite name="crashstudy compare">``, one ``<testcase>`` per metric column
+        (a ``<failure>`` lists the variants past tolerance, the worst first) and one each for
+        ``status``, missing variants and new variants. Written to ``path`` when given."""
+        cls = f"crashstudy.compare.{self.study_name}" if self.study_name else "crashstudy.compare"
+        cases: list[ET.Element] = []
+
+        def case(name: str, failure: str | None = None, body: str = "", out: str = "") -> None:
+            tc = ET.Element("testcase", name=_xml_text(name), classname=_xml_text(cls), time="0")
+            if failure is not None:
+                f = ET.SubElement(tc, "failure", message=_xml_text(failure), type="regression")
+                f.text = _xml_text(body)
+            if out:
+                ET.SubElement(tc, "system-out").text = _xml_text(out)
+            cases.append(tc)
+
+        for name in sorted([*self.columns, *self.missing_columns, *self.extra_columns]):
+            if name in self.missing_columns:
+                case(
+                    name,
+                    "metric column missing from the new result",
+                    f"the baseline has {name}; the new result has not",
+                )
+            elif name in self.extra_columns:
+                case(name, out=f"{name} is new: no baseline value to compare with")
+            else:
+                c = self.columns[name]
+                bad = int((~c.passed).sum())
+                tol = f"rtol={c.rtol:g}, atol={c.atol:g}"
+                if not bad:
+                    case(name, out=f"{len(c.old)} variants within tolerance ({tol}); largest |rel diff| "
+                                   f"{np.nanmax(np.abs(c.rel_diff), initial=0.0):.3e}")  # fmt: skip
+                    continue
+                top = self.top(JUNIT_LIST, column=name, only_failed=True)
+                lines = [f"variant {int(r['variant'])} ({self._params(r)}): old {r['old']:.10g} new {r['new']:.10g} "
+                         f"(rel diff {r['rel_diff']:+.3e}, tolerance {r['tolerance']:.3g})" for _, r in top.iterrows()]  # fmt: skip
+                if bad > len(top):
+                    lines.append(f"... and {bad - len(top)} more")
+                worst = top["rel_diff"].iloc[0]
+                case(name, f"{bad} of {len(c.old)} variants moved past tolerance ({tol}); worst rel diff {worst:+.3e}",
+                     "\n".join(lines))  # fmt: skip
+        st = self.status
+        bad_st = st[~st["passed"]] if len(st) else st
+        case("status", f"{len(bad_st)} variants went from ok to failed" if len(bad_st) else None,
+             "\n".join(f"variant {int(r['variant'])} ({self._params(r)}): {r['failure_reason']}" for _, r in bad_st.iterrows()),
+             "\n".join(f"variant {int(r['variant'])} ({self._params(r)}): {r['old']} -> {r['new']}"
+                       for _, r in st[st["passed"]].iterrows()) if len(st) else "")  # fmt: skip
+        case("variants missing from the new result",
+             f"{len(self.missing)} baseline variants are not in the new result" if len(self.missing) else None,
+             "\n".join(f"baseline variant {int(r['baseline_variant'])}: {self._params(r)}" for _, r in self.missing.iterrows()))  # fmt: skip
+        case("variants only in the new result", None,
+             out="\n".join(f"variant {int(r['variant'])}: {self._params(r)}" for _, r in self.extra.iterrows()))  # fmt: skip
+        if self.damaged:
+            case("complete result folders", f"{len(self.damaged)} result folders are damaged", "\n".join(self.damaged))
+
+        failures = sum(1 for tc in cases if tc.find("failure") is not None)
+        root = ET.Element(
+            "testsuites", name=JUNIT_SUITE, tests=str(len(cases)), failures=str(failures), errors="0"
+        )
+        suite = ET.SubElement(root, "testsuite", name=JUNIT_SUITE, tests=str(len(cases)), failures=str(failures),
+                              errors="0", skipped="0", time="0")  # fmt: skip
+        props = ET.SubElement(suite, "properties")
+        for k, v in (("new", str(self.new_dir)), ("baseline", str(self.baseline_dir)),
+                     ("default_rtol", f"{self.rtol:g}"), ("default_atol", f"{self.atol:g}")):  # fmt: skip
+            ET.SubElement(props, "property", name=k, value=_xml_text(v))
+        suite.extend(cases)
+        tree = ET.ElementTree(root)
+        ET.indent(tree)
+        if path is not None:
+            p = Path(path)
+            p.parent.mkdir(parents=True, exist_ok=True)
+            tree.write(p, encoding="utf-8", xml_declaration=True)
+        return tree
+
+
+def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, atol: float | None = None,
+            tolerances: dict[str, dict[str, float]] | None = None) -> Comparison:  # fmt: skip
+    """Compare a result with its baseline, variant by variant (matched by parameter values).
+
+    Parameters
+    ----------
+    new, baseline : Results or path
+        The result under test and the reference (folders written by ``crashstudy run``).
+    rtol, atol : float, optional
+        Tolerance of every metric the per-metric tolerances do not name; defaults
+        :data:`DEFAULT_RTOL` (1e-6) and :data:`DEFAULT_ATOL` (0, in each metric's own unit).
+    tolerances : dict, optional
+        ``{metric or column: {"rtol": r, "atol": a}}``; default: the ``regression:`` block of the
+        new result's study file. A full column (``peak_force.cabin``) wins over its metric name.
+
+    Returns
+    -------
+    Comparison
+
+    Raises
+    ------
+    InputError
+        A folder holds no finished results, or a tolerance key names no metric.
+    """
+    rtol = DEFAULT_RTOL if rtol is None else check_tolerance("rtol", rtol)
+    atol = DEFAULT_ATOL if atol is None else check_tolerance("atol", atol)
+    n_side, b_side = _Side.read(new, "new"), _Side.read(baseline, "baseline")
+    tol = (study_tolerances(n_side.attrs) if tolerances is None
+           else TypeAdapter(dict[str, Tolerance]).validate_python(tolerances))  # fmt: skip
+    notes = []
+    axes = list(dict.fromkeys([*n_side.axes, *b_side.axes]))
+    if bool(n_side.axes) != bool(b_side.axes):  # a single model run against a study: nothing can match
+        single, study = ("new", "baseline") if not n_side.axes else ("baseline", "new")
+        axes_of = b_side.axes if not n_side.axes else n_side.axes
+        notes.append(f"the {single} result is a single model run (crashstudy simulate: no study axes) and the "
+                     f"{study} result is a study over {axes_of}: variants are matched by their axis values, "
+                     "which a single run does not have, so no variant can be matched; compare a simulate "
+                     "result with a simulate result, or a study with a run of the same study")  # fmt: skip
+    elif set(n_side.axes) != set(b_side.axes):
+        notes.append(f"the study axes differ (new: {n_side.axes or 'none'}, baseline: {b_side.axes or 'none'}): "
+                     "variants match only on equal values of every axis")  # fmt: skip
+    vn, vb = n_side.attrs.get("crashstudy_version"), b_side.attrs.get("crashstudy_version")
+    if vn != vb:
+        notes.append(f"crashstudy versions differ: new {vn}, baseline {vb}")
+
+    named = set(tol)
+    n_cols = _metric_columns(n_side.summary, axes, named)
+    b_cols = _metric_columns(b_side.summary, axes, named)
+    _check_keys(tol, set(n_cols) | set(b_cols), n_side.attrs)
+    common = [c for c in n_cols if c in b_cols]
+
+    N, B = n_side.summary, b_side.summary
+    kn, kb = _keys(N, axes), _keys(B, axes)
+    on = [c for c in kn.columns if c != "_row"]
+    m = kn.merge(kb, on=on, how="outer", suffixes=("_new", "_base"), indicator=True)
+    both = m[m["_merge"] == "both"].sort_values("_row_new")
+    rn, rb = both["_row_new"].to_numpy(dtype=int), both["_row_base"].to_numpy(dtype=int)
+    only_b = np.sort(m.loc[m["_merge"] == "right_only", "_row_base"].to_numpy(dtype=int))
+    only_n = np.sort(m.loc[m["_merge"] == "left_only", "_row_new"].to_numpy(dtype=int))
+
+    matched = _axis_frame(N, rn, axes)
+    for ax in axes:  # an axis only the baseline has: its values
+        if ax not in N:
+            matched[ax] = B[ax].to_numpy()[rb]
+    matched["variant"] = N["variant"].to_numpy()[rn].astype(int)
+    matched["baseline_variant"] = B["variant"].to_numpy()[rb].astype(int)
+    missing = _axis_frame(B, only_b, axes).assign(
+        baseline_variant=B["variant"].to_numpy()[only_b].astype(int)
+    )
+    extra = _axis_frame(N, only_n, axes).assign(variant=N["variant"].to_numpy()[only_n].astype(int))
+
+    old_st, new_st = B["status"].astype(str).to_numpy()[rb], N["status"].astype(str).to_numpy()[rn]
+    changed = old_st != new_st
+    status = matched[changed].reset_index(drop=True)
+    status["old"], status["new"] = old_st[changed], new_st[changed]
+    status["failure_reason"] = N["failure_reason"].fillna("").astype(str).to_numpy()[rn][changed]
+    status["passed"] = ~((status["old"] == "ok") & (status["new"] != "ok"))
+
+    columns = {}
+    for c in common:
+        r, a = _tolerance_for(c, tol, rtol, atol)
+        old = pd.to_numeric(B[c], errors="coerce").to_numpy(dtype=np.float64)[rb]
+        nw = pd.to_numeric(N[c], errors="coerce").to_numpy(dtype=np.float64)[rn]
+        columns[c] = _Column(old, nw, r, a)
+    return Comparison(
+        new_dir=n_side.dir, baseline_dir=b_side.dir, axes=axes, matched=matched,
+        missing=missing, extra=extra, status=status,
+        columns=columns, missing_columns=[c for c in b_cols if c not in n_cols],
+        extra_columns=[c for c in n_cols if c not in b_cols], notes=notes, rtol=rtol, atol=atol,
+        damaged=[s.damage for s in (n_side, b_side) if s.damage],
+        study_name=n_side.study_name,
+    )  # fmt: skip
+
+
+def compare_command(args: Any) -> int:
+    """``crashstudy compare NEW BASELINE [--rtol R] [--atol A] [--junit FILE]``: print the values that
+    moved most and a verdict, write JUnit XML if asked; return 1 when anything failed, else 0."""
+    for name in ("rtol", "atol"):  # bad options are refused before any file is opened
+        if getattr(args, name, None) is not None:
+            check_tolerance(name, getattr(args, name), f"--{name}")
+    new = load_results(args.new, "new")
+    base = load_results(args.baseline, "baseline")
+    try:
+        cmp = compare(new, base, rtol=getattr(args, "rtol", None), atol=getattr(args, "atol", None))
+    finally:
+        new.close()
+        base.close()
+    print(cmp.report())
+    junit = getattr(args, "junit", None)
+    if junit:
+        cmp.to_junit(junit)
+        print(f"wrote {junit}")
+    return 1 if cmp.failed else 0

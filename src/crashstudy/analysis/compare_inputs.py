@@ -1,0 +1,179 @@
+"""The two sides of a regression comparison: opening result folders, their damage, the study's
+tolerances and the keys that match variants (used by :mod:`crashstudy.analysis.compare`)."""
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pydantic import TypeAdapter, ValidationError
+
+from crashstudy.errors import InputError, Problem
+from crashstudy.results.store import FINAL, PARTIAL, Results
+from crashstudy.schema.study import Tolerance
+from crashstudy.schema.yamlio import format_path, loads_yaml
+
+DEFAULT_RTOL = 1e-6  #: relative tolerance of a metric the ``regression:`` block does not name
+DEFAULT_ATOL = 0.0  #: absolute tolerance of a metric the ``regression:`` block does not name
+NOT_COMPARED = ("variant", "dt", "dt_crit")  #: numeric bookkeeping columns left out by default
+#: Smallest ``atol`` of a column the ``regression:`` block does not name. ``energy_error`` is a
+#: round-off residual (1e-14 in a conservative model): its relative change means nothing below this.
+ATOL_FLOOR = {"energy_error": 1e-9}
+TEXT_COLUMNS = ("status", "failure_reason", "dt_control")
+JUNIT_SUITE = "crashstudy compare"
+JUNIT_LIST = 10  #: variants listed in a JUnit failure
+
+ResultsLike = Results | str | os.PathLike[str]
+
+
+@dataclass
+class _Side:
+    """One result folder as the comparison sees it."""
+
+    dir: Path
+    summary: pd.DataFrame
+    axes: list[str]
+    attrs: dict[str, Any]
+    damage: str = ""  # why the summary does not hold every variant of results.nc ("" when it does)
+
+    @classmethod
+    def read(cls, res: ResultsLike, role: str) -> _Side:
+        res = res if isinstance(res, Results) else load_results(res, role)
+        try:
+            attrs = dict(res.dataset.attrs)
+            summary = res.summary
+            n_variants = int(res.dataset.sizes.get("variant", len(summary)))
+        except (OSError, ValueError, KeyError) as exc:
+            raise InputError([Problem(str(res.dir), None, "", f"cannot read the {role} results: {exc}")]) from None
+        axes = list(json.loads(attrs.get("crashstudy_axes", "[]")))
+        return cls(res.dir, summary, axes, attrs, _damage(summary, n_variants, role, res.summary_source))
+
+    @property
+    def study_name(self) -> str:
+        title = str(self.attrs.get("title", ""))
+        return title.removeprefix("crashstudy results of ") or self.dir.name
+
+
+def _damage(summary: pd.DataFrame, n_variants: int, role: str, source: str = "summary.csv") -> str:
+    """Why ``summary`` does not list each of the ``n_variants`` variants of results.nc once ("" if it does)."""
+    raw = summary["variant"] if "variant" in summary else pd.Series([], dtype=float)
+    numbers = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
+    present = np.unique(numbers[np.isfinite(numbers)])
+    missing = np.setdiff1d(np.arange(n_variants), present)
+    if not len(missing) and len(numbers) == n_variants:
+        return ""
+    shown = ", ".join(str(int(v)) for v in missing[:10]) + (", ..." if len(missing) > 10 else "")
+    what = f"; missing: variants {shown}" if len(missing) else f"; {len(numbers)} rows (rows repeated or foreign)"
+    return (f"the {role} {source} lists {len(np.intersect1d(present, np.arange(n_variants)))} of the "
+            f"{n_variants} variants in its results.nc{what}: the result folder is damaged")
+
+
+
+_XML_BAD = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def _xml_text(s: str) -> str:
+    """Drop the characters XML 1.0 cannot hold (ElementTree escapes the rest)."""
+    return _XML_BAD.sub("?", s)
+
+
+def load_results(directory: str | os.PathLike[str], role: str = "result") -> Results:
+    """Open a result folder, or raise :class:`InputError` saying why it holds no results."""
+    d = Path(directory)
+    if not d.is_dir():
+        msg = "is a file, not a result folder" if d.exists() else "result folder not found"
+        raise InputError([Problem(str(d), None, "", f"{role}: {msg}")])
+    if not (d / FINAL).is_file():
+        why = (f"the run did not finish (only {PARTIAL}); finish it with `crashstudy run STUDY -o {d} --resume`"
+               if (d / PARTIAL).exists() else
+               f"no {FINAL} here: not a result folder (write one with `crashstudy run STUDY -o {d}`)")  # fmt: skip
+        raise InputError([Problem(str(d), None, "", f"{role}: {why}")])
+    return Results(d)
+
+
+def study_tolerances(attrs: dict[str, Any]) -> dict[str, Tolerance]:
+    """The ``regression:`` block of the study stored in a result's ``study_yaml`` attribute."""
+    text = str(attrs.get("study_yaml", "") or "")
+    if not text.strip():
+        return {}
+    file = str(attrs.get("study_file", "") or "<study_yaml>")
+    doc = loads_yaml(text, file=file)
+    block = doc.data.get("regression") or {}
+    try:
+        return TypeAdapter(dict[str, Tolerance]).validate_python(block)
+    except ValidationError as exc:
+        problems = []
+        for err in exc.errors():
+            loc = ("regression", *(p for p in err["loc"] if isinstance(p, (str, int))))
+            problems.append(Problem(file, doc.line_of(loc), format_path(loc), err["msg"]))
+        raise InputError(problems) from None
+
+
+def _round_key(x: pd.Series) -> np.ndarray:
+    """Axis values rounded to about 12 significant digits, so that text round-trips still match."""
+    m, e = np.frexp(pd.to_numeric(x, errors="coerce").to_numpy(dtype=np.float64))
+    return np.ldexp(np.round(m * 2.0**40) / 2.0**40, e)
+
+
+def _keys(df: pd.DataFrame, axes: list[str]) -> pd.DataFrame:
+    """Match key of every row: rounded axis values (NaN for an axis this side lacks), the
+    occurrence number among equal values, and the row number."""
+    keys = pd.DataFrame({f"_k{i}": _round_key(df[ax]) if ax in df else np.nan for i, ax in enumerate(axes)},
+                        index=df.index)  # fmt: skip
+    keys["_dup"] = keys.groupby(list(keys.columns), dropna=False).cumcount() if axes else np.arange(len(df))
+    keys["_row"] = np.arange(len(df))
+    return keys.reset_index(drop=True)
+
+
+def _axis_frame(df: pd.DataFrame, rows: np.ndarray, axes: list[str]) -> pd.DataFrame:
+    return pd.DataFrame(
+        {ax: df[ax].to_numpy()[rows] if ax in df else np.full(len(rows), np.nan) for ax in axes}
+    )
+
+
+def _metric_columns(df: pd.DataFrame, axes: list[str], named: set[str]) -> list[str]:
+    skip = set(axes) | set(TEXT_COLUMNS) | (set(NOT_COMPARED) - named)
+    return [c for c in df.columns if c not in skip and pd.api.types.is_numeric_dtype(df[c])
+            and not pd.api.types.is_bool_dtype(df[c])]  # fmt: skip
+
+
+def _tolerance_for(
+    col: str, tolerances: dict[str, Tolerance], rtol: float, atol: float
+) -> tuple[float, float]:
+    t = tolerances.get(col) or tolerances.get(col.split(".", 1)[0])
+    return (t.rtol, t.atol) if t is not None else (rtol, max(atol, ATOL_FLOOR.get(col, 0.0)))
+
+
+def _check_keys(tolerances: dict[str, Tolerance], columns: set[str], attrs: dict[str, Any]) -> None:
+    names = columns | {c.split(".", 1)[0] for c in columns}
+    bad = [k for k in tolerances if k not in names]
+    if not bad:
+        return
+    file = str(attrs.get("study_file", "") or "<study_yaml>")
+    doc = loads_yaml(str(attrs.get("study_yaml", "") or "{}"), file=file)
+    problems = []
+    for k in bad:
+        close = difflib.get_close_matches(k, sorted(names), n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(close)}?" if close else f"; metrics: {', '.join(sorted(names))}"
+        problems.append(Problem(file, doc.line_of(("regression", k)), f"regression.{k}",
+                                f"no summary metric or column {k!r} in the results{hint}"))  # fmt: skip
+    raise InputError(problems)
+
+
+def check_tolerance(name: str, value: Any, option: str | None = None) -> float:
+    """``value`` as a float if it is a finite number >= 0, else an :class:`InputError` naming ``option``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if not (math.isfinite(number) and number >= 0):
+        raise InputError([Problem("crashstudy compare", None, option or name,
+                                  f"expected a finite number >= 0 for the {name}, got {value!r}")])  # fmt: skip
+    return number

@@ -1,0 +1,1 @@
+"""From validated objects to plain arrays: topology, per-variant parameters, time steps."""

@@ -1,0 +1,151 @@
+"""Time step selection (docs/format.md, time_step; docs/solver.md), vectorised over variants.
+
+Critical step: the nodal bound ``omega_max^2 <= max_n 2 K_n / m_n`` where ``K_n`` sums, over the
+springs at node ``n``, the steepest slope ``k_max`` any curve of the spring can use. It is safe for
+the whole assembly in 1-D and 2-D: for any displacement field ``u``,
+``u^T K u = sum_s k_s (n_s . (u_j - u_i))^2 <= sum_s 2 k_s (|u_i|^2 + |u_j|^2) = sum_n 2 K_n |u_n|^2``.
+Dampers enter as the nodal damping rate ``gamma_n = 2 C_n / m_n`` (``C_n`` the sum of damping
+coefficients at the node; the same bound as for the stiffness) with the damped limit
+``dt <= (2 / omega) (sqrt(1 + xi^2) - xi)``, ``xi = gamma / omega`` (``-> 1/gamma`` for a pure damper,
+the limit of the kernel's second-order damper velocity ``v^{n-1/2} + dt/2 a^{n-1}``).
+
+Accuracy (``tolerance`` mode): central difference is second order, and the relative error of the
+reported peaks behaves as ``~ (omega dt)^2 / 8``; the step ``dt = min(dt_crit, 2 sqrt(2 tol) / omega)``
+(i.e. ``sqrt(2 tol) * dt_crit``) keeps it under ``tol``. Time curves (loads, prescribed motion)
+additionally limit the step to a quarter of their shortest segment. A peak at a kink of a spring curve
+would be a first-order error of the sampled peaks that no such step controls; the kernels therefore
+include the knots passed over between two steps in the peaks (docs/solver.md, "Peaks"), which keeps
+the estimate above valid for them too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from crashstudy.arrays.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, Topology
+
+CRITICAL_MARGIN = 0.99  # the nodal bound is attained exactly by two free masses on one spring,
+# where omega dt = 2 is neutrally unstable (linear growth): dt_crit keeps a 1% margin below 2 / omega
+TOLERANCE_FACTOR = 2.0  # dt = TOLERANCE_FACTOR * sqrt(tol / 2) * dt_crit  (calibrated in benchmarks)
+MAX_STEPS = 2.0**53  # most time steps of a variant (and steps between two samples): counts stay exact int64
+
+
+@dataclass
+class StepChoice:
+    """Per-variant step data (arrays of shape (V,))."""
+
+    dt: np.ndarray  # step used [time]
+    dt_crit: np.ndarray  # critical step bound [time]
+    control_node: np.ndarray  # int index of the node that controls dt_crit (-1: none)
+    control_spring: np.ndarray  # int index of the stiffest spring at that node (-1: none)
+    out_every: np.ndarray  # int steps between history samples
+    n_steps: np.ndarray  # int steps to end_time
+    refused: np.ndarray  # bool: fixed dt above dt_crit
+    too_many: np.ndarray | None = None  # bool: more than MAX_STEPS steps (or dt 0): n_steps is 0, not run
+
+
+def curve_max_slope(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, c: int) -> np.ndarray:
+    """Largest |slope| of curve ``c`` per variant; ``cx``, ``cy`` are (Ptot, V) knot arrays."""
+    a, b = int(off[c]), int(off[c + 1])
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a bad curve is refused by its caller
+        slopes = np.diff(cy[a:b], axis=0) / np.diff(cx[a:b], axis=0)
+    return np.max(np.abs(slopes), axis=0)
+
+
+def spring_stiffness_bound(topo: Topology, k: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(k_max, c) per spring and variant, shape (S, V): steepest usable slope and damping."""
+    S = topo.n_springs
+    V = k.shape[1] if k.ndim == 2 else cx.shape[1]
+    kmax = np.zeros((S, V))
+    damp = np.zeros((S, V))
+    off = topo.curve_offsets
+    for s in range(S):
+        mat = topo.material[s]
+        c0, c1 = topo.spring_curves[s]
+        if mat == LINEAR:
+            kmax[s] = k[s]
+        elif mat == DAMPER:
+            damp[s] = k[s]
+        elif mat == NONLINEAR:
+            kmax[s] = curve_max_slope(cx, cy, off, c0)
+        elif mat == GENERAL:
+            kmax[s] = np.maximum(curve_max_slope(cx, cy, off, c0), curve_max_slope(cx, cy, off, c1))
+        elif mat == CRUSH:
+            kmax[s] = np.maximum(curve_max_slope(cx, cy, off, c0), k[s])
+    return kmax, damp
+
+
+def choose_steps(
+    topo: Topology,
+    mass: np.ndarray,
+    kmax: np.ndarray,
+    damp: np.ndarray,
+    end_time: np.ndarray,
+    step_value: np.ndarray,
+    interval: float,
+    time_curve_spacing: np.ndarray,
+) -> StepChoice:
+    """Choose the step of every variant.
+
+    Parameters
+    ----------
+    mass : (N, V) nodal masses [mass]; kmax, damp : (S, V) [force/length], [force*time/length].
+    end_time, step_value : (V,) end time [time] and the ``time_step`` value of the topology's mode.
+    interval : history sampling interval [time]; the step divides it exactly.
+    time_curve_spacing : (V,) shortest segment of any load/prescribed-motion curve [time] (inf if none).
+    """
+    N, V = mass.shape
+    K = np.zeros((N, V))
+    Cn = np.zeros((N, V))
+    i, j = topo.spring_nodes[:, 0], topo.spring_nodes[:, 1]
+    for s in range(len(i)):  # row adds over the variants (np.add.at is ~10x slower for few springs)
+        K[i[s]] += kmax[s]
+        K[j[s]] += kmax[s]
+        Cn[i[s]] += damp[s]
+        Cn[j[s]] += damp[s]
+    movable = np.asarray(~topo.fixed.all(axis=1))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        m = np.where(movable[:, None], mass, np.inf)
+        omega = np.sqrt(2.0 * K / m)
+        gamma = 2.0 * Cn / m  # nodal bound on the damping rate, like 2 K_n / m_n for the stiffness
+        xi = np.where(omega > 0, gamma / omega, np.inf)
+        dt_node = np.where(
+            omega > 0,
+            (2.0 / omega) * (np.sqrt(1.0 + xi * xi) - xi),
+            np.where(gamma > 0, 1.0 / gamma, np.inf),
+        )
+    dt_node = np.where(np.isfinite(dt_node), CRITICAL_MARGIN * dt_node, np.inf)
+    ctrl = np.argmin(dt_node, axis=0) if N else np.zeros(V, dtype=np.int64)
+    dt_crit = dt_node[ctrl, np.arange(V)] if N else np.full(V, np.inf)
+    ctrl = np.where(np.isfinite(dt_crit), ctrl, -1)
+    # stiffest spring at the controlling node
+    ctrl_spring = np.full(V, -1, dtype=np.int64)
+    if topo.n_springs:
+        at = (i[:, None] == ctrl[None, :]) | (j[:, None] == ctrl[None, :])
+        score = np.where(at, kmax + damp, -1.0)
+        best = np.argmax(score, axis=0)
+        ctrl_spring = np.where(at[best, np.arange(V)], best, -1)
+
+    mode = topo.time_step_mode
+    refused = np.zeros(V, dtype=bool)
+    if mode == "safety_factor":
+        dt = step_value * dt_crit
+    elif mode == "dt":
+        dt = step_value.copy()
+        refused = dt > dt_crit * (1.0 + 1e-12)
+    else:
+        dt = np.minimum(dt_crit, TOLERANCE_FACTOR * np.sqrt(step_value / 2.0) * dt_crit)
+        dt = np.minimum(dt, 0.25 * time_curve_spacing)
+    # a model with nothing stiff (free flight): step at the sampling interval / 10
+    dt = np.where(np.isfinite(dt), dt, interval / 10.0)
+    # a step of 0 (stiffness / mass overflowed) or a count beyond int64: refused, never cast to garbage
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        every = np.maximum(1, np.ceil(interval / dt - 1e-9))
+        steps = np.ceil(end_time / (interval / every) - 1e-9)
+        too_many = ~(every <= MAX_STEPS) | ~(steps <= MAX_STEPS)
+        out_every = np.where(too_many, 1, every).astype(np.int64)
+        dt = interval / out_every
+        n_steps = np.where(too_many, 0, np.ceil(end_time / dt - 1e-9)).astype(np.int64)
+    return StepChoice(dt, dt_crit, ctrl.astype(np.int64), ctrl_spring, out_every, n_steps, refused, too_many)

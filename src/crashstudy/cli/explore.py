@@ -1,0 +1,225 @@
+"""Command line of design exploration: ``crashstudy sensitivity`` and ``crashstudy summary --exceed``
+(parsing, printing, exit codes; the numbers come from :mod:`crashstudy.analysis.sensitivity`)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from crashstudy.errors import InputError, Problem
+
+EXIT_OK, EXIT_INVALID = 0, 2
+
+
+def add_parsers(sub: Any) -> None:
+    se = sub.add_parser("sensitivity", help="sensitivity of a summary column to the study axes (sensitivity.csv)")
+    se.add_argument("dir", help="result folder of a study")
+    se.add_argument("--metric", required=True,
+                    help="summary column, e.g. peak_deceleration_g.cabin (a part of one name will do)")
+    se.add_argument("--method", choices=["correlation", "sobol", "morris"], default="correlation",
+                    help="correlation (any study; Spearman and Pearson), sobol (design method saltelli: S1, ST), "
+                         "morris (design method morris: mu_star, sigma); default correlation")  # fmt: skip
+    se.add_argument("--history", metavar="QUANTITY",
+                    help="also: Spearman correlation of this history (e.g. spring_force) with each axis at every "
+                         "sample -> sensitivity_<quantity>.nc and .png")  # fmt: skip
+    se.add_argument("--item", help="with --history: the spring or node (default the first)")
+
+
+def exceed_text(dir_: str, column: str, limit: str) -> str:
+    """``summary --exceed COLUMN LIMIT``: the exceedance probability of a column."""
+    from crashstudy.analysis.sensitivity import exceedance
+    from crashstudy.cli.main import _match_column
+    from crashstudy.results.store import open_results
+
+    value = _number("--exceed", limit)
+    res = open_results(dir_)
+    try:
+        df = res.summary
+    finally:
+        res.close()
+    return exceedance(df, _match_column(dir_, column, list(df.columns)), value).text()
+
+
+def _number(option: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not math.isfinite(value):
+        raise InputError([Problem(option, None, "", f"expected a finite number, got {text!r}")])
+    return value
+
+
+def sensitivity(args: argparse.Namespace) -> int:
+    from crashstudy.analysis.sensitivity import indices
+    from crashstudy.cli.main import _match_column
+    from crashstudy.results.store import open_results
+
+    res = open_results(args.dir)
+    try:
+        df, attrs = res.summary, dict(res.dataset.attrs)
+        metric = _match_column(args.dir, args.metric, list(df.columns))
+        try:
+            table = indices(df, attrs, metric, args.method)
+        except ValueError as exc:
+            raise InputError([Problem(args.dir, None, "--method", str(exc))]) from None
+        if args.history:
+            _over_time(res, args)
+    finally:
+        res.close()
+    out = Path(args.dir) / "sensitivity.csv"
+    table.to_csv(out, index=False)
+    import pandas as pd
+
+    with pd.option_context("display.max_rows", None, "display.width", 120, "display.max_colwidth", 60):
+        print(table.drop(columns=["metric"]).to_string(index=False))
+    for note in sorted({n for n in table["note"] if n}):
+        print(f"note: {note}", file=sys.stderr)
+    print(f"wrote {out}")
+    return EXIT_OK
+
+
+def _over_time(res: Any, args: argparse.Namespace) -> None:
+    from crashstudy.analysis.sensitivity import over_time
+    from crashstudy.safefs import clear_entry
+
+    ds = res.dataset
+    if args.history not in ds:
+        kept = [v for v in ds.data_vars if "time" in ds[v].dims]
+        raise InputError([Problem(args.dir, None, "--history", f"no history {args.history!r} in the results; "
+                                  f"kept: {kept or 'none (output.histories: none)'}")])  # fmt: skip
+    try:
+        da = over_time(ds, args.history, args.item)
+    except ValueError as exc:
+        raise InputError([Problem(args.dir, None, "--item", str(exc))]) from None
+    stem = Path(args.dir) / f"sensitivity_{args.history}"
+    clear_entry(stem.with_suffix(".nc"))
+    da.to_netcdf(stem.with_suffix(".nc"))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    t = da["time"].values
+    for a in da["axis_path"].values:
+        ax.plot(t, da.sel(axis_path=a).values, label=str(a))
+    ax.axhline(0.0, color="0.6", lw=0.8)
+    ax.set_ylim(-1.05, 1.05)
+    ax.set_xlabel(f"time [{ds['time'].attrs.get('units', '')}]")
+    ax.set_ylabel("Spearman correlation [1]")
+    ax.set_title(f"{da.attrs['long_name']}")
+    ax.legend(loc="best", fontsize=8)
+    clear_entry(stem.with_suffix(".png"))  # a link there is removed, never written through
+    fig.savefig(stem.with_suffix(".png"), dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    print(f"wrote {stem.with_suffix('.nc')} and {stem.with_suffix('.png')}")
+
+
+def add_search_parsers(sub: Any) -> None:
+    op = sub.add_parser("optimize", help="run a study's optimize: block (optimum.yaml, history.csv, its results)")
+    op.add_argument("study", help="study file with an optimize: block")
+    op.add_argument("-o", "--output", help="result folder (default results/<study name>)")
+    ca = sub.add_parser("calibrate", help="run a study's calibrate: block (calibrated.yaml, a data-vs-fit plot)")
+    ca.add_argument("study", help="study file with a calibrate: block")
+    ca.add_argument("-o", "--output", help="result folder (default results/<study name>)")
+
+
+def _study_dict(path: str, block: str) -> tuple[dict[str, Any], Path]:
+    """The validated study as plain data (model path absolute) and its folder."""
+    from crashstudy.schema.yamlio import load_yaml
+    from crashstudy.study.plan import load_study
+
+    load_study(path)  # every problem of the file at once, with lines
+    doc = load_yaml(path)
+    data = dict(doc.data)
+    if not data.get(block):
+        raise InputError([Problem(path, None, block, f"no {block}: block in this study (see docs/optimize.md)")])
+    base = Path(path).resolve().parent
+    data["model"] = str((base / data["model"]).resolve())
+    for k, (lo, hi) in data[block]["variables"].items():
+        if not lo < hi:
+            raise InputError([Problem(path, doc.line_of((block, "variables", k)), f"{block}.variables.{k}",
+                                      f"bounds [low, high] need low < high, got [{lo}, {hi}]")])  # fmt: skip
+    corners = {"name": data["name"], "model": data["model"], "set": data.get("set") or {},
+               "zip": [{k: [float(v) for v in b] for k, b in data[block]["variables"].items()}]}  # fmt: skip
+    try:
+        load_study(corners)  # both bounds of every variable give a valid model
+    except InputError as exc:
+        raise InputError([Problem(path, doc.line_of((block, "variables")), f"{block}.variables", p.message)
+                          for p in exc.problems]) from None  # fmt: skip
+    return data, base
+
+
+def _finish(data: dict[str, Any], values: dict[str, float], out: Path) -> None:
+    from crashstudy.analysis.optimization import optimum_study
+    from crashstudy.run.runner import run_plan
+    from crashstudy.study.plan import load_study
+
+    run_plan(load_study(optimum_study(data, values)), out, force=True, progress=False)
+
+
+def optimize_command(args: argparse.Namespace) -> int:
+    import yaml
+
+    from crashstudy.analysis.optimization import optimize
+
+    data, _ = _study_dict(args.study, "optimize")
+    out = Path(args.output or Path("results") / data["name"])
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        result = optimize(data, out)
+    except ValueError as exc:
+        raise InputError([Problem(args.study, None, "optimize", str(exc))]) from None
+    _finish(data, result["variables"], out)
+    (out / "optimum.yaml").write_text(yaml.safe_dump(result, sort_keys=False))
+    print(yaml.safe_dump(result, sort_keys=False).rstrip())
+    print(f"wrote {out / 'optimum.yaml'}, {out / 'history.csv'} and the optimum's results in {out}")
+    return EXIT_OK if result["feasible"] else 1
+
+
+def calibrate_command(args: argparse.Namespace) -> int:
+    import yaml
+
+    from crashstudy.analysis.optimization import calibrate
+
+    data, base = _study_dict(args.study, "calibrate")
+    out = Path(args.output or Path("results") / data["name"])
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        result = calibrate(data, base, out)
+    except (ValueError, FloatingPointError, FileNotFoundError) as exc:
+        raise InputError([Problem(args.study, None, "calibrate", str(exc))]) from None
+    t, y, model, units = result.pop("_fit")
+    _finish(data, result["variables"], out)
+    (out / "calibrated.yaml").write_text(yaml.safe_dump(result, sort_keys=False))
+    _fit_plot(out / "calibration.png", t, y, model, data["calibrate"]["channel"], result, units)
+    print(yaml.safe_dump(result, sort_keys=False).rstrip())
+    print(f"wrote {out / 'calibrated.yaml'}, {out / 'calibration.png'} and the calibrated results in {out}")
+    return EXIT_OK
+
+
+def _fit_plot(path: Path, t: Any, y: Any, model: Any, channel: dict[str, Any], result: dict[str, Any],
+              units: dict[str, str]) -> None:  # fmt: skip
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from crashstudy.safefs import clear_entry
+
+    what = channel["quantity"] + (f" of spring {channel['spring']}" if channel.get("spring") else
+                                  f" of node {channel['node']} ({channel.get('direction', 'x')})")  # fmt: skip
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    ax.plot(t, y, ".", ms=3, color="0.4", label="data")
+    ax.plot(t, model, "-", color="C3", lw=1.5, label="calibrated model")
+    ax.set_xlabel(f"time [{units.get('time', '')}]")
+    ax.set_ylabel(f"{channel['quantity'].replace('_', ' ')} [{units.get('value', '')}]")
+    ax.set_title(f"{what}: rms error {result['rms_error']:.3g}, correlation {result['correlation']:.4f}", fontsize=10)
+    ax.legend(loc="best")
+    clear_entry(path)
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    plt.close(fig)

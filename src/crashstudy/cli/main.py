@@ -1,0 +1,456 @@
+"""Command line: parses arguments, calls the runner, prints, and sets exit codes.
+
+Exit codes: 0 success, 1 a check failed or a variant failed, 2 the input is invalid.
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import json
+import os
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+from crashstudy.errors import InputError
+
+EXIT_OK, EXIT_FAILED, EXIT_INVALID, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="crashstudy", description="Lumped-parameter crash models over design matrices.")
+    from crashstudy import __version__
+
+    p.add_argument("--version", action="version", version=f"crashstudy {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run every variant of a study")
+    r.add_argument("study", help="study file (YAML: name, model, matrix/zip axes; see docs/studies.md)")
+    r.add_argument("-o", "--output", help="result folder (default results/<study name>)")
+    r.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; the kernel is multi-threaded)")
+    r.add_argument("--scheduler", help="Dask scheduler address tcp://HOST:PORT, or 'local' for a LocalCluster")
+    r.add_argument("--resume", action="store_true", help="finish an interrupted run (only missing variants run)")
+    r.add_argument("--force", action="store_true",
+                   help="recompute everything (default: reuse unchanged variants of this study's earlier results)")
+    r.add_argument("--dry-run", action="store_true", help="validate and print the number of variants, run nothing")
+    r.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
+                   help="progress line (variants done, variants/s, ETA) on stderr: auto = only on a terminal")
+    csv = r.add_mutually_exclusive_group()
+    csv.add_argument("--csv", dest="csv", action="store_true", default=None,
+                     help="also write summary.csv however many variants (default: up to 100,000)")
+    csv.add_argument("--no-csv", dest="csv", action="store_false",
+                     help="write summary.parquet only (it is always written)")
+
+    v = sub.add_parser("validate", help="check a model or study file and report every problem")
+    v.add_argument("file", help="model or study file (YAML); which one it is, is told by its keys")
+
+    s = sub.add_parser("simulate", help="run one model (no matrix)")
+    s.add_argument("model", help="model file (YAML: nodes, springs, end_time, ...); a study goes to `run`")
+    s.add_argument("-o", "--output", help="result folder (default results/<model name>)")
+    s.add_argument("--force", action="store_true",
+                   help="overwrite a folder that holds other results (default: refuse, exit 2)")
+
+    sm = sub.add_parser("summary", help="print the summary table of a result folder")
+    sm.add_argument("dir", help="result folder (written by run or simulate)")
+    sm.add_argument("--sort", help="column to sort by (e.g. peak_deceleration_g.cabin; a part of one name will do)")
+    sm.add_argument("--ascending", action="store_true", help="sort ascending (default descending)")
+    sm.add_argument("--head", type=int, default=30, help="rows to show (0 = all)")
+    sm.add_argument("--columns", nargs="+", help="columns to show besides variant and the study axes (substrings match)")
+    sm.add_argument("--variant", type=int, help="print this variant's row, every column on a line of its own")
+    sm.add_argument("--exceed", nargs=2, metavar=("COLUMN", "LIMIT"),
+                    help="print P(COLUMN > LIMIT) over the variants with its exact 95%% interval (Monte Carlo designs)")
+
+    pl = sub.add_parser("plot", help="write PNG figures of a result folder")
+    pl.add_argument("dir", help="result folder (written by run or simulate)")
+    pl.add_argument("--kind", choices=["history", "force-displacement", "matrix", "pulse"], default="history",
+                    help="history: a quantity over time per item; force-displacement: spring force over crush; "
+                    "matrix: a summary metric over the study axes; pulse: the SAE J211 filtered acceleration "
+                    "of the metrics nodes in g over time in ms, beside the raw channel (default history)")
+    pl.add_argument("--quantity", help="history variable or summary metric (e.g. spring_force, peak_force.cabin); "
+                    "default: history spring_force; matrix peak_deceleration_g of the node named by a "
+                    "peak_deceleration_g.<node> key of the study's regression: block, else of the heaviest free "
+                    "node (the survival room, not the bumper)")
+    pl.add_argument("--items", nargs="+", help="nodes or springs to plot (they are part of the file names)")
+    pl.add_argument("--time-unit", choices=["s", "ms"], help="unit of the time axis (default the results' own)")
+    pl.add_argument("--accel-unit", choices=["g"], help="show accelerations in g (default length/time^2)")
+    pl.add_argument("--x", dest="x_axis", help="matrix plot: study axis on the x axis")
+    pl.add_argument("--y", dest="y_axis", help="matrix plot: second study axis (heat map)")
+    pl.add_argument("--max-variants", type=int, default=50, help="most variants drawn in one figure (default 50)")
+    pl.add_argument("-o", "--output", help="folder for the PNGs (default DIR/plots)")
+    pl.add_argument("--force", action="store_true", help="write the PNGs even into another result's folder")
+
+    c = sub.add_parser("compare", help="regression check of a result against a baseline")
+    c.add_argument("new", help="result folder under test")
+    c.add_argument("baseline", help="result folder of the same study to compare with")
+    c.add_argument("--rtol", type=float, help="relative tolerance of every metric the study's regression: block "
+                   "does not name: |new - old| <= atol + rtol |old| (default 1e-6)")
+    c.add_argument("--atol", type=float, help="absolute tolerance, in each metric's own unit (default 0)")
+    c.add_argument("--junit", help="write JUnit XML to this file")
+
+    from crashstudy.cli.explore import add_parsers, add_search_parsers
+
+    add_parsers(sub)
+    add_search_parsers(sub)
+    sc = sub.add_parser("schema", help="print the JSON Schema of model or study files")
+    sc.add_argument("kind", choices=["model", "study"], help="which file format")
+    return p
+
+
+def _plain_warnings() -> None:
+    """Print crashstudy's own warnings as one line ``warning: ...`` (no source line, no traceback)."""
+    import warnings
+
+    from crashstudy.errors import CrashstudyWarning
+
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):  # type: ignore[no-untyped-def]
+        if issubclass(category, CrashstudyWarning):
+            print(f"warning: {message}", file=file or sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    from crashstudy import interrupt
+
+    interrupt.reset()
+    _plain_warnings()
+    signal.signal(signal.SIGTERM, interrupt.request)  # acted on between chunks (crashstudy/interrupt.py)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not when started with SIGINT ignored
+        signal.signal(signal.SIGINT, interrupt.request)
+    try:
+        return int(COMMANDS[args.command](args))
+    except InputError as exc:
+        print(f"error: invalid input\n{exc.format()}", file=sys.stderr)
+        return EXIT_INVALID
+    except KeyboardInterrupt:
+        print("\ninterrupted: finished variants are kept; continue with --resume", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (FileNotFoundError, NotADirectoryError, PermissionError, IsADirectoryError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    except OSError as exc:  # disk full, read-only folder: say so plainly
+        if exc.errno in _PATH_ERRORS:  # the path itself cannot be used: invalid input, not a failed write
+            print(f"error: invalid input\n{_short(exc.filename)}: {_PATH_ERRORS[exc.errno]}", file=sys.stderr)
+            return EXIT_INVALID
+        print(f"error: cannot write results: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    except MemoryError:
+        print("error: out of memory: the model or study needs more memory than this machine has (fewer variants "
+              "or nodes, or histories: none, need less)", file=sys.stderr)  # fmt: skip
+        return EXIT_FAILED
+    except RuntimeError as exc:
+        from concurrent.futures.process import BrokenProcessPool
+
+        if isinstance(exc, BrokenProcessPool):
+            print("error: a worker process died; finished variants are kept: continue with --resume", file=sys.stderr)
+            return EXIT_FAILED
+        if "NetCDF" in str(exc) or "HDF" in str(exc):  # netCDF4 reports a full disk as an HDF error
+            print(f"error: cannot write results ({exc}): is the disk full or the folder not writable? "
+                  "Finished variants are kept: continue with --resume", file=sys.stderr)  # fmt: skip
+            return EXIT_FAILED
+        raise
+
+
+_PATH_ERRORS = {
+    errno.ENAMETOOLONG: "path too long (the system allows 255 bytes per name and 4096 per path)",
+    errno.ELOOP: "a loop of symbolic links",
+}
+
+
+def _short(path: object) -> str:
+    """A path for a message: printable, at most 100 characters (its start and end)."""
+    from crashstudy.errors import printable
+
+    text = printable(os.fsdecode(path) if isinstance(path, (str, bytes)) else str(path), 10_000)
+    return text if len(text) <= 100 else f"{text[:48]}...{text[-48:]}"
+
+
+def _warn(lines: list[str]) -> None:
+    for line in lines:
+        print(f"warning: {line}", file=sys.stderr)
+
+
+def _checked(plan: Any) -> None:
+    """Print the plan's plausibility warnings; raise its silent mistakes as invalid input (exit 2)."""
+    from crashstudy.study.sanity import check_plan
+
+    problems, warnings = check_plan(plan)
+    _warn(warnings)
+    if problems:
+        raise InputError(problems)
+
+
+def _after_run(res: Any) -> None:
+    """Warn when the peak deceleration of the model's body mass contradicts the result's unit system."""
+    from crashstudy.schema import validate_model_data
+    from crashstudy.schema.plausible import body_node, peak_g_warnings
+    from crashstudy.schema.yamlio import loads_yaml
+
+    attrs = res.dataset.attrs
+    try:
+        m, _ = validate_model_data(loads_yaml(str(attrs.get("model_yaml", "")), "results.nc").data)
+    except InputError:
+        return
+    node = body_node(m) if m is not None else None
+    col = f"peak_deceleration_g.{node}"
+    if node is None:
+        return
+    try:
+        s = res.summary_columns(["variant", col])
+    except (KeyError, ValueError):  # pyarrow: no such column (the node has no summary column)
+        return
+    if not s[col].notna().any():
+        return
+    k = s[col].idxmax()
+    _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, float(s.loc[k, col]), int(s.loc[k, "variant"])))
+
+
+def _run(args: argparse.Namespace) -> int:
+    from crashstudy.run.runner import default_out, run_plan
+    from crashstudy.study.plan import load_study
+
+    plan = load_study(args.study)
+    _checked(plan)
+    print(f"study {plan.name}: {plan.n_variants} variants"
+          + (" (" + " x ".join(str(s) for s in plan.shape) + ")" if plan.shape else ""))  # fmt: skip
+    _work(plan)
+    if args.dry_run:
+        for ax in plan.axes:
+            shown = ", ".join(repr(float(v)) for v in ax.values[:6])
+            print(f"  {ax.path}: {len(ax.values)} values [{shown}{', ...' if len(ax.values) > 6 else ''}]")
+        return EXIT_OK
+    progress = None if args.progress == "auto" else args.progress == "on"
+    out = Path(args.output) if args.output else default_out(plan.name)
+    rep = run_plan(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume, force=args.force,
+                   progress=progress, notes=sys.stderr, csv=args.csv)  # fmt: skip
+    reused = f", {rep.n_reused} unchanged variants reused" if rep.n_reused else ""
+    print(f"wrote {rep.results.path} and {_tables(rep.results.dir)} ({rep.n_computed} variants computed in "
+          f"{rep.seconds:.1f} s{reused})")  # fmt: skip
+    _after_run(rep.results)
+    if rep.n_failed:
+        print(f"{rep.n_failed} of {rep.n_variants} variants failed (see status / failure_reason)", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def _tables(folder: Path) -> str:
+    return " and ".join(n for n in ("summary.parquet", "summary.csv") if (folder / n).exists())
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from crashstudy.schema import file_kind, parse_model
+    from crashstudy.schema.yamlio import load_yaml
+    from crashstudy.study.plan import load_study
+
+    doc = load_yaml(args.file)
+    if file_kind(doc.data) == "study":
+        plan = load_study(args.file)
+        _checked(plan)
+        print(f"{args.file}: valid study ({plan.n_variants} variants)")
+        _work(plan)
+    else:
+        from crashstudy.run.runner import refuse_fixed_dt
+        from crashstudy.study.plan import plan_from_model
+
+        lm = parse_model(doc)
+        plan = plan_from_model(lm)
+        refuse_fixed_dt(plan, doc)
+        _checked(plan)
+        m = lm.model
+        print(f"{args.file}: valid model ({len(m.nodes)} nodes, {len(m.springs)} springs, "
+              f"{len(next(iter(m.nodes.values())).position)}-D)")  # fmt: skip
+        _work(plan)
+    return EXIT_OK
+
+
+def _work(plan: Any) -> None:
+    """Say how long a run of ``plan`` takes when that is long (its refusal beyond the limit is an input error)."""
+    from crashstudy.study.plan import WORK_ENV, WORK_RATE, WORK_REPORT, format_duration, max_work
+
+    if plan.work >= WORK_REPORT:
+        print(f"  about {plan.work:.3g} element-steps (springs x time steps, summed over the variants): about "
+              f"{format_duration(plan.work / WORK_RATE)} at {WORK_RATE:.0e} a second; the limit is {max_work():.3g} "
+              f"({WORK_ENV})")  # fmt: skip
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from crashstudy.run.runner import simulate_report
+
+    rep = simulate_report(args.model, args.output, force=args.force, notes=sys.stderr, warn=lambda w: _warn([w]))
+    s = rep.results.summary.iloc[0]
+    print(f"wrote {rep.results.path} and {_tables(rep.results.dir)}")
+    print(f"  status {s['status']}  dt {s['dt']:.4g}  energy_error {s['energy_error']:.2e}  ({s['dt_control']})")
+    _after_run(rep.results)
+    if s["status"] != "ok":
+        print(f"  failed: {s['failure_reason']}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK
+
+
+def _summary(args: argparse.Namespace) -> int:
+    import shutil
+
+    import pandas as pd
+
+    from crashstudy.results.store import open_results
+
+    if args.head < 0:
+        raise InputError([_arg_problem("--head", f"expected 0 (every row) or a number of rows, got {args.head}")])
+    if args.exceed:
+        from crashstudy.cli.explore import exceed_text
+
+        print(exceed_text(args.dir, *args.exceed))
+        return EXIT_OK
+    res = open_results(args.dir)
+    try:
+        df = res.summary
+        units = _column_units(res.dataset, list(df.columns))
+        axes = [a for a in json.loads(res.dataset.attrs.get("crashstudy_axes", "[]")) if a in df.columns]
+    finally:
+        res.close()
+    if args.variant is not None:
+        return _print_variant(df, units, args)
+    if args.columns:
+        picked = [c for c in df.columns if any(k in c for k in args.columns) and c != "variant" and c not in axes]
+        df = df[["variant", *axes, *picked]]
+    if args.sort:
+        col = _match_column(args.dir, args.sort, list(df.columns))
+        df = df.sort_values(col, ascending=args.ascending, kind="stable")
+    shown = df if not args.head else df.head(args.head)
+    reasons = shown.pop("failure_reason") if "failure_reason" in shown else None
+    width = shutil.get_terminal_size((100, 24)).columns  # COLUMNS, else the terminal, else 100
+    table = shown.copy()
+    table.columns = pd.MultiIndex.from_tuples([(c, f"[{units[c]}]" if units.get(c) else "") for c in shown.columns])
+    with pd.option_context("display.max_columns", None, "display.width", width, "display.max_colwidth", None,
+                           "display.expand_frame_repr", True, "display.max_rows", None):  # fmt: skip
+        print(table.to_string(line_width=width))
+    if args.head and len(df) > args.head:
+        print(f"... {len(df) - args.head} more rows (--head 0 shows all)")
+    if reasons is not None and (reasons != "").any():
+        import textwrap
+
+        print("failure reasons:")
+        for v, why in zip(shown["variant"], reasons, strict=True):
+            if why:
+                print(textwrap.fill(f"variant {v}: {why}", width, subsequent_indent="    ", break_long_words=False))
+    return EXIT_OK
+
+
+def _column_units(ds: Any, columns: list[str]) -> dict[str, str]:
+    """Unit of each summary column as results.nc stores it (``""`` for none or a pure number)."""
+    out = {}
+    for c in columns:
+        name = c if c in ds.variables else c.split(".", 1)[0]
+        unit = str(ds[name].attrs.get("units", "")) if name in ds.variables else ""
+        out[c] = "" if unit == "1" else unit
+    return out
+
+
+def _match_column(where: str, wanted: str, columns: list[str]) -> str:
+    """The column ``wanted`` names: itself, or the one column it is a part of."""
+    if wanted in columns:
+        return wanted
+    hits = [c for c in columns if wanted in c]
+    named = [c for c in hits if c.split(".", 1)[0] == wanted]  # "hic15": hic15.occupant, not hic15_t1.occupant
+    if len(hits) == 1 or len(named) == 1:
+        return hits[0] if len(hits) == 1 else named[0]
+    if hits:
+        raise InputError([_arg_problem(where, f"--sort {wanted!r} is ambiguous: it matches {hits}; name one")])
+    import difflib
+
+    close = difflib.get_close_matches(wanted, columns, 5)
+    raise InputError([_arg_problem(where, f"no column {wanted!r}; columns like it: {close or columns}")])
+
+
+def _print_variant(df: Any, units: dict[str, str], args: argparse.Namespace) -> int:
+    rows = df[df["variant"] == args.variant]
+    if rows.empty:
+        raise InputError([_arg_problem(args.dir, f"--variant {args.variant}: the variants are numbered 0 to "
+                                       f"{len(df) - 1}")])  # fmt: skip
+    row = rows.iloc[0]
+    labels = {c: c + (f" [{units[c]}]" if units.get(c) else "") for c in df.columns}
+    w = max(len(x) for x in labels.values())
+    for c in df.columns:
+        v = row[c]
+        text = f"{v:.6g}" if isinstance(v, float) else str(v)
+        print(f"{labels[c]:<{w}}  {text}")
+    return EXIT_OK
+
+
+def _arg_problem(where: str, msg: str) -> Any:
+    from crashstudy.errors import Problem
+
+    return Problem(where, None, "", msg)
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from crashstudy.cli.plot import plot_command
+
+    out = Path(args.output) if args.output else Path(args.dir) / "plots"
+    owner = _result_folder_of(out)
+    if owner is not None and not args.force and owner.resolve() != Path(args.dir).resolve():
+        raise InputError([_arg_problem(str(out), f"this folder belongs to the results in {owner}, not to "
+                                       f"{args.dir}; choose another -o or use --force")])  # fmt: skip
+    for path in plot_command(args):
+        print(f"wrote {path}")
+    return EXIT_OK
+
+
+def _result_folder_of(path: Path) -> Path | None:
+    """The result folder (one holding results.nc or an unfinished run) that ``path`` is or sits directly in."""
+    for folder in (path, path.parent):
+        if (folder / "results.nc").exists() or (folder / "results.nc.partial").exists():
+            return folder
+    return None
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from crashstudy.analysis.compare import compare_command
+
+    if args.junit and Path(args.junit).name in ("results.nc", "results.nc.partial", "summary.csv"):
+        raise InputError([_arg_problem(args.junit, "--junit would overwrite a result file; name a .xml file")])
+    return compare_command(args)
+
+
+def _schema(args: argparse.Namespace) -> int:
+    import json
+
+    from crashstudy.schema.model import Model
+    from crashstudy.schema.study import Study
+
+    cls = Model if args.kind == "model" else Study
+    print(json.dumps(cls.model_json_schema(), indent=2))
+    return EXIT_OK
+
+
+def _sensitivity(args: argparse.Namespace) -> int:
+    from crashstudy.cli.explore import sensitivity
+
+    return sensitivity(args)
+
+
+def _optimize(args: argparse.Namespace) -> int:
+    from crashstudy.cli.explore import optimize_command
+
+    return optimize_command(args)
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from crashstudy.cli.explore import calibrate_command
+
+    return calibrate_command(args)
+
+
+COMMANDS = {"run": _run, "validate": _validate, "simulate": _simulate, "summary": _summary, "plot": _plot,
+            "compare": _compare, "schema": _schema, "sensitivity": _sensitivity,
+            "optimize": _optimize, "calibrate": _calibrate}  # fmt: skip
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,168 @@
+"""``crashstudy plot DIR``: the figures of a result folder written as PNG files."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+from matplotlib.figure import Figure
+
+from crashstudy.analysis.plot import (
+    ITEM_DIM,
+    ITEMS_PER_FIGURE,
+    PLOT_TAG,
+    _fail,
+    _items,
+    _need_histories,
+    _parse_quantity,
+    crash_node,
+    free_nodes,
+    plot_force_displacement,
+    plot_history,
+    study_axes,
+    study_name,
+)
+from crashstudy.analysis.plot_matrix import default_metric, metric_columns, plot_matrix
+from crashstudy.analysis.plot_style import axis_units
+from crashstudy.errors import InputError, Problem
+from crashstudy.safefs import clear_entry
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "._-" else "_" for c in name)
+
+
+def _items_suffix(items: Sequence[str] | None) -> str:
+    """``-a-b`` for ``--items a b`` (so that figures of other items do not overwrite these); a long
+    list is cut and ends in a short hash of the whole list."""
+    if not items:
+        return ""
+    text = "-" + "-".join(items)
+    if len(text) <= 60:
+        return text
+    import hashlib
+
+    return text[:48] + "-" + hashlib.sha256("\0".join(items).encode()).hexdigest()[:8]
+
+
+def _matrix_metrics(summary: pd.DataFrame, axes: list[str], quantity: str | None, items: Sequence[str] | None,
+                    nodes: list[str], where: str, node: str | None = None) -> list[str]:  # fmt: skip
+    """Metric columns named by ``--quantity`` (a column, or a metric name with optional ``--items``).
+    A metric name without items: its column of ``node`` (:func:`crash_node`) when it has one, else
+    the column with the largest values."""
+    metrics = metric_columns(summary, axes)
+    if quantity in metrics and not items:
+        return [quantity]
+    base = quantity or "peak_deceleration_g"
+    with_items = [c for c in metrics if c.startswith(base + ".")]
+    if not with_items:
+        bases = sorted({c.split(".", 1)[0] for c in metrics})
+        raise _fail(
+            where, f"unknown metric {base!r}; valid: {', '.join(bases)} (or a column: {', '.join(metrics)})"
+        )
+    if not items:
+        if node is not None and f"{base}.{node}" in with_items:
+            return [f"{base}.{node}"]
+        return [default_metric(summary, nodes, prefix=base)]
+    valid = [c.split(".", 1)[1] for c in with_items]
+    unknown = [i for i in items if i not in valid]
+    if unknown:
+        raise _fail(
+            where, f"{base} has no item {', '.join(map(repr, unknown))}; valid items: {', '.join(valid)}"
+        )
+    return [f"{base}.{i}" for i in items]
+
+
+def plot_command(args: argparse.Namespace) -> list[Path]:
+    """``crashstudy plot DIR``: write the figures of ``args.kind`` as PNGs; return their paths.
+
+    ``args`` carries ``dir``, ``kind``, ``quantity``, ``items``, ``x_axis``, ``y_axis``,
+    ``max_variants``, ``output`` (default ``DIR/plots``) and optionally ``time_unit`` and
+    ``accel_unit``. History figures hold at most :data:`ITEMS_PER_FIGURE` subplots; more items are
+    spread over several files. File names carry the quantity and the ``--items`` given.
+    """
+    from crashstudy.results.store import open_results
+
+    where = str(args.dir)
+    try:
+        res = open_results(args.dir)
+    except FileNotFoundError as exc:
+        raise _fail(where, str(exc)) from None
+    ds = res.dataset
+    out = Path(args.output) if args.output else Path(args.dir) / "plots"
+    figures: list[tuple[str, Figure]] = []
+    try:
+        if args.kind == "matrix":
+            summary = res.summary
+            axes = study_axes(ds)
+            if not axes:
+                raise _fail(
+                    where,
+                    "these results have no study axes (a single model run); a matrix plot needs a study",
+                )
+            x = args.x_axis or axes[0]
+            if args.y_axis is not None:
+                y = None if args.y_axis.lower() == "none" else args.y_axis  # --y none: line plot
+            else:
+                y = next((a for a in axes if a != x), None)
+            node = crash_node(ds)
+            for metric in _matrix_metrics(summary, axes, args.quantity, args.items, free_nodes(ds), where, node):
+                units = (
+                    ds[metric.split(".", 1)[0]].attrs.get("units") if metric.split(".", 1)[0] in ds else None
+                )
+                fig = plot_matrix(summary, metric, x, y, axes=axes, units=units, title=f"{study_name(ds)}: {metric}",
+                                  axis_units=axis_units(ds, axes))  # fmt: skip
+                suffix = f"-{x}" + (f"-{y}" if y else "") if args.x_axis or args.y_axis else ""
+                figures.append((f"matrix-{metric}{suffix}", fig))
+        elif args.kind == "pulse":
+            from crashstudy.analysis.plot_pulse import metric_nodes, plot_pulse
+
+            if args.quantity:
+                raise _fail(where, "pulse draws filtered_acceleration beside acceleration; --quantity does not apply")
+            if "filtered_acceleration" not in ds.data_vars:
+                plot_pulse(ds)  # raises with the reason
+            nodes = _items(ds, "node", args.items, metric_nodes(ds))
+            for n, lo in enumerate(range(0, len(nodes), ITEMS_PER_FIGURE)):
+                fig = plot_pulse(ds, nodes[lo : lo + ITEMS_PER_FIGURE], args.max_variants)
+                figures.append((f"pulse{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig))
+        elif args.kind == "force-displacement":
+            if args.quantity:
+                raise _fail(
+                    where, "force-displacement draws spring_force against crush; --quantity does not apply"
+                )
+            _need_histories(ds, ["spring_force", "spring_elongation"])
+            springs = _items(ds, "spring", args.items, [str(v) for v in ds["spring"].values])
+            for n, lo in enumerate(range(0, len(springs), ITEMS_PER_FIGURE)):
+                fig = plot_force_displacement(ds, springs[lo : lo + ITEMS_PER_FIGURE], args.max_variants)
+                figures.append((f"force-displacement{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig))
+        else:
+            quantity = args.quantity or "spring_force"
+            name, _ = _parse_quantity(ds, quantity)
+            _need_histories(ds, [name])
+            dim = ITEM_DIM[name]
+            if dim is None:
+                groups: list[list[str] | None] = [None if not args.items else list(args.items)]
+            else:
+                default = free_nodes(ds) if dim == "node" else [str(v) for v in ds[dim].values]
+                chosen = _items(ds, dim, args.items, default)
+                groups = [
+                    chosen[lo : lo + ITEMS_PER_FIGURE] for lo in range(0, len(chosen), ITEMS_PER_FIGURE)
+                ]
+            units = {"time_unit": getattr(args, "time_unit", None), "accel_unit": getattr(args, "accel_unit", None)}
+            for n, group in enumerate(groups):
+                fig = plot_history(ds, quantity, group, args.max_variants, **units)
+                figures.append((f"history-{quantity}{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig))
+        out.mkdir(parents=True, exist_ok=True)
+        paths = []
+        for stem, fig in figures:
+            path = out / f"{_safe(stem)}.png"
+            clear_entry(path)  # a planted link is removed, never written through
+            fig.savefig(path, dpi=100, metadata={PLOT_TAG: str(res.path)})
+            paths.append(path)
+        return paths
+    except InputError as exc:  # name the folder as the user typed it
+        raise InputError([Problem(where, p.line, p.field, p.message) for p in exc.problems]) from None
+    finally:
+        res.close()

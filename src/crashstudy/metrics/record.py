@@ -1,0 +1,228 @@
+"""The ``metrics:`` block through the pipeline: per-step record -> crash criteria -> result variables.
+
+A model (or a study's ``set``) lists nodes to judge (docs/format.md, "metrics"). The kernel keeps the
+acceleration of those nodes at *every* time step (``KernelOutput.step_acceleration``, never the
+sampled histories); after each batch :func:`run_recorded` hands it to :func:`crashstudy.metrics.criteria.compute`
+(the SAE J211 filter and the criteria, batched over variants) and drops it, so a chunk holds at most
+:data:`RECORD_BUDGET` bytes of it: a chunk whose record would be larger is run in several batches.
+
+Units: the criteria are computed in SI (acceleration in m/s^2, time in s, as the standards define
+them); the results are given back in the model's units (``delta_v`` in its velocity unit, the HIC
+window ``t1``/``t2`` in its time unit) or in g. ``direction`` is the direction of travel: deceleration
+is positive against it. Without one, the node's initial velocity direction of each variant (x when the
+node starts at rest).
+
+``filtered_acceleration`` (a history, variant x time x node, in g): the filtered resultant of each metric
+node (the class of its first ``metrics`` entry), sampled like the other histories from the filtered
+signal at every step. ``criteria_note`` (a text per variant, "" when every criterion is trusted): what
+:func:`crashstudy.metrics.criteria.compute` says about a criterion whose value depends on the step, prefixed by
+the node.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from crashstudy.kernel.output import KernelOutput, concatenate
+from crashstudy.units import UNIT_SYSTEMS
+
+RECORD_BUDGET = 256 * 2**20  # bytes of the per-step acceleration record per kernel call
+G_SI = 9.80665  # standard gravity [m/s^2]
+METRE = {"m": 1.0, "mm": 1e-3}  # length unit -> metres
+SECOND = {"s": 1.0, "ms": 1e-3}  # time unit -> seconds
+
+METRIC_META = {  # name: (unit kind, long name); the standard each follows: crashstudy.metrics.criteria.STANDARDS
+    "peak_g": ("g", "peak of the filtered resultant acceleration"),
+    "hic15": ("1", "head injury criterion, window up to 15 ms"),
+    "hic15_t1": ("time", "start of the hic15 window"),
+    "hic15_t2": ("time", "end of the hic15 window"),
+    "hic36": ("1", "head injury criterion, window up to 36 ms"),
+    "hic36_t1": ("time", "start of the hic36 window"),
+    "hic36_t2": ("time", "end of the hic36 window"),
+    "clip3ms": ("g", "highest level the filtered resultant stays at or above for a continuous 3 ms"),
+    "clip3ms_cumulative": ("g", "highest level the filtered resultant exceeds for a cumulative 3 ms"),
+    "olc": ("g", "occupant load criterion (65 mm free flight, 235 mm restrained)"),
+    "dri": ("1", "dynamic response index (omega 52.9 rad/s, zeta 0.224) of the unfiltered deceleration"),
+    "delta_v": ("velocity", "largest change of velocity along the direction from the initial value"),
+}  # fmt: skip
+NOTE_TEXT = "criteria_note"
+NOTE_LONG = "why a crash criterion of the variant is not trusted (empty if every one is)"
+
+
+def result_names(topo: Any) -> tuple[str, ...]:
+    """The criterion variables of a topology's metrics (with the HIC windows), in METRIC_META order."""
+    from crashstudy.metrics.criteria import EXTRA
+
+    asked = {c for mt in topo.metrics for c in mt.criteria}
+    asked |= {e for c in list(asked) for e in EXTRA.get(c, ())}
+    return tuple(n for n in METRIC_META if n in asked)
+
+
+def standard(name: str) -> str:
+    """The standard a criterion variable follows (a HIC window: its criterion's)."""
+    from crashstudy.metrics.criteria import EXTRA, STANDARDS
+
+    return STANDARDS[next((c for c, extra in EXTRA.items() if name in extra), name)]
+
+
+def asked_nodes(topo: Any, name: str) -> list[str]:
+    """Ids of the nodes whose metrics entries ask for criterion ``name`` (or its HIC window's criterion)."""
+    from crashstudy.metrics.criteria import EXTRA
+
+    owner = next((c for c, extra in EXTRA.items() if name in extra), name)
+    return list(dict.fromkeys(topo.node_ids[mt.node] for mt in topo.metrics if owner in mt.criteria))
+
+
+@dataclass
+class ChunkCriteria:
+    """Criteria of a batch's variants: ``values`` name -> (V, N) (NaN where a node does not ask for it
+    or the variant failed), ``notes`` (V,) texts."""
+
+    values: dict[str, np.ndarray]
+    notes: np.ndarray
+
+    def take(self, idx: np.ndarray) -> ChunkCriteria:
+        return ChunkCriteria({k: v[idx] for k, v in self.values.items()}, self.notes[idx])
+
+
+def batch_groups(n_steps: np.ndarray, width: int, budget: int = RECORD_BUDGET) -> list[slice]:
+    """Contiguous groups of variants (sorted by step count) whose record, ``(max steps + 1) x width``
+    doubles a variant, stays within ``budget`` bytes (a group has one variant at least)."""
+    out: list[slice] = []
+    lo = 0
+    V = len(n_steps)
+    while lo < V:
+        hi = lo + 1
+        while hi < V and 8.0 * (float(np.max(n_steps[lo : hi + 1])) + 1) * width * (hi + 1 - lo) <= budget:
+            hi += 1
+        out.append(slice(lo, hi))
+        lo = hi
+    return out
+
+
+@dataclass
+class Recorder:
+    """What :func:`crashstudy.kernel.entry.run_ordered` calls to run a batch of a topology with metrics:
+    the kernel records ``nodes``; the output comes back with ``criteria`` and ``filtered_acceleration``."""
+
+    topo: Any
+    n_out: int
+
+    @property
+    def nodes(self) -> tuple[int, ...]:
+        return tuple(self.topo.metric_nodes)
+
+    def __call__(self, batch: Any, run: Callable[[Any], KernelOutput]) -> KernelOutput:
+        out, crit = run_recorded(batch, run, self.topo, self.n_out)
+        out.criteria = crit
+        return out
+
+
+def run_recorded(batch: Any, run: Callable[[Any], KernelOutput], topo: Any, n_out: int,
+                 budget: int | None = None) -> tuple[KernelOutput, ChunkCriteria]:  # fmt: skip
+    """Run ``batch`` through ``run`` (a kernel call that records the metric nodes) in groups whose
+    record stays within ``budget`` bytes (default :data:`RECORD_BUDGET`); the criteria of each group
+    are computed at once and its record dropped."""
+    width = len(topo.metric_nodes) * topo.dim
+    budget = RECORD_BUDGET if budget is None else budget
+    outs: list[KernelOutput] = []
+    crits: list[ChunkCriteria] = []
+    for g in batch_groups(np.asarray(batch.n_steps), width, budget):
+        sub = batch if g == slice(0, batch.n_variants) else batch.take(np.arange(g.start, g.stop))
+        o = run(sub)
+        crits.append(criteria_of(topo, sub, o, n_out))
+        o.step_acceleration = None
+        outs.append(o)
+    crit = ChunkCriteria({k: np.concatenate([c.values[k] for c in crits]) for k in crits[0].values},
+                         np.concatenate([c.notes for c in crits]))  # fmt: skip
+    return concatenate(outs), crit
+
+
+def _directions(mt: Any, v0: np.ndarray) -> np.ndarray:
+    """(V, D) unit direction of travel of a metric entry: its own, else the node's initial velocity (x at rest)."""
+    V, D = v0.shape
+    if mt.direction is not None:
+        return np.broadcast_to(np.asarray(mt.direction, dtype=np.float64), (V, D)).copy()
+    speed = np.sqrt(np.sum(v0 * v0, axis=1))
+    unit_x = np.zeros(D)
+    unit_x[0] = 1.0
+    return np.where(speed[:, None] > 0, v0 / np.where(speed > 0, speed, 1.0)[:, None], unit_x[None, :])
+
+
+def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria:
+    """The criteria of every metric entry for the variants of batch ``b`` and its output ``o``; puts the
+    ``filtered_acceleration`` history into ``o.histories`` when the topology asks for it."""
+    from crashstudy.metrics import criteria
+
+    u = UNIT_SYSTEMS[topo.units]
+    metre, second = METRE[u.length], SECOND[u.time]
+    V, N = b.n_variants, topo.n_nodes
+    rec = o.step_acceleration
+    assert rec is not None, "the kernel did not record the metric nodes"
+    count = np.rint(np.divide(o.t_end, b.dt)).astype(np.int64) + 1
+    ok = np.flatnonzero((o.status == 0) & (count >= 2))
+    values = {name: np.full((V, N), np.nan) for name in result_names(topo)}
+    notes: list[list[str]] = [[] for _ in range(V)]
+    filtered = np.full((n_out, N, V), np.nan) if topo.extra_histories else None
+    done_filter: set[int] = set()
+    for mt in topo.metrics:
+        if not len(ok):
+            break
+        m = topo.metric_nodes.index(mt.node)
+        acc = np.ascontiguousarray(rec[:, m][..., ok].transpose(2, 0, 1)) * (metre / second**2)  # (v, T, D) SI
+        v0 = b.v0[mt.node][:, ok].T * (metre / second)
+        res = criteria.compute(acc, count[ok], b.dt[ok] * second, v0, _directions(mt, v0), mt.cfc,
+                               list(mt.criteria), G_SI)  # fmt: skip
+        scale = {"velocity": second / metre, "time": 1.0 / second}
+        wanted = set(mt.criteria) | {e for c in mt.criteria for e in criteria.EXTRA.get(c, ())}
+        for name in (n for n in values if n in res and n in wanted):
+            values[name][ok, mt.node] = np.asarray(res[name], dtype=np.float64) * scale.get(METRIC_META[name][0], 1.0)
+        node_id = topo.node_ids[mt.node]
+        for k, note in zip(ok, res.get("criteria_note", ()), strict=False):
+            if note:
+                notes[int(k)].append(f"{node_id}: {note}")
+        if filtered is not None and mt.node not in done_filter:
+            done_filter.add(mt.node)
+            filtered[:, mt.node, ok] = _filtered_samples(acc, count[ok], b.dt[ok] * second, b.out_every[ok], mt.cfc,
+                                                         n_out)  # fmt: skip
+    if filtered is not None:
+        o.histories["filtered_acceleration"] = filtered
+    return ChunkCriteria(values, np.array(["; ".join(n) for n in notes], dtype=object))
+
+
+def _filtered_samples(acc: np.ndarray, count: np.ndarray, dt: np.ndarray, every: np.ndarray, cfc: int,
+                      n_out: int) -> np.ndarray:  # fmt: skip
+    """(n_out, v) filtered resultant [g] of ``acc`` (v, T, D) [m/s^2] at steps ``k * every``, NaN after the end."""
+    from crashstudy.metrics.criteria import j211_filter
+
+    comps = [j211_filter(np.ascontiguousarray(acc[:, :, d]), count, dt, cfc) for d in range(acc.shape[2])]
+    mag = np.sqrt(np.sum(np.stack(comps) ** 2, axis=0)) / G_SI  # (v, T)
+    steps = np.arange(n_out)[:, None] * every[None, :]  # (n_out, v)
+    inside = steps < count[None, :]
+    cols = np.arange(mag.shape[0])[None, :]
+    return np.where(inside, mag[cols, np.minimum(steps, mag.shape[1] - 1)], np.nan)
+
+
+def plan_warnings(plan: Any) -> list[str]:
+    """What ``validate`` and ``run`` say about a plan's metrics: a time step too long for a filter class
+    (sample rate below 10 CFC, SAE J211-1; the variants' criteria_note says it too)."""
+    from crashstudy.arrays.batch import build_batch
+
+    topo = plan.topology
+    if not topo.metrics:
+        return []
+    where = plan.study_file or plan.model_file
+    sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
+    second = SECOND[UNIT_SYSTEMS[topo.units].time]
+    rate = 1.0 / (float(np.max(sample.dt)) * second)
+    out = []
+    for k, mt in enumerate(topo.metrics):
+        if rate < 10.0 * mt.cfc:
+            out.append(f"{where}: metrics.{k}.cfc: CFC {mt.cfc} asks for a sample rate of {10 * mt.cfc:g} Hz, the "
+                       f"time step gives {rate:.4g} Hz: the filtered pulse and its criteria depend on the step "
+                       "(criteria_note says so); a smaller dt or tolerance resolves it")  # fmt: skip
+    return out

@@ -1,0 +1,1 @@
+"""Result folders: results.nc written chunk by chunk, summaries, checksums, reading back."""

@@ -1,0 +1,489 @@
+"""Result files: ``results.nc`` written chunk by chunk, ``summary.parquet`` / ``summary.csv``, and
+reading them back.
+
+The netCDF file is built as ``results.nc.partial`` (netCDF4, variants written as they finish, a
+``done`` flag and a checksum per variant flushed with them) and renamed to ``results.nc``
+only when every variant is in it: an interrupted run never leaves a file that looks complete, and
+``--resume`` continues the partial file. The summary tables are written to temporary files:
+``summary.parquet`` always, ``summary.csv`` up to ``CSV_MAX`` variants unless asked otherwise. Then
+``results.nc`` (marked ``complete``), the tables and last ``manifest.json`` are renamed into place;
+:class:`Results` refuses a folder whose files are not one finished run's (:mod:`crashstudy.results.integrity`).
+
+Texts that repeat across variants are stored compactly (docs/results.md): ``status`` is a CF flag
+variable (``int8``, ``flag_values`` 0 1, ``flag_meanings`` "ok failed"); ``failure_reason`` and
+``dt_control`` are ``int32`` indices into a table of their distinct texts (``failure_reason_text``,
+``dt_control_text``, named by the index variable's ``texts`` attribute); ``input_hash`` is two
+``uint64`` words. :attr:`Results.dataset` and :attr:`Results.summary` give them back as texts
+(categorical in the summary). Files of crashstudy 0.1 (texts as character arrays) are read too.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import netCDF4
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from crashstudy import __version__
+from crashstudy.errors import InputError, Problem
+from crashstudy.kernel.output import ALL_SHAPES, KernelOutput
+from crashstudy.metrics.record import METRIC_META, NOTE_TEXT, asked_nodes, result_names, standard
+from crashstudy.results import integrity
+from crashstudy.results.tables import (
+    CSV_MAX,
+    HISTORY_META,
+    PARQUET,
+    STATUS_MEANINGS,
+    SUMMARY,
+    SUMMARY_META,
+    decode_texts,  # fmt: skip
+    metric_arrays,
+    summary_arrays,
+    summary_frame,
+    text_tables,
+    write_summary,
+)
+from crashstudy.run.provenance import HASH_WORDS, text_hash
+from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
+from crashstudy.study.plan import Plan
+from crashstudy.units import UNIT_SYSTEMS
+
+__all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "ResultWriter", "Results",
+           "decode_texts", "open_results", "summary_frame", "write_summary"]  # fmt: skip
+
+PARTIAL = "results.nc.partial"
+FINAL = "results.nc"
+ID_LEN = 64  # longest id (the schema allows 64 characters)
+TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
+AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
+
+
+def _chars(texts: list[str], width: int) -> np.ndarray:
+    """Strings as a (len, width) 'S1' character array, UTF-8, cut to ``width`` bytes."""
+    raw = np.array([t.encode("utf-8")[:width] for t in texts], dtype=f"S{width}")
+    return netCDF4.stringtochar(raw) if len(texts) else np.zeros((0, width), dtype="S1")
+
+
+def _units(plan: Plan) -> dict[str, str]:
+    u = UNIT_SYSTEMS[plan.topology.units]
+    return {"length": u.length, "time": u.time, "velocity": u.velocity, "acceleration": u.acceleration,
+            "force": u.force, "energy": u.energy, "mass": u.mass, "1": "1", "g": "g",
+            "stiffness": f"{u.force}/{u.length}", "damping": f"{u.force}*{u.time}/{u.length}",
+            "curve": "curve units (x: length or time, y: force or motion)"}  # fmt: skip
+
+
+@dataclass
+class ChunkResult:
+    """Results of variants ``index`` (sorted global numbers) as computed by one task."""
+
+    index: np.ndarray
+    out: KernelOutput
+    dt: np.ndarray
+    dt_crit: np.ndarray
+    dt_control: np.ndarray  # (V,) object: texts
+    reasons: np.ndarray  # (V,) object: texts, "" where ok
+    hashes: np.ndarray  # (V, HASH_WORDS) uint64
+    error_estimate: np.ndarray  # (V,) NaN unless the model asks for accuracy_check
+    criteria: Any = None  # crashstudy.metrics.record.ChunkCriteria of a model with metrics, else None
+
+
+class ResultWriter:
+    """Writes a plan's results into ``directory`` chunk by chunk (see the module docstring)."""
+
+    def __init__(self, directory: str | os.PathLike[str], plan: Plan, resume: bool = False,
+                 csv: bool | None = None) -> None:  # fmt: skip
+        self.dir = Path(directory)
+        self.csv = plan.n_variants <= CSV_MAX if csv is None else csv
+        self.plan = plan
+        self.plan_axes = {a.path for a in plan.axes}
+        # netCDF's default 64 MiB chunk cache per variable keeps written chunks in memory (a 10^6-variant
+        # study peaked at 1.2 GiB); chunks are written once, so a small cache costs nothing
+        netCDF4.set_chunk_cache(4 * 2**20)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.path = self.dir / PARTIAL
+        if resume and os.path.islink(self.path):
+            raise InputError([Problem(plan.study_file or plan.model_file, None, "",
+                                      f"{self.path} is a symbolic link, not a partial result of crashstudy; "
+                                      "refusing to write through it (remove it, or use --force)")])  # fmt: skip
+        if resume and self.path.exists() and not _readable(self.path):
+            # cut off before its first chunk was flushed (SIGKILL, full disk): nothing in it can be used
+            print(f"note: {self.path} could not be read (cut off while being written); starting it again",
+                  file=sys.stderr)  # fmt: skip
+            self.path.unlink()
+        if resume and self.path.exists():
+            self.nc = netCDF4.Dataset(self.path, "a")
+            if self.nc.getncattr("plan_fingerprint") != plan_fingerprint(plan):
+                self.nc.close()
+                raise InputError([Problem(plan.study_file or plan.model_file, None, "",
+                                          f"the unfinished run in {self.dir} was started from a different study or "
+                                          "model; use --force to start again")])  # fmt: skip
+            self._verify_resumed()
+        else:
+            self.nc = self._create()
+        self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in text_tables(plan.topology)}
+
+    def _verify_resumed(self) -> None:
+        """Forget the done variants whose data no longer match their checksum: they are computed again.
+        A partial file from before checksums gets them now (its done variants trusted)."""
+        done = self.done()
+        if integrity.CHECKSUM not in self.nc.variables:
+            cs = self.nc.createVariable(integrity.CHECKSUM, "u8", ("variant",), fill_value=0)
+            cs.units, cs.long_name = "1", "sum of the variant's stored results (crashstudy.results.integrity)"
+            for lo, hi in _ranges_of(done):
+                cs[lo:hi] = integrity.file_sums(self.nc, lo, hi)
+        lost = done & ~integrity.intact(self.nc, done)
+        if lost.any():
+            first = np.flatnonzero(lost)
+            where = ", ".join(str(k) for k in first[:5]) + (", ..." if len(first) > 5 else "")
+            print(f"note: {len(first)} finished variant(s) of {self.path} no longer match their checksum "
+                  f"(variants {where}); computing them again", file=sys.stderr)  # fmt: skip
+            self.nc.variables["done"][:] = (done & ~lost).astype("i1")
+            self.nc.sync()
+
+    def done(self) -> np.ndarray:
+        """Boolean (V,): variants already written."""
+        return np.asarray(self.nc.variables["done"][:], dtype=bool)
+
+    def _create(self) -> netCDF4.Dataset:
+        p = self.plan
+        topo = p.topology
+        units = _units(p)
+        create_new(self.path)  # a planted link at the partial's name is removed, never written through
+        nc = netCDF4.Dataset(self.path, "w", format="NETCDF4")
+        V = p.n_variants
+        nc.createDimension("variant", V)
+        nc.createDimension("time", p.n_out)
+        nc.createDimension("node", topo.n_nodes)
+        nc.createDimension("spring", topo.n_springs)
+        nc.createDimension("axis", topo.dim)
+        nc.createDimension("wall", len(topo.wall_ids))
+        var = nc.createVariable("variant", "i8", ("variant",))
+        var[:] = np.arange(V)
+        var.units, var.long_name = "1", "variant number (row-major over the study axes)"
+        tv = nc.createVariable("time", "f8", ("time",))
+        tv[:] = p.times
+        tv.units, tv.long_name = units["time"], "time"
+        # strings are fixed-width character arrays (CF): variable-length strings crash libhdf5 when a
+        # file is opened many times (netcdf4-python issue 1444)
+        nc.createDimension("id_len", ID_LEN)
+        for dim, ids in (("node", topo.node_ids), ("spring", topo.spring_ids), ("axis", ("x", "y")[: topo.dim]),
+                         ("wall", topo.wall_ids)):  # fmt: skip
+            v = nc.createVariable(dim, "S1", (dim, "id_len"))
+            v._Encoding = "utf-8"
+            v.units, v.long_name = "", f"{dim} id" if dim != "axis" else "coordinate axis"
+            if ids:
+                v[:] = _chars(list(ids), ID_LEN)
+        for ax in p.axes:
+            v = nc.createVariable(ax.path, "f8", ("variant",), zlib=False)
+            v.long_name = f"study axis {ax.path}"
+            v.units = units[axis_unit(ax.path, p)]
+        for lo in range(0, V, AXIS_BLOCK):  # in blocks: bounded memory for any number of variants
+            for path, values in p.axis_values(lo, min(V, lo + AXIS_BLOCK)).items():
+                nc.variables[path][lo : lo + len(values)] = values
+        cv = min(V, 4096)
+        for name in topo.histories + topo.extra_histories:
+            dims = ("variant", "time", *ALL_SHAPES[name])
+            sizes = [1, p.n_out] + [len(nc.dimensions[d]) for d in ALL_SHAPES[name]]
+            v = nc.createVariable(name, "f8", dims, fill_value=np.nan, chunksizes=[max(1, s) for s in sizes])
+            v.units, v.long_name = units[HISTORY_META[name][0]], HISTORY_META[name][1]
+        for name, (dims, kind, long) in SUMMARY_META.items():
+            if dims == ("wall",) and not topo.wall_ids:
+                continue
+            shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
+            v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
+            v.units, v.long_name = units[kind], long
+        for name in result_names(topo):  # the crash criteria (crashstudy.metrics.record)
+            kind, long = METRIC_META[name]
+            v = nc.createVariable(name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes])
+            v.units, v.long_name, v.standard = units[kind], long, standard(name)
+            v.nodes = " ".join(asked_nodes(topo, name))  # the others are NaN (and have no summary column)
+        small: dict[str, Any] = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
+        st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
+        st.units, st.long_name = "1", "ok or failed (failure_reason says why)"
+        st.flag_values, st.flag_meanings = np.arange(len(STATUS_MEANINGS), dtype="i1"), " ".join(STATUS_MEANINGS)
+        nc.createDimension("text_len", TEXT_LEN)
+        for name, long in text_tables(topo).items():
+            nc.createDimension(f"{name}_kind", None)
+            tv = nc.createVariable(f"{name}_text", "S1", (f"{name}_kind", "text_len"), chunksizes=[16, TEXT_LEN])
+            tv._Encoding = "utf-8"
+            tv.units, tv.long_name = "", f"the distinct texts of {name}"
+            v = nc.createVariable(name, "i4", ("variant",), fill_value=-1, zlib=True, complevel=1, shuffle=True,
+                                  chunksizes=[cv])  # fmt: skip
+            v.units, v.long_name, v.texts = "1", f"{long}: index into {name}_text", f"{name}_text"
+        nc.createDimension("hash_word", HASH_WORDS)
+        hv = nc.createVariable("input_hash", "u8", ("variant", "hash_word"), chunksizes=[cv, HASH_WORDS])
+        hv.units, hv.long_name = "1", "hash of everything that determines the variant's results (reuse key)"
+        d = nc.createVariable("done", "i1", ("variant",), fill_value=0, zlib=True, complevel=1, shuffle=True,
+                              chunksizes=[cv])  # fmt: skip
+        d.units, d.long_name = "1", "1 once the variant's results are written"
+        cs = nc.createVariable(integrity.CHECKSUM, "u8", ("variant",), fill_value=0, **small)
+        cs.units, cs.long_name = "1", "sum of the variant's stored results (crashstudy.results.integrity)"
+        if p.axes:  # CF: the study axes are coordinates of every per-variant variable
+            coords = " ".join(a.path for a in p.axes)
+            for v in nc.variables.values():
+                if v.dimensions[:1] == ("variant",) and v.name != "variant" and v.name not in self.plan_axes:
+                    v.coordinates = coords
+        nc.setncatts({
+            "title": f"crashstudy results of {p.name}", "crashstudy_version": __version__,
+            "units": topo.units, "model_name": topo.name, "model_file": p.model_file, "model_yaml": p.model_text,
+            "study_file": p.study_file, "study_yaml": p.study_text, "crashstudy_axes": json.dumps([a.path for a in p.axes]),
+            "plan_fingerprint": plan_fingerprint(p), "history_interval": p.interval, "study_name": p.name,
+            "model_sha256": text_hash(p.model_text), "study_sha256": text_hash(p.study_text),
+            "Conventions": "CF-1.8",
+        })  # fmt: skip
+        return nc
+
+    def write(self, res: ChunkResult) -> None:
+        """Write one chunk's variants (``res.index`` must be a contiguous range)."""
+        lo, hi = int(res.index[0]), int(res.index[-1]) + 1
+        assert hi - lo == len(res.index), "chunks are contiguous ranges"
+        nc, o = self.nc, res.out
+        data: dict[str, np.ndarray] = {}  # as stored: the chunk's checksum is taken over these
+        for name, arr in o.histories.items():
+            data[name] = np.ascontiguousarray(np.moveaxis(arr, -1, 0), dtype=np.float64)
+        data.update(summary_arrays(self.plan, res))
+        if self.plan.topology.metrics:
+            data.update(metric_arrays(self.plan, res))
+        data["status"] = (o.status != 0).astype("i1")
+        data["input_hash"] = np.ascontiguousarray(res.hashes, dtype=np.uint64)
+        names = integrity.checked_names(nc)
+        assert sorted(data) == names, (sorted(data), names)
+        for name in names:
+            nc.variables[name][lo:hi] = data[name]
+        nc.variables["failure_reason"][lo:hi] = self._codes("failure_reason", res.reasons)
+        nc.variables["dt_control"][lo:hi] = self._codes("dt_control", res.dt_control)
+        if res.criteria is not None:
+            nc.variables[NOTE_TEXT][lo:hi] = self._codes(NOTE_TEXT, np.where(o.status != 0, "", res.criteria.notes))
+        nc.variables["done"][lo:hi] = 1
+        nc.variables[integrity.CHECKSUM][lo:hi] = integrity.variant_sums(data, names)
+        nc.sync()
+
+    def _codes(self, name: str, texts: Any) -> np.ndarray:
+        """Indices of ``texts`` in the file's table of ``name``; new texts are appended to it."""
+        codes, uniq = pd.factorize(np.asarray(texts, dtype=object))
+        table = self.tables[name]
+        new = [t for t in uniq if t not in table]
+        if new:
+            start = len(table)
+            self.nc.variables[f"{name}_text"][start : start + len(new)] = _chars(new, TEXT_LEN)
+            table.update({t: start + k for k, t in enumerate(new)})
+        ids = np.array([table[t] for t in uniq], dtype=np.int32)
+        return ids[codes] if len(codes) else np.zeros(0, dtype=np.int32)
+
+    def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> int:
+        """Copy finished variants ``old_idx`` of an earlier result into variants ``new_idx`` and mark them
+        done, except those whose data do not match their checksum (left to compute). Returns how many
+        were kept."""
+        if not len(new_idx):
+            return 0
+        names = [n for n, v in self.nc.variables.items()
+                 if v.dimensions[:1] == ("variant",) and n != "variant" and n not in self.plan_axes
+                 and n in old.variables]  # fmt: skip
+        brk = np.nonzero((np.diff(new_idx) != 1) | (np.diff(old_idx) != 1))[0] + 1
+        for nrun, orun in zip(np.split(new_idx, brk), np.split(old_idx, brk), strict=True):
+            a, b = int(nrun[0]), int(nrun[-1]) + 1
+            c, d = int(orun[0]), int(orun[-1]) + 1
+            for n in names:
+                if n in self.tables:  # texts: re-coded into this file's tables
+                    self.nc.variables[n][a:b] = self._codes(n, read_texts(old, n, c, d))
+                elif n == "status":
+                    self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
+                else:
+                    self.nc.variables[n][a:b] = old.variables[n][c:d]
+            if integrity.CHECKSUM not in old.variables:  # a file from before checksums: trusted, summed now
+                self.nc.variables[integrity.CHECKSUM][a:b] = integrity.file_sums(self.nc, a, b)
+        copied = np.zeros(self.plan.n_variants, dtype=bool)
+        copied[new_idx] = True
+        bad = copied & ~integrity.intact(self.nc, copied)
+        self.nc.variables["done"][:] = (self.done() & ~bad).astype("i1")
+        self.nc.sync()
+        return int(copied.sum() - bad.sum())
+
+    def _sort_tables(self, block: int = 1_000_000) -> None:
+        """Put each text table in sorted order (and renumber its indices), so that a file does not depend
+        on the order in which chunks finished (process pools, resume)."""
+        for name, table in self.tables.items():
+            texts = sorted(table, key=lambda t: table[t])
+            order = sorted(range(len(texts)), key=lambda k: texts[k])
+            if order == list(range(len(texts))):
+                continue
+            new_id = np.empty(len(texts), dtype=np.int32)
+            new_id[order] = np.arange(len(texts), dtype=np.int32)
+            var = self.nc.variables[name]
+            for lo in range(0, self.plan.n_variants, block):
+                codes = np.asarray(var[lo : lo + block].filled(-1) if np.ma.isMaskedArray(var[lo : lo + block])
+                                   else var[lo : lo + block])  # fmt: skip
+                var[lo : lo + block] = np.where(codes >= 0, new_id[np.clip(codes, 0, None)], -1)
+            self.nc.variables[f"{name}_text"][: len(texts)] = _chars([texts[k] for k in order], TEXT_LEN)
+            self.tables[name] = {texts[k]: i for i, k in enumerate(order)}
+
+    def abort(self) -> None:
+        """Close the partial file (kept for ``--resume``)."""
+        if self.nc.isopen():
+            self.nc.close()
+
+    def finish(self) -> Path:
+        """Mark the partial file complete, write the summary tables under temporary names, then rename
+        ``results.nc`` first, the tables next (or remove an old ``summary.csv``) and ``manifest.json``
+        last (see :mod:`crashstudy.results.integrity` for why this order)."""
+        self._sort_tables()
+        run_id = integrity.run_id(self.nc)
+        self.nc.setncatts({"complete": np.int8(1), "run_id": run_id})
+        self.nc.close()
+        final = self.dir / FINAL
+        with xr.open_dataset(self.path) as ds:
+            tables = write_summary(ds, self.dir, self.csv, rename=False)
+        if not is_regular(self.path):
+            raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
+        os.replace(self.path, final)  # first: the old manifest names this file only if its results are the same
+        for name, tmp in tables.items():
+            os.replace(tmp, self.dir / name)
+        if SUMMARY not in tables:
+            clear_entry(self.dir / SUMMARY)
+        integrity.write_manifest(self.dir, run_id, [FINAL, *tables])  # last: the set is whole
+        return final
+
+
+def _ranges_of(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The contiguous runs of True in ``mask`` as (lo, hi) pairs."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def _readable(path: Path) -> bool:
+    """Whether a partial result file opens and carries its fingerprint and done flags."""
+    try:
+        with netCDF4.Dataset(path, "r") as nc:
+            nc.getncattr("plan_fingerprint")
+            nc.variables["done"][:]
+        return True
+    except (OSError, RuntimeError, AttributeError, KeyError, IndexError):
+        return False
+
+
+def axis_unit(path: str, plan: Plan) -> str:
+    """Unit kind (a key of the units table) of the model field a study axis varies."""
+    parts = path.split(".")
+    last = parts[-2] if parts[-1].isdigit() else parts[-1]
+    if path == "impact_velocity" or parts[0] == "initial_velocity":
+        return "velocity"
+    if parts[0] == "curves":
+        return "1" if last in ("scale", "x_scale") else "curve"
+    return {
+        "mass": "mass", "position": "length", "point": "length", "stiffness": "stiffness",
+        "unloading_stiffness": "stiffness", "damping": "damping", "tension_yield": "force",
+        "compression_yield": "force", "force": "force", "gravity": "acceleration", "end_time": "time",
+        "dt": "time", "min_time": "time",
+    }.get(last if parts[0] != "gravity" else "gravity", "1")  # fmt: skip
+
+
+def plan_fingerprint(plan: Plan) -> str:
+    """Hash of everything that determines the results of a plan."""
+    import hashlib
+
+    h = hashlib.sha256()
+    h.update(plan.model_text.encode())
+    h.update(plan.study_text.encode())
+    h.update(plan.base.tobytes())
+    for ax in plan.axes:
+        h.update(ax.path.encode())
+        h.update(ax.values.tobytes())
+    h.update(__version__.encode())
+    return h.hexdigest()[:32]
+
+
+def _table(nc: netCDF4.Dataset, name: str) -> list[str]:
+    """The distinct texts of ``name`` stored in ``nc`` (empty for files without a table)."""
+    if f"{name}_text" not in nc.variables:
+        return []
+    raw = nc.variables[f"{name}_text"]
+    raw.set_auto_chartostring(False)
+    return [bytes(r).rstrip(b"\0").decode("utf-8", "replace") for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]]
+
+
+def read_texts(nc: netCDF4.Dataset, name: str, lo: int, hi: int) -> np.ndarray:
+    """Texts of ``status``, ``failure_reason`` or ``dt_control`` of variants ``lo`` .. ``hi - 1`` from an
+    open netCDF file, in either storage (index + table, flags, or the character arrays of 0.1)."""
+    v = nc.variables[name]
+    if v.dtype == np.dtype("S1") or v.dtype is str:  # crashstudy 0.1: fixed-width characters
+        return np.asarray(netCDF4.chartostring(np.asarray(v[lo:hi])), dtype=object)
+    codes = np.asarray(v[lo:hi]).astype(np.int64)
+    table = np.array(list(STATUS_MEANINGS) if name == "status" else _table(nc, name) or [""], dtype=object)
+    return np.where(codes >= 0, table[np.clip(codes, 0, len(table) - 1)], "")
+
+
+class Results:
+    """A finished (or partial) result folder, for notebooks: ``.dataset`` (xarray) and ``.summary`` (pandas)."""
+
+    def __init__(self, directory: str | os.PathLike[str]) -> None:
+        self.dir = Path(directory)
+        final = self.dir / FINAL
+        if not final.exists():
+            raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})")
+        problem = integrity.folder_problem(self.dir, FINAL, (PARQUET, SUMMARY))
+        if problem:
+            raise InputError([Problem(str(self.dir), None, "", problem)])
+        self.path = final
+        self._ds: xr.Dataset | None = None
+        self._raw: xr.Dataset | None = None
+
+    @property
+    def dataset(self) -> xr.Dataset:
+        """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``)."""
+        if self._ds is None:
+            ds = xr.open_dataset(self.path)
+            axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
+            self._raw = ds
+            self._ds = decode_texts(ds).set_coords([a for a in axes if a in ds])
+        return self._ds
+
+    @property
+    def summary_source(self) -> str:
+        """The file :attr:`summary` reads: summary.parquet, summary.csv, or results.nc."""
+        return next((n for n in (PARQUET, SUMMARY) if (self.dir / n).exists()), FINAL)
+
+    def summary_columns(self, columns: list[str]) -> pd.DataFrame:
+        """Only ``columns`` of :attr:`summary` (read without the others where the file allows: a
+        10^6-variant summary.parquet is ~250 MiB in memory, two of its columns 16 MiB)."""
+        if (self.dir / PARQUET).exists():
+            return pd.read_parquet(self.dir / PARQUET, columns=columns)
+        return self.summary[columns]
+
+    @property
+    def summary(self) -> pd.DataFrame:
+        """One row per variant: the axis values as columns, then status and summary metrics (from
+        ``summary.parquet``, else ``summary.csv``, else the dataset)."""
+        if (self.dir / PARQUET).exists():
+            return pd.read_parquet(self.dir / PARQUET)
+        csv = self.dir / SUMMARY
+        if csv.exists():
+            df = pd.read_csv(csv, dtype={"status": str, "failure_reason": str, "dt_control": str, NOTE_TEXT: str})
+            for name in ("failure_reason", NOTE_TEXT):
+                if name in df:
+                    df[name] = df[name].fillna("")
+            return df
+        _ = self.dataset  # opens the raw file
+        assert self._raw is not None
+        return summary_frame(self._raw)
+
+    def close(self) -> None:
+        if self._ds is not None:
+            self._ds.close()
+            if self._raw is not None:
+                self._raw.close()
+            self._ds = self._raw = None
+
+    def __repr__(self) -> str:
+        return f"Results({str(self.dir)!r})"
+
+
+def open_results(directory: str | os.PathLike[str]) -> Results:
+    """Open a result folder written by ``crashstudy run`` or ``crashstudy simulate``."""
+    return Results(directory)

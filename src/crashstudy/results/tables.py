@@ -1,0 +1,225 @@
+"""Summary tables: one row per variant (:func:`summary_frame`), written as ``summary.parquet`` and
+``summary.csv`` (:func:`write_summary`), and the texts stored as indices decoded (:func:`decode_texts`).
+
+Texts that repeat across variants are stored compactly in ``results.nc`` (docs/results.md): ``status``
+is a CF flag variable (``STATUS_MEANINGS``); ``failure_reason`` and ``dt_control`` are indices into a
+table of their distinct texts (``TEXT_TABLES``). See :mod:`crashstudy.results.store` for the file itself.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from contextlib import nullcontext
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from crashstudy.metrics.record import METRIC_META, NOTE_LONG, NOTE_TEXT, asked_nodes
+from crashstudy.safefs import clear_entry, open_new
+from crashstudy.units import UNIT_SYSTEMS
+
+SUMMARY = "summary.csv"
+PARQUET = "summary.parquet"
+CSV_MAX = 100_000  # variants up to which summary.csv is written by default
+STATUS_MEANINGS = ("ok", "failed")  # flag_meanings of ``status`` (value = index)
+TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
+               "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
+SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
+    "peak_force": (("spring",), "force", "largest |spring force| over every time step"),
+    "max_crush": (("spring",), "length", "largest shortening of the spring, max(-elongation)"),
+    "absorbed_energy": (("spring",), "energy", "work done on the spring up to the end"),
+    "peak_deceleration": (("node",), "acceleration", "largest acceleration magnitude over every time step"),
+    "peak_deceleration_g": (("node",), "g", "peak_deceleration in standard gravities"),
+    "peak_wall_force": (("wall",), "force", "largest rigid wall force"),
+    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - W_ext| / max(KE0 + |W_ext|, tiny)"),
+    "dt": ((), "time", "time step used"),
+    "dt_crit": ((), "time", "critical time step bound (nodal, whole assembly)"),
+    "t_end": ((), "time", "last time computed (early termination may end a run before end_time)"),
+    "final_kinetic_energy": ((), "energy", "kinetic energy at the end"),
+    "final_internal_energy": ((), "energy", "internal energy at the end"),
+    "error_estimate": ((), "1", "estimated relative error of the peaks (accuracy_check: re-run at dt/2)"),
+}
+HISTORY_META = {  # name: (unit kind, long name)
+    "position": ("length", "node position"),
+    "displacement": ("length", "node displacement from the initial position"),
+    "velocity": ("velocity", "node velocity"),
+    "acceleration": ("acceleration", "node acceleration (forces / mass; prescribed dofs: kinematic)"),
+    "spring_force": ("force", "spring force (positive = tension)"),
+    "spring_elongation": ("length", "spring elongation (negative = compression)"),
+    "kinetic_energy": ("energy", "kinetic energy"),
+    "internal_energy": ("energy", "work done on all springs and dampers"),
+    "external_work": ("energy", "work of loads, gravity and prescribed motion"),
+    "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
+    "wall_force": ("force", "rigid wall force (momentum removed per unit time)"),
+    "filtered_acceleration": ("g", "resultant acceleration of a metric node, SAE J211 filtered (its cfc)"),
+}
+
+
+def text_tables(topo: Any) -> dict[str, str]:
+    """The text tables of a result file: ``TEXT_TABLES``, and ``criteria_note`` with metrics."""
+    return {**TEXT_TABLES, NOTE_TEXT: NOTE_LONG} if topo.metrics else dict(TEXT_TABLES)
+
+
+def _categorical(ds: xr.Dataset, sub: xr.Dataset, name: str) -> Any:
+    """``sub[name]`` as texts: categorical when stored as codes, plain strings for files of 0.1."""
+    arr = sub[name].values
+    if arr.dtype.kind in "iuf":  # codes (xarray turns the -1 fill of an unwritten variant into NaN)
+        arr = np.where(np.isfinite(arr), arr, -1).astype(np.int64)
+        if name == "status":
+            cats = list(STATUS_MEANINGS)
+        else:
+            raw = ds[f"{name}_text"].values
+            cats = [str(t) for t in raw] if len(raw) else [""]
+        codes = np.where((arr >= 0) & (arr < len(cats)), arr, -1)
+        if len(set(cats)) < len(cats):  # a table never repeats a text; guard a hand-edited file
+            return np.asarray(cats, dtype=object)[np.clip(codes, 0, None)]
+        return pd.Categorical.from_codes(codes, categories=cats)
+    return arr.astype(str)
+
+
+def decode_texts(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` with ``status``, ``failure_reason`` and ``dt_control`` as texts (the tables dropped)."""
+    out = ds
+    for name in ("status", *TEXT_TABLES, NOTE_TEXT):
+        if name in ds and ds[name].dtype.kind in "iuf":
+            texts = np.asarray(_categorical(ds, ds, name), dtype=str)
+            long = ds[name].attrs.get("long_name", "").split(": index into")[0]
+            out = out.assign({name: (ds[name].dims, texts, {"units": "", "long_name": long})})
+    return out.drop_vars([f"{n}_text" for n in (*TEXT_TABLES, NOTE_TEXT) if f"{n}_text" in out])
+
+
+def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.DataFrame:
+    """Tidy summary table, one row per variant: axis values, status, then one column per metric and item."""
+    return pd.DataFrame(summary_columns(ds, lo, hi))
+
+
+def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[str, Any]:
+    """The columns of :func:`summary_frame`, in order (arrays; the texts as categoricals)."""
+    sub = ds.isel(variant=slice(lo, hi))
+    axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
+    cols: dict[str, Any] = {"variant": sub["variant"].values}
+    for ax in axes:
+        cols[ax] = sub[ax].values
+    for name in ("status", "failure_reason"):
+        cols[name] = _categorical(ds, sub, name)
+    dims_of = {**{n: d for n, (d, _, _) in SUMMARY_META.items()}, **{n: ("node",) for n in METRIC_META}}
+    for name, dims in dims_of.items():
+        if name not in sub:
+            continue
+        arr = sub[name].values
+        if not dims:
+            cols[name] = arr
+        else:
+            ids = sub[dims[0]].values.astype(str)
+            asked = ds[name].attrs.get("nodes", "").split() if name in METRIC_META else ids
+            for k, item in enumerate(ids):
+                if item in asked:  # a criterion: only the nodes that ask for it (no columns of NaN)
+                    cols[f"{name}.{item}"] = arr[:, k]
+    cols["dt_control"] = _categorical(ds, sub, "dt_control")
+    if NOTE_TEXT in sub:
+        cols[NOTE_TEXT] = _categorical(ds, sub, NOTE_TEXT)
+    return cols
+
+
+def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000, rename: bool = True
+                  ) -> dict[str, Path]:  # fmt: skip
+    """Write ``summary.parquet`` and, when ``csv``, ``summary.csv`` chunk by chunk (bounded memory),
+    each through a temporary file and a rename; without ``csv`` an older ``summary.csv`` is removed.
+    Both through pyarrow (its CSV writer is ~10x pandas' ``to_csv``; every float round-trips).
+    ``rename=False``: leave them under their temporary names and return {final name: temporary path}
+    (the caller renames them and removes an older ``summary.csv``)."""
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+    import pyarrow.parquet as pq
+
+    n = ds.sizes["variant"]
+    tmp_pq, tmp_csv = folder / (PARQUET + ".partial"), folder / (SUMMARY + ".partial")
+    writers: list[Any] = []
+    try:
+        with open_new(tmp_pq, mode="wb") as raw, (open_new(tmp_csv, mode="wb") if csv else nullcontext()) as fh:
+            for lo in range(0, max(n, 1), chunk):
+                # straight from the arrays: a DataFrame in between copied every column once more
+                table = pa.table(summary_columns(ds, lo, min(n, lo + chunk)))
+                if not writers:
+                    # dictionary pages for the texts only: trying them on every float column doubled the time
+                    texts = [n for n in ("status", *TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
+                    writers.append(pq.ParquetWriter(raw, table.schema, use_dictionary=texts))
+                    if csv:
+                        writers.append(pcsv.CSVWriter(fh, table.schema))
+                for w in writers:
+                    w.write_table(table)
+            while writers:
+                writers.pop(0).close()
+    finally:  # a failed write (disk full) must not leave a writer that complains when collected
+        for w in writers:
+            if hasattr(w, "is_open"):
+                w.is_open = False
+    tables = {PARQUET: tmp_pq, **({SUMMARY: tmp_csv} if csv else {})}
+    if not rename:
+        return tables
+    for name, tmp in tables.items():
+        os.replace(tmp, folder / name)
+    if not csv:
+        clear_entry(folder / SUMMARY)
+    return tables
+
+
+def summary_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
+    """The summary variables of a chunk (a :class:`crashstudy.results.store.ChunkResult` of ``plan``), (variants[, items]) each, NaN where a variant failed (but its
+    ``dt``, ``dt_crit``): what :class:`crashstudy.results.store.ResultWriter` stores and :func:`chunk_frame` tabulates."""
+    o = res.out
+    g = UNIT_SYSTEMS[plan.topology.units].g
+    summary = {
+        "peak_force": o.peak_force.T, "max_crush": o.max_crush.T, "absorbed_energy": o.absorbed_energy.T,
+        "peak_deceleration": o.peak_acceleration.T, "peak_deceleration_g": o.peak_acceleration.T / g,
+        "energy_error": o.energy_error, "dt": res.dt, "dt_crit": res.dt_crit, "t_end": o.t_end,
+        "final_kinetic_energy": o.final_energy[0], "final_internal_energy": o.final_energy[1],
+        "error_estimate": res.error_estimate,
+    }  # fmt: skip
+    if plan.topology.wall_ids:
+        summary["peak_wall_force"] = o.peak_wall_force.T
+    failed = o.status != 0
+    out = {}
+    for name, arr in summary.items():
+        a = np.array(arr, dtype=np.float64)
+        if name not in ("dt", "dt_crit"):
+            a[failed] = np.nan  # a failed variant has no trustworthy summary
+        out[name] = a
+    return out
+
+
+def metric_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
+    """The crash criteria of a chunk, (variants, nodes) each, NaN where a variant failed."""
+    failed = res.out.status != 0
+    out = {}
+    for name, arr in res.criteria.values.items():
+        a = np.array(arr, dtype=np.float64)
+        a[failed] = np.nan
+        out[name] = a
+    return out
+
+
+def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
+    """The summary table of a computed chunk, without writing files: the columns of ``summary.parquet``
+    (optimisation and calibration evaluate candidates this way)."""
+    topo = plan.topology
+    dims = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
+    data: dict[str, Any] = {name: (("variant", *SUMMARY_META[name][0]), a)
+                            for name, a in summary_arrays(plan, res).items()}  # fmt: skip
+    data["status"] = ("variant", np.where(res.out.status != 0, "failed", "ok"))
+    data["failure_reason"] = ("variant", np.asarray(res.reasons, dtype=str))
+    data["dt_control"] = ("variant", np.asarray(res.dt_control, dtype=str))
+    if res.criteria is not None:
+        data.update({name: (("variant", "node"), a, {"nodes": " ".join(asked_nodes(topo, name))})
+                     for name, a in metric_arrays(plan, res).items()})  # fmt: skip
+        data[NOTE_TEXT] = ("variant", np.where(res.out.status != 0, "", np.asarray(res.criteria.notes, dtype=str)))
+    lo, hi = int(res.index[0]), int(res.index[-1]) + 1
+    for path, values in plan.axis_values(lo, hi).items():
+        data[path] = ("variant", values)
+    ds = xr.Dataset(data, coords={"variant": res.index, **{d: list(ids) for d, ids in dims.items() if ids}},
+                    attrs={"crashstudy_axes": json.dumps([a.path for a in plan.axes])})  # fmt: skip
+    return summary_frame(ds)

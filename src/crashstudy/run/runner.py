@@ -1,0 +1,416 @@
+"""The pipeline, end to end: study/model file -> plan -> chunks on a backend -> result files.
+
+This is the one module that knows every stage; the command line only parses arguments, prints and
+sets exit codes. Each chunk is computed by :func:`run_chunk`, a pure function of the plan and a
+variant range, so any backend (in-process, process pool, Dask) gives identical results.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from crashstudy import interrupt
+from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch
+from crashstudy.errors import InputError, Problem
+from crashstudy.kernel import choice, entry
+from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
+from crashstudy.results.outdir import prepare_output, remove_stale_plots, study_of
+from crashstudy.results.store import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
+from crashstudy.run.provenance import variant_hashes
+from crashstudy.safefs import FolderBusy, folder_lock
+from crashstudy.study.plan import Plan, load_study, plan_from_model
+
+HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
+MAX_CHUNK = 65536  # variants per chunk at most
+BASE_CHUNK = 8192  # variants per chunk of a model with long runs (when histories allow)
+WORK_PER_CHUNK = 2e8  # element-steps above which a chunk stops growing past BASE_CHUNK (~0.2 s compiled)
+
+
+def chunk_size(plan: Plan) -> int:
+    """Variants per chunk: BASE_CHUNK, more (up to MAX_CHUNK) for variants of little work so that the
+    per-chunk costs (kernel launch, file writes) spread over more of them; bounded so that a chunk's
+    history arrays stay within HISTORY_BUDGET."""
+    topo = plan.topology
+    sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 16)), plan.interval)
+    work = float(np.mean(sample.n_steps)) * max(topo.n_springs, 1)
+    by_work = max(BASE_CHUNK, int(WORK_PER_CHUNK / max(work, 1.0)))
+    per = {"node": topo.n_nodes * topo.dim, "spring": topo.n_springs, "wall": len(topo.wall_ids)}
+    from crashstudy.kernel.output import ALL_SHAPES
+
+    width = sum(per[ALL_SHAPES[h][0]] if ALL_SHAPES[h] else 1 for h in topo.histories + topo.extra_histories)
+    per_variant = 8 * plan.n_out * (width + 4)  # + the kernel's energy buffer
+    # the per-step record of the metric nodes (crashstudy.metrics.record runs a bigger chunk in several batches)
+    record = 8 * (float(np.max(sample.n_steps, initial=0)) + 1) * len(topo.metric_nodes) * topo.dim
+    return int(max(1, min(MAX_CHUNK, by_work, HISTORY_BUDGET // max(per_variant, 1),
+                          HISTORY_BUDGET // max(record, 1.0))))  # fmt: skip
+
+
+def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
+               vary: frozenset[int] | None = None, repeat: float = 1.0) -> KernelOutput:  # fmt: skip
+    """:func:`crashstudy.kernel.entry.run_batch`, abandoned at a stop request (Ctrl-C)."""
+    return entry.run_batch(batch, histories, n_out, kernel, vary, repeat, interrupt.check)
+
+
+def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled", repeat: float = 1.0) -> np.ndarray:
+    """:func:`crashstudy.kernel.entry.error_estimate`, abandoned at a stop request (Ctrl-C)."""
+    return entry.error_estimate(batch, out, kernel, repeat, interrupt.check)
+
+
+kernel_override = choice.kernel_override
+__all__ = ["prepare_output", "remove_stale_plots", "run_plan", "run_study", "simulate"]
+
+
+def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled", repeat: float | None = None) -> ChunkResult:
+    """Compute variants ``lo`` .. ``hi - 1`` of ``plan``. ``repeat``: how many chunks like this one the
+    caller will compute (default: those of the plan), for the kernel choice.
+
+    Identical variants are computed once; the rest are ordered by step count so that the kernel's
+    blocks hold variants that finish together.
+    """
+    topo = plan.topology
+    P = plan.params(lo, hi)
+    V = hi - lo
+    # a variant's parameters are a function of its axis values: dedupe on those (few columns)
+    axes = plan.axis_values(lo, hi)
+    if axes and not plan.variants_distinct:
+        _, first, inverse = np.unique(np.stack(list(axes.values()), axis=1), axis=0, return_index=True,
+                                      return_inverse=True)  # fmt: skip
+        uniq = P[:, first]
+    elif axes:  # every variant differs from every other: nothing to dedupe
+        uniq, inverse = P, np.arange(V)
+    else:
+        uniq, inverse = P[:, :1], np.zeros(V, dtype=np.int64)
+    inverse = inverse.reshape(-1)
+    batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
+    repeat = plan.n_variants / max(V, 1) if repeat is None else repeat
+    recorder = None
+    if topo.metrics:
+        from crashstudy.metrics.record import Recorder
+
+        recorder = Recorder(topo, plan.n_out)
+    full, estimate = entry.run_ordered(batch, topo.histories, plan.n_out, inverse, kernel, plan.varying_curves, repeat,
+                                       topo.accuracy_check, interrupt.check, recorder)  # fmt: skip
+    dt, dt_crit = steps.dt[inverse], steps.dt_crit[inverse]
+    control = _control_texts(topo, steps.control_node[inverse], steps.control_spring[inverse])
+    user_dt = P[topo.blocks["time_step"].start]
+    reasons = np.full(V, "", dtype=object)
+    for k in np.flatnonzero(full.status):  # texts only for the failed variants
+        reasons[k] = _reason(full, int(k), topo.spring_ids, user_dt[k], dt_crit[k], control[k])
+    return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, lo, hi),
+                       estimate, full.criteria)  # fmt: skip
+
+
+def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarray:
+    """'node X / spring Y' per variant (object array), each distinct text made once."""
+    width = len(topo.spring_ids) + 1
+    keys, inv = np.unique((node.astype(np.int64) + 1) * width + spring + 1, return_inverse=True)
+    pairs = np.stack([keys // width - 1, keys % width - 1])
+    texts = np.array([("none" if n < 0 else f"node {topo.node_ids[n]}")
+                      + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "") for n, s in pairs.T], dtype=object)  # fmt: skip
+    return texts[inv.reshape(-1)] if len(node) else np.zeros(0, dtype=object)
+
+
+def _reason(out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float, dt_crit: float, control: str) -> str:
+    code = int(out.status[k])
+    t = out.fail_time[k]
+    if code == UNSTABLE:
+        return (f"numerical instability: energy balance lost (non-finite, or error above 100%) at t={t:.6g} "
+                f"(dt_crit={dt_crit:.6g}, {control})")  # fmt: skip
+    if code == CRUSHED_TO_ZERO:
+        return f"spring {springs[int(out.fail_item[k])]!r} crushed to zero length at t={t:.6g}"
+    if code == INVALID:
+        item = int(out.fail_item[k])
+        if item == 1:
+            return f"fixed dt={user_dt:.6g} is above the critical step dt_crit={dt_crit:.6g} ({control})"
+        return f"invalid input: {INVALID_REASONS.get(item, 'unknown')}"
+    return ""
+
+
+class Progress:
+    """One status line (variants done, variants/s, ETA) on a terminal; a line per update when
+    forced on into a file or pipe; silent otherwise. Before the first chunk ends the ETA is the
+    run's ``estimate`` [s] (when known), never "inf"."""
+
+    def __init__(self, total: int, enabled: bool | None = None, stream: Any = None, estimate: float | None = None
+                 ) -> None:  # fmt: skip
+        self.stream = stream or sys.stderr
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.enabled = self.tty if enabled is None else enabled
+        self.total, self.done, self.t0, self.last = total, 0, time.perf_counter(), 0.0
+        self.first, self.estimate = 0, estimate
+
+    def start(self, done: int) -> None:
+        """``done`` variants were finished before this run (resume, reuse); show the line."""
+        self.done = self.first = done
+        self.last = -1.0
+        self.update(0)
+
+    def update(self, n: int) -> None:
+        self.done += n
+        now = time.perf_counter()
+        if not self.enabled or (now - self.last < 0.2 and self.done < self.total):
+            return
+        self.last = now
+        new = self.done - self.first
+        if new > 0:
+            rate = new / max(now - self.t0, 1e-9)
+            text = f"{rate:,.0f} variants/s  ETA {(self.total - self.done) / rate:,.0f} s"
+        elif self.estimate is not None:
+            text = f"starting  ETA ~{max(self.estimate - (now - self.t0), 0.0):,.0f} s"
+        else:
+            text = "starting"
+        line = f"  {self.done}/{self.total} variants  {text}"
+        self.stream.write(f"\r{line}   " if self.tty else line + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.enabled and self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | None, Any]:
+    """Carry out :func:`crashstudy.kernel.choice.decide` for this run and say what it compiles.
+    Returns (whether chunks should stay small, the run's estimated seconds, what to start after it)."""
+    topo = plan.topology
+    sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
+    vary = plan.varying_curves
+    rec = topo.metric_nodes  # metrics: the kernels record these nodes at every step (their own generated kernel)
+    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, rec)
+    if start is None:
+        return False, None, None
+    do = choice.decide(start, choice.background_min_seconds() < float("inf"))
+    say = (lambda text: print(f"note: {text}", file=notes)) if notes is not None else (lambda text: None)
+
+    def what(kinds: tuple[str, ...]) -> str:
+        names = " and ".join(f"the {k} kernel" for k in kinds)
+        return (f"{names} for this model shape ({start.shape}; first run on this machine), "
+                f"~{sum(start.costs[k] for k in kinds):.0f} s")  # fmt: skip
+
+    if do.foreground:
+        say(f"compiling {what(do.foreground)}; Ctrl-C stops")
+        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec)
+    if do.now and choice.start_background(do.now, sample, topo.histories, vary, rec) is not None:
+        say(f"compiling {what(do.now)} in the background"
+            + (f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
+               "when it is ready" if do.small_chunks else ""))  # fmt: skip
+    elif do.small_chunks:
+        return False, start.reference_seconds, None
+
+    def later() -> None:
+        if choice.start_background(do.after, sample, topo.histories, vary, rec) is not None:
+            say(f"compiling {what(do.after)} in the background for the next run")
+
+    return do.small_chunks, do.estimate, later if do.after else None
+
+
+@dataclass
+class RunReport:
+    """What a run did: where the results are and how many variants failed."""
+
+    results: Results
+    n_variants: int
+    n_failed: int
+    n_computed: int
+    seconds: float
+    n_reused: int = 0
+
+
+def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
+    """Contiguous ranges of the variants still to do, each at most ``size`` long."""
+    out: list[tuple[int, int]] = []
+    idx = np.nonzero(todo)[0]
+    if not len(idx):
+        return out
+    breaks = np.nonzero(np.diff(idx) != 1)[0] + 1
+    for run in np.split(idx, breaks):
+        for lo in range(int(run[0]), int(run[-1]) + 1, size):
+            out.append((lo, min(lo + size, int(run[-1]) + 1)))
+    return out
+
+
+def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) -> int:
+    """Copy the variants of an earlier result of this study whose input hash is unchanged."""
+    import netCDF4
+
+    from crashstudy.results import integrity
+    from crashstudy.run.provenance import topology_signature
+
+    with netCDF4.Dataset(final) as old:
+        if "input_hash" not in old.variables or integrity.finished_problem(old):
+            return 0  # a file without hashes, or not a finished result (a partial renamed by hand)
+        old_h = np.asarray(old.variables["input_hash"][:])
+        if old_h.dtype != np.uint64 or old_h.ndim != 2:  # crashstudy 0.1 hashed differently: nothing matches
+            return 0
+        order = np.argsort(old_h[:, 0], kind="stable")
+        keys = old_h[order, 0]
+        sig = topology_signature(plan)
+        new_parts: list[np.ndarray] = []
+        old_parts: list[np.ndarray] = []
+        for lo in range(0, plan.n_variants, size):
+            hi = min(plan.n_variants, lo + size)
+            h = variant_hashes(plan, lo, hi, sig)
+            pos = np.minimum(np.searchsorted(keys, h[:, 0]), max(len(keys) - 1, 0))
+            if not len(keys):
+                break
+            cand = order[pos]
+            hit = (keys[pos] == h[:, 0]) & (old_h[cand, 1] == h[:, 1])
+            new_parts.append(lo + np.flatnonzero(hit))
+            old_parts.append(cand[hit])
+        new_idx = np.concatenate(new_parts) if new_parts else np.zeros(0, dtype=np.int64)
+        old_idx = np.concatenate(old_parts) if old_parts else np.zeros(0, dtype=np.int64)
+        return writer.reuse(old, new_idx.astype(np.int64), old_idx.astype(np.int64))  # checksums verified
+
+
+def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
+             resume: bool = False, force: bool = False, progress: bool | None = None,
+             kernel: str = "compiled", chunk: int | None = None, notes: Any = None, csv: bool | None = None
+             ) -> RunReport:  # fmt: skip
+    """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
+    one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent. ``csv``: write
+    ``summary.csv`` (None: up to ``results.CSV_MAX`` variants); ``summary.parquet`` is always written."""
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    choice.kernel_override()  # a bad CRASHSTUDY_KERNEL is an input error before anything is written
+    source = plan.study_file or plan.model_file
+    if out.exists() and not out.is_dir():
+        raise InputError([Problem(source, None, "", f"the output path {out} is a file, not a folder")])
+    try:
+        with folder_lock(out):  # one run at a time in a folder: held until the run ends
+            return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0)
+    except FolderBusy as exc:  # raised only by the lock
+        raise InputError([Problem(source, None, "", f"{exc}; wait for it to end or choose another -o")]) from None
+
+
+def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume: bool, force: bool,
+                progress: bool | None, kernel: str, chunk: int | None, notes: Any, csv: bool | None, t0: float
+                ) -> RunReport:  # fmt: skip
+    """:func:`run_plan` once the output folder is locked."""
+    from crashstudy.run.backends import make_backend
+
+    prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
+    if resume and (out / FINAL).exists() and not os.path.lexists(out / PARTIAL):
+        # nothing to resume: the run finished. Run it again like a plain re-run of the same study (its
+        # unchanged variants are reused by input hash, changed ones computed); another study is refused
+        other = study_of(out / FINAL)
+        if other != plan.name:
+            raise InputError([Problem(plan.study_file or plan.model_file, None, "",
+                                      f"{out} holds the finished results of {other!r}, not of study {plan.name!r}: "
+                                      "nothing to resume; use --force to overwrite or choose another -o")])  # fmt: skip
+        resume = False
+    backend = make_backend(jobs, scheduler)  # before any file is written: a backend that cannot start leaves none
+    try:
+        writer = ResultWriter(out, plan, resume=resume, csv=csv)
+    except BaseException:
+        backend.close()
+        raise
+    reused = 0
+    n_failed = 0
+    bar = Progress(plan.n_variants, progress)
+    try:
+        small, bar.estimate, later = _start_kernels(plan, kernel, notes)
+        if not resume and (out / FINAL).exists():
+            reused = _reuse_finished(writer, plan, out / FINAL, chunk or MAX_CHUNK)
+        todo = ~writer.done()
+        size = chunk or chunk_size(plan)
+        if chunk is None and (scheduler or jobs > 1):  # several chunks per worker thread keep every worker busy
+            slots = backend.worker_threads() if hasattr(backend, "worker_threads") else jobs
+            size = min(size, max(1, -(-int(todo.sum()) // (4 * max(1, slots)))))
+        if small:
+            size = min(size, choice.REF_CHUNK)
+        ranges = _ranges(todo, size)
+        bar.start(int((~todo).sum()))
+        for res in backend.imap_unordered(run_chunk, ((plan, lo, hi, kernel) for lo, hi in ranges)):
+            writer.write(res)
+            n_failed += int(np.count_nonzero(res.out.status))
+            bar.update(len(res.index))
+            interrupt.check()  # a signal's stop request: after a whole chunk is written
+    except BaseException:
+        writer.abort()
+        backend.close()
+        bar.close()
+        raise
+    backend.close()
+    bar.close()
+    writer.finish()
+    if later is not None:
+        later()
+    results = Results(out)
+    if resume or reused:
+        n_failed = int((results.summary["status"] != "ok").sum())
+    return RunReport(results, plan.n_variants, n_failed, int(todo.sum()), time.perf_counter() - t0, reused)
+
+
+def default_out(name: str) -> Path:
+    return Path("results") / name
+
+
+def run_study(study: str | os.PathLike[str] | dict[str, Any], out_dir: str | os.PathLike[str] | None = None,
+              jobs: int = 1, scheduler: str | None = None, resume: bool = False, force: bool = False,
+              progress: bool | None = False) -> Results:  # fmt: skip
+    """Run a study (a file path or a dict as its YAML would load) and return its :class:`Results`.
+
+    Results go to ``out_dir`` (default ``results/<study name>``). Raises
+    :class:`~crashstudy.errors.InputError` for invalid input. Failed variants are marked in the
+    results (``status``, ``failure_reason``), never raised.
+    """
+    plan = load_study(study)
+    return run_plan(plan, out_dir or default_out(plan.name), jobs, scheduler, resume, force, progress).results
+
+
+def simulate(model: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None,
+             force: bool = True) -> Results:  # fmt: skip
+    """Run one model file (no matrix) and return its :class:`Results` (a ``variant`` dim of length 1)."""
+    report = simulate_report(str(model), out_dir, force)
+    return report.results
+
+
+def simulate_report(model: str, out_dir: str | os.PathLike[str] | None = None, force: bool = True,
+                    notes: Any = None, warn: Callable[[str], None] | None = None) -> RunReport:  # fmt: skip
+    """Run one model file; ``force=False`` refuses a folder holding other results (the command line's
+    default). ``warn`` receives the plausibility warnings of the model before it runs."""
+    from crashstudy.schema import file_kind, parse_model
+    from crashstudy.schema.yamlio import load_yaml
+
+    doc = load_yaml(model)
+    if file_kind(doc.data) == "study":
+        raise InputError([Problem(model, None, "", f"this is a study, not a model (it has "
+                                  f"{', '.join(k for k in doc.data if k in ('model', 'matrix', 'zip', 'set'))}): "
+                                  f"run its variants with `crashstudy run {model}`")])  # fmt: skip
+    lm = parse_model(doc)
+    plan = plan_from_model(lm)
+    refuse_fixed_dt(plan, lm.doc)
+    if warn is not None:
+        from crashstudy.study.sanity import check_plan
+
+        for line in check_plan(plan)[1]:
+            warn(line)
+    out = Path(out_dir) if out_dir else default_out(plan.name)
+    return run_plan(plan, out, force=force, progress=False, notes=notes)
+
+
+def refuse_fixed_dt(plan: Plan, doc: Any) -> None:
+    """A single model with a fixed ``dt`` above the critical step is invalid input (exit 2)."""
+    if plan.topology.time_step_mode != "dt":
+        return
+    batch, steps = build_batch(plan.topology, plan.params(0, 1), plan.interval)
+    if steps.refused[0]:
+        n, s = int(steps.control_node[0]), int(steps.control_spring[0])
+        ctrl = f"node {plan.topology.node_ids[n]}" + (f", spring {plan.topology.spring_ids[s]}" if s >= 0 else "")
+        dt = plan.base[plan.topology.blocks["time_step"].start]
+        raise InputError([Problem(doc.file, doc.line_of(("time_step", "dt")), "time_step.dt",
+                                  f"dt={dt:.6g} is above the critical step dt_crit={steps.dt_crit[0]:.6g} "
+                                  f"(controlled by {ctrl}); use a smaller dt or safety_factor")])  # fmt: skip
+
+
+def remove_tree(path: Path) -> None:
+    shutil.rmtree(path, ignore_errors=True)

@@ -1,0 +1,1 @@
+"""A study's variants: matrix, zip and sampled designs expanded into a numbered plan."""

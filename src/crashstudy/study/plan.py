@@ -1,0 +1,491 @@
+"""Expansion stage: a study file (or a lone model) -> a :class:`Plan` of numbered variants.
+
+A plan holds the compiled topology, the base parameter vector and the study axes; it produces the
+parameter matrix of any range of variants on demand (:meth:`Plan.params`), so a study of 10^6
+variants is never materialised. Variants are numbered in row-major order of the axes as written:
+matrix axes first, then one axis per zip group.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import difflib
+import functools
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from crashstudy.arrays.batch import ParameterCheck, check_parameters
+from crashstudy.arrays.compiler import PathRef, Topology, apply_axis, compile_model
+from crashstudy.errors import InputError, Problem
+from crashstudy.kernel.output import HISTORY_SHAPES
+from crashstudy.schema import LoadedModel, file_kind, parse_model, refuse_foreign, validate_model_data
+from crashstudy.schema.model import Model
+from crashstudy.schema.report import located, pydantic_problems
+from crashstudy.schema.study import Study
+from crashstudy.schema.yamlio import LoadedYaml, load_yaml, loads_yaml, not_regular
+
+DEFAULT_SAMPLES = 1000
+MAX_VARIANTS = 100_000_000  # one results.nc; its axis coordinates alone take 0.8 GB each
+MAX_SAMPLE_BYTES = 256 * 2**20  # history samples of one variant (histories and the kernel's 4 energy records):
+# the runner's HISTORY_BUDGET of a chunk, so that one variant always fits a chunk
+CHECK_BLOCK = 4096  # distinct axis values checked at once
+MAX_WORK = 1e13  # element-steps (springs x time steps, summed over variants) a run may take: ~3 h at 1e9/s
+WORK_ENV = "CRASHSTUDY_MAX_WORK"  # environment variable that replaces MAX_WORK
+WORK_REPORT = 1e10  # element-steps from which validate and run say how long the run takes
+WORK_RATE = 1e9  # element-steps a second, for the hours quoted in messages (one core of the compiled kernel)
+WORK_ENTRIES = 2**26  # parameters x variants whose steps are counted (exactly up to this, else a sample)
+WORK_BLOCK = 2**16  # variants per step count, and at most this many counted (a larger study: a sample)
+MAX_REPORTED = 5  # invalid values listed per axis
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One study axis: a model path, its values and the index of the (matrix or zip) dimension."""
+
+    path: str
+    values: np.ndarray
+    dim: int
+    ref: PathRef
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Everything needed to run a study; picklable, free of pydantic objects."""
+
+    name: str
+    topology: Topology
+    base: np.ndarray  # (n_params,)
+    axes: tuple[Axis, ...]
+    shape: tuple[int, ...]  # size of each matrix axis / zip group
+    interval: float  # history sampling interval [time]
+    n_out: int  # number of history samples
+    model_text: str
+    study_text: str
+    model_file: str
+    study_file: str
+    regression: dict[str, dict[str, float]]
+    work: float = 0.0  # estimated element-steps of the whole run (springs x time steps, summed over variants)
+
+    @property
+    def n_variants(self) -> int:
+        return math.prod(self.shape) if self.shape else 1
+
+    @property
+    def times(self) -> np.ndarray:
+        return np.arange(self.n_out) * self.interval
+
+    @functools.cached_property
+    def variants_distinct(self) -> bool:
+        """Whether no two variants have the same axis values: along every dimension (a matrix axis or a
+        zip group) the rows of values are distinct, so their combinations are too."""
+        for dim in range(len(self.shape)):
+            rows = np.stack([ax.values for ax in self.axes if ax.dim == dim], axis=1)
+            if len(np.unique(rows, axis=0)) < len(rows):
+                return False
+        return True
+
+    @functools.cached_property
+    def varying_curves(self) -> frozenset[int]:
+        """Indices of the curves whose knots some axis changes (the axes' parameter slots that fall in a
+        curve's knots): the generated kernel keeps the other curves as constants."""
+        touched = {s for ax in self.axes for s in ax.ref.slots}
+        off, blocks = self.topology.curve_offsets, self.topology.blocks
+        return frozenset(c for c in range(len(off) - 1) for b in ("cx", "cy_") if b in blocks
+                         and any(blocks[b].start + k in touched for k in range(int(off[c]), int(off[c + 1]))))  # fmt: skip
+
+    def axis_values(self, lo: int, hi: int) -> dict[str, np.ndarray]:
+        """Value of every axis for variants ``lo`` .. ``hi - 1``."""
+        idx = np.arange(lo, hi)
+        if not self.shape:
+            return {}
+        multi = np.unravel_index(idx, self.shape)
+        return {ax.path: ax.values[multi[ax.dim]] for ax in self.axes}
+
+    def params(self, lo: int, hi: int) -> np.ndarray:
+        """Parameter matrix (n_params, hi - lo) of variants ``lo`` .. ``hi - 1``."""
+        P = np.repeat(self.base[:, None], hi - lo, axis=1)
+        for ax, vals in zip(self.axes, self.axis_values(lo, hi).values(), strict=True):
+            apply_axis(P, ax.ref, np.asarray(vals, dtype=np.float64))
+        return P
+
+
+def _study_problem(doc: LoadedYaml, path: tuple[str | int, ...], msg: str) -> Problem:
+    return Problem(doc.file, doc.line_of(path), ".".join(str(p) for p in path), msg)
+
+
+def _dict_path(data: Any, dotted: str) -> tuple[str | int, ...]:
+    out: list[str | int] = []
+    cur = data
+    for part in dotted.split("."):
+        key: str | int = int(part) if isinstance(cur, list) and part.isdigit() else part
+        out.append(key)
+        try:
+            cur = cur[key]  # type: ignore[index]
+        except (KeyError, IndexError, TypeError):
+            cur = None
+    return tuple(out)
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true or false"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return "text" if isinstance(value, str) else "null" if value is None else type(value).__name__
+
+
+def _set_in(data: dict[str, Any], path: tuple[str | int, ...], value: Any) -> str | None:
+    """Set ``value`` at ``path``; a path that runs into a scalar or past a list's end is refused: the reason."""
+    cur: Any = data
+    for depth, part in enumerate(path):
+        here = ".".join(str(p) for p in path[:depth])
+        if isinstance(cur, list):
+            if not isinstance(part, int):
+                return f"{here} is a list: expected an item number after it, got {part!r}"
+            if part >= len(cur):
+                return f"{here} has {len(cur)} item{'s' if len(cur) != 1 else ''} (0 .. {len(cur) - 1}): no item {part}"
+        elif not isinstance(cur, dict):
+            return (f"{here} is {_kind(cur)}, not a mapping or a list: {'.'.join(str(p) for p in path)} "
+                    "cannot be set")  # fmt: skip
+        if depth == len(path) - 1:
+            cur[part] = value  # type: ignore[index]
+        else:
+            cur = cur[part] if isinstance(cur, list) else cur.setdefault(part, {})  # type: ignore[index]
+    return None
+
+
+def _apply_set(data: dict[str, Any], overrides: dict[str, Any], sdoc: LoadedYaml) -> dict[str, Any]:
+    data = copy.deepcopy(data)
+    problems: list[Problem] = []
+    for key, value in overrides.items():
+        if key == "time_step" or key.startswith("time_step."):
+            # a different time-step mode replaces the model's (the modes are exclusive)
+            if key != "time_step":
+                value = {key.split(".", 1)[1]: value}
+            data["time_step"] = value
+            continue
+        if isinstance(value, dict) and key in ("output", "termination") and isinstance(data.get(key), dict):
+            data[key] = {**data[key], **value}
+            continue
+        why = _set_in(data, _dict_path(data, key), value)
+        if why:
+            problems.append(_study_problem(sdoc, ("set", key), why))
+    if problems:
+        raise InputError(problems)
+    return data
+
+
+def _set_problem(sdoc: LoadedYaml, overrides: dict[str, Any], p: Problem) -> Problem:
+    """A problem of the model after ``set``: at the study's ``set`` line, or inside a ``metrics`` list that
+    ``set`` gives (its entry's own line and field path: ``set.metrics.0.node``)."""
+    head = p.field.split(".")[0]
+    if head == "metrics" and "metrics" in overrides:
+        path = ("set", *(int(k) if k.isdigit() else k for k in p.field.split(".")))
+        return _study_problem(sdoc, path, f"after 'set' the model is invalid: {p.message}")
+    return _study_problem(sdoc, ("set",), f"after 'set' the model is invalid: {p.field}: {p.message}")
+
+
+def _check(topo: Topology, base: np.ndarray, ref: PathRef, values: np.ndarray, interval: float) -> ParameterCheck:
+    P = np.repeat(base[:, None], len(values), axis=1)
+    apply_axis(P, ref, values)
+    return check_parameters(topo, P, interval)
+
+
+def _model_message(data: dict[str, Any], path: str, val: float) -> str:
+    """The model validation's first message for ``val`` at ``path`` ("" if the model stays valid)."""
+    trial = copy.deepcopy(data)
+    if _set_in(trial, _dict_path(trial, path), val):
+        return ""
+    _, found = validate_model_data(trial)
+    msgs = [e["msg"] for e in found.errors()] if isinstance(found, ValidationError) else [m for _, m in found]
+    return msgs[0] if msgs else ""
+
+
+def _check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, Any], path: str, ref: PathRef,
+                  values: list[float], topo: Topology, base: np.ndarray, interval: float) -> list[Problem]:  # fmt: skip
+    """Each distinct value of an axis must make a valid model, the rest of the model as written.
+
+    Every distinct value is checked, vectorised, on the parameter vector (:func:`check_parameters`:
+    the schema's rules, finite values, a step count that fits); the message of an invalid value is
+    the model validation's own where it has one. At most :data:`MAX_REPORTED` values per axis are listed.
+    """
+    problems: list[Problem] = []
+    if ref.op in ("scale", "speed"):
+        for k, val in enumerate(values):
+            ok = val > 0 if ref.op == "scale" else val >= 0
+            if not ok:
+                what = "a scale factor > 0" if ref.op == "scale" else "a speed >= 0"
+                problems.append(_study_problem(doc, where + (k,), f"expected {what}, got {val!r}"))
+        if problems:
+            return problems
+    uniq, first = np.unique(np.asarray(values, dtype=np.float64), return_index=True)
+    bad = np.zeros(len(uniq), dtype=bool)
+    for lo in range(0, len(uniq), CHECK_BLOCK):
+        bad[lo : lo + CHECK_BLOCK] = _check(topo, base, ref, uniq[lo : lo + CHECK_BLOCK], interval).bad
+    if not bad.any():
+        return problems
+    shown = np.sort(first[bad])[:MAX_REPORTED]  # the first invalid values in file order
+    shown_values = np.asarray(values, dtype=np.float64)[shown]
+    check = _check(topo, base, ref, shown_values, interval)
+    for c, k in enumerate(shown):
+        val = values[int(k)]
+        msg = (_model_message(data, path, val) if ref.op == "set" else "") or check.reason(c)
+        problems.append(_study_problem(doc, where + (int(k),), f"value {val!r} makes the model invalid: {msg}"))
+    if bad.sum() > MAX_REPORTED:
+        problems.append(_study_problem(doc, where, f"{int(bad.sum()) - MAX_REPORTED} more distinct values of "
+                                       f"{path!r} make the model invalid"))  # fmt: skip
+    return problems
+
+
+def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], base: np.ndarray,
+          interval: float) -> tuple[list[Axis], list[int], list[Problem]]:  # fmt: skip
+    groups: list[tuple[tuple[str | int, ...], dict[str, list[float]]]] = [
+        (("matrix", key), {key: vals}) for key, vals in study.matrix.items()
+    ] + [(("zip", g), grp) for g, grp in enumerate(study.zip)]
+    if study.design is not None:  # its rows: one dimension after matrix and zip, its axes varying together
+        from crashstudy.study.design import rows
+
+        d = study.design
+        groups.append((("design", "axes"), {k: v.tolist() for k, v in rows(
+            d.method, d.n, d.seed, {path: dist.spec() for path, dist in d.axes.items()}).items()}))  # fmt: skip
+    axes: list[Axis] = []
+    shape: list[int] = []
+    problems: list[Problem] = []
+    seen: set[str] = set()
+    for dim, (where, grp) in enumerate(groups):
+        lengths = {len(v) for v in grp.values()}
+        if len(lengths) > 1:
+            problems.append(_study_problem(doc, where, f"the axes of a zip group need equal lengths, got {sorted(lengths)}"))
+        shape.append(min(lengths))
+        for path, vals in grp.items():
+            loc = where + (path,) if where[0] in ("zip", "design") else where
+            if path in seen:
+                problems.append(_study_problem(doc, loc, f"axis {path!r} appears twice"))
+            seen.add(path)
+            ref = topo.paths.get(path)
+            if ref is None:
+                problems.append(_study_problem(doc, loc, _unknown_path(path, topo)))
+                continue
+            problems.extend(_check_values(doc, loc, data, path, ref, vals, topo, base, interval))
+            axes.append(Axis(path, np.asarray(vals, dtype=np.float64), dim, ref))
+    return axes, shape, problems
+
+
+def _unknown_path(path: str, topo: Topology) -> str:
+    if path.startswith("output."):
+        return f"{path!r} cannot vary across variants (all variants share one time axis); put it in 'set'"
+    close = difflib.get_close_matches(path, list(topo.paths), n=3, cutoff=0.5)
+    hint = f"; closest valid paths: {', '.join(close)}" if close else ""
+    return f"unknown axis {path!r}: not a numeric field of the model{hint}"
+
+
+def _interval(m: Model, end: float) -> float:
+    """History sampling interval: the model's, or about DEFAULT_SAMPLES samples up to ``end``."""
+    return m.output.interval or end / DEFAULT_SAMPLES
+
+
+def plan_from_model(lm: LoadedModel) -> Plan:
+    """A one-variant plan for ``crashstudy simulate``."""
+    return _plan(lm.model, lm.doc, None, [], [], None, {})
+
+
+def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis], shape: list[int],
+          name: str | None, regression: dict[str, dict[str, float]],
+          compiled: tuple[Topology, np.ndarray] | None = None) -> Plan:  # fmt: skip
+    topo, base = compiled or compile_model(m)
+    end = max([m.end_time] + [float(v) for ax in axes if ax.path == "end_time" for v in ax.values])
+    interval = _interval(m, end)
+    n_out = int(math.floor(end / interval + 1e-9)) + 1
+    per = {"node": topo.n_nodes * topo.dim, "spring": topo.n_springs, "wall": len(topo.wall_ids)}
+    width = sum(per[HISTORY_SHAPES[h][0]] if HISTORY_SHAPES[h] else 1 for h in topo.histories) + 4
+    if n_out * 8 * width > MAX_SAMPLE_BYTES:
+        keys = [k for k in (sdoc.data.get("set") or {} if sdoc else {}) if k.split(".")[0] == "output"]
+        doc, at = (sdoc, ("set", keys[0])) if sdoc and keys else (mdoc, ("output", "interval"))
+        raise InputError([_study_problem(doc, at, f"{n_out:.3g} history samples (end_time {end:g} / output.interval "
+                                         f"{interval:g}) of {width} values take {n_out * 8 * width / 2**20:.3g} MiB per "
+                                         f"variant, at most {MAX_SAMPLE_BYTES / 2**20:g} MiB: use a longer interval")])  # fmt: skip
+    if sdoc is None:  # a lone model: what only its numbers can break (a step count that overflows)
+        check = check_parameters(topo, base[:, None], interval)
+        if check.bad[0]:
+            raise InputError([_study_problem(mdoc, ("end_time",), check.reason(0))])
+    plan = Plan(
+        name=name or m.name, topology=topo, base=base, axes=tuple(axes), shape=tuple(shape), interval=interval,
+        n_out=n_out, model_text=mdoc.text, study_text=sdoc.text if sdoc else "", model_file=mdoc.file,
+        study_file=sdoc.file if sdoc else "", regression=regression,
+    )  # fmt: skip
+    work, worst, steps = estimate_work(plan)
+    limit = max_work()
+    if work > limit:
+        on_axis = any(a.path == "end_time" for a in axes)
+        doc, loc = (sdoc, _axis_where(sdoc, "end_time")) if sdoc and on_axis else (mdoc, ("end_time",))
+        P = plan.params(worst, worst + 1)[:, 0]
+        b = topo.blocks
+        raise InputError([_study_problem(doc, loc, (
+            f"the run would take about {work:.3g} element-steps (springs x time steps, summed over the "
+            f"{plan.n_variants:,} variant{'s' if plan.n_variants != 1 else ''}), about "
+            f"{format_duration(work / WORK_RATE)} at {WORK_RATE:.0e} a second; the longest variant ({worst}) takes "
+            f"{steps:.3g} steps to end_time {P[b['end_time'].start]:g}; at most {limit:.3g}: shorten end_time, "
+            f"use a larger time step, or set the environment variable {WORK_ENV} (e.g. {WORK_ENV}={work * 1.1:.2g})"
+        ))])  # fmt: skip
+    return dataclasses.replace(plan, work=work)
+
+
+def max_work() -> float:
+    """The most element-steps a run may take: :data:`MAX_WORK`, or the environment's :data:`WORK_ENV`."""
+    raw = os.environ.get(WORK_ENV, "").strip()
+    if not raw:
+        return MAX_WORK
+    try:
+        value = float(raw)
+    except ValueError:
+        value = math.nan
+    if not value > 0:  # also NaN
+        raise InputError([Problem(WORK_ENV, None, "", f"expected a number of element-steps > 0 (the default is "
+                                  f"{MAX_WORK:g}), got {raw[:40]!r}")])  # fmt: skip
+    return value
+
+
+def estimate_work(plan: Plan) -> tuple[float, int, float]:
+    """Element-steps of a run (springs x time steps, summed over variants), the variant with the most
+    steps and its steps. Counted exactly for up to :data:`WORK_BLOCK` variants (and :data:`WORK_ENTRIES`
+    parameters x variants), else on that many variants drawn evenly at random (always with the first and
+    the last) and scaled: counting all of 10^6 variants cost 0.3 us each, a third of the bookkeeping."""
+    from crashstudy.arrays.batch import build_batch
+
+    V = plan.n_variants
+    per = max(1, min(WORK_BLOCK, WORK_ENTRIES // max(1, len(plan.base))))
+    if V <= per:
+        idx = np.arange(V, dtype=np.int64)
+    else:
+        rng = np.random.default_rng(0)
+        idx = np.unique(np.concatenate([[0, V - 1], rng.integers(0, V, per - 2)]))
+    total, worst, most = 0.0, 0, -1.0
+    for lo in range(0, len(idx), WORK_BLOCK):
+        at = idx[lo : lo + WORK_BLOCK]
+        batch, _ = build_batch(plan.topology, _params_at(plan, at), plan.interval)
+        steps = np.asarray(batch.n_steps, dtype=np.float64)
+        total += float(steps.sum())
+        k = int(np.argmax(steps))
+        if steps[k] > most:
+            worst, most = int(at[k]), float(steps[k])
+    return total * max(1, plan.topology.n_springs) * V / len(idx), worst, most
+
+
+def _params_at(plan: Plan, idx: np.ndarray) -> np.ndarray:
+    """Parameter matrix (n_params, len(idx)) of the variants numbered ``idx``."""
+    P = np.repeat(plan.base[:, None], len(idx), axis=1)
+    if plan.shape:
+        multi = np.unravel_index(idx, plan.shape)
+        for ax in plan.axes:
+            apply_axis(P, ax.ref, np.asarray(ax.values[multi[ax.dim]], dtype=np.float64))
+    return P
+
+
+def format_duration(seconds: float) -> str:
+    """``seconds`` in the largest unit it fills: "3.2 hours"."""
+    for unit, size in (("years", 3.15e7), ("days", 86400.0), ("hours", 3600.0), ("minutes", 60.0)):
+        if seconds >= size:
+            return f"{seconds / size:.3g} {unit}"
+    return f"{seconds:.3g} s"
+
+
+def _axis_where(sdoc: LoadedYaml, path: str) -> tuple[str | int, ...]:
+    """Where the study file gives axis ``path``: ``matrix.PATH`` or ``zip.G.PATH``."""
+    for g, grp in enumerate(sdoc.data.get("zip") or []):
+        if isinstance(grp, dict) and path in grp:
+            return ("zip", g, path)
+    return ("matrix", path)
+
+
+def _model_path(sdoc: LoadedYaml, base_dir: Path, name: str) -> Path:
+    """The study's model file, or an :class:`InputError` at its ``model:`` line saying why it cannot be used."""
+    if "\0" in name:
+        raise InputError([_study_problem(sdoc, ("model",), "the model path contains a NUL character (\\0); "
+                                         "expected the path of a YAML file")])  # fmt: skip
+    try:
+        path = (base_dir / name).resolve() if not os.path.isabs(name) else Path(name)
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise InputError([_study_problem(sdoc, ("model",), f"model file not found: {base_dir / name}")]) from None
+    except (OSError, RuntimeError, ValueError) as exc:  # a symbolic-link loop, a path too long, ...
+        why = "a loop of symbolic links" if "loop" in str(exc).lower() or getattr(exc, "errno", 0) == 40 else (
+            getattr(exc, "strerror", None) or str(exc))  # fmt: skip
+        raise InputError([_study_problem(sdoc, ("model",), f"cannot use the model path {base_dir / name}: {why} "
+                                         "(symbolic links are followed to a file)")]) from None  # fmt: skip
+    why = not_regular(mode)  # a directory, or a FIFO or device (reading one would wait or never end)
+    if why:
+        raise InputError([_study_problem(sdoc, ("model",), f"model path {path}: {why}")])
+    return path
+
+
+DICT_STUDY = "study (dict)"  #: how a study given from Python as a dict is named in messages (it has no lines)
+
+
+def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
+    """Read and validate a study (a path, or a dict as the YAML would load) into a :class:`Plan`."""
+    if not isinstance(source, dict):
+        return _load_study(source)
+    try:
+        return _load_study(source)
+    except InputError as exc:  # a dict has no file and no lines: "study (dict): matrix.x: ...", never "<...>:4:"
+        raise InputError([p if p.file != DICT_STUDY else Problem(p.file, None, p.field, p.message)
+                          for p in exc.problems]) from None  # fmt: skip
+
+
+def _not_a_study(sdoc: LoadedYaml) -> Problem:
+    keys = ", ".join(k for k in sdoc.data if k in Model.model_fields)
+    name = sdoc.file if sdoc.file != DICT_STUDY else "MODEL.yaml"
+    return Problem(sdoc.file, None, "", f"this is a model, not a study (it has {keys}): run one model with "
+                   f"`crashstudy simulate {name}`, or write a study file with `model: {name}` and the axes to "
+                   "vary under `matrix:`")  # fmt: skip
+
+
+def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
+    if isinstance(source, dict):
+        import yaml
+
+        sdoc = loads_yaml(yaml.safe_dump(source, sort_keys=False), file=DICT_STUDY)
+        base_dir = Path.cwd()
+    else:
+        sdoc = load_yaml(source)
+        base_dir = Path(source).resolve().parent
+    refuse_foreign(sdoc)
+    if file_kind(sdoc.data) == "model":
+        raise InputError([_not_a_study(sdoc)])
+    try:
+        study = Study.model_validate(sdoc.data)
+    except ValidationError as exc:
+        raise InputError(pydantic_problems(exc, sdoc, Study)) from None
+    model_path = _model_path(sdoc, base_dir, study.model)
+    mdoc = load_yaml(str(model_path))
+    parse_model(mdoc)  # the model alone must be valid: its own errors point into its own file
+    data = _apply_set(mdoc.data, study.set, sdoc)
+    m, found = validate_model_data(data)
+    if isinstance(found, ValidationError) or found:
+        errs = (pydantic_problems(found, LoadedYaml(data, mdoc.text, mdoc.file, {}), Model)
+                if isinstance(found, ValidationError) else located(LoadedYaml(data, "", mdoc.file, {}), found))  # fmt: skip
+        raise InputError([_set_problem(sdoc, study.set, p) for p in errs])
+    assert m is not None
+    topo, base = compile_model(m)
+    ends = [v for grp in [study.matrix, *study.zip] for path, vals in grp.items() if path == "end_time" for v in vals]
+    axes, shape, problems = _axes(study, sdoc, topo, data, base, _interval(m, max([m.end_time, *ends])))
+    if problems:
+        raise InputError(problems)
+
+    if math.prod(shape) > MAX_VARIANTS:
+        raise InputError([_study_problem(sdoc, ("matrix",), f"{math.prod(shape):,} variants: at most "
+                                         f"{MAX_VARIANTS:,} fit in one result file; split the study")])  # fmt: skip
+    regression = {k: v.model_dump() for k, v in study.regression.items()}
+    plan = _plan(m, mdoc, sdoc, axes, shape, study.name, regression, (topo, base))
+    check = check_parameters(topo, base[:, None], plan.interval)
+    if not axes and check.bad[0]:  # with axes, each of their values was checked with the rest of the model
+        raise InputError([_study_problem(sdoc, ("model",), f"the model (after 'set') is invalid: {check.reason(0)}")])
+    return plan
+

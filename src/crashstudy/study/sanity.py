@@ -1,0 +1,159 @@
+"""Silent mistakes: valid input that cannot mean what its author meant (``validate`` and ``run`` refuse it).
+
+The schema checks each field and the study stage each axis value; what neither can see is checked
+here on a whole :class:`~crashstudy.study.plan.Plan`: an axis whose values all give the same model (it
+changes nothing: ``impact_velocity`` on a model at rest), a fixed ``time_step.dt`` above the critical
+step of some variants (each would fail at run time), and numbers that contradict the model's
+``units`` (warnings only, :mod:`crashstudy.schema.plausible`). The Python API does not call this:
+``run_study`` still runs such a study and marks the refused variants as failed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from crashstudy.arrays.batch import build_batch
+from crashstudy.arrays.compiler import apply_axis
+from crashstudy.errors import Problem
+from crashstudy.metrics.record import plan_warnings
+from crashstudy.schema import validate_model_data
+from crashstudy.schema.study import Study
+from crashstudy.schema.yamlio import LoadedYaml, loads_yaml
+from crashstudy.study.plan import DICT_STUDY, Axis, Plan, _apply_set
+
+MAX_DT_CHECK = 4_000_000  #: variants whose critical step is checked against a fixed dt (the first ones)
+
+
+def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
+    """Problems (exit 2) and warnings of a valid plan that the schema cannot see.
+
+    Problems: a study axis whose values all give the same model (it changes nothing), and a fixed
+    ``time_step.dt`` above the critical step of every variant (no variant could run).
+    Warnings: a fixed ``dt`` above the critical step of some variants (those fail at run time with the
+    reason, the others run), and numbers that contradict the model's ``units``
+    (:mod:`crashstudy.schema.plausible`)."""
+    from crashstudy.schema.plausible import unit_warnings
+
+    sdoc = loads_yaml(plan.study_text, file=plan.study_file) if plan.study_text else None
+    mdoc = loads_yaml(plan.model_text, file=plan.model_file)
+    problems = [_axis_problem(plan, sdoc, ax) for ax in plan.axes if not _axis_changes_model(plan, ax)]
+    refused, dt_crit = _dt_refused(plan)
+    dt_warnings = []
+    if refused.size == min(plan.n_variants, MAX_DT_CHECK):
+        problems.append(_dt_problem(plan, sdoc, mdoc, refused, dt_crit))
+    elif refused.size:  # the others can run: these fail with the reason (failure isolation)
+        p = _dt_problem(plan, sdoc, mdoc, refused, dt_crit)
+        dt_warnings.append(f"{p.file}:{p.line}: {p.field}: {p.message}; those variants will fail")
+    data = mdoc.data if sdoc is None else _apply_set(mdoc.data, Study.model_validate(sdoc.data).set, sdoc)
+    m, _ = validate_model_data(data)
+    where = plan.study_file or plan.model_file
+    warnings = dt_warnings + (unit_warnings(m, _first_dt_crit(plan), where) if m is not None else [])
+    warnings += plan_warnings(plan)
+    if plan.study_file == DICT_STUDY:
+        problems = [
+            Problem(p.file, None, p.field, p.message) if p.file == DICT_STUDY else p for p in problems
+        ]
+    return problems, warnings
+
+
+NOOP_COLUMNS = 200_000  #: parameter columns at most built to check an axis for doing nothing
+
+
+def _axis_changes_model(plan: Plan, ax: Axis) -> bool:
+    """Whether the values of ``ax`` give different parameters for some setting of the other axes that
+    occurs in the study (an axis may matter only for some values of another: an initial velocity
+    scaled by an ``impact_velocity`` of 0 or 1). Every occurring setting is tried while that stays under
+    NOOP_COLUMNS parameter columns, else the first and last and 64 random ones. The axes are applied in
+    the study's order, as for the variants themselves."""
+    vals = np.unique(ax.values)
+    if len(vals) < 2:
+        return True  # one value: a fixed setting, like `set`
+    others = [o for o in plan.axes if o is not ax]
+    if others:  # the settings of the other axes in the variants (a sample of a very big study)
+        n = plan.n_variants
+        idx = np.arange(n) if n <= 4 * NOOP_COLUMNS else np.random.default_rng(0).choice(n, 4 * NOOP_COLUMNS)
+        multi = np.unravel_index(idx, plan.shape)
+        rows = np.unique(np.stack([o.values[multi[o.dim]] for o in others], axis=1), axis=0)
+    else:
+        rows = np.zeros((1, 0))
+    if len(rows) * len(vals) > NOOP_COLUMNS:
+        pick = np.random.default_rng(0).choice(len(rows), size=min(64, len(rows)), replace=False)
+        rows = np.concatenate([rows[:1], rows[-1:], rows[np.sort(pick)]])
+    S, k = len(rows), len(vals)
+    P = np.repeat(plan.base[:, None], S * k, axis=1)
+    j = 0
+    for other in plan.axes:
+        if other is ax:
+            apply_axis(P, other.ref, np.tile(vals, S))
+        else:
+            apply_axis(P, other.ref, np.repeat(rows[:, j], k))
+            j += 1
+    P = P.reshape(P.shape[0], S, k)
+    return bool(np.any(P != P[:, :, :1]))
+
+
+def _axis_loc(sdoc: LoadedYaml | None, path: str) -> tuple[str | int, ...]:
+    if sdoc is not None and isinstance(sdoc.data.get("zip"), list):
+        for g, grp in enumerate(sdoc.data["zip"]):
+            if isinstance(grp, dict) and path in grp:
+                return ("zip", g, path)
+    return ("matrix", path)
+
+
+def _axis_problem(plan: Plan, sdoc: LoadedYaml | None, ax: Axis) -> Problem:
+    n = len(np.unique(ax.values))
+    if ax.ref.op == "speed":
+        why = ("the model gives no node an initial_velocity, and impact_velocity rescales each node's initial "
+               "velocity to this speed keeping its direction; give the moving nodes an initial_velocity")  # fmt: skip
+    elif ax.ref.op == "scale":
+        why = "it scales values that are all zero"
+    else:
+        why = "the field it sets does not reach the model"
+    loc = _axis_loc(sdoc, ax.path)
+    file, line = (sdoc.file, sdoc.line_of(loc)) if sdoc is not None else (plan.study_file, None)
+    return Problem(file, line, ".".join(str(p) for p in loc),
+                   f"axis {ax.path!r} changes nothing: its {n} values all give the same model ({why})")  # fmt: skip
+
+
+def _first_dt_crit(plan: Plan) -> float:
+    _, steps = build_batch(plan.topology, plan.params(0, 1), plan.interval)
+    return float(steps.dt_crit[0])
+
+
+def _dt_refused(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
+    """Variants (indices) whose fixed dt is above their critical step, and the critical step of each."""
+    if plan.topology.time_step_mode != "dt":
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    idx: list[np.ndarray] = []
+    crit: list[np.ndarray] = []
+    for lo in range(0, min(plan.n_variants, MAX_DT_CHECK), 65536):
+        hi = min(plan.n_variants, lo + 65536)
+        _, steps = build_batch(plan.topology, plan.params(lo, hi), plan.interval)
+        bad = np.nonzero(steps.refused)[0]
+        idx.append(lo + bad)
+        crit.append(np.asarray(steps.dt_crit)[bad])
+    return np.concatenate(idx), np.concatenate(crit)
+
+
+def _dt_problem(plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml, refused: np.ndarray,
+                dt_crit: np.ndarray) -> Problem:  # fmt: skip
+    worst = int(np.argmin(dt_crit))
+    k = int(refused[worst])
+    dt = float(plan.params(k, k + 1)[plan.topology.blocks["time_step"].start, 0])
+    values = plan.axis_values(0, plan.n_variants) if plan.n_variants <= MAX_DT_CHECK else {}
+    at = ", ".join(f"{p}={float(v[k]):g}" for p, v in values.items())
+    where = []
+    for path, v in values.items():  # axis values that only refused variants have
+        bad = set(np.unique(v[refused]).tolist())
+        if bad != set(np.unique(v).tolist()):
+            where.append(f"{path} in [{', '.join(f'{x:g}' for x in sorted(bad))}]")
+    msg = (f"dt={dt:.6g} is above the critical step of {len(refused)} of {plan.n_variants} variant(s): "
+           f"dt_crit={float(dt_crit[worst]):.6g} at variant {k}" + (f" ({at})" if at else "")
+           + (f"; refused where {' and '.join(where)}" if where else "")
+           + f"; use a dt below {float(dt_crit[worst]):.6g} or time_step: {{safety_factor: 0.9}}")  # fmt: skip
+    if sdoc is not None:
+        keys = [key for key in (sdoc.data.get("set") or {}) if key in ("time_step", "time_step.dt")]
+        loc: tuple[str | int, ...] = ("set", keys[0]) if keys else _axis_loc(sdoc, "time_step.dt")
+        if keys or "time_step.dt" in values:
+            return Problem(sdoc.file, sdoc.line_of(loc), "time_step.dt", msg)
+    return Problem(mdoc.file, mdoc.line_of(("time_step", "dt")), "time_step.dt", msg)
