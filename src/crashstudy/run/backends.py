@@ -36,12 +36,6 @@ class InProcess:
         pass
 
 
-def _limit_threads(n: int) -> None:
-    from crashstudy.kernel.compiled import set_threads
-
-    set_threads(n)
-
-
 def _die_with_parent(parent: int) -> None:
     """Pool initializer: end this worker when the process that started it ends, even by SIGKILL
     (a worker busy with a long chunk would otherwise run on for minutes, holding its memory).
@@ -76,7 +70,9 @@ def _die_with_parent(parent: int) -> None:
 
 
 def _call_limited(n_threads: int, fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
-    _limit_threads(n_threads)
+    from crashstudy.kernel.entry import set_threads
+
+    set_threads(n_threads)
     return fn(*args)
 
 

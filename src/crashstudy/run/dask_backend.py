@@ -33,20 +33,20 @@ def _call_on_worker(fn: Callable[..., Any], args: tuple[Any, ...]) -> Any:
     """Run ``fn(*args)`` on a Dask worker with the kernel limited to the worker's share of threads.
 
     A worker started with ``--nthreads T`` runs up to ``T`` tasks at once; a task sets the compiled
-    kernel's thread count (:func:`crashstudy.kernel.compiled.set_threads`, one setting per worker
+    kernel's thread count (:func:`crashstudy.kernel.entry.set_threads`, one setting per worker
     process) to ``T`` divided by the number of tasks running on that worker as it starts (at least 1):
     a worker of one thread computes with one thread, a lone task on a ``T``-thread worker with ``T``.
     """
     from distributed import get_worker
 
-    from crashstudy.run.backends import _limit_threads
+    from crashstudy.kernel.entry import set_threads
 
     try:
         state = get_worker().state
         n = max(1, state.nthreads // max(1, state.executing_count))
     except ValueError:  # not on a worker (e.g. called directly in a test)
         n = 1
-    _limit_threads(n)
+    set_threads(n)
     return fn(*args)
 
 
