@@ -213,7 +213,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if any_hist:
                 gn.record(n, lo, B, n_out, P, In, Z, H)
             if H.step_nodes.shape[0] > 0:
-                gn.record_steps(n, lo, B, Z, H)
+                gn.record_steps(n, lo, B, P, Z, H)
             if has_term and n > 0:
                 n_end = gn.terminate(n, n_end, lo, B, no_ext, P, In, Z)
             for w in range(B):
@@ -259,4 +259,4 @@ def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = 
     out, hist, summ = outputs(b, histories, n_out, record)
     topo, var = records(b)
     run_blocks(_run, block_starts(b.x0.shape[2], block), n_out, topo, var, hist, summ)
-    return finish(out, hist)
+    return finish(out, hist, b)

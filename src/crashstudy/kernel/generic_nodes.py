@@ -257,15 +257,17 @@ def record(n, lo, B, n_out, P, In, Z, H):  # pragma: no cover - compiled
 
 
 @_jit
-def record_steps(n, lo, B, Z, H):  # pragma: no cover - compiled
-    """a^n of the recorded nodes (crash criteria) for the lanes still running after this step's checks."""
+def record_steps(n, lo, B, P, Z, H):  # pragma: no cover - compiled
+    """a^n of the recorded nodes (crash criteria) for the lanes still running after this step's checks,
+    added to row ``(n + (k - 1) // 2) // k`` of the block record (k = P.rec_block of the variant)."""
     acc = Z.acc
     for m in range(H.step_nodes.shape[0]):
         p = H.step_nodes[m]
         for d in range(acc.shape[1]):
             for w in range(B):
                 if Z.act[w]:
-                    H.steps[n, m, d, lo + w] = acc[p, d, w]
+                    k = P.rec_block[lo + w]
+                    H.steps[(n + (k - 1) // 2) // k, m, d, lo + w] += acc[p, d, w]
 
 
 @_jit

@@ -14,7 +14,7 @@ EXTRA_SHAPES = {"filtered_acceleration": ("node",)}
 ALL_SHAPES = {**HISTORY_SHAPES, **EXTRA_SHAPES}
 
 __all__ = ["ALL_SHAPES", "CRUSHED_TO_ZERO", "EXTRA_SHAPES", "HISTORY_ORDER", "HISTORY_SHAPES", "INVALID", "OK",
-           "UNSTABLE", "KernelOutput", "allocate", "concatenate"]  # fmt: skip
+           "UNSTABLE", "KernelOutput", "allocate", "block_means", "block_rows", "concatenate"]  # fmt: skip
 
 
 @dataclass
@@ -37,8 +37,9 @@ class KernelOutput:
     energy_error: np.ndarray  # (V,) max relative energy balance error
     final_energy: np.ndarray  # (4, V) KE, IE, W_ext, E_wall at the end [energy]
     histories: dict[str, np.ndarray] = field(default_factory=dict)
-    # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes at every step n = 0 .. T - 1,
-    # as the acceleration history has it; zero after a variant's last step (t_end). None: not recorded
+    # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes: row r of variant v is the mean
+    # of a^n over the steps of block r (block_rows), centred on t = r k dt (k = Batch.rec_block[v]; k = 1:
+    # a^n at every step, as the acceleration history has it); zero after a variant's last block. None: not recorded
     step_acceleration: np.ndarray | None = None
     # derived from the record after the kernel (crashstudy.metrics.ChunkCriteria: .take(columns)); None: none
     criteria: Any = None
@@ -71,3 +72,28 @@ def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...],
         absorbed_energy=np.zeros((S, V)), peak_acceleration=np.zeros((N, V)), peak_wall_force=np.zeros((W, V)),
         energy_error=np.zeros(V), final_energy=np.zeros((4, V)), histories=hist,
     )  # fmt: skip
+
+
+def block_rows(n_steps: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """(V,) rows of the block record of steps ``0 .. n_steps`` with ``k`` (odd) steps a block: step n adds to
+    row ``(n + (k - 1) // 2) // k`` (row 0 holds steps ``0 .. (k - 1) // 2``, row r steps ``r k - h .. r k + h``)."""
+    k = np.asarray(k, dtype=np.int64)
+    return (np.asarray(n_steps, dtype=np.int64) + (k - 1) // 2) // k + 1
+
+
+def block_means(out: KernelOutput, dt: np.ndarray, k: np.ndarray) -> None:
+    """Turn the kernel's block sums in ``out.step_acceleration`` into means: each row divided by the number
+    of steps of its block that ran (``0 .. t_end / dt``; the first and the last block can be short)."""
+    rec = out.step_acceleration
+    if rec is None:
+        return
+    k = np.asarray(k, dtype=np.int64)
+    if np.all(k == 1):
+        return
+    h = (k - 1) // 2
+    last = np.rint(np.divide(out.t_end, dt)).astype(np.int64)  # last step that ran
+    r = np.arange(rec.shape[0])[:, None]
+    lo = np.maximum(r * k[None, :] - h[None, :], 0)
+    hi = np.minimum(r * k[None, :] + h[None, :], last[None, :])
+    n = np.maximum(hi - lo + 1, 1).astype(np.float64)  # (T, V); blocks that did not run hold 0
+    rec /= n[:, None, None, :]
