@@ -276,7 +276,12 @@ def test_a_chunk_whose_record_passes_the_budget_runs_in_batches_with_the_same_re
     whole = run_chunk(plan, 0, 3)
     groups = metrics.batch_groups(np.array([3000, 3000, 3000]), 1, budget=8 * 3001 * 2)
     assert groups == [slice(0, 2), slice(2, 3)]
-    monkeypatch.setattr(metrics, "RECORD_BUDGET", 8 * 3001)  # one variant per batch
+    from crashstudy.batch import build_batch
+    from crashstudy.kernel.output import block_rows
+
+    batch, _ = build_batch(plan.topology, plan.params(0, 3), plan.interval)
+    rows = int(block_rows(batch.n_steps, metrics.record_blocks(plan.topology, batch.dt)).max())
+    monkeypatch.setattr(metrics, "RECORD_BUDGET", 8 * rows)  # one variant's block record per batch
     calls = []
     real = metrics.criteria_of
     monkeypatch.setattr(metrics, "criteria_of", lambda *a: calls.append(a[1].n_variants) or real(*a))

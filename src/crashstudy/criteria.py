@@ -318,8 +318,8 @@ def compute(
         status &= ~(_OLC_FREE | _OLC_END)
     if "clip3ms" not in names and "clip3ms_cumulative" not in names:
         status &= ~_SHORT_CLIP
-    notes = np.empty(nv, dtype=object)
-    for v in range(nv):
+    notes = np.full(nv, "", dtype=object)
+    for v in np.flatnonzero(status):
         notes[v] = "; ".join(text for bit, text in _NOTES.items() if status[v] & bit)
     result["criteria_note"] = notes
     return result

@@ -33,8 +33,8 @@ from crashstudy.units import UNIT_SYSTEMS
 RECORD_BUDGET = 256 * 2**20  # bytes of the per-step acceleration record per kernel call
 # the record keeps block means of the acceleration at a rate of at least max(RECORD_RATE, RECORD_PER_CFC x the
 # highest CFC asked) (docs/criteria.md, "Record rate": the criteria within 1 % of their converged values)
-RECORD_RATE = 10e3  # [Hz]
-RECORD_PER_CFC = 40.0
+RECORD_RATE = 2500.0  # [Hz]
+RECORD_PER_CFC = 10.0
 G_SI = 9.80665  # standard gravity [m/s^2]
 METRE = {"m": 1.0, "mm": 1e-3}  # length unit -> metres
 SECOND = {"s": 1.0, "ms": 1e-3}  # time unit -> seconds
@@ -183,18 +183,19 @@ def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria
     rec = o.step_acceleration
     assert rec is not None, "the kernel did not record the metric nodes"
     kb = np.asarray(b.rec_block, dtype=np.int64)
-    count = block_rows(np.rint(np.divide(o.t_end, b.dt)).astype(np.int64), kb)  # rows r: block means at t = r k dt
+    last = np.rint(np.divide(o.t_end, b.dt)).astype(np.int64)  # the last step run
+    count = block_rows(last, kb)  # rows r: block means at t = r k dt
     step = b.dt * kb  # the record's spacing
     ok = np.flatnonzero((o.status == 0) & (count >= 2))
     values = {name: np.full((V, N), np.nan) for name in result_names(topo)}
-    notes: list[list[str]] = [[] for _ in range(V)]
+    notes: dict[int, list[str]] = {}  # variant -> its notes (most have none)
     filtered = np.full((n_out, N, V), np.nan) if topo.extra_histories else None
     done_filter: set[int] = set()
     for mt in topo.metrics:
         if not len(ok):
             break
         m = topo.metric_nodes.index(mt.node)
-        acc = np.ascontiguousarray(rec[:, m][..., ok].transpose(2, 0, 1)) * (metre / second**2)  # (v, T, D) SI
+        acc = _means_si(rec[:, m], ok, last, kb, metre / second**2)  # (v, T, D) SI
         v0 = b.v0[mt.node][:, ok].T * (metre / second)
         res = criteria.compute(acc, count[ok], step[ok] * second, v0, _directions(mt, v0), mt.cfc,
                                list(mt.criteria), G_SI)  # fmt: skip
@@ -205,14 +206,34 @@ def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria
         node_id = topo.node_ids[mt.node]
         for k, note in zip(ok, res.get("criteria_note", ()), strict=False):
             if note:
-                notes[int(k)].append(f"{node_id}: {note}")
+                notes.setdefault(int(k), []).append(f"{node_id}: {note}")
         if filtered is not None and mt.node not in done_filter:
             done_filter.add(mt.node)
             filtered[:, mt.node, ok] = _filtered_samples(acc, count[ok], step[ok] * second,
                                                          b.out_every[ok] / kb[ok], mt.cfc, n_out)  # fmt: skip
     if filtered is not None:
         o.histories["filtered_acceleration"] = filtered
-    return ChunkCriteria(values, np.array(["; ".join(n) for n in notes], dtype=object))
+    texts = np.full(V, "", dtype=object)
+    for k, n in notes.items():
+        texts[k] = "; ".join(n)
+    return ChunkCriteria(values, texts)
+
+
+def _means_si(rec: np.ndarray, ok: np.ndarray, last: np.ndarray, k: np.ndarray, scale: float) -> np.ndarray:
+    """(v, T, D) block means of the block sums ``rec`` (T, D, V) of variants ``ok``, times ``scale``: the
+    rows divided by ``k`` with the scale in one pass, the first and the last row by their own steps."""
+    from crashstudy.kernel.output import block_ends
+
+    first, r_last, n_last = block_ends(last[ok], k[ok])
+    T = rec.shape[0]
+    sums = rec[..., ok].transpose(2, 0, 1)  # (v, T, D) view
+    rows = np.arange(len(ok))
+    r_last = np.minimum(r_last, T - 1)
+    head, tail = sums[:, 0] * (scale / first[:, None]), sums[rows, r_last] * (scale / n_last[:, None])
+    acc = np.ascontiguousarray(sums) * (scale / k[ok].astype(np.float64))[:, None, None]
+    acc[:, 0] = head
+    acc[rows, r_last] = tail
+    return acc
 
 
 def _filtered_samples(acc: np.ndarray, count: np.ndarray, dt: np.ndarray, every: np.ndarray, cfc: int,

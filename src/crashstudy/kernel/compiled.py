@@ -259,4 +259,4 @@ def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = 
     out, hist, summ = outputs(b, histories, n_out, record)
     topo, var = records(b)
     run_blocks(_run, block_starts(b.x0.shape[2], block), n_out, topo, var, hist, summ)
-    return finish(out, hist, b)
+    return finish(out, hist)

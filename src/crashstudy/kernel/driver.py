@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from crashstudy.kernel.codes import ENERGIES, HISTORY_ORDER
-from crashstudy.kernel.output import KernelOutput, allocate, block_means, block_rows
+from crashstudy.kernel.output import KernelOutput, allocate, block_rows
 
 if TYPE_CHECKING:
     from crashstudy.batch import Batch
@@ -65,8 +65,8 @@ def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int,
             ) -> tuple[KernelOutput, Any, Any]:  # fmt: skip
     """The kernel output (summaries zeroed, histories NaN) and its (Hist, Summ) records. Histories not
     kept get a small placeholder the kernel never writes. ``record``: nodes whose acceleration is kept
-    in blocks of ``b.rec_block`` steps (``out.step_acceleration``: block sums until :func:`finish` makes them
-    means; zero after a variant's end, as the reference has it)."""
+    summed over blocks of ``b.rec_block`` steps (``out.step_acceleration``; zero after a variant's end, as
+    the reference has it)."""
     N, D, V = b.x0.shape
     S = len(b.spring_i)
     out = allocate(S, N, D, b.wall_nodes.shape[0], V, histories, n_out)
@@ -88,9 +88,8 @@ def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int,
     return out, hist, summ
 
 
-def finish(out: KernelOutput, hist: Any, b: Batch) -> KernelOutput:
-    """Copy the energy columns into the output's histories; the step record's block sums become means."""
-    block_means(out, b.dt, b.rec_block)
+def finish(out: KernelOutput, hist: Any) -> KernelOutput:
+    """Copy the energy columns into the output's histories."""
     for k, name in enumerate(ENERGIES):
         if name in out.histories:
             out.histories[name][:] = hist.energy[:, k, :]

@@ -132,4 +132,4 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
     out, hist, summ = outputs(b, histories, n_out, record)
     topo, var = records(b)
     run_blocks(mod.run_blocks, block_starts(b.x0.shape[2], BLOCK), n_out, _constants(b, shape), topo, var, hist, summ)
-    return finish(out, hist, b)
+    return finish(out, hist)

@@ -261,13 +261,18 @@ def record_steps(n, lo, B, P, Z, H):  # pragma: no cover - compiled
     """a^n of the recorded nodes (crash criteria) for the lanes still running after this step's checks,
     added to row ``(n + (k - 1) // 2) // k`` of the block record (k = P.rec_block of the variant)."""
     acc = Z.acc
-    for m in range(H.step_nodes.shape[0]):
-        p = H.step_nodes[m]
-        for d in range(acc.shape[1]):
-            for w in range(B):
-                if Z.act[w]:
-                    k = P.rec_block[lo + w]
-                    H.steps[(n + (k - 1) // 2) // k, m, d, lo + w] += acc[p, d, w]
+    k_w = 0
+    r = 0
+    for w in range(B):
+        if Z.act[w]:
+            k = P.rec_block[lo + w]
+            if k != k_w:  # divided once per run of lanes with equal k
+                k_w = k
+                r = (n + (k - 1) // 2) // k
+            for m in range(H.step_nodes.shape[0]):
+                p = H.step_nodes[m]
+                for d in range(acc.shape[1]):
+                    H.steps[r, m, d, lo + w] += acc[p, d, w]
 
 
 @_jit
