@@ -1,10 +1,13 @@
 """The ``metrics:`` block through the pipeline: per-step record -> crash criteria -> result variables.
 
-A model (or a study's ``set``) lists nodes to judge (docs/format.md, "metrics"). The kernel keeps the
-acceleration of those nodes at *every* time step (``KernelOutput.step_acceleration``, never the
-sampled histories); after each batch :func:`run_recorded` hands it to :func:`crashstudy.criteria.compute`
-(the SAE J211 filter and the criteria, batched over variants) and drops it, so a chunk holds at most
-:data:`RECORD_BUDGET` bytes of it: a chunk whose record would be larger is run in several batches.
+A model (or a study's ``set``) lists nodes to judge (docs/format.md, "metrics"). The kernel adds the
+acceleration of those nodes at *every* time step into blocks of ``k`` steps (``k`` odd, per variant,
+:func:`record_blocks`: a record rate of at least ``max(RECORD_RATE, RECORD_PER_CFC x CFC)``; never the
+sampled histories): row ``r`` is the mean of ``a^n`` over steps ``r k - h .. r k + h`` (``h = (k-1)/2``),
+the sample at ``t = r k dt`` (docs/criteria.md, "Record rate"). After each batch :func:`run_recorded`
+turns the sums into means and hands them to :func:`crashstudy.criteria.compute` (the SAE J211 filter and
+the criteria, batched over variants) and drops them, so a chunk holds at most :data:`RECORD_BUDGET`
+bytes of record: a chunk whose record would be larger is run in several batches.
 
 Units: the criteria are computed in SI (acceleration in m/s^2, time in s, as the standards define
 them); the results are given back in the model's units (``delta_v`` in its velocity unit, the HIC
@@ -14,7 +17,7 @@ node starts at rest).
 
 ``filtered_acceleration`` (a history, variant x time x node, in g): the filtered resultant of each metric
 node (the class of its first ``metrics`` entry), sampled like the other histories from the filtered
-signal at every step. ``criteria_note`` (a text per variant, "" when every criterion is trusted): what
+block-mean signal (linear between its samples where a history sample falls between two). ``criteria_note`` (a text per variant, "" when every criterion is trusted): what
 :func:`crashstudy.criteria.compute` says about a criterion whose value depends on the step, prefixed by
 the node.
 """
