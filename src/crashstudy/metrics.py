@@ -217,8 +217,8 @@ def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria
     if filtered is not None:
         o.histories["filtered_acceleration"] = filtered
     texts = np.full(V, "", dtype=object)
-    for k, n in notes.items():
-        texts[k] = "; ".join(n)
+    for var, texts_of in notes.items():
+        texts[var] = "; ".join(texts_of)
     return ChunkCriteria(values, texts)
 
 
