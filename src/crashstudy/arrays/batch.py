@@ -74,6 +74,9 @@ class Batch:
     knot_y: np.ndarray  # (K, V) [force] cy at interior knots of a spring curve that are a local maximum of
     # |curve| for that variant (|y| >= |y| of both neighbour knots, y != 0, not flat on both sides), else 0.0
     knot_check: np.ndarray  # (K,) bool, shared: knot_y[k] != 0 for some variant (only these knots are tested)
+    # (V,) int, odd: steps per block of the metric nodes' record (crash criteria); row r of the record holds the
+    # mean of a^n over the steps n with (n + (k - 1) // 2) // k == r, centred on t = r k dt (1: every step)
+    rec_block: np.ndarray
 
     @property
     def n_variants(self) -> int:
@@ -180,7 +183,8 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         wall_normal=np.ascontiguousarray(unit), dt=steps.dt, n_steps=steps.n_steps,
         out_every=steps.out_every, ke_fraction=P[b["ke_fraction"].start].copy(),
         min_time=P[b["min_time"].start].copy(), invalid=invalid,
-        energy_floor=_energy_floor(kmax, length0, mass, v0), **knot_peaks(topo, cx, cy),
+        energy_floor=_energy_floor(kmax, length0, mass, v0), rec_block=np.ones(V, dtype=np.int64),
+        **knot_peaks(topo, cx, cy),
     )  # fmt: skip
     return batch, steps
 

@@ -437,13 +437,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if any_hist:
                 gb.record(n, lo, B, n_out, act, next_rec, out_every, x, x0_b, v, vnew, acc, forces, elong, ke, ie_tot,
                           work, wall_e, wforce, H)  # fmt: skip
-            step_nodes = H.step_nodes
-            for m in range(step_nodes.shape[0]):  # a^n of the recorded nodes (crash criteria), running lanes
-                p_ = step_nodes[m]
-                for d in range(D):
-                    for w in range(B):
-                        if act[w]:
-                            H.steps[n, m, d, lo + w] = acc[p_, d, w]
+            if H.step_nodes.shape[0] > 0:  # crash criteria: a^n of the recorded nodes added to their block's row
+                gb.record_steps(n, lo, B, act, acc, P.rec_block, H.step_nodes, H.steps)
             if has_term and n > 0:
                 for w in range(B):
                     q = lo + w

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from crashstudy.kernel.codes import ENERGIES, HISTORY_ORDER
-from crashstudy.kernel.output import KernelOutput, allocate
+from crashstudy.kernel.output import KernelOutput, allocate, block_rows
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
@@ -34,11 +34,13 @@ TOPO_FIELDS = ("spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_
                "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check")  # fmt: skip
 VARS_FIELDS = ("mass", "inv_mass", "x0", "v0", "length0", "sign", "kpar", "yield_t", "yield_c", "cx", "cy", "cds",
                "cs0", "cs1", "knot_y", "gravity", "load_force", "pm_scale", "wall_point", "wall_normal", "dt",
-               "n_steps", "out_every", "ke_fraction", "min_time", "invalid", "energy_floor")  # fmt: skip
+               "n_steps", "out_every", "ke_fraction", "min_time", "invalid", "energy_floor",
+               "rec_block")  # fmt: skip
 Topo = namedtuple("Topo", TOPO_FIELDS)  # type: ignore[misc]
 Vars = namedtuple("Vars", VARS_FIELDS)  # type: ignore[misc]
 # rec: which histories are kept (HISTORY_ORDER); energy: (T, 4, V) for the four ENERGIES
-# step_nodes (M,) and steps (T, M, D, V): the acceleration of nodes step_nodes at every step (crash criteria)
+# step_nodes (M,) and steps (T, M, D, V): the acceleration of nodes step_nodes summed over blocks of
+# Vars.rec_block steps (crash criteria; output.block_rows)
 Hist = namedtuple("Hist", ("rec", "pos", "disp", "vel", "acc", "force", "elong", "energy", "wall", "step_nodes",
                            "steps"))  # type: ignore[misc]  # fmt: skip
 Summ = namedtuple("Summ", ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed",
@@ -63,12 +65,13 @@ def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int,
             ) -> tuple[KernelOutput, Any, Any]:  # fmt: skip
     """The kernel output (summaries zeroed, histories NaN) and its (Hist, Summ) records. Histories not
     kept get a small placeholder the kernel never writes. ``record``: nodes whose acceleration is kept
-    at every step (``out.step_acceleration``, zero after a variant's end, as the reference has it)."""
+    summed over blocks of ``b.rec_block`` steps (``out.step_acceleration``; zero after a variant's end, as
+    the reference has it)."""
     N, D, V = b.x0.shape
     S = len(b.spring_i)
     out = allocate(S, N, D, b.wall_nodes.shape[0], V, histories, n_out)
     if record:
-        out.step_acceleration = np.zeros((int(np.max(b.n_steps, initial=-1)) + 1, len(record), D, V))
+        out.step_acceleration = np.zeros((int(np.max(block_rows(b.n_steps, b.rec_block), initial=0)), len(record), D, V))
     steps = out.step_acceleration if out.step_acceleration is not None else np.empty((1, 1, 1, 1))
     want_energy = any(h in histories for h in ENERGIES)
     energy = np.full((n_out, 4, V), np.nan) if want_energy else np.empty((1, 4, 1))

@@ -50,7 +50,7 @@ def source(shape: dict[str, Any]) -> str:
         '    """Blocks b_lo:b_hi; records of crashstudy.kernel.driver (T topology, P per-variant inputs,'
         ' H histories, O summaries)."""',
         *[f"    {name} = {rec}.{field}" for name, rec, field in RECORD_NAMES],
-        *(["    h_steps = H.steps"] if g.record else []),
+        *(["    h_steps = H.steps", "    h_rk = P.rec_block"] if g.record else []),
         *[f"    {cname[nm]} = cst[{i}]" for i, nm in enumerate(cname)],
         "    for bi in range(b_lo, b_hi):",
         "        lo = starts[bi]",
@@ -87,11 +87,17 @@ def source(shape: dict[str, Any]) -> str:
         pass_k(g, i3)
     failures(g, i3)
     if g.record:  # a^n of the recorded nodes, lanes still running after the failure check
+        emit(f"{i3}rk_w = 0")  # block sums: row (n + (k - 1) // 2) // k, divided once per run of equal k
+        emit(f"{i3}rr = 0")
         emit(f"{i3}for w in range(B):")
         emit(f"{i3}    if fn <= {R['lim']}:")
+        emit(f"{i3}        rk = h_rk[vi[w]]")
+        emit(f"{i3}        if rk != rk_w:")
+        emit(f"{i3}            rk_w = rk")
+        emit(f"{i3}            rr = (n + (rk - 1) // 2) // rk")
         for m, n in enumerate(g.record):
             for d in range(D):
-                emit(f"{i3}        h_steps[n, {m}, {d}, vi[w]] = {R[f'am{n}_{d}']}")
+                emit(f"{i3}        h_steps[rr, {m}, {d}, vi[w]] += {R[f'am{n}_{d}']}")
     if hist:
         records(g, i3)
     ends(g, i3)

@@ -324,3 +324,21 @@ def results(lo, B, st_ok, err, ke0, wmax, nst, n_fail, dt_b, ie, pf, mc, pacc, p
 
 
 _ = (CRUSH, GENERAL, INVALID, NONLINEAR, NSTATE, np)
+
+
+@_jit
+def record_steps(n, lo, B, act, acc, rec_block, step_nodes, steps):  # pragma: no cover - compiled
+    """a^n of the recorded nodes (crash criteria) for the lanes still running after this step's checks,
+    added to row ``(n + (k - 1) // 2) // k`` of the block record (``k = rec_block`` of the variant)."""
+    k_w = 0
+    r = 0
+    for w in range(B):
+        if act[w]:
+            k = rec_block[lo + w]
+            if k != k_w:  # divided once per run of lanes with equal k
+                k_w = k
+                r = (n + (k - 1) // 2) // k
+            for m in range(step_nodes.shape[0]):
+                p = step_nodes[m]
+                for d in range(acc.shape[1]):
+                    steps[r, m, d, lo + w] += acc[p, d, w]

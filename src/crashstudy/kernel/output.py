@@ -14,7 +14,7 @@ EXTRA_SHAPES = {"filtered_acceleration": ("node",)}
 ALL_SHAPES = {**HISTORY_SHAPES, **EXTRA_SHAPES}
 
 __all__ = ["ALL_SHAPES", "CRUSHED_TO_ZERO", "EXTRA_SHAPES", "HISTORY_ORDER", "HISTORY_SHAPES", "INVALID", "OK",
-           "UNSTABLE", "KernelOutput", "allocate", "concatenate"]  # fmt: skip
+           "UNSTABLE", "KernelOutput", "allocate", "block_ends", "block_means", "block_rows", "concatenate"]  # fmt: skip
 
 
 @dataclass
@@ -37,8 +37,10 @@ class KernelOutput:
     energy_error: np.ndarray  # (V,) max relative energy balance error
     final_energy: np.ndarray  # (4, V) KE, IE, W_ext, E_wall at the end [energy]
     histories: dict[str, np.ndarray] = field(default_factory=dict)
-    # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes at every step n = 0 .. T - 1,
-    # as the acceleration history has it; zero after a variant's last step (t_end). None: not recorded
+    # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes in blocks of k = Batch.rec_block[v]
+    # steps: row r of variant v is the SUM of a^n over the steps of block r (block_rows; block_means gives the
+    # means, centred on t = r k dt; k = 1: a^n at every step, as the acceleration history has it); zero after a
+    # variant's last block. None: not recorded
     step_acceleration: np.ndarray | None = None
     # derived from the record after the kernel (crashstudy.metrics.record.ChunkCriteria: .take(columns)); None: none
     criteria: Any = None
@@ -71,3 +73,35 @@ def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...],
         absorbed_energy=np.zeros((S, V)), peak_acceleration=np.zeros((N, V)), peak_wall_force=np.zeros((W, V)),
         energy_error=np.zeros(V), final_energy=np.zeros((4, V)), histories=hist,
     )  # fmt: skip
+
+
+def block_rows(n_steps: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """(V,) rows of the block record of steps ``0 .. n_steps`` with ``k`` (odd) steps a block: step n adds to
+    row ``(n + (k - 1) // 2) // k`` (row 0 holds steps ``0 .. (k - 1) // 2``, row r steps ``r k - h .. r k + h``)."""
+    k = np.asarray(k, dtype=np.int64)
+    return (np.asarray(n_steps, dtype=np.int64) + (k - 1) // 2) // k + 1
+
+
+def block_ends(last: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per variant of last step ``last`` and block length ``k`` (odd): the steps in the first row, the
+    index of the last row, the steps in the last row (every other row holds ``k`` steps)."""
+    last = np.asarray(last, dtype=np.int64)
+    k = np.asarray(k, dtype=np.int64)
+    h = (k - 1) // 2
+    r_last = (last + h) // k
+    n_last = last - np.maximum(r_last * k - h, 0) + 1
+    return np.minimum(h, last) + 1, r_last, n_last
+
+
+def block_means(rec: np.ndarray, last: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """The means of a kernel's block record ``rec`` (T, M, D, V) of block sums: each row divided by the
+    steps of its block that ran (steps ``0 .. last``); rows past the end stay 0."""
+    first, r_last, n_last = block_ends(last, k)
+    V = rec.shape[-1]
+    cols = np.arange(V)
+    tail = rec[np.minimum(r_last, rec.shape[0] - 1), :, :, cols] / n_last[:, None, None]  # (V, M, D)
+    out = rec / np.asarray(k, dtype=np.float64)
+    out[0] = rec[0] / first
+    mask = r_last < rec.shape[0]
+    out[r_last[mask], :, :, cols[mask]] = tail[mask]
+    return out

@@ -43,7 +43,7 @@ from crashstudy.kernel.codes import (
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
+from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate, block_rows
 
 STOP_EVERY = 256  # steps between calls of run_reference's ``check``
 __all__ = ["TINY_LENGTH", "UNSTABLE_ENERGY", "run_reference"]
@@ -59,8 +59,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     W = b.wall_nodes.shape[0]
     out = allocate(S, N, D, W, V, histories, n_out)
     rec_nodes = np.asarray(record, dtype=np.int64)
+    rk = b.rec_block
     if len(record):
-        out.step_acceleration = np.zeros((int(b.n_steps.max(initial=-1)) + 1, len(record), D, V))
+        out.step_acceleration = np.zeros((int(block_rows(b.n_steps, rk).max(initial=0)), len(record), D, V))
     out.status[:] = np.where(b.invalid > 0, INVALID, 0)
     out.fail_item[:] = np.where(b.invalid > 0, b.invalid, -1)
     out.fail_time[:] = np.where(b.invalid > 0, 0.0, np.nan)
@@ -216,8 +217,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         out.fail_item[:] = np.where(gone, crushed, out.fail_item)
         out.fail_time[:] = np.where(bad | gone, t, out.fail_time)
         ok = act & ~bad & ~gone
-        if out.step_acceleration is not None:
-            out.step_acceleration[n] = np.where(ok, a[rec_nodes], 0.0)
+        if out.step_acceleration is not None:  # block sums, added in step order (as the fast kernels)
+            q = np.flatnonzero(ok)
+            out.step_acceleration[(n + (rk[q] - 1) // 2) // rk[q], :, :, q] += a[rec_nodes][:, :, q].transpose(2, 0, 1)
 
         rec = ok & (n % b.out_every == 0) & (n // b.out_every < n_out)  # the last step may pass the last sample
         if rec.any() and histories:

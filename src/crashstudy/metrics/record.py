@@ -1,10 +1,13 @@
 """The ``metrics:`` block through the pipeline: per-step record -> crash criteria -> result variables.
 
-A model (or a study's ``set``) lists nodes to judge (docs/format.md, "metrics"). The kernel keeps the
-acceleration of those nodes at *every* time step (``KernelOutput.step_acceleration``, never the
-sampled histories); after each batch :func:`run_recorded` hands it to :func:`crashstudy.metrics.criteria.compute`
-(the SAE J211 filter and the criteria, batched over variants) and drops it, so a chunk holds at most
-:data:`RECORD_BUDGET` bytes of it: a chunk whose record would be larger is run in several batches.
+A model (or a study's ``set``) lists nodes to judge (docs/format.md, "metrics"). The kernel adds the
+acceleration of those nodes at *every* time step into blocks of ``k`` steps (``k`` odd, per variant,
+:func:`record_blocks`: a record rate of at least ``max(RECORD_RATE, RECORD_PER_CFC x CFC)``; never the
+sampled histories): row ``r`` is the mean of ``a^n`` over steps ``r k - h .. r k + h`` (``h = (k-1)/2``),
+the sample at ``t = r k dt`` (docs/criteria.md, "Record rate"). After each batch :func:`run_recorded`
+turns the sums into means and hands them to :func:`crashstudy.metrics.criteria.compute` (the SAE J211 filter and
+the criteria, batched over variants) and drops them, so a chunk holds at most :data:`RECORD_BUDGET`
+bytes of record: a chunk whose record would be larger is run in several batches.
 
 Units: the criteria are computed in SI (acceleration in m/s^2, time in s, as the standards define
 them); the results are given back in the model's units (``delta_v`` in its velocity unit, the HIC
@@ -14,7 +17,7 @@ node starts at rest).
 
 ``filtered_acceleration`` (a history, variant x time x node, in g): the filtered resultant of each metric
 node (the class of its first ``metrics`` entry), sampled like the other histories from the filtered
-signal at every step. ``criteria_note`` (a text per variant, "" when every criterion is trusted): what
+block-mean signal (linear between its samples where a history sample falls between two). ``criteria_note`` (a text per variant, "" when every criterion is trusted): what
 :func:`crashstudy.metrics.criteria.compute` says about a criterion whose value depends on the step, prefixed by
 the node.
 """
@@ -22,7 +25,7 @@ the node.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -31,6 +34,10 @@ from crashstudy.kernel.output import KernelOutput, concatenate
 from crashstudy.units import UNIT_SYSTEMS
 
 RECORD_BUDGET = 256 * 2**20  # bytes of the per-step acceleration record per kernel call
+# the record keeps block means of the acceleration at a rate of at least max(RECORD_RATE, RECORD_PER_CFC x the
+# highest CFC asked) (docs/criteria.md, "Record rate": the criteria within 1 % of their converged values)
+RECORD_RATE = 2500.0  # [Hz]
+RECORD_PER_CFC = 10.0
 G_SI = 9.80665  # standard gravity [m/s^2]
 METRE = {"m": 1.0, "mm": 1e-3}  # length unit -> metres
 SECOND = {"s": 1.0, "ms": 1e-3}  # time unit -> seconds
@@ -89,9 +96,20 @@ class ChunkCriteria:
         return ChunkCriteria({k: v[idx] for k, v in self.values.items()}, self.notes[idx])
 
 
+def record_blocks(topo: Any, dt: np.ndarray) -> np.ndarray:
+    """(V,) steps per block of the record (odd, >= 1): the largest whose rate ``1 / (k dt)`` is at least
+    ``max(RECORD_RATE, RECORD_PER_CFC x the highest CFC of topo.metrics)``; 1 when dt is that coarse already."""
+    second = SECOND[UNIT_SYSTEMS[topo.units].time]
+    rate = max([RECORD_RATE] + [RECORD_PER_CFC * mt.cfc for mt in topo.metrics])
+    k = np.floor(1.0 / (rate * np.asarray(dt, dtype=np.float64) * second) * (1.0 + 1e-12)).astype(np.int64)
+    k = np.maximum(k - (k + 1) % 2, 1)  # odd: a block centred on its sample
+    return k
+
+
 def batch_groups(n_steps: np.ndarray, width: int, budget: int = RECORD_BUDGET) -> list[slice]:
-    """Contiguous groups of variants (sorted by step count) whose record, ``(max steps + 1) x width``
-    doubles a variant, stays within ``budget`` bytes (a group has one variant at least)."""
+    """Contiguous groups of variants (sorted by step count) whose record, ``(max n_steps + 1) x width``
+    doubles a variant, stays within ``budget`` bytes (a group has one variant at least); ``n_steps`` here
+    is the last row of each variant's record (the last step when every step is kept)."""
     out: list[slice] = []
     lo = 0
     V = len(n_steps)
@@ -127,11 +145,14 @@ def run_recorded(batch: Any, run: Callable[[Any], KernelOutput], topo: Any, n_ou
     """Run ``batch`` through ``run`` (a kernel call that records the metric nodes) in groups whose
     record stays within ``budget`` bytes (default :data:`RECORD_BUDGET`); the criteria of each group
     are computed at once and its record dropped."""
+    from crashstudy.kernel.output import block_rows
+
     width = len(topo.metric_nodes) * topo.dim
     budget = RECORD_BUDGET if budget is None else budget
     outs: list[KernelOutput] = []
     crits: list[ChunkCriteria] = []
-    for g in batch_groups(np.asarray(batch.n_steps), width, budget):
+    batch = replace(batch, rec_block=record_blocks(topo, batch.dt))
+    for g in batch_groups(block_rows(batch.n_steps, batch.rec_block) - 1, width, budget):
         sub = batch if g == slice(0, batch.n_variants) else batch.take(np.arange(g.start, g.stop))
         o = run(sub)
         crits.append(criteria_of(topo, sub, o, n_out))
@@ -156,6 +177,7 @@ def _directions(mt: Any, v0: np.ndarray) -> np.ndarray:
 def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria:
     """The criteria of every metric entry for the variants of batch ``b`` and its output ``o``; puts the
     ``filtered_acceleration`` history into ``o.histories`` when the topology asks for it."""
+    from crashstudy.kernel.output import block_rows
     from crashstudy.metrics import criteria
 
     u = UNIT_SYSTEMS[topo.units]
@@ -163,19 +185,22 @@ def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria
     V, N = b.n_variants, topo.n_nodes
     rec = o.step_acceleration
     assert rec is not None, "the kernel did not record the metric nodes"
-    count = np.rint(np.divide(o.t_end, b.dt)).astype(np.int64) + 1
+    kb = np.asarray(b.rec_block, dtype=np.int64)
+    last = np.rint(np.divide(o.t_end, b.dt)).astype(np.int64)  # the last step run
+    count = block_rows(last, kb)  # rows r: block means at t = r k dt
+    step = b.dt * kb  # the record's spacing
     ok = np.flatnonzero((o.status == 0) & (count >= 2))
     values = {name: np.full((V, N), np.nan) for name in result_names(topo)}
-    notes: list[list[str]] = [[] for _ in range(V)]
+    notes: dict[int, list[str]] = {}  # variant -> its notes (most have none)
     filtered = np.full((n_out, N, V), np.nan) if topo.extra_histories else None
     done_filter: set[int] = set()
     for mt in topo.metrics:
         if not len(ok):
             break
         m = topo.metric_nodes.index(mt.node)
-        acc = np.ascontiguousarray(rec[:, m][..., ok].transpose(2, 0, 1)) * (metre / second**2)  # (v, T, D) SI
+        acc = _means_si(rec[:, m], ok, last, kb, metre / second**2)  # (v, T, D) SI
         v0 = b.v0[mt.node][:, ok].T * (metre / second)
-        res = criteria.compute(acc, count[ok], b.dt[ok] * second, v0, _directions(mt, v0), mt.cfc,
+        res = criteria.compute(acc, count[ok], step[ok] * second, v0, _directions(mt, v0), mt.cfc,
                                list(mt.criteria), G_SI)  # fmt: skip
         scale = {"velocity": second / metre, "time": 1.0 / second}
         wanted = set(mt.criteria) | {e for c in mt.criteria for e in criteria.EXTRA.get(c, ())}
@@ -184,27 +209,54 @@ def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria
         node_id = topo.node_ids[mt.node]
         for k, note in zip(ok, res.get("criteria_note", ()), strict=False):
             if note:
-                notes[int(k)].append(f"{node_id}: {note}")
+                notes.setdefault(int(k), []).append(f"{node_id}: {note}")
         if filtered is not None and mt.node not in done_filter:
             done_filter.add(mt.node)
-            filtered[:, mt.node, ok] = _filtered_samples(acc, count[ok], b.dt[ok] * second, b.out_every[ok], mt.cfc,
-                                                         n_out)  # fmt: skip
+            filtered[:, mt.node, ok] = _filtered_samples(acc, count[ok], step[ok] * second,
+                                                         b.out_every[ok] / kb[ok], mt.cfc, n_out)  # fmt: skip
     if filtered is not None:
         o.histories["filtered_acceleration"] = filtered
-    return ChunkCriteria(values, np.array(["; ".join(n) for n in notes], dtype=object))
+    texts = np.full(V, "", dtype=object)
+    for var, texts_of in notes.items():
+        texts[var] = "; ".join(texts_of)
+    return ChunkCriteria(values, texts)
+
+
+def _means_si(rec: np.ndarray, ok: np.ndarray, last: np.ndarray, k: np.ndarray, scale: float) -> np.ndarray:
+    """(v, T, D) block means of the block sums ``rec`` (T, D, V) of variants ``ok``, times ``scale``: the
+    rows divided by ``k`` with the scale in one pass, the first and the last row by their own steps."""
+    from crashstudy.kernel.output import block_ends
+
+    first, r_last, n_last = block_ends(last[ok], k[ok])
+    T = rec.shape[0]
+    sums = rec[..., ok].transpose(2, 0, 1)  # (v, T, D) view
+    rows = np.arange(len(ok))
+    r_last = np.minimum(r_last, T - 1)
+    head, tail = sums[:, 0] * (scale / first[:, None]), sums[rows, r_last] * (scale / n_last[:, None])
+    acc = np.ascontiguousarray(sums) * (scale / k[ok].astype(np.float64))[:, None, None]
+    acc[:, 0] = head
+    acc[rows, r_last] = tail
+    return acc
 
 
 def _filtered_samples(acc: np.ndarray, count: np.ndarray, dt: np.ndarray, every: np.ndarray, cfc: int,
                       n_out: int) -> np.ndarray:  # fmt: skip
-    """(n_out, v) filtered resultant [g] of ``acc`` (v, T, D) [m/s^2] at steps ``k * every``, NaN after the end."""
+    """(n_out, v) filtered resultant [g] of ``acc`` (v, T, D) [m/s^2] at rows ``i * every`` (``every``: the
+    history's sampling interval in record rows, not always whole: linear between rows), NaN after the end."""
     from crashstudy.metrics.criteria import j211_filter
 
     comps = [j211_filter(np.ascontiguousarray(acc[:, :, d]), count, dt, cfc) for d in range(acc.shape[2])]
     mag = np.sqrt(np.sum(np.stack(comps) ** 2, axis=0)) / G_SI  # (v, T)
-    steps = np.arange(n_out)[:, None] * every[None, :]  # (n_out, v)
-    inside = steps < count[None, :]
+    pos = np.arange(n_out)[:, None] * np.asarray(every, dtype=np.float64)[None, :]  # (n_out, v)
+    lo = np.floor(pos + 1e-9).astype(np.int64)
+    frac = np.where(lo + 1 < count[None, :], np.clip(pos - lo, 0.0, 1.0), 0.0)
     cols = np.arange(mag.shape[0])[None, :]
-    return np.where(inside, mag[cols, np.minimum(steps, mag.shape[1] - 1)], np.nan)
+    top = mag.shape[1] - 1
+    a0 = mag[cols, np.clip(lo, 0, top)]
+    a1 = mag[cols, np.clip(lo + 1, 0, top)]
+    val = np.where(frac > 0.0, a0 + frac * (a1 - a0), a0)
+    inside = lo < count[None, :]
+    return np.where(inside, val, np.nan)
 
 
 def plan_warnings(plan: Any) -> list[str]:
