@@ -83,7 +83,7 @@ HISTORY_META = {
     "spring_force": ("force", "spring force (positive = tension)"),
     "spring_elongation": ("length", "spring elongation (negative = compression)"),
     "kinetic_energy": ("energy", "kinetic energy"),
-    "internal_energy": ("energy", "work done on all springs and dampers"),
+    "internal_energy": ("energy", "work done on all springs and dampers, plus the energy they stored at t = 0"),
     "external_work": ("energy", "work of loads, gravity and prescribed motion"),
     "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
     "wall_force": ("force", "rigid wall force (momentum removed per unit time)"),

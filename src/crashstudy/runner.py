@@ -93,7 +93,8 @@ def _reorder(out: KernelOutput, take: np.ndarray, V: int, histories: tuple[str, 
     """Spread results computed for columns ``take`` (unique, sorted) back to all ``V`` variants."""
     full = allocate(S, N, D, W, V, histories, n_out)
     for name in ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed_energy",
-                 "peak_acceleration", "peak_wall_force", "energy_error", "final_energy"):  # fmt: skip
+                 "peak_acceleration", "peak_wall_force", "energy_error", "final_energy", "max_elongation",
+                 "spring_fail_time"):  # fmt: skip
         getattr(full, name)[...] = getattr(out, name)[..., take]
     for h in histories:
         full.histories[h][...] = out.histories[h][..., take]
