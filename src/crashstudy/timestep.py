@@ -24,7 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crashstudy.compiler import CRUSH, DAMPER, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR, NONLINEAR_DAMPER, Topology
+from crashstudy.compiler import (
+    CRUSH,
+    DAMPER,
+    ELASTOPLASTIC,
+    GENERAL,
+    LINEAR,
+    NONLINEAR,
+    NONLINEAR_DAMPER,
+    Topology,
+)
 
 CRITICAL_MARGIN = 0.99  # the nodal bound is attained exactly by two free masses on one spring,
 # where omega dt = 2 is neutrally unstable (linear growth): dt_crit keeps a 1% margin below 2 / omega

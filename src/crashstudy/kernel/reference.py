@@ -75,7 +75,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     ie0 = np.sum(b.ie0, axis=0)
     edot0 = np.zeros((S, V))  # elongation rate at t = 0 (the first half step's work, below)
     # preloaded springs (F^0 != 0 only with an initial elongation: every material curve passes the origin)
-    first_half = (b.e0 != 0.0) & np.array([k not in (DAMPER, NONLINEAR_DAMPER) for k in b.material])[:, None]
+    first_half = (b.e0 != 0.0) & ~np.isin(b.material, (DAMPER, NONLINEAR_DAMPER))[:, None]
     broken = np.zeros((S, V), dtype=bool)  # springs past a failure elongation: no force for the rest of the run
     out.max_elongation[:] = 0.0
     work = np.zeros(V)

@@ -17,7 +17,6 @@ from crashstudy.schema.model import (
     GeneralNonlinear,
     Model,
     NonlinearDamper,
-    NonlinearElastic,
     RigidWall,
     Spring,
 )

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from crashstudy.units import UnitSystemName
 
@@ -113,13 +113,13 @@ class Elastoplastic(Strict):
     tangent_stiffness: NonNegative = Field(description="slope after yield KT [force/length], 0 <= KT < K")
     yield_force: Positive = Field(description="initial yield force FY [force] > 0, the same in tension and compression")
 
-    @model_validator(mode="after")
-    def _tangent_below_stiffness(self) -> Elastoplastic:
-        if not self.tangent_stiffness < self.stiffness:
-            raise ValueError(
-                f"tangent_stiffness must be below stiffness (got {self.tangent_stiffness:g} >= {self.stiffness:g})"
-            )
-        return self
+    @field_validator("tangent_stiffness")
+    @classmethod
+    def _tangent_below_stiffness(cls, kt: float, info: ValidationInfo) -> float:
+        k = info.data.get("stiffness")
+        if k is not None and not kt < k:
+            raise ValueError(f"tangent_stiffness must be below stiffness ({k:g}), got {kt:g}")
+        return kt
 
 
 class NonlinearDamper(Strict):

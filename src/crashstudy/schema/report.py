@@ -9,6 +9,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from crashstudy.errors import Problem
+from crashstudy.schema.model import MATERIAL_TYPES
 from crashstudy.yamlio import LoadedYaml
 
 Path = tuple[str | int, ...]
@@ -33,8 +34,7 @@ def data_path(data: Any, loc: tuple[Any, ...]) -> Path:
 
 
 def _looks_like_tag(part: str) -> bool:
-    return any(ch in part for ch in "[]()") or part in {
-        "linear_elastic", "nonlinear_elastic", "general_nonlinear", "crush", "damper",
+    return any(ch in part for ch in "[]()") or part in MATERIAL_TYPES or part in {
         "bool", "float", "int", "str", "list", "dict", "none", "literal", "function-after",
     }  # fmt: skip
 
