@@ -243,7 +243,7 @@ class Termination(Strict):
 
     With ``f = kinetic_energy_fraction`` a variant stops once the sum of the spring force magnitudes
     is below ``f`` times the sum of their peaks *and* either the kinetic energy is below
-    ``f (KE0 + max |W_ext|)`` or, with no loads, gravity or prescribed motion, every spring is
+    ``f (KE0 + IE0 + max |W_ext|)`` or, with no loads, gravity or prescribed motion, every spring is
     opening. ``min_time`` [time]: never stop before it.
     """
 
