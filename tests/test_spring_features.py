@@ -19,9 +19,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
-from conftest import run_model
+from conftest import model_plan, run_model
+from crashstudy.batch import check_parameters
 from crashstudy.cli import main
+from crashstudy.compiler import apply_axis
 from crashstudy.errors import InputError
 from crashstudy.kernel import choice
 from crashstudy.schema import parse_model
@@ -313,8 +316,6 @@ def test_max_elongation_of_a_linear_oscillator_is_its_amplitude_in_summary_csv(t
     model = _one_spring({"type": "linear_elastic", "stiffness": 1.0e4}, 1.0, 2.0, end_time=0.05)
     model["output"] = {"histories": "none"}
     path = tmp_path / "osc.yaml"
-    import yaml
-
     path.write_text(yaml.safe_dump(model, sort_keys=False))
     rc, _, err = run_main("simulate", str(path), "-o", str(tmp_path / "out"))
     assert rc == 0, err
@@ -366,11 +367,37 @@ BAD = {
 @pytest.mark.parametrize("case", list(BAD))
 def test_bad_v2_spring_input_is_refused_with_field_and_expectation(case: str) -> None:
     material, options, field, text = BAD[case]
-    import yaml
-
     model = _one_spring(material, 1.0, **options)
     with pytest.raises(InputError) as err:
         parse_model(loads_yaml(yaml.safe_dump(model, sort_keys=False), file="bad.yaml"))
     found = [p for p in err.value.problems if p.field == field]
     assert found, [(p.field, p.message) for p in err.value.problems]
     assert text in found[0].message and found[0].line is not None
+
+
+def test_study_axis_values_that_break_a_v2_rule_are_refused_per_variant() -> None:
+    """The per-variant check of a study's axis values (batch.check_parameters) holds the same rules as the
+    schema: a failure elongation on the wrong side of the initial elongation, a tangent stiffness not below
+    the stiffness, a damper curve point that takes the curve off the origin (the reason names
+    initial_elongation). Valid columns pass."""
+    model = _one_spring({"type": "elastoplastic", "stiffness": 100.0, "tangent_stiffness": 10.0, "yield_force": 1.0},
+                        1.0, 1.0, initial_elongation=0.01, failure={"tension": 0.05})  # fmt: skip
+    plan = model_plan(model)
+    topo = plan.topology
+    P = np.repeat(plan.base[:, None], 4, axis=1)
+    apply_axis(P, topo.paths["springs.s.failure.tension"], np.array([0.05, 0.005, 0.05, 0.05]))
+    apply_axis(P, topo.paths["springs.s.material.tangent_stiffness"], np.array([10.0, 10.0, 100.0, 10.0]))
+    apply_axis(P, topo.paths["springs.s.initial_elongation"], np.array([0.01, 0.01, 0.01, -0.2]))
+    check = check_parameters(topo, P, plan.interval)
+    assert check.bad.tolist() == [False, True, True, False]
+    assert "springs.s.failure.tension: expected an elongation above initial_elongation (0.01)" in check.reason(1)
+    assert "springs.s.material.tangent_stiffness: expected a tangent_stiffness >= 0 and below stiffness" in check.reason(2)
+
+    damper = _one_spring({"type": "nonlinear_damper", "curve": "c",
+                          "_curves": {"c": {"x": [-1.0, 0.0, 1.0], "y": [-1.0, 0.0, 1.0]}}}, 1.0, 1.0)  # fmt: skip
+    plan = model_plan(damper)
+    P = np.repeat(plan.base[:, None], 2, axis=1)
+    apply_axis(P, plan.topology.paths["curves.c.y.1"], np.array([0.0, 0.5]))
+    check = check_parameters(plan.topology, P, plan.interval)
+    assert check.bad.tolist() == [False, True]
+    assert "must pass through the origin" in check.reason(1) and "initial_elongation" in check.reason(1)
