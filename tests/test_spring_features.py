@@ -120,6 +120,27 @@ def test_elastoplastic_perfectly_plastic_spring_flows_at_the_yield_force() -> No
     assert out.max_elongation[0, 0] == pytest.approx(0.5 * FY / K + MASS * v0**2 / (2 * FY), rel=1e-3)
 
 
+def test_elastoplastic_reverse_yield_waits_for_the_grown_yield_force_then_hardens_at_kt() -> None:
+    """Isotropic hardening under a prescribed elongation 0 -> 0.1 m -> -0.1 m (K 4e4, KT 1e4, FY 2e3):
+    tension past ey = 0.05 on ``F = FY + KT (e - ey)`` to F1 = 2500 N; elastic unloading (slope K) down to
+    the grown yield force -F1 (not -FY) at ``e_r = 0.1 - 2 F1 / K``; then ``F = -F1 + KT (e - e_r)``.
+    Every sample to 1e-9 of F1."""
+    e1, f1 = 0.1, FY + KT * (0.1 - FY / K)
+    model = _one_spring({"type": "elastoplastic", "stiffness": K, "tangent_stiffness": KT, "yield_force": FY,
+                         "_curves": {"path": {"x": [0.0, 1.0, 3.0], "y": [0.0, e1, -e1]}}}, 1.0, end_time=3.0,
+                        dt=1.0e-3, interval=1.0e-3)  # fmt: skip
+    model["prescribed_motion"] = [{"node": "b", "quantity": "displacement", "direction": "x", "curve": "path"}]
+    out, _, _ = run_model(model, kernel="reference")
+    e = out.histories["spring_elongation"][:, 0, 0]
+    f = out.histories["spring_force"][:, 0, 0]
+    t = np.arange(len(e)) * 1.0e-3
+    e_r = e1 - 2.0 * f1 / K
+    truth = np.where(t <= 1.0 + 1e-9, np.where(e <= FY / K, K * e, FY + KT * (e - FY / K)),
+                     np.where(e >= e_r, f1 - K * (e1 - e), -f1 + KT * (e - e_r)))  # fmt: skip
+    assert np.max(np.abs(f - truth)) < 1e-9 * f1
+    assert f.min() == pytest.approx(-f1 + KT * (-e1 - e_r), rel=1e-9)
+
+
 # --------------------------------------------------------------------------------------------------
 # nonlinear_damper
 # --------------------------------------------------------------------------------------------------
