@@ -483,16 +483,15 @@ def test_compiled_kernel_writes_no_energy_history_when_none_is_requested(
     from crashstudy.kernel import compiled
 
     real = compiled._run
-    names = list(inspect.signature(real.py_func).parameters)
-    slot = names.index("h_energy")
+    slot = list(inspect.signature(real.py_func).parameters).index("H")  # the histories record
     caught: dict[str, np.ndarray] = {}
 
     def guarded(*args: Any) -> Any:
         args = list(args)
-        if args[slot].shape == (1, 4, 1):  # the placeholder: no energy history requested
+        if args[slot].energy.shape == (1, 4, 1):  # the placeholder: no energy history requested
             guard = np.full((64, 4, 1), np.nan)
             caught["guard"] = guard
-            args[slot] = guard[:1]
+            args[slot] = args[slot]._replace(energy=guard[:1])
         return real(*args)
 
     monkeypatch.setattr(compiled, "_run", guarded)

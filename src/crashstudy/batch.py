@@ -95,6 +95,7 @@ class Batch:
     fail_c: np.ndarray  # (S, V) compression failure elongation [length] (-inf: never)
     state0: np.ndarray  # (S, NSTATE, V) material state at t = 0 (kernel.preload), (0, NSTATE, V) if no preload
     ie0: np.ndarray  # (S, V) [energy] energy stored in each spring at t = 0 (IE0)
+    rate0: np.ndarray  # (S, V) [length/time] elongation rate at t = 0 (a preload's first half step)
 
     @property
     def n_variants(self) -> int:
@@ -207,9 +208,23 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         min_time=P[b["min_time"].start].copy(), invalid=invalid,
         energy_floor=_energy_floor(kmax, length0, mass, v0), **knot_peaks(topo, cx, cy),
         ktan=ktan, fy=fy, e0=e0, fail_t=np.ascontiguousarray(P[b["fail_t"]]),
-        fail_c=np.ascontiguousarray(P[b["fail_c"]]), state0=state0, ie0=ie0,
+        fail_c=np.ascontiguousarray(P[b["fail_c"]]), state0=state0, ie0=ie0, rate0=_rate0(dx, length0, v0, i, j),
     )  # fmt: skip
     return batch, steps
+
+
+def _rate0(dx: np.ndarray, length0: np.ndarray, v0: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """(S, V) elongation rate at t = 0: ``s (v_j - v_i)`` in 1-D, the unit axis times ``v_j - v_i`` in 2-D
+    (summed over the axes in order, as the kernels sum it)."""
+    dv = v0[j] - v0[i]  # (S, D, V)
+    if dx.shape[1] == 1:
+        return np.ascontiguousarray(np.sign(dx[:, 0, :]) * dv[:, 0, :])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        axis = dx / np.where(length0 > 0, length0, 1.0)[:, None, :]
+    out = np.zeros(length0.shape)
+    for d in range(dx.shape[1]):
+        out = out + axis[:, d, :] * dv[:, d, :]
+    return out
 
 
 def knot_peaks(topo: Topology, cx: np.ndarray, cy: np.ndarray) -> dict[str, np.ndarray]:

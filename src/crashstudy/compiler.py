@@ -14,6 +14,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from crashstudy.kernel.codes import (  # noqa: F401
+    CRUSH,
+    DAMPER,
+    ELASTOPLASTIC,
+    GENERAL,
+    LINEAR,
+    MATERIAL_CODES,
+    NONLINEAR,
+    NONLINEAR_DAMPER,
+    PM_ACCELERATION,
+    PM_CODES,  # fmt: skip
+    PM_DISPLACEMENT,
+    PM_VELOCITY,
+)
 from crashstudy.schema.model import (
     Crush,
     Damper,
@@ -25,15 +39,6 @@ from crashstudy.schema.model import (
     NonlinearElastic,
 )
 
-# material codes seen by the kernels
-LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER = 0, 1, 2, 3, 4
-MATERIAL_CODES = {"linear_elastic": LINEAR, "nonlinear_elastic": NONLINEAR,
-                  "general_nonlinear": GENERAL, "crush": CRUSH, "damper": DAMPER}  # fmt: skip
-# SPEC v2 materials (a block of their own: the codes move to kernel/codes.py with the laws split)
-ELASTOPLASTIC, NONLINEAR_DAMPER = 5, 6
-MATERIAL_CODES.update({"elastoplastic": ELASTOPLASTIC, "nonlinear_damper": NONLINEAR_DAMPER})
-# prescribed-motion quantities
-PM_DISPLACEMENT, PM_VELOCITY, PM_ACCELERATION = 0, 1, 2
 TIME_STEP_MODES = ("safety_factor", "dt", "tolerance")
 
 
@@ -211,7 +216,7 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     for i, ld in enumerate(m.loads):
         for d in range(D):
             put("load", i * D + d, ld.force[d], f"loads.{i}.force.{d}")
-    kinds = {"displacement": PM_DISPLACEMENT, "velocity": PM_VELOCITY, "acceleration": PM_ACCELERATION}
+    kinds = PM_CODES
     pm = m.prescribed_motion
     for i, q in enumerate(pm):
         put("pm_scale", i, q.scale, f"prescribed_motion.{i}.scale")

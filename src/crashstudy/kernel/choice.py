@@ -35,13 +35,15 @@ import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from crashstudy.batch import Batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.cache import cache_dir, why_not_private
+
+if TYPE_CHECKING:
+    from crashstudy.batch import Batch
 
 REF_STEP = 60e-6  # [s] per time step of the NumPy reference, whatever the batch
 REF_SPRING_STEP = 50e-6  # [s] per time step and spring
@@ -129,21 +131,6 @@ def compiling(folder: Path | None = None) -> bool:
     return False
 
 
-def fast_unsupported(b: Batch) -> str | None:
-    """What in ``b`` the fast kernels do not implement yet (SPEC v2 spring features), or None.
-
-    Such a batch runs on the NumPy reference whatever kernel is asked for: slower, never wrong."""
-    from crashstudy.compiler import ELASTOPLASTIC, NONLINEAR_DAMPER
-
-    if np.any(np.isin(b.material, (ELASTOPLASTIC, NONLINEAR_DAMPER))):
-        return "an elastoplastic or nonlinear_damper spring"
-    if np.any(b.e0 != 0.0):
-        return "an initial_elongation"
-    if np.any(np.isfinite(b.fail_t)) or np.any(np.isfinite(b.fail_c)):
-        return "a spring failure"
-    return None
-
-
 def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: str = "compiled",
          repeat: float = 1.0) -> str:  # fmt: skip
     """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
@@ -153,8 +140,6 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
     paid once per process, so it is weighed against the whole run, not one chunk)."""
     from crashstudy.kernel import generated
 
-    if fast_unsupported(b) is not None:
-        return "reference"
     if kernel == "compiled":
         kernel = kernel_override()
     if kernel == "generated" and generated.unsupported(b) is not None:
@@ -256,7 +241,7 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     named, everything is compiled, or the run is too short to care)."""
     from crashstudy.kernel import generated
 
-    if kernel != "compiled" or kernel_override() != "compiled" or fast_unsupported(b) is not None:
+    if kernel != "compiled" or kernel_override() != "compiled":
         return None
     S, (N, D, V) = len(b.spring_i), b.x0.shape
     per_variant = float(np.mean(b.n_steps)) if V else 0.0

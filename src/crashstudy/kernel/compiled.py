@@ -1,806 +1,286 @@
-"""The compiled (numba) kernel: the reference step of :mod:`crashstudy.kernel.reference`, with the
-loop over variants innermost.
+"""The generic compiled (numba) kernel: the reference step of :mod:`crashstudy.kernel.reference`, with
+the loop over variants innermost, topology read from arrays at run time.
 
-Variants are cut into blocks of at most ``BLOCK`` columns; blocks run in parallel on a thread pool
-(the compiled function releases the GIL; a ``parallel=True`` kernel took minutes to compile) and
-each block advances all its variants through time together, so the innermost loops run over
-contiguous variant columns and the CPU works on several variants per instruction. Every variant
-keeps its own step ``dt``, so its result does not depend on which block it lands in.
+Variants are cut into blocks of at most ``BLOCK`` columns (:mod:`crashstudy.kernel.driver` runs the
+blocks on a thread pool; the compiled function releases the GIL) and each block advances all its
+variants through time together, so the innermost loops run over contiguous variant columns and the
+CPU works on several variants per instruction. Every variant keeps its own step ``dt``, so its
+result does not depend on which block it lands in.
 
-What a model does not contain is skipped: no material state without ``general_nonlinear``/``crush``,
-no geometry (square roots, directions) in 1-D, no wall, load or prescribed-motion loops when there
-are none, no history writes when no history is kept.
+The step is in stages: springs (:mod:`crashstudy.kernel.generic_springs`), then nodes, energies,
+checks, histories, termination and the position update (:mod:`crashstudy.kernel.generic_nodes`);
+every formula is a law of :mod:`crashstudy.kernel.laws`. What a model does not contain is skipped:
+no material state without ``general_nonlinear``/``crush``, no geometry in 1-D, no wall, load or
+prescribed-motion loops when there are none, no history writes when no history is kept.
 """
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
+from collections import namedtuple
+from typing import TYPE_CHECKING
 
 import numba as nb
 import numpy as np
 
-from crashstudy.batch import Batch
-from crashstudy.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, PM_ACCELERATION, PM_DISPLACEMENT
-from crashstudy.kernel.output import CRUSHED_TO_ZERO, HISTORY_ORDER, INVALID, UNSTABLE, KernelOutput, allocate
-from crashstudy.kernel.reference import TINY_LENGTH, UNSTABLE_ENERGY
-from crashstudy.kernel.scalar import knot_peak, reverse_yield, time_curve_at
+from crashstudy.kernel import generic_nodes as gn
+from crashstudy.kernel.codes import CURVE_MATERIALS, INVALID, NSTATE, STATE_MATERIALS
+from crashstudy.kernel.driver import (
+    block_starts,
+    finish,
+    get_threads,
+    outputs,
+    records,
+    run_blocks,
+    set_threads,
+)
+from crashstudy.kernel.generic_springs import springs
+from crashstudy.kernel.output import KernelOutput
+
+if TYPE_CHECKING:
+    from crashstudy.batch import Batch
 
 BLOCK = 256
-NSTATE = 8
-_THREADS = [os.cpu_count() or 1]
+__all__ = ["BLOCK", "get_threads", "run_compiled", "set_threads"]
 
-
-def set_threads(n: int) -> None:
-    """Threads the compiled kernel uses (default: every core)."""
-    _THREADS[0] = max(1, int(n))
-
-
-def get_threads() -> int:
-    return _THREADS[0]
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - compiled
-    """out = curve c at arg, over the block (ramp sum; see batch.py)."""
-    a0 = off[c]
-    b0 = off[c + 1]
-    for w in range(B):
-        out[w] = cy_b[a0, w] + s0_b[c, w] * (arg[w] - cx_b[a0, w])
-    for k in range(a0 + 1, b0 - 1):
-        for w in range(B):
-            out[w] = out[w] + ds_b[k, w] * max(0.0, arg[w] - cx_b[k, w])
+# block-local copies of the per-variant inputs (contiguous, cache-resident)
+BlockIn = namedtuple("BlockIn", ("m", "im", "x0", "sg", "l0", "kp", "cx", "cy", "ds", "ky", "s0", "yt", "yc", "dt"))
+# the block's state: kinematics, spring state and summaries, knot-crossing data, per-lane scratch
+BlockState = namedtuple("BlockState", (
+    "x", "v", "vnew", "f", "fext", "fext_prev", "acc", "acc_prev", "axis_prev", "state", "forces", "elong", "f_prev",
+    "e_prev", "ie", "pf", "mc", "pacc", "pwall", "wforce", "jump_prev", "pm_acc", "k_sh", "k_c", "k_x", "k_y",
+    "k_any", "k_hit", "k_th", "k_dfax", "g_arg", "g_argt", "g_argc", "g_L", "g_Ut", "g_Uc", "g_rev", "e_tmp",
+    "ed_tmp", "F_tmp", "ax_tmp", "edot_min", "crushed", "work", "wall_e", "wmax", "ke0", "ke", "ie_tot", "err",
+    "bal", "act", "actf", "n_fail", "nst", "next_rec", "st_ok", "movable", "knotted",
+    # v2 spring features: max elongation, broken springs, KE0 + IE0, preloaded / breakable springs, scratch
+    "me", "broken", "e_init", "pre", "fragile", "em_tmp", "ai_tmp"))  # fmt: skip
 
 
 @nb.njit(cache=True, nogil=True)
-def _run(b_lo, b_hi, n_out, starts, si, sj, material, curve_a, curve_b, off, free, load_node, load_curve, pm_node, pm_dir, pm_kind,
-         pm_curve, wall_nodes, mass, inv_mass, x0, v0, length0, sign, kpar, yield_t, yield_c, cx, cy, cds, cs0,
-         cs1, gravity, load_force, pm_scale, wall_point, wall_normal, dt, n_steps, out_every, ke_fraction,
-         min_time, invalid, e_floor, knot_y, knot_check, rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy, h_wall,
-         status, fail_time, fail_item, t_end, peak_force, max_crush, absorbed, peak_acc, peak_wall, energy_error,
-         final_energy):  # pragma: no cover - compiled  # fmt: skip
-    N = x0.shape[0]
-    D = x0.shape[1]
-    S = si.shape[0]
-    K = cx.shape[0]
-    C = cs0.shape[0]
-    W = wall_nodes.shape[0]
-    NL = load_node.shape[0]
-    NP = pm_node.shape[0]
-    has_state = False
+def _block_inputs(lo, B, T, P):  # pragma: no cover - compiled
+    N, D, _ = P.x0.shape
+    S = T.spring_i.shape[0]
+    K = P.cx.shape[0]
+    C = P.cs0.shape[0]
+    In = BlockIn(np.empty((N, B)), np.empty((N, D, B)), np.empty((N, D, B)), np.empty((S, B)), np.empty((S, B)),
+                np.empty((S, B)), np.empty((K, B)), np.empty((K, B)), np.empty((K, B)), np.empty((K, B)),
+                np.empty((C, B)), np.empty((S, B)), np.empty((S, B)), np.empty(B))  # fmt: skip
+    for w in range(B):
+        In.dt[w] = P.dt[lo + w]
+    for n_ in range(N):
+        for w in range(B):
+            In.m[n_, w] = P.mass[n_, lo + w]
+        for d in range(D):
+            for w in range(B):
+                In.im[n_, d, w] = P.inv_mass[n_, d, lo + w]
+                In.x0[n_, d, w] = P.x0[n_, d, lo + w]
     for s in range(S):
-        if material[s] == GENERAL or material[s] == CRUSH:
-            has_state = True
-    has_gravity = False
-    for d in range(D):
-        for q in range(gravity.shape[1]):
-            if gravity[d, q] != 0.0:
-                has_gravity = True
-    no_ext = NL == 0 and NP == 0 and not has_gravity
-    any_hist = False
-    for h in range(rec_mask.shape[0]):
-        any_hist = any_hist or rec_mask[h]
-    has_term = False
-    for q in range(ke_fraction.shape[0]):
-        if ke_fraction[q] > 0.0:
-            has_term = True
+        for w in range(B):
+            In.sg[s, w] = P.sign[s, lo + w]
+            In.yt[s, w] = P.yield_t[s, lo + w]
+            In.yc[s, w] = P.yield_c[s, lo + w]
+            In.l0[s, w] = P.length0[s, lo + w]
+            In.kp[s, w] = P.kpar[s, lo + w]
+    for k in range(K):
+        for w in range(B):
+            In.cx[k, w] = P.cx[k, lo + w]
+            In.cy[k, w] = P.cy[k, lo + w]
+            In.ds[k, w] = P.cds[k, lo + w]
+            In.ky[k, w] = P.knot_y[k, lo + w]
+    for c in range(C):
+        for w in range(B):
+            In.s0[c, w] = P.cs0[c, lo + w]
+    return In
+
+
+@nb.njit(cache=True, nogil=True)
+def _block_state(lo, B, T, P, In):  # pragma: no cover - compiled
+    N, D, _ = P.x0.shape
+    S = T.spring_i.shape[0]
+    W = T.wall_nodes.shape[0]
+    NP = T.pm_node.shape[0]
+    off = T.curve_off
+    has_state = False
     movable = np.zeros(N, dtype=np.bool_)
     for n_ in range(N):
         for d in range(D):
-            if free[n_, d] > 0.0:
+            if T.free[n_, d] > 0.0:
                 movable[n_] = True
     for k in range(NP):
-        movable[pm_node[k]] = True
+        movable[T.pm_node[k]] = True
     # springs whose curve has a knot that can be a local maximum of |force| (Batch.knot_check)
     knotted = np.zeros(S, dtype=np.bool_)
     any_knot = False
     for s in range(S):
-        ca = curve_a[s]
-        if (material[s] == NONLINEAR or material[s] == CRUSH or material[s] == GENERAL) and ca >= 0:
+        has_state = has_state or T.material[s] in STATE_MATERIALS
+        ca = T.curve_a[s]
+        if T.material[s] in CURVE_MATERIALS and ca >= 0:
             for k in range(off[ca] + 1, off[ca + 1] - 1):
-                if knot_check[k]:
+                if T.knot_check[k]:
                     knotted[s] = True
                     any_knot = True
+    SK = S if any_knot else 0
+    NK = N if any_knot else 0
+    SS = S if has_state else 0
+    axis_prev = np.zeros((S if D > 1 else 0, D, B))  # 2-D: previous spring direction (un-normalised)
+    if D > 1:
+        for s in range(S):
+            for d in range(D):
+                for w in range(B):
+                    axis_prev[s, d, w] = In.x0[T.spring_j[s], d, w] - In.x0[T.spring_i[s], d, w]
+    Z = BlockState(
+        np.empty((N, D, B)), np.empty((N, D, B)), np.empty((N, D, B)), np.empty((N, D, B)), np.zeros((N, D, B)),
+        np.zeros((N, D, B)), np.zeros((N, D, B)), np.zeros((NK, D, B)), axis_prev,
+        np.zeros((SS, NSTATE, B)), np.zeros((S, B)), np.zeros((S, B)), np.zeros((S, B)),
+        np.zeros((S, B)), np.zeros((S, B)), np.zeros((S, B)), np.zeros((S, B)), np.zeros((N, B)), np.zeros((W, B)),
+        np.zeros((W, B)), np.zeros((W, N, D, B)), np.zeros((NP, B)), np.empty(B), np.empty(B), np.empty(B),
+        np.empty(B), np.zeros(S, dtype=np.bool_), np.zeros((SK, B), dtype=np.bool_), np.zeros((SK, B)),
+        np.zeros((SK, D, B)), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B), np.empty(B),
+        np.zeros(B, dtype=np.bool_), np.empty(B), np.empty(B), np.empty(B), np.empty((D, B)), np.empty(B),
+        np.empty(B, dtype=np.int64), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B),
+        np.zeros(B), np.zeros(B), np.empty(B, dtype=np.bool_), np.empty(B), np.full(B, -1, dtype=np.int64),
+        np.empty(B, dtype=np.int64), np.zeros(B, dtype=np.int64), np.zeros(B, dtype=np.int64), movable, knotted,
+        np.zeros((S, B)), np.zeros((S, B), dtype=np.bool_), np.zeros(B), np.zeros(S, dtype=np.bool_),
+        np.zeros(S, dtype=np.bool_), np.empty(B), np.empty(B),
+    )  # fmt: skip
+    for n_ in range(N):
+        for d in range(D):
+            for w in range(B):
+                Z.x[n_, d, w] = In.x0[n_, d, w]
+                Z.v[n_, d, w] = P.v0[n_, d, lo + w]
+                Z.ke0[w] += 0.5 * In.m[n_, w] * Z.v[n_, d, w] * Z.v[n_, d, w]
+    _preload(lo, B, S, SS, P, Z)
+    return Z
+
+
+@nb.njit(cache=True, nogil=True)
+def _preload(lo, B, S, SS, P, Z):  # pragma: no cover - compiled
+    """Initial elongations and failures (docs/format.md): the material state and IE0 of the batch
+    (kernel.preload), KE0 + IE0, and which springs are preloaded or can break in this block."""
+    for s in range(S):
+        for w in range(B):
+            q = lo + w
+            Z.ie[s, w] = P.ie0[s, q]
+            Z.pre[s] = Z.pre[s] or P.e0[s, q] != 0.0
+            Z.fragile[s] = Z.fragile[s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
+    if SS > 0 and P.state0.shape[0] > 0:
+        for s in range(S):
+            for k in range(NSTATE):
+                for w in range(B):
+                    Z.state[s, k, w] = P.state0[s, k, lo + w]
+    for w in range(B):
+        ie0 = 0.0
+        for s in range(S):
+            ie0 = ie0 + P.ie0[s, lo + w]
+        Z.e_init[w] = Z.ke0[w] + ie0
+
+
+@nb.njit(cache=True, nogil=True)
+def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compiled
+    """Blocks ``b_lo:b_hi``: records of :mod:`crashstudy.kernel.driver` (T topology, P per-variant
+    inputs, H histories, Out summaries)."""
+    N, D, _ = P.x0.shape
+    has_gravity = False
+    for d in range(D):
+        for q in range(P.gravity.shape[1]):
+            has_gravity = has_gravity or P.gravity[d, q] != 0.0
+    no_ext = T.load_node.shape[0] == 0 and T.pm_node.shape[0] == 0 and not has_gravity
+    any_hist = False
+    for h in range(H.rec.shape[0]):
+        any_hist = any_hist or H.rec[h]
+    has_term = False
+    for q in range(P.ke_fraction.shape[0]):
+        has_term = has_term or P.ke_fraction[q] > 0.0
     # 1-D models without walls, prescribed motion or external forces take a fused node update
-    fused_1d = D == 1 and W == 0 and NP == 0 and no_ext
+    fused_1d = D == 1 and T.wall_nodes.shape[0] == 0 and no_ext
     for bi in range(b_lo, b_hi):
         lo = starts[bi]
         B = starts[bi + 1] - lo
-        # block-local copies of the per-variant inputs (contiguous, cache-resident)
-        m_b = np.empty((N, B))
-        im_b = np.empty((N, D, B))
-        x0_b = np.empty((N, D, B))
-        sg_b = np.empty((S, B))
-        l0_b = np.empty((S, B))
-        kp_b = np.empty((S, B))
-        cx_b = np.empty((K, B))
-        cy_b = np.empty((K, B))
-        ds_b = np.empty((K, B))
-        ky_b = np.empty((K, B))
-        s0_b = np.empty((C, B))
-        yt_b = np.empty((S, B))
-        yc_b = np.empty((S, B))
-        g_arg = np.empty(B)
-        g_argt = np.empty(B)
-        g_argc = np.empty(B)
-        g_L = np.empty(B)
-        g_Ut = np.empty(B)
-        g_Uc = np.empty(B)
-        g_rev = np.zeros(B, dtype=np.bool_)
-        dt_b = np.empty(B)
-        for w in range(B):
-            dt_b[w] = dt[lo + w]
-        for n_ in range(N):
-            for w in range(B):
-                m_b[n_, w] = mass[n_, lo + w]
-            for d in range(D):
-                for w in range(B):
-                    im_b[n_, d, w] = inv_mass[n_, d, lo + w]
-                    x0_b[n_, d, w] = x0[n_, d, lo + w]
-        for s in range(S):
-            for w in range(B):
-                sg_b[s, w] = sign[s, lo + w]
-                yt_b[s, w] = yield_t[s, lo + w]
-                yc_b[s, w] = yield_c[s, lo + w]
-                l0_b[s, w] = length0[s, lo + w]
-                kp_b[s, w] = kpar[s, lo + w]
-        for k in range(K):
-            for w in range(B):
-                cx_b[k, w] = cx[k, lo + w]
-                cy_b[k, w] = cy[k, lo + w]
-                ds_b[k, w] = cds[k, lo + w]
-                ky_b[k, w] = knot_y[k, lo + w]
-        for c in range(C):
-            for w in range(B):
-                s0_b[c, w] = cs0[c, lo + w]
-        # state
-        x = np.empty((N, D, B))
-        v = np.empty((N, D, B))
-        vnew = np.empty((N, D, B))
-        f = np.empty((N, D, B))
-        fext = np.zeros((N, D, B))
-        fext_prev = np.zeros((N, D, B))
-        acc = np.zeros((N, D, B))  # a^{n-1} at the start of step n (dampers' velocity estimate)
-        acc_prev = np.zeros((N, D, B) if any_knot else (0, D, B))  # a^{n-1} during step n (knot crossings)
-        k_sh = np.empty(B)  # knot test: shift of the curve's abscissa (general_nonlinear)
-        k_c = np.empty(B)  # candidate |force|, and the abscissa and force of the knot that gave it
-        k_x = np.empty(B)
-        k_y = np.empty(B)
-        k_any = np.zeros(S, dtype=np.bool_)  # some lane of the block passed over a knot of spring s this step
-        k_hit = np.zeros((S if any_knot else 0, B), dtype=np.bool_)  # this lane did
-        k_th = np.zeros((S if any_knot else 0, B))  # crossing fraction of the step at that knot
-        k_dfax = np.zeros((S if any_knot else 0, D, B))  # (knot force - interpolated force) * axis
-        jump_prev = np.zeros((W, N, D, B))
-        pm_acc = np.zeros((NP, B))  # kinematic acceleration of each prescribed dof
-        axis_prev = np.zeros((S if D > 1 else 0, D, B))  # 2-D: previous spring direction (un-normalised)
-        if D > 1:
-            for s in range(S):
-                for d in range(D):
-                    for w in range(B):
-                        axis_prev[s, d, w] = x0_b[sj[s], d, w] - x0_b[si[s], d, w]
-        state = np.zeros((S if has_state else 0, NSTATE, B))
-        forces = np.zeros((S, B))
-        elong = np.zeros((S, B))
-        f_prev = np.zeros((S, B))
-        e_prev = np.zeros((S, B))
-        ie = np.zeros((S, B))
-        pf = np.zeros((S, B))
-        mc = np.zeros((S, B))
-        pacc = np.zeros((N, B))
-        pwall = np.zeros((W, B))
-        e_tmp = np.empty(B)
-        ed_tmp = np.empty(B)
-        F_tmp = np.empty(B)
-        ax_tmp = np.empty((D, B))
-        edot_min = np.empty(B)
-        crushed = np.empty(B, dtype=np.int64)
-        work = np.zeros(B)
-        wall_e = np.zeros(B)
-        wmax = np.zeros(B)
-        ke0 = np.zeros(B)
-        ke = np.zeros(B)
-        ie_tot = np.zeros(B)
-        err = np.zeros(B)
-        bal = np.zeros(B)
-        wforce = np.zeros((W, B))
-        act = np.empty(B, dtype=np.bool_)
-        actf = np.empty(B)  # 1.0 while the variant runs, else 0.0 (arithmetic masks vectorise)
-        n_fail = np.full(B, -1, dtype=np.int64)
-        nst = np.empty(B, dtype=np.int64)
-        next_rec = np.zeros(B, dtype=np.int64)
-        st_ok = np.zeros(B, dtype=np.int64)
+        In = _block_inputs(lo, B, T, P)
+        Z = _block_state(lo, B, T, P, In)
         nmax = -1
         for w in range(B):
             q = lo + w
-            nst[w] = n_steps[q]
-            if invalid[q] > 0:
-                st_ok[w] = INVALID
-                fail_item[q] = invalid[q]
-                fail_time[q] = 0.0
-            elif nst[w] > nmax:
-                nmax = nst[w]
-        for n_ in range(N):
-            for d in range(D):
-                for w in range(B):
-                    x[n_, d, w] = x0_b[n_, d, w]
-                    v[n_, d, w] = v0[n_, d, lo + w]
-                    ke0[w] += 0.5 * m_b[n_, w] * v[n_, d, w] * v[n_, d, w]
-
+            Z.nst[w] = P.n_steps[q]
+            if P.invalid[q] > 0:
+                Z.st_ok[w] = INVALID
+                Out.fail_item[q] = P.invalid[q]
+                Out.fail_time[q] = 0.0
+            elif Z.nst[w] > nmax:
+                nmax = Z.nst[w]
         for n in range(nmax + 1):
             nact = 0
             n_end = nmax + 1  # the first step at which an active variant ends
             for w in range(B):
-                a_ = (n <= nst[w]) & (st_ok[w] == 0)
-                act[w] = a_
-                actf[w] = 1.0 if a_ else 0.0
+                a_ = (n <= Z.nst[w]) & (Z.st_ok[w] == 0)
+                Z.act[w] = a_
+                Z.actf[w] = 1.0 if a_ else 0.0  # arithmetic masks vectorise
                 nact += a_
-                n_end = min(n_end, nst[w] if a_ else nmax + 1)
+                n_end = min(n_end, Z.nst[w] if a_ else nmax + 1)
             if nact == 0:
                 break
             rec_now = False
             if any_hist:
                 for w in range(B):
-                    rec_now = rec_now or (act[w] and n == next_rec[w])
+                    rec_now = rec_now or (Z.act[w] and n == Z.next_rec[w])
             fused = fused_1d and n > 0 and not rec_now
             h = 1.0 if n > 0 else 0.5
-            f[:] = 0.0
-            if D > 1:
-                for w in range(B):
-                    crushed[w] = -1
-            if has_term:
-                for w in range(B):
-                    edot_min[w] = np.inf
-            for w in range(B):
-                ie_tot[w] = 0.0
-            any_hit = False
-            for s in range(S):
-                i = si[s]
-                j = sj[s]
-                kind = material[s]
-                kn = knotted[s] and n > 0
-                if D == 1:
-                    for w in range(B):
-                        sg = sg_b[s, w]
-                        e_tmp[w] = sg * ((x[j, 0, w] - x0_b[j, 0, w]) - (x[i, 0, w] - x0_b[i, 0, w]))
-                        ax_tmp[0, w] = sg
-                    if kind == DAMPER or has_term:
-                        for w in range(B):
-                            vpj = v[j, 0, w] + 0.5 * dt_b[w] * acc[j, 0, w]
-                            vpi = v[i, 0, w] + 0.5 * dt_b[w] * acc[i, 0, w]
-                            ed_tmp[w] = sg_b[s, w] * (vpj - vpi)
-                else:
-                    for w in range(B):
-                        ln2 = 0.0
-                        for d in range(D):
-                            dd = x[j, d, w] - x[i, d, w]
-                            ax_tmp[d, w] = dd
-                            ln2 += dd * dd
-                        ln = np.sqrt(ln2)
-                        turn = 0.0
-                        for d in range(D):
-                            turn += ax_tmp[d, w] * axis_prev[s, d, w]
-                            axis_prev[s, d, w] = ax_tmp[d, w]
-                        gone = (ln <= TINY_LENGTH * l0_b[s, w]) or (turn <= 0.0)
-                        if gone and crushed[w] < 0:
-                            crushed[w] = s
-                        dn = 1.0 if gone else ln
-                        edot = 0.0
-                        for d in range(D):
-                            ax_tmp[d, w] = ax_tmp[d, w] / dn
-                            vpj = v[j, d, w] + 0.5 * dt_b[w] * acc[j, d, w]
-                            vpi = v[i, d, w] + 0.5 * dt_b[w] * acc[i, d, w]
-                            edot += ax_tmp[d, w] * (vpj - vpi)
-                        e_tmp[w] = ln - l0_b[s, w]
-                        ed_tmp[w] = edot
-                nhit = 0
-                if kn:  # did any lane pass over a flagged knot since the previous step? (cheap: no stores)
-                    ca = curve_a[s]
-                    for k in range(off[ca] + 1, off[ca + 1] - 1):
-                        if not knot_check[k]:
-                            continue
-                        if kind == CRUSH:
-                            for w in range(B):
-                                xk = cx_b[k, w]
-                                nhit += (xk > e_tmp[w]) & (xk < state[s, 0, w])
-                        elif kind == GENERAL:
-                            for w in range(B):
-                                e = e_tmp[w]
-                                ep = e_prev[s, w]
-                                mode = state[s, 0, w]
-                                sh = state[s, 5, w]
-                                lo_ = state[s, 1, w] if mode > 0 else (e if mode < 0 else min(ep, e))
-                                hi_ = e if mode > 0 else (state[s, 3, w] if mode < 0 else max(ep, e))
-                                xk = cx_b[k, w]
-                                nhit += (xk > lo_ - sh) & (xk < hi_ - sh)
-                        else:
-                            for w in range(B):
-                                xk = cx_b[k, w]
-                                nhit += (xk > min(e_prev[s, w], e_tmp[w])) & (xk < max(e_prev[s, w], e_tmp[w]))
-                if nhit > 0:  # rare: the knots passed over, lane by lane (the state is still the one before the step)
-                    nhit = 0
-                    ca = curve_a[s]
-                    first = True
-                    for k in range(off[ca] + 1, off[ca + 1] - 1):
-                        if not knot_check[k]:
-                            continue
-                        if kind == CRUSH:  # (e, e_min): crushing further
-                            for w in range(B):
-                                yk = min(0.0, ky_b[k, w])
-                                c0 = 0.0 if first else k_c[w]
-                                xs0 = (e_prev[s, w] - 0.0) if first else k_x[w]
-                                ys0 = 0.0 if first else k_y[w]
-                                c1 = knot_peak(c0, e_tmp[w], state[s, 0, w], cx_b[k, w], yk)
-                                k_x[w] = cx_b[k, w] if c1 > c0 else xs0
-                                k_y[w] = yk if c1 > c0 else ys0
-                                k_c[w] = c1
-                                k_sh[w] = 0.0
-                                nhit += c1 > c0
-                        elif kind == GENERAL:  # on the loading curve, in its own (shifted) abscissa
-                            for w in range(B):
-                                e = e_tmp[w]
-                                ep = e_prev[s, w]
-                                mode = state[s, 0, w]
-                                sh = state[s, 5, w]
-                                lo_ = state[s, 1, w] if mode > 0 else (e if mode < 0 else min(ep, e))
-                                hi_ = e if mode > 0 else (state[s, 3, w] if mode < 0 else max(ep, e))
-                                yk = ky_b[k, w]
-                                c0 = 0.0 if first else k_c[w]
-                                xs0 = (ep - sh) if first else k_x[w]
-                                ys0 = 0.0 if first else k_y[w]
-                                c1 = knot_peak(c0, lo_ - sh, hi_ - sh, cx_b[k, w], yk)
-                                k_x[w] = cx_b[k, w] if c1 > c0 else xs0
-                                k_y[w] = yk if c1 > c0 else ys0
-                                k_c[w] = c1
-                                k_sh[w] = sh
-                                nhit += c1 > c0
-                        else:  # nonlinear_elastic: the whole path
-                            for w in range(B):
-                                e = e_tmp[w]
-                                ep = e_prev[s, w]
-                                yk = ky_b[k, w]
-                                c0 = 0.0 if first else k_c[w]
-                                xs0 = (ep - 0.0) if first else k_x[w]
-                                ys0 = 0.0 if first else k_y[w]
-                                c1 = knot_peak(c0, min(ep, e), max(ep, e), cx_b[k, w], yk)
-                                k_x[w] = cx_b[k, w] if c1 > c0 else xs0
-                                k_y[w] = yk if c1 > c0 else ys0
-                                k_c[w] = c1
-                                k_sh[w] = 0.0
-                                nhit += c1 > c0
-                        first = False
-                if kind == LINEAR:
-                    for w in range(B):
-                        F_tmp[w] = kp_b[s, w] * e_tmp[w]
-                elif kind == DAMPER:
-                    for w in range(B):
-                        F_tmp[w] = kp_b[s, w] * ed_tmp[w]
-                elif kind == NONLINEAR or kind == CRUSH:
-                    _ramp(curve_a[s], e_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
-                    if kind == CRUSH:
-                        for w in range(B):
-                            e = e_tmp[w]
-                            emin = state[s, 0, w]
-                            fstar = state[s, 1, w]
-                            on = e <= emin
-                            f_load = min(0.0, F_tmp[w])
-                            f_unl = min(0.0, fstar + kp_b[s, w] * (e - emin))
-                            F_tmp[w] = f_load if on else f_unl
-                            state[s, 0, w] = e if on else emin
-                            state[s, 1, w] = f_load if on else fstar
-                else:  # GENERAL: rules 1-4 of docs/format.md, branch-free over the block; reversals (rare) per lane
-                    ca = curve_a[s]
-                    cb = curve_b[s]
-                    for w in range(B):
-                        g_arg[w] = e_tmp[w] - state[s, 5, w]
-                        g_argt[w] = e_tmp[w] - state[s, 1, w]
-                        g_argc[w] = e_tmp[w] - state[s, 3, w]
-                    _ramp(ca, g_arg, g_L, off, cx_b, cy_b, ds_b, s0_b, B)
-                    _ramp(cb, g_argt, g_Ut, off, cx_b, cy_b, ds_b, s0_b, B)
-                    _ramp(cb, g_argc, g_Uc, off, cx_b, cy_b, ds_b, s0_b, B)
-                    nrev = 0
-                    for w in range(B):
-                        e = e_tmp[w]
-                        mode = state[s, 0, w]
-                        et = state[s, 1, w]
-                        ft = state[s, 2, w]
-                        ec = state[s, 3, w]
-                        fc = state[s, 4, w]
-                        ytw = yt_b[s, w]
-                        ycw = yc_b[s, w]
-                        L = g_L[w]
-                        thr_t = ft if state[s, 6, w] > 0 else ytw
-                        thr_c = fc if state[s, 7, w] > 0 else ycw
-                        is0 = mode == 0
-                        ist = mode > 0
-                        isc = mode < 0
-                        on_l = ist & (e >= et)
-                        on_lc = isc & (e <= ec)
-                        bt = ft + g_Ut[w]
-                        bc = fc + g_Uc[w]
-                        F_tmp[w] = L if (is0 | on_l | on_lc) else (bt if ist else bc)
-                        to_t = is0 & (L >= ytw)
-                        to_c = is0 & (L <= ycw)
-                        rev = (ist & ~on_l & (bt <= thr_c)) | (isc & ~on_lc & (bc >= thr_t))
-                        g_rev[w] = rev
-                        nrev += rev
-                        state[s, 1, w] = e if (on_l | to_t) else et
-                        state[s, 2, w] = L if (on_l | to_t) else ft
-                        state[s, 3, w] = e if (on_lc | to_c) else ec
-                        state[s, 4, w] = L if (on_lc | to_c) else fc
-                        state[s, 0, w] = 1.0 if to_t else (-1.0 if to_c else mode)
-                        state[s, 6, w] = 1.0 if to_t else state[s, 6, w]
-                        state[s, 7, w] = 1.0 if to_c else state[s, 7, w]
-                    if nrev > 0:
-                        for w in range(B):
-                            if g_rev[w]:
-                                F_tmp[w] = reverse_yield(e_tmp[w], state[s], w, ca, cb, yt_b[s, w], yc_b[s, w], lo + w,
-                                                         cx, cy, cds, cs0, cs1, off)
-                if kn:
-                    k_any[s] = nhit > 0
-                if nhit > 0:  # rare: peak-force candidate and the deceleration data (see reference)
-                    any_hit = True
-                    for w in range(B):
-                        kcw = k_c[w]
-                        hit = kcw > 0.0
-                        epa = e_prev[s, w] - k_sh[w]
-                        ea = e_tmp[w] - k_sh[w]
-                        th = (k_x[w] - epa) / ((ea - epa) if hit else 1.0)
-                        dF = (k_y[w] - ((1.0 - th) * f_prev[s, w] + th * F_tmp[w])) if hit else 0.0
-                        k_hit[s, w] = hit
-                        k_th[s, w] = th
-                        for d in range(D):
-                            k_dfax[s, d, w] = dF * ax_tmp[d, w]
-                        pf[s, w] = max(pf[s, w], kcw * actf[w])
-                # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
-                if D == 1 and n > 0:  # one pass: scatter and summaries
-                    for w in range(B):
-                        F = F_tmp[w]
-                        e = e_tmp[w]
-                        af = actf[w]
-                        fa = F * ax_tmp[0, w]
-                        f[i, 0, w] += fa
-                        f[j, 0, w] -= fa
-                        ie[s, w] = ie[s, w] + (0.5 * (F + f_prev[s, w]) * (e - e_prev[s, w])) * af
-                        ie_tot[w] += ie[s, w]
-                        pf[s, w] = max(pf[s, w], abs(F) * af)
-                        mc[s, w] = max(mc[s, w], -e * af)
-                        forces[s, w] = F
-                        elong[s, w] = e
-                        f_prev[s, w] = F
-                        e_prev[s, w] = e
-                else:
-                    for d in range(D):
-                        for w in range(B):
-                            fa = F_tmp[w] * ax_tmp[d, w]
-                            f[i, d, w] += fa
-                            f[j, d, w] -= fa
-                    for w in range(B):
-                        F = F_tmp[w]
-                        e = e_tmp[w]
-                        af = actf[w]
-                        if n > 0:
-                            ie[s, w] = ie[s, w] + (0.5 * (F + f_prev[s, w]) * (e - e_prev[s, w])) * af
-                        ie_tot[w] += ie[s, w]
-                        pf[s, w] = max(pf[s, w], abs(F) * af)
-                        mc[s, w] = max(mc[s, w], -e * af)
-                        forces[s, w] = F
-                        elong[s, w] = e
-                        f_prev[s, w] = F
-                        e_prev[s, w] = e
-                if has_term:
-                    for w in range(B):
-                        edot_min[w] = min(edot_min[w], ed_tmp[w])
-
+            Z.f[:] = 0.0
+            Z.crushed[:] = -1
+            Z.edot_min[:] = np.inf
+            Z.ie_tot[:] = 0.0
+            any_hit = springs(n, lo, B, D, has_term, T, P, In, Z, Out)
             if any_hit:  # a^{n-1}, for the accelerations at this step's knot crossings
-                for n_ in range(N):
-                    for d in range(D):
-                        for w in range(B):
-                            acc_prev[n_, d, w] = acc[n_, d, w]
-            # external forces, accelerations, velocities
+                Z.acc_prev[:] = Z.acc
             if fused:
-                # a = f/m, v^{n+1/2}, kinetic energy, peak |a| and x^{n+1} in one pass (the same
-                # arithmetic as the general path below; x and v advance before the failure check,
-                # which changes nothing a failed variant reports)
-                for w in range(B):
-                    ke[w] = 0.0
-                for n_ in range(N):
-                    mv = movable[n_]
-                    for w in range(B):
-                        a = (f[n_, 0, w] + 0.0) * im_b[n_, 0, w]
-                        acc[n_, 0, w] = a
-                        vo = v[n_, 0, w]
-                        vn = vo + (h * dt_b[w]) * a
-                        vnew[n_, 0, w] = vn
-                        ke[w] += 0.5 * m_b[n_, w] * vo * vn
-                        af = actf[w]
-                        if mv:
-                            pacc[n_, w] = max(pacc[n_, w], (a * a) * af)
-                        x[n_, 0, w] = x[n_, 0, w] + (dt_b[w] * af) * vn
-                        v[n_, 0, w] = vn * af + vo * (1.0 - af)
-            elif not no_ext:
-                for n_ in range(N):
-                    for d in range(D):
-                        for w in range(B):
-                            fext[n_, d, w] = m_b[n_, w] * gravity[d, lo + w] if has_gravity else 0.0
-                for k in range(NL):
-                    c = load_curve[k]
-                    p = load_node[k]
-                    for w in range(B):
-                        q = lo + w
-                        scale = time_curve_at(c, n * dt_b[w], q, cx, cy, cds, cs0, off) if c >= 0 else 1.0
-                        for d in range(D):
-                            fext[p, d, w] += load_force[k, d, q] * scale
-                for n_ in range(N):
-                    for d in range(D):
-                        for w in range(B):
-                            a = (f[n_, d, w] + fext[n_, d, w]) * im_b[n_, d, w]
-                            acc[n_, d, w] = a
-                            vnew[n_, d, w] = v[n_, d, w] + (h * dt_b[w]) * a
+                gn.fused_1d(h, B, In, Z)
             else:
-                for n_ in range(N):
-                    for d in range(D):
-                        for w in range(B):
-                            a = (f[n_, d, w] + 0.0) * im_b[n_, d, w]
-                            acc[n_, d, w] = a
-                            vnew[n_, d, w] = v[n_, d, w] + (h * dt_b[w]) * a
-            for k in range(NP):
-                p = pm_node[k]
-                d = pm_dir[k]
-                c = pm_curve[k]
-                for w in range(B):
-                    q = lo + w
-                    t = n * dt_b[w]
-                    dtn = h * dt_b[w]
-                    if pm_kind[k] == PM_DISPLACEMENT:
-                        target = x0_b[p, d, w] + pm_scale[k, q] * time_curve_at(c, t + dt_b[w], q, cx, cy, cds, cs0, off)
-                        vnew[p, d, w] = (target - x[p, d, w]) / dt_b[w]
-                    elif pm_kind[k] == PM_ACCELERATION:
-                        vnew[p, d, w] = v[p, d, w] + dtn * pm_scale[k, q] * time_curve_at(c, t, q, cx, cy, cds, cs0, off)
-                    else:
-                        vnew[p, d, w] = pm_scale[k, q] * time_curve_at(c, t + 0.5 * dt_b[w], q, cx, cy, cds, cs0, off)
-                    if n != nst[w]:
-                        pm_acc[k, w] = (vnew[p, d, w] - v[p, d, w]) / dtn
-                    else:  # the last step's update would look past end_time: continue with the previous acceleration
-                        vnew[p, d, w] = v[p, d, w] + dtn * pm_acc[k, w]
-                    acc[p, d, w] = pm_acc[k, w]
-                    ftot = f[p, d, w] + fext[p, d, w]
-                    fext[p, d, w] += m_b[p, w] * acc[p, d, w] - ftot
-            if W > 0:
-                wforce[:] = 0.0
-            for wl in range(W):
-                for n_ in range(N):
-                    if wall_nodes[wl, n_] == 0.0:
-                        continue
-                    for w in range(B):
-                        q = lo + w
-                        vn = 0.0
-                        gap = 0.0
-                        dist = 0.0
-                        for d in range(D):
-                            nr = wall_normal[wl, d, q]
-                            vn += vnew[n_, d, w] * nr
-                            gap += (x[n_, d, w] - wall_point[wl, d, q]) * nr
-                            dist += (x[n_, d, w] + dt_b[w] * vnew[n_, d, w] - wall_point[wl, d, q]) * nr
-                        dvn = -gap / dt_b[w] - vn if (dist < 0.0 and vn < 0.0) else 0.0
-                        we = 0.0
-                        for d in range(D):
-                            jmp = dvn * wall_normal[wl, d, q] * free[n_, d]
-                            vnew[n_, d, w] = vnew[n_, d, w] + jmp
-                            we += v[n_, d, w] * (jmp + jump_prev[wl, n_, d, w])
-                            jump_prev[wl, n_, d, w] = jmp
-                        if act[w]:
-                            wall_e[w] += -0.5 * m_b[n_, w] * we
-                        wforce[wl, w] += m_b[n_, w] * abs(dvn) / dt_b[w]
-
-            # energies (sums over nodes/springs with the variant loop innermost)
-            if fused:
-                pass  # kinetic energy summed above; no external work
-            elif n == 0:
-                for w in range(B):
-                    ke[w] = ke0[w]
-            else:
-                for w in range(B):
-                    ke[w] = 0.0
-                    bal[w] = 0.0
-                for n_ in range(N):
-                    for d in range(D):
-                        for w in range(B):
-                            ke[w] += 0.5 * m_b[n_, w] * v[n_, d, w] * vnew[n_, d, w]
-                if not no_ext:
-                    for n_ in range(N):
-                        for d in range(D):
-                            for w in range(B):
-                                vb = 0.5 * (v0[n_, d, lo + w] + v[n_, d, w]) if n == 1 else v[n_, d, w]
-                                bal[w] += 0.5 * (fext[n_, d, w] * v[n_, d, w] + fext_prev[n_, d, w] * vb)
-                    for w in range(B):
-                        work[w] = work[w] + (bal[w] * dt_b[w]) * actf[w]
-            nbad = 0
-            for w in range(B):
-                wmax[w] = max(wmax[w], abs(work[w]))
-                b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - ke0[w] - work[w])
-                bal[w] = b_
-                err[w] = max(err[w], b_ * actf[w])
-                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]) + e_floor[lo + w])
-            anybad = nbad > 0
-            # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
-            for n_ in range(N):
-                if fused or not movable[n_]:
-                    continue
-                for w in range(B):
-                    a2 = 0.0
-                    for d in range(D):
-                        a2 += acc[n_, d, w] * acc[n_, d, w]
-                    pacc[n_, w] = max(pacc[n_, w], a2 * actf[w])
-            if any_hit:  # |a| at the knot crossings of this step (see reference)
-                for s in range(S):
-                    if not k_any[s]:
-                        continue
-                    for side in range(2):
-                        p = si[s] if side == 0 else sj[s]
-                        if not movable[p]:
-                            continue
-                        for w in range(B):
-                            th = k_th[s, w]
-                            a2 = 0.0
-                            for d in range(D):
-                                ai = (1.0 - th) * acc_prev[p, d, w] + th * acc[p, d, w]
-                                cr = k_dfax[s, d, w] * im_b[p, d, w]
-                                ai = ai + cr if side == 0 else ai - cr
-                                a2 += ai * ai
-                            pacc[p, w] = max(pacc[p, w], (a2 if k_hit[s, w] else 0.0) * actf[w])
-            for wl in range(W):
-                for w in range(B):
-                    pwall[wl, w] = max(pwall[wl, w], wforce[wl, w] * actf[w])
-            if D > 1:
-                for w in range(B):
-                    anybad = anybad or (act[w] and crushed[w] >= 0)
-            if anybad:
-                for w in range(B):
-                    if not act[w]:
-                        continue
-                    if not (bal[w] <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]) + e_floor[lo + w]):
-                        st_ok[w] = UNSTABLE
-                        fail_time[lo + w] = n * dt_b[w]
-                        n_fail[w] = n
-                        act[w] = False
-                        actf[w] = 0.0
-                    elif D > 1 and crushed[w] >= 0:
-                        st_ok[w] = CRUSHED_TO_ZERO
-                        fail_item[lo + w] = crushed[w]
-                        fail_time[lo + w] = n * dt_b[w]
-                        n_fail[w] = n
-                        act[w] = False
-                        actf[w] = 0.0
+                gn.nodes(n, h, lo, B, no_ext, has_gravity, T, P, In, Z)
+            gn.energies(n, lo, B, fused, no_ext, P, In, Z)
+            gn.checks(n, lo, B, D, fused, any_hit, T, P, In, Z, Out)
             if any_hist:
-                for w in range(B):
-                    q = lo + w
-                    if not (act[w] and n == next_rec[w]):
-                        continue
-                    r = n // out_every[q]
-                    next_rec[w] = n + out_every[q]
-                    if r >= n_out:  # the last step may pass the last sample time
-                        continue
-                    for n_ in range(N):
-                        for d in range(D):
-                            if rec_mask[0]:
-                                h_pos[r, n_, d, q] = x[n_, d, w]
-                            if rec_mask[1]:
-                                h_disp[r, n_, d, q] = x[n_, d, w] - x0_b[n_, d, w]
-                            if rec_mask[2]:
-                                h_vel[r, n_, d, q] = 0.5 * (v[n_, d, w] + vnew[n_, d, w]) if n > 0 else v[n_, d, w]
-                            if rec_mask[3]:
-                                h_acc[r, n_, d, q] = acc[n_, d, w]
-                    for s in range(S):
-                        if rec_mask[4]:
-                            h_force[r, s, q] = forces[s, w]
-                        if rec_mask[5]:
-                            h_elong[r, s, q] = elong[s, w]
-                    if rec_mask[6]:
-                        h_energy[r, 0, q] = ke[w]
-                        h_energy[r, 1, q] = ie_tot[w]
-                        h_energy[r, 2, q] = work[w]
-                        h_energy[r, 3, q] = wall_e[w]
-                    for wl in range(W):
-                        if rec_mask[10]:
-                            h_wall[r, wl, q] = wforce[wl, w]
+                gn.record(n, lo, B, n_out, P, In, Z, H)
             if has_term and n > 0:
-                for w in range(B):
-                    q = lo + w
-                    t = n * dt_b[w]
-                    if not act[w] or ke_fraction[q] <= 0.0 or t < min_time[q]:
-                        continue
-                    fsum = 0.0
-                    psum = 0.0
-                    for s in range(S):
-                        fsum += abs(forces[s, w])
-                        psum += pf[s, w]
-                    small_f = fsum <= ke_fraction[q] * psum
-                    small_ke = ke[w] <= ke_fraction[q] * (ke0[w] + wmax[w])
-                    opening = edot_min[w] >= 0.0 and no_ext
-                    if small_f and (small_ke or opening):
-                        nst[w] = n
-                        n_end = n
+                n_end = gn.terminate(n, n_end, lo, B, no_ext, P, In, Z)
             for w in range(B):
                 if n != n_end:
                     break
-                if act[w] and n == nst[w]:
+                if Z.act[w] and n == Z.nst[w]:
                     q = lo + w
-                    final_energy[0, q] = ke[w]
-                    final_energy[1, q] = ie_tot[w]
-                    final_energy[2, q] = work[w]
-                    final_energy[3, q] = wall_e[w]
-            for n_ in range(N):
-                if fused:
-                    break
-                for d in range(D):
-                    for w in range(B):
-                        af = actf[w]  # a stopped variant keeps x and v (vnew is finite for it)
-                        x[n_, d, w] = x[n_, d, w] + (dt_b[w] * af) * vnew[n_, d, w]
-                        v[n_, d, w] = vnew[n_, d, w] * af + v[n_, d, w] * (1.0 - af)
-            if not no_ext:
-                for n_ in range(N):
-                    for d in range(D):
-                        for w in range(B):
-                            fext_prev[n_, d, w] = fext[n_, d, w]
+                    Out.final_energy[0, q] = Z.ke[w]
+                    Out.final_energy[1, q] = Z.ie_tot[w]
+                    Out.final_energy[2, q] = Z.work[w]
+                    Out.final_energy[3, q] = Z.wall_e[w]
+            gn.advance(B, fused, no_ext, In, Z)
+        _results(lo, B, In, Z, Out)
+
+
+@nb.njit(cache=True, nogil=True)
+def _results(lo, B, In, Z, Out):  # pragma: no cover - compiled
+    for w in range(B):
+        q = lo + w
+        Out.status[q] = Z.st_ok[w]
+        Out.energy_error[q] = Z.err[w] / max(Z.e_init[w] + Z.wmax[w], 1e-300)
+        if Z.st_ok[w] == 0:
+            Out.t_end[q] = Z.nst[w] * In.dt[w]
+        elif Z.n_fail[w] > 0:
+            Out.t_end[q] = (Z.n_fail[w] - 1) * In.dt[w]
+    for s in range(Z.ie.shape[0]):
         for w in range(B):
-            q = lo + w
-            status[q] = st_ok[w]
-            energy_error[q] = err[w] / max(ke0[w] + wmax[w], 1e-300)
-            if st_ok[w] == 0:
-                t_end[q] = nst[w] * dt_b[w]
-            elif n_fail[w] > 0:
-                t_end[q] = (n_fail[w] - 1) * dt_b[w]
-        for s in range(S):
-            for w in range(B):
-                absorbed[s, lo + w] = ie[s, w]
-                peak_force[s, lo + w] = pf[s, w]
-                max_crush[s, lo + w] = mc[s, w]
-        for n_ in range(N):
-            for w in range(B):
-                peak_acc[n_, lo + w] = np.sqrt(pacc[n_, w])
-        for wl in range(W):
-            for w in range(B):
-                peak_wall[wl, lo + w] = pwall[wl, w]
+            Out.absorbed[s, lo + w] = Z.ie[s, w]
+            Out.peak_force[s, lo + w] = Z.pf[s, w]
+            Out.max_crush[s, lo + w] = Z.mc[s, w]
+            Out.max_elongation[s, lo + w] = Z.me[s, w]
+    for n_ in range(Z.pacc.shape[0]):
+        for w in range(B):
+            Out.peak_acc[n_, lo + w] = np.sqrt(Z.pacc[n_, w])
+    for wl in range(Z.pwall.shape[0]):
+        for w in range(B):
+            Out.peak_wall[wl, lo + w] = Z.pwall[wl, w]
 
 
 def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK) -> KernelOutput:
     """Integrate every variant of ``b`` with the compiled kernel (same results as the reference)."""
-    N, D, V = b.x0.shape
-    S = len(b.spring_i)
-    W = b.wall_nodes.shape[0]
-    out = allocate(S, N, D, W, V, histories, n_out)
-    energies = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
-    want_energy = any(h in histories for h in energies)
-    T = n_out
-
-    def buf(name: str, shape: tuple[int, ...]) -> np.ndarray:
-        return out.histories[name] if name in out.histories else np.empty((1,) * len(shape))
-
-    h_energy = np.full((T, 4, V), np.nan) if want_energy else np.empty((1, 4, 1))
-    rec_mask = np.array([h in histories for h in HISTORY_ORDER], dtype=np.bool_)
-    if want_energy:
-        rec_mask[6] = True  # energies are written together
-    starts = np.arange(0, V + block, block)
-    starts[-1] = V
-    starts = np.unique(starts).astype(np.int64)
-    args = (starts, b.spring_i, b.spring_j, b.material, b.curve_a, b.curve_b, b.curve_off, b.free, b.load_node,
-         b.load_curve, b.pm_node, b.pm_dir, b.pm_kind, b.pm_curve, b.wall_nodes, b.mass, b.inv_mass, b.x0, b.v0,
-         b.length0, b.sign, b.kpar, b.yield_t, b.yield_c, b.cx, b.cy, b.cds, b.cs0, b.cs1, b.gravity,
-         b.load_force, b.pm_scale, b.wall_point, b.wall_normal, b.dt, b.n_steps, b.out_every, b.ke_fraction,
-         b.min_time, b.invalid, b.energy_floor, b.knot_y, b.knot_check, rec_mask,
-         buf("position", (T, N, D, V)), buf("displacement", (T, N, D, V)), buf("velocity", (T, N, D, V)),
-         buf("acceleration", (T, N, D, V)), buf("spring_force", (T, S, V)), buf("spring_elongation", (T, S, V)),
-         h_energy, buf("wall_force", (T, W, V)),
-         out.status, out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush, out.absorbed_energy,
-         out.peak_acceleration, out.peak_wall_force, out.energy_error, out.final_energy)  # fmt: skip
-    nblocks = len(starts) - 1
-    threads = min(get_threads(), nblocks)
-    if threads <= 1:
-        _run(0, nblocks, T, *args)
-    else:
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(lambda bi: _run(bi, bi + 1, T, *args), range(nblocks)))
-    for k, name in enumerate(energies):
-        if name in out.histories:
-            out.histories[name][:] = h_energy[:, k, :]
-    return out
+    out, hist, summ = outputs(b, histories, n_out)
+    topo, var = records(b)
+    run_blocks(_run, block_starts(b.x0.shape[2], block), n_out, topo, var, hist, summ)
+    return finish(out, hist)

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-NSTATE = 8
-TIME_EPS = 1e-9  # relative to a time curve's span
+from crashstudy.kernel.codes import NSTATE, TIME_EPS
+
+__all__ = ["NSTATE", "TIME_EPS", "crush", "curve_eval", "general_nonlinear", "time_curve_eval"]
 
 
 def curve_eval(c: int, e: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray,

@@ -6,15 +6,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-# failure codes (status); 0 = ok
-OK, UNSTABLE, CRUSHED_TO_ZERO, INVALID = 0, 1, 2, 3
+from crashstudy.kernel.codes import CRUSHED_TO_ZERO, HISTORY_ORDER, HISTORY_SHAPES, INVALID, OK, UNSTABLE
 
-HISTORY_SHAPES = {  # dims between time and variant
-    "position": ("node", "axis"), "displacement": ("node", "axis"), "velocity": ("node", "axis"),
-    "acceleration": ("node", "axis"), "spring_force": ("spring",), "spring_elongation": ("spring",),
-    "kinetic_energy": (), "internal_energy": (), "external_work": (), "wall_energy": (), "wall_force": ("wall",),
-}  # fmt: skip
-HISTORY_ORDER = tuple(HISTORY_SHAPES)
+__all__ = ["CRUSHED_TO_ZERO", "HISTORY_ORDER", "HISTORY_SHAPES", "INVALID", "OK", "UNSTABLE", "KernelOutput", "allocate"]
 
 
 @dataclass
@@ -37,7 +31,7 @@ class KernelOutput:
     energy_error: np.ndarray  # (V,) max relative energy balance error
     final_energy: np.ndarray  # (4, V) KE, IE, W_ext, E_wall at the end [energy]
     histories: dict[str, np.ndarray] = field(default_factory=dict)
-    # SPEC v2; NaN where a kernel does not compute them (a fast kernel before it supports them)
+    # SPEC v2 summaries
     max_elongation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (S, V) max stretch max(e)
     # while intact [length]
     spring_fail_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (S, V) [time] when a spring
@@ -53,5 +47,5 @@ def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...],
         t_end=np.zeros(V), peak_force=np.zeros((S, V)), max_crush=np.zeros((S, V)),
         absorbed_energy=np.zeros((S, V)), peak_acceleration=np.zeros((N, V)), peak_wall_force=np.zeros((W, V)),
         energy_error=np.zeros(V), final_energy=np.zeros((4, V)), histories=hist,
-        max_elongation=np.full((S, V), np.nan), spring_fail_time=np.full((S, V), np.nan),
+        max_elongation=np.zeros((S, V)), spring_fail_time=np.full((S, V), np.nan),
     )  # fmt: skip

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from crashstudy.compiler import CRUSH, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR
+from crashstudy.kernel.codes import CRUSH, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR
 from crashstudy.kernel import materials as mat
 
 

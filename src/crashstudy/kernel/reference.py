@@ -23,11 +23,12 @@ Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0`
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crashstudy.batch import Batch
-from crashstudy.compiler import (
+from crashstudy.kernel import materials as mat
+from crashstudy.kernel.codes import (
     CRUSH,
     DAMPER,
     ELASTOPLASTIC,
@@ -37,14 +38,17 @@ from crashstudy.compiler import (
     NONLINEAR_DAMPER,
     PM_ACCELERATION,
     PM_DISPLACEMENT,
+    TINY_LENGTH,
+    UNSTABLE_ENERGY,
 )
-from crashstudy.kernel import materials as mat
+
+if TYPE_CHECKING:
+    from crashstudy.batch import Batch
+
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput, allocate
 
 STOP_EVERY = 256  # steps between calls of run_reference's ``check``
-TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
-UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + IE0 + |W_ext| (+ a round-off
-# floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
+__all__ = ["TINY_LENGTH", "UNSTABLE_ENERGY", "run_reference"]
 
 
 def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Callable[[], None] | None = None
@@ -72,16 +76,17 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     # 2-D: the previous direction of each spring; a reversal means the nodes passed through each other
     axis_prev = (b.x0[b.spring_j] - b.x0[b.spring_i]) if D > 1 else np.zeros((0, D, V))
     ie = b.ie0.copy()  # IE includes the energy stored at t = 0 (initial_elongation)
-    ie0 = np.sum(b.ie0, axis=0)
-    edot0 = np.zeros((S, V))  # elongation rate at t = 0 (the first half step's work, below)
+    ie0 = np.zeros(V)
+    for s in range(S):
+        ie0 = ie0 + b.ie0[s]
     # preloaded springs (F^0 != 0 only with an initial elongation: every material curve passes the origin)
     first_half = (b.e0 != 0.0) & ~np.isin(b.material, (DAMPER, NONLINEAR_DAMPER))[:, None]
     broken = np.zeros((S, V), dtype=bool)  # springs past a failure elongation: no force for the rest of the run
-    out.max_elongation[:] = 0.0
     work = np.zeros(V)
     wall_e = np.zeros(V)
     wmax = np.zeros(V)
     ke0 = 0.5 * np.sum(m[:, None, :] * b.v0 * b.v0, axis=(0, 1))
+    e_init = ke0 + ie0  # the energy at t = 0: KE0 + IE0
     err = np.zeros(V)
     no_ext = len(b.load_node) == 0 and len(b.pm_node) == 0 and not np.any(b.gravity)
     cargs = (b.cx, b.cy, b.cds, b.cs0, b.curve_off)
@@ -120,7 +125,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                 crushed = np.where(gone & ~broken[s] & (crushed < 0), s, crushed)  # a broken spring may collapse
                 axis = d / np.where(gone, 1.0, length)
                 axis_prev[s] = d
-                e = b.e0[s] + length - b.length0[s]
+                e = b.e0[s] + (length - b.length0[s])
                 edot = np.sum(axis * (vpj - vpi), axis=0)
             st_before = state[s].copy() if knotted[s] and n > 0 else None
             F = _force(b, s, e, edot, state[s], cargs)
@@ -136,15 +141,13 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
             f[j] -= F * axis
             forces[s], elong[s] = F, e
             edot_min = np.minimum(edot_min, edot)
-            if n == 0:
-                edot0[s] = edot
-            else:
+            if n > 0:
                 de = e - e_prev[s]
                 step_ie = 0.5 * (F + f_prev[s]) * de
                 if n == 1 and first_half[s].any():
                     # over the first (half) step F^0 acts on the mean rate (edot^0 + edot^{1/2}) / 2 for dt/2, as
                     # in the external work: exact for a preload released from rest (docs/solver.md, "Energy")
-                    half = (0.5 * F + 0.25 * f_prev[s]) * de + 0.25 * dt * f_prev[s] * edot0[s]
+                    half = (0.5 * F + 0.25 * f_prev[s]) * de + 0.25 * dt * f_prev[s] * b.rate0[s]
                     step_ie = np.where(first_half[s], half, step_ie)
                 ie[s] += np.where(act, step_ie, 0.0)
             out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], np.abs(F)), out.peak_force[s])
@@ -209,7 +212,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
             work += np.where(act, 0.5 * np.sum(fext * v + fext_prev * vbar, axis=(0, 1)) * dt, 0.0)
         wmax = np.maximum(wmax, np.abs(work))
         ie_tot = np.sum(ie, axis=0)
-        bal = np.abs(ke + ie_tot + wall_e - ke0 - ie0 - work)
+        bal = np.abs(ke + ie_tot + wall_e - e_init - work)
         err = np.where(act, np.maximum(err, bal), err)
         amag = np.sqrt(np.sum(a * a, axis=1))
         out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
@@ -230,7 +233,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                                                     out.peak_acceleration[p])  # fmt: skip
         out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
 
-        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (ke0 + ie0 + wmax) + b.energy_floor))
+        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (e_init + wmax) + b.energy_floor))
         out.status[:] = np.where(bad, UNSTABLE, out.status)
         gone = act & ~bad & (crushed >= 0)
         out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)
@@ -246,7 +249,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         last = ok & (n == nst)
         if b.ke_fraction.any():
             small_f = np.sum(np.abs(forces), axis=0) <= b.ke_fraction * np.sum(out.peak_force, axis=0)
-            small_ke = ke <= b.ke_fraction * (ke0 + ie0 + wmax)
+            small_ke = ke <= b.ke_fraction * (e_init + wmax)
             opening = (edot_min >= 0.0) & no_ext
             stop = ok & (b.ke_fraction > 0) & (t >= b.min_time) & small_f & (small_ke | opening) & (n > 0)
             nst = np.where(stop, n, nst)
@@ -259,7 +262,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         fext_prev = fext
 
     out.absorbed_energy[:] = ie
-    out.energy_error[:] = err / np.maximum(ke0 + ie0 + wmax, 1e-300)
+    out.energy_error[:] = err / np.maximum(e_init + wmax, 1e-300)
     return out
 
 
@@ -274,7 +277,7 @@ def spring_knotted(b: Batch) -> np.ndarray:
 
 
 def knot_peak_np(cand: np.ndarray, e_lo: np.ndarray, e_hi: np.ndarray, xk: np.ndarray, yk: np.ndarray) -> np.ndarray:
-    """NumPy twin of :func:`crashstudy.kernel.scalar.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
+    """NumPy twin of :func:`crashstudy.kernel.laws.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
     ak = np.abs(yk)
     return np.where((xk > e_lo) & (xk < e_hi) & (ak > cand), ak, cand)
 

@@ -1,0 +1,42 @@
+"""Codes and names the kernels share with the rest of crashstudy (one copy of each table).
+
+The compiler imports the material and motion codes from here; the kernel package imports nothing
+of the schema, YAML or pydantic.
+"""
+
+from __future__ import annotations
+
+# material codes seen by the kernels (spring ``material`` array)
+LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER = 0, 1, 2, 3, 4
+MATERIAL_CODES = {"linear_elastic": LINEAR, "nonlinear_elastic": NONLINEAR,
+                  "general_nonlinear": GENERAL, "crush": CRUSH, "damper": DAMPER}  # fmt: skip
+# SPEC v2 materials
+ELASTOPLASTIC, NONLINEAR_DAMPER = 5, 6
+MATERIAL_CODES.update({"elastoplastic": ELASTOPLASTIC, "nonlinear_damper": NONLINEAR_DAMPER})
+# materials that follow a loading curve (curve_a) and so can have knot peaks
+CURVE_MATERIALS = (NONLINEAR, CRUSH, GENERAL)
+# materials with a state (rows of the (S, NSTATE, V) state array); see kernel.materials
+STATE_MATERIALS = (GENERAL, CRUSH, ELASTOPLASTIC)
+NSTATE = 8
+
+# prescribed-motion quantities
+PM_DISPLACEMENT, PM_VELOCITY, PM_ACCELERATION = 0, 1, 2
+PM_CODES = {"displacement": PM_DISPLACEMENT, "velocity": PM_VELOCITY, "acceleration": PM_ACCELERATION}
+
+# failure codes (status); 0 = ok
+OK, UNSTABLE, CRUSHED_TO_ZERO, INVALID = 0, 1, 2, 3
+
+# the histories a kernel can record: dims between time and variant, in the kernels' order
+HISTORY_SHAPES = {
+    "position": ("node", "axis"), "displacement": ("node", "axis"), "velocity": ("node", "axis"),
+    "acceleration": ("node", "axis"), "spring_force": ("spring",), "spring_elongation": ("spring",),
+    "kinetic_energy": (), "internal_energy": (), "external_work": (), "wall_energy": (), "wall_force": ("wall",),
+}  # fmt: skip
+HISTORY_ORDER = tuple(HISTORY_SHAPES)
+# the four energies, written together (final_energy rows, h_energy columns)
+ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
+
+TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
+UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + IE0 + |W_ext| (+ a round-off
+# floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
+TIME_EPS = 1e-9  # relative to a time curve's span: t = n dt carries round-off, a knot at end_time is inside

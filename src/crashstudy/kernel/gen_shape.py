@@ -1,0 +1,256 @@
+"""Model shape of a generated kernel: what its source depends on (topology, constant curves,
+histories kept) and the layout every emitter shares (:func:`layout`: rows of the block work array).
+"""
+
+from __future__ import annotations
+
+import os
+from types import SimpleNamespace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from crashstudy.kernel.codes import CRUSH, DAMPER, ENERGIES, GENERAL, HISTORY_ORDER, NONLINEAR
+
+if TYPE_CHECKING:
+    from crashstudy.batch import Batch
+
+GEN_VERSION = 9  # bump when the generated source changes meaning (old cached kernels are ignored)
+BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
+ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
+
+
+MAX_KNOTS = 150  # knots of one curve above which the emitted sums nest too deep for Python's parser
+
+
+def unsupported(b: Batch) -> str | None:
+    """Why a generated kernel cannot run ``b`` (None if it can)."""
+    knots = int(np.max(np.diff(b.curve_off), initial=0))
+    if knots > MAX_KNOTS:
+        return f"a curve has {knots} knots (the generated kernel takes at most {MAX_KNOTS})"
+    return v2_features(b)
+
+
+def v2_features(b: Batch) -> str | None:
+    """The SPEC v2 spring features in ``b`` that the generated kernel does not implement yet (the generic
+    kernel and the reference do), or None."""
+    from crashstudy.kernel.codes import ELASTOPLASTIC, NONLINEAR_DAMPER
+
+    if np.any(np.isin(b.material, (ELASTOPLASTIC, NONLINEAR_DAMPER))):
+        return "an elastoplastic or nonlinear_damper spring"
+    if np.any(b.e0 != 0.0):
+        return "an initial_elongation"
+    if np.any(np.isfinite(b.fail_t)) or np.any(np.isfinite(b.fail_c)):
+        return "a spring failure"
+    return None
+
+
+# ---------------------------------------------------------------------------------------------
+# shape of a model: what the source depends on
+
+
+def _constant_curves(b: Batch, vary: frozenset[int] | None) -> list[int]:
+    """Curves whose coefficients are the same in every variant of ``b`` and, when ``vary`` (curve
+    indices a study varies) is given, not among those: their numbers stay in registers."""
+    out = []
+    for c in range(len(b.curve_off) - 1):
+        a0, b0 = b.curve_off[c], b.curve_off[c + 1]
+        if vary is not None and c in vary:
+            continue
+        rows = [b.cx[a0:b0], b.cy[a0:b0], b.cds[a0:b0], b.knot_y[a0:b0], b.cs0[c : c + 1]]
+        if all(np.all(r == r[:, :1]) for r in rows):
+            out.append(c)
+    return out
+
+
+def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
+    """(coefficient name, Batch array, row) of every constant-curve coefficient the springs read, in
+    the order of the kernel's ``cst`` argument."""
+    off, S = shape["off"], shape["S"]
+    tcurves = {c for _, c in shape["loads"] if c >= 0} | {c for _, _, _, c in shape["pm"]}
+    used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0} | tcurves
+    out = []
+    for c in shape["const"]:
+        if c not in used:
+            continue
+        if c in tcurves:
+            out.append((f"cx{off[c + 1] - 1}", "cx", off[c + 1] - 1))
+        out += [(f"cy0_{c}", "cy", off[c]), (f"s0_{c}", "cs0", c)]
+        for k in range(off[c], off[c + 1] - 1):
+            out.append((f"cx{k}", "cx", k))
+            if k > off[c]:
+                out.append((f"ds{k}", "cds", k))
+            if k in shape["kcheck"]:
+                out.append((f"kyv{k}", "knot_y", k))
+    return out
+
+
+def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
+    """The ``cst`` argument: the constant curves' coefficients (the same in every variant)."""
+    return np.array([getattr(b, arr)[row, 0] for _, arr, row in _const_layout(shape)] + [0.0])
+
+
+def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None,
+           const: list[int] | None = None) -> dict[str, Any]:  # fmt: skip
+    """What the generated source depends on. ``const``: the constant curves when already known (a
+    background compile gets them from the run, whose batch it does not have)."""
+    N, D, _ = b.x0.shape
+    pm_nodes = set(b.pm_node.tolist())
+    static = [bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0) and n not in pm_nodes) for n in range(N)]
+    sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
+            for s in range(len(b.spring_i))]  # fmt: skip
+    return {
+        "const": _constant_curves(b, vary) if const is None else const, "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
+        "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
+        "gravity": bool(np.any(b.gravity != 0.0)), "term": bool(np.any(b.ke_fraction > 0.0)),
+        "walls": [[n for n in range(N) if b.wall_nodes[k, n] != 0.0] for k in range(b.wall_nodes.shape[0])],
+        "free": b.free.tolist(), "loads": [[int(n), int(c)] for n, c in zip(b.load_node, b.load_curve, strict=True)],
+        "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
+        "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
+        "movable": [bool(np.any(b.free[n] > 0.0)) or n in pm_nodes for n in range(N)], "static": static,
+        "pm": [[int(b.pm_node[k]), int(b.pm_dir[k]), int(b.pm_kind[k]), int(b.pm_curve[k])] for k in range(len(b.pm_node))],
+        "hist": [h for h in HISTORY_ORDER if h in histories or (h in ENERGIES and any(e in histories for e in ENERGIES))],
+    }  # fmt: skip
+
+
+class _Rows:
+    """Row numbers of the block work array, handed out by name."""
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.at: dict[str, int] = {}
+
+    def add(self, name: str) -> int:
+        self.at[name] = self.n
+        self.n += 1
+        return self.at[name]
+
+    def __getitem__(self, name: str) -> str:
+        """The work-array element of row ``name`` for lane ``w``, as source text."""
+        return f"Z[{self.at[name] * ROW} + w]"
+
+
+def _lsum(terms: list[str]) -> str:
+    """Source of ``0.0 + t0 + t1 + ...`` added left to right, as the reference's accumulating loops."""
+    return "(" * len(terms) + "0.0" + "".join(f" + {t})" for t in terms)
+
+def layout(shape: dict[str, Any]) -> Any:
+    """Everything the emitters share for ``shape``: its numbers, the rows of the work array ``R``, the
+    source lines ``L`` (``emit`` appends one) and the curve emitters ``co``/``ramp``."""
+    N, S, D = shape["N"], shape["S"], shape["D"]
+    si, sj, mat, ca, cb, off = shape["si"], shape["sj"], shape["mat"], shape["ca"], shape["cb"], shape["off"]
+    static, movable, hist = shape["static"], shape["movable"], shape["hist"]
+    const, sign, grav, term = shape["const"], shape["sign"], shape["gravity"], shape["term"]
+    walls, free, loads, pm = shape["walls"], shape["free"], shape["loads"], shape["pm"]
+    W = len(walls)
+    ext = grav or bool(loads) or bool(pm)  # external work to book
+    tcurves = sorted({c for _, c in loads if c >= 0} | {c for _, _, _, c in pm})
+    loaded = {n for n, _ in loads} | {p for p, _, _, _ in pm}  # nodes whose external force changes in time
+    general = [s for s in range(S) if mat[s] == GENERAL]
+    dampers = any(mat[s] == DAMPER for s in range(S))
+    kcheck = set(shape["kcheck"])
+    # knots that can hold a peak of |force| (Batch.knot_check), per spring following that curve
+    knots = {s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
+             for s in range(S) if mat[s] in (NONLINEAR, CRUSH, GENERAL) and ca[s] >= 0}  # fmt: skip
+    knotted = [s for s in range(S) if knots.get(s)]
+    keep_a = {n for n in range(N) if not static[n] and (dampers or term or (movable[n] and any(
+        n in (si[s], sj[s]) for s in knotted)))}  # fmt: skip  (a^{n-1} kept: dampers, knot crossings)
+    R = _Rows()
+    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl") + (("kef", "tmin", "stop") if term else ()):
+        R.add(name)
+    if ext:
+        for name in ("work", "wmax"):
+            R.add(name)
+    if grav:
+        for d in range(D):
+            R.add(f"g{d}")
+    for k in range(len(loads)):
+        for d in range(D):
+            R.add(f"lf{k}_{d}")
+    for k in range(len(pm)):
+        R.add(f"pms{k}")
+        R.add(f"pma{k}")
+    if pm:
+        R.add("nst")
+    if D > 1:
+        R.add("crushed")
+    if W:
+        R.add("wall_e")
+    for wl in range(W):
+        R.add(f"pw{wl}")
+        if "wall_force" in hist:
+            R.add(f"wf{wl}")
+        for d in range(D):
+            R.add(f"wn{wl}_{d}")
+            R.add(f"wp{wl}_{d}")
+        for n in walls[wl]:
+            for d in range(D if not static[n] else 0):
+                R.add(f"jp{wl}_{n}_{d}")
+    live = [n for n in range(N) if not static[n]]
+    for n in range(N if D > 1 else 0):
+        if static[n]:
+            for d in range(D):
+                R.add(f"xs{n}_{d}")
+    for n in live:
+        for f in ("m", "pa"):
+            R.add(f"{f}{n}")
+        for d in range(D):
+            for f in ("x", "x0", "v", "im") + (("a", "ao") if n in keep_a else ()) + (("v0",) if ext else ()) + (
+                    ("fx",) if n in loaded else ()):  # fmt: skip
+                R.add(f"{f}{n}_{d}")
+    curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0} | set(tcurves))
+    cname = {nm: f"k_{nm}" for nm, _, _ in _const_layout(shape)}  # coefficient -> local constant
+    for c in curves:
+        if c in const:
+            continue
+        R.add(f"cy0_{c}")
+        R.add(f"s0_{c}")
+        for k in range(off[c], off[c + 1] - 1):
+            R.add(f"cx{k}")
+            if k > off[c]:
+                R.add(f"ds{k}")
+            if k in kcheck:
+                R.add(f"kyv{k}")
+        if c in tcurves:
+            R.add(f"cx{off[c + 1] - 1}")
+    for s in range(S):
+        for f in ("kp", "fp", "ep", "ie", "pf", "mc", "me") + (("sg",) if D == 1 else ("l0",)) + (
+                ("kh", "kth") if s in knotted else ()):  # fmt: skip
+            R.add(f"{f}{s}")
+        for d in range(D if s in knotted else 0):
+            R.add(f"kdf{s}_{d}")
+        for d in range(D if D > 1 else 0):
+            R.add(f"ap{s}_{d}")  # previous direction (un-normalised)
+        if mat[s] == CRUSH:
+            R.add(f"st{s}_0")
+            R.add(f"st{s}_1")
+    for s in general:
+        for f in ("yt", "yc", "F", "E", "rev") + (("gkc", "gkx", "gky", "gksh") if s in knotted else ()) + (
+                ("ed",) if term else ()):  # fmt: skip
+            R.add(f"{f}{s}")
+        for d in range(D if D > 1 else 0):
+            R.add(f"ax{s}_{d}")
+        for k in range(8):
+            R.add(f"st{s}_{k}")
+    if hist:
+        for n in live:
+            for d in range(D):
+                R.add(f"xh{n}_{d}")
+                R.add(f"vh{n}_{d}")
+        for s in range(S):
+            for d in range(D if D > 1 else 0):
+                R.add(f"axh{s}_{d}")
+
+    def co(name: str) -> str:
+        return cname[name] if name in cname else R[name]
+
+    def ramp(c: int, arg: str) -> str:
+        a0, b0 = off[c], off[c + 1]
+        out = f"({co(f'cy0_{c}')} + {co(f's0_{c}')} * ({arg} - {co(f'cx{a0}')}))"
+        for k in range(a0 + 1, b0 - 1):
+            out = f"({out} + {co(f'ds{k}')} * peak(0.0, {arg} - {co(f'cx{k}')}))"
+        return out
+
+    L: list[str] = []
+    emit = L.append
+    return SimpleNamespace(**{k: v for k, v in locals().items() if k != "shape"})
