@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from crashstudy.kernel.codes import CRUSH, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR
 from crashstudy.kernel import materials as mat
+from crashstudy.kernel.codes import CRUSH, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR
 
 
 def preload(material: np.ndarray, curve_a: np.ndarray, curve_b: np.ndarray, e0: np.ndarray, kpar: np.ndarray,
