@@ -25,6 +25,7 @@ import pytest
 import yaml
 
 from conftest import run_model
+from crashstudy.kernel import generated
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, UNSTABLE, KernelOutput
 from crashstudy.runner import run_kernel
 from test_generated import (
@@ -167,6 +168,20 @@ def _v2_springs(dim: int) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def _v2_intact(dim: int) -> dict[str, Any]:
+    """:func:`_v2_springs` without failures: what the generated kernel runs itself (it hands spring
+    failures to the generic kernel, gen_shape.v2_features)."""
+    model = _v2_springs(dim)
+    for sp in model["springs"].values():
+        sp.pop("failure", None)
+    return model
+
+
+def _check_v2_intact(ref: KernelOutput, batch: Any) -> None:
+    assert np.all(ref.status == 0) and generated.unsupported(batch) is None
+    assert np.all(batch.ie0[[0, 2, 3]] > 0) and np.all(ref.max_elongation[0] > 0)
+
+
 def _check_v2(ref: KernelOutput, batch: Any) -> None:
     """Every variant runs; springs break in some variants, not all; preloads store energy."""
     assert np.all(ref.status == 0)
@@ -199,6 +214,9 @@ CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]], Cal
     "early-termination": (_bounce_many, {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}, _check_termination),
     **{f"v2-spring-features-{dim}d": ((lambda d=dim: _v2_springs(d)), {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]},
                                       _check_v2) for dim in (1, 2)},
+    **{f"v2-preload-and-materials-{dim}d": ((lambda d=dim: _v2_intact(d)),
+                                            {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]}, _check_v2_intact)
+       for dim in (1, 2)},
 }  # fmt: skip
 
 

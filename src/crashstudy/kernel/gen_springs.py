@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel.codes import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR
+from crashstudy.kernel.codes import CRUSH, DAMPER, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR, NONLINEAR_DAMPER
 from crashstudy.kernel.gen_shape import _lsum
 
 
@@ -26,6 +26,8 @@ def geometry(g: Any, ind: str, springs: list[int], pass_a: bool) -> None:
         for s in springs:
             dj, di = ("0.0" if static[n] else f"d{n}" for n in (sj[s], si[s]))
             emit(f"{ind}e{s} = elongation_1d({sg_text(g, s)}, {dj}, {di})")  # 1.0 * y == y exactly
+            if s in g.pre:
+                emit(f"{ind}e{s} = {R[f'e0{s}']} + e{s}")
         return
     for s in springs:
         i, j = si[s], sj[s]
@@ -46,6 +48,8 @@ def geometry(g: Any, ind: str, springs: list[int], pass_a: bool) -> None:
         for d in range(D):
             emit(f"{ind}ax{s}_{d} = u{d} / dn")
         emit(f"{ind}e{s} = elongation_2d(ln, {R[f'l0{s}']})")
+        if s in g.pre:
+            emit(f"{ind}e{s} = {R[f'e0{s}']} + e{s}")
 
 
 
@@ -212,13 +216,24 @@ def pass_b_springs(g: Any, i2: str) -> None:
                 emit(f"{i2}lo_, hi_, sh = crush_window(e{s}, emin)")
                 knot_search(g, i2, s, "lo_", "hi_", "sh", R[f"ep{s}"], ("kc", "kx", "ky"))
                 knot_post(g, i2, s, "kc", "kx", "ky", "sh")
+        elif k == ELASTOPLASTIC:
+            st0, st1 = R[f"st{s}_0"], R[f"st{s}_1"]
+            emit(f"{i2}F{s}, {st0}, {st1} = elastoplastic_law(e{s}, {st0}, {st1}, {R[f'kp{s}']}, {R[f'kt{s}']}, "
+                 f"{R[f'fy{s}']})")
+        elif k == NONLINEAR_DAMPER:
+            emit(f"{i2}rd = {edot(g, s)}")
+            emit(f"{i2}F{s} = {ramp(ca[s], 'rd')}")
         else:  # pragma: no cover - the compiler knows no other material
             raise ValueError(f"material code {k}")
     # summaries in spring order (the reference kernel's order of operations)
     emit(f"{i2}ie_tot = 0.0")
     for s in range(S):
         ie = R[f"ie{s}"]
-        emit(f"{i2}{ie} = energy_increment({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, afw)")
+        step = f"energy_increment({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, afw)"
+        if s in g.pre and mat[s] not in (DAMPER, NONLINEAR_DAMPER):  # a preload's first half step
+            half = f"energy_first_half({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, {R['dt']}, {R[f'r0{s}']}, afw)"
+            step = f"{half} if (n1 and {R[f'e0{s}']} != 0.0) else {step}"
+        emit(f"{i2}{ie} = {step}")
         emit(f"{i2}ie_tot = ie_tot + {ie}")
         emit(f"{i2}{R[f'pf{s}']} = peak({R[f'pf{s}']}, abs(F{s}) * af)")
         emit(f"{i2}{R[f'mc{s}']} = peak({R[f'mc{s}']}, -e{s} * af)")
