@@ -169,8 +169,7 @@ def _v2_springs(dim: int) -> dict[str, Any]:
 
 
 def _v2_intact(dim: int) -> dict[str, Any]:
-    """:func:`_v2_springs` without failures: what the generated kernel runs itself (it hands spring
-    failures to the generic kernel, gen_shape.v2_features)."""
+    """:func:`_v2_springs` without failures (another generated shape: no thresholds, no broken flags)."""
     model = _v2_springs(dim)
     for sp in model["springs"].values():
         sp.pop("failure", None)
@@ -178,13 +177,14 @@ def _v2_intact(dim: int) -> dict[str, Any]:
 
 
 def _check_v2_intact(ref: KernelOutput, batch: Any) -> None:
-    assert np.all(ref.status == 0) and generated.unsupported(batch) is None
+    assert np.all(ref.status == 0) and generated.unsupported(batch) is None and np.all(np.isnan(ref.spring_fail_time))
     assert np.all(batch.ie0[[0, 2, 3]] > 0) and np.all(ref.max_elongation[0] > 0)
 
 
 def _check_v2(ref: KernelOutput, batch: Any) -> None:
-    """Every variant runs; springs break in some variants, not all; preloads store energy."""
-    assert np.all(ref.status == 0)
+    """Every variant runs (on the generated kernel too); springs break in some variants, not all; preloads
+    store energy."""
+    assert np.all(ref.status == 0) and generated.unsupported(batch) is None
     broke = np.isfinite(ref.spring_fail_time)
     assert broke.any() and not broke.all()
     assert np.all(batch.ie0[[0, 2, 3]] > 0) and np.all(ref.max_elongation[0] > 0)

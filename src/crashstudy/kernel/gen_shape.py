@@ -37,14 +37,6 @@ def unsupported(b: Batch) -> str | None:
     knots = int(np.max(np.diff(b.curve_off), initial=0))
     if knots > MAX_KNOTS:
         return f"a curve has {knots} knots (the generated kernel takes at most {MAX_KNOTS})"
-    return v2_features(b)
-
-
-def v2_features(b: Batch) -> str | None:
-    """The SPEC v2 spring feature in ``b`` that the generated kernel does not implement yet (the generic
-    kernel and the reference do), or None."""
-    if np.any(np.isfinite(b.fail_t)) or np.any(np.isfinite(b.fail_c)):
-        return "a spring failure"
     return None
 
 
@@ -110,6 +102,7 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
         "free": b.free.tolist(), "loads": [[int(n), int(c)] for n, c in zip(b.load_node, b.load_curve, strict=True)],
         "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
         "pre": [s for s in range(len(b.spring_i)) if np.any(b.e0[s] != 0.0)],
+        "fragile": [s for s in range(len(b.spring_i)) if np.any(np.isfinite(b.fail_t[s]) | np.isfinite(b.fail_c[s]))],
         "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
         "movable": [bool(np.any(b.free[n] > 0.0)) or n in pm_nodes for n in range(N)], "static": static,
         "pm": [[int(b.pm_node[k]), int(b.pm_dir[k]), int(b.pm_kind[k]), int(b.pm_curve[k])] for k in range(len(b.pm_node))],
@@ -152,6 +145,7 @@ def layout(shape: dict[str, Any]) -> Any:
     loaded = {n for n, _ in loads} | {p for p, _, _, _ in pm}  # nodes whose external force changes in time
     general = [s for s in range(S) if mat[s] == GENERAL]
     dampers = any(mat[s] in (DAMPER, NONLINEAR_DAMPER) for s in range(S))
+    fragile = shape["fragile"]  # springs that can break (failure): thresholds and a broken flag
     pre = shape["pre"]  # preloaded springs (initial_elongation): e0, the rate at t = 0, KE0 + IE0
     E0 = "ein" if pre else "ke0"  # the row of the energy at t = 0
     kcheck = set(shape["kcheck"])
@@ -237,6 +231,9 @@ def layout(shape: dict[str, Any]) -> Any:
         if s in pre:
             R.add(f"e0{s}")
             R.add(f"r0{s}")
+        if s in fragile:
+            for f in ("ft", "fc", "br"):
+                R.add(f"{f}{s}")
     for s in general:
         for f in ("yt", "yc", "F", "E", "rev") + (("gkc", "gkx", "gky", "gksh") if s in knotted else ()) + (
                 ("ed",) if term else ()):  # fmt: skip

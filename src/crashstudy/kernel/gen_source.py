@@ -16,7 +16,7 @@ LAWS = ("collapsed", "crush_knot_force", "crush_law", "crush_window", "damper_fo
         "end_rate", "energy_increment", "ext_power", "general_law", "general_reverse_call", "general_window",
         "knot_accel", "knot_crossing", "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window",
         "peak", "time_window", "wall_force", "wall_jump", "work_increment",
-        "elastoplastic_law", "energy_first_half")  # fmt: skip
+        "elastoplastic_law", "energy_first_half", "broken_at")  # fmt: skip
 # local name in the generated kernel -> (record, field) of crashstudy.kernel.driver
 RECORD_NAMES = [(n, "P", f) for n, f in (
     ("mass", "mass"), ("inv_mass", "inv_mass"), ("x0", "x0"), ("v0", "v0"), ("sign", "sign"), ("length0", "length0"),
@@ -25,12 +25,13 @@ RECORD_NAMES = [(n, "P", f) for n, f in (
     ("n_steps", "n_steps"), ("out_every", "out_every"), ("invalid", "invalid"), ("e_floor", "energy_floor"),
     ("ke_fraction", "ke_fraction"), ("min_time", "min_time"), ("wall_point", "wall_point"),
     ("wall_normal", "wall_normal"), ("load_force", "load_force"), ("pm_scale", "pm_scale"),
-    ("ktan", "ktan"), ("fyld", "fy"), ("elong0", "e0"), ("state0", "state0"), ("ie0", "ie0"), ("rate0", "rate0"))] + [
+    ("ktan", "ktan"), ("fyld", "fy"), ("elong0", "e0"), ("state0", "state0"), ("ie0", "ie0"), ("rate0", "rate0"),
+    ("fail_t", "fail_t"), ("fail_c", "fail_c"))] + [
     ("off", "T", "curve_off")] + [(n, "H", f) for n, f in (
     ("h_pos", "pos"), ("h_disp", "disp"), ("h_vel", "vel"), ("h_acc", "acc"), ("h_force", "force"),
     ("h_elong", "elong"), ("h_energy", "energy"), ("h_wall", "wall"))] + [(n, "O", n) for n in (
     "status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed", "peak_acc", "peak_wall",
-    "energy_error", "final_energy", "max_elongation")]  # fmt: skip
+    "energy_error", "final_energy", "max_elongation", "spring_fail_time")]  # fmt: skip
 
 
 def source(shape: dict[str, Any]) -> str:
@@ -128,6 +129,9 @@ def source(shape: dict[str, Any]) -> str:
         if g.mat[s] == ELASTOPLASTIC:
             emit(f"{i2}{R[f'kt{s}']} = ktan[{s}, q]")
             emit(f"{i2}{R[f'fy{s}']} = fyld[{s}, q]")
+    for s in g.fragile:  # failure elongations (+-inf: never)
+        emit(f"{i2}{R[f'ft{s}']} = fail_t[{s}, q]")
+        emit(f"{i2}{R[f'fc{s}']} = fail_c[{s}, q]")
     for s in g.pre:  # initial_elongation: e0, the rate at t = 0, IE0 and the material state (kernel.preload)
         emit(f"{i2}{R[f'e0{s}']} = elong0[{s}, q]")
         emit(f"{i2}{R[f'r0{s}']} = rate0[{s}, q]")
