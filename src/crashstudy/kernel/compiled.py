@@ -51,8 +51,9 @@ BlockState = namedtuple("BlockState", (
     "k_any", "k_hit", "k_th", "k_dfax", "g_arg", "g_argt", "g_argc", "g_L", "g_Ut", "g_Uc", "g_rev", "e_tmp",
     "ed_tmp", "F_tmp", "ax_tmp", "edot_min", "crushed", "work", "wall_e", "wmax", "ke0", "ke", "ie_tot", "err",
     "bal", "act", "actf", "n_fail", "nst", "next_rec", "st_ok", "movable", "knotted",
-    # v2 spring features: max elongation, broken springs, KE0 + IE0, preloaded / breakable springs, scratch
-    "me", "broken", "e_init", "pre", "fragile", "em_tmp", "ai_tmp"))  # fmt: skip
+    # v2 spring features: max elongation, broken springs, KE0 + IE0, (preloaded, breakable) per spring, and
+    # the elongation / activity the extremes of a breakable spring take in this step
+    "me", "broken", "e_init", "v2", "ftmp"))  # fmt: skip
 
 
 @nb.njit(cache=True, nogil=True)
@@ -139,8 +140,8 @@ def _block_state(lo, B, T, P, In):  # pragma: no cover - compiled
         np.empty(B, dtype=np.int64), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B), np.zeros(B),
         np.zeros(B), np.zeros(B), np.empty(B, dtype=np.bool_), np.empty(B), np.full(B, -1, dtype=np.int64),
         np.empty(B, dtype=np.int64), np.zeros(B, dtype=np.int64), np.zeros(B, dtype=np.int64), movable, knotted,
-        np.zeros((S, B)), np.zeros((S, B), dtype=np.bool_), np.zeros(B), np.zeros(S, dtype=np.bool_),
-        np.zeros(S, dtype=np.bool_), np.empty(B), np.empty(B),
+        np.zeros((S, B)), np.zeros((S, B), dtype=np.bool_), np.zeros(B), np.zeros((2, S), dtype=np.bool_),
+        np.empty((2, B)),
     )  # fmt: skip
     for n_ in range(N):
         for d in range(D):
@@ -160,8 +161,8 @@ def _preload(lo, B, S, SS, P, Z):  # pragma: no cover - compiled
         for w in range(B):
             q = lo + w
             Z.ie[s, w] = P.ie0[s, q]
-            Z.pre[s] = Z.pre[s] or P.e0[s, q] != 0.0
-            Z.fragile[s] = Z.fragile[s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
+            Z.v2[0, s] = Z.v2[0, s] or P.e0[s, q] != 0.0
+            Z.v2[1, s] = Z.v2[1, s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
     if SS > 0 and P.state0.shape[0] > 0:
         for s in range(S):
             for k in range(NSTATE):

@@ -202,15 +202,15 @@ def crossing(s, D, B, Z):  # pragma: no cover - compiled
 
 @_jit
 def failure(s, n, lo, P, In, Z, Out, B):  # pragma: no cover - compiled
-    """A breakable spring: past a failure elongation it breaks (force 0 from this step on); em_tmp / ai_tmp
+    """A breakable spring: past a failure elongation it breaks (force 0 from this step on); ftmp[0] / ftmp[1]
     are the elongation and activity its extremes take (the failure elongation, 0 once broken)."""
     for w in range(B):
         q = lo + w
         was = Z.broken[s, w]
         snaps, limit, t = broken_at(Z.e_tmp[w], Z.e_prev[s, w], P.fail_t[s, q], P.fail_c[s, q], n, In.dt[w])
         snaps = snaps and Z.act[w] and not was and n > 0
-        Z.ai_tmp[w] = 0.0 if was else Z.actf[w]
-        Z.em_tmp[w] = limit if snaps else Z.e_tmp[w]
+        Z.ftmp[1, w] = 0.0 if was else Z.actf[w]
+        Z.ftmp[0, w] = limit if snaps else Z.e_tmp[w]
         if snaps:
             Out.spring_fail_time[s, q] = t
             Z.broken[s, w] = True
@@ -219,7 +219,7 @@ def failure(s, n, lo, P, In, Z, Out, B):  # pragma: no cover - compiled
 
 
 @_jit
-def scatter(s, i, j, n, first_half, lo, D, B, P, In, Z):  # pragma: no cover - compiled
+def scatter(s, i, j, n, first_half, lo, D, B, e0, rate0, dt, Z):  # pragma: no cover - compiled
     """Nodal forces of spring s and its summaries (masked by arithmetic: a stopped variant adds 0 and
     compares against 0; peaks are >= 0)."""
     f, F_tmp, e_tmp, ax_tmp = Z.f, Z.F_tmp, Z.e_tmp, Z.ax_tmp
@@ -234,20 +234,36 @@ def scatter(s, i, j, n, first_half, lo, D, B, P, In, Z):  # pragma: no cover - c
                 fa = F_tmp[w] * ax_tmp[d, w]
                 f[i, d, w] += fa
                 f[j, d, w] -= fa
-    fr = Z.fragile[s]
-    for w in range(B):
+    if not Z.v2[1, s] and not (n == 1 and first_half):  # the common case: one plain pass
+        for w in range(B):
+            F = F_tmp[w]
+            e = e_tmp[w]
+            af = Z.actf[w]
+            if n > 0:
+                Z.ie[s, w] = energy_increment(Z.ie[s, w], F, Z.f_prev[s, w], e, Z.e_prev[s, w], af)
+            Z.ie_tot[w] += Z.ie[s, w]
+            Z.pf[s, w] = peak(Z.pf[s, w], abs(F) * af)
+            Z.mc[s, w] = peak(Z.mc[s, w], -e * af)
+            Z.me[s, w] = peak(Z.me[s, w], e * af)
+            Z.forces[s, w] = F
+            Z.elong[s, w] = e
+            Z.f_prev[s, w] = F
+            Z.e_prev[s, w] = e
+        return
+    fr = Z.v2[1, s]
+    for w in range(B):  # a preloaded spring's first step, or a breakable spring
         F = F_tmp[w]
         e = e_tmp[w]
         af = Z.actf[w]
-        if n == 1 and first_half and P.e0[s, lo + w] != 0.0:
-            Z.ie[s, w] = energy_first_half(Z.ie[s, w], F, Z.f_prev[s, w], e, Z.e_prev[s, w], In.dt[w],
-                                           P.rate0[s, lo + w], af)  # fmt: skip
+        if n == 1 and first_half and e0[s, lo + w] != 0.0:
+            Z.ie[s, w] = energy_first_half(Z.ie[s, w], F, Z.f_prev[s, w], e, Z.e_prev[s, w], dt[w], rate0[s, lo + w],
+                                           af)  # fmt: skip
         elif n > 0:
             Z.ie[s, w] = energy_increment(Z.ie[s, w], F, Z.f_prev[s, w], e, Z.e_prev[s, w], af)
         Z.ie_tot[w] += Z.ie[s, w]
         Z.pf[s, w] = peak(Z.pf[s, w], abs(F) * af)
-        em = Z.em_tmp[w] if fr else e  # extremes while intact (a breakable spring)
-        ai = Z.ai_tmp[w] if fr else af
+        em = Z.ftmp[0, w] if fr else e  # extremes while intact
+        ai = Z.ftmp[1, w] if fr else af
         Z.mc[s, w] = peak(Z.mc[s, w], -em * ai)
         Z.me[s, w] = peak(Z.me[s, w], em * ai)
         Z.forces[s, w] = F
@@ -265,19 +281,20 @@ def springs(n, lo, B, D, has_term, T, P, In, Z, Out):  # pragma: no cover - comp
         j = T.spring_j[s]
         kind = T.material[s]
         geometry(s, i, j, kind, D, has_term, B, In, Z)
-        if Z.pre[s]:  # e = e0 + ... (initial_elongation)
+        if Z.v2[0, s]:  # e = e0 + ... (initial_elongation)
             for w in range(B):
                 Z.e_tmp[w] = P.e0[s, lo + w] + Z.e_tmp[w]
         nhit = knots(s, kind, T, In, Z, B) if (Z.knotted[s] and n > 0) else 0
         force(s, kind, lo, T, P, In, Z, B)
-        if Z.fragile[s]:
+        if Z.v2[1, s]:
             failure(s, n, lo, P, In, Z, Out, B)
         if Z.knotted[s] and n > 0:
             Z.k_any[s] = nhit > 0
         if nhit > 0:
             any_hit = True
             crossing(s, D, B, Z)
-        scatter(s, i, j, n, Z.pre[s] and kind != DAMPER and kind != NONLINEAR_DAMPER, lo, D, B, P, In, Z)
+        # (only the arrays it needs: a record argument is copied at every call)
+        scatter(s, i, j, n, Z.v2[0, s] and kind != DAMPER and kind != NONLINEAR_DAMPER, lo, D, B, P.e0, P.rate0, In.dt, Z)
         if has_term:
             for w in range(B):
                 Z.edot_min[w] = least(Z.edot_min[w], Z.ed_tmp[w])
