@@ -146,7 +146,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                 step_ie = 0.5 * (F + f_prev[s]) * de
                 if n == 1 and first_half[s].any():
                     # over the first (half) step F^0 acts on the mean rate (edot^0 + edot^{1/2}) / 2 for dt/2, as
-                    # in the external work: exact for a preload released from rest (docs/solver.md, "Energy")
+                    # in the external work: exact for a preload released from rest (docs/solver.md, "Energies")
                     half = (0.5 * F + 0.25 * f_prev[s]) * de + 0.25 * dt * f_prev[s] * b.rate0[s]
                     step_ie = np.where(first_half[s], half, step_ie)
                 ie[s] += np.where(act, step_ie, 0.0)
