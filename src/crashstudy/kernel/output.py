@@ -37,6 +37,11 @@ class KernelOutput:
     energy_error: np.ndarray  # (V,) max relative energy balance error
     final_energy: np.ndarray  # (4, V) KE, IE, W_ext, E_wall at the end [energy]
     histories: dict[str, np.ndarray] = field(default_factory=dict)
+    # SPEC v2 summaries
+    max_elongation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (S, V) max stretch max(e)
+    # while intact [length]
+    spring_fail_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (S, V) [time] when a spring
+    # with a failure option broke (NaN while intact)
     # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes at every step n = 0 .. T - 1,
     # as the acceleration history has it; zero after a variant's last step (t_end). None: not recorded
     step_acceleration: np.ndarray | None = None
@@ -70,4 +75,5 @@ def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...],
         t_end=np.zeros(V), peak_force=np.zeros((S, V)), max_crush=np.zeros((S, V)),
         absorbed_energy=np.zeros((S, V)), peak_acceleration=np.zeros((N, V)), peak_wall_force=np.zeros((W, V)),
         energy_error=np.zeros(V), final_energy=np.zeros((4, V)), histories=hist,
+        max_elongation=np.zeros((S, V)), spring_fail_time=np.full((S, V), np.nan),
     )  # fmt: skip
