@@ -108,6 +108,7 @@ def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(
     monkeypatch.setattr(generated, "run_generated", lambda *a, **k: calls.append("generated") or real_generated(*a, **k))
     monkeypatch.setattr("crashstudy.kernel.compiled.run_compiled",
                         lambda *a, **k: calls.append("generic") or real_generic(*a, **k))  # fmt: skip
+    monkeypatch.setattr(choice, "_LOADED", set())  # no kernel loaded yet: the choice does not depend on test order
     monkeypatch.setattr(choice, "generated_ready", lambda *a, **k: True)
     fast = run_chunk(plan, 0, plan.n_variants)
     monkeypatch.setattr(choice, "generated_ready", lambda *a, **k: False)
