@@ -9,7 +9,8 @@ Cases: every material in 1-D drawn both ways; the three full twins of test_physi
 gravity, loads, prescribed displacement / velocity / acceleration, rigid walls incl. an inclined one,
 1-D and 2-D); 2-D walls; a 2-D spring crushed to zero length; the general_nonlinear reversal (rule 4);
 knot crossings of every curve material in 1-D and 2-D; the frontal model with per-variant and constant
-curves; lane compaction; early termination; an unstable variant.
+curves; lane compaction; early termination; an unstable variant; the SPEC v2 spring features (elastoplastic,
+nonlinear_damper, initial_elongation, failure, max_elongation) in 1-D and 2-D.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import pytest
 import yaml
 
 from conftest import run_model
-from crashstudy.kernel import entry
+from crashstudy.kernel import entry, generated
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, UNSTABLE, KernelOutput
 from crashstudy.run.runner import run_kernel
 from test_generated import (
@@ -137,6 +138,61 @@ def _check_termination(ref: KernelOutput, batch: Any) -> None:
     assert np.all(ref.t_end < 0.2) and len(np.unique(ref.t_end)) >= 30
 
 
+def _v2_springs(dim: int) -> dict[str, Any]:
+    """The SPEC v2 spring features together: elastoplastic (preloaded, breaking in tension), a blow-off
+    nonlinear_damper, a preloaded general_nonlinear that yielded on the way, a preloaded crush, a linear
+    spring breaking both ways."""
+    ax = [1.0] if dim == 1 else [0.6, 0.8]
+    at = lambda r: [r * c for c in ax]  # noqa: E731
+    return {
+        "name": f"v2-springs-{dim}d",
+        "curves": {"blow-off": {"x": [-10.0, -1.0, 0.0, 1.0, 10.0], "y": [-300.0, -300.0, 0.0, 300.0, 300.0]},
+                   "load": {"x": [-0.1, 0.0, 0.01, 0.02, 0.2], "y": [-1.0e4, 0.0, 600.0, 400.0, 900.0]},
+                   "unload": {"x": [-0.1, 0.0, 0.1], "y": [-1.0e4, 0.0, 1.0e4]},
+                   "crush": {"x": [-0.3, -0.01, 0.0], "y": [-3000.0, -1500.0, 0.0]}},
+        "nodes": {"a": {"position": at(0.0), "fixed": True}, "b": {"position": at(1.0), "mass": 10.0},
+                  "c": {"position": at(2.0), "mass": 5.0}},
+        "springs": {
+            "ep": {"nodes": ["a", "b"], "initial_elongation": 0.02, "failure": {"tension": 0.12},
+                   "material": {"type": "elastoplastic", "stiffness": 4.0e4, "tangent_stiffness": 1.0e4,
+                                "yield_force": 2.0e3}},
+            "nd": {"nodes": ["a", "b"], "material": {"type": "nonlinear_damper", "curve": "blow-off"}},
+            "gn": {"nodes": ["b", "c"], "initial_elongation": 0.015,
+                   "material": {"type": "general_nonlinear", "loading": "load", "unloading": "unload",
+                                "tension_yield": 500.0}},
+            "cr": {"nodes": ["b", "c"], "initial_elongation": -0.01, "failure": {"compression": -0.2},
+                   "material": {"type": "crush", "loading": "crush", "unloading_stiffness": 2.0e5}},
+            "lin": {"nodes": ["a", "c"], "failure": {"tension": 0.06, "compression": -0.06},
+                    "material": {"type": "linear_elastic", "stiffness": 2.0e3}},
+        },
+        "initial_velocity": {"b": at(3.0), "c": at(-2.0)},
+        "end_time": 0.3, "time_step": {"safety_factor": 0.5},
+        "output": {"interval": 1.0e-3},
+    }  # fmt: skip
+
+
+def _v2_intact(dim: int) -> dict[str, Any]:
+    """:func:`_v2_springs` without failures (another generated shape: no thresholds, no broken flags)."""
+    model = _v2_springs(dim)
+    for sp in model["springs"].values():
+        sp.pop("failure", None)
+    return model
+
+
+def _check_v2_intact(ref: KernelOutput, batch: Any) -> None:
+    assert np.all(ref.status == 0) and generated.unsupported(batch) is None and np.all(np.isnan(ref.spring_fail_time))
+    assert np.all(batch.ie0[[0, 2, 3]] > 0) and np.all(ref.max_elongation[0] > 0)
+
+
+def _check_v2(ref: KernelOutput, batch: Any) -> None:
+    """Every variant runs (on the generated kernel too); springs break in some variants, not all; preloads
+    store energy."""
+    assert np.all(ref.status == 0) and generated.unsupported(batch) is None
+    broke = np.isfinite(ref.spring_fail_time)
+    assert broke.any() and not broke.all()
+    assert np.all(batch.ie0[[0, 2, 3]] > 0) and np.all(ref.max_elongation[0] > 0)
+
+
 # case -> (model builder, study axes, what the case must exercise)
 CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]], Callable[[KernelOutput, Any], None]]] = {
     "1d-every-material": (lambda: _one_d_materials(False), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]},
@@ -159,6 +215,11 @@ CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]], Cal
     "frontal-lane-compaction": (lambda: _frontal(["spring_force", "kinetic_energy"], 0.03), _COMPACTION_AXES,
                                 _check_compaction),
     "early-termination": (_bounce_many, {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}, _check_termination),
+    **{f"v2-spring-features-{dim}d": ((lambda d=dim: _v2_springs(d)), {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]},
+                                      _check_v2) for dim in (1, 2)},
+    **{f"v2-preload-and-materials-{dim}d": ((lambda d=dim: _v2_intact(d)),
+                                            {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]}, _check_v2_intact)
+       for dim in (1, 2)},
 }  # fmt: skip
 
 

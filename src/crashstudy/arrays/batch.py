@@ -21,8 +21,21 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from crashstudy.arrays.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, Topology
+from crashstudy.arrays.compiler import (
+    CRUSH,
+    DAMPER,
+    ELASTOPLASTIC,
+    GENERAL,
+    LINEAR,
+    MATERIAL_CODES,
+    NONLINEAR,
+    NONLINEAR_DAMPER,
+    Topology,
+)
 from crashstudy.arrays.timestep import MAX_STEPS, StepChoice, choose_steps, spring_stiffness_bound
+from crashstudy.kernel.preload import preload
+
+MATERIAL_NAMES = {code: name for name, code in MATERIAL_CODES.items()}
 
 
 @dataclass
@@ -77,6 +90,15 @@ class Batch:
     # (V,) int, odd: steps per block of the metric nodes' record (crash criteria); row r of the record holds the
     # mean of a^n over the steps n with (n + (k - 1) // 2) // k == r, centred on t = r k dt (1: every step)
     rec_block: np.ndarray
+    # SPEC v2 spring features
+    ktan: np.ndarray  # (S, V) elastoplastic tangent stiffness KT [force/length] (0 for other materials)
+    fy: np.ndarray  # (S, V) elastoplastic yield force FY [force] (0 for other materials)
+    e0: np.ndarray  # (S, V) initial elongation [length]
+    fail_t: np.ndarray  # (S, V) tension failure elongation [length] (+inf: never)
+    fail_c: np.ndarray  # (S, V) compression failure elongation [length] (-inf: never)
+    state0: np.ndarray  # (S, NSTATE, V) material state at t = 0 (kernel.preload), (0, NSTATE, V) if no preload
+    ie0: np.ndarray  # (S, V) [energy] energy stored in each spring at t = 0 (IE0)
+    rate0: np.ndarray  # (S, V) [length/time] elongation rate at t = 0 (a preload's first half step)
 
     @property
     def n_variants(self) -> int:
@@ -151,6 +173,11 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         cds[a + 1 : e - 1] = np.diff(slope, axis=0)
 
     kpar = np.ascontiguousarray(P[b["k"]])
+    ktan, fy, e0 = (np.ascontiguousarray(P[b[k]]) for k in ("kt", "fy", "e0"))
+    yield_t, yield_c = np.ascontiguousarray(P[b["ty"]]), np.ascontiguousarray(P[b["cy"]])
+    with np.errstate(all="ignore"):  # a variant with bad parameters is refused by check_parameters
+        state0, ie0 = preload(topo.material, topo.spring_curves[:, 0], topo.spring_curves[:, 1], e0, kpar, yield_t,
+                              yield_c, ktan, fy, cx, cy, cds, cs0, cs1, off)  # fmt: skip
     kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy)
     W = len(topo.wall_ids)
     normal = P[b["wall_normal"]].reshape(W, D, V)
@@ -174,8 +201,7 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         load_curve=topo.load_curve, pm_node=topo.pm_node, pm_dir=topo.pm_dir, pm_kind=topo.pm_kind,
         pm_curve=topo.pm_curve, wall_nodes=topo.wall_nodes.astype(np.float64),
         mass=mass, inv_mass=np.ascontiguousarray(inv_mass), x0=x0, v0=v0, length0=length0,
-        sign=np.ascontiguousarray(sign), kpar=kpar, yield_t=np.ascontiguousarray(P[b["ty"]]),
-        yield_c=np.ascontiguousarray(P[b["cy"]]), cx=cx, cy=cy, cds=cds, cs0=cs0, cs1=cs1,
+        sign=np.ascontiguousarray(sign), kpar=kpar, yield_t=yield_t, yield_c=yield_c, cx=cx, cy=cy, cds=cds, cs0=cs0, cs1=cs1,
         gravity=np.ascontiguousarray(P[b["gravity"]].reshape(D, V)) if topo.has_gravity else np.zeros((D, V)),
         load_force=np.ascontiguousarray(P[b["load"]].reshape(len(topo.load_node), D, V)),
         pm_scale=np.ascontiguousarray(P[b["pm_scale"]]),
@@ -185,8 +211,24 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         min_time=P[b["min_time"].start].copy(), invalid=invalid,
         energy_floor=_energy_floor(kmax, length0, mass, v0), rec_block=np.ones(V, dtype=np.int64),
         **knot_peaks(topo, cx, cy),
+        ktan=ktan, fy=fy, e0=e0, fail_t=np.ascontiguousarray(P[b["fail_t"]]),
+        fail_c=np.ascontiguousarray(P[b["fail_c"]]), state0=state0, ie0=ie0, rate0=_rate0(dx, length0, v0, i, j),
     )  # fmt: skip
     return batch, steps
+
+
+def _rate0(dx: np.ndarray, length0: np.ndarray, v0: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """(S, V) elongation rate at t = 0: ``s (v_j - v_i)`` in 1-D, the unit axis times ``v_j - v_i`` in 2-D
+    (summed over the axes in order, as the kernels sum it)."""
+    dv = v0[j] - v0[i]  # (S, D, V)
+    if dx.shape[1] == 1:
+        return np.ascontiguousarray(np.sign(dx[:, 0, :]) * dv[:, 0, :])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        axis = dx / np.where(length0 > 0, length0, 1.0)[:, None, :]
+    out = np.zeros(length0.shape)
+    for d in range(dx.shape[1]):
+        out = out + axis[:, d, :] * dv[:, d, :]
+    return out
 
 
 def knot_peaks(topo: Topology, cx: np.ndarray, cy: np.ndarray) -> dict[str, np.ndarray]:
@@ -248,8 +290,9 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     """The rules a model file obeys, checked on the parameter matrix ``P`` (n_params, V), vectorised.
 
     The same rules as the schema (:mod:`crashstudy.schema`: signs and ranges of fields, curves
-    strictly increasing, general_nonlinear curves through the origin and an increasing unloading
-    curve, a crush curve with a compression part, non-zero spring lengths and wall normals, no initial
+    strictly increasing, every material curve through the origin, an increasing unloading curve and a
+    non-decreasing damper curve, a crush curve with a compression part, failure elongations on either
+    side of the initial elongation, non-zero spring lengths and wall normals, no initial
     velocity along a fixed axis, output.interval <= end_time) plus what only numbers can break: every
     value finite (a scale factor can overflow) and a step count that fits (:data:`MAX_STEPS`). A study
     checks every distinct value of each axis with it; one value costs a column, not a model validation.
@@ -267,18 +310,20 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
         rule(bad[rows], lambda r, c: f"{name.get(start + int(rows[r]), block)}: expected {expect}, "
              f"got {P[start + int(rows[r]), c]:g}")  # fmt: skip
 
-    plain = np.array([s for blk, sl in b.items() if blk not in ("ty", "cy") for s in range(sl.start, sl.stop)], dtype=np.int64)
+    unbounded = ("ty", "cy", "fail_t", "fail_c")  # +-inf: never yields / never breaks
+    plain = np.array([s for blk, sl in b.items() if blk not in unbounded for s in range(sl.start, sl.stop)], dtype=np.int64)
     rule(~np.isfinite(P[plain]), lambda r, c: f"{name.get(int(plain[r]), 'a parameter')} is not finite "
          f"({P[plain[r], c]:g}): an axis value or a scale factor made it overflow")  # fmt: skip
     mass = P[b["mass"]]
     movable = np.asarray(~topo.fixed.all(axis=1), dtype=bool)
     ranged("mass", np.arange(N), (movable[:, None] & ~(mass > 0)) | (mass < 0), "a mass > 0")
     k, mat = P[b["k"]], topo.material
-    stiff, damper, general = np.isin(mat, (LINEAR, CRUSH)), mat == DAMPER, mat == GENERAL
+    stiff, damper, general = np.isin(mat, (LINEAR, CRUSH, ELASTOPLASTIC)), mat == DAMPER, mat == GENERAL
     ranged("k", np.flatnonzero(stiff), ~(k > 0), "a value > 0")
     ranged("k", np.flatnonzero(damper), ~(k >= 0), "a value >= 0")
     ranged("ty", np.flatnonzero(general), ~(P[b["ty"]] > 0), "a tension_yield > 0")
     ranged("cy", np.flatnonzero(general), ~(P[b["cy"]] < 0), "a compression_yield < 0")
+    _v2_rules(topo, P, rule, ranged)
     _curve_rules(topo, P, rule)
     x0 = P[b["position"]].reshape(N, D, V)
     dx = x0[topo.spring_nodes[:, 1]] - x0[topo.spring_nodes[:, 0]]
@@ -321,9 +366,27 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     return ParameterCheck(bad | over, rules)
 
 
+def _v2_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None], ranged: Callable[..., None]) -> None:
+    """elastoplastic parameters (K > 0 is checked with the other stiffnesses) and the spring options."""
+    b, mat = topo.blocks, topo.material
+    k, kt, e0, ft, fc = (P[b[name]] for name in ("k", "kt", "e0", "fail_t", "fail_c"))
+    plastic = np.flatnonzero(mat == ELASTOPLASTIC)
+    ranged("kt", plastic, ~((kt >= 0) & (kt < k)), "a tangent_stiffness >= 0 and below stiffness")
+    ranged("fy", plastic, ~(P[b["fy"]] > 0), "a yield_force > 0")
+    every = np.arange(topo.n_springs)
+    ranged("fail_t", every, ~(ft > 0), "a tension failure elongation > 0")
+    ranged("fail_c", every, ~(fc < 0), "a compression failure elongation < 0")
+    ids = topo.spring_ids
+    rule((ft > 0) & ~(e0 < ft), lambda r, c: f"springs.{ids[r]}.failure.tension: expected an elongation above "
+         f"initial_elongation ({e0[r, c]:g}), got {ft[r, c]:g}: the spring would be broken at t = 0")  # fmt: skip
+    rule((fc < 0) & ~(e0 > fc), lambda r, c: f"springs.{ids[r]}.failure.compression: expected an elongation below "
+         f"initial_elongation ({e0[r, c]:g}), got {fc[r, c]:g}: the spring would be broken at t = 0")  # fmt: skip
+
+
 def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> None:
-    """Curves: x strictly increasing; general_nonlinear curves through the origin, the unloading one
-    increasing; a crush loading curve starting in compression (x < 0)."""
+    """Curves: x strictly increasing; every material curve through the origin (a preload is written with
+    initial_elongation); the general_nonlinear unloading curve increasing, a nonlinear_damper curve
+    non-decreasing; a crush loading curve starting in compression (x < 0)."""
     b, off = topo.blocks, topo.curve_offsets
     cx, cy = P[b["cx"]], P[b["cy_"]]
     ids = topo.curve_ids
@@ -332,25 +395,36 @@ def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> No
         xs = cx[a:e]
         rule(~(np.diff(xs, axis=0) > 0), lambda r, col, cid=cid, xs=xs: f"curves.{cid}.x must be strictly increasing "
              f"(x.{r} = {xs[r, col]:g} is followed by {xs[r + 1, col]:g})")  # fmt: skip
-    origin, rising, crush = set(), set(), set()
+    origin: dict[int, str] = {}  # curve -> material type of a spring that uses it
+    rising, crush, damper = set(), set(), set()
     for s in range(topo.n_springs):
         c0, c1 = (int(v) for v in topo.spring_curves[s])
-        if topo.material[s] == GENERAL:
-            origin |= {c0, c1}
+        kind = int(topo.material[s])
+        origin.update({c: MATERIAL_NAMES[kind] for c in (c0, c1) if c >= 0})
+        if kind == GENERAL:
             rising.add(c1)
-        elif topo.material[s] == CRUSH:
+        elif kind == CRUSH:
             crush.add(c0)
-    for c in sorted(origin):
+        elif kind == NONLINEAR_DAMPER:
+            damper.add(c0)
+    for c, kind_name in sorted(origin.items()):
         a, e = int(off[c]), int(off[c + 1])
         at0 = _value_at_zero(cx[a:e], cy[a:e])
         scale = np.max(np.abs(cy[a:e]), axis=0)
         scale = np.where(scale > 0, scale, 1.0)
-        rule(np.abs(at0) > 1e-9 * scale, lambda r, col, cid=ids[c], at0=at0: f"curves.{cid} must pass through the "
-             f"origin (a general_nonlinear curve; its force at e=0 is {at0[col]:g})")  # fmt: skip
+        why = ("a damper carries no force at rest; a preload belongs on a spring, with initial_elongation"
+               if kind_name == "nonlinear_damper" else "a spring that carries force at t = 0 says so with "
+               "initial_elongation, never with a shifted curve")  # fmt: skip
+        rule(np.abs(at0) > 1e-9 * scale, lambda r, col, cid=ids[c], at0=at0, kn=kind_name, why=why: f"curves.{cid} "
+             f"must pass through the origin (a {kn} curve; its force at 0 is {at0[col]:g}): {why}")  # fmt: skip
     for c in sorted(rising):
         a, e = int(off[c]), int(off[c + 1])
         rule(~(np.diff(cy[a:e], axis=0) > 0), lambda r, col, cid=ids[c]: f"curves.{cid}.y must be strictly increasing "
              "(the unloading curve of a general_nonlinear spring)")  # fmt: skip
+    for c in sorted(damper):
+        a, e = int(off[c]), int(off[c + 1])
+        rule(~(np.diff(cy[a:e], axis=0) >= 0), lambda r, col, cid=ids[c]: f"curves.{cid}.y must be non-decreasing "
+             "(the force vs elongation rate curve of a nonlinear_damper)")  # fmt: skip
     for c in sorted(crush):
         a = int(off[c])
         rule(~(cx[a] < 0), lambda r, col, cid=ids[c], a=a: f"curves.{cid} needs a compression part (x < 0): the "

@@ -17,17 +17,28 @@ import numpy as np
 from crashstudy.kernel.codes import (  # noqa: F401
     CRUSH,
     DAMPER,
+    ELASTOPLASTIC,
     GENERAL,
     HISTORY_ORDER,
     LINEAR,
     MATERIAL_CODES,
     NONLINEAR,
+    NONLINEAR_DAMPER,
     PM_ACCELERATION,
     PM_CODES,  # fmt: skip
     PM_DISPLACEMENT,
     PM_VELOCITY,
 )
-from crashstudy.schema.model import Crush, Damper, GeneralNonlinear, LinearElastic, Model, NonlinearElastic
+from crashstudy.schema.model import (
+    Crush,
+    Damper,
+    Elastoplastic,
+    GeneralNonlinear,
+    LinearElastic,
+    Model,
+    NonlinearDamper,
+    NonlinearElastic,
+)
 
 TIME_STEP_MODES = ("safety_factor", "dt", "tolerance")
 
@@ -134,7 +145,8 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     sizes = [("mass", N), ("position", N * D), ("velocity", N * D), ("k", S), ("ty", S), ("cy", S),
              ("cx", ptot), ("cy_", ptot), ("gravity", D), ("load", L * D), ("pm_scale", P),
              ("wall_point", W * D), ("wall_normal", W * D), ("end_time", 1), ("time_step", 1),
-             ("ke_fraction", 1), ("min_time", 1)]  # fmt: skip
+             ("ke_fraction", 1), ("min_time", 1),
+             ("kt", S), ("fy", S), ("e0", S), ("fail_t", S), ("fail_c", S)]  # fmt: skip
     blocks: dict[str, slice] = {}
     pos = 0
     for name, n in sizes:
@@ -188,6 +200,20 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
             put("ty", s, mat.tension_yield if mat.tension_yield is not None else np.inf, f"{base}.tension_yield")
             put("cy", s, mat.compression_yield if mat.compression_yield is not None else -np.inf,
                 f"{base}.compression_yield")
+        elif isinstance(mat, Elastoplastic):
+            put("k", s, mat.stiffness, f"{base}.stiffness")
+            put("kt", s, mat.tangent_stiffness, f"{base}.tangent_stiffness")
+            put("fy", s, mat.yield_force, f"{base}.yield_force")
+        elif isinstance(mat, NonlinearDamper):
+            spring_curves[s, 0] = cidx[mat.curve]
+        # spring options (SPEC v2): preload / free length and failure elongations (inf: never breaks)
+        damper = isinstance(mat, (Damper, NonlinearDamper))
+        put("e0", s, sp.initial_elongation, None if damper else f"springs.{sid}.initial_elongation")
+        fail = sp.failure
+        put("fail_t", s, fail.tension if fail is not None and fail.tension is not None else np.inf,
+            f"springs.{sid}.failure.tension")
+        put("fail_c", s, fail.compression if fail is not None and fail.compression is not None else -np.inf,
+            f"springs.{sid}.failure.compression")
 
     for c, (cid, curve) in enumerate(m.curves.items()):
         o = int(offsets[c])

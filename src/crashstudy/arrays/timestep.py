@@ -24,7 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crashstudy.arrays.compiler import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR, Topology
+from crashstudy.arrays.compiler import (
+    CRUSH,
+    DAMPER,
+    ELASTOPLASTIC,
+    GENERAL,
+    LINEAR,
+    NONLINEAR,
+    NONLINEAR_DAMPER,
+    Topology,
+)
 
 CRITICAL_MARGIN = 0.99  # the nodal bound is attained exactly by two free masses on one spring,
 # where omega dt = 2 is neutrally unstable (linear growth): dt_crit keeps a 1% margin below 2 / omega
@@ -64,8 +73,10 @@ def spring_stiffness_bound(topo: Topology, k: np.ndarray, cx: np.ndarray, cy: np
     for s in range(S):
         mat = topo.material[s]
         c0, c1 = topo.spring_curves[s]
-        if mat == LINEAR:
+        if mat in (LINEAR, ELASTOPLASTIC):  # elastoplastic: K bounds the tangent KT and the unloading slope
             kmax[s] = k[s]
+        elif mat == NONLINEAR_DAMPER:  # the steepest slope of the force vs rate curve acts as c
+            damp[s] = curve_max_slope(cx, cy, off, c0)
         elif mat == DAMPER:
             damp[s] = k[s]
         elif mat == NONLINEAR:

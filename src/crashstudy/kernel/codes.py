@@ -10,10 +10,13 @@ from __future__ import annotations
 LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER = 0, 1, 2, 3, 4
 MATERIAL_CODES = {"linear_elastic": LINEAR, "nonlinear_elastic": NONLINEAR,
                   "general_nonlinear": GENERAL, "crush": CRUSH, "damper": DAMPER}  # fmt: skip
+# SPEC v2 materials
+ELASTOPLASTIC, NONLINEAR_DAMPER = 5, 6
+MATERIAL_CODES.update({"elastoplastic": ELASTOPLASTIC, "nonlinear_damper": NONLINEAR_DAMPER})
 # materials that follow a loading curve (curve_a) and so can have knot peaks
 CURVE_MATERIALS = (NONLINEAR, CRUSH, GENERAL)
 # materials with a state (rows of the (S, NSTATE, V) state array); see kernel.materials
-STATE_MATERIALS = (GENERAL, CRUSH)
+STATE_MATERIALS = (GENERAL, CRUSH, ELASTOPLASTIC)
 NSTATE = 8
 
 # prescribed-motion quantities
@@ -34,6 +37,6 @@ HISTORY_ORDER = tuple(HISTORY_SHAPES)
 ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")
 
 TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial length has collapsed
-UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + |W_ext| (+ a round-off
+UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + IE0 + |W_ext| (+ a round-off
 # floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
 TIME_EPS = 1e-9  # relative to a time curve's span: t = n dt carries round-off, a knot at end_time is inside

@@ -19,14 +19,14 @@ from crashstudy.kernel import generic_block as gb
 from crashstudy.kernel import laws as lw
 from crashstudy.kernel.codes import (
     CRUSH,
-    CRUSHED_TO_ZERO,
     DAMPER,
+    ELASTOPLASTIC,
     GENERAL,
     LINEAR,
     NONLINEAR,
+    NONLINEAR_DAMPER,
     PM_ACCELERATION,
     PM_DISPLACEMENT,
-    UNSTABLE,
     UNSTABLE_ENERGY,
 )
 from crashstudy.kernel.driver import (
@@ -56,7 +56,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
     pm_curve, wall_nodes, knot_check, x0, v0, cx = T.pm_curve, T.wall_nodes, T.knot_check, P.x0, P.v0, P.cx
     cy, cds, cs0, cs1, gravity, load_force = P.cy, P.cds, P.cs0, P.cs1, P.gravity, P.load_force
     pm_scale, wall_point, wall_normal, out_every, ke_fraction, min_time = P.pm_scale, P.wall_point, P.wall_normal, P.out_every, P.ke_fraction, P.min_time
-    e_floor, fail_time, fail_item, final_energy = P.energy_floor, Out.fail_time, Out.fail_item, Out.final_energy
+    e_floor, final_energy, e0, rate0, sft = P.energy_floor, Out.final_energy, P.e0, P.rate0, Out.spring_fail_time
     N = x0.shape[0]
     D = x0.shape[1]
     S = si.shape[0]
@@ -73,7 +73,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
          g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y, k_any, k_hit,
          k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie, pf, mc, pacc, pwall,
          e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act,
-         actf, n_fail, nst, next_rec, st_ok, nmax) = gb.block_arrays(lo, B, has_state, any_knot, T, P, Out)
+         actf, n_fail, nst, next_rec, st_ok, me, broken, v2, ftmp, e_init, nmax) = gb.block_arrays(
+            lo, B, has_state, any_knot, T, P, Out)
         for n in range(nmax + 1):
             nact = 0
             n_end = nmax + 1  # the first step at which an active variant ends
@@ -111,7 +112,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         sg = sg_b[s, w]
                         e_tmp[w] = lw.elongation_1d(sg, x[j, 0, w] - x0_b[j, 0, w], x[i, 0, w] - x0_b[i, 0, w])
                         ax_tmp[0, w] = sg
-                    if kind == DAMPER or has_term:
+                    if kind == DAMPER or kind == NONLINEAR_DAMPER or has_term:
                         for w in range(B):
                             vpj = lw.end_rate(v[j, 0, w], acc[j, 0, w], dt_b[w])
                             vpi = lw.end_rate(v[i, 0, w], acc[i, 0, w], dt_b[w])
@@ -129,7 +130,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                             turn += ax_tmp[d, w] * axis_prev[s, d, w]
                             axis_prev[s, d, w] = ax_tmp[d, w]
                         gone = lw.collapsed(ln, l0_b[s, w], turn)
-                        if gone and crushed[w] < 0:
+                        if gone and crushed[w] < 0 and not broken[s, w]:  # a broken spring may collapse
                             crushed[w] = s
                         dn = 1.0 if gone else ln
                         edot = 0.0
@@ -140,6 +141,9 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                             edot += ax_tmp[d, w] * (vpj - vpi)
                         e_tmp[w] = lw.elongation_2d(ln, l0_b[s, w])
                         ed_tmp[w] = edot
+                if v2[0, s]:  # e = e0 + ... (initial_elongation)
+                    for w in range(B):
+                        e_tmp[w] = e0[s, lo + w] + e_tmp[w]
                 nhit = 0
                 if kn:  # did any lane pass over a flagged knot since the previous step? (cheap: no stores)
                     ca = curve_a[s]
@@ -177,6 +181,12 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     for w in range(B):
                         F_tmp[w], state[s, 0, w], state[s, 1, w] = lw.crush_law(e_tmp[w], state[s, 0, w], state[s, 1, w],
                                                                              F_tmp[w], kp_b[s, w])  # fmt: skip
+                elif kind == ELASTOPLASTIC:
+                    for w in range(B):
+                        F_tmp[w], state[s, 0, w], state[s, 1, w] = lw.elastoplastic_law(
+                            e_tmp[w], state[s, 0, w], state[s, 1, w], kp_b[s, w], P.ktan[s, lo + w], P.fy[s, lo + w])
+                elif kind == NONLINEAR_DAMPER:
+                    gb.ramp(curve_a[s], ed_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
                 else:  # GENERAL: rules 1-4 of docs/format.md, branch-free over the block; reversals (rare) per lane
                     ca = curve_a[s]
                     cb = curve_b[s]
@@ -203,6 +213,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                                     e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w],
                                     state[s, 4, w], state[s, 6, w], state[s, 7, w], yt_b[s, w], yc_b[s, w], ca, cb,
                                     lo + w, cx, cy, cds, cs0, cs1, off)
+                if v2[1, s]:
+                    gb.failure(s, n, lo, B, P.fail_t, P.fail_c, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp, sft)
                 if kn:
                     k_any[s] = nhit > 0
                 if nhit > 0:  # rare: peak-force candidate and the deceleration data (see reference)
@@ -211,13 +223,18 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         kcw = k_c[w]
                         th, dF = lw.knot_crossing(kcw, k_x[w], k_y[w], e_prev[s, w], e_tmp[w], k_sh[w], f_prev[s, w],
                                                F_tmp[w])  # fmt: skip
+                        kcw = 0.0 if broken[s, w] else kcw  # a spring that breaks in this step: the step's ends only
                         k_hit[s, w] = kcw > 0.0
                         k_th[s, w] = th
                         for d in range(D):
                             k_dfax[s, d, w] = dF * ax_tmp[d, w]
                         pf[s, w] = lw.peak(pf[s, w], kcw * actf[w])
                 # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
-                if D == 1 and n > 0:  # one pass: scatter and summaries
+                fh = v2[0, s] and kind != DAMPER and kind != NONLINEAR_DAMPER
+                if v2[1, s] or (n == 1 and fh):  # a breakable spring, or a preloaded spring's first step
+                    gb.v2_scatter(s, i, j, n, fh, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, v2[1, s],
+                                  f, ie, ie_tot, pf, mc, me, forces, elong, f_prev, e_prev)  # fmt: skip
+                elif D == 1 and n > 0:  # one pass: scatter and summaries
                     for w in range(B):
                         F = F_tmp[w]
                         e = e_tmp[w]
@@ -229,6 +246,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         ie_tot[w] += ie[s, w]
                         pf[s, w] = lw.peak(pf[s, w], abs(F) * af)
                         mc[s, w] = lw.peak(mc[s, w], -e * af)
+                        me[s, w] = lw.peak(me[s, w], e * af)
                         forces[s, w] = F
                         elong[s, w] = e
                         f_prev[s, w] = F
@@ -248,6 +266,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         ie_tot[w] += ie[s, w]
                         pf[s, w] = lw.peak(pf[s, w], abs(F) * af)
                         mc[s, w] = lw.peak(mc[s, w], -e * af)
+                        me[s, w] = lw.peak(me[s, w], e * af)
                         forces[s, w] = F
                         elong[s, w] = e
                         f_prev[s, w] = F
@@ -382,10 +401,10 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             nbad = 0
             for w in range(B):
                 wmax[w] = max(wmax[w], abs(work[w]))
-                b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - ke0[w] - work[w])
+                b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - e_init[w] - work[w])
                 bal[w] = b_
                 err[w] = lw.peak(err[w], b_ * actf[w])
-                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]) + e_floor[lo + w])
+                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (e_init[w] + wmax[w]) + e_floor[lo + w])
             anybad = nbad > 0
             # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
             for n_ in range(N):
@@ -417,23 +436,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if D > 1:
                 for w in range(B):
                     anybad = anybad or (act[w] and crushed[w] >= 0)
-            if anybad:
-                for w in range(B):
-                    if not act[w]:
-                        continue
-                    if not (bal[w] <= UNSTABLE_ENERGY * (ke0[w] + wmax[w]) + e_floor[lo + w]):
-                        st_ok[w] = UNSTABLE
-                        fail_time[lo + w] = n * dt_b[w]
-                        n_fail[w] = n
-                        act[w] = False
-                        actf[w] = 0.0
-                    elif D > 1 and crushed[w] >= 0:
-                        st_ok[w] = CRUSHED_TO_ZERO
-                        fail_item[lo + w] = crushed[w]
-                        fail_time[lo + w] = n * dt_b[w]
-                        n_fail[w] = n
-                        act[w] = False
-                        actf[w] = 0.0
+            if anybad:  # rare: lanes that fail at this step stop
+                gb.fail_lanes(n, lo, B, D, act, actf, bal, e_init, wmax, e_floor, crushed, st_ok, n_fail, dt_b, Out)
             if any_hist:
                 gb.record(n, lo, B, n_out, act, next_rec, out_every, x, x0_b, v, vnew, acc, forces, elong, ke, ie_tot,
                           work, wall_e, wforce, H)  # fmt: skip
@@ -451,20 +455,13 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         fsum += abs(forces[s, w])
                         psum += pf[s, w]
                     small_f = fsum <= ke_fraction[q] * psum
-                    small_ke = ke[w] <= ke_fraction[q] * (ke0[w] + wmax[w])
+                    small_ke = ke[w] <= ke_fraction[q] * (e_init[w] + wmax[w])
                     opening = edot_min[w] >= 0.0 and no_ext
                     if small_f and (small_ke or opening):
                         nst[w] = n
                         n_end = n
-            for w in range(B):
-                if n != n_end:
-                    break
-                if act[w] and n == nst[w]:
-                    q = lo + w
-                    final_energy[0, q] = ke[w]
-                    final_energy[1, q] = ie_tot[w]
-                    final_energy[2, q] = work[w]
-                    final_energy[3, q] = wall_e[w]
+            if n == n_end:
+                gb.final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, final_energy)
             for n_ in range(N):
                 if fused:
                     break
@@ -478,9 +475,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     for d in range(D):
                         for w in range(B):
                             fext_prev[n_, d, w] = fext[n_, d, w]
-        gb.results(lo, B, st_ok, err, ke0, wmax, nst, n_fail, dt_b, ie, pf, mc, pacc, pwall, Out)
-
-
+        gb.results(lo, B, st_ok, err, e_init, wmax, nst, n_fail, dt_b, ie, pf, mc, me, pacc, pwall, Out)
 
 
 def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK,

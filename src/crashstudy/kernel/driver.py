@@ -35,7 +35,7 @@ TOPO_FIELDS = ("spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_
 VARS_FIELDS = ("mass", "inv_mass", "x0", "v0", "length0", "sign", "kpar", "yield_t", "yield_c", "cx", "cy", "cds",
                "cs0", "cs1", "knot_y", "gravity", "load_force", "pm_scale", "wall_point", "wall_normal", "dt",
                "n_steps", "out_every", "ke_fraction", "min_time", "invalid", "energy_floor",
-               "rec_block")  # fmt: skip
+               "rec_block", "ktan", "fy", "e0", "fail_t", "fail_c", "state0", "ie0", "rate0")  # fmt: skip
 Topo = namedtuple("Topo", TOPO_FIELDS)  # type: ignore[misc]
 Vars = namedtuple("Vars", VARS_FIELDS)  # type: ignore[misc]
 # rec: which histories are kept (HISTORY_ORDER); energy: (T, 4, V) for the four ENERGIES
@@ -44,7 +44,8 @@ Vars = namedtuple("Vars", VARS_FIELDS)  # type: ignore[misc]
 Hist = namedtuple("Hist", ("rec", "pos", "disp", "vel", "acc", "force", "elong", "energy", "wall", "step_nodes",
                            "steps"))  # type: ignore[misc]  # fmt: skip
 Summ = namedtuple("Summ", ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed",
-                           "peak_acc", "peak_wall", "energy_error", "final_energy"))  # type: ignore[misc]  # fmt: skip
+                           "peak_acc", "peak_wall", "energy_error", "final_energy", "max_elongation",
+                           "spring_fail_time"))  # type: ignore[misc]  # fmt: skip
 
 
 def set_threads(n: int) -> None:
@@ -84,7 +85,8 @@ def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int,
                 buf("spring_force", 3), buf("spring_elongation", 3), energy, buf("wall_force", 3),
                 np.asarray(record, dtype=np.int64), steps)  # fmt: skip
     summ = Summ(out.status, out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush,
-                out.absorbed_energy, out.peak_acceleration, out.peak_wall_force, out.energy_error, out.final_energy)  # fmt: skip
+                out.absorbed_energy, out.peak_acceleration, out.peak_wall_force, out.energy_error, out.final_energy,
+                out.max_elongation, out.spring_fail_time)  # fmt: skip
     return out, hist, summ
 
 

@@ -37,7 +37,8 @@ class Recorder(Protocol):
 
 __all__ = ["error_estimate", "get_threads", "run_batch", "run_ordered", "set_threads", "spread_columns"]
 SUMMARIES = ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed_energy",
-             "peak_acceleration", "peak_wall_force", "energy_error", "final_energy")  # fmt: skip
+             "peak_acceleration", "peak_wall_force", "energy_error", "final_energy", "max_elongation",
+             "spring_fail_time")  # fmt: skip
 
 
 def compile_first(kernel: str, batch: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,

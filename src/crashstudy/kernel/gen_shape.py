@@ -10,7 +10,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from crashstudy.kernel.codes import CRUSH, DAMPER, ENERGIES, GENERAL, HISTORY_ORDER, NONLINEAR
+from crashstudy.kernel.codes import (
+    CRUSH,
+    DAMPER,
+    ELASTOPLASTIC,
+    ENERGIES,
+    GENERAL,
+    HISTORY_ORDER,
+    NONLINEAR,
+    NONLINEAR_DAMPER,
+)
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
@@ -93,6 +102,8 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
         "walls": [[n for n in range(N) if b.wall_nodes[k, n] != 0.0] for k in range(b.wall_nodes.shape[0])],
         "free": b.free.tolist(), "loads": [[int(n), int(c)] for n, c in zip(b.load_node, b.load_curve, strict=True)],
         "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
+        "pre": [s for s in range(len(b.spring_i)) if np.any(b.e0[s] != 0.0)],
+        "fragile": [s for s in range(len(b.spring_i)) if np.any(np.isfinite(b.fail_t[s]) | np.isfinite(b.fail_c[s]))],
         "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
         "movable": [bool(np.any(b.free[n] > 0.0)) or n in pm_nodes for n in range(N)], "static": static,
         "pm": [[int(b.pm_node[k]), int(b.pm_dir[k]), int(b.pm_kind[k]), int(b.pm_curve[k])] for k in range(len(b.pm_node))],
@@ -135,7 +146,10 @@ def layout(shape: dict[str, Any]) -> Any:
     tcurves = sorted({c for _, c in loads if c >= 0} | {c for _, _, _, c in pm})
     loaded = {n for n, _ in loads} | {p for p, _, _, _ in pm}  # nodes whose external force changes in time
     general = [s for s in range(S) if mat[s] == GENERAL]
-    dampers = any(mat[s] == DAMPER for s in range(S))
+    dampers = any(mat[s] in (DAMPER, NONLINEAR_DAMPER) for s in range(S))
+    fragile = shape["fragile"]  # springs that can break (failure): thresholds and a broken flag
+    pre = shape["pre"]  # preloaded springs (initial_elongation): e0, the rate at t = 0, KE0 + IE0
+    E0 = "ein" if pre else "ke0"  # the row of the energy at t = 0
     kcheck = set(shape["kcheck"])
     # knots that can hold a peak of |force| (Batch.knot_check), per spring following that curve
     knots = {s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
@@ -144,7 +158,8 @@ def layout(shape: dict[str, Any]) -> Any:
     keep_a = {n for n in range(N) if not static[n] and (dampers or term or (movable[n] and any(
         n in (si[s], sj[s]) for s in knotted)))}  # fmt: skip  (a^{n-1} kept: dampers, knot crossings)
     R = _Rows()
-    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl") + (("kef", "tmin", "stop") if term else ()):
+    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl") + (("kef", "tmin", "stop") if term else ()) + (
+            ("ein",) if pre else ()):  # fmt: skip
         R.add(name)
     if ext:
         for name in ("work", "wmax"):
@@ -202,16 +217,25 @@ def layout(shape: dict[str, Any]) -> Any:
         if c in tcurves:
             R.add(f"cx{off[c + 1] - 1}")
     for s in range(S):
-        for f in ("kp", "fp", "ep", "ie", "pf", "mc") + (("sg",) if D == 1 else ("l0",)) + (
+        for f in ("kp", "fp", "ep", "ie", "pf", "mc", "me") + (("sg",) if D == 1 else ("l0",)) + (
                 ("kh", "kth") if s in knotted else ()):  # fmt: skip
             R.add(f"{f}{s}")
         for d in range(D if s in knotted else 0):
             R.add(f"kdf{s}_{d}")
         for d in range(D if D > 1 else 0):
             R.add(f"ap{s}_{d}")  # previous direction (un-normalised)
-        if mat[s] == CRUSH:
+        if mat[s] in (CRUSH, ELASTOPLASTIC):
             R.add(f"st{s}_0")
             R.add(f"st{s}_1")
+        if mat[s] == ELASTOPLASTIC:
+            R.add(f"kt{s}")
+            R.add(f"fy{s}")
+        if s in pre:
+            R.add(f"e0{s}")
+            R.add(f"r0{s}")
+        if s in fragile:
+            for f in ("ft", "fc", "br"):
+                R.add(f"{f}{s}")
     for s in general:
         for f in ("yt", "yc", "F", "E", "rev") + (("gkc", "gkx", "gky", "gksh") if s in knotted else ()) + (
                 ("ed",) if term else ()):  # fmt: skip

@@ -6,16 +6,17 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel.codes import UNSTABLE_ENERGY
+from crashstudy.kernel.codes import CRUSH, ELASTOPLASTIC, GENERAL, UNSTABLE_ENERGY
 from crashstudy.kernel.gen_nodes import _chain, emit_results, pass_b
-from crashstudy.kernel.gen_shape import ROW, layout
+from crashstudy.kernel.gen_shape import ROW, _lsum, layout
 from crashstudy.kernel.gen_springs import pass_a, pass_k
 
 # the laws a generated module calls (crashstudy.kernel.laws)
 LAWS = ("collapsed", "crush_knot_force", "crush_law", "crush_window", "damper_force", "elongation_1d", "elongation_2d",
         "end_rate", "energy_increment", "ext_power", "general_law", "general_reverse_call", "general_window",
         "knot_accel", "knot_crossing", "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window",
-        "peak", "time_window", "wall_force", "wall_jump", "work_increment")  # fmt: skip
+        "peak", "time_window", "wall_force", "wall_jump", "work_increment",
+        "elastoplastic_law", "energy_first_half", "broken_at")  # fmt: skip
 # local name in the generated kernel -> (record, field) of crashstudy.kernel.driver
 RECORD_NAMES = [(n, "P", f) for n, f in (
     ("mass", "mass"), ("inv_mass", "inv_mass"), ("x0", "x0"), ("v0", "v0"), ("sign", "sign"), ("length0", "length0"),
@@ -23,12 +24,14 @@ RECORD_NAMES = [(n, "P", f) for n, f in (
     ("cs0", "cs0"), ("cs1", "cs1"), ("knot_y", "knot_y"), ("gravity", "gravity"), ("dt", "dt"),
     ("n_steps", "n_steps"), ("out_every", "out_every"), ("invalid", "invalid"), ("e_floor", "energy_floor"),
     ("ke_fraction", "ke_fraction"), ("min_time", "min_time"), ("wall_point", "wall_point"),
-    ("wall_normal", "wall_normal"), ("load_force", "load_force"), ("pm_scale", "pm_scale"))] + [
+    ("wall_normal", "wall_normal"), ("load_force", "load_force"), ("pm_scale", "pm_scale"),
+    ("ktan", "ktan"), ("fyld", "fy"), ("elong0", "e0"), ("state0", "state0"), ("ie0", "ie0"), ("rate0", "rate0"),
+    ("fail_t", "fail_t"), ("fail_c", "fail_c"))] + [
     ("off", "T", "curve_off")] + [(n, "H", f) for n, f in (
     ("h_pos", "pos"), ("h_disp", "disp"), ("h_vel", "vel"), ("h_acc", "acc"), ("h_force", "force"),
     ("h_elong", "elong"), ("h_energy", "energy"), ("h_wall", "wall"))] + [(n, "O", n) for n in (
     "status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed", "peak_acc", "peak_wall",
-    "energy_error", "final_energy")]  # fmt: skip
+    "energy_error", "final_energy", "max_elongation", "spring_fail_time")]  # fmt: skip
 
 
 def source(shape: dict[str, Any]) -> str:
@@ -192,11 +195,28 @@ def lanes(g: Any, ind: str) -> None:
     for s in general:
         emit(f"{i2}{R[f'yt{s}']} = yield_t[{s}, q]")
         emit(f"{i2}{R[f'yc{s}']} = yield_c[{s}, q]")
+    for s in range(S):
+        if g.mat[s] == ELASTOPLASTIC:
+            emit(f"{i2}{R[f'kt{s}']} = ktan[{s}, q]")
+            emit(f"{i2}{R[f'fy{s}']} = fyld[{s}, q]")
+    for s in g.fragile:  # failure elongations (+-inf: never)
+        emit(f"{i2}{R[f'ft{s}']} = fail_t[{s}, q]")
+        emit(f"{i2}{R[f'fc{s}']} = fail_c[{s}, q]")
+    for s in g.pre:  # initial_elongation: e0, the rate at t = 0, IE0 and the material state (kernel.preload)
+        emit(f"{i2}{R[f'e0{s}']} = elong0[{s}, q]")
+        emit(f"{i2}{R[f'r0{s}']} = rate0[{s}, q]")
+        emit(f"{i2}{R[f'ie{s}']} = ie0[{s}, q]")
+        nst = 8 if g.mat[s] == GENERAL else 2 if g.mat[s] in (CRUSH, ELASTOPLASTIC) else 0
+        for k in range(nst):
+            emit(f"{i2}{R[f'st{s}_{k}']} = state0[{s}, {k}, q]")
     emit(f"{i2}ke0 = 0.0")
     for n in range(N):  # every node, as the reference sums
         for d in range(D):
             emit(f"{i2}ke0 += 0.5 * mass[{n}, q] * v0[{n}, {d}, q] * v0[{n}, {d}, q]")
     emit(f"{i2}{R['ke0']} = ke0")
+    if g.pre:  # KE0 + IE0, IE0 summed over the springs in order as the reference
+        emit(f"{i2}ke0 = ke0 + {_lsum([f'ie0[{s}, q]' for s in range(S)])}")
+        emit(f"{i2}{R['ein']} = ke0")
     emit(f"{i2}{R['thr']} = unstable_energy * (ke0 + 0.0) + e_floor[q]")
     emit(f"{i2}if invalid[q] > 0:")
     emit(f"{i2}    status[q] = 3")
@@ -215,7 +235,7 @@ def failures(g: Any, i3: str) -> None:
     emit(f"{i3}    for w in range(B):")
     emit(f"{i3}        if not fn <= {R['lim']}:")
     emit(f"{i3}            continue")
-    bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + {R['wall_e'] if W else '0.0'}) - {R['ke0']}) - "
+    bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + {R['wall_e'] if W else '0.0'}) - {R[g.E0]}) - "
                 + (R["work"] if ext else "0.0") + ")")  # fmt: skip
     emit(f"{i3}        if not ({bal_expr} <= {R['thr']}):")
     emit(f"{i3}            status[vi[w]] = 1")

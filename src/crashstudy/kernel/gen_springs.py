@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel.codes import CRUSH, DAMPER, GENERAL, LINEAR, NONLINEAR
+from crashstudy.kernel.codes import CRUSH, DAMPER, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR, NONLINEAR_DAMPER
 from crashstudy.kernel.gen_shape import _lsum
 
 
@@ -26,6 +26,8 @@ def geometry(g: Any, ind: str, springs: list[int], pass_a: bool) -> None:
         for s in springs:
             dj, di = ("0.0" if static[n] else f"d{n}" for n in (sj[s], si[s]))
             emit(f"{ind}e{s} = elongation_1d({sg_text(g, s)}, {dj}, {di})")  # 1.0 * y == y exactly
+            if s in g.pre:
+                emit(f"{ind}e{s} = {R[f'e0{s}']} + e{s}")
         return
     for s in springs:
         i, j = si[s], sj[s]
@@ -39,13 +41,16 @@ def geometry(g: Any, ind: str, springs: list[int], pass_a: bool) -> None:
             emit(f"{ind}{R[f'ap{s}_{d}']} = u{d}")
         emit(f"{ind}gone = collapsed(ln, {R[f'l0{s}']}, turn)")
         if not pass_a:  # the first collapsed spring in spring order (pass A's ones come first: see below)
-            emit(f"{ind}{R['crushed']} = {float(s)!r} if (gone and {R['crushed']} < 0.0) else {R['crushed']}")
+            intact = f" and {R[f'br{s}']} == 0.0" if s in g.fragile else ""  # a broken spring may collapse
+            emit(f"{ind}{R['crushed']} = {float(s)!r} if (gone and {R['crushed']} < 0.0{intact}) else {R['crushed']}")
         else:
             emit(f"{ind}gone{s} = gone")
         emit(f"{ind}dn = 1.0 if gone else ln")
         for d in range(D):
             emit(f"{ind}ax{s}_{d} = u{d} / dn")
         emit(f"{ind}e{s} = elongation_2d(ln, {R[f'l0{s}']})")
+        if s in g.pre:
+            emit(f"{ind}e{s} = {R[f'e0{s}']} + e{s}")
 
 
 
@@ -67,8 +72,11 @@ def knot_post(g: Any, ind: str, s: int, kc: str, kx: str, ky: str, sh: str) -> N
     (knot force - force interpolated in time) x axis ``dfax{s}_{d}`` (see kernel.compiled)."""
     D, R, emit = g.D, g.R, g.emit  # fmt: skip
     fp = R[f"fp{s}"]
-    emit(f"{ind}hit{s} = ({kc} > 0.0) & (wt > 0.0)")
     emit(f"{ind}th, dF = knot_crossing({kc}, {kx}, {ky}, {R[f'ep{s}']}, e{s}, {sh}, {fp}, F{s})")
+    if s in g.fragile:  # a spring that breaks in this step: the step's ends only
+        emit(f"{ind}kcb = 0.0 if {R[f'br{s}']} > 0.0 else {kc}")
+        kc = "kcb"
+    emit(f"{ind}hit{s} = ({kc} > 0.0) & (wt > 0.0)")
     emit(f"{ind}{R[f'kth{s}']} = th")
     emit(f"{ind}{R[f'kh{s}']} = 1.0 if hit{s} else 0.0")
     emit(f"{ind}nhit += 1 if hit{s} else 0")
@@ -153,6 +161,26 @@ def pass_a(g: Any, ind: str) -> None:
 
 
 
+def failure(g: Any, ind: str, s: int) -> None:
+    """A breakable spring (docs/format.md, failure): past a failure elongation it breaks at the crossing
+    time interpolated in the step (``spring_fail_time``) and its force is 0 from then on; ``em{s}``, ``ai{s}``
+    are the elongation and activity its extremes take (the failure elongation; 0 once broken)."""
+    if s not in g.fragile:
+        return
+    R, emit = g.R, g.emit
+    br = R[f"br{s}"]
+    emit(f"{ind}was = {br} > 0.0")
+    emit(f"{ind}snaps, lim_, tb = broken_at(e{s}, {R[f'ep{s}']}, {R[f'ft{s}']}, {R[f'fc{s}']}, n, dtw)")
+    emit(f"{ind}snaps = snaps and af > 0.0 and (not was) and n > 0")
+    emit(f"{ind}ai{s} = 0.0 if was else af")
+    emit(f"{ind}em{s} = lim_ if snaps else e{s}")
+    emit(f"{ind}if snaps:")
+    emit(f"{ind}    spring_fail_time[{s}, vi[w]] = tb")
+    emit(f"{ind}    {br} = 1.0")
+    emit(f"{ind}F{s} = 0.0 if {br} > 0.0 else F{s}")
+
+
+
 def pass_k(g: Any, ind: str) -> None:
     """|a| at this step's knot crossings (only run when a lane crossed one): a interpolated in time
     plus the kinked spring's correction, as kernel.compiled (rows kth, kdf, kh, ao, a)."""
@@ -187,8 +215,10 @@ def pass_b_springs(g: Any, i2: str) -> None:
             if D > 1:
                 for d in range(D):
                     emit(f"{i2}ax{s}_{d} = {R[f'ax{s}_{d}']}")
-                emit(f"{i2}{R['crushed']} = {float(s)!r} if ({R[f'rev{s}']} >= 2.0 and {R['crushed']} < 0.0)"
+                intact = f" and {R[f'br{s}']} == 0.0" if s in g.fragile else ""
+                emit(f"{i2}{R['crushed']} = {float(s)!r} if ({R[f'rev{s}']} >= 2.0 and {R['crushed']} < 0.0{intact})"
                      f" else {R['crushed']}")  # fmt: skip
+            failure(g, i2, s)
             if s in knotted:
                 knot_post(g, i2, s, R[f"gkc{s}"], R[f"gkx{s}"], R[f"gky{s}"], R[f"gksh{s}"])
             continue
@@ -203,7 +233,6 @@ def pass_b_springs(g: Any, i2: str) -> None:
             if s in knotted:  # the whole path
                 emit(f"{i2}lo_, hi_, sh = nonlinear_window({R[f'ep{s}']}, e{s})")
                 knot_search(g, i2, s, "lo_", "hi_", "sh", R[f"ep{s}"], ("kc", "kx", "ky"))
-                knot_post(g, i2, s, "kc", "kx", "ky", "sh")
         elif k == CRUSH:
             emin, fstar = R[f"st{s}_0"], R[f"st{s}_1"]
             emit(f"{i2}emin = {emin}")
@@ -211,17 +240,32 @@ def pass_b_springs(g: Any, i2: str) -> None:
             if s in knotted:  # (e, e_min before the step): crushing further
                 emit(f"{i2}lo_, hi_, sh = crush_window(e{s}, emin)")
                 knot_search(g, i2, s, "lo_", "hi_", "sh", R[f"ep{s}"], ("kc", "kx", "ky"))
-                knot_post(g, i2, s, "kc", "kx", "ky", "sh")
+        elif k == ELASTOPLASTIC:
+            st0, st1 = R[f"st{s}_0"], R[f"st{s}_1"]
+            emit(f"{i2}F{s}, {st0}, {st1} = elastoplastic_law(e{s}, {st0}, {st1}, {R[f'kp{s}']}, {R[f'kt{s}']}, "
+                 f"{R[f'fy{s}']})")
+        elif k == NONLINEAR_DAMPER:
+            emit(f"{i2}rd = {edot(g, s)}")
+            emit(f"{i2}F{s} = {ramp(ca[s], 'rd')}")
         else:  # pragma: no cover - the compiler knows no other material
             raise ValueError(f"material code {k}")
+        failure(g, i2, s)
+        if s in knotted:  # after a failure check: a spring that breaks in this step takes no knot
+            knot_post(g, i2, s, "kc", "kx", "ky", "sh")
     # summaries in spring order (the reference kernel's order of operations)
     emit(f"{i2}ie_tot = 0.0")
     for s in range(S):
         ie = R[f"ie{s}"]
-        emit(f"{i2}{ie} = energy_increment({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, afw)")
+        step = f"energy_increment({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, afw)"
+        if s in g.pre and mat[s] not in (DAMPER, NONLINEAR_DAMPER):  # a preload's first half step
+            half = f"energy_first_half({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, {R['dt']}, {R[f'r0{s}']}, afw)"
+            step = f"{half} if (n1 and {R[f'e0{s}']} != 0.0) else {step}"
+        emit(f"{i2}{ie} = {step}")
         emit(f"{i2}ie_tot = ie_tot + {ie}")
         emit(f"{i2}{R[f'pf{s}']} = peak({R[f'pf{s}']}, abs(F{s}) * af)")
-        emit(f"{i2}{R[f'mc{s}']} = peak({R[f'mc{s}']}, -e{s} * af)")
+        em, ai = (f"em{s}", f"ai{s}") if s in g.fragile else (f"e{s}", "af")  # extremes while intact
+        emit(f"{i2}{R[f'mc{s}']} = peak({R[f'mc{s}']}, -{em} * {ai})")
+        emit(f"{i2}{R[f'me{s}']} = peak({R[f'me{s}']}, {em} * {ai})")
         emit(f"{i2}{R[f'fp{s}']} = F{s}")
         emit(f"{i2}{R[f'ep{s}']} = e{s}")
         if hist and D > 1:

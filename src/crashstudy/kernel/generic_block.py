@@ -9,8 +9,28 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from crashstudy.kernel.codes import CRUSH, GENERAL, INVALID, NONLINEAR, NSTATE
-from crashstudy.kernel.laws import crush_knot_force, crush_window, general_window, knot_step, nonlinear_window
+from crashstudy.kernel.codes import (
+    CRUSH,
+    CRUSHED_TO_ZERO,
+    GENERAL,
+    INVALID,
+    NONLINEAR,
+    NSTATE,
+    STATE_MATERIALS,
+    UNSTABLE,
+    UNSTABLE_ENERGY,
+)
+from crashstudy.kernel.laws import (
+    broken_at,
+    crush_knot_force,
+    crush_window,
+    energy_first_half,
+    energy_increment,
+    general_window,
+    knot_step,
+    nonlinear_window,
+    peak,
+)
 
 _jit = nb.njit(cache=True, nogil=True)
 
@@ -38,7 +58,7 @@ def flags(T, P, H):  # pragma: no cover - compiled
     NP = pm_node.shape[0]
     has_state = False
     for s in range(S):
-        if material[s] == GENERAL or material[s] == CRUSH:
+        if material[s] in STATE_MATERIALS:
             has_state = True
     has_gravity = False
     for d in range(D):
@@ -76,8 +96,9 @@ def flags(T, P, H):  # pragma: no cover - compiled
 @_jit
 def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - compiled
     """The block's copies of its variants' inputs and its state, zeroed or set to the initial state;
-    invalid variants are marked. Returns the arrays and the largest step count (see the unpacking
-    in :func:`crashstudy.kernel.compiled._run` for the order)."""
+    invalid variants are marked; preloaded springs (``initial_elongation``) start from the batch's state and
+    IE0, and ``e_init`` is KE0 + IE0. Returns the arrays and the largest step count (see the unpacking in
+    :func:`crashstudy.kernel.compiled._run` for the order)."""
     si, sj, pm_node = T.spring_i, T.spring_j, T.pm_node
     mass, inv_mass, x0, v0, length0, sign, kpar = P.mass, P.inv_mass, P.x0, P.v0, P.length0, P.sign, P.kpar
     yield_t, yield_c, cx, cy, cds, cs0, knot_y = P.yield_t, P.yield_c, P.cx, P.cy, P.cds, P.cs0, P.knot_y
@@ -207,8 +228,31 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
                 x[n_, d, w] = x0_b[n_, d, w]
                 v[n_, d, w] = v0[n_, d, lo + w]
                 ke0[w] += 0.5 * m_b[n_, w] * v[n_, d, w] * v[n_, d, w]
+    # SPEC v2 spring features: max elongation, broken springs, (preloaded, breakable) per spring, the
+    # elongation / activity the extremes of a breakable spring take in this step, KE0 + IE0
+    me = np.zeros((S, B))
+    broken = np.zeros((S, B), dtype=np.bool_)
+    v2 = np.zeros((2, S), dtype=np.bool_)
+    ftmp = np.empty((2, B))
+    e_init = np.zeros(B)
+    for s in range(S):
+        for w in range(B):
+            q = lo + w
+            ie[s, w] = P.ie0[s, q]
+            v2[0, s] = v2[0, s] or P.e0[s, q] != 0.0
+            v2[1, s] = v2[1, s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
+    if has_state and P.state0.shape[0] > 0:
+        for s in range(S):
+            for k in range(NSTATE):
+                for w in range(B):
+                    state[s, k, w] = P.state0[s, k, lo + w]
+    for w in range(B):
+        ie0 = 0.0
+        for s in range(S):
+            ie0 = ie0 + P.ie0[s, lo + w]
+        e_init[w] = ke0[w] + ie0
 
-    return (m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b, cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg, g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y, k_any, k_hit, k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie, pf, mc, pacc, pwall, e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act, actf, n_fail, nst, next_rec, st_ok, nmax)
+    return (m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b, cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg, g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y, k_any, k_hit, k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie, pf, mc, pacc, pwall, e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act, actf, n_fail, nst, next_rec, st_ok, me, broken, v2, ftmp, e_init, nmax)
 
 
 @_jit
@@ -297,15 +341,15 @@ def record(n, lo, B, n_out, act, next_rec, out_every, x, x0_b, v, vnew, acc, for
 
 
 @_jit
-def results(lo, B, st_ok, err, ke0, wmax, nst, n_fail, dt_b, ie, pf, mc, pacc, pwall, Out):  # pragma: no cover
+def results(lo, B, st_ok, err, e_init, wmax, nst, n_fail, dt_b, ie, pf, mc, me, pacc, pwall, Out):  # pragma: no cover
     """Write the block's summaries to its variants' columns."""
     status, t_end, absorbed, peak_force, max_crush = Out.status, Out.t_end, Out.absorbed, Out.peak_force, Out.max_crush
-    peak_acc, peak_wall, energy_error = Out.peak_acc, Out.peak_wall, Out.energy_error
+    peak_acc, peak_wall, energy_error, max_elongation = Out.peak_acc, Out.peak_wall, Out.energy_error, Out.max_elongation
     S, N, W = ie.shape[0], pacc.shape[0], pwall.shape[0]
     for w in range(B):
         q = lo + w
         status[q] = st_ok[w]
-        energy_error[q] = err[w] / max(ke0[w] + wmax[w], 1e-300)
+        energy_error[q] = err[w] / max(e_init[w] + wmax[w], 1e-300)
         if st_ok[w] == 0:
             t_end[q] = nst[w] * dt_b[w]
         elif n_fail[w] > 0:
@@ -315,15 +359,13 @@ def results(lo, B, st_ok, err, ke0, wmax, nst, n_fail, dt_b, ie, pf, mc, pacc, p
             absorbed[s, lo + w] = ie[s, w]
             peak_force[s, lo + w] = pf[s, w]
             max_crush[s, lo + w] = mc[s, w]
+            max_elongation[s, lo + w] = me[s, w]
     for n_ in range(N):
         for w in range(B):
             peak_acc[n_, lo + w] = np.sqrt(pacc[n_, w])
     for wl in range(W):
         for w in range(B):
             peak_wall[wl, lo + w] = pwall[wl, w]
-
-
-_ = (CRUSH, GENERAL, INVALID, NONLINEAR, NSTATE, np)
 
 
 @_jit
@@ -342,3 +384,88 @@ def record_steps(n, lo, B, act, acc, rec_block, step_nodes, steps):  # pragma: n
                 p = step_nodes[m]
                 for d in range(acc.shape[1]):
                     steps[r, m, d, lo + w] += acc[p, d, w]
+@_jit
+def fail_lanes(n, lo, B, D, act, actf, bal, e_init, wmax, e_floor, crushed, st_ok, n_fail, dt_b, Out):  # pragma: no cover
+    """A step where some lane failed (rare): unstable (energy balance) or, in 2-D, a spring crushed to zero
+    length; those lanes stop."""
+    for w in range(B):
+        if not act[w]:
+            continue
+        if not (bal[w] <= UNSTABLE_ENERGY * (e_init[w] + wmax[w]) + e_floor[lo + w]):
+            st_ok[w] = UNSTABLE
+        elif D > 1 and crushed[w] >= 0:
+            st_ok[w] = CRUSHED_TO_ZERO
+            Out.fail_item[lo + w] = crushed[w]
+        else:
+            continue
+        Out.fail_time[lo + w] = n * dt_b[w]
+        n_fail[w] = n
+        act[w] = False
+        actf[w] = 0.0
+
+
+@_jit
+def final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, final_energy):  # pragma: no cover - compiled
+    """The energies of the lanes that end at step n."""
+    for w in range(B):
+        if act[w] and n == nst[w]:
+            q = lo + w
+            final_energy[0, q] = ke[w]
+            final_energy[1, q] = ie_tot[w]
+            final_energy[2, q] = work[w]
+            final_energy[3, q] = wall_e[w]
+
+
+# ---- SPEC v2 spring features in the step (inlined: no call, no increfs) ---------------------------
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def failure(s, n, lo, B, fail_t, fail_c, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp,
+            spring_fail_time):  # pragma: no cover - compiled  # fmt: skip
+    """A breakable spring: past a failure elongation it breaks (force 0 from this step on); ftmp[0] / ftmp[1]
+    are the elongation and activity its extremes take (the failure elongation, 0 once broken)."""
+    for w in range(B):
+        q = lo + w
+        was = broken[s, w]
+        snaps, limit, t = broken_at(e_tmp[w], e_prev[s, w], fail_t[s, q], fail_c[s, q], n, dt_b[w])
+        snaps = snaps and act[w] and not was and n > 0
+        ftmp[1, w] = 0.0 if was else actf[w]
+        ftmp[0, w] = limit if snaps else e_tmp[w]
+        if snaps:
+            spring_fail_time[s, q] = t
+            broken[s, w] = True
+        if broken[s, w]:
+            F_tmp[w] = 0.0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def v2_scatter(s, i, j, n, fh, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, fr, f, ie, ie_tot, pf,
+               mc, me, forces, elong, f_prev, e_prev):  # pragma: no cover - compiled  # fmt: skip
+    """Nodal forces and summaries of a breakable spring (``fr``: extremes up to the break) or of a preloaded
+    spring's first step (``fh``: F^0 acts for the first half step, :func:`laws.energy_first_half`)."""
+    for d in range(D):
+        for w in range(B):
+            fa = F_tmp[w] * ax_tmp[d, w]
+            f[i, d, w] += fa
+            f[j, d, w] -= fa
+    for w in range(B):
+        F = F_tmp[w]
+        e = e_tmp[w]
+        af = actf[w]
+        if n == 1 and fh and e0[s, lo + w] != 0.0:
+            ie[s, w] = energy_first_half(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], dt_b[w], rate0[s, lo + w], af)
+        elif n > 0:
+            ie[s, w] = energy_increment(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], af)
+        ie_tot[w] += ie[s, w]
+        pf[s, w] = peak(pf[s, w], abs(F) * af)
+        em = ftmp[0, w] if fr else e  # extremes while intact
+        ai = ftmp[1, w] if fr else af
+        mc[s, w] = peak(mc[s, w], -em * ai)
+        me[s, w] = peak(me[s, w], em * ai)
+        forces[s, w] = F
+        elong[s, w] = e
+        f_prev[s, w] = F
+        e_prev[s, w] = e
+
+
+_ = (CRUSH, GENERAL, INVALID, NONLINEAR, NSTATE, STATE_MATERIALS, np)

@@ -125,6 +125,29 @@ def general_reverse_call(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, 
     return general_reverse(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off)
 
 
+@_jit
+def elastoplastic_law(e, ep, p, k, kt, fy):  # pragma: no cover - compiled
+    """``elastoplastic`` (LS-DYNA S03, isotropic hardening): exact return to ``|F| <= FY + H p``.
+
+    State (e_p, p) before the step. Returns (F, e_p, p) after it."""
+    h = k * kt / (k - kt)
+    trial = k * (e - ep)
+    over = abs(trial) - (fy + h * p)
+    dp = over / (k + h) if over > 0.0 else 0.0
+    sg = 1.0 if trial > 0.0 else (-1.0 if trial < 0.0 else (0.0 if trial == 0.0 else trial))  # np.sign
+    return trial - sg * k * dp, ep + sg * dp, p + dp
+
+
+@_jit
+def broken_at(e, ep, ft, fc, n, dt):  # pragma: no cover - compiled
+    """Spring failure: (passes a failure elongation in this step, that elongation, the crossing time
+    interpolated within the step)."""
+    snaps = (e > ft) | (e < fc)
+    limit = ft if e > ft else fc
+    t = (n - 1 + (limit - ep) / (e - ep)) * dt if snaps else 0.0
+    return snaps, limit, t
+
+
 # ---- knot crossings (peak force between two steps) -------------------------------------------
 
 
@@ -238,6 +261,12 @@ def elongation_2d(ln, l0):  # pragma: no cover - compiled
 def energy_increment(ie, F, fp, e, ep, af):  # pragma: no cover - compiled
     """Work done on a spring (trapezoid), ``af`` 1.0 while the variant runs (0.0 adds an exact 0)."""
     return ie + (0.5 * (F + fp) * (e - ep)) * af
+
+
+@_jit
+def energy_first_half(ie, F, fp, e, ep, dt, rate0, af):  # pragma: no cover - compiled
+    """The first step of a preloaded spring: F^0 acts on the mean of the rates at 0 and 1/2 for dt/2."""
+    return ie + ((0.5 * F + 0.25 * fp) * (e - ep) + 0.25 * dt * fp * rate0) * af
 
 
 @_jit

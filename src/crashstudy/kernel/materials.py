@@ -6,6 +6,7 @@ State layout shared with the compiled kernel: ``state`` has shape (S, NSTATE, V)
 - ``general_nonlinear``: 0 ``mode`` (0 never yielded, +1 last yielded in tension, -1 in
   compression), 1 ``e_t*``, 2 ``F_t*``, 3 ``e_c*``, 4 ``F_c*``, 5 shift of the loading curve along
   the elongation axis, 6 tension yielded (0/1), 7 compression yielded (0/1).
+- ``elastoplastic``: 0 ``e_p`` (plastic elongation), 1 ``p`` (accumulated plastic elongation, sum of |de_p|).
 """
 
 from __future__ import annotations
@@ -163,3 +164,21 @@ def crush(e: np.ndarray, st: np.ndarray, ca: int, ku: np.ndarray, cx: np.ndarray
     st[0] = np.where(on, e, emin)
     st[1] = np.where(on, f_load, fstar)
     return F
+
+
+def elastoplastic(e: np.ndarray, st: np.ndarray, k: np.ndarray, kt: np.ndarray, fy: np.ndarray) -> np.ndarray:
+    """Force of an ``elastoplastic`` spring (LS-DYNA S03, isotropic hardening); updates ``st`` in place.
+
+    Elastic trial ``F = K (e - e_p)``; where ``|F|`` exceeds ``FY + H p`` (``H = K KT / (K - KT)``) the
+    return to the yield surface is exact for the linear hardening: ``dp = (|F| - FY - H p) / (K + H)``,
+    ``e_p += sign(F) dp``, ``p += dp``, ``F -= sign(F) K dp``.
+    """
+    ep, p = st[0], st[1]
+    h = k * kt / (k - kt)
+    trial = k * (e - ep)
+    over = np.abs(trial) - (fy + h * p)
+    dp = np.where(over > 0.0, over / (k + h), 0.0)
+    sg = np.sign(trial)
+    st[0] = ep + sg * dp
+    st[1] = p + dp
+    return trial - sg * k * dp

@@ -37,6 +37,11 @@ class KernelOutput:
     energy_error: np.ndarray  # (V,) max relative energy balance error
     final_energy: np.ndarray  # (4, V) KE, IE, W_ext, E_wall at the end [energy]
     histories: dict[str, np.ndarray] = field(default_factory=dict)
+    # SPEC v2 summaries
+    max_elongation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (S, V) max stretch max(e)
+    # while intact [length]
+    spring_fail_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (S, V) [time] when a spring
+    # with a failure option broke (NaN while intact)
     # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes in blocks of k = Batch.rec_block[v]
     # steps: row r of variant v is the SUM of a^n over the steps of block r (block_rows; block_means gives the
     # means, centred on t = r k dt; k = 1: a^n at every step, as the acceleration history has it); zero after a
@@ -72,6 +77,7 @@ def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...],
         t_end=np.zeros(V), peak_force=np.zeros((S, V)), max_crush=np.zeros((S, V)),
         absorbed_energy=np.zeros((S, V)), peak_acceleration=np.zeros((N, V)), peak_wall_force=np.zeros((W, V)),
         energy_error=np.zeros(V), final_energy=np.zeros((4, V)), histories=hist,
+        max_elongation=np.zeros((S, V)), spring_fail_time=np.full((S, V), np.nan),
     )  # fmt: skip
 
 

@@ -31,9 +31,11 @@ from crashstudy.kernel import materials as mat
 from crashstudy.kernel.codes import (
     CRUSH,
     DAMPER,
+    ELASTOPLASTIC,
     GENERAL,
     LINEAR,
     NONLINEAR,
+    NONLINEAR_DAMPER,
     PM_ACCELERATION,
     PM_DISPLACEMENT,
     TINY_LENGTH,
@@ -70,7 +72,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     x = b.x0.copy()
     v = b.v0.copy()
     m = b.mass
-    state = np.zeros((S, mat.NSTATE, V))
+    state = b.state0.copy() if len(b.state0) else np.zeros((S, mat.NSTATE, V))  # preloaded springs: kernel.preload
     f_prev = np.zeros((S, V))
     e_prev = np.zeros((S, V))
     fext_prev = np.zeros((N, D, V))
@@ -78,11 +80,18 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     jump_prev = np.zeros((W, N, D, V))  # velocity jump of each node at each wall in the previous step
     # 2-D: the previous direction of each spring; a reversal means the nodes passed through each other
     axis_prev = (b.x0[b.spring_j] - b.x0[b.spring_i]) if D > 1 else np.zeros((0, D, V))
-    ie = np.zeros((S, V))
+    ie = b.ie0.copy()  # IE includes the energy stored at t = 0 (initial_elongation)
+    ie0 = np.zeros(V)
+    for s in range(S):
+        ie0 = ie0 + b.ie0[s]
+    # preloaded springs (F^0 != 0 only with an initial elongation: every material curve passes the origin)
+    first_half = (b.e0 != 0.0) & ~np.isin(b.material, (DAMPER, NONLINEAR_DAMPER))[:, None]
+    broken = np.zeros((S, V), dtype=bool)  # springs past a failure elongation: no force for the rest of the run
     work = np.zeros(V)
     wall_e = np.zeros(V)
     wmax = np.zeros(V)
     ke0 = 0.5 * np.sum(m[:, None, :] * b.v0 * b.v0, axis=(0, 1))
+    e_init = ke0 + ie0  # the energy at t = 0: KE0 + IE0
     err = np.zeros(V)
     no_ext = len(b.load_node) == 0 and len(b.pm_node) == 0 and not np.any(b.gravity)
     cargs = (b.cx, b.cy, b.cds, b.cs0, b.curve_off)
@@ -111,32 +120,51 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
             vpj = v[j] + 0.5 * dt * a_prev[j]
             vpi = v[i] + 0.5 * dt * a_prev[i]
             if D == 1:
-                e = b.sign[s] * ((x[j, 0] - b.x0[j, 0]) - (x[i, 0] - b.x0[i, 0]))
+                e = b.e0[s] + b.sign[s] * ((x[j, 0] - b.x0[j, 0]) - (x[i, 0] - b.x0[i, 0]))
                 edot = b.sign[s] * (vpj[0] - vpi[0])
                 axis = b.sign[s][None, :]
             else:
                 d = x[j] - x[i]
                 length = np.sqrt(np.sum(d * d, axis=0))
                 gone = (length <= TINY_LENGTH * b.length0[s]) | (np.sum(d * axis_prev[s], axis=0) <= 0.0)
-                crushed = np.where(gone & (crushed < 0), s, crushed)
+                crushed = np.where(gone & ~broken[s] & (crushed < 0), s, crushed)  # a broken spring may collapse
                 axis = d / np.where(gone, 1.0, length)
                 axis_prev[s] = d
-                e = length - b.length0[s]
+                e = b.e0[s] + (length - b.length0[s])
                 edot = np.sum(axis * (vpj - vpi), axis=0)
             st_before = state[s].copy() if knotted[s] and n > 0 else None
             F = _force(b, s, e, edot, state[s], cargs)
+            # failure (docs/format.md): past either elongation the spring breaks, at the interpolated crossing
+            snaps = act & ~broken[s] & ((e > b.fail_t[s]) | (e < b.fail_c[s])) & (n > 0)
+            limit = np.where(e > b.fail_t[s], b.fail_t[s], b.fail_c[s])
+            frac = (limit - e_prev[s]) / np.where(snaps, e - e_prev[s], 1.0)
+            out.spring_fail_time[s] = np.where(snaps, (n - 1 + frac) * dt, out.spring_fail_time[s])
+            intact = act & ~broken[s]
+            broken[s] |= snaps
+            F = np.where(broken[s], 0.0, F)
             f[i] += F * axis
             f[j] -= F * axis
             forces[s], elong[s] = F, e
             edot_min = np.minimum(edot_min, edot)
             if n > 0:
-                ie[s] += np.where(act, 0.5 * (F + f_prev[s]) * (e - e_prev[s]), 0.0)
+                de = e - e_prev[s]
+                step_ie = 0.5 * (F + f_prev[s]) * de
+                if n == 1 and first_half[s].any():
+                    # over the first (half) step F^0 acts on the mean rate (edot^0 + edot^{1/2}) / 2 for dt/2, as
+                    # in the external work: exact for a preload released from rest (docs/solver.md, "Energies")
+                    half = (0.5 * F + 0.25 * f_prev[s]) * de + 0.25 * dt * f_prev[s] * b.rate0[s]
+                    step_ie = np.where(first_half[s], half, step_ie)
+                ie[s] += np.where(act, step_ie, 0.0)
             out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], np.abs(F)), out.peak_force[s])
             if st_before is not None:  # knots passed over since the previous step (docs/solver.md, "Peaks")
                 cand, th, dF = _knot_crossing(b, s, e, e_prev[s], F, f_prev[s], st_before)
+                cand = np.where(broken[s], 0.0, cand)  # a spring that breaks in this step: the step's ends only
                 out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], cand), out.peak_force[s])
                 knot_hit[s], knot_th[s], knot_dfax[s] = cand > 0.0, th, dF * axis
-            out.max_crush[s] = np.where(act, np.maximum(out.max_crush[s], -e), out.max_crush[s])
+            # extremes while intact; a spring that breaks in this step reached its failure elongation
+            e_max = np.where(snaps, limit, e)
+            out.max_crush[s] = np.where(intact, np.maximum(out.max_crush[s], -e_max), out.max_crush[s])
+            out.max_elongation[s] = np.where(intact, np.maximum(out.max_elongation[s], e_max), out.max_elongation[s])
         f_prev, e_prev = forces, elong
 
         fext = m[:, None, :] * b.gravity[None, :, :] * np.ones((N, D, 1))
@@ -189,7 +217,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
             work += np.where(act, 0.5 * np.sum(fext * v + fext_prev * vbar, axis=(0, 1)) * dt, 0.0)
         wmax = np.maximum(wmax, np.abs(work))
         ie_tot = np.sum(ie, axis=0)
-        bal = np.abs(ke + ie_tot + wall_e - ke0 - work)
+        bal = np.abs(ke + ie_tot + wall_e - e_init - work)
         err = np.where(act, np.maximum(err, bal), err)
         amag = np.sqrt(np.sum(a * a, axis=1))
         out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
@@ -210,7 +238,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                                                     out.peak_acceleration[p])  # fmt: skip
         out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
 
-        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (ke0 + wmax) + b.energy_floor))
+        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (e_init + wmax) + b.energy_floor))
         out.status[:] = np.where(bad, UNSTABLE, out.status)
         gone = act & ~bad & (crushed >= 0)
         out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)
@@ -229,7 +257,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         last = ok & (n == nst)
         if b.ke_fraction.any():
             small_f = np.sum(np.abs(forces), axis=0) <= b.ke_fraction * np.sum(out.peak_force, axis=0)
-            small_ke = ke <= b.ke_fraction * (ke0 + wmax)
+            small_ke = ke <= b.ke_fraction * (e_init + wmax)
             opening = (edot_min >= 0.0) & no_ext
             stop = ok & (b.ke_fraction > 0) & (t >= b.min_time) & small_f & (small_ke | opening) & (n > 0)
             nst = np.where(stop, n, nst)
@@ -242,7 +270,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         fext_prev = fext
 
     out.absorbed_energy[:] = ie
-    out.energy_error[:] = err / np.maximum(ke0 + wmax, 1e-300)
+    out.energy_error[:] = err / np.maximum(e_init + wmax, 1e-300)
     return out
 
 
@@ -312,6 +340,10 @@ def _force(b: Batch, s: int, e: np.ndarray, edot: np.ndarray, st: np.ndarray, ca
         return mat.curve_eval(int(b.curve_a[s]), e, *cargs)
     if kind == CRUSH:
         return mat.crush(e, st, int(b.curve_a[s]), b.kpar[s], *cargs)
+    if kind == ELASTOPLASTIC:
+        return mat.elastoplastic(e, st, b.kpar[s], b.ktan[s], b.fy[s])
+    if kind == NONLINEAR_DAMPER:
+        return mat.curve_eval(int(b.curve_a[s]), edot, *cargs)
     if kind == GENERAL:
         cx, cy, cds, cs0, off = cargs
         return mat.general_nonlinear(e, st, int(b.curve_a[s]), int(b.curve_b[s]), b.yield_t[s], b.yield_c[s],

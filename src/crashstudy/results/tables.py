@@ -31,11 +31,14 @@ TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
 SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
     "peak_force": (("spring",), "force", "largest |spring force| over every time step"),
     "max_crush": (("spring",), "length", "largest shortening of the spring, max(-elongation)"),
-    "absorbed_energy": (("spring",), "energy", "work done on the spring up to the end"),
+    "max_elongation": (("spring",), "length", "largest stretch of the spring, max(elongation)"),
+    "failure_time": (("spring",), "time", "time the spring broke at a failure elongation (NaN while intact)"),
+    "absorbed_energy": (("spring",), "energy", "work done on the spring up to the end, plus its energy at t = 0"),
     "peak_deceleration": (("node",), "acceleration", "largest acceleration magnitude over every time step"),
     "peak_deceleration_g": (("node",), "g", "peak_deceleration in standard gravities"),
     "peak_wall_force": (("wall",), "force", "largest rigid wall force"),
-    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - W_ext| / max(KE0 + |W_ext|, tiny)"),
+    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - IE0 - W_ext| / max(KE0 + IE0 + |W_ext|, tiny), IE "
+                     "including IE0 (energy stored at t = 0)"),
     "dt": ((), "time", "time step used"),
     "dt_crit": ((), "time", "critical time step bound (nodal, whole assembly)"),
     "t_end": ((), "time", "last time computed (early termination may end a run before end_time)"),
@@ -51,7 +54,7 @@ HISTORY_META = {  # name: (unit kind, long name)
     "spring_force": ("force", "spring force (positive = tension)"),
     "spring_elongation": ("length", "spring elongation (negative = compression)"),
     "kinetic_energy": ("energy", "kinetic energy"),
-    "internal_energy": ("energy", "work done on all springs and dampers"),
+    "internal_energy": ("energy", "work done on all springs and dampers, plus the energy they stored at t = 0"),
     "external_work": ("energy", "work of loads, gravity and prescribed motion"),
     "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
     "wall_force": ("force", "rigid wall force (momentum removed per unit time)"),
@@ -174,7 +177,8 @@ def summary_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
     o = res.out
     g = UNIT_SYSTEMS[plan.topology.units].g
     summary = {
-        "peak_force": o.peak_force.T, "max_crush": o.max_crush.T, "absorbed_energy": o.absorbed_energy.T,
+        "peak_force": o.peak_force.T, "max_crush": o.max_crush.T, "max_elongation": o.max_elongation.T,
+        "failure_time": o.spring_fail_time.T, "absorbed_energy": o.absorbed_energy.T,
         "peak_deceleration": o.peak_acceleration.T, "peak_deceleration_g": o.peak_acceleration.T / g,
         "energy_error": o.energy_error, "dt": res.dt, "dt_crit": res.dt_crit, "t_end": o.t_end,
         "final_kinetic_energy": o.final_energy[0], "final_internal_energy": o.final_energy[1],

@@ -11,7 +11,15 @@ from typing import Any
 
 import numpy as np
 
-from crashstudy.schema.model import Crush, GeneralNonlinear, Model, NonlinearElastic, RigidWall
+from crashstudy.schema.model import (
+    DAMPER_TYPES,
+    Crush,
+    GeneralNonlinear,
+    Model,
+    NonlinearDamper,
+    RigidWall,
+    Spring,
+)
 
 Path = tuple[str | int, ...]
 Found = Iterator[tuple[Path, str]]
@@ -76,34 +84,65 @@ def _springs(m: Model, dim: int) -> Found:
             pa, pb = m.nodes[a].position, m.nodes[b].position
             if len(pa) == len(pb) and float(np.hypot.reduce(np.subtract(pb, pa))) == 0.0:
                 yield ("springs", sid, "nodes"), f"nodes {a!r} and {b!r} are at the same position: a spring needs a non-zero initial length"
-        mat = sp.material
-        base: Path = ("springs", sid, "material")
-        if isinstance(mat, NonlinearElastic):
-            yield from _curve_ref(m, base + ("curve",), mat.curve)
-        elif isinstance(mat, GeneralNonlinear):
-            yield from _curve_ref(m, base + ("loading",), mat.loading)
-            yield from _curve_ref(m, base + ("unloading",), mat.unloading)
-            for key in ("loading", "unloading"):
-                cid = getattr(mat, key)
-                if cid in m.curves:
-                    c = m.curves[cid]
-                    scale = max(abs(v) for v in c.y) or 1.0
-                    if abs(curve_value(c.x, c.y, 0.0)) > 1e-9 * scale:
-                        yield base + (key,), f"the {key} curve {cid!r} must pass through the origin (its force at e=0 is {curve_value(c.x, c.y, 0.0):g})"
-            if mat.unloading in m.curves:
-                c = m.curves[mat.unloading]
-                if any(not b > a for a, b in zip(c.y, c.y[1:], strict=False)):
-                    yield base + ("unloading",), f"the unloading curve {mat.unloading!r} must be increasing (y strictly increasing)"
-        elif isinstance(mat, Crush):
-            yield from _curve_ref(m, base + ("loading",), mat.loading)
-            if mat.loading in m.curves:
-                c = m.curves[mat.loading]
-                if c.x[0] >= 0:
-                    yield base + ("loading",), f"the crush curve {mat.loading!r} needs a compression part (x < 0)"
-                elif not any(y < 0 for x, y in zip(c.x, c.y, strict=False) if x < 0):
-                    yield base + ("loading",), (
-                        f"the crush curve {mat.loading!r} has no negative force in compression (x < 0): a crush spring "
-                        "carries min(0, curve), so it would carry no force; compression forces are negative")  # fmt: skip
+        yield from _material(m, sid, sp)
+
+
+def origin_message(cid: str, key: str, at0: float, damper: bool) -> str:
+    """Why a material curve must pass through the origin, and what to write instead."""
+    if damper:
+        return (f"the damper curve {cid!r} must pass through the origin (its force at rate 0 is {at0:g}): a damper carries "
+                "no force at rest; a preload belongs on a spring, with initial_elongation")
+    label = "curve" if key == "curve" else f"{key} curve"
+    return (f"the {label} {cid!r} must pass through the origin (its force at e=0 is {at0:g}): a spring that "
+            "carries force at t = 0 says so with initial_elongation (shift the curve through (0, 0) and set "
+            "initial_elongation to the elongation of the preload), never with a shifted curve")
+
+
+def _material(m: Model, sid: str, sp: Spring) -> Found:
+    mat = sp.material
+    base: Path = ("springs", sid, "material")
+    keys = [k for k in ("curve", "loading", "unloading") if hasattr(mat, k)]
+    for key in keys:
+        yield from _curve_ref(m, base + (key,), getattr(mat, key))
+    for key in keys:  # every material curve passes through the origin (SPEC: initial_elongation)
+        cid = getattr(mat, key)
+        if cid in m.curves:
+            c = m.curves[cid]
+            scale = max(abs(v) for v in c.y) or 1.0
+            at0 = curve_value(c.x, c.y, 0.0)
+            if abs(at0) > 1e-9 * scale:
+                yield base + (key,), origin_message(cid, key, at0, mat.type in DAMPER_TYPES)
+    if isinstance(mat, GeneralNonlinear) and mat.unloading in m.curves:
+        c = m.curves[mat.unloading]
+        if any(not b > a for a, b in zip(c.y, c.y[1:], strict=False)):
+            yield base + ("unloading",), f"the unloading curve {mat.unloading!r} must be increasing (y strictly increasing)"
+    elif isinstance(mat, NonlinearDamper) and mat.curve in m.curves:
+        c = m.curves[mat.curve]
+        if any(b < a for a, b in zip(c.y, c.y[1:], strict=False)):
+            yield base + ("curve",), f"the damper curve {mat.curve!r} must be increasing (y non-decreasing with the rate)"
+    elif isinstance(mat, Crush) and mat.loading in m.curves:
+        c = m.curves[mat.loading]
+        if c.x[0] >= 0:
+            yield base + ("loading",), f"the crush curve {mat.loading!r} needs a compression part (x < 0)"
+        elif not any(y < 0 for x, y in zip(c.x, c.y, strict=False) if x < 0):
+            yield base + ("loading",), (
+                f"the crush curve {mat.loading!r} has no negative force in compression (x < 0): a crush spring "
+                "carries min(0, curve), so it would carry no force; compression forces are negative")  # fmt: skip
+    e0 = sp.initial_elongation
+    if e0 != 0.0 and mat.type in DAMPER_TYPES:
+        yield ("springs", sid, "initial_elongation"), (
+            f"a {mat.type} has no initial elongation (its force follows the elongation rate); remove "
+            "initial_elongation, or put the preload on a spring in parallel")
+    fail = sp.failure
+    if fail is not None:
+        if fail.tension is not None and not e0 < fail.tension:
+            yield ("springs", sid, "failure", "tension"), (
+                f"expected a tension failure elongation above initial_elongation ({e0:g}), got {fail.tension:g}: "
+                "the spring would be broken at t = 0")
+        if fail.compression is not None and not e0 > fail.compression:
+            yield ("springs", sid, "failure", "compression"), (
+                f"expected a compression failure elongation below initial_elongation ({e0:g}), got "
+                f"{fail.compression:g}: the spring would be broken at t = 0")
 
 
 def _vectors(m: Model, dim: int) -> Found:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from crashstudy.kernel.codes import HISTORY_ORDER, MATERIAL_CODES
 from crashstudy.units import UnitSystemName
@@ -102,11 +102,49 @@ class Damper(Strict):
     damping: NonNegative = Field(description="damping coefficient c [force*time/length] >= 0")
 
 
+class Elastoplastic(Strict):
+    """Bilinear elastoplastic spring with isotropic hardening (LS-DYNA S03).
+
+    ``F = K (e - e_p)`` with ``|F| <= FY + H p``, ``H = K KT / (K - KT)`` and ``p`` the accumulated
+    plastic elongation (the sum of ``|de_p|``).
+    """
+
+    type: Literal["elastoplastic"] = Field(description="material law: bilinear elastoplastic, isotropic hardening (LS-DYNA S03)")
+    stiffness: Positive = Field(description="elastic stiffness K [force/length] > 0")
+    tangent_stiffness: NonNegative = Field(description="slope after yield KT [force/length], 0 <= KT < K")
+    yield_force: Positive = Field(description="initial yield force FY [force] > 0, the same in tension and compression")
+
+    @field_validator("tangent_stiffness")
+    @classmethod
+    def _tangent_below_stiffness(cls, kt: float, info: ValidationInfo) -> float:
+        k = info.data.get("stiffness")
+        if k is not None and not kt < k:
+            raise ValueError(f"tangent_stiffness must be below stiffness ({k:g}), got {kt:g}")
+        return kt
+
+
+class NonlinearDamper(Strict):
+    """Damper ``F = C(de/dt)`` (LS-DYNA S05): force [force] vs elongation rate [length/time]."""
+
+    type: Literal["nonlinear_damper"] = Field(description="material law: F = C(de/dt), force vs elongation rate")
+    curve: Id = Field(description="id of the curve C: force [force] vs elongation rate [length/time], through the origin, non-decreasing")
+
+
 Material = Annotated[
-    LinearElastic | NonlinearElastic | GeneralNonlinear | Crush | Damper,
+    LinearElastic | NonlinearElastic | GeneralNonlinear | Crush | Damper | Elastoplastic | NonlinearDamper,
     Field(discriminator="type"),
 ]
 MATERIAL_TYPES = tuple(MATERIAL_CODES)
+DAMPER_TYPES = ("damper", "nonlinear_damper")  # materials whose force follows the elongation rate
+
+
+class Failure(Strict):
+    """Elongations [length] at which a spring breaks (force 0 for the rest of the run); each optional."""
+
+    tension: Positive | None = Field(default=None, description="elongation e_t [length] > 0 beyond which the spring breaks in tension")
+    compression: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = Field(default=
+        None, description="elongation e_c [length] < 0 beyond which the spring breaks in compression"
+    )
 
 
 class Spring(Strict):
@@ -116,6 +154,11 @@ class Spring(Strict):
         description="ids of the two different nodes it joins; elongation e > 0 when they move apart"
     )
     material: Material = Field(description="force law, chosen by 'type'")
+    initial_elongation: Finite = Field(default=
+        0.0, description="elongation e0 [length] at t = 0 (preload or a free length that differs from the drawn one); "
+        "not for dampers"
+    )
+    failure: Failure | None = Field(default=None, description="elongations at which the spring breaks; absent: never")
 
 
 class Load(Strict):
@@ -214,7 +257,7 @@ class Termination(Strict):
 
     With ``f = kinetic_energy_fraction`` a variant stops once the sum of the spring force magnitudes
     is below ``f`` times the sum of their peaks *and* either the kinetic energy is below
-    ``f (KE0 + max |W_ext|)`` or, with no loads, gravity or prescribed motion, every spring is
+    ``f (KE0 + IE0 + max |W_ext|)`` or, with no loads, gravity or prescribed motion, every spring is
     opening. ``min_time`` [time]: never stop before it.
     """
 
