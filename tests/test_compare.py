@@ -145,11 +145,13 @@ def test_full_column_key_wins_over_the_metric_name(runs: dict[str, Path]) -> Non
 
 def test_default_rtol_from_the_caller_applies_to_unnamed_metrics(runs: dict[str, Path]) -> None:
     cmp = compare(runs["scaled"], runs["baseline"], rtol=0.02)
-    # every metric moved by about 1 % except the final energies (2 %) and the crush near the kink
+    # every metric moved by about 1 % except the final energies (2 %), the crush near the kink and the
+    # small stretch of the rebound (max_elongation)
     assert set(cmp.failing_columns()) <= {
         "final_kinetic_energy",
         "final_internal_energy",
         "absorbed_energy.s1",
+        "max_elongation.s1",
     }
     assert "peak_force.s1" not in cmp.failing_columns()
 

@@ -19,7 +19,7 @@ from crashstudy.analysis.plot import (
     plot_matrix,
     select_variants,
 )
-from crashstudy.cli.main import main as cli_module
+from crashstudy.cli import main as cli_module
 from crashstudy.errors import InputError
 
 # Two masses on two linear springs in 1-D, dropped onto a fixed ground node.
