@@ -460,24 +460,3 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
         damaged=[s.damage for s in (n_side, b_side) if s.damage],
         study_name=n_side.study_name,
     )  # fmt: skip
-
-
-def compare_command(args: Any) -> int:
-    """``crashstudy compare NEW BASELINE [--rtol R] [--atol A] [--junit FILE]``: print the values that
-    moved most and a verdict, write JUnit XML if asked; return 1 when anything failed, else 0."""
-    for name in ("rtol", "atol"):  # bad options are refused before any file is opened
-        if getattr(args, name, None) is not None:
-            check_tolerance(name, getattr(args, name), f"--{name}")
-    new = load_results(args.new, "new")
-    base = load_results(args.baseline, "baseline")
-    try:
-        cmp = compare(new, base, rtol=getattr(args, "rtol", None), atol=getattr(args, "atol", None))
-    finally:
-        new.close()
-        base.close()
-    print(cmp.report())
-    junit = getattr(args, "junit", None)
-    if junit:
-        cmp.to_junit(junit)
-        print(f"wrote {junit}")
-    return 1 if cmp.failed else 0

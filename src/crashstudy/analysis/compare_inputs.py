@@ -99,7 +99,10 @@ def load_results(directory: str | os.PathLike[str], role: str = "result") -> Res
 
 
 def study_tolerances(attrs: dict[str, Any]) -> dict[str, Tolerance]:
-    """The ``regression:`` block of the study stored in a result's ``study_yaml`` attribute."""
+    """The ``regression:`` tolerances a result stores (its ``regression`` attribute, validated when the
+    study was loaded); results written before that attribute existed: the block of the stored study."""
+    if "regression" in attrs:
+        return {k: Tolerance(**v) for k, v in json.loads(str(attrs["regression"])).items()}
     text = str(attrs.get("study_yaml", "") or "")
     if not text.strip():
         return {}

@@ -77,42 +77,15 @@ def study_axes(ds: xr.Dataset) -> list[str]:
 
 def study_name(ds: xr.Dataset) -> str:
     """The study's ``name`` (or the model's, for ``crashstudy simulate`` results)."""
-    from crashstudy.schema.yamlio import loads_yaml
-
-    for key in ("study_yaml", "model_yaml"):
-        text = ds.attrs.get(key, "")
-        if not text:
-            continue
-        try:
-            data = loads_yaml(text, file=key).data
-        except InputError:  # a stored file that no longer parses must not stop a plot
-            continue
-        if isinstance(data, dict) and isinstance(data.get("name"), str):
-            return data["name"]
-    return str(ds.attrs.get("model_name", "results"))
+    return str(ds.attrs.get("study_name") or ds.attrs.get("model_name", "results"))
 
 
 def free_nodes(ds: xr.Dataset) -> list[str]:
-    """Nodes of the model that can move (not fixed in every direction, no prescribed motion)."""
-    from crashstudy.schema.yamlio import loads_yaml
-
+    """Nodes of the model that can move (not fixed in every direction, no prescribed motion), as the
+    results store them (every node for results written before they did)."""
     nodes = [str(n) for n in ds["node"].values]
-    try:
-        model = loads_yaml(ds.attrs.get("model_yaml", ""), file="model_yaml").data
-    except InputError:
-        return nodes
-    if not isinstance(model, dict) or not isinstance(model.get("nodes"), dict):
-        return nodes
-    dim = ds.sizes.get("axis", 1)
-    driven = {str(p.get("node")) for p in model.get("prescribed_motion") or [] if isinstance(p, dict)}
-
-    def is_free(node: str) -> bool:
-        spec = model["nodes"].get(node) or {}
-        fixed = spec.get("fixed", False) if isinstance(spec, dict) else False
-        held = fixed is True or (isinstance(fixed, list) and len(set(fixed)) >= dim)
-        return not held and node not in driven
-
-    return [n for n in nodes if is_free(n)] or nodes
+    free = json.loads(ds.attrs.get("free_nodes", "[]"))
+    return [n for n in nodes if n in free] or nodes
 
 
 def _ok_mask(ds: xr.Dataset) -> np.ndarray:
@@ -328,23 +301,13 @@ def crash_node(ds: xr.Dataset) -> str | None:
     """The node a crash engineer means by "the deceleration" of these results: the node of a
     ``peak_deceleration_g.<node>`` key in the study's ``regression:`` block when there is one, else
     the heaviest free node of the model (the survival room or occupant cell, not the bumper)."""
-    from crashstudy.schema.yamlio import loads_yaml
-
     nodes = free_nodes(ds)
-    try:
-        study = loads_yaml(ds.attrs.get("study_yaml", "") or "{}", file="study_yaml").data
-        model = loads_yaml(ds.attrs.get("model_yaml", "") or "{}", file="model_yaml").data
-    except InputError:
-        study, model = {}, {}
-    block = study.get("regression") if isinstance(study, dict) else None
-    for key in block if isinstance(block, dict) else ():
+    for key in json.loads(ds.attrs.get("regression", "{}")):
         name, _, node = str(key).partition(".")
         if name == "peak_deceleration_g" and node in nodes:
             return node
-    specs = model.get("nodes") if isinstance(model, dict) else None
-    if not isinstance(specs, dict):
-        return None
-    masses = {n: float(specs[n].get("mass", 0.0) or 0.0) for n in nodes if isinstance(specs.get(n), dict)}
+    mass = json.loads(ds.attrs.get("node_mass", "{}"))
+    masses = {n: float(mass[n]) for n in nodes if n in mass}
     return max(masses, key=lambda n: masses[n]) if masses else None
 
 

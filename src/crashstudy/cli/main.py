@@ -412,11 +412,26 @@ def _result_folder_of(path: Path) -> Path | None:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from crashstudy.analysis.compare import compare_command
+    """``crashstudy compare NEW BASELINE``: prints the values that moved most and a verdict, writes JUnit
+    XML if asked; 1 when anything failed, else 0."""
+    from crashstudy.analysis.compare import check_tolerance, compare, load_results
 
     if args.junit and Path(args.junit).name in ("results.nc", "results.nc.partial", "summary.csv"):
         raise InputError([_arg_problem(args.junit, "--junit would overwrite a result file; name a .xml file")])
-    return compare_command(args)
+    for name in ("rtol", "atol"):  # bad options are refused before any file is opened
+        if getattr(args, name, None) is not None:
+            check_tolerance(name, getattr(args, name), f"--{name}")
+    new, base = load_results(args.new, "new"), load_results(args.baseline, "baseline")
+    try:
+        cmp = compare(new, base, rtol=getattr(args, "rtol", None), atol=getattr(args, "atol", None))
+    finally:
+        new.close()
+        base.close()
+    print(cmp.report())
+    if args.junit:
+        cmp.to_junit(args.junit)
+        print(f"wrote {args.junit}")
+    return 1 if cmp.failed else 0
 
 
 def _schema(args: argparse.Namespace) -> int:

@@ -35,12 +35,13 @@ import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.cache import cache_dir, why_not_private
+from crashstudy.kernel.codes import KernelName
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
@@ -60,13 +61,13 @@ RECORDING = KERNELS  # kernels that record the per-step acceleration of metric n
 _LOADED: set[str] = set()  # kinds of compiled kernel loaded in this process
 
 
-def kernel_override() -> str:
+def kernel_override() -> KernelName:
     """The kernel ``CRASHSTUDY_KERNEL`` asks for: "compiled" (unset: choose), or one of ``KERNELS``."""
     value = os.environ.get("CRASHSTUDY_KERNEL", "").strip() or "compiled"
     if value not in ("compiled", *KERNELS):
         raise InputError([Problem("environment", None, "CRASHSTUDY_KERNEL",
                                   f"unknown kernel {value!r}: expected reference, generic or generated (or unset)")])  # fmt: skip
-    return value
+    return cast(KernelName, value)
 
 
 def background_min_seconds() -> float:
@@ -133,8 +134,8 @@ def compiling(folder: Path | None = None) -> bool:
     return False
 
 
-def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: str = "compiled",
-         repeat: float = 1.0, record: tuple[int, ...] = ()) -> str:  # fmt: skip
+def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: KernelName = "compiled",
+         repeat: float = 1.0, record: tuple[int, ...] = ()) -> KernelName:  # fmt: skip
     """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
     one expected to finish the run first among those compiled and the reference; the generic kernel
     compiled now only when the reference would take longer than that (and no other process is
@@ -163,7 +164,7 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
     if t_ref <= LOAD:  # nothing compiled can win once loading it is counted
         return "reference"
     usable = RECORDING if record else KERNELS
-    times = {"reference": t_ref}
+    times: dict[KernelName, float] = {"reference": t_ref}
     if "generated" in usable and generated_ready(b, histories, vary, record):
         times["generated"] = run_time("generated", GENERATED_RATE)
     if "generic" in usable and generic_ready():
@@ -173,7 +174,7 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
     return min(times, key=lambda k: times[k])
 
 
-def note_loaded(kernel: str) -> None:
+def note_loaded(kernel: KernelName) -> None:
     """A compiled kernel of this kind was loaded in this process (no load time for it any more)."""
     _LOADED.add(kernel)
 
@@ -243,7 +244,7 @@ def decide(p: StartPlan, background: bool) -> Decision:
 
 
 def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, n_variants: int,
-               kernel: str = "compiled", record: tuple[int, ...] = ()) -> StartPlan | None:  # fmt: skip
+               kernel: KernelName = "compiled", record: tuple[int, ...] = ()) -> StartPlan | None:  # fmt: skip
     """What a run of ``n_variants`` like ``b`` (a sample of them) is missing, or None (a kernel was
     named, everything is compiled, or the run is too short to care). ``record``: the metric nodes
     whose acceleration the kernels keep at every step (a generated kernel of its own)."""

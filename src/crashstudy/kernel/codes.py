@@ -6,6 +6,11 @@ of the schema, YAML or pydantic.
 
 from __future__ import annotations
 
+from typing import Literal
+
+#: a kernel named by a caller: "compiled" lets kernel.choice pick the fastest (CRASHSTUDY_KERNEL may name one)
+KernelName = Literal["compiled", "reference", "generic", "generated"]
+
 # material codes seen by the kernels (spring ``material`` array)
 LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER = 0, 1, 2, 3, 4
 MATERIAL_CODES = {"linear_elastic": LINEAR, "nonlinear_elastic": NONLINEAR,

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from crashstudy.kernel import choice
+from crashstudy.kernel.codes import KernelName
 from crashstudy.kernel.driver import get_threads, set_threads
 from crashstudy.kernel.output import KernelOutput, allocate
 
@@ -41,7 +42,7 @@ SUMMARIES = ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_cru
              "spring_fail_time")  # fmt: skip
 
 
-def compile_first(kernel: str, batch: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
+def compile_first(kernel: KernelName, batch: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
                   check: Callable[[], None], record: tuple[int, ...] = ()) -> None:  # fmt: skip
     """Compile ``kernel`` ("generic" or "generated") for ``batch`` in a child process when it is not
     compiled yet, polling ``check`` while it runs (numba cannot be interrupted in this process)."""
@@ -51,7 +52,7 @@ def compile_first(kernel: str, batch: Batch, histories: tuple[str, ...], vary: f
         choice.compile_foreground(("generated",), batch, histories, vary, check, record)
 
 
-def run_batch(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
+def run_batch(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: KernelName = "compiled",
               vary: frozenset[int] | None = None, repeat: float = 1.0,
               check: Callable[[], None] | None = None, record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
     """Integrate ``batch`` with ``kernel`` (see the module docstring). ``vary``: indices of the curves
@@ -90,7 +91,7 @@ def spread_columns(out: KernelOutput, take: np.ndarray, histories: tuple[str, ..
     return full
 
 
-def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np.ndarray, kernel: str = "compiled",
+def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np.ndarray, kernel: KernelName = "compiled",
                 vary: frozenset[int] | None = None, repeat: float = 1.0, accuracy: bool = False,
                 check: Callable[[], None] | None = None, recorder: Recorder | None = None
                 ) -> tuple[KernelOutput, np.ndarray]:  # fmt: skip
@@ -111,7 +112,7 @@ def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np
     return spread_columns(out, pos[spread], histories, n_out), estimate[pos[spread]]
 
 
-def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled", repeat: float = 1.0,
+def error_estimate(batch: Batch, out: KernelOutput, kernel: KernelName = "compiled", repeat: float = 1.0,
                    check: Callable[[], None] | None = None) -> np.ndarray:  # fmt: skip
     """Richardson estimate of the relative error of the reported peaks, per variant.
 

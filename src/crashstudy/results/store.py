@@ -236,7 +236,7 @@ class ResultWriter:
             "study_file": p.study_file, "study_yaml": p.study_text, "crashstudy_axes": json.dumps([a.path for a in p.axes]),
             "plan_fingerprint": plan_fingerprint(p), "history_interval": p.interval, "study_name": p.name,
             "model_sha256": text_hash(p.model_text), "study_sha256": text_hash(p.study_text),
-            "Conventions": "CF-1.8",
+            "Conventions": "CF-1.8", **_model_facts(p),
         })  # fmt: skip
         return nc
 
@@ -487,3 +487,13 @@ class Results:
 def open_results(directory: str | os.PathLike[str]) -> Results:
     """Open a result folder written by ``crashstudy run`` or ``crashstudy simulate``."""
     return Results(directory)
+
+
+def _model_facts(p: Plan) -> dict[str, str]:
+    """JSON attributes for plot and compare (they never re-read the YAML): free nodes (not fixed in every
+    direction, not driven), node masses of the model, the ``regression:`` tolerances."""
+    topo = p.topology
+    driven = set(np.asarray(topo.pm_node).tolist())
+    free = [n for k, n in enumerate(topo.node_ids) if not bool(np.all(topo.fixed[k])) and k not in driven]
+    mass = {n: float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]]) for n in topo.node_ids if f"nodes.{n}.mass" in topo.paths}
+    return {"free_nodes": json.dumps(free), "node_mass": json.dumps(mass), "regression": json.dumps(p.regression)}

@@ -22,6 +22,7 @@ from crashstudy import interrupt
 from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
+from crashstudy.kernel.codes import KernelName
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
 from crashstudy.results.outdir import prepare_output, remove_stale_plots, study_of
 from crashstudy.results.store import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
@@ -54,13 +55,13 @@ def chunk_size(plan: Plan) -> int:
                           HISTORY_BUDGET // max(record, 1.0))))  # fmt: skip
 
 
-def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: str = "compiled",
+def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: KernelName = "compiled",
                vary: frozenset[int] | None = None, repeat: float = 1.0) -> KernelOutput:  # fmt: skip
     """:func:`crashstudy.kernel.entry.run_batch`, abandoned at a stop request (Ctrl-C)."""
     return entry.run_batch(batch, histories, n_out, kernel, vary, repeat, interrupt.check)
 
 
-def error_estimate(batch: Batch, out: KernelOutput, kernel: str = "compiled", repeat: float = 1.0) -> np.ndarray:
+def error_estimate(batch: Batch, out: KernelOutput, kernel: KernelName = "compiled", repeat: float = 1.0) -> np.ndarray:
     """:func:`crashstudy.kernel.entry.error_estimate`, abandoned at a stop request (Ctrl-C)."""
     return entry.error_estimate(batch, out, kernel, repeat, interrupt.check)
 
@@ -69,7 +70,7 @@ kernel_override = choice.kernel_override
 __all__ = ["prepare_output", "remove_stale_plots", "run_plan", "run_study", "simulate"]
 
 
-def run_chunk(plan: Plan, lo: int, hi: int, kernel: str = "compiled", repeat: float | None = None) -> ChunkResult:
+def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", repeat: float | None = None) -> ChunkResult:
     """Compute variants ``lo`` .. ``hi - 1`` of ``plan``. ``repeat``: how many chunks like this one the
     caller will compute (default: those of the plan), for the kernel choice.
 
@@ -178,7 +179,7 @@ class Progress:
             self.stream.flush()
 
 
-def _start_kernels(plan: Plan, kernel: str, notes: Any) -> tuple[bool, float | None, Any]:
+def _start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, float | None, Any]:
     """Carry out :func:`crashstudy.kernel.choice.decide` for this run and say what it compiles.
     Returns (whether chunks should stay small, the run's estimated seconds, what to start after it)."""
     topo = plan.topology
@@ -273,7 +274,7 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
              resume: bool = False, force: bool = False, progress: bool | None = None,
-             kernel: str = "compiled", chunk: int | None = None, notes: Any = None, csv: bool | None = None
+             kernel: KernelName = "compiled", chunk: int | None = None, notes: Any = None, csv: bool | None = None
              ) -> RunReport:  # fmt: skip
     """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
     one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent. ``csv``: write
@@ -292,7 +293,7 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
 
 
 def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume: bool, force: bool,
-                progress: bool | None, kernel: str, chunk: int | None, notes: Any, csv: bool | None, t0: float
+                progress: bool | None, kernel: KernelName, chunk: int | None, notes: Any, csv: bool | None, t0: float
                 ) -> RunReport:  # fmt: skip
     """:func:`run_plan` once the output folder is locked."""
     from crashstudy.run.backends import make_backend
