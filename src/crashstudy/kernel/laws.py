@@ -3,9 +3,12 @@
 Numbers in, a number or a tuple of numbers out (curve tables are read from arrays, column ``v``).
 The generic kernel (:mod:`crashstudy.kernel.compiled`) calls them per lane on its block arrays,
 the generated kernels (:mod:`crashstudy.kernel.gen_springs`, :mod:`crashstudy.kernel.gen_nodes`)
-emit calls to them on their local scalars; numba inlines them (``inline="always"``), so the machine code is that of a hand-written
-formula. The NumPy reference (:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.kernel.materials`)
-is the independent twin: every function here does its operations in the same order, so both fast
+emit calls to them on their local scalars. Each law is compiled once (numba's default
+``inline="never"``) and LLVM inlines it at its call sites at -O3, so the machine code is still that of
+a hand-written formula without numba typing and lowering it again at each of ~40 call sites
+(``error_model="numpy"``: no division-by-zero branch, so the generated kernel's loops stay as fast
+as with the laws inlined; benchmarks/results/compile_inline.md). The NumPy reference
+(:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.kernel.materials`) is the independent twin: every function here does its operations in the same order, so both fast
 kernels stay bitwise equal to it (no fastmath).
 
 A new material is one law function here, one dispatch line in each fast kernel
@@ -19,7 +22,7 @@ import numpy as np
 
 from crashstudy.kernel.codes import TIME_EPS, TINY_LENGTH
 
-_jit = nb.njit(cache=True, nogil=True, inline="always")
+_jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 
 
 # ---- numbers ---------------------------------------------------------------------------------
@@ -118,7 +121,7 @@ def general_reverse(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx
     return Ls, 1.0, e, Ls, ec, fc, shift, 1.0, yld_c
 
 
-@nb.njit(cache=True, nogil=True)
+@_jit
 def general_reverse_call(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off):  # pragma: no cover
     """:func:`general_reverse` compiled once and called (rarely) by every generated kernel instead of
     being inlined into each."""
