@@ -3,10 +3,14 @@
 Numbers in, a number or a tuple of numbers out (curve tables are read from arrays, column ``v``).
 The generic kernel (:mod:`crashstudy.kernel.compiled`) calls them per lane on its block arrays,
 the generated kernels (:mod:`crashstudy.kernel.gen_springs`, :mod:`crashstudy.kernel.gen_nodes`)
-emit calls to them on their local scalars; numba inlines them (``inline="always"``), so the machine code is that of a hand-written
-formula. The NumPy reference (:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.kernel.materials`)
-is the independent twin: every function here does its operations in the same order, so both fast
-kernels stay bitwise equal to it (no fastmath).
+emit calls to them on their local scalars. Each law but two (``_inl`` below) is compiled once
+(numba's default ``inline="never"``) and LLVM inlines it at its call sites at -O3, so the machine code is still that of
+a hand-written formula without numba typing and lowering it again at each of ~40 call sites
+(``error_model="numpy"``: no division-by-zero branch, so the generated kernel's loops stay as fast
+as with the laws inlined; benchmarks/results/compile_inline.md). The NumPy reference
+(:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.kernel.materials`) is the independent twin:
+every function here does its operations in the same order, so both fast kernels stay bitwise equal
+to it (no fastmath).
 
 A new material is one law function here, one dispatch line in each fast kernel
 (the force dispatch of ``compiled._run`` and ``gen_springs.pass_b_springs``) and its NumPy twin in materials.py.
@@ -19,7 +23,10 @@ import numpy as np
 
 from crashstudy.kernel.codes import TIME_EPS, TINY_LENGTH
 
-_jit = nb.njit(cache=True, nogil=True, inline="always")
+_jit = nb.njit(cache=True, nogil=True, error_model="numpy")
+# per-step laws of the generic kernel that LLVM did not inline as well (time curves: arrays in;
+# general_law: 13 numbers in, 9 out): numba IR inlining, 16-19% faster on general-nonlinear-tension
+_inl = nb.njit(cache=True, nogil=True, inline="always")
 
 
 # ---- numbers ---------------------------------------------------------------------------------
@@ -70,7 +77,7 @@ def crush_law(e, emin, fstar, L, ku):  # pragma: no cover - compiled
     return (f_load if on else f_unl), (e if on else emin), (f_load if on else fstar)
 
 
-@_jit
+@_inl
 def general_law(e, mode, et, ft, ec, fc, yld_t, yld_c, L, Ut, Uc, yt, yc):  # pragma: no cover - compiled
     """``general_nonlinear`` rules 1-3 (elastic band, yield, shifted unloading line), branch-free.
 
@@ -118,7 +125,7 @@ def general_reverse(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx
     return Ls, 1.0, e, Ls, ec, fc, shift, 1.0, yld_c
 
 
-@nb.njit(cache=True, nogil=True)
+@_jit
 def general_reverse_call(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off):  # pragma: no cover
     """:func:`general_reverse` compiled once and called (rarely) by every generated kernel instead of
     being inlined into each."""
@@ -309,7 +316,7 @@ def time_window(t, t0, t1):  # pragma: no cover - compiled
     return not ((t < t0 - eps) | (t > t1 + eps))
 
 
-@_jit
+@_inl
 def time_curve_at(c, t, v, cx, cy, cds, cs0, off):  # pragma: no cover - compiled
     a = off[c]
     b = off[c + 1]
