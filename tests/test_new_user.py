@@ -396,3 +396,18 @@ def test_an_axis_that_matters_only_for_some_values_of_another_is_not_refused(
                                                   "impact_velocity": [0.0, 1.0, 0.0]}})  # fmt: skip
     capsys.readouterr()
     assert main(["validate", str(study)]) == 0, capsys.readouterr().err
+
+
+def test_output_piped_into_a_reader_that_stops_early_exits_0_without_an_error() -> None:
+    """`crashstudy schema model | head -c 10`: the reader closes the pipe before the 28 kB schema is written
+    (here: before the command even starts writing). That is no error of ours: exit 0 and nothing on stderr
+    (it printed "error: cannot write results: [Errno 32] Broken pipe" and a second BrokenPipeError at exit)."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "crashstudy.cli", "schema", "model"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)  # fmt: skip
+    assert proc.stdout is not None
+    proc.stdout.close()  # the reader is gone before the first byte
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and err == b"", (proc.returncode, err)
