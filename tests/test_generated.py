@@ -29,7 +29,7 @@ ALL_1D = ["position", "displacement", "velocity", "acceleration", "spring_force"
           "kinetic_energy", "internal_energy", "external_work", "wall_energy"]  # fmt: skip
 
 
-def _assert_bitwise(ref: KernelOutput, got: KernelOutput) -> None:
+def assert_bitwise(ref: KernelOutput, got: KernelOutput) -> None:
     for f in fields(KernelOutput):
         if f.name == "histories":
             continue
@@ -118,8 +118,8 @@ def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(
     monkeypatch.setattr(choice, "compiling", lambda: True)
     plain = run_chunk(plan, 0, plan.n_variants)
     assert calls == ["generated", "generic"]
-    _assert_bitwise(slow.out, fast.out)
-    _assert_bitwise(plain.out, fast.out)
+    assert_bitwise(slow.out, fast.out)
+    assert_bitwise(plain.out, fast.out)
 
 
 def runner_generic():  # the generic kernel's entry point (looked up at call time by the runner)
@@ -159,7 +159,7 @@ def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(monkeypat
         monkeypatch.setenv("CRASHSTUDY_KERNEL", env)
         got, _, _ = run_model(_mount_reversal(), kernel="compiled")
         assert calls[-1] == expected and len(calls) == 1 + (env != "generated")
-        _assert_bitwise(ref, got)
+        assert_bitwise(ref, got)
 
 
 def _crush_bounce(v0: float = 10.0) -> dict[str, Any]:

@@ -35,6 +35,7 @@ from test_generated import (
     _mount_reversal,
     _one_d_materials,
     _without_walls_and_loads,
+    assert_bitwise,
 )
 from test_knot_peaks import CRUSH_REBOUND, _one_mass
 from test_physics import TWIN_2D_HELI, TWINS
@@ -42,21 +43,6 @@ from test_stress import forced_batch, outputs_equal
 
 FAST = ["generic", "generated"]
 MASSES = [6.0, 8.0, 10.0, 12.0, 14.0]
-
-
-def assert_bitwise(ref: KernelOutput, got: KernelOutput) -> None:
-    for f in fields(KernelOutput):
-        if f.name == "histories":
-            continue
-        r, g = getattr(ref, f.name), getattr(got, f.name)
-        if r is None or g is None:  # optional outputs (the metrics' step record, criteria)
-            assert r is None and g is None, f"{f.name} only in one of them"
-            continue
-        assert r.shape == g.shape, f.name
-        assert np.array_equal(r, g, equal_nan=r.dtype.kind == "f"), f"{f.name} differs"
-    assert set(ref.histories) == set(got.histories)
-    for name, r in ref.histories.items():
-        assert np.array_equal(r, got.histories[name], equal_nan=True), f"history {name} differs"
 
 
 def _helicopter_walls() -> dict[str, Any]:

@@ -229,7 +229,8 @@ def test_fast_kernels_record_every_step_bitwise_as_the_reference(case: str, kern
     from conftest import model_plan
     from crashstudy.arrays.compiler import apply_axis
     from crashstudy.kernel.entry import run_batch
-    from test_kernel_twins import CASES, assert_bitwise
+    from test_generated import assert_bitwise
+    from test_kernel_twins import CASES
 
     build, axes, _ = CASES[case]
     plan = model_plan(build())
@@ -469,7 +470,8 @@ def test_block_record_is_bitwise_the_references_on_the_fast_kernels(kernel: str,
     from crashstudy.arrays.compiler import apply_axis
     from crashstudy.kernel.entry import run_batch
     from crashstudy.kernel.output import block_rows
-    from test_kernel_twins import CASES, assert_bitwise
+    from test_generated import assert_bitwise
+    from test_kernel_twins import CASES
 
     build, axes, _ = CASES[case]
     plan = model_plan(build())
