@@ -408,3 +408,29 @@ def test_unknown_criterion_or_class_is_refused() -> None:
     )
     assert set(r) == {"hic15", "hic15_t1", "hic15_t2", "peak_g", "criteria_note"}
     assert r["hic15"][0] == 0.0 and np.isnan(r["hic15_t1"][0]) and r["peak_g"][0] == 0.0  # a quiet record
+
+
+def test_variants_split_over_threads_give_the_single_thread_values_bitwise(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The driver runs parts of the variants side by side; each variant's row is its own, so the
+    values equal the one-thread run bit for bit (second implementation: the same driver unsplit)."""
+    from crashstudy.kernel import driver
+
+    rng = np.random.default_rng(7)
+    nv, nt = 7, 3000
+    dts = rng.uniform(1e-5, 2e-5, nv)
+    counts = rng.integers(1000, nt + 1, nv)
+    acc = np.zeros((nv, nt, 1))
+    for v in range(nv):
+        acc[v, : counts[v], 0] = -smooth_pulse(np.arange(counts[v]) * dts[v] * rng.uniform(0.8, 1.2))
+    v0 = np.full((nv, 1), 16.0)
+    old = driver.get_threads()
+    try:
+        driver.set_threads(1)
+        one_thread = C.compute(acc, counts, dts, v0, [1.0], 180, C.CRITERIA, G)
+        monkeypatch.setattr(C, "MIN_PART", 1)
+        driver.set_threads(3)
+        split = C.compute(acc, counts, dts, v0, [1.0], 180, C.CRITERIA, G)
+    finally:
+        driver.set_threads(old)
+    for k, arr in one_thread.items():
+        assert np.array_equal(arr, split[k], equal_nan=True) if k != "criteria_note" else list(arr) == list(split[k])

@@ -551,3 +551,24 @@ def test_criteria_from_the_block_record_are_within_tolerance_on_the_examples(
         scale = np.max(np.abs(truth)) if times else np.abs(truth)
         assert np.all(np.abs(dflt[name] - every[name]) <= 5e-3 * scale), name
         assert np.all(np.abs(dflt[name] - truth) <= 1e-2 * scale), name
+
+
+def test_record_groups_are_the_longest_runs_within_the_budget() -> None:
+    """batch_groups (by bisection) against its definition, grown one variant at a time."""
+    from crashstudy.metrics import record as metrics
+
+    def grown(n: np.ndarray, width: int, budget: int) -> list[slice]:
+        out, lo = [], 0
+        while lo < len(n):
+            hi = lo + 1
+            while hi < len(n) and 8.0 * (float(np.max(n[lo : hi + 1])) + 1) * width * (hi + 1 - lo) <= budget:
+                hi += 1
+            out.append(slice(lo, hi))
+            lo = hi
+        return out
+
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        n = np.sort(rng.integers(1, 500, rng.integers(1, 60)))
+        width, budget = int(rng.integers(1, 4)), int(rng.integers(100, 200_000))
+        assert metrics.batch_groups(n, width, budget) == grown(n, width, budget)

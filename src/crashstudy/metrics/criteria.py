@@ -36,9 +36,12 @@ compiles in; after editing those, touch this file (or clear ``NUMBA_CACHE_DIR``)
 from __future__ import annotations
 
 from collections.abc import Iterable
+from concurrent.futures import ThreadPoolExecutor
 
 import numba as nb
 import numpy as np
+
+from crashstudy.kernel.driver import get_threads
 
 from .criteria_clips import clip_cumulative_row, clip_row
 from .criteria_filter import (
@@ -79,6 +82,7 @@ HIC_WINDOWS = {"hic15": 0.015, "hic36": 0.036}  # s
 CLIP_WINDOW = 0.003  # s
 OLC_FREE = 0.065  # m
 OLC_RESTRAINED = 0.235  # m
+MIN_PART = 256  # variants: fewer run on one thread
 
 _COLS = ("peak_g", "hic15", "hic15_t1", "hic15_t2", "hic36", "hic36_t1", "hic36_t2", "clip3ms",
          "clip3ms_cumulative", "olc", "dri", "delta_v")  # fmt: skip
@@ -312,8 +316,19 @@ def compute(
     )
     out = np.full((nv, len(_COLS)), np.nan)
     status = np.zeros(nv, dtype=np.int64)
-    _driver(np.ascontiguousarray(acc), count, dt, dt_s, u0, dirs, float(cfc), pad_code(pad), float(g), want,
-            OLC_FREE * metre, OLC_RESTRAINED * metre, phi, g0, gs, out, status)  # fmt: skip
+    acc = np.ascontiguousarray(acc)
+    consts = (float(cfc), pad_code(pad), float(g), want, OLC_FREE * metre, OLC_RESTRAINED * metre)
+
+    def part(lo: int, hi: int) -> None:  # variants lo:hi (the driver holds no GIL: parts run side by side)
+        s = slice(lo, hi)
+        _driver(acc[s], count[s], dt[s], dt_s[s], u0[s], dirs[s], *consts, phi[s], g0[s], gs[s], out[s], status[s])
+
+    bounds = np.linspace(0, nv, min(get_threads(), max(nv // MIN_PART, 1)) + 1).astype(np.int64)
+    if len(bounds) <= 2:
+        part(0, nv)
+    else:
+        with ThreadPoolExecutor(len(bounds) - 1) as pool:
+            list(pool.map(part, bounds[:-1], bounds[1:]))
     filtered = bool(want[:6].any())
     if filtered:
         status |= np.where(rate_too_low(dt, float(cfc), second) & (status & _NO_FILTER == 0), _LOW_RATE, 0)

@@ -113,10 +113,10 @@ def batch_groups(n_steps: np.ndarray, width: int, budget: int = RECORD_BUDGET) -
     out: list[slice] = []
     lo = 0
     V = len(n_steps)
-    while lo < V:
-        hi = lo + 1
-        while hi < V and 8.0 * (float(np.max(n_steps[lo : hi + 1])) + 1) * width * (hi + 1 - lo) <= budget:
-            hi += 1
+    while lo < V:  # a group's bytes grow with its length: the longest group within budget, by bisection
+        peak = np.maximum.accumulate(np.asarray(n_steps[lo:], dtype=np.float64))
+        size = 8.0 * (peak + 1.0) * width * np.arange(1, V - lo + 1)
+        hi = lo + max(1, int(np.searchsorted(size, budget, side="right")))
         out.append(slice(lo, hi))
         lo = hi
     return out
@@ -229,11 +229,12 @@ def _means_si(rec: np.ndarray, ok: np.ndarray, last: np.ndarray, k: np.ndarray, 
 
     first, r_last, n_last = block_ends(last[ok], k[ok])
     T = rec.shape[0]
-    sums = rec[..., ok].transpose(2, 0, 1)  # (v, T, D) view
+    sums = (rec if len(ok) == rec.shape[2] else rec[..., ok]).transpose(2, 0, 1)  # (v, T, D) view
     rows = np.arange(len(ok))
     r_last = np.minimum(r_last, T - 1)
     head, tail = sums[:, 0] * (scale / first[:, None]), sums[rows, r_last] * (scale / n_last[:, None])
-    acc = np.ascontiguousarray(sums) * (scale / k[ok].astype(np.float64))[:, None, None]
+    acc = np.empty(sums.shape)  # one pass: the view scaled into a (v, T, D) contiguous array
+    np.multiply(sums, (scale / k[ok].astype(np.float64))[:, None, None], out=acc)
     acc[:, 0] = head
     acc[rows, r_last] = tail
     return acc
