@@ -8,8 +8,11 @@ cost model in seconds, measured on the 2-core reference machine (benchmarks/resu
   variant (Python overhead), plus ``REF_ELEMENT_STEP`` per element-step (spring x step x variant);
 - generic (numba): compiled once per machine, ``GENERIC_COMPILE`` s, then ``GENERIC_RATE``
   element-steps/s;
-- generated (numba, one per model shape): compiled once per shape, :func:`generated_compile_seconds`,
-  then ``GENERATED_RATE`` element-steps/s.
+- generated (numba, one per model shape): compiled once per shape, :func:`generated_compile_seconds`
+  (2.6-10 s for the example models, benchmarks/results/compile_costs.md), then ``GENERATED_RATE``
+  element-steps/s;
+- the crash criteria (a model with ``metrics:``): compiled once per machine, ``CRITERIA_COMPILE`` s,
+  whatever kernel runs; a compile in the foreground does it beside the kernel's, on the other core.
 
 :func:`pick` takes, per chunk, the fastest kernel that is already compiled; the NumPy reference is
 always ready, so a tiny run never waits for a compiler. When a whole run would take the reference
@@ -20,9 +23,10 @@ after the compile finished runs compiled. The compiled kernel stays in the cache
 study (and every study of the same model shape) runs compiled from its first chunk.
 
 Without a background process (``CRASHSTUDY_BACKGROUND_COMPILE=0``, or a worker of a process pool or
-Dask cluster, which never starts one) a chunk compiles the generic kernel in the foreground only when
-the reference would take longer than compiling and running it (:func:`pick`), so a study is never
-slower than the generic kernel alone by more than the estimate's error.
+Dask cluster, which never starts one) a chunk compiles a kernel in the foreground (the one quicker to
+compile and run, usually this shape's generated one) only when the reference would take longer than
+compiling and running it (:func:`pick`), so a study is never slower than the generic kernel alone by
+more than the estimate's error.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ import numpy as np
 
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.cache import cache_dir, why_not_private
-from crashstudy.kernel.codes import KernelName
+from crashstudy.kernel.codes import GENERAL, KernelName
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
@@ -51,11 +55,14 @@ REF_SPRING_STEP = 50e-6  # [s] per time step and spring
 REF_ELEMENT_STEP = 0.1e-6  # [s] per element-step (spring x step x variant)
 GENERIC_RATE = 3.5e8  # [element-steps/s] generic kernel, 2 threads
 GENERATED_RATE = 1.0e9  # [element-steps/s] generated kernel, 2 threads
-GENERIC_COMPILE = 25.0  # [s] compiling the generic kernel (once per machine)
+GENERIC_COMPILE = 24.0  # [s] compiling the generic kernel (once per machine)
+CRITERIA_COMPILE = 7.0  # [s] compiling the crash criteria (once per machine)
+GEN_BASE, GEN_GENERAL, GEN_SPRING, GEN_WALL, GEN_RECORD = 2.0, 3.5, 0.4, 1.0, 1.0  # [s] generated_compile_seconds
 LOAD = 0.3  # [s] loading a compiled kernel from the disk cache (once per process)
 BACKGROUND_MIN = 2.0  # [s] of reference time of a run above which missing kernels compile in the background
 KERNELS = ("reference", "generic", "generated")
-LOCK_NAME = "compile.lock"
+LOCK_NAME = "compile.lock"  # held by the process compiling kernels
+CRITERIA_LOCK = "criteria.lock"  # held by the process compiling the criteria
 REF_CHUNK = 1024  # variants per chunk while the reference runs and a compile may finish
 RECORDING = KERNELS  # kernels that record the per-step acceleration of metric nodes (crash criteria)
 _LOADED: set[str] = set()  # kinds of compiled kernel loaded in this process
@@ -81,10 +88,13 @@ def background_min_seconds() -> float:
     return 0.0 if value == "always" else BACKGROUND_MIN
 
 
-def generated_compile_seconds(n_springs: int, dim: int, n_walls: int) -> float:
-    """Expected seconds to compile one model shape's generated kernel (fit to 1-spring 1-D: 6 s,
-    helicopter: 23 s, frontal: 44 s)."""
-    return 4.0 + 4.5 * n_springs * dim + 4.0 * n_walls
+def generated_compile_seconds(material: np.ndarray, n_walls: int, record: bool = False) -> float:
+    """Expected seconds to compile one model shape's generated kernel: each ``general_nonlinear``
+    spring (its loading/unloading/yield law inlined) costs most. Fit to the cold compiles of
+    benchmarks/results/compile_costs.md (1 spring 2.6-5.5 s, helicopter 8.1 s, frontal 10.3 s)."""
+    general = int(np.sum(np.asarray(material) == GENERAL))
+    return (GEN_BASE + GEN_GENERAL * general + GEN_SPRING * (len(material) - general) + GEN_WALL * n_walls
+            + GEN_RECORD * bool(record))  # fmt: skip
 
 
 def reference_seconds(n_steps: float, n_springs: int, element_steps: float) -> float:
@@ -100,7 +110,18 @@ def _generic() -> Any:
 
 def generic_ready() -> bool:
     """Whether the generic kernel is compiled (in this process or in numba's disk cache)."""
-    run = _generic()
+    return _on_disk(_generic())
+
+
+def criteria_ready() -> bool:
+    """Whether the crash criteria are compiled (in this process or in numba's disk cache)."""
+    from crashstudy.metrics import criteria
+
+    return _on_disk(criteria._driver)
+
+
+def _on_disk(run: Any) -> bool:
+    """Whether numba dispatcher ``run`` is compiled in this process or has an index in its disk cache."""
     sigs = getattr(run, "signatures", None)
     if sigs is None:  # not a numba dispatcher (a test double): nothing to compile
         return True
@@ -137,9 +158,10 @@ def compiling(folder: Path | None = None) -> bool:
 def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: KernelName = "compiled",
          repeat: float = 1.0, record: tuple[int, ...] = ()) -> KernelName:  # fmt: skip
     """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
-    one expected to finish the run first among those compiled and the reference; the generic kernel
-    compiled now only when the reference would take longer than that (and no other process is
-    compiling). ``repeat``: how many batches like ``b`` the run holds (loading a compiled kernel is
+    one expected to finish the run first among those compiled and the reference; with nothing
+    compiled, the kernel quicker to compile and run (this shape's generated one unless it is large or
+    unsupported) compiled now only when the reference would take longer than that (and no other
+    process is compiling). ``repeat``: how many batches like ``b`` the run holds (loading a compiled kernel is
     paid once per process, so it is weighed against the whole run, not one chunk). ``record``: the
     batch needs the per-step acceleration of its metric nodes; only the kernels of ``RECORDING`` keep
     it, so another is never picked (not even when named: the criteria are never silently missing)."""
@@ -169,8 +191,14 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
         times["generated"] = run_time("generated", GENERATED_RATE)
     if "generic" in usable and generic_ready():
         times["generic"] = run_time("generic", GENERIC_RATE)
-    elif "generic" in usable and len(times) == 1 and t_ref > GENERIC_COMPILE + run_time("generic", GENERIC_RATE) and not compiling():
-        return "generic"
+    elif "generic" in usable and len(times) == 1 and not compiling():  # compile the quicker kernel here?
+        ways: dict[KernelName, float] = {"generic": GENERIC_COMPILE + run_time("generic", GENERIC_RATE)}
+        if "generated" in usable and generated.unsupported(b) is None:
+            ways["generated"] = (generated_compile_seconds(b.material, b.wall_nodes.shape[0], bool(record))
+                                 + run_time("generated", GENERATED_RATE))  # fmt: skip
+        first = min(ways, key=lambda k: ways[k])
+        if t_ref > ways[first]:
+            return first
     return min(times, key=lambda k: times[k])
 
 
@@ -188,6 +216,7 @@ class StartPlan:
     generic_seconds: float  # ... on the generic kernel (compile not included)
     fast_seconds: float  # ... on the fastest kernel once everything is compiled
     shape: str  # the model shape in words
+    criteria: float = 0.0  # compile seconds of the crash criteria when the run needs them and they are missing
 
     @property
     def compile(self) -> tuple[str, ...]:
@@ -215,23 +244,34 @@ def decide(p: StartPlan, background: bool) -> Decision:
     """The fastest way through the run that is never slower than compiling the generic kernel first
     and running it, the way every run went before kernel choice (up to the estimates' error).
 
-    - Nothing compiled, and the reference would take longer than compiling the generic kernel and
-      running it: compile it first; this shape's generated kernel in the background, during the run
-      when the run is long enough for it to pay back twice, else after it.
-    - Nothing compiled, a shorter run: start on the reference and compile in the background (on the
-      other core), switching to a compiled kernel when one is ready.
+    - Nothing compiled, and the reference would take longer than compiling a kernel and running it:
+      compile the kernel for which that is quicker first (this shape's generated one, unless the shape
+      is large or the generated kernel cannot run it), the crash criteria beside it. When that is the
+      generic kernel, this shape's generated one follows in the background, during the run when the
+      run is long enough for it to pay back twice, else after it.
+    - Nothing compiled, a shorter run: start on the reference and compile the quicker kernel in the
+      background (on the other core), switching to it when it is ready.
     - The generic kernel compiled, this shape's generated one not: run on the generic kernel and compile
       the generated one in the background, during the run when it pays back twice, else after it.
-    Without background compiles, only the first and a foreground generated compile that pays remain."""
+    Without background compiles, only the foreground compiles that pay remain."""
     gen_cost = p.costs.get("generated")
+    beside = ("criteria",) if p.criteria else ()
     if "generic" in p.costs:
-        alone = p.costs["generic"] + p.generic_seconds
+        ways = {"generic": p.costs["generic"] + p.generic_seconds}
+        if gen_cost is not None:
+            ways["generated"] = gen_cost + p.fast_seconds
+        first = min(ways, key=lambda k: ways[k])
+        alone = ways[first] + max(0.0, p.criteria - p.costs[first])  # the criteria compile beside the kernel
+        if p.reference_seconds > alone and first == "generated":
+            return Decision(alone, foreground=("generated", *beside))
         if p.reference_seconds > alone:
             rest: tuple[str, ...] = ("generated",) if background and gen_cost is not None else ()
             during = gen_cost is not None and p.generic_seconds > 2 * gen_cost
-            return Decision(alone, foreground=("generic",), now=rest if during else (), after=() if during else rest)
+            return Decision(alone, foreground=("generic", *beside), now=rest if during else (),
+                            after=() if during else rest)  # fmt: skip
         if background:
-            return Decision(min(p.reference_seconds, p.seconds + p.fast_seconds), now=p.compile, small_chunks=True)
+            quick = "generated" if gen_cost is not None else "generic"
+            return Decision(min(p.reference_seconds, p.costs[quick] + p.fast_seconds), now=(quick,), small_chunks=True)
         return Decision(p.reference_seconds)
     t_now = min(p.reference_seconds, p.generic_seconds)
     if gen_cost is None:
@@ -239,7 +279,7 @@ def decide(p: StartPlan, background: bool) -> Decision:
     if background:
         return Decision(t_now, now=("generated",)) if t_now > 2 * gen_cost else Decision(t_now, after=("generated",))
     if gen_cost + p.fast_seconds < t_now:
-        return Decision(gen_cost + p.fast_seconds, foreground=("generated",))
+        return Decision(gen_cost + p.fast_seconds, foreground=("generated", *beside))
     return Decision(t_now)
 
 
@@ -268,13 +308,14 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     if gen_ok:
         if generated.is_compiled(b, histories, vary, record):
             return None
-        costs["generated"] = generated_compile_seconds(S, D, b.wall_nodes.shape[0])
+        costs["generated"] = generated_compile_seconds(b.material, b.wall_nodes.shape[0], bool(record))
     if not costs:
         return None
     walls = b.wall_nodes.shape[0]
     shape = f"{N} nodes, {S} springs, {D}-D" + (f", {walls} wall{'s' * (walls > 1)}" if walls else "")
     t_fast = work / GENERATED_RATE + LOAD if gen_ok else t_generic
-    return StartPlan(costs, t_ref, t_generic, t_fast, shape)
+    crit = CRITERIA_COMPILE if record and not criteria_ready() else 0.0
+    return StartPlan(costs, t_ref, t_generic, t_fast, shape, crit)
 
 
 def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
@@ -303,17 +344,19 @@ def _lower_priority() -> None:  # pragma: no cover - runs in the child
 
 def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...],
                        vary: frozenset[int] | None, stop: Any, record: tuple[int, ...] = ()) -> None:  # fmt: skip
-    """Compile ``kernels`` in a child process and wait; ``stop()`` raising (Ctrl-C) kills it at once."""
-    proc = start_background(kernels, b, histories, vary, record)
-    if proc is None:
-        return
+    """Compile ``kernels`` in child processes and wait: the crash criteria ("criteria") in one of their
+    own beside the others, so both cores compile; ``stop()`` raising (Ctrl-C) kills them at once."""
+    groups = [g for g in (tuple(k for k in kernels if k != "criteria"), tuple(k for k in kernels if k == "criteria")) if g]
+    procs = [p for g in groups if (p := start_background(g, b, histories, vary, record)) is not None]
     try:
-        while proc.poll() is None:
-            try:
-                proc.wait(timeout=0.2)
-            except subprocess.TimeoutExpired:
-                stop()
+        for proc in procs:
+            while proc.poll() is None:
+                try:
+                    proc.wait(timeout=0.2)
+                except subprocess.TimeoutExpired:
+                    stop()
     except BaseException:
-        proc.kill()
-        proc.wait()
+        for proc in procs:
+            proc.kill()
+            proc.wait()
         raise

@@ -1,7 +1,8 @@
 """A compile in its own process: ``python -m crashstudy.kernel.warm JOB`` (started by
 :func:`crashstudy.kernel.choice.start_background`).
 
-JOB is JSON: the kernels to compile (``generic``, ``generated``), the run's history names, varying
+JOB is JSON: the kernels to compile (``generic``, ``generated``, or ``criteria`` alone: the crash
+criteria, under a lock of their own so they compile beside a kernel), the run's history names, varying
 curves and constant curves, and a ``.npz`` of one variant of the run's batch (read with
 ``allow_pickle=False``: only plain arrays). Each kernel is compiled by running that variant for one
 step, which leaves it in numba's disk cache. One compile per cache at a time: the process holds an
@@ -22,7 +23,7 @@ import numpy as np
 
 def main(argv: list[str]) -> int:
     from crashstudy.kernel.cache import checked_dir
-    from crashstudy.kernel.choice import LOCK_NAME
+    from crashstudy.kernel.choice import CRITERIA_LOCK, LOCK_NAME
 
     job = json.loads(argv[0])
     folder = checked_dir()
@@ -36,7 +37,7 @@ def main(argv: list[str]) -> int:
     b.n_steps[:] = 1
     histories = tuple(job["histories"])
     record = tuple(job.get("record", []))
-    with open(folder / LOCK_NAME, "a") as lock:
+    with open(folder / (CRITERIA_LOCK if job["kernels"] == ["criteria"] else LOCK_NAME), "a") as lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -46,11 +47,22 @@ def main(argv: list[str]) -> int:
                 from crashstudy.kernel.compiled import run_compiled
 
                 run_compiled(b, histories, 1, record=record)
+            elif kernel == "criteria":
+                _criteria()
             else:
                 from crashstudy.kernel.generated import run_generated
 
                 run_generated(b, histories, 1, frozenset(job["vary"]), list(job["const"]), record)
     return 0
+
+
+def _criteria() -> None:
+    """Compile the crash criteria and the filter of the filtered_acceleration history (a short pulse)."""
+    from crashstudy.metrics import criteria
+
+    acc = np.zeros((1, 8, 1))
+    criteria.compute(acc, np.array([8]), np.array([1e-4]), np.ones((1, 1)), np.ones(1), 180, criteria.CRITERIA, 9.80665)
+    criteria.j211_filter(acc[:, :, 0], np.array([8]), np.array([1e-4]), 180)
 
 
 if __name__ == "__main__":

@@ -193,9 +193,11 @@ def _start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, fl
     say = (lambda text: print(f"note: {text}", file=notes)) if notes is not None else (lambda text: None)
 
     def what(kinds: tuple[str, ...]) -> str:
-        names = " and ".join(f"the {k} kernel" for k in kinds)
-        return (f"{names} for this model shape ({start.shape}; first run on this machine), "
-                f"~{sum(start.costs[k] for k in kinds):.0f} s")  # fmt: skip
+        kernels = [k for k in kinds if k != "criteria"]
+        names = " and ".join(f"the {k} kernel" for k in kernels)
+        beside = " (the crash criteria beside it)" if "criteria" in kinds else ""
+        seconds = max([sum(start.costs[k] for k in kernels)] + [start.criteria] * ("criteria" in kinds))
+        return f"{names} for this model shape ({start.shape}; first run on this machine){beside}, ~{seconds:.0f} s"
 
     if do.foreground:
         say(f"compiling {what(do.foreground)}; Ctrl-C stops")
