@@ -379,3 +379,22 @@ def test_without_pdeathsig_the_watchdog_ends_a_worker_whose_parent_died() -> Non
             os.kill(child, signal.SIGKILL)
         if middle.poll() is None:
             middle.kill()
+
+
+def test_variant_checksums_equal_their_definition_in_python_integers() -> None:
+    """integrity.variant_sums (column by column for narrow arrays, einsum for wide ones) against its
+    definition: per variant, the sum of every 8-byte word (zero-padded per array) times the odd weight
+    (2 k + 1) * 0x9E3779B97F4A7C15 of its running index k, modulo 2^64, in Python integers."""
+    from crashstudy.results import integrity
+
+    rng = np.random.default_rng(5)
+    arrays = {"a": rng.normal(size=(9, 3)), "b": rng.integers(0, 2**62, (9, 20)).astype(np.uint64),
+              "c": rng.integers(-100, 100, (9, 3)).astype("i1"), "d": rng.normal(size=9)}  # fmt: skip
+    names = sorted(arrays)
+    got = integrity.variant_sums(arrays, names)
+    for v in range(9):
+        raw = b"".join(np.ascontiguousarray(arrays[n][v]).tobytes().ljust(-(-arrays[n][v].nbytes // 8) * 8, b"\0")
+                       for n in names)  # fmt: skip
+        words = [int.from_bytes(raw[8 * k : 8 * k + 8], "little") for k in range(len(raw) // 8)]
+        truth = sum(w * (2 * k + 1) * 0x9E3779B97F4A7C15 for k, w in enumerate(words)) % 2**64
+        assert int(got[v]) == truth, v

@@ -5,7 +5,7 @@
   reads ``CRASHSTUDY_KERNEL``), "generic", "generated" or "reference". A kernel that is not compiled
   yet is compiled in a child process first when a stop check is given, so a stop request kills it.
 - :func:`run_ordered` is what a study chunk needs: the variants sorted by step count (so a block
-  holds variants that finish together), run, the optional error estimate, and the results spread
+  holds variants that finish together; not when their counts are within ``SORT_SPREAD``), run, the optional error estimate, and the results spread
   back to the caller's columns (``spread``: e.g. a deduplicated batch back to every variant).
 - :func:`set_threads` / :func:`get_threads`: the threads of both fast kernels
   (:mod:`crashstudy.kernel.driver`).
@@ -37,6 +37,7 @@ class Recorder(Protocol):
     def __call__(self, batch: Batch, run: Callable[[Batch], KernelOutput]) -> KernelOutput: ...
 
 __all__ = ["error_estimate", "get_threads", "run_batch", "run_ordered", "set_threads", "spread_columns"]
+SORT_SPREAD = 0.05  # step counts within this fraction of the longest: the batch runs unsorted (a copy saved)
 SUMMARIES = ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed_energy",
              "peak_acceleration", "peak_wall_force", "energy_error", "final_energy", "max_elongation",
              "spring_fail_time")  # fmt: skip
@@ -99,8 +100,13 @@ def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np
     ``accuracy``) for columns ``spread`` of ``batch`` (column k = variant ``spread[k]``).
     ``recorder`` (crash criteria, :class:`crashstudy.metrics.record.Recorder`): records its nodes at every
     step and turns each record into ``KernelOutput.criteria`` (and extra histories)."""
-    order = np.argsort(batch.n_steps, kind="stable")
-    sorted_batch = batch.take(order)
+    n = batch.n_steps
+    if not len(n) or n.max() - n.min() <= SORT_SPREAD * n.max() or np.all(n[1:] >= n[:-1]):
+        order = np.arange(len(n))  # sorting would gain less than copying the batch costs
+        sorted_batch = batch
+    else:
+        order = np.argsort(n, kind="stable")
+        sorted_batch = batch.take(order)
     if recorder is None:
         out = run_batch(sorted_batch, histories, n_out, kernel, vary, repeat, check)
     else:
@@ -109,7 +115,10 @@ def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np
     estimate = error_estimate(sorted_batch, out, kernel, repeat, check) if accuracy else np.full(len(order), np.nan)
     pos = np.empty_like(order)
     pos[order] = np.arange(len(order))
-    return spread_columns(out, pos[spread], histories, n_out), estimate[pos[spread]]
+    cols = pos[spread]
+    if len(cols) == len(order) and np.array_equal(cols, np.arange(len(cols))):
+        return out, estimate  # the kernel's columns are the caller's already
+    return spread_columns(out, cols, histories, n_out), estimate[cols]
 
 
 def error_estimate(batch: Batch, out: KernelOutput, kernel: KernelName = "compiled", repeat: float = 1.0,
