@@ -71,11 +71,48 @@ def cli():
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Compile (or load from numba's cache) the kernel once, in the main process, before any test or
-    xdist worker needs it: workers then load the cached machine code instead of compiling it again."""
+    """Compile (or load from numba's cache) the generic kernel once, in the main process, before any
+    test or xdist worker needs it: workers then load the cached machine code instead of compiling it
+    again. Meanwhile a second process compiles, on the other core, the crash criteria and the slowest
+    generated kernels of the twin tests (:func:`warm_other_core`), which the workers then load too."""
     if hasattr(config, "workerinput"):
         return
+    other = subprocess.Popen([sys.executable, "-c", "import conftest; conftest.warm_other_core()"],
+                             cwd=Path(__file__).resolve().parent)  # fmt: skip
     run_model({"name": "warm-up", "nodes": {"a": {"position": [0.0], "fixed": True},
                                             "b": {"position": [1.0], "mass": 1.0}},
                "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 1.0}}},
                "end_time": 0.01, "output": {"histories": "none"}}, kernel="generic")  # fmt: skip
+    other.wait()
+
+
+WARM_RECORD_CASES = ("frontal-lane-compaction", "full-twin-2d-mixed-prescribed")  # the slowest compiles (~10 s each)
+
+
+def record_case(case: str) -> tuple[Any, Plan, tuple[int, ...]]:
+    """(batch, plan, record) of a tests/test_kernel_twins.py case run with the per-step record of every
+    movable node (tests/test_metrics.py)."""
+    from crashstudy.arrays.compiler import apply_axis
+    from test_kernel_twins import CASES
+
+    build, axes, _ = CASES[case]
+    plan = model_plan(build())
+    topo = plan.topology
+    P = np.repeat(plan.base[:, None], len(next(iter(axes.values()))), axis=1)
+    for path, vals in axes.items():
+        apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
+    batch, _ = build_batch(topo, P, plan.interval)
+    record = tuple(n for n in range(topo.n_nodes) if not topo.fixed[n].all() or n in batch.pm_node)
+    return batch, plan, record
+
+
+def warm_other_core() -> None:
+    """Compile the crash criteria and the generated kernels, with the per-step record, of
+    ``WARM_RECORD_CASES`` exactly as tests/test_metrics.py runs them (the same batch: the same shape key)."""
+    from crashstudy.kernel.entry import run_batch
+    from crashstudy.kernel.warm import _criteria
+
+    _criteria()
+    for case in WARM_RECORD_CASES:
+        batch, plan, record = record_case(case)
+        run_batch(batch, plan.topology.histories, plan.n_out, "generated", record=record)

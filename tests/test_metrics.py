@@ -226,22 +226,12 @@ def test_fast_kernels_record_every_step_bitwise_as_the_reference(case: str, kern
     kernels equals the reference's bit for bit: prescribed displacement / velocity / acceleration,
     loads, gravity, walls, a variant crushed to zero length (record zero from its failure step), early
     termination and lane compaction (tests/test_kernel_twins.py's cases)."""
-    from conftest import model_plan
-    from crashstudy.arrays.compiler import apply_axis
+    from conftest import record_case
     from crashstudy.kernel.entry import run_batch
     from test_generated import assert_bitwise
-    from test_kernel_twins import CASES
 
-    build, axes, _ = CASES[case]
-    plan = model_plan(build())
+    batch, plan, record = record_case(case)
     topo = plan.topology
-    P = np.repeat(plan.base[:, None], len(next(iter(axes.values()))), axis=1)
-    for path, vals in axes.items():
-        apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
-    from crashstudy.arrays.batch import build_batch
-
-    batch, _ = build_batch(topo, P, plan.interval)
-    record = tuple(n for n in range(topo.n_nodes) if not topo.fixed[n].all() or n in batch.pm_node)
     ref = run_batch(batch, topo.histories, plan.n_out, "reference", record=record)
     got = run_batch(batch, topo.histories, plan.n_out, kernel, record=record)
     assert ref.step_acceleration is not None and np.any(ref.step_acceleration != 0.0)
