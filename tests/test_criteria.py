@@ -434,3 +434,35 @@ def test_variants_split_over_threads_give_the_single_thread_values_bitwise(monke
         driver.set_threads(old)
     for k, arr in one_thread.items():
         assert np.array_equal(arr, split[k], equal_nan=True) if k != "criteria_note" else list(arr) == list(split[k])
+
+
+def test_plain_python_criteria_equal_the_compiled_ones_bitwise(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a machine where the criteria are not compiled, a small record runs the driver's own code as
+    plain Python (crashstudy.metrics.interpreted): every criterion, t1/t2 and note equals the compiled
+    driver's bit for bit (numba compiles without fast-math), and so does the J211 filter; past
+    PLAIN_MAX_SAMPLES interpreted samples a process compiles."""
+    from crashstudy.metrics import criteria_filter as F
+    from crashstudy.metrics import interpreted
+
+    rng = np.random.default_rng(11)
+    nv, nt = 5, 2500
+    dts = rng.uniform(1e-4, 4e-4, nv)
+    counts = rng.integers(300, nt + 1, nv)
+    acc = np.zeros((nv, nt, 2))
+    for v in range(nv):
+        t = np.arange(counts[v]) * dts[v]
+        acc[v, : counts[v], 0] = -smooth_pulse(t * rng.uniform(0.8, 1.2)) + rng.normal(0.0, 20.0, counts[v])
+        acc[v, : counts[v], 1] = rng.normal(0.0, 30.0, counts[v])
+    v0 = np.tile([16.0, 0.0], (nv, 1))
+    compiled = C.compute(acc, counts, dts, v0, [1.0, 0.0], 180, C.CRITERIA, G)
+    filt = F.j211_filter(acc[:, :, 0], counts, dts, 60)
+    monkeypatch.setattr(interpreted, "compiled_or_cached", lambda fn: False)
+    monkeypatch.setattr(interpreted, "_SPENT", [0])
+    assert interpreted.driver_for(C._driver, 10)[1] is False
+    plain = C.compute(acc, counts, dts, v0, [1.0, 0.0], 180, C.CRITERIA, G)
+    assert interpreted._SPENT[0] == 10 + int(counts.sum())  # it did run interpreted
+    for k, arr in compiled.items():
+        assert np.array_equal(arr, plain[k], equal_nan=True) if k != "criteria_note" else list(arr) == list(plain[k])
+    assert np.array_equal(F.j211_filter(acc[:, :, 0], counts, dts, 60), filt, equal_nan=True)
+    monkeypatch.setattr(interpreted, "_SPENT", [interpreted.PLAIN_MAX_SAMPLES])
+    assert interpreted.driver_for(C._driver, 1) == (C._driver, True)

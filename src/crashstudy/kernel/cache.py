@@ -22,6 +22,7 @@ import stat
 import tempfile
 import warnings
 from pathlib import Path
+from typing import Any
 
 from crashstudy.errors import CrashstudyWarning
 
@@ -95,3 +96,17 @@ def _cache_dir(env: str | None, home: str) -> Path:
         warnings.warn(f"kernel cache {cand} not used: {why}; compiled kernels must be in a folder only you can "
                       "write to", KernelCacheWarning, stacklevel=3)  # fmt: skip
     return Path(tempfile.mkdtemp(prefix="crashstudy-kernels-"))
+
+
+def compiled_or_cached(run: Any) -> bool:
+    """Whether numba dispatcher ``run`` is compiled in this process or has an index in numba's disk cache
+    (the index is written after the compiled code)."""
+    sigs = getattr(run, "signatures", None)
+    if sigs is None:  # not a numba dispatcher (a test double): nothing to compile
+        return True
+    if sigs:
+        return True
+    try:
+        return os.path.exists(run._cache._cache_file._index_path)
+    except AttributeError:  # numba internals moved: assume it must be compiled
+        return False

@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 
 from crashstudy.errors import InputError, Problem
-from crashstudy.kernel.cache import cache_dir, why_not_private
+from crashstudy.kernel.cache import cache_dir, compiled_or_cached, why_not_private
 from crashstudy.kernel.codes import GENERAL, KernelName
 
 if TYPE_CHECKING:
@@ -110,27 +110,14 @@ def _generic() -> Any:
 
 def generic_ready() -> bool:
     """Whether the generic kernel is compiled (in this process or in numba's disk cache)."""
-    return _on_disk(_generic())
+    return compiled_or_cached(_generic())
 
 
 def criteria_ready() -> bool:
     """Whether the crash criteria are compiled (in this process or in numba's disk cache)."""
     from crashstudy.metrics import criteria
 
-    return _on_disk(criteria._driver)
-
-
-def _on_disk(run: Any) -> bool:
-    """Whether numba dispatcher ``run`` is compiled in this process or has an index in its disk cache."""
-    sigs = getattr(run, "signatures", None)
-    if sigs is None:  # not a numba dispatcher (a test double): nothing to compile
-        return True
-    if sigs:
-        return True
-    try:
-        return os.path.exists(run._cache._cache_file._index_path)
-    except AttributeError:  # numba internals moved: assume it must be compiled
-        return False
+    return compiled_or_cached(criteria._driver)
 
 
 def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,

@@ -54,6 +54,7 @@ from .criteria_filter import (
     rate_too_low,
 )
 from .criteria_rows import NOT_REACHED, dri_row, hic_row, olc_row, peak_row
+from .interpreted import driver_for
 
 __all__ = ["CRITERIA", "EXTRA", "STANDARDS", "UNITS", "compute", "j211_filter", "dri_matrices"]
 
@@ -318,13 +319,14 @@ def compute(
     status = np.zeros(nv, dtype=np.int64)
     acc = np.ascontiguousarray(acc)
     consts = (float(cfc), pad_code(pad), float(g), want, OLC_FREE * metre, OLC_RESTRAINED * metre)
+    driver, compiled = driver_for(_driver, int(np.sum(count)))  # a small record on a fresh machine: no compile
 
-    def part(lo: int, hi: int) -> None:  # variants lo:hi (the driver holds no GIL: parts run side by side)
+    def part(lo: int, hi: int) -> None:  # variants lo:hi (the compiled driver holds no GIL: parts run side by side)
         s = slice(lo, hi)
-        _driver(acc[s], count[s], dt[s], dt_s[s], u0[s], dirs[s], *consts, phi[s], g0[s], gs[s], out[s], status[s])
+        driver(acc[s], count[s], dt[s], dt_s[s], u0[s], dirs[s], *consts, phi[s], g0[s], gs[s], out[s], status[s])
 
     bounds = np.linspace(0, nv, min(get_threads(), max(nv // MIN_PART, 1)) + 1).astype(np.int64)
-    if len(bounds) <= 2:
+    if len(bounds) <= 2 or not compiled:
         part(0, nv)
     else:
         with ThreadPoolExecutor(len(bounds) - 1) as pool:
