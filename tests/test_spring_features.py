@@ -424,3 +424,46 @@ def test_study_axis_values_that_break_a_v2_rule_are_refused_per_variant() -> Non
     check = check_parameters(plan.topology, P, plan.interval)
     assert check.bad.tolist() == [False, True]
     assert "must pass through the origin" in check.reason(1) and "initial_elongation" in check.reason(1)
+
+
+PULL = {"name": "pull", "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+        "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
+        "initial_velocity": {"b": [1.0]}, "end_time": 0.1, "output": {"histories": "all"}}  # fmt: skip
+
+
+@pytest.mark.parametrize("kernel", ["reference", "generic", "generated"])
+def test_a_spring_only_in_tension_has_a_max_crush_of_plus_zero(kernel: str) -> None:
+    """A spring stretched from its rest length (x = sin(10 t) / 10, up to t = 0.1 s) never shortens:
+    max_crush is +0.0 on every kernel (the reference's np.maximum(0.0, -0.0) gave -0.0, printed "-0.0"),
+    max_elongation sin(1) / 10 (closed form, 1e-3)."""
+    from test_generated import same_bits
+
+    out, _, _ = run_model(PULL, kernel=kernel)
+    assert same_bits(out.max_crush, np.zeros_like(out.max_crush))
+    assert out.max_elongation[0, 0] == pytest.approx(0.1 * math.sin(1.0), rel=1e-3)
+
+
+def test_results_files_hold_no_negative_zero(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The reference kernel's acceleration history of tests/test_kernel_twins.py's every-material model
+    holds -0.0 samples (a zero force divided by a mass, with its sign); results.nc stores them as +0.0
+    and every value is the kernel's (second implementation: the kernel output itself)."""
+    import netCDF4
+
+    from crashstudy.run.runner import run_chunk, simulate
+    from crashstudy.schema import load_model
+    from crashstudy.study.plan import plan_from_model
+    from test_kernel_twins import _one_d_materials
+
+    path = tmp_path / "m.yaml"
+    path.write_text(yaml.safe_dump(_one_d_materials(False)))
+    monkeypatch.setenv("CRASHSTUDY_KERNEL", "reference")
+    acc = run_chunk(plan_from_model(load_model(str(path))), 0, 1).out.histories["acceleration"]  # what the run below computes
+    assert np.any((acc == 0.0) & np.signbit(acc))  # the case has what the files must not show
+    simulate(str(path), tmp_path / "out").close()
+    with netCDF4.Dataset(tmp_path / "out" / "results.nc") as nc:
+        stored = np.moveaxis(np.asarray(nc.variables["acceleration"][:]), 0, -1)
+        assert np.array_equal(stored, acc, equal_nan=True)
+        for name, var in nc.variables.items():
+            if var.dtype.kind == "f":
+                values = np.ma.filled(var[:], np.nan)
+                assert not np.any((values == 0.0) & np.signbit(values)), name

@@ -163,8 +163,10 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                 knot_hit[s], knot_th[s], knot_dfax[s] = cand > 0.0, th, dF * axis
             # extremes while intact; a spring that breaks in this step reached its failure elongation
             e_max = np.where(snaps, limit, e)
-            out.max_crush[s] = np.where(intact, np.maximum(out.max_crush[s], -e_max), out.max_crush[s])
-            out.max_elongation[s] = np.where(intact, np.maximum(out.max_elongation[s], e_max), out.max_elongation[s])
+            # laws.peak's running maximum (np.maximum(0.0, -0.0) is -0.0: a spring only ever in tension
+            # reported a max_crush of -0.0)
+            out.max_crush[s] = np.where(intact & (-e_max > out.max_crush[s]), -e_max, out.max_crush[s])
+            out.max_elongation[s] = np.where(intact & (e_max > out.max_elongation[s]), e_max, out.max_elongation[s])
         f_prev, e_prev = forces, elong
 
         fext = m[:, None, :] * b.gravity[None, :, :] * np.ones((N, D, 1))

@@ -253,6 +253,9 @@ class ResultWriter:
             data.update(metric_arrays(self.plan, res))
         data["status"] = (o.status != 0).astype("i1")
         data["input_hash"] = np.ascontiguousarray(res.hashes, dtype=np.uint64)
+        for arr in data.values():  # -0.0 (a zero force on the other side, say) is stored and shown as 0.0
+            if arr.dtype.kind == "f":
+                np.add(arr, 0.0, out=arr)
         names = integrity.checked_names(nc)
         assert sorted(data) == names, (sorted(data), names)
         for name in names:
