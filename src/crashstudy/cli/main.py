@@ -191,11 +191,14 @@ def _checked(plan: Any) -> None:
 
 
 def _after_run(res: Any) -> None:
-    """Warn when the peak deceleration of the model's body mass contradicts the result's unit system."""
+    """Warn when springs went past the ends of their curves, and when the peak deceleration of the
+    model's body mass contradicts the result's unit system."""
+    from crashstudy.results.curve_ends import warnings_of
     from crashstudy.schema import validate_model_data
     from crashstudy.schema.plausible import body_node, peak_g_warnings
     from crashstudy.schema.yamlio import loads_yaml
 
+    _warn(warnings_of(res.dataset))
     attrs = res.dataset.attrs
     try:
         m, _ = validate_model_data(loads_yaml(str(attrs.get("model_yaml", "")), "results.nc").data)

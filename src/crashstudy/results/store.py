@@ -36,6 +36,7 @@ from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import ALL_SHAPES, KernelOutput
 from crashstudy.metrics.record import METRIC_META, NOTE_TEXT, asked_nodes, result_names, standard
 from crashstudy.results import integrity
+from crashstudy.results.curve_ends import curve_springs
 from crashstudy.results.tables import (
     CSV_MAX,
     HISTORY_META,
@@ -92,6 +93,7 @@ class ChunkResult:
     hashes: np.ndarray  # (V, HASH_WORDS) uint64
     error_estimate: np.ndarray  # (V,) NaN unless the model asks for accuracy_check
     criteria: Any = None  # crashstudy.metrics.record.ChunkCriteria of a model with metrics, else None
+    curve_end: np.ndarray | None = None  # (S, V) past_curve_end codes (crashstudy.results.curve_ends)
 
 
 class ResultWriter:
@@ -146,6 +148,18 @@ class ResultWriter:
                   f"(variants {where}); computing them again", file=sys.stderr)  # fmt: skip
             self.nc.variables["done"][:] = (done & ~lost).astype("i1")
             self.nc.sync()
+        missing = [n for n in self._summary_names() if n not in self.nc.variables]
+        if missing:  # a partial file of an earlier version: its done variants keep NaN there (not computed)
+            for name in missing:
+                self._summary_variable(self.nc, name, min(self.plan.n_variants, 4096))
+            for lo, hi in _ranges_of(done & ~lost):
+                self.nc.variables[integrity.CHECKSUM][lo:hi] = integrity.file_sums(self.nc, lo, hi)
+            self.nc.sync()
+
+    def _summary_names(self) -> list[str]:
+        """The summary variables of this plan's results (SUMMARY_META; walls only with walls)."""
+        walls = bool(self.plan.topology.wall_ids)
+        return [n for n, (dims, _, _) in SUMMARY_META.items() if walls or dims != ("wall",)]
 
     def done(self) -> np.ndarray:
         """Boolean (V,): variants already written."""
@@ -193,12 +207,8 @@ class ResultWriter:
             sizes = [1, p.n_out] + [len(nc.dimensions[d]) for d in ALL_SHAPES[name]]
             v = nc.createVariable(name, "f8", dims, fill_value=np.nan, chunksizes=[max(1, s) for s in sizes])
             v.units, v.long_name = units[HISTORY_META[name][0]], HISTORY_META[name][1]
-        for name, (dims, kind, long) in SUMMARY_META.items():
-            if dims == ("wall",) and not topo.wall_ids:
-                continue
-            shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
-            v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
-            v.units, v.long_name = units[kind], long
+        for name in self._summary_names():
+            self._summary_variable(nc, name, cv)
         for name in result_names(topo):  # the crash criteria (crashstudy.metrics.record)
             kind, long = METRIC_META[name]
             v = nc.createVariable(name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes])
@@ -267,6 +277,16 @@ class ResultWriter:
         nc.variables["done"][lo:hi] = 1
         nc.variables[integrity.CHECKSUM][lo:hi] = integrity.variant_sums(data, names)
         nc.sync()
+
+    def _summary_variable(self, nc: netCDF4.Dataset, name: str, cv: int) -> None:
+        """Create summary variable ``name`` (SUMMARY_META), chunked by ``cv`` variants."""
+        dims, kind, long = SUMMARY_META[name]
+        shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
+        v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
+        v.units, v.long_name = _units(self.plan)[kind], long
+        if name == "past_curve_end":  # the springs with a drawn curve (the others have no summary column)
+            topo = self.plan.topology
+            v.springs = " ".join(topo.spring_ids[s] for s in curve_springs(topo.material, topo.spring_curves[:, 0]))
 
     def _codes(self, name: str, texts: Any) -> np.ndarray:
         """Indices of ``texts`` in the file's table of ``name``; new texts are appended to it."""

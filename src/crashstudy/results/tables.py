@@ -19,6 +19,7 @@ import pandas as pd
 import xarray as xr
 
 from crashstudy.metrics.record import METRIC_META, NOTE_LONG, NOTE_TEXT, asked_nodes
+from crashstudy.results.curve_ends import MEANING
 from crashstudy.safefs import clear_entry, open_new
 from crashstudy.units import UNIT_SYSTEMS
 
@@ -45,6 +46,7 @@ SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
     "final_kinetic_energy": ((), "energy", "kinetic energy at the end"),
     "final_internal_energy": ((), "energy", "internal energy at the end"),
     "error_estimate": ((), "1", "estimated relative error of the peaks (accuracy_check: re-run at dt/2)"),
+    "past_curve_end": (("spring",), "1", "whether the spring went past an end of its material curve: " + MEANING),
 }
 HISTORY_META = {  # name: (unit kind, long name)
     "position": ("length", "node position"),
@@ -118,9 +120,10 @@ def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[
             cols[name] = arr
         else:
             ids = sub[dims[0]].values.astype(str)
-            asked = ds[name].attrs.get("nodes", "").split() if name in METRIC_META else ids
+            # a criterion: only the nodes that ask for it; past_curve_end: the springs with a drawn curve
+            asked = ds[name].attrs.get("nodes" if name in METRIC_META else "springs", " ".join(ids)).split()
             for k, item in enumerate(ids):
-                if item in asked:  # a criterion: only the nodes that ask for it (no columns of NaN)
+                if item in asked:  # no columns of NaN
                     cols[f"{name}.{item}"] = arr[:, k]
     cols["dt_control"] = _categorical(ds, sub, "dt_control")
     if NOTE_TEXT in sub:
@@ -183,6 +186,7 @@ def summary_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
         "energy_error": o.energy_error, "dt": res.dt, "dt_crit": res.dt_crit, "t_end": o.t_end,
         "final_kinetic_energy": o.final_energy[0], "final_internal_energy": o.final_energy[1],
         "error_estimate": res.error_estimate,
+        "past_curve_end": res.curve_end.T if res.curve_end is not None else np.zeros_like(o.peak_force.T),
     }  # fmt: skip
     if plan.topology.wall_ids:
         summary["peak_wall_force"] = o.peak_wall_force.T

@@ -24,6 +24,7 @@ from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
 from crashstudy.kernel.codes import KernelName
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
+from crashstudy.results.curve_ends import past_curve_ends
 from crashstudy.results.outdir import prepare_output, remove_stale_plots, study_of
 from crashstudy.results.store import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
 from crashstudy.run.provenance import variant_hashes
@@ -106,8 +107,9 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
     reasons = np.full(V, "", dtype=object)
     for k in np.flatnonzero(full.status):  # texts only for the failed variants
         reasons[k] = _reason(full, int(k), topo.spring_ids, user_dt[k], dt_crit[k], control[k])
+    ends = past_curve_ends(batch, full.max_crush, full.max_elongation, inverse)
     return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, lo, hi),
-                       estimate, full.criteria)  # fmt: skip
+                       estimate, full.criteria, ends)  # fmt: skip
 
 
 def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarray:

@@ -1,0 +1,70 @@
+"""Which springs went past the drawn ends of their material curves.
+
+A material curve is extrapolated along its first and last segment (docs/format.md, "curves"): a
+crash box crushed beyond the last point of its test curve, or a spring stretched beyond it, carries a
+force nobody measured. ``past_curve_end`` says so per variant and spring, from the spring's extremes
+(``max_crush``, ``max_elongation``) and the x range of its curve in that variant (after a study's
+scaling):
+
+- ``nonlinear_elastic`` (its curve), both ends;
+- ``general_nonlinear`` (its loading curve): the compression end (the most compressed point is always
+  reached along the loading curve), and the tension end only without a ``compression_yield`` (after a
+  compression yield a stretch follows the unloading curve, whose origin moved: the loading curve's
+  range says nothing there);
+- ``crush`` (its loading curve), the compression end only (it never pulls);
+- other materials have no drawn curve of elongation (a ``nonlinear_damper`` curve is of the rate).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from crashstudy.kernel.codes import CRUSH, GENERAL, NONLINEAR
+
+PAST_FIRST, PAST_LAST = 1.0, 2.0  # codes, added: 3 = both ends
+MEANING = ("0: within the curve's x range; 1: compressed past its first point; 2: stretched past its last "
+           "point; 3: both (the force there is extrapolated along the end segment)")  # fmt: skip
+ENDS_OF = {NONLINEAR: (True, True), GENERAL: (True, True), CRUSH: (True, False)}  # (first end, last end) checked
+
+
+def curve_springs(material: np.ndarray, curve: np.ndarray) -> list[int]:
+    """The springs whose extremes are checked against a drawn curve."""
+    return [s for s in range(len(material)) if int(material[s]) in ENDS_OF and int(curve[s]) >= 0]
+
+
+def past_curve_ends(b: Any, max_crush: np.ndarray, max_elongation: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """(S, V) codes (``PAST_FIRST`` + ``PAST_LAST``) of the springs of batch ``b`` whose extremes (S, V)
+    passed an end of their curve; column k of the extremes belongs to variant ``cols[k]`` of ``b``."""
+    out = np.zeros(max_crush.shape)
+    for s in curve_springs(b.material, b.curve_a):
+        c = int(b.curve_a[s])
+        first_end, last_end = ENDS_OF[int(b.material[s])]
+        if first_end:
+            out[s] += np.where(-max_crush[s] < b.cx[b.curve_off[c], cols], PAST_FIRST, 0.0)
+        if last_end:
+            past = max_elongation[s] > b.cx[b.curve_off[c + 1] - 1, cols]
+            if int(b.material[s]) == GENERAL:
+                past &= np.isneginf(b.yield_c[s, cols])  # never yields in compression: a stretch stays on L
+            out[s] += np.where(past, PAST_LAST, 0.0)
+    return out
+
+
+def warnings_of(ds: Any) -> list[str]:
+    """One line per spring of a results dataset that went past a curve end in some variant."""
+    if "past_curve_end" not in ds:
+        return []
+    codes = np.asarray(ds["past_curve_end"].values)  # (variant, spring), NaN where a variant failed
+    springs = [str(s) for s in ds["spring"].values]
+    n = codes.shape[0]
+    out = []
+    for k, spring in enumerate(springs):
+        first = int(np.sum(np.isin(codes[:, k], (1.0, 3.0))))
+        last = int(np.sum(np.isin(codes[:, k], (2.0, 3.0))))
+        said = [f"compressed past its curve's first point in {first}" if first else "",
+                f"stretched past its last point in {last}" if last else ""]  # fmt: skip
+        if first or last:
+            out.append(f"spring {spring} was " + " and ".join(t for t in said if t) + f" of {n} variants: its force "
+                       "there is extrapolated along the curve's end segment (past_curve_end in the summary)")  # fmt: skip
+    return out
