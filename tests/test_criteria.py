@@ -466,3 +466,19 @@ def test_plain_python_criteria_equal_the_compiled_ones_bitwise(monkeypatch: pyte
     assert np.array_equal(F.j211_filter(acc[:, :, 0], counts, dts, 60), filt, equal_nan=True)
     monkeypatch.setattr(interpreted, "_SPENT", [interpreted.PLAIN_MAX_SAMPLES])
     assert interpreted.driver_for(C._driver, 1) == (C._driver, True)
+
+
+def test_the_criteria_warm_up_process_takes_the_compiled_functions(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The process that compiles the criteria beside a kernel (kernel/warm.py) runs a short pulse, which
+    would otherwise run as plain Python and leave nothing compiled: it must call the numba functions
+    (recorded by wrapping the driver the warm-up gets)."""
+    from crashstudy.kernel import warm
+    from crashstudy.metrics import interpreted
+
+    monkeypatch.setattr(interpreted, "compiled_or_cached", lambda fn: False)
+    monkeypatch.setattr(interpreted, "_SPENT", [0])
+    got: list[bool] = []
+    real = interpreted.driver_for
+    monkeypatch.setattr(C, "driver_for", lambda fn, n: got.append(real(fn, n)[1]) or real(fn, n))
+    warm._criteria()
+    assert got == [True]

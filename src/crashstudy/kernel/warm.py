@@ -58,8 +58,9 @@ def main(argv: list[str]) -> int:
 
 def _criteria() -> None:
     """Compile the crash criteria and the filter of the filtered_acceleration history (a short pulse)."""
-    from crashstudy.metrics import criteria
+    from crashstudy.metrics import criteria, interpreted
 
+    interpreted.compile_from_now()  # else this short pulse would run as plain Python, compiling nothing
     acc = np.zeros((1, 8, 1))
     criteria.compute(acc, np.array([8]), np.array([1e-4]), np.ones((1, 1)), np.ones(1), 180, criteria.CRITERIA, 9.80665)
     criteria.j211_filter(acc[:, :, 0], np.array([8]), np.array([1e-4]), 180)
