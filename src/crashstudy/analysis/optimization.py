@@ -200,9 +200,9 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path) -> dict[str, Any
     lo, hi = np.array([b[0] for b in variables.values()]), np.array([b[1] for b in variables.values()])
     interval = float(np.min(np.diff(t_data))) / 2.0  # the model sampled at least twice as often as the data
     ev = Evaluator(study, variables, histories=[channel["quantity"]], interval=interval)
-    from crashstudy.results.store import _units
+    from crashstudy.results.attributes import units_of
 
-    unit = _units(ev.plan)
+    unit = units_of(ev.plan)
     kinds = {"acceleration": "acceleration", "velocity": "velocity", "displacement": "length",
              "spring_force": "force", "spring_elongation": "length"}  # fmt: skip
     units = {"time": unit["time"], "value": unit[kinds[channel["quantity"]]]}

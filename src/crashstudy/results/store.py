@@ -36,6 +36,7 @@ from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import ALL_SHAPES, KernelOutput
 from crashstudy.metrics.record import METRIC_META, NOTE_TEXT, asked_nodes, result_names, standard
 from crashstudy.results import integrity
+from crashstudy.results.attributes import axis_unit, model_facts, plan_fingerprint, units_of
 from crashstudy.results.curve_ends import curve_springs
 from crashstudy.results.tables import (
     CSV_MAX,
@@ -54,7 +55,6 @@ from crashstudy.results.tables import (
 from crashstudy.run.provenance import HASH_WORDS, text_hash
 from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study.plan import Plan
-from crashstudy.units import UNIT_SYSTEMS
 
 __all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "ResultWriter", "Results",
            "decode_texts", "open_results", "summary_frame", "write_summary"]  # fmt: skip
@@ -70,14 +70,6 @@ def _chars(texts: list[str], width: int) -> np.ndarray:
     """Strings as a (len, width) 'S1' character array, UTF-8, cut to ``width`` bytes."""
     raw = np.array([t.encode("utf-8")[:width] for t in texts], dtype=f"S{width}")
     return netCDF4.stringtochar(raw) if len(texts) else np.zeros((0, width), dtype="S1")
-
-
-def _units(plan: Plan) -> dict[str, str]:
-    u = UNIT_SYSTEMS[plan.topology.units]
-    return {"length": u.length, "time": u.time, "velocity": u.velocity, "acceleration": u.acceleration,
-            "force": u.force, "energy": u.energy, "mass": u.mass, "1": "1", "g": "g",
-            "stiffness": f"{u.force}/{u.length}", "damping": f"{u.force}*{u.time}/{u.length}",
-            "curve": "curve units (x: length or time, y: force or motion)"}  # fmt: skip
 
 
 @dataclass
@@ -168,7 +160,7 @@ class ResultWriter:
     def _create(self) -> netCDF4.Dataset:
         p = self.plan
         topo = p.topology
-        units = _units(p)
+        units = units_of(p)
         create_new(self.path)  # a planted link at the partial's name is removed, never written through
         nc = netCDF4.Dataset(self.path, "w", format="NETCDF4")
         V = p.n_variants
@@ -246,7 +238,7 @@ class ResultWriter:
             "study_file": p.study_file, "study_yaml": p.study_text, "crashstudy_axes": json.dumps([a.path for a in p.axes]),
             "plan_fingerprint": plan_fingerprint(p), "history_interval": p.interval, "study_name": p.name,
             "model_sha256": text_hash(p.model_text), "study_sha256": text_hash(p.study_text),
-            "Conventions": "CF-1.8", **_model_facts(p),
+            "Conventions": "CF-1.8", **model_facts(p),
         })  # fmt: skip
         return nc
 
@@ -283,7 +275,7 @@ class ResultWriter:
         dims, kind, long = SUMMARY_META[name]
         shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
         v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
-        v.units, v.long_name = _units(self.plan)[kind], long
+        v.units, v.long_name = units_of(self.plan)[kind], long
         if name == "past_curve_end":  # the springs with a drawn curve (the others have no summary column)
             topo = self.plan.topology
             v.springs = " ".join(topo.spring_ids[s] for s in curve_springs(topo.material, topo.spring_curves[:, 0]))
@@ -391,37 +383,6 @@ def _readable(path: Path) -> bool:
         return False
 
 
-def axis_unit(path: str, plan: Plan) -> str:
-    """Unit kind (a key of the units table) of the model field a study axis varies."""
-    parts = path.split(".")
-    last = parts[-2] if parts[-1].isdigit() else parts[-1]
-    if path == "impact_velocity" or parts[0] == "initial_velocity":
-        return "velocity"
-    if parts[0] == "curves":
-        return "1" if last in ("scale", "x_scale") else "curve"
-    return {
-        "mass": "mass", "position": "length", "point": "length", "stiffness": "stiffness",
-        "unloading_stiffness": "stiffness", "damping": "damping", "tension_yield": "force",
-        "compression_yield": "force", "force": "force", "gravity": "acceleration", "end_time": "time",
-        "dt": "time", "min_time": "time",
-    }.get(last if parts[0] != "gravity" else "gravity", "1")  # fmt: skip
-
-
-def plan_fingerprint(plan: Plan) -> str:
-    """Hash of everything that determines the results of a plan."""
-    import hashlib
-
-    h = hashlib.sha256()
-    h.update(plan.model_text.encode())
-    h.update(plan.study_text.encode())
-    h.update(plan.base.tobytes())
-    for ax in plan.axes:
-        h.update(ax.path.encode())
-        h.update(ax.values.tobytes())
-    h.update(__version__.encode())
-    return h.hexdigest()[:32]
-
-
 def _table(nc: netCDF4.Dataset, name: str) -> list[str]:
     """The distinct texts of ``name`` stored in ``nc`` (empty for files without a table)."""
     if f"{name}_text" not in nc.variables:
@@ -510,13 +471,3 @@ class Results:
 def open_results(directory: str | os.PathLike[str]) -> Results:
     """Open a result folder written by ``crashstudy run`` or ``crashstudy simulate``."""
     return Results(directory)
-
-
-def _model_facts(p: Plan) -> dict[str, str]:
-    """JSON attributes for plot and compare (they never re-read the YAML): free nodes (not fixed in every
-    direction, not driven), node masses of the model, the ``regression:`` tolerances."""
-    topo = p.topology
-    driven = set(np.asarray(topo.pm_node).tolist())
-    free = [n for k, n in enumerate(topo.node_ids) if not bool(np.all(topo.fixed[k])) and k not in driven]
-    mass = {n: float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]]) for n in topo.node_ids if f"nodes.{n}.mass" in topo.paths}
-    return {"free_nodes": json.dumps(free), "node_mass": json.dumps(mass), "regression": json.dumps(p.regression)}

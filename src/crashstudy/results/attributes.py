@@ -1,0 +1,62 @@
+"""What a result file says about its plan besides the numbers: the unit of every variable and study
+axis, the plan's fingerprint (a resumed partial file must come from the same plan), and the model
+facts that ``plot`` and ``compare`` read instead of the YAML."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+
+from crashstudy import __version__
+from crashstudy.study.plan import Plan
+from crashstudy.units import UNIT_SYSTEMS
+
+
+def units_of(plan: Plan) -> dict[str, str]:
+    """The unit of each unit kind (``SUMMARY_META``, ``HISTORY_META``, :func:`axis_unit`) in the plan's system."""
+    u = UNIT_SYSTEMS[plan.topology.units]
+    return {"length": u.length, "time": u.time, "velocity": u.velocity, "acceleration": u.acceleration,
+            "force": u.force, "energy": u.energy, "mass": u.mass, "1": "1", "g": "g",
+            "stiffness": f"{u.force}/{u.length}", "damping": f"{u.force}*{u.time}/{u.length}",
+            "curve": "curve units (x: length or time, y: force or motion)"}  # fmt: skip
+
+
+def axis_unit(path: str, plan: Plan) -> str:
+    """Unit kind (a key of the units table) of the model field a study axis varies."""
+    parts = path.split(".")
+    last = parts[-2] if parts[-1].isdigit() else parts[-1]
+    if path == "impact_velocity" or parts[0] == "initial_velocity":
+        return "velocity"
+    if parts[0] == "curves":
+        return "1" if last in ("scale", "x_scale") else "curve"
+    return {
+        "mass": "mass", "position": "length", "point": "length", "stiffness": "stiffness",
+        "unloading_stiffness": "stiffness", "damping": "damping", "tension_yield": "force",
+        "compression_yield": "force", "force": "force", "gravity": "acceleration", "end_time": "time",
+        "dt": "time", "min_time": "time",
+    }.get(last if parts[0] != "gravity" else "gravity", "1")  # fmt: skip
+
+
+def plan_fingerprint(plan: Plan) -> str:
+    """Hash of everything that determines the results of a plan."""
+    h = hashlib.sha256()
+    h.update(plan.model_text.encode())
+    h.update(plan.study_text.encode())
+    h.update(plan.base.tobytes())
+    for ax in plan.axes:
+        h.update(ax.path.encode())
+        h.update(ax.values.tobytes())
+    h.update(__version__.encode())
+    return h.hexdigest()[:32]
+
+
+def model_facts(p: Plan) -> dict[str, str]:
+    """JSON attributes for plot and compare (they never re-read the YAML): free nodes (not fixed in every
+    direction, not driven), node masses of the model, the ``regression:`` tolerances."""
+    topo = p.topology
+    driven = set(np.asarray(topo.pm_node).tolist())
+    free = [n for k, n in enumerate(topo.node_ids) if not bool(np.all(topo.fixed[k])) and k not in driven]
+    mass = {n: float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]]) for n in topo.node_ids if f"nodes.{n}.mass" in topo.paths}
+    return {"free_nodes": json.dumps(free), "node_mass": json.dumps(mass), "regression": json.dumps(p.regression)}
