@@ -467,3 +467,22 @@ def test_results_files_hold_no_negative_zero(tmp_path: Path, monkeypatch: pytest
             if var.dtype.kind == "f":
                 values = np.ma.filled(var[:], np.nan)
                 assert not np.any((values == 0.0) & np.signbit(values)), name
+
+
+@pytest.mark.parametrize("kernel", ["reference", "generic", "generated"])
+def test_a_preload_against_a_curve_that_pushes_the_wrong_way_runs(kernel: str) -> None:
+    """Found by the model generator: a nonlinear_elastic curve with F = -514 e (positive force in
+    compression) preloaded to e0 = -0.0312 stores IE0 = -257 e0^2 = -0.2502 J; with KE0 = 0.25 J (0.5 kg
+    at 1 m/s) KE0 + IE0 < 0, and the instability test scaled by it failed every step ("energy balance
+    lost at t=0"). The scale is KE0 + |IE0|: the run is ok, the balance holds to round-off and IE0 is
+    in the absorbed energy at the start (closed form, 1e-9)."""
+    model = {"name": "wrong-way", "curves": {"c": {"x": [-0.5, 0.0, 0.5], "y": [257.0, 0.0, -257.0]}},
+             "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [-1.0], "mass": 0.5}},
+             "springs": {"s": {"nodes": ["b", "a"], "material": {"type": "nonlinear_elastic", "curve": "c"},
+                               "initial_elongation": -0.0312}},
+             "initial_velocity": {"b": [1.0]}, "end_time": 0.002, "output": {"histories": ["internal_energy"]}}  # fmt: skip
+    out, batch, _ = run_model(model, kernel=kernel)
+    assert batch.ie0[0, 0] == pytest.approx(-257.0 * 0.0312**2, rel=1e-9)
+    assert out.status[0] == 0
+    assert out.energy_error[0] < 1e-9
+    assert out.histories["internal_energy"][0, 0] == pytest.approx(-257.0 * 0.0312**2, rel=1e-9)

@@ -401,10 +401,10 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             nbad = 0
             for w in range(B):
                 wmax[w] = max(wmax[w], abs(work[w]))
-                b_ = abs(ke[w] + ie_tot[w] + wall_e[w] - e_init[w] - work[w])
+                b_ = abs(ke[w] + ie_tot[w] + (wall_e[w] if n > 0 else 0.0) - e_init[0, w] - work[w])  # t = 0: before impacts
                 bal[w] = b_
                 err[w] = lw.peak(err[w], b_ * actf[w])
-                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (e_init[w] + wmax[w]) + e_floor[lo + w])
+                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (e_init[1, w] + wmax[w]) + e_floor[lo + w])
             anybad = nbad > 0
             # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
             for n_ in range(N):
@@ -437,7 +437,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                 for w in range(B):
                     anybad = anybad or (act[w] and crushed[w] >= 0)
             if anybad:  # rare: lanes that fail at this step stop
-                gb.fail_lanes(n, lo, B, D, act, actf, bal, e_init, wmax, e_floor, crushed, st_ok, n_fail, dt_b, Out)
+                gb.fail_lanes(n, lo, B, D, act, actf, bal, e_init[1], wmax, e_floor, crushed, st_ok, n_fail, dt_b, Out)
             if any_hist:
                 gb.record(n, lo, B, n_out, act, next_rec, out_every, x, x0_b, v, vnew, acc, forces, elong, ke, ie_tot,
                           work, wall_e, wforce, H)  # fmt: skip
@@ -455,7 +455,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         fsum += abs(forces[s, w])
                         psum += pf[s, w]
                     small_f = fsum <= ke_fraction[q] * psum
-                    small_ke = ke[w] <= ke_fraction[q] * (e_init[w] + wmax[w])
+                    small_ke = ke[w] <= ke_fraction[q] * (e_init[1, w] + wmax[w])
                     opening = edot_min[w] >= 0.0 and no_ext
                     if small_f and (small_ke or opening):
                         nst[w] = n
@@ -475,7 +475,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     for d in range(D):
                         for w in range(B):
                             fext_prev[n_, d, w] = fext[n_, d, w]
-        gb.results(lo, B, st_ok, err, e_init, wmax, nst, n_fail, dt_b, ie, pf, mc, me, pacc, pwall, Out)
+        gb.results(lo, B, st_ok, err, e_init[1], wmax, nst, n_fail, dt_b, ie, pf, mc, me, pacc, pwall, Out)
 
 
 def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK,

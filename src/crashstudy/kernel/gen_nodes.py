@@ -57,10 +57,10 @@ def pass_b(g: Any, ind: str) -> None:
         emit(f"{i2}{R['work']} = work")
         emit(f"{i2}wmax = peak({R['wmax']}, abs(work))")
         emit(f"{i2}{R['wmax']} = wmax")
-        emit(f"{i2}bal = abs((((ke + ie_tot) + {'wall_e' if W else '0.0'}) - {R[g.E0]}) - work)")
-        emit(f"{i2}thr = unstable_energy * ({R[g.E0]} + wmax) + {R['efl']}")
+        emit(f"{i2}bal = abs((((ke + ie_tot) + {'(wall_e if n > 0 else 0.0)' if W else '0.0'}) - {R[g.E0]}) - work)")
+        emit(f"{i2}thr = unstable_energy * ({R[g.ES]} + wmax) + {R['efl']}")
     else:
-        emit(f"{i2}bal = abs((((ke + ie_tot) + {'wall_e' if W else '0.0'}) - {R[g.E0]}) - 0.0)")
+        emit(f"{i2}bal = abs((((ke + ie_tot) + {'(wall_e if n > 0 else 0.0)' if W else '0.0'}) - {R[g.E0]}) - 0.0)")
         emit(f"{i2}thr = {R['thr']}")
     emit(f"{i2}{R['err']} = peak({R['err']}, bal * af)")
     emit(f"{i2}{R['thr']} = thr")
@@ -78,7 +78,7 @@ def pass_b(g: Any, ind: str) -> None:
         emit(f"{i2}psum = {_lsum([R[f'pf{s}'] for s in range(S)])}")
         emit(f"{i2}kef = {R['kef']}")
         emit(f"{i2}small_f = fsum <= kef * psum")
-        emit(f"{i2}small_ke = ke <= kef * ({R[g.E0]} + {R['wmax'] if ext else '0.0'})")
+        emit(f"{i2}small_ke = ke <= kef * ({R[g.ES]} + {R['wmax'] if ext else '0.0'})")
         emit(f"{i2}opening = " + ("False" if ext else "edmin >= 0.0"))
         emit(f"{i2}stop = (wt > 0.0) & (kef > 0.0) & (not (fn * dtw < {R['tmin']})) & small_f & (small_ke | opening)")
         emit(f"{i2}{R['stop']} = 1.0 if stop else 0.0")
@@ -110,7 +110,7 @@ def emit_results(g: Any, ind: str) -> None:
     N, R, S, W, emit, ext, movable, static = g.N, g.R, g.S, g.W, g.emit, g.ext, g.movable, g.static  # fmt: skip
     emit(f"{ind}q = vi[w]")
     wm = R["wmax"] if ext else "0.0"
-    emit(f"{ind}energy_error[q] = {R['err']} / max({R[g.E0]} + {wm}, 1e-300)")
+    emit(f"{ind}energy_error[q] = {R['err']} / max({R[g.ES]} + {wm}, 1e-300)")
     emit(f"{ind}if status[q] == 0:")
     emit(f"{ind}    t_end[q] = int({R['lim']}) * {R['dt']}")
     emit(f"{ind}elif n_fail[w] > 0:")

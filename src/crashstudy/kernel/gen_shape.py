@@ -150,6 +150,7 @@ def layout(shape: dict[str, Any]) -> Any:
     fragile = shape["fragile"]  # springs that can break (failure): thresholds and a broken flag
     pre = shape["pre"]  # preloaded springs (initial_elongation): e0, the rate at t = 0, KE0 + IE0
     E0 = "ein" if pre else "ke0"  # the row of the energy at t = 0
+    ES = "esc" if pre else "ke0"  # the row of the energy scale KE0 + |IE0| (the error's and the stop tests' scale)
     kcheck = set(shape["kcheck"])
     # knots that can hold a peak of |force| (Batch.knot_check), per spring following that curve
     knots = {s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
@@ -159,7 +160,7 @@ def layout(shape: dict[str, Any]) -> Any:
         n in (si[s], sj[s]) for s in knotted)))}  # fmt: skip  (a^{n-1} kept: dampers, knot crossings)
     R = _Rows()
     for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl") + (("kef", "tmin", "stop") if term else ()) + (
-            ("ein",) if pre else ()):  # fmt: skip
+            ("ein", "esc") if pre else ()):  # fmt: skip
         R.add(name)
     if ext:
         for name in ("work", "wmax"):

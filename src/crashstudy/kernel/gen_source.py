@@ -215,8 +215,10 @@ def lanes(g: Any, ind: str) -> None:
             emit(f"{i2}ke0 += 0.5 * mass[{n}, q] * v0[{n}, {d}, q] * v0[{n}, {d}, q]")
     emit(f"{i2}{R['ke0']} = ke0")
     if g.pre:  # KE0 + IE0, IE0 summed over the springs in order as the reference
-        emit(f"{i2}ke0 = ke0 + {_lsum([f'ie0[{s}, q]' for s in range(S)])}")
-        emit(f"{i2}{R['ein']} = ke0")
+        emit(f"{i2}ie0t = {_lsum([f'ie0[{s}, q]' for s in range(S)])}")
+        emit(f"{i2}{R['ein']} = ke0 + ie0t")
+        emit(f"{i2}ke0 = ke0 + abs(ie0t)  # the scale KE0 + |IE0|")
+        emit(f"{i2}{R['esc']} = ke0")
     emit(f"{i2}{R['thr']} = unstable_energy * (ke0 + 0.0) + e_floor[q]")
     emit(f"{i2}if invalid[q] > 0:")
     emit(f"{i2}    status[q] = 3")
@@ -235,7 +237,8 @@ def failures(g: Any, i3: str) -> None:
     emit(f"{i3}    for w in range(B):")
     emit(f"{i3}        if not fn <= {R['lim']}:")
     emit(f"{i3}            continue")
-    bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + {R['wall_e'] if W else '0.0'}) - {R[g.E0]}) - "
+    wall_now = f"({R['wall_e']} if n > 0 else 0.0)" if W else "0.0"  # t = 0: before any impact
+    bal_expr = (f"abs(((({R['ken']} + {R['ien']}) + {wall_now}) - {R[g.E0]}) - "
                 + (R["work"] if ext else "0.0") + ")")  # fmt: skip
     emit(f"{i3}        if not ({bal_expr} <= {R['thr']}):")
     emit(f"{i3}            status[vi[w]] = 1")
@@ -299,7 +302,7 @@ def records(g: Any, i3: str) -> None:
             emit(f"{i5}h_energy[r, 0, q] = {R['ken']}")
             emit(f"{i5}h_energy[r, 1, q] = {R['ien']}")
             emit(f"{i5}h_energy[r, 2, q] = {R['work'] if ext else '0.0'}")
-            emit(f"{i5}h_energy[r, 3, q] = {R['wall_e'] if W else '0.0'}")
+            emit(f"{i5}h_energy[r, 3, q] = {(R['wall_e'] + ' if n > 0 else 0.0') if W else '0.0'}")
         for wl in range(W if "wall_force" in hist else 0):
             emit(f"{i5}h_wall[r, {wl}, q] = {R[f'wf{wl}']}")
         emit(f"{i3}        if fn + 1.0 <= {R['lim']}:")

@@ -97,7 +97,7 @@ def flags(T, P, H):  # pragma: no cover - compiled
 def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - compiled
     """The block's copies of its variants' inputs and its state, zeroed or set to the initial state;
     invalid variants are marked; preloaded springs (``initial_elongation``) start from the batch's state and
-    IE0, and ``e_init`` is KE0 + IE0. Returns the arrays and the largest step count (see the unpacking in
+    IE0, and ``e_init`` holds KE0 + IE0 (row 0) and the error's scale KE0 + |IE0| (row 1). Returns the arrays and the largest step count (see the unpacking in
     :func:`crashstudy.kernel.compiled._run` for the order)."""
     si, sj, pm_node = T.spring_i, T.spring_j, T.pm_node
     mass, inv_mass, x0, v0, length0, sign, kpar = P.mass, P.inv_mass, P.x0, P.v0, P.length0, P.sign, P.kpar
@@ -234,7 +234,7 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
     broken = np.zeros((S, B), dtype=np.bool_)
     v2 = np.zeros((2, S), dtype=np.bool_)
     ftmp = np.empty((2, B))
-    e_init = np.zeros(B)
+    e_init = np.zeros((2, B))  # KE0 + IE0 (the energy at t = 0), KE0 + |IE0| (the error's and stop tests' scale)
     for s in range(S):
         for w in range(B):
             q = lo + w
@@ -250,7 +250,8 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
         ie0 = 0.0
         for s in range(S):
             ie0 = ie0 + P.ie0[s, lo + w]
-        e_init[w] = ke0[w] + ie0
+        e_init[0, w] = ke0[w] + ie0
+        e_init[1, w] = ke0[w] + abs(ie0)
 
     return (m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b, cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg, g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y, k_any, k_hit, k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie, pf, mc, pacc, pwall, e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act, actf, n_fail, nst, next_rec, st_ok, me, broken, v2, ftmp, e_init, nmax)
 
@@ -334,14 +335,14 @@ def record(n, lo, B, n_out, act, next_rec, out_every, x, x0_b, v, vnew, acc, for
             h_energy[r, 0, q] = ke[w]
             h_energy[r, 1, q] = ie_tot[w]
             h_energy[r, 2, q] = work[w]
-            h_energy[r, 3, q] = wall_e[w]
+            h_energy[r, 3, q] = wall_e[w] if n > 0 else 0.0  # t = 0: before any impact (see the reference)
         for wl in range(W):
             if rec_mask[10]:
                 h_wall[r, wl, q] = wforce[wl, w]
 
 
 @_jit
-def results(lo, B, st_ok, err, e_init, wmax, nst, n_fail, dt_b, ie, pf, mc, me, pacc, pwall, Out):  # pragma: no cover
+def results(lo, B, st_ok, err, e_scale, wmax, nst, n_fail, dt_b, ie, pf, mc, me, pacc, pwall, Out):  # pragma: no cover
     """Write the block's summaries to its variants' columns."""
     status, t_end, absorbed, peak_force, max_crush = Out.status, Out.t_end, Out.absorbed, Out.peak_force, Out.max_crush
     peak_acc, peak_wall, energy_error, max_elongation = Out.peak_acc, Out.peak_wall, Out.energy_error, Out.max_elongation
@@ -349,7 +350,7 @@ def results(lo, B, st_ok, err, e_init, wmax, nst, n_fail, dt_b, ie, pf, mc, me, 
     for w in range(B):
         q = lo + w
         status[q] = st_ok[w]
-        energy_error[q] = err[w] / max(e_init[w] + wmax[w], 1e-300)
+        energy_error[q] = err[w] / max(e_scale[w] + wmax[w], 1e-300)
         if st_ok[w] == 0:
             t_end[q] = nst[w] * dt_b[w]
         elif n_fail[w] > 0:
@@ -385,13 +386,13 @@ def record_steps(n, lo, B, act, acc, rec_block, step_nodes, steps):  # pragma: n
                 for d in range(acc.shape[1]):
                     steps[r, m, d, lo + w] += acc[p, d, w]
 @_jit
-def fail_lanes(n, lo, B, D, act, actf, bal, e_init, wmax, e_floor, crushed, st_ok, n_fail, dt_b, Out):  # pragma: no cover
+def fail_lanes(n, lo, B, D, act, actf, bal, e_scale, wmax, e_floor, crushed, st_ok, n_fail, dt_b, Out):  # pragma: no cover
     """A step where some lane failed (rare): unstable (energy balance) or, in 2-D, a spring crushed to zero
     length; those lanes stop."""
     for w in range(B):
         if not act[w]:
             continue
-        if not (bal[w] <= UNSTABLE_ENERGY * (e_init[w] + wmax[w]) + e_floor[lo + w]):
+        if not (bal[w] <= UNSTABLE_ENERGY * (e_scale[w] + wmax[w]) + e_floor[lo + w]):
             st_ok[w] = UNSTABLE
         elif D > 1 and crushed[w] >= 0:
             st_ok[w] = CRUSHED_TO_ZERO

@@ -38,7 +38,7 @@ SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
     "peak_deceleration": (("node",), "acceleration", "largest acceleration magnitude over every time step"),
     "peak_deceleration_g": (("node",), "g", "peak_deceleration in standard gravities"),
     "peak_wall_force": (("wall",), "force", "largest rigid wall force"),
-    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - IE0 - W_ext| / max(KE0 + IE0 + |W_ext|, tiny), IE "
+    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - IE0 - W_ext| / max(KE0 + |IE0| + |W_ext|, tiny), IE "
                      "including IE0 (energy stored at t = 0)"),
     "dt": ((), "time", "time step used"),
     "dt_crit": ((), "time", "critical time step bound (nodal, whole assembly)"),
