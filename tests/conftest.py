@@ -39,14 +39,9 @@ def model_plan(model: str | dict[str, Any]) -> Plan:
     return plan_from_model(parse_model(loads_yaml(text, file="<test model>")))
 
 
-def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: dict[str, list[float]] | None = None
-              ) -> tuple[KernelOutput, Any, Plan]:  # fmt: skip
-    """Run a model (optionally with axis values per variant: {path: [v0, v1, ...]}).
-
-    Returns (kernel output, batch, plan); histories follow the model's ``output.histories``.
-    """
+def model_batch(model: str | dict[str, Any], variants: dict[str, list[float]] | None = None) -> tuple[Any, Plan]:
+    """(batch, plan) of a model with axis values per variant ({path: [v0, v1, ...]}; one variant without)."""
     from crashstudy.arrays.compiler import apply_axis
-    from crashstudy.run.runner import run_kernel
 
     plan = model_plan(model)
     topo = plan.topology
@@ -55,7 +50,19 @@ def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: d
     for path, vals in (variants or {}).items():
         apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
     batch, _ = build_batch(topo, P, plan.interval)
-    out = run_kernel(batch, topo.histories, plan.n_out, kernel)
+    return batch, plan
+
+
+def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: dict[str, list[float]] | None = None
+              ) -> tuple[KernelOutput, Any, Plan]:  # fmt: skip
+    """Run a model (optionally with axis values per variant: {path: [v0, v1, ...]}).
+
+    Returns (kernel output, batch, plan); histories follow the model's ``output.histories``.
+    """
+    from crashstudy.run.runner import run_kernel
+
+    batch, plan = model_batch(model, variants)
+    out = run_kernel(batch, plan.topology.histories, plan.n_out, kernel)
     return out, batch, plan
 
 
@@ -92,16 +99,11 @@ WARM_RECORD_CASES = ("frontal-lane-compaction", "full-twin-2d-mixed-prescribed")
 def record_case(case: str) -> tuple[Any, Plan, tuple[int, ...]]:
     """(batch, plan, record) of a tests/test_kernel_twins.py case run with the per-step record of every
     movable node (tests/test_metrics.py)."""
-    from crashstudy.arrays.compiler import apply_axis
     from test_kernel_twins import CASES
 
     build, axes, _ = CASES[case]
-    plan = model_plan(build())
+    batch, plan = model_batch(build(), axes)
     topo = plan.topology
-    P = np.repeat(plan.base[:, None], len(next(iter(axes.values()))), axis=1)
-    for path, vals in axes.items():
-        apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
-    batch, _ = build_batch(topo, P, plan.interval)
     record = tuple(n for n in range(topo.n_nodes) if not topo.fixed[n].all() or n in batch.pm_node)
     return batch, plan, record
 

@@ -455,23 +455,14 @@ def test_block_record_is_bitwise_the_references_on_the_fast_kernels(kernel: str,
     failing): every kernel adds a^n into the same rows in step order, so the sums are equal bit for bit."""
     from dataclasses import replace
 
-    from conftest import model_plan
-    from crashstudy.arrays.batch import build_batch
-    from crashstudy.arrays.compiler import apply_axis
+    from conftest import record_case
     from crashstudy.kernel.entry import run_batch
     from crashstudy.kernel.output import block_rows
     from test_generated import assert_bitwise
-    from test_kernel_twins import CASES
 
-    build, axes, _ = CASES[case]
-    plan = model_plan(build())
+    batch, plan, record = record_case(case)
     topo = plan.topology
-    P = np.repeat(plan.base[:, None], len(next(iter(axes.values()))), axis=1)
-    for path, vals in axes.items():
-        apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
-    batch, _ = build_batch(topo, P, plan.interval)
     batch = replace(batch, rec_block=np.resize(np.array([1, 3, 5, 7]), batch.n_variants))
-    record = tuple(n for n in range(topo.n_nodes) if not topo.fixed[n].all() or n in batch.pm_node)
     ref = run_batch(batch, topo.histories, plan.n_out, "reference", record=record)
     got = run_batch(batch, topo.histories, plan.n_out, kernel, record=record)
     assert ref.step_acceleration is not None and np.any(ref.step_acceleration != 0.0)
