@@ -323,11 +323,13 @@ def _summary(args: argparse.Namespace) -> int:
         res.close()
     if args.variant is not None:
         return _print_variant(df, units, args)
+    col = _match_column(args.dir, args.sort, list(df.columns)) if args.sort else None  # any column, shown or not
     if args.columns:
         picked = [c for c in df.columns if any(k in c for k in args.columns) and c != "variant" and c not in axes]
+        if col is not None and col not in ("variant", *axes, *picked):
+            picked.append(col)  # the sort column is always shown
         df = df[["variant", *axes, *picked]]
-    if args.sort:
-        col = _match_column(args.dir, args.sort, list(df.columns))
+    if col is not None:
         df = df.sort_values(col, ascending=args.ascending, kind="stable")
     shown = df if not args.head else df.head(args.head)
     reasons = shown.pop("failure_reason") if "failure_reason" in shown else None

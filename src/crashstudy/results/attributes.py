@@ -24,19 +24,21 @@ def units_of(plan: Plan) -> dict[str, str]:
 
 
 def axis_unit(path: str, plan: Plan) -> str:
-    """Unit kind (a key of the units table) of the model field a study axis varies."""
+    """Unit kind (a key of the units table) of the model field a study axis varies: the unit its schema
+    field states (:mod:`crashstudy.schema.field_units`), for a curve point that of the curve's use."""
+    from crashstudy.schema.field_units import curve_kind, schema_kind
+
     parts = path.split(".")
-    last = parts[-2] if parts[-1].isdigit() else parts[-1]
-    if path == "impact_velocity" or parts[0] == "initial_velocity":
+    if path == "impact_velocity":
         return "velocity"
     if parts[0] == "curves":
-        return "1" if last in ("scale", "x_scale") else "curve"
-    return {
-        "mass": "mass", "position": "length", "point": "length", "stiffness": "stiffness",
-        "unloading_stiffness": "stiffness", "damping": "damping", "tension_yield": "force",
-        "compression_yield": "force", "force": "force", "gravity": "acceleration", "end_time": "time",
-        "dt": "time", "min_time": "time",
-    }.get(last if parts[0] != "gravity" else "gravity", "1")  # fmt: skip
+        if parts[-1] in ("scale", "x_scale"):
+            return "1"
+        import yaml
+
+        model = yaml.safe_load(plan.model_text) or {}
+        return curve_kind(path, model if isinstance(model, dict) else {}) or "curve"
+    return schema_kind(path) or "1"
 
 
 def plan_fingerprint(plan: Plan) -> str:
