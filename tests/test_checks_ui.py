@@ -164,3 +164,31 @@ def test_results_plot_and_summary_carry_the_axis_units(tied: Path, capsys: pytes
     assert main(["summary", str(tied), "--columns", "peak_g"]) == 0
     out = capsys.readouterr().out
     assert "[N]" in out and "[N/m]" in out
+
+
+# ---- item 8: an exceedance fraction of a matrix is no probability --------------------------------------------------
+
+
+def test_exceed_on_a_matrix_warns_that_it_is_not_a_random_sample(tied: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Before: 'P(peak_g.body > 15) = 0.5  (95% CI 0.06759 .. 0.9324, exact binomial; 2 of 4 variants)', no remark."""
+    capsys.readouterr()
+    assert main(["summary", str(tied), "--exceed", "peak_g.body", "15"]) == 0
+    out, err = capsys.readouterr()
+    assert "2 of 4 variants" in out and "NOT a random sample" in out
+    assert "warning: this study has no sampled design" in err and "not a confidence interval" in err
+
+
+@pytest.mark.parametrize(("design", "axes", "warned"), [
+    ("{method: lhs, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], ""),
+    ("{method: random, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], ""),
+    ("{method: saltelli, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], "design method saltelli"),
+    ("{method: morris, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], "design method morris"),
+    ("{method: lhs, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a", "b"], "crossed with matrix/zip axes ['b']"),
+])  # fmt: skip
+def test_sample_caveat_only_for_a_plain_sampled_design(design: str, axes: list[str], warned: str) -> None:
+    import json
+
+    from crashstudy.analysis.sensitivity import sample_caveat
+
+    got = sample_caveat({"study_yaml": f"name: s\ndesign: {design}\n", "crashstudy_axes": json.dumps(axes)})
+    assert (warned in got) if warned else got == ""

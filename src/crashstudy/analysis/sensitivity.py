@@ -139,6 +139,31 @@ class Exceedance:
         return out
 
 
+SAMPLED = ("lhs", "sobol", "halton", "random")  # design methods whose rows sample the axes' distributions
+
+
+def sample_caveat(attrs: dict[str, Any]) -> str:
+    """Why the variants of a study are not a random sample of its inputs ("" when they are): a fraction of
+    a matrix or of a sensitivity design's structured rows is no probability, and its binomial interval
+    no confidence interval."""
+    design = _design(attrs)
+    method = str((design or {}).get("method", ""))
+    axes = [str(a) for a in json.loads(attrs.get("crashstudy_axes", "[]"))]
+    fixed = [a for a in axes if a not in list((design or {}).get("axes") or [])]
+    if design is None:
+        return ("this study has no sampled design (matrix/zip axes only): the variants are chosen points, not a "
+                "random sample, so the fraction printed is not a probability of anything and its binomial "
+                "interval is not a confidence interval; use a design: block (lhs, sobol, halton, random) with "
+                "the axes' distributions (docs/design.md)")  # fmt: skip
+    if method not in SAMPLED:
+        return (f"design method {method} places its rows for a sensitivity estimator, not as a random sample: "
+                "the fraction printed is not a probability and its binomial interval not a confidence interval")
+    if fixed:
+        return (f"the design is crossed with matrix/zip axes {fixed}: the fraction pools their chosen values "
+                "with equal weight, a probability only if that is how they occur")
+    return ""
+
+
 def exceedance(summary: pd.DataFrame, column: str, limit: float) -> Exceedance:
     from scipy import stats
 

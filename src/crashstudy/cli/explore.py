@@ -30,17 +30,24 @@ def add_parsers(sub: Any) -> None:
 
 def exceed_text(dir_: str, column: str, limit: str) -> str:
     """``summary --exceed COLUMN LIMIT``: the exceedance probability of a column."""
-    from crashstudy.analysis.sensitivity import exceedance
+    from crashstudy.analysis.sensitivity import exceedance, sample_caveat
     from crashstudy.cli.main import _match_column
     from crashstudy.results.store import open_results
 
     value = _number("--exceed", limit)
     res = open_results(dir_)
     try:
-        df = res.summary
+        df, attrs = res.summary, dict(res.dataset.attrs)
     finally:
         res.close()
-    return exceedance(df, _match_column(dir_, column, list(df.columns)), value).text()
+    text = exceedance(df, _match_column(dir_, column, list(df.columns)), value).text()
+    caveat = sample_caveat(attrs)
+    if caveat:
+        import textwrap
+
+        print(textwrap.fill(f"warning: {caveat}", 100, subsequent_indent="  "), file=sys.stderr)
+        text = text.replace("exact binomial;", "binomial, NOT a random sample;", 1)
+    return text
 
 
 def _number(option: str, text: str) -> float:
