@@ -189,9 +189,14 @@ def read_data(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return t, y
 
 
-def calibrate(study: dict[str, Any], base_dir: Path, out: Path) -> dict[str, Any]:
-    """Run the study's ``calibrate:`` block; returns the fit (values, rms error, correlation, ...)."""
+def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = None) -> dict[str, Any]:
+    """Run the study's ``calibrate:`` block (a progress line per batch of runs to ``progress``, default
+    stderr); returns the fit (values, rms error, correlation, the uncertainty of each variable, ...)."""
     from scipy.optimize import least_squares
+
+    from crashstudy.analysis.calibration_report import progress_line, uncertainty
+
+    progress = progress or sys.stderr
 
     spec = study["calibrate"]
     t_data, y_data = read_data(base_dir / spec["data"])
@@ -207,6 +212,7 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path) -> dict[str, Any
              "spring_force": "force", "spring_elongation": "length"}  # fmt: skip
     units = {"time": unit["time"], "value": unit[kinds[channel["quantity"]]]}
     cache: dict[bytes, np.ndarray] = {}
+    best = [float("inf")]  # the smallest rms error so far, for the progress lines
 
     def residuals_of(x: np.ndarray) -> np.ndarray:  # x: (S, d) -> (S, n_data)
         df, res = ev.run(x)
@@ -216,6 +222,10 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path) -> dict[str, Any
         r[~ok] = np.nan
         for k in range(len(x)):
             cache[x[k].tobytes()] = r[k]
+        rms = np.sqrt(np.nanmean(r**2, axis=1))
+        best[0] = min(best[0], float(np.nanmin(rms))) if np.isfinite(rms).any() else best[0]
+        print(progress_line(ev.batches, len(x), best[0], ev.evaluations, time.perf_counter() - t0), file=progress,
+              flush=True)  # fmt: skip
         return r
 
     def fun(x: np.ndarray) -> np.ndarray:
@@ -242,4 +252,5 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path) -> dict[str, Any
     return {"variables": {k: float(v) for k, v in zip(variables, fit.x, strict=True)}, "rms_error": rms,
             "correlation": corr, "data_points": int(len(t_data)), "evaluations": int(ev.evaluations),
             "batches": int(ev.batches), "seconds": round(seconds, 3), "message": str(fit.message),
+            "uncertainty": uncertainty(fit.jac, fit.fun, list(variables), fit.x, lo, hi),
             "_fit": (t_data, y_data, model, units)}  # fmt: skip

@@ -205,8 +205,17 @@ def calibrate_command(args: argparse.Namespace) -> int:
     (out / "calibrated.yaml").write_text(yaml.safe_dump(result, sort_keys=False))
     _fit_plot(out / "calibration.png", t, y, model, data["calibrate"]["channel"], result, units)
     print(yaml.safe_dump(result, sort_keys=False).rstrip())
+    _uncertainty_warnings(result)
     print(f"wrote {out / 'calibrated.yaml'}, {out / 'calibration.png'} and the calibrated results in {out}")
     return EXIT_OK
+
+
+def _uncertainty_warnings(result: dict[str, Any]) -> None:
+    """A warning (stderr) for each calibrated variable the data do not determine."""
+    from crashstudy.analysis.calibration_report import uncertainty_notes
+
+    for line in uncertainty_notes(result.get("uncertainty") or {}):
+        print(line, file=sys.stderr)
 
 
 def _fit_plot(path: Path, t: Any, y: Any, model: Any, channel: dict[str, Any], result: dict[str, Any],
