@@ -229,15 +229,16 @@ def write_all(items: list[tuple[Path, Any]]) -> None:
 # --- reading a file someone else may have planted --------------------------------------------------
 
 
-def open_regular(path: Path, limit: int | None = None, what: str = "") -> IO[bytes]:
+def open_regular(path: Path, limit: int | None = None, what: str = "", follow: bool = False) -> IO[bytes]:
     """``path`` opened for reading if it is a regular file itself, of at most ``limit`` bytes.
 
-    Opened without following a link and without blocking (``O_NOFOLLOW | O_NONBLOCK``), then checked
+    Opened without following a link (unless ``follow``: an input file the user named may be a link;
+    what it points to is checked) and without blocking (``O_NOFOLLOW | O_NONBLOCK``), then checked
     on the open handle (``fstat``): a FIFO would hang the reader, a link to ``/dev/zero`` would fill
     memory. Raises :class:`PlantedEntryError` naming the file (``what``: how a message calls it)
     and what was expected; never quotes its content. :class:`FileNotFoundError` when it is missing."""
     name = what or str(path)
-    flags = os.O_RDONLY | _NOFOLLOW | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    flags = os.O_RDONLY | (0 if follow else _NOFOLLOW) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
     try:
         fd = os.open(path, flags)
     except FileNotFoundError:

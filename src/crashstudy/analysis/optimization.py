@@ -200,7 +200,7 @@ def read_data(path: Path, end_time: float | None = None) -> tuple[np.ndarray, np
     from crashstudy.safefs import PlantedEntryError, open_regular
 
     try:
-        with open_regular(path, DATA_MAX, what=f"calibrate.data {path}") as fh:
+        with open_regular(path, DATA_MAX, what=str(path), follow=True) as fh:
             raw = fh.read()
     except PlantedEntryError as exc:
         raise DataFileError(str(exc)) from None
