@@ -41,3 +41,11 @@ def compile_first(kernel: KernelName, batch: Any, histories: tuple[str, ...], va
     from crashstudy.kernel.entry import compile_first as first
 
     first(kernel, batch, histories, vary, check)
+
+
+class Stopped(KeyboardInterrupt):
+    """A stop whose closing line (``note``) says what was kept and what can be continued."""
+
+    def __init__(self, note: str) -> None:
+        super().__init__(note)
+        self.note = note

@@ -87,7 +87,14 @@ def folder_lock(folder: Path) -> Iterator[None]:
     if os.path.islink(path):
         os.unlink(path)  # planted: a lock file is never a link
     for _ in range(100):
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o644)
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0), 0o644)
+        except OSError as exc:  # a folder there (EISDIR), a link planted since (ELOOP)
+            raise PlantedEntryError(_lock_problem(path, exc)) from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # a FIFO or device planted there: flock says only EINVAL
+            os.close(fd)
+            _remove_if_created(folder, created)
+            raise PlantedEntryError(_lock_problem(path, None))
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -120,9 +127,133 @@ def folder_lock(folder: Path) -> Iterator[None]:
         _remove_if_created(folder, created)
 
 
+def _lock_problem(path: Path, exc: OSError | None) -> str:
+    what = "it is not a regular file" if exc is None else (exc.strerror or "it cannot be opened")
+    return (f"the lock file {path} cannot be used: {what}; crashstudy expects a regular file there (or nothing) "
+            "that it creates itself: remove it and run again")
+
+
 def _remove_if_created(folder: Path, created: bool) -> None:
     if created:
         try:
             folder.rmdir()  # only if empty: a run refused before writing leaves nothing behind
         except OSError:
             pass
+
+
+# --- the one writer: every file a command writes goes through these -------------------------------
+
+
+def staging(path: Path) -> Path:
+    """The temporary name a file is written under before it replaces ``path``."""
+    return path.with_name(path.name + ".partial")
+
+
+def commit(tmp: Path, path: Path) -> None:
+    """Rename the staged ``tmp`` over ``path``: a link there is replaced (never followed); a folder,
+    FIFO or device there is refused (:class:`PlantedEntryError`) and ``tmp`` removed."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        st = None
+    if st is not None and not (stat.S_ISLNK(st.st_mode) or stat.S_ISREG(st.st_mode)):
+        discard(tmp)
+        raise PlantedEntryError(f"{path} is in the way: it is not a regular file (remove it and run again)")
+    os.replace(tmp, path)
+
+
+def discard(tmp: Path) -> None:
+    try:
+        clear_entry(tmp)
+    except OSError:
+        pass
+
+
+@contextmanager
+def replacing(path: Path, mode: str = "w", newline: str | None = None) -> Iterator[IO[Any]]:
+    """A new file written as a whole: opened at :func:`staging` (created exclusively, no link followed),
+    flushed and renamed over ``path`` when the block ends (:func:`commit`); removed if the block raises.
+    A reader never sees half a file, and a kill leaves the earlier file (or none) at ``path``."""
+    tmp = staging(Path(path))
+    fh = open_new(tmp, newline, mode)
+    try:
+        with fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+    except BaseException:
+        discard(tmp)
+        raise
+    commit(tmp, Path(path))
+
+
+@contextmanager
+def replacing_path(path: Path) -> Iterator[Path]:
+    """Like :func:`replacing` for libraries that open a file by name (netCDF): yields the staging name,
+    created empty and exclusively just before, to be overwritten by the library."""
+    tmp = staging(Path(path))
+    create_new(tmp)
+    try:
+        yield tmp
+    except BaseException:
+        discard(tmp)
+        raise
+    commit(tmp, Path(path))
+
+
+def write_text(path: Path, text: str) -> None:
+    with replacing(path) as fh:
+        fh.write(text)
+
+
+def write_all(items: list[tuple[Path, Any]]) -> None:
+    """Write several files as one set: each ``(path, fill)`` is staged (``fill(binary handle)``), and
+    only when every one is complete are they renamed into place, one after another."""
+    staged: list[tuple[Path, Path]] = []
+    try:
+        for path, fill in items:
+            tmp = staging(Path(path))
+            with open_new(tmp, mode="wb") as fh:
+                staged.append((tmp, Path(path)))
+                fill(fh)
+                fh.flush()
+                os.fsync(fh.fileno())
+    except BaseException:
+        for tmp, _ in staged:
+            discard(tmp)
+        raise
+    for tmp, path in staged:
+        commit(tmp, path)
+
+
+# --- reading a file someone else may have planted --------------------------------------------------
+
+
+def open_regular(path: Path, limit: int | None = None, what: str = "", follow: bool = False) -> IO[bytes]:
+    """``path`` opened for reading if it is a regular file itself, of at most ``limit`` bytes.
+
+    Opened without following a link (unless ``follow``: an input file the user named may be a link;
+    what it points to is checked) and without blocking (``O_NOFOLLOW | O_NONBLOCK``), then checked
+    on the open handle (``fstat``): a FIFO would hang the reader, a link to ``/dev/zero`` would fill
+    memory. Raises :class:`PlantedEntryError` naming the file (``what``: how a message calls it)
+    and what was expected; never quotes its content. :class:`FileNotFoundError` when it is missing."""
+    name = what or str(path)
+    flags = os.O_RDONLY | (0 if follow else _NOFOLLOW) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except FileNotFoundError:
+        raise
+    except OSError as exc:
+        why = "it is a symbolic link" if os.path.islink(path) else (exc.strerror or "it cannot be opened")
+        raise PlantedEntryError(f"{name} cannot be read: {why}; expected a regular file") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a folder" if stat.S_ISDIR(st.st_mode) else "a device"
+            raise PlantedEntryError(f"{name} cannot be read: it is {kind}; expected a regular file")
+        if limit is not None and st.st_size > limit:
+            raise PlantedEntryError(f"{name} cannot be read: it has {st.st_size} bytes; expected at most {limit}")
+    except BaseException:
+        os.close(fd)
+        raise
+    return os.fdopen(fd, "rb")

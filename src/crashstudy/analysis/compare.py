@@ -64,6 +64,7 @@ from crashstudy.analysis.compare_inputs import (  # noqa: F401 - re-exported
     load_results,
     study_tolerances,
 )
+from crashstudy.safefs import replacing
 from crashstudy.schema.study import Tolerance
 
 
@@ -364,7 +365,8 @@ class Comparison:
         if path is not None:
             p = Path(path)
             p.parent.mkdir(parents=True, exist_ok=True)
-            tree.write(p, encoding="utf-8", xml_declaration=True)
+            with replacing(p, mode="wb") as fh:  # the one writer: a link at p is replaced, never followed
+                tree.write(fh, encoding="utf-8", xml_declaration=True)
         return tree
 
 

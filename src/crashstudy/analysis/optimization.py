@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from crashstudy import interrupt
+
 INFEASIBLE = 1e15
 _CONSTRAINT = re.compile(r"^\s*(\S+)\s*(<=|>=)\s*(\S+)\s*$")
 
@@ -109,9 +111,10 @@ def scores(df: pd.DataFrame, objective: str, constraints: list[tuple[str, str, f
     return score, feasible
 
 
-def optimize(study: dict[str, Any], out: Path, progress: Any = None) -> dict[str, Any]:
+def optimize(study: dict[str, Any], progress: Any = None) -> tuple[dict[str, Any], pd.DataFrame]:
     """Run the study's ``optimize:`` block (a progress line per generation to ``progress``, default
-    stderr); writes history.csv and returns the optimum."""
+    stderr); returns the optimum and the history of every candidate (written by the caller). A stop
+    request (SIGINT, SIGTERM: :mod:`crashstudy.interrupt`) ends the search after the current generation."""
     progress = progress or sys.stderr
     from scipy.optimize import differential_evolution
 
@@ -139,6 +142,7 @@ def optimize(study: dict[str, Any], out: Path, progress: Any = None) -> dict[str
         print(f"  generation {ev.batches - 1}: {len(score)} candidates, best of them {spec['minimize']} "
               f"{df[spec['minimize']].iloc[best]:.6g} ({'feasible' if feasible[best] else 'infeasible'}), "
               f"{ev.evaluations} evaluations, {time.perf_counter() - t0:.1f} s", file=progress, flush=True)  # fmt: skip
+        interrupt.check()  # a stop request: after the whole generation
         return score
 
     result = differential_evolution(f, [tuple(b) for b in variables.values()], vectorized=True, updating="deferred",
@@ -146,7 +150,6 @@ def optimize(study: dict[str, Any], out: Path, progress: Any = None) -> dict[str
                                     tol=1e-8, atol=0.0, init="latinhypercube")  # fmt: skip
     seconds = time.perf_counter() - t0
     hist = pd.concat(history, ignore_index=True)
-    hist.to_csv(out / "history.csv", index=False)
     best = {k: float(v) for k, v in zip(variables, result.x, strict=True)}
     generations, evaluations = ev.batches, ev.evaluations
     row = evaluate_columns(ev, np.array([result.x]), columns).iloc[0]
@@ -157,7 +160,7 @@ def optimize(study: dict[str, Any], out: Path, progress: Any = None) -> dict[str
         "evaluations": int(evaluations), "generations": int(generations), "seconds": round(seconds, 3),
         "message": str(result.message),
     }  # fmt: skip
-    return summary
+    return summary, hist
 
 
 def optimum_study(study: dict[str, Any], values: dict[str, float]) -> dict[str, Any]:
@@ -178,15 +181,56 @@ def channel_history(plan: Any, res: Any, channel: dict[str, Any]) -> tuple[np.nd
     return np.asarray(plan.times, dtype=float), np.asarray(v, dtype=float).T
 
 
-def read_data(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """The measured channel: a CSV with columns ``time`` and ``value`` (model units)."""
-    df = pd.read_csv(path)
+DATA_MAX = 256 * 2**20  # bytes: a measured channel of ~10^7 rows
+
+
+class DataFileError(ValueError):
+    """``calibrate.data`` cannot be used (the message names the file, a line, what was expected)."""
+
+    data_file = True
+
+
+def read_data(path: Path, end_time: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The measured channel: a CSV with columns ``time`` and ``value`` (model units), times within
+    0 .. ``end_time``. Read only as a regular file of at most :data:`DATA_MAX` bytes (a FIFO would
+    hang, ``/dev/zero`` fill memory); a message never quotes the file's content (it may be a link to
+    a secret), it says what was expected where."""
+    import io
+
+    from crashstudy.safefs import PlantedEntryError, open_regular
+
+    try:
+        with open_regular(path, DATA_MAX, what=str(path), follow=True) as fh:
+            raw = fh.read()
+    except PlantedEntryError as exc:
+        raise DataFileError(str(exc)) from None
+    try:
+        df = pd.read_csv(io.BytesIO(raw))
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
+        raise DataFileError(f"{path}: not a CSV table ({type(exc).__name__}); expected a header line "
+                            "'time,value' and rows of two numbers") from None  # fmt: skip
     if not {"time", "value"} <= set(df.columns):
-        raise ValueError(f"{path}: expected columns time and value, found {list(df.columns)}")
-    t, y = df["time"].to_numpy(dtype=float), df["value"].to_numpy(dtype=float)
+        raise DataFileError(f"{path}, line 1: expected the header 'time,value' (columns time and value); "
+                            f"that line has {len(df.columns)} column(s) with other names")  # fmt: skip
+    try:
+        t, y = df["time"].to_numpy(dtype=float), df["value"].to_numpy(dtype=float)
+    except (ValueError, TypeError):
+        raise DataFileError(f"{path}: expected numbers in columns time and value") from None
     if len(t) < 3 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(y)) or np.any(np.diff(t) <= 0):
-        raise ValueError(f"{path}: expected at least 3 rows of finite numbers with increasing time")
+        raise DataFileError(f"{path}: expected at least 3 rows of finite numbers with increasing time")
+    if end_time is not None:
+        check_span(path, t, end_time)
     return t, y
+
+
+def check_span(path: Path, t: np.ndarray, end_time: float) -> None:
+    """Refuse data times outside 0 .. ``end_time`` (the model's channel would be clamped there, silently)."""
+    outside = np.flatnonzero((t < 0.0) | (t > end_time * (1.0 + 1e-9)))
+    if len(outside):
+        raise DataFileError(
+            f"{path}, line {int(outside[0]) + 2}: the data run from t = {t[0]:g} to {t[-1]:g}, the model from "
+            f"0 to end_time {end_time:g}; {len(outside)} row(s) lie outside it (the model's channel is not "
+            "defined there): remove them, or make end_time cover the data")  # fmt: skip
 
 
 def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = None) -> dict[str, Any]:
@@ -205,6 +249,7 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
     lo, hi = np.array([b[0] for b in variables.values()]), np.array([b[1] for b in variables.values()])
     interval = float(np.min(np.diff(t_data))) / 2.0  # the model sampled at least twice as often as the data
     ev = Evaluator(study, variables, histories=[channel["quantity"]], interval=interval)
+    check_span(base_dir / spec["data"], t_data, float(np.max(ev.plan.times)))
     from crashstudy.results.attributes import units_of
 
     unit = units_of(ev.plan)
@@ -226,6 +271,7 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
         best[0] = min(best[0], float(np.nanmin(rms))) if np.isfinite(rms).any() else best[0]
         print(progress_line(ev.batches, len(x), best[0], ev.evaluations, time.perf_counter() - t0), file=progress,
               flush=True)  # fmt: skip
+        interrupt.check()  # a stop request: after the whole batch
         return r
 
     def fun(x: np.ndarray) -> np.ndarray:

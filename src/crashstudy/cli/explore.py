@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Any
 
 from crashstudy.errors import InputError, Problem
+from crashstudy.interrupt import Stopped
+from crashstudy.safefs import replacing, replacing_path, write_all, write_text
 
 EXIT_OK, EXIT_INVALID = 0, 2
 
@@ -78,7 +80,7 @@ def sensitivity(args: argparse.Namespace) -> int:
     finally:
         res.close()
     out = Path(args.dir) / "sensitivity.csv"
-    table.to_csv(out, index=False)
+    write_text(out, table.to_csv(index=False))
     import pandas as pd
 
     with pd.option_context("display.max_rows", None, "display.width", 120, "display.max_colwidth", 60):
@@ -91,7 +93,6 @@ def sensitivity(args: argparse.Namespace) -> int:
 
 def _over_time(res: Any, args: argparse.Namespace) -> None:
     from crashstudy.analysis.sensitivity import over_time
-    from crashstudy.safefs import clear_entry
 
     ds = res.dataset
     if args.history not in ds:
@@ -103,8 +104,8 @@ def _over_time(res: Any, args: argparse.Namespace) -> None:
     except ValueError as exc:
         raise InputError([Problem(args.dir, None, "--item", str(exc))]) from None
     stem = Path(args.dir) / f"sensitivity_{args.history}"
-    clear_entry(stem.with_suffix(".nc"))
-    da.to_netcdf(stem.with_suffix(".nc"))
+    with replacing_path(stem.with_suffix(".nc")) as tmp:
+        da.to_netcdf(tmp)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -120,8 +121,8 @@ def _over_time(res: Any, args: argparse.Namespace) -> None:
     ax.set_ylabel("Spearman correlation [1]")
     ax.set_title(f"{da.attrs['long_name']}")
     ax.legend(loc="best", fontsize=8)
-    clear_entry(stem.with_suffix(".png"))  # a link there is removed, never written through
-    fig.savefig(stem.with_suffix(".png"), dpi=100, bbox_inches="tight")
+    with replacing(stem.with_suffix(".png"), mode="wb") as fh:  # a link there is replaced, never written through
+        fig.savefig(fh, format="png", dpi=100, bbox_inches="tight")
     plt.close(fig)
     print(f"wrote {stem.with_suffix('.nc')} and {stem.with_suffix('.png')}")
 
@@ -130,9 +131,13 @@ def add_search_parsers(sub: Any) -> None:
     op = sub.add_parser("optimize", help="run a study's optimize: block (optimum.yaml, history.csv, its results)")
     op.add_argument("study", help="study file with an optimize: block")
     op.add_argument("-o", "--output", help="result folder (default results/<study name>)")
+    op.add_argument("--force", action="store_true",
+                    help="overwrite a folder that holds another study's results or an unfinished run (default: refuse)")
     ca = sub.add_parser("calibrate", help="run a study's calibrate: block (calibrated.yaml, a data-vs-fit plot)")
     ca.add_argument("study", help="study file with a calibrate: block")
     ca.add_argument("-o", "--output", help="result folder (default results/<study name>)")
+    ca.add_argument("--force", action="store_true",
+                    help="overwrite a folder that holds another study's results or an unfinished run (default: refuse)")
 
 
 def _study_dict(path: str, block: str) -> tuple[dict[str, Any], Path]:
@@ -161,50 +166,82 @@ def _study_dict(path: str, block: str) -> tuple[dict[str, Any], Path]:
     return data, base
 
 
-def _finish(data: dict[str, Any], values: dict[str, float], out: Path) -> None:
+def _finish(command: str, data: dict[str, Any], values: dict[str, float], out: Path,
+            files: list[tuple[Path, Any]]) -> None:  # fmt: skip
+    """Run the optimum (or calibrated) values into ``out`` (its lock held by the caller), then write
+    ``files`` beside them as one set (:func:`crashstudy.safefs.write_all`)."""
     from crashstudy.analysis.optimization import optimum_study
     from crashstudy.run.runner import run_plan
     from crashstudy.study.plan import load_study
 
-    run_plan(load_study(optimum_study(data, values)), out, force=True, progress=False)
+    try:
+        run_plan(load_study(optimum_study(data, values)), out, force=True, progress=False, locked=True)
+        write_all(files)
+    except KeyboardInterrupt:
+        raise Stopped(f"{command} stopped while writing its results into {out}: they are incomplete; run {command} "
+                      "again with --force (it cannot resume)") from None  # fmt: skip
+
+
+def _searching(command: str, out: Path) -> Stopped:
+    return Stopped(f"{command} stopped during its search: nothing was written ({out} is as it was); {command} "
+                   "cannot resume: run it again")  # fmt: skip
+
+
+def _yaml(result: dict[str, Any]) -> str:
+    import yaml
+
+    return str(yaml.safe_dump(result, sort_keys=False))
 
 
 def optimize_command(args: argparse.Namespace) -> int:
-    import yaml
-
     from crashstudy.analysis.optimization import optimize
+    from crashstudy.results.outdir import check_output
+    from crashstudy.run.runner import output_folder
 
     data, _ = _study_dict(args.study, "optimize")
     out = Path(args.output or Path("results") / data["name"])
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        result = optimize(data, out)
-    except ValueError as exc:
-        raise InputError([Problem(args.study, None, "optimize", str(exc))]) from None
-    _finish(data, result["variables"], out)
-    (out / "optimum.yaml").write_text(yaml.safe_dump(result, sort_keys=False))
-    print(yaml.safe_dump(result, sort_keys=False).rstrip())
+    with output_folder(out, args.study):  # held from the check to the last file written
+        check_output(out, args.force, args.study, data["name"])
+        try:
+            result, history = optimize(data)
+        except ValueError as exc:
+            raise InputError([Problem(args.study, None, "optimize", str(exc))]) from None
+        except KeyboardInterrupt:
+            raise _searching("optimize", out) from None
+        text = _yaml(result)
+        _finish("optimize", data, result["variables"], out, [
+            (out / "history.csv", lambda fh: fh.write(history.to_csv(index=False).encode())),
+            (out / "optimum.yaml", lambda fh: fh.write(text.encode()))])  # fmt: skip
+    print(text.rstrip())
     print(f"wrote {out / 'optimum.yaml'}, {out / 'history.csv'} and the optimum's results in {out}")
     return EXIT_OK if result["feasible"] else 1
 
 
 def calibrate_command(args: argparse.Namespace) -> int:
-    import yaml
-
     from crashstudy.analysis.optimization import calibrate
+    from crashstudy.results.outdir import check_output
+    from crashstudy.run.runner import output_folder
+    from crashstudy.schema.yamlio import load_yaml
 
     data, base = _study_dict(args.study, "calibrate")
     out = Path(args.output or Path("results") / data["name"])
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        result = calibrate(data, base, out)
-    except (ValueError, FloatingPointError, FileNotFoundError) as exc:
-        raise InputError([Problem(args.study, None, "calibrate", str(exc))]) from None
-    t, y, model, units = result.pop("_fit")
-    _finish(data, result["variables"], out)
-    (out / "calibrated.yaml").write_text(yaml.safe_dump(result, sort_keys=False))
-    _fit_plot(out / "calibration.png", t, y, model, data["calibrate"]["channel"], result, units)
-    print(yaml.safe_dump(result, sort_keys=False).rstrip())
+    with output_folder(out, args.study):
+        check_output(out, args.force, args.study, data["name"])
+        try:
+            result = calibrate(data, base, out)
+        except (ValueError, FloatingPointError, FileNotFoundError) as exc:
+            field = "calibrate.data" if getattr(exc, "data_file", False) else "calibrate"
+            line = load_yaml(args.study).line_of(("calibrate", "data")) if field == "calibrate.data" else None
+            raise InputError([Problem(args.study, line, field, str(exc))]) from None
+        except KeyboardInterrupt:
+            raise _searching("calibrate", out) from None
+        t, y, model, units = result.pop("_fit")
+        text = _yaml(result)
+        fig = _fit_plot(t, y, model, data["calibrate"]["channel"], result, units)
+        _finish("calibrate", data, result["variables"], out, [
+            (out / "calibrated.yaml", lambda fh: fh.write(text.encode())),
+            (out / "calibration.png", lambda fh: fig.savefig(fh, format="png", dpi=100, bbox_inches="tight"))])  # fmt: skip
+    print(text.rstrip())
     _uncertainty_warnings(result)
     print(f"wrote {out / 'calibrated.yaml'}, {out / 'calibration.png'} and the calibrated results in {out}")
     return EXIT_OK
@@ -218,14 +255,13 @@ def _uncertainty_warnings(result: dict[str, Any]) -> None:
         print(line, file=sys.stderr)
 
 
-def _fit_plot(path: Path, t: Any, y: Any, model: Any, channel: dict[str, Any], result: dict[str, Any],
-              units: dict[str, str]) -> None:  # fmt: skip
+def _fit_plot(t: Any, y: Any, model: Any, channel: dict[str, Any], result: dict[str, Any],
+              units: dict[str, str]) -> Any:  # fmt: skip
+    """The data-vs-fit figure (written by the caller with the other outputs)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from crashstudy.safefs import clear_entry
 
     what = channel["quantity"] + (f" of spring {channel['spring']}" if channel.get("spring") else
                                   f" of node {channel['node']} ({channel.get('direction', 'x')})")  # fmt: skip
@@ -236,6 +272,4 @@ def _fit_plot(path: Path, t: Any, y: Any, model: Any, channel: dict[str, Any], r
     ax.set_ylabel(f"{channel['quantity'].replace('_', ' ')} [{units.get('value', '')}]")
     ax.set_title(f"{what}: rms error {result['rms_error']:.3g}, correlation {result['correlation']:.4f}", fontsize=10)
     ax.legend(loc="best")
-    clear_entry(path)
-    fig.savefig(path, dpi=100, bbox_inches="tight")
-    plt.close(fig)
+    return fig

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from crashstudy.errors import InputError
+from crashstudy.safefs import PlantedEntryError
 
 EXIT_OK, EXIT_FAILED, EXIT_INVALID, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -129,13 +130,14 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: invalid input\n{exc.format()}", file=sys.stderr)
         return EXIT_INVALID
-    except KeyboardInterrupt:
-        print("\ninterrupted: finished variants are kept; continue with --resume", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # optimize and calibrate say what they kept (interrupt.Stopped)
+        note = getattr(exc, "note", "finished variants are kept; continue with --resume")
+        print(f"\ninterrupted: {note}", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:  # the reader of our output stopped (`crashstudy summary DIR | head`): nothing wrong
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error when stdout is flushed
         return 0
-    except (FileNotFoundError, NotADirectoryError, PermissionError, IsADirectoryError) as exc:
+    except (FileNotFoundError, NotADirectoryError, PermissionError, IsADirectoryError, PlantedEntryError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     except OSError as exc:  # disk full, read-only folder: say so plainly

@@ -27,7 +27,7 @@ from crashstudy.analysis.plot import (
 from crashstudy.analysis.plot_matrix import default_metric, metric_columns, plot_matrix
 from crashstudy.analysis.plot_style import axis_units
 from crashstudy.errors import InputError, Problem
-from crashstudy.safefs import clear_entry
+from crashstudy.safefs import replacing
 
 
 def _safe(name: str) -> str:
@@ -158,8 +158,8 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
         paths = []
         for stem, fig in figures:
             path = out / f"{_safe(stem)}.png"
-            clear_entry(path)  # a planted link is removed, never written through
-            fig.savefig(path, dpi=100, metadata={PLOT_TAG: str(res.path)})
+            with replacing(path, mode="wb") as fh:  # a planted link is replaced, never written through
+                fig.savefig(fh, format="png", dpi=100, metadata={PLOT_TAG: str(res.path)})
             paths.append(path)
         return paths
     except InputError as exc:  # name the folder as the user typed it

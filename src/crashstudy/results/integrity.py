@@ -32,13 +32,16 @@ import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import netCDF4
 import numpy as np
 
-from crashstudy.safefs import open_new
+from crashstudy.safefs import PlantedEntryError, open_regular, replacing
 
 MANIFEST = "manifest.json"
+FINAL, PARTIAL = "results.nc", "results.nc.partial"
+MANIFEST_MAX = 16 * 2**20  # bytes: a manifest names a handful of files
 INCONSISTENT = "the result folder is inconsistent: re-run with --force"
 UNFINISHED = ("results.nc is not a finished result (it has no completion mark: an unfinished run's "
               "results.nc.partial renamed by hand?): finish that run with --resume, or re-run with --force")  # fmt: skip
@@ -160,10 +163,16 @@ def finished_problem(nc: netCDF4.Dataset) -> str:
 
 
 def sha256(path: Path, block: int = 2**20) -> str:
+    with open_regular(path) as fh:
+        return sha256_of(fh, block)
+
+
+def sha256_of(fh: Any, block: int = 2**20) -> str:
+    """SHA-256 of an open binary file from its start (left at its end)."""
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while chunk := fh.read(block):
-            h.update(chunk)
+    fh.seek(0)
+    while chunk := fh.read(block):
+        h.update(chunk)
     return h.hexdigest()
 
 
@@ -176,41 +185,56 @@ def write_manifest(folder: Path, run_id: str, names: list[str]) -> None:
         if not name.endswith(".nc"):
             entry["sha256"] = sha256(folder / name)
         entries[name] = entry
-    tmp = folder / (MANIFEST + ".partial")
-    with open_new(tmp) as fh:
+    with replacing(folder / MANIFEST) as fh:
         json.dump({"crashstudy_manifest": 1, "run_id": run_id, "files": entries}, fh, indent=1)
         fh.write("\n")
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, folder / MANIFEST)
 
 
 def folder_problem(folder: Path, final: str, summaries: tuple[str, ...]) -> str:
     """Why ``folder`` does not hold one finished run's results ("" if it does): see the module docstring."""
+    return check_folder(folder, final, summaries)[0]
+
+
+def check_folder(folder: Path, final: str, summaries: tuple[str, ...]) -> tuple[str, dict[str, Any] | None]:
+    """(:func:`folder_problem`, the manifest's file list or None for a folder written before manifests).
+
+    ``results.nc`` and ``manifest.json`` are opened only as regular files (a FIFO, a link or a device
+    there is refused, never read), and ``results.nc`` must have the size the manifest records."""
     try:
+        with open_regular(folder / final, what=final) as fh:
+            size = os.fstat(fh.fileno()).st_size
         with netCDF4.Dataset(folder / final) as nc:
             problem = finished_problem(nc)
             run_id = str(nc.getncattr("run_id")) if "run_id" in nc.ncattrs() else None
+    except PlantedEntryError as exc:
+        return str(exc), None
     except OSError as exc:
-        return f"{final} cannot be read ({exc})"
+        return f"{final} cannot be read ({exc.strerror or exc})", None
     if problem:
-        return problem
+        return problem, None
     path = folder / MANIFEST
     if not os.path.lexists(path):
         if run_id is None:
-            return ""  # written before manifests existed
-        return f"{INCONSISTENT} ({final} is from run {run_id}, and there is no {MANIFEST}: the run that wrote it " \
-               "stopped before its last rename)"
+            return "", None  # written before manifests existed
+        return (f"{INCONSISTENT} ({final} is from run {run_id}, and there is no {MANIFEST}: the run that wrote it "
+                "stopped before its last rename)"), None  # fmt: skip
     try:
-        with open(path, encoding="utf-8") as fh:
-            manifest = json.load(fh)
+        with open_regular(path, MANIFEST_MAX, MANIFEST) as fh:
+            manifest = json.loads(fh.read().decode("utf-8"))
         listed = manifest["files"]
         their_id = str(manifest["run_id"])
+        if not isinstance(listed, dict):
+            raise TypeError("'files' is not a mapping")
+    except PlantedEntryError as exc:
+        return f"{INCONSISTENT} ({exc})", None
     except (OSError, ValueError, KeyError, TypeError) as exc:
-        return f"{INCONSISTENT} ({MANIFEST} cannot be read: {exc})"
+        return f"{INCONSISTENT} ({MANIFEST} cannot be read: {exc})", None
     if their_id != run_id:
-        return f"{INCONSISTENT} ({final} is from run {run_id}, {MANIFEST} from run {their_id})"
+        return f"{INCONSISTENT} ({final} is from run {run_id}, {MANIFEST} from run {their_id})", None
     stale = [n for n in summaries if n not in listed and os.path.lexists(folder / n)]
     if stale:
-        return f"{INCONSISTENT} ({', '.join(stale)} not written by the run that wrote {final})"
-    return ""
+        return f"{INCONSISTENT} ({', '.join(stale)} not written by the run that wrote {final})", None
+    want = listed.get(final, {}).get("size") if isinstance(listed.get(final), dict) else None
+    if want is not None and want != size:
+        return f"{INCONSISTENT} ({final} has {size} bytes, {MANIFEST} records {want})", None
+    return "", listed

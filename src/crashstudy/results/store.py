@@ -38,6 +38,8 @@ from crashstudy.metrics.record import METRIC_META, NOTE_TEXT, asked_nodes, resul
 from crashstudy.results import integrity
 from crashstudy.results.attributes import axis_unit, model_facts, plan_fingerprint, units_of
 from crashstudy.results.curve_ends import curve_springs
+from crashstudy.results.integrity import FINAL, PARTIAL
+from crashstudy.results.reader import Results, open_results  # the one reader, re-exported
 from crashstudy.results.tables import (
     CSV_MAX,
     HISTORY_META,
@@ -59,8 +61,6 @@ from crashstudy.study.plan import Plan
 __all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "ResultWriter", "Results",
            "decode_texts", "open_results", "summary_frame", "write_summary"]  # fmt: skip
 
-PARTIAL = "results.nc.partial"
-FINAL = "results.nc"
 ID_LEN = 64  # longest id (the schema allows 64 characters)
 TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
 AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
@@ -401,73 +401,3 @@ def read_texts(nc: netCDF4.Dataset, name: str, lo: int, hi: int) -> np.ndarray:
     codes = np.asarray(v[lo:hi]).astype(np.int64)
     table = np.array(list(STATUS_MEANINGS) if name == "status" else _table(nc, name) or [""], dtype=object)
     return np.where(codes >= 0, table[np.clip(codes, 0, len(table) - 1)], "")
-
-
-class Results:
-    """A finished (or partial) result folder, for notebooks: ``.dataset`` (xarray) and ``.summary`` (pandas)."""
-
-    def __init__(self, directory: str | os.PathLike[str]) -> None:
-        self.dir = Path(directory)
-        final = self.dir / FINAL
-        if not final.exists():
-            raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})")
-        problem = integrity.folder_problem(self.dir, FINAL, (PARQUET, SUMMARY))
-        if problem:
-            raise InputError([Problem(str(self.dir), None, "", problem)])
-        self.path = final
-        self._ds: xr.Dataset | None = None
-        self._raw: xr.Dataset | None = None
-
-    @property
-    def dataset(self) -> xr.Dataset:
-        """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``)."""
-        if self._ds is None:
-            ds = xr.open_dataset(self.path)
-            axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
-            self._raw = ds
-            self._ds = decode_texts(ds).set_coords([a for a in axes if a in ds])
-        return self._ds
-
-    @property
-    def summary_source(self) -> str:
-        """The file :attr:`summary` reads: summary.parquet, summary.csv, or results.nc."""
-        return next((n for n in (PARQUET, SUMMARY) if (self.dir / n).exists()), FINAL)
-
-    def summary_columns(self, columns: list[str]) -> pd.DataFrame:
-        """Only ``columns`` of :attr:`summary` (read without the others where the file allows: a
-        10^6-variant summary.parquet is ~250 MiB in memory, two of its columns 16 MiB)."""
-        if (self.dir / PARQUET).exists():
-            return pd.read_parquet(self.dir / PARQUET, columns=columns)
-        return self.summary[columns]
-
-    @property
-    def summary(self) -> pd.DataFrame:
-        """One row per variant: the axis values as columns, then status and summary metrics (from
-        ``summary.parquet``, else ``summary.csv``, else the dataset)."""
-        if (self.dir / PARQUET).exists():
-            return pd.read_parquet(self.dir / PARQUET)
-        csv = self.dir / SUMMARY
-        if csv.exists():
-            df = pd.read_csv(csv, dtype={"status": str, "failure_reason": str, "dt_control": str, NOTE_TEXT: str})
-            for name in ("failure_reason", NOTE_TEXT):
-                if name in df:
-                    df[name] = df[name].fillna("")
-            return df
-        _ = self.dataset  # opens the raw file
-        assert self._raw is not None
-        return summary_frame(self._raw)
-
-    def close(self) -> None:
-        if self._ds is not None:
-            self._ds.close()
-            if self._raw is not None:
-                self._raw.close()
-            self._ds = self._raw = None
-
-    def __repr__(self) -> str:
-        return f"Results({str(self.dir)!r})"
-
-
-def open_results(directory: str | os.PathLike[str]) -> Results:
-    """Open a result folder written by ``crashstudy run`` or ``crashstudy simulate``."""
-    return Results(directory)

@@ -7,11 +7,12 @@ variant range, so any backend (in-process, process pool, Dask) gives identical r
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,7 @@ from crashstudy.kernel import choice, entry
 from crashstudy.kernel.codes import KernelName
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
 from crashstudy.results.curve_ends import past_curve_ends
-from crashstudy.results.outdir import prepare_output, remove_stale_plots, study_of
+from crashstudy.results.outdir import prepare_output, remove_derived, remove_stale_plots, study_of
 from crashstudy.results.store import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
 from crashstudy.run.provenance import variant_hashes
 from crashstudy.safefs import FolderBusy, folder_lock
@@ -68,7 +69,7 @@ def error_estimate(batch: Batch, out: KernelOutput, kernel: KernelName = "compil
 
 
 kernel_override = choice.kernel_override
-__all__ = ["prepare_output", "remove_stale_plots", "run_plan", "run_study", "simulate"]
+__all__ = ["output_folder", "prepare_output", "remove_derived", "remove_stale_plots", "run_plan", "run_study", "simulate"]
 
 
 def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", repeat: float | None = None) -> ChunkResult:
@@ -278,8 +279,8 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
              resume: bool = False, force: bool = False, progress: bool | None = None,
-             kernel: KernelName = "compiled", chunk: int | None = None, notes: Any = None, csv: bool | None = None
-             ) -> RunReport:  # fmt: skip
+             kernel: KernelName = "compiled", chunk: int | None = None, notes: Any = None, csv: bool | None = None,
+             locked: bool = False) -> RunReport:  # fmt: skip
     """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
     one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent. ``csv``: write
     ``summary.csv`` (None: up to ``results.CSV_MAX`` variants); ``summary.parquet`` is always written."""
@@ -289,9 +290,19 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     source = plan.study_file or plan.model_file
     if out.exists() and not out.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out} is a file, not a folder")])
+    if locked:  # the caller holds the folder's lock (optimize, calibrate: over their whole search)
+        return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0)
+    with output_folder(out, source):  # one run at a time in a folder: held until the run ends
+        return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0)
+
+
+@contextlib.contextmanager
+def output_folder(out: Path, source: str) -> Iterator[None]:
+    """Hold the lock of the output folder ``out`` (created if missing) while the block runs; another
+    process holding it is an input error naming ``source``."""
     try:
-        with folder_lock(out):  # one run at a time in a folder: held until the run ends
-            return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0)
+        with folder_lock(out):
+            yield
     except FolderBusy as exc:  # raised only by the lock
         raise InputError([Problem(source, None, "", f"{exc}; wait for it to end or choose another -o")]) from None
 

@@ -1,0 +1,137 @@
+"""The one reader of result folders: every command (summary, plot, compare, sensitivity) and the Python
+API (:func:`open_results`) open a folder's files here, and nowhere else.
+
+A folder is read only when it holds one finished run's set (:func:`crashstudy.results.integrity.check_folder`:
+completion mark, run id named by ``manifest.json``). Each file is then read so that what is parsed is
+what the run wrote:
+
+- opened without following a link and without blocking, and used only if it is a regular file
+  (:func:`crashstudy.safefs.open_regular`): a FIFO would hang the reader, a link to ``/dev/zero``
+  fill memory;
+- ``results.nc`` must have the size the manifest records (its variants carry their own checksums);
+- a summary table must have the size and the SHA-256 the manifest records, hashed from the very
+  handle that is then parsed: an edited ``summary.parquet``, or one copied beside another run's
+  ``results.nc`` and manifest, is refused (exit 2), never used.
+
+A folder written before manifests existed (no run id) is read as before: regular files only.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import IO
+
+import pandas as pd
+import xarray as xr
+
+from crashstudy.errors import InputError, Problem
+from crashstudy.metrics.record import NOTE_TEXT
+from crashstudy.results import integrity
+from crashstudy.results.integrity import FINAL, MANIFEST, PARTIAL
+from crashstudy.results.tables import PARQUET, SUMMARY, decode_texts, summary_frame
+from crashstudy.safefs import PlantedEntryError, open_regular
+
+__all__ = ["Results", "open_results"]
+
+
+class Results:
+    """A finished result folder, for notebooks: ``.dataset`` (xarray) and ``.summary`` (pandas)."""
+
+    def __init__(self, directory: str | os.PathLike[str]) -> None:
+        self.dir = Path(directory)
+        final = self.dir / FINAL
+        if not os.path.lexists(final):
+            raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})")
+        problem, self.manifest = integrity.check_folder(self.dir, FINAL, (PARQUET, SUMMARY))
+        if problem:
+            raise InputError([Problem(str(self.dir), None, "", problem)])
+        self.path = final
+        self._ds: xr.Dataset | None = None
+        self._raw: xr.Dataset | None = None
+
+    def open_file(self, name: str) -> IO[bytes]:
+        """The folder's file ``name``, open and checked against the manifest (size; SHA-256 where it
+        records one), positioned at its start. Refused (:class:`InputError`) when it does not match."""
+        try:
+            fh = open_regular(self.dir / name, what=name)
+        except PlantedEntryError as exc:
+            raise InputError([Problem(str(self.dir), None, "", f"{integrity.INCONSISTENT} ({exc})")]) from None
+        if self.manifest is None:
+            return fh
+        entry = self.manifest.get(name)
+        size = os.fstat(fh.fileno()).st_size
+        why = ""
+        if not isinstance(entry, dict):
+            why = f"{name} is not listed in {MANIFEST}: the run that wrote {FINAL} did not write it"
+        elif entry.get("size") != size:
+            why = f"{name} has {size} bytes, {MANIFEST} records {entry.get('size')}: it was changed after the run"
+        elif "sha256" in entry and integrity.sha256_of(fh) != entry["sha256"]:
+            why = f"the SHA-256 of {name} is not the one {MANIFEST} records: it was changed after the run"
+        if why:
+            fh.close()
+            raise InputError([Problem(str(self.dir), None, "", f"{integrity.INCONSISTENT} ({why})")])
+        fh.seek(0)
+        return fh
+
+    @property
+    def dataset(self) -> xr.Dataset:
+        """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``)."""
+        if self._ds is None:
+            open_regular(self.path, what=FINAL).close()  # still a regular file (checked on open, too)
+            ds = xr.open_dataset(self.path)
+            axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
+            self._raw = ds
+            self._ds = decode_texts(ds).set_coords([a for a in axes if a in ds])
+        return self._ds
+
+    @property
+    def summary_source(self) -> str:
+        """The file :attr:`summary` reads: summary.parquet, summary.csv, or results.nc."""
+        return next((n for n in (PARQUET, SUMMARY) if os.path.lexists(self.dir / n)), FINAL)
+
+    def summary_columns(self, columns: list[str]) -> pd.DataFrame:
+        """Only ``columns`` of :attr:`summary` (read without the others where the file allows: a
+        10^6-variant summary.parquet is ~250 MiB in memory, two of its columns 16 MiB)."""
+        if self.summary_source == PARQUET:
+            with self.open_file(PARQUET) as fh:
+                return pd.read_parquet(fh, columns=columns)
+        return self.summary[columns]
+
+    @property
+    def summary(self) -> pd.DataFrame:
+        """One row per variant: the axis values as columns, then status and summary metrics (from
+        ``summary.parquet``, else ``summary.csv``, else the dataset)."""
+        source = self.summary_source
+        if source == PARQUET:
+            with self.open_file(PARQUET) as fh:
+                return pd.read_parquet(fh)
+        if source == SUMMARY:
+            with self.open_file(SUMMARY) as fh:
+                df = pd.read_csv(fh, dtype={"status": str, "failure_reason": str, "dt_control": str, NOTE_TEXT: str})
+            for name in ("failure_reason", NOTE_TEXT):
+                if name in df:
+                    df[name] = df[name].fillna("")
+            return df
+        _ = self.dataset  # opens the raw file
+        assert self._raw is not None
+        return summary_frame(self._raw)
+
+    def close(self) -> None:
+        if self._ds is not None:
+            self._ds.close()
+            if self._raw is not None:
+                self._raw.close()
+            self._ds = self._raw = None
+
+    def __repr__(self) -> str:
+        return f"Results({str(self.dir)!r})"
+
+
+def open_results(directory: str | os.PathLike[str]) -> Results:
+    """Open a result folder written by ``crashstudy run`` or ``crashstudy simulate`` (see the module
+    docstring for what is checked)."""
+    return Results(directory)
+
+
