@@ -463,3 +463,26 @@ def test_any_bytes_in_a_file_give_data_or_input_error(tmp_path: Path, raw: bytes
         load_yaml(path)
     except InputError as exc:
         assert exc.problems and exc.problems[0].file == str(path)
+
+
+def test_a_file_that_gives_no_data_without_waiting_is_an_input_error(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    """/proc/kmsg is a 'regular' file whose non-blocking read has nothing to give (None): that was a
+    TypeError traceback in yamlio._read (issue 24 item 10). Simulated with a FIFO that has a writer but no
+    data, passed off as a regular file: an InputError naming the file, no traceback."""
+    import os
+
+    import crashstudy.schema.yamlio as yamlio
+
+    fifo = tmp_path / "kmsg"
+    os.mkfifo(fifo)
+    writer = os.open(fifo, os.O_RDWR | os.O_NONBLOCK)  # a writer that never writes
+    try:
+        monkeypatch.setattr(yamlio, "not_regular", lambda mode: "")
+        with pytest.raises(InputError) as exc:
+            load_yaml(str(fifo))
+    finally:
+        os.close(writer)
+    (p,) = exc.value.problems
+    assert p.file == str(fifo) and "gives no data without waiting" in p.message
+

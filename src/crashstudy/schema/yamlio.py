@@ -403,8 +403,12 @@ def _read(file: str) -> str:
         reason = "permission denied"
     except (OSError, ValueError) as exc:
         reason = f"cannot read the file ({getattr(exc, 'strerror', None) or exc})"
+    if not reason and raw is None:  # a non-blocking read with nothing to give: /proc/kmsg, a device, a pipe
+        reason = ("cannot read the file: it gives no data without waiting (a kernel or device file such as "
+                  "/proc/kmsg?); expected a YAML file")  # fmt: skip
     if reason:
         raise InputError([Problem(file, None, "", reason)])
+    assert raw is not None
     if len(raw) > MAX_BYTES:
         reason = f"document too large: more than {MAX_BYTES:,} bytes (20 MB)"
     else:
