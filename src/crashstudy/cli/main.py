@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from crashstudy import environment
 from crashstudy.errors import InputError
 
 EXIT_OK, EXIT_FAILED, EXIT_INVALID, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -125,6 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not when started with SIGINT ignored
         signal.signal(signal.SIGINT, interrupt.request)
     try:
+        environment.check()  # a wrong CRASHSTUDY_* value is an input error before any command runs
         return int(COMMANDS[args.command](args))
     except InputError as exc:
         print(f"error: invalid input\n{exc.format()}", file=sys.stderr)

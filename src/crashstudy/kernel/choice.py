@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from crashstudy.errors import InputError, Problem
+from crashstudy import environment
 from crashstudy.kernel.cache import cache_dir, compiled_or_cached, why_not_private
 from crashstudy.kernel.codes import GENERAL, KernelName
 
@@ -70,22 +70,15 @@ _LOADED: set[str] = set()  # kinds of compiled kernel loaded in this process
 
 def kernel_override() -> KernelName:
     """The kernel ``CRASHSTUDY_KERNEL`` asks for: "compiled" (unset: choose), or one of ``KERNELS``."""
-    value = os.environ.get("CRASHSTUDY_KERNEL", "").strip() or "compiled"
-    if value not in ("compiled", *KERNELS):
-        raise InputError([Problem("environment", None, "CRASHSTUDY_KERNEL",
-                                  f"unknown kernel {value!r}: expected reference, generic or generated (or unset)")])  # fmt: skip
-    return cast(KernelName, value)
+    return cast(KernelName, environment.kernel())
 
 
 def background_min_seconds() -> float:
     """Reference seconds of a run above which missing kernels compile in the background (inf: never).
 
     ``CRASHSTUDY_BACKGROUND_COMPILE``: ``0`` never, ``always`` for any run, unset or ``1`` above
-    ``BACKGROUND_MIN``."""
-    value = os.environ.get("CRASHSTUDY_BACKGROUND_COMPILE", "1").strip().lower()
-    if value in ("0", "no", "off", "false"):
-        return float("inf")
-    return 0.0 if value == "always" else BACKGROUND_MIN
+    ``BACKGROUND_MIN`` (any other value is an input error: :mod:`crashstudy.environment`)."""
+    return {"never": float("inf"), "always": 0.0}.get(environment.background_compile(), BACKGROUND_MIN)
 
 
 def generated_compile_seconds(material: np.ndarray, n_walls: int, record: bool = False) -> float:
