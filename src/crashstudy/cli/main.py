@@ -122,6 +122,9 @@ def main(argv: list[str] | None = None) -> int:
 
     interrupt.reset()
     _plain_warnings()
+    from crashstudy.kernel.cache import warn_pending
+
+    warn_pending()  # an unsafe NUMBA_CACHE_DIR moved when crashstudy was imported: say so on one line
     signal.signal(signal.SIGTERM, interrupt.request)  # acted on between chunks (crashstudy/interrupt.py)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not when started with SIGINT ignored
         signal.signal(signal.SIGINT, interrupt.request)
