@@ -43,10 +43,12 @@ class _Pwn:
 
 def _fresh(env: str | None, home: Path) -> tuple[Path, list[str]]:
     cache._cache_dir.cache_clear()
+    cache._fallback.cache_clear()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         folder = cache._cache_dir(env, str(home))
     cache._cache_dir.cache_clear()
+    cache._fallback.cache_clear()
     return folder, [str(w.message) for w in caught if issubclass(w.category, cache.KernelCacheWarning)]
 
 
@@ -87,17 +89,100 @@ def test_cache_of_another_user_is_skipped(tmp_path: Path) -> None:
     assert folder != other and len(said) == 1 and f"belongs to user id {owner}" in said[0]
 
 
-def test_unusable_home_falls_back_to_a_fresh_private_temp_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-                                                                 ) -> None:  # fmt: skip
+def test_unusable_home_reuses_one_private_folder_per_user_in_the_temp_folder(tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    """Before: every run made a fresh crashstudy-kernels-XXXX folder (~400 KB each, never removed, and its
+    kernels never reused); now every run of this user takes crashstudy-kernels-<uid>."""
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     blocker = tmp_path / "file"
     blocker.write_text("")
     folder, said = _fresh(None, blocker / "home")  # a home under a regular file cannot be created
-    assert folder.name.startswith("crashstudy-kernels-") and folder.parent == tmp_path
+    assert folder == tmp_path / f"crashstudy-kernels-{os.geteuid()}"
     assert stat.S_IMODE(folder.stat().st_mode) == 0o700 and cache.why_not_private(folder) is None
     assert len(said) == 1 and "cannot create it" in said[0]
     again, _ = _fresh(None, blocker / "home")
-    assert again != folder  # never a predictable shared path
+    assert again == folder
+    assert sorted(p.name for p in tmp_path.glob("crashstudy-kernels-*")) == [folder.name]
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root to hand the folder to another user")
+def test_a_per_user_temp_folder_made_by_another_user_is_not_used_and_the_fresh_one_is_removed(tmp_path: Path
+                                                                                             ) -> None:  # fmt: skip
+    tmpdir = tmp_path / "tmp"
+    tmpdir.mkdir()
+    os.chmod(tmpdir, 0o1777)
+    taken = tmpdir / f"crashstudy-kernels-{os.geteuid()}"
+    taken.mkdir(mode=0o700)
+    os.chown(taken, 65534, -1)  # made first by user nobody
+    blocker = tmp_path / "blocker"
+    blocker.write_text("")
+    env = {k: v for k, v in os.environ.items() if k not in ("CRASHSTUDY_KERNEL_CACHE", "NUMBA_CACHE_DIR")}
+    env.update(HOME=str(blocker / "home"), TMPDIR=str(tmpdir))
+    code = "from crashstudy.kernel import cache; print(cache.cache_dir())"
+    done = subprocess.run([sys.executable, "-W", "always", "-c", code], capture_output=True, text=True, env=env,
+                          timeout=120)  # fmt: skip
+    used = Path(done.stdout.strip())
+    assert done.returncode == 0 and used.parent == tmpdir and used != taken, done.stderr
+    assert "belongs to user id 65534" in done.stderr
+    assert not used.exists(), "the fresh folder is removed when the process ends"
+    assert sorted(p.name for p in tmpdir.iterdir()) == [taken.name]
+
+
+def test_a_private_folder_inside_a_folder_others_may_write_is_not_private(tmp_path: Path) -> None:
+    """Another user could rename it away and put their own folder (and pickles) in its place."""
+    open_parent = tmp_path / "open"
+    open_parent.mkdir()
+    os.chmod(open_parent, 0o777)
+    inner = open_parent / "kernels"
+    inner.mkdir(mode=0o700)
+    assert "may write into the folder" in (cache.why_not_private(inner) or "")
+    os.chmod(open_parent, 0o1777)  # sticky, as /tmp: others cannot rename what is ours
+    assert cache.why_not_private(inner) is None
+
+
+@pytest.mark.parametrize("how", ["mode 0777", "owned by nobody"])
+def test_planted_index_in_a_shared_numba_cache_is_never_loaded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                               how: str) -> None:  # fmt: skip
+    """Before: with NUMBA_CACHE_DIR a folder another user can write, numba unpickled the index planted
+    there at the first call of a compiled function (the marker was written, exit 0, no warning)."""
+    from numba.core import caching, config
+
+    from crashstudy.kernel import laws
+
+    if how == "owned by nobody" and os.geteuid() != 0:
+        pytest.skip("needs root to hand the folder to another user")
+    shared = tmp_path / "shared"
+    shared.mkdir(mode=0o700)
+    monkeypatch.setattr(config, "CACHE_DIR", str(shared))
+    index = Path(caching.FunctionCache(laws.linear_force.py_func)._cache_file._index_path)
+    assert index.is_relative_to(shared)
+    marker = tmp_path / "pwned"
+    index.write_bytes(pickle.dumps(_Pwn(marker)))
+    for path in (shared, *index.relative_to(shared).parents, index.relative_to(shared)):
+        where = shared / path
+        if how == "mode 0777":
+            os.chmod(where, 0o777)
+        else:
+            os.chown(where, 65534, -1)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(shared), CRASHSTUDY_KERNEL_CACHE=str(tmp_path / "kernels"))
+    code = ("import crashstudy\nfrom crashstudy.kernel import cache, laws\ncache.cache_dir()\n"
+            "print(laws.linear_force(2.0, 3.0))")  # fmt: skip
+    done = subprocess.run([sys.executable, "-W", "always", "-c", code], capture_output=True, text=True, env=env,
+                          timeout=300)  # fmt: skip
+    assert not marker.exists(), "a planted numba index was unpickled"
+    assert done.returncode == 0 and done.stdout.strip() == "6.0", done.stderr
+    assert f"numba cache {shared} (NUMBA_CACHE_DIR) not used" in done.stderr
+    assert list((tmp_path / "kernels" / "numba").rglob("*.nbi")), "numba's cache moved into the kernel folder"
+    model = tmp_path / "model.yaml"  # the command line says it on one line
+    model.write_text(yaml.safe_dump(MODEL, sort_keys=False))
+    cli = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(model), "-o", str(tmp_path / "out")],
+                         capture_output=True, text=True, env=dict(env, CRASHSTUDY_KERNEL="reference"), timeout=300)  # fmt: skip
+    assert cli.returncode == 0 and not marker.exists(), cli.stderr
+    assert [line for line in cli.stderr.splitlines() if "NUMBA_CACHE_DIR" in line] == [
+        f"warning: numba cache {shared} (NUMBA_CACHE_DIR) not used: "
+        + ("group or others may write into it (mode 0777)" if how == "mode 0777"
+           else f"it belongs to user id 65534, not to this user ({os.geteuid()})")
+        + f"; numba's compiled code goes to {tmp_path / 'kernels' / 'numba'}"]  # fmt: skip
 
 
 def test_planted_numba_index_in_the_old_shared_temp_folder_is_never_loaded(tmp_path: Path) -> None:

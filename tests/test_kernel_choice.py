@@ -76,13 +76,14 @@ def test_a_long_run_compiles_the_quicker_kernel_only_when_that_beats_the_referen
     """With nothing compiled and no other process compiling, a chunk whose reference time exceeds a
     kernel's compile + run time goes to the kernel quicker to compile and run: this shape's generated
     one (3 linear springs: ~3 s against the generic kernel's 24 s), the generic one when the generated
-    kernel cannot run the shape; a shorter chunk to the reference; while another process compiles,
-    always the reference."""
+    kernel cannot run the shape; a shorter chunk to the reference; while a background compile this run
+    started is running, the reference (the run planned for it; another process's compile never strands
+    a run: tests/test_compile_lock.py)."""
     from crashstudy.kernel import generated
 
     monkeypatch.setattr(choice, "generic_ready", lambda: False)
     monkeypatch.setattr(choice, "generated_ready", lambda *a: False)
-    monkeypatch.setattr(choice, "compiling", lambda: False)
+    monkeypatch.setattr(choice, "own_compile_running", lambda: False)
     short, plan = _batch(_chain(3, 0.2), 8)
     gen_cost = choice.generated_compile_seconds(short.material, 0)
     assert gen_cost == pytest.approx(choice.GEN_BASE + 3 * choice.GEN_SPRING) and gen_cost < choice.GENERIC_COMPILE
@@ -98,7 +99,7 @@ def test_a_long_run_compiles_the_quicker_kernel_only_when_that_beats_the_referen
     long_batch = short.take(np.zeros(8, dtype=np.int64))
     long_batch.n_steps[:] = int(1.2 * choice.GENERIC_COMPILE / per_step)
     assert choice.pick(long_batch, (), None) == "generic"
-    monkeypatch.setattr(choice, "compiling", lambda: True)
+    monkeypatch.setattr(choice, "own_compile_running", lambda: True)
     assert choice.pick(long_batch, (), None) == "reference"
 
 
@@ -176,7 +177,7 @@ def test_ctrl_c_stops_a_foreground_compile_and_kills_the_compiler(tmp_path: Path
     batch, plan = _batch(_chain(4, 0.2), 4)
     started: list[subprocess.Popen] = []
     real = choice.start_background
-    monkeypatch.setattr(choice, "start_background", lambda *a: started.append(real(*a)) or started[-1])
+    monkeypatch.setattr(choice, "start_background", lambda *a, **k: started.append(real(*a, **k)) or started[-1])
     calls = []
 
     def stop() -> None:

@@ -10,6 +10,13 @@ Python API for notebooks::
 
 from __future__ import annotations
 
+import os as _os
+
+if _os.environ.get("NUMBA_CACHE_DIR"):  # numba loads pickles from it: only a private folder (before numba reads it)
+    from crashstudy.kernel.cache import secure_numba_cache as _secure
+
+    _secure()
+
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "open_results", "run_study", "simulate"]

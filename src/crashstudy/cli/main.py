@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from crashstudy import environment
 from crashstudy.errors import InputError
 from crashstudy.safefs import PlantedEntryError
 
@@ -122,10 +123,14 @@ def main(argv: list[str] | None = None) -> int:
 
     interrupt.reset()
     _plain_warnings()
+    from crashstudy.kernel.cache import warn_pending
+
+    warn_pending()  # an unsafe NUMBA_CACHE_DIR moved when crashstudy was imported: say so on one line
     signal.signal(signal.SIGTERM, interrupt.request)  # acted on between chunks (crashstudy/interrupt.py)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # not when started with SIGINT ignored
         signal.signal(signal.SIGINT, interrupt.request)
     try:
+        environment.check()  # a wrong CRASHSTUDY_* value is an input error before any command runs
         return int(COMMANDS[args.command](args))
     except InputError as exc:
         print(f"error: invalid input\n{exc.format()}", file=sys.stderr)

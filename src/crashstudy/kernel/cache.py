@@ -8,17 +8,29 @@ is wrong, and the next candidate is tried:
 
 1. ``$CRASHSTUDY_KERNEL_CACHE`` when set,
 2. ``~/.cache/crashstudy/kernels``,
-3. a fresh private folder made by :func:`tempfile.mkdtemp` (an unpredictable name, mode 0700, used
-   by this process only: kernels compiled there are not reused by the next run).
+3. ``crashstudy-kernels-<uid>`` in the temp folder, the same private folder for every run of this user
+   (so a run with an unusable HOME neither recompiles nor leaves a folder behind); when another user
+   made that name first (or it fails the check), a fresh :func:`tempfile.mkdtemp` folder removed when
+   the process exits.
 
-There is never a fixed shared path such as ``/tmp/crashstudy-kernels``.
+There is never a fixed shared path such as ``/tmp/crashstudy-kernels``. A folder is private when it
+and every folder above it pass :func:`why_not_private` (above it: owned by this user or root, and not
+writable by group or others unless sticky, as ``/tmp`` is).
+
+numba's own cache folder, ``NUMBA_CACHE_DIR``, holds the same pickles and numba loads them when a
+compiled function is first called: :func:`secure_numba_cache` (run when crashstudy is imported,
+before numba reads its configuration) applies the same rule to it and, when it fails, moves numba's
+cache to ``numba`` inside the kernel folder with a one-line warning.
 """
 
 from __future__ import annotations
 
+import atexit
 import functools
 import os
+import shutil
 import stat
+import sys
 import tempfile
 import warnings
 from pathlib import Path
@@ -31,9 +43,53 @@ class KernelCacheWarning(CrashstudyWarning):
     """A kernel cache folder was skipped because it is not private to this user."""
 
 
+_PENDING: list[str] = []  # warnings found before the command line could print them on one line
+
+
 def cache_dir() -> Path:
     """The private folder for generated kernel sources and numba's compiled cache beside them."""
-    return _cache_dir(os.environ.get("CRASHSTUDY_KERNEL_CACHE") or None, str(Path.home()))
+    warn_pending()
+    return _cache_dir(os.environ.get("CRASHSTUDY_KERNEL_CACHE") or None, _home())
+
+
+def _home() -> str:
+    try:
+        return str(Path.home())
+    except (RuntimeError, KeyError):  # no HOME and no password entry
+        return ""
+
+
+def secure_numba_cache() -> None:
+    """Move numba's cache (``NUMBA_CACHE_DIR``) into the kernel folder when it is not private: numba
+    unpickles the index files it finds there, so whoever can write into it runs code as this user.
+    Called when crashstudy is imported, before numba reads its configuration (and also sets numba's
+    configuration when numba was imported first). The warning waits for :func:`warn_pending`."""
+    given = os.environ.get("NUMBA_CACHE_DIR", "")
+    if not given:
+        return
+    folder = Path(given)
+    try:
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)  # numba would create it; not chmod-ed when it exists
+    except OSError:
+        pass
+    why = why_not_private(folder)
+    if why is None:
+        return
+    safe = cache_dir() / "numba"
+    if _make_private(safe) is not None:
+        safe = _fallback() / "numba"
+        safe.mkdir(mode=0o700, exist_ok=True)
+    os.environ["NUMBA_CACHE_DIR"] = str(safe)
+    config = sys.modules.get("numba.core.config")
+    if config is not None:
+        setattr(config, "CACHE_DIR", str(safe))  # noqa: B010 (numba read it at import)
+    _PENDING.append(f"numba cache {given} (NUMBA_CACHE_DIR) not used: {why}; numba's compiled code goes to {safe}")
+
+
+def warn_pending() -> None:
+    """Issue the warnings :func:`secure_numba_cache` found (once each)."""
+    while _PENDING:
+        warnings.warn(_PENDING.pop(0), KernelCacheWarning, stacklevel=3)
 
 
 def checked_dir() -> Path:
@@ -43,11 +99,32 @@ def checked_dir() -> Path:
     if why is None:
         return folder
     warnings.warn(f"kernel cache {folder} not used any more: {why}", KernelCacheWarning, stacklevel=2)
-    return Path(tempfile.mkdtemp(prefix="crashstudy-kernels-"))
+    return _fallback()
 
 
 def why_not_private(folder: Path) -> str | None:
-    """Why ``folder`` must not hold compiled code (None when it is a private folder of this user)."""
+    """Why ``folder`` must not hold compiled code (None when it is a private folder of this user, in
+    folders that no other user can rename it out of)."""
+    return _why_not_own(folder) or _why_not_safe_above(Path(os.path.abspath(folder)).parent)
+
+
+def _why_not_safe_above(parent: Path) -> str | None:
+    """Why a folder inside ``parent`` could be swapped by another user: a folder above it owned by
+    another user than this one or root, or writable by group or others without the sticky bit."""
+    me = os.geteuid() if hasattr(os, "geteuid") else None
+    for above in (parent, *parent.parents):
+        try:
+            st = os.stat(above)
+        except OSError as exc:
+            return f"cannot inspect {above} ({exc.strerror})"
+        if me is not None and st.st_uid not in (0, me):
+            return f"the folder {above} above it belongs to user id {st.st_uid}"
+        if st.st_mode & (stat.S_IWGRP | stat.S_IWOTH) and not st.st_mode & stat.S_ISVTX:
+            return f"group or others may write into the folder {above} above it (mode {stat.S_IMODE(st.st_mode):04o})"
+    return None
+
+
+def _why_not_own(folder: Path) -> str | None:
     try:
         st = os.lstat(folder)
     except OSError as exc:
@@ -88,14 +165,30 @@ def _make_private(folder: Path) -> str | None:
 @functools.lru_cache(maxsize=8)
 def _cache_dir(env: str | None, home: str) -> Path:
     """:func:`cache_dir`, decided once per setting (it is asked for every chunk)."""
-    candidates = ([Path(env)] if env else []) + [Path(home) / ".cache" / "crashstudy" / "kernels"]
+    candidates = ([Path(env)] if env else []) + ([Path(home) / ".cache" / "crashstudy" / "kernels"] if home else [])
     for cand in candidates:
         why = _make_private(cand)
         if why is None:
             return cand
         warnings.warn(f"kernel cache {cand} not used: {why}; compiled kernels must be in a folder only you can "
                       "write to", KernelCacheWarning, stacklevel=3)  # fmt: skip
-    return Path(tempfile.mkdtemp(prefix="crashstudy-kernels-"))
+    return _fallback()
+
+
+@functools.lru_cache(maxsize=1)
+def _fallback() -> Path:
+    """This user's private folder in the temp folder, the same for every run (``crashstudy-kernels-<uid>``);
+    when that name is taken by someone else, a fresh folder removed at exit (never left behind)."""
+    uid = os.geteuid() if hasattr(os, "geteuid") else os.getpid()
+    mine = Path(tempfile.gettempdir()) / f"crashstudy-kernels-{uid}"
+    why = _make_private(mine)
+    if why is None:
+        return mine
+    warnings.warn(f"kernel cache {mine} not used: {why}; this run compiles into a folder removed when it ends",
+                  KernelCacheWarning, stacklevel=4)  # fmt: skip
+    fresh = Path(tempfile.mkdtemp(prefix="crashstudy-kernels-"))
+    atexit.register(shutil.rmtree, fresh, True)
+    return fresh
 
 
 def compiled_or_cached(run: Any) -> bool:

@@ -31,19 +31,20 @@ more than the estimate's error.
 
 from __future__ import annotations
 
-import fcntl
 import json
 import os
 import subprocess
 import sys
 import tempfile
+import threading
+from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from crashstudy.errors import InputError, Problem
+from crashstudy import environment
+from crashstudy.kernel import compile_lock
 from crashstudy.kernel.cache import cache_dir, compiled_or_cached, why_not_private
 from crashstudy.kernel.codes import GENERAL, KernelName
 
@@ -66,26 +67,20 @@ CRITERIA_LOCK = "criteria.lock"  # held by the process compiling the criteria
 REF_CHUNK = 1024  # variants per chunk while the reference runs and a compile may finish
 RECORDING = KERNELS  # kernels that record the per-step acceleration of metric nodes (crash criteria)
 _LOADED: set[str] = set()  # kinds of compiled kernel loaded in this process
+_BACKGROUND: list[subprocess.Popen[bytes]] = []  # background compiles started by this process
 
 
 def kernel_override() -> KernelName:
     """The kernel ``CRASHSTUDY_KERNEL`` asks for: "compiled" (unset: choose), or one of ``KERNELS``."""
-    value = os.environ.get("CRASHSTUDY_KERNEL", "").strip() or "compiled"
-    if value not in ("compiled", *KERNELS):
-        raise InputError([Problem("environment", None, "CRASHSTUDY_KERNEL",
-                                  f"unknown kernel {value!r}: expected reference, generic or generated (or unset)")])  # fmt: skip
-    return cast(KernelName, value)
+    return cast(KernelName, environment.kernel())
 
 
 def background_min_seconds() -> float:
     """Reference seconds of a run above which missing kernels compile in the background (inf: never).
 
     ``CRASHSTUDY_BACKGROUND_COMPILE``: ``0`` never, ``always`` for any run, unset or ``1`` above
-    ``BACKGROUND_MIN``."""
-    value = os.environ.get("CRASHSTUDY_BACKGROUND_COMPILE", "1").strip().lower()
-    if value in ("0", "no", "off", "false"):
-        return float("inf")
-    return 0.0 if value == "always" else BACKGROUND_MIN
+    ``BACKGROUND_MIN`` (any other value is an input error: :mod:`crashstudy.environment`)."""
+    return {"never": float("inf"), "always": 0.0}.get(environment.background_compile(), BACKGROUND_MIN)
 
 
 def generated_compile_seconds(material: np.ndarray, n_walls: int, record: bool = False) -> float:
@@ -127,19 +122,10 @@ def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] |
     return generated.unsupported(b) is None and generated.is_compiled(b, histories, vary, record)
 
 
-def compiling(folder: Path | None = None) -> bool:
-    """Whether a compile of the kernel cache ``folder`` (default: this user's, :func:`cache_dir`) is under
-    way in another process (it holds the lock)."""
-    folder = cache_dir() if folder is None else folder
-    if why_not_private(folder) is not None or not (folder / LOCK_NAME).exists():
-        return False
-    with open(folder / LOCK_NAME, "a") as fh:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            return True
-        fcntl.flock(fh, fcntl.LOCK_UN)
-    return False
+def own_compile_running() -> bool:
+    """Whether a background compile this process started is still running (the run planned for it:
+    :func:`decide`). A compile of another process never keeps a run on the reference (:func:`compile_foreground`)."""
+    return any(proc.poll() is None for proc in _BACKGROUND)
 
 
 def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: KernelName = "compiled",
@@ -147,8 +133,8 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
     """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
     one expected to finish the run first among those compiled and the reference; with nothing
     compiled, the kernel quicker to compile and run (this shape's generated one unless it is large or
-    unsupported) compiled now only when the reference would take longer than that (and no other
-    process is compiling). ``repeat``: how many batches like ``b`` the run holds (loading a compiled kernel is
+    unsupported) compiled now only when the reference would take longer than that (whatever another
+    process compiles: :func:`compile_foreground` waits for it or compiles beside it). ``repeat``: how many batches like ``b`` the run holds (loading a compiled kernel is
     paid once per process, so it is weighed against the whole run, not one chunk). ``record``: the
     batch needs the per-step acceleration of its metric nodes; only the kernels of ``RECORDING`` keep
     it, so another is never picked (not even when named: the criteria are never silently missing)."""
@@ -178,7 +164,7 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
         times["generated"] = run_time("generated", GENERATED_RATE)
     if "generic" in usable and generic_ready():
         times["generic"] = run_time("generic", GENERIC_RATE)
-    elif "generic" in usable and len(times) == 1 and not compiling():  # compile the quicker kernel here?
+    elif "generic" in usable and len(times) == 1 and not own_compile_running():  # compile the quicker one here?
         ways: dict[KernelName, float] = {"generic": GENERIC_COMPILE + run_time("generic", GENERIC_RATE)}
         if "generated" in usable and generated.unsupported(b) is None:
             ways["generated"] = (generated_compile_seconds(b.material, b.wall_nodes.shape[0], bool(record))
@@ -306,9 +292,11 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
 
 
 def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                     record: tuple[int, ...] = ()) -> subprocess.Popen[bytes] | None:  # fmt: skip
+                     record: tuple[int, ...] = (), must: bool = False) -> subprocess.Popen[bytes] | None:  # fmt: skip
     """Compile ``kernels`` in a detached low-priority process (it outlives this run, so the kernels
-    are ready for the next one); None when no private cache folder is available."""
+    are ready for the next one; a thread reaps it when it ends, so it never stays a zombie); None when
+    no private cache folder is available. ``must``: a run waits for it (:func:`compile_foreground`), so it
+    compiles even when another process holds the lock."""
     from crashstudy.kernel import generated
 
     folder = cache_dir()
@@ -318,11 +306,35 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
     fd, npz = tempfile.mkstemp(prefix=".warm-", suffix=".npz", dir=folder)
     with os.fdopen(fd, "wb") as fh:
         np.savez(fh, **{k: v for k, v in vars(sample).items()})
+    keys = [kernel_key(k, b, histories, vary, record) for k in kernels]
     job = {"kernels": list(kernels), "histories": list(histories), "vary": sorted(vary or ()),
-           "const": generated._constant_curves(b, vary), "npz": npz, "record": [int(n) for n in record]}  # fmt: skip
+           "const": generated._constant_curves(b, vary), "npz": npz, "record": [int(n) for n in record],
+           "keys": keys, "seconds": [compile_seconds(k, b, record) for k in kernels], "must": must}  # fmt: skip
     cmd = [sys.executable, "-m", "crashstudy.kernel.warm", json.dumps(job)]
-    return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True, preexec_fn=_lower_priority)  # fmt: skip
+    if not must:
+        _BACKGROUND[:] = [p for p in _BACKGROUND if p.returncode is None] + [proc]
+        threading.Thread(target=proc.wait, name=f"reap-{proc.pid}", daemon=True).start()
+    return proc
+
+
+def kernel_key(kernel: str, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
+               record: tuple[int, ...] = ()) -> str:  # fmt: skip
+    """What a compile of ``kernel`` leaves in the cache, as a lock holder names it: "generic", "criteria",
+    or the generated kernel's shape key (one per model shape)."""
+    if kernel != "generated":
+        return kernel
+    from crashstudy.kernel import generated
+
+    return generated.shape_key(generated._shape(b, histories, vary, generated._constant_curves(b, vary), record))
+
+
+def compile_seconds(kernel: str, b: Batch, record: tuple[int, ...] = ()) -> float:
+    """Expected seconds to compile ``kernel`` ("generic", "generated" or "criteria") for batch ``b``."""
+    if kernel == "generated":
+        return generated_compile_seconds(b.material, b.wall_nodes.shape[0], bool(record))
+    return CRITERIA_COMPILE if kernel == "criteria" else GENERIC_COMPILE
 
 
 def _lower_priority() -> None:  # pragma: no cover - runs in the child
@@ -330,12 +342,24 @@ def _lower_priority() -> None:  # pragma: no cover - runs in the child
 
 
 def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...],
-                       vary: frozenset[int] | None, stop: Any, record: tuple[int, ...] = ()) -> None:  # fmt: skip
+                       vary: frozenset[int] | None, stop: Any, record: tuple[int, ...] = (),
+                       say: Callable[[str], None] | None = None) -> None:  # fmt: skip
     """Compile ``kernels`` in child processes and wait: the crash criteria ("criteria") in one of their
-    own beside the others, so both cores compile; ``stop()`` raising (Ctrl-C) kills them at once."""
-    groups = [g for g in (tuple(k for k in kernels if k != "criteria"), tuple(k for k in kernels if k == "criteria")) if g]
-    procs = [p for g in groups if (p := start_background(g, b, histories, vary, record)) is not None]
+    own beside the others, so both cores compile; ``stop()`` raising (Ctrl-C) kills them at once.
+
+    When another process holds the compile lock, wait for it only when it compiles what this run needs
+    and is expected to finish sooner than compiling it here (:func:`crashstudy.kernel.compile_lock.plan_wait`;
+    never longer than this run's own compile, not at all for a holder that is gone or stopped, and no
+    more once it stops using CPU); else compile here beside it. ``say``: tells the terminal."""
+    groups = [g for g in (tuple(k for k in kernels if k == "criteria"), tuple(k for k in kernels if k != "criteria")) if g]
+    procs: list[subprocess.Popen[bytes]] = []
     try:
+        for group in groups:
+            if _other_compiles(group, b, histories, vary, record, stop, say or (lambda text: None)):
+                continue
+            proc = start_background(group, b, histories, vary, record, must=True)
+            if proc is not None:
+                procs.append(proc)
         for proc in procs:
             while proc.poll() is None:
                 try:
@@ -347,3 +371,39 @@ def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str,
             proc.kill()
             proc.wait()
         raise
+
+
+def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
+                    record: tuple[int, ...], stop: Any, say: Callable[[str], None]) -> bool:  # fmt: skip
+    """Whether another process compiled ``group`` while this run waited for it (see :func:`compile_foreground`)."""
+    lock = cache_dir() / (CRITERIA_LOCK if group == ("criteria",) else LOCK_NAME)
+    holder = compile_lock.read_holder(lock)
+    if holder is None:
+        return False
+    what = " and ".join(f"the {k} kernel" if k != "criteria" else "the crash criteria" for k in group)
+    own = sum(compile_seconds(k, b, record) for k in group)
+    limit, why = compile_lock.plan_wait(holder, kernel_key(group[-1], b, histories, vary, record), own)
+    if limit <= 0:
+        say(f"compiling {what} here (~{own:.0f} s) beside another compile: {why}")
+        return False
+    say(f"waiting for {what}: {why}; compiling it here would take ~{own:.0f} s")
+
+    def ready() -> bool:
+        return all(_ready(k, b, histories, vary, record) for k in group)
+
+    end = compile_lock.wait(lock, holder, limit, ready, stop)
+    if end == "ready":
+        return True
+    because = {"released": "the lock was released without it", "gone": "the holder is gone", "stopped": "the holder "
+               "is stopped", "stuck": "the holder uses no CPU", "limit": "it takes longer than expected"}[end]  # fmt: skip
+    say(f"stopped waiting ({because}); compiling {what} here (~{own:.0f} s)")
+    return False
+
+
+def _ready(kernel: str, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
+           record: tuple[int, ...]) -> bool:  # fmt: skip
+    if kernel == "generic":
+        return generic_ready()
+    if kernel == "criteria":
+        return criteria_ready()
+    return generated_ready(b, histories, vary, record)

@@ -4,12 +4,12 @@ histories kept) and the layout every emitter shares (:func:`layout`: rows of the
 
 from __future__ import annotations
 
-import os
 from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from crashstudy import environment
 from crashstudy.kernel.codes import (
     CRUSH,
     DAMPER,
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
 GEN_VERSION = 9  # bump when the generated source changes meaning (old cached kernels are ignored)
-BLOCK = int(os.environ.get("CRASHSTUDY_GEN_BLOCK", "256"))  # variants per block
+BLOCK = environment.gen_block()  # variants per block (CRASHSTUDY_GEN_BLOCK)
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 
 

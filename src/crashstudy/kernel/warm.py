@@ -6,7 +6,10 @@ criteria, under a lock of their own so they compile beside a kernel), the run's 
 curves and constant curves, and a ``.npz`` of one variant of the run's batch (read with
 ``allow_pickle=False``: only plain arrays). Each kernel is compiled by running that variant for one
 step, which leaves it in numba's disk cache. One compile per cache at a time: the process holds an
-exclusive lock on ``compile.lock`` in the cache folder and exits at once if another holds it.
+exclusive lock on ``compile.lock`` in the cache folder and writes into it what it compiles
+(:func:`crashstudy.kernel.compile_lock.write_holder`: the job's ``keys`` and ``seconds``). When another
+process holds the lock, a background job (run for later) exits at once; a job a run waits for
+(``must``) compiles anyway, privately beside the holder (numba writes each cache file atomically).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import numpy as np
 def main(argv: list[str]) -> int:
     from crashstudy.kernel.cache import checked_dir
     from crashstudy.kernel.choice import CRITERIA_LOCK, LOCK_NAME
+    from crashstudy.kernel.compile_lock import write_holder
 
     job = json.loads(argv[0])
     folder = checked_dir()
@@ -37,11 +41,13 @@ def main(argv: list[str]) -> int:
     b.n_steps[:] = 1
     histories = tuple(job["histories"])
     record = tuple(job.get("record", []))
-    with open(folder / (CRITERIA_LOCK if job["kernels"] == ["criteria"] else LOCK_NAME), "a") as lock:
+    with open(folder / (CRITERIA_LOCK if job["kernels"] == ["criteria"] else LOCK_NAME), "a+") as lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            write_holder(lock, list(job.get("keys", job["kernels"])), [float(s) for s in job.get("seconds", [])])
         except OSError:
-            return 0  # another process compiles; it leaves the kernel in the same cache
+            if not job.get("must"):
+                return 0  # another process compiles; it leaves the kernel in the same cache
         for kernel in job["kernels"]:
             if kernel == "generic":
                 from crashstudy.kernel.compiled import run_compiled

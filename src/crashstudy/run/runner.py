@@ -204,7 +204,7 @@ def _start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, fl
 
     if do.foreground:
         say(f"compiling {what(do.foreground)}; Ctrl-C stops")
-        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec)
+        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec, say)
     if do.now and choice.start_background(do.now, sample, topo.histories, vary, rec) is not None:
         say(f"compiling {what(do.now)} in the background"
             + (f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
