@@ -88,7 +88,7 @@ def _with_data(made: dict[str, Path], tmp: Path, plant: str) -> Path:
 
 
 @pytest.mark.parametrize(("plant", "expected"), [
-    ("fifo", "it is a FIFO; expected a regular file"),
+    ("fifo", "it is a named pipe (FIFO); expected a regular file"),
     ("zero", "expected a regular file"),
     ("secret", "line 1: expected the header 'time,value'"),
     ("late", "line 53: the data run from t = 0 to 0.08, the model from 0 to end_time 0.05"),

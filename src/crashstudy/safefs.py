@@ -229,6 +229,16 @@ def write_all(items: list[tuple[Path, Any]]) -> None:
 # --- reading a file someone else may have planted --------------------------------------------------
 
 
+def file_kind(mode: int) -> str:
+    """What a file of ``mode`` (``os.stat``) is when it is not a regular file ("a named pipe (FIFO)",
+    ...), or "" for a regular file: the one wording of every message that refuses such a file."""
+    if stat.S_ISREG(mode):
+        return ""
+    kinds = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
+             (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))  # fmt: skip
+    return next((name for test, name in kinds if test(mode)), "a special file")
+
+
 def open_regular(path: Path, limit: int | None = None, what: str = "", follow: bool = False) -> IO[bytes]:
     """``path`` opened for reading if it is a regular file itself, of at most ``limit`` bytes.
 
@@ -248,8 +258,8 @@ def open_regular(path: Path, limit: int | None = None, what: str = "", follow: b
         raise PlantedEntryError(f"{name} cannot be read: {why}; expected a regular file") from None
     try:
         st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            kind = "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a folder" if stat.S_ISDIR(st.st_mode) else "a device"
+        kind = file_kind(st.st_mode)
+        if kind:
             raise PlantedEntryError(f"{name} cannot be read: it is {kind}; expected a regular file")
         if limit is not None and st.st_size > limit:
             raise PlantedEntryError(f"{name} cannot be read: it has {st.st_size} bytes; expected at most {limit}")

@@ -20,13 +20,14 @@ from __future__ import annotations
 import gc
 import math
 import os
-import stat
 from dataclasses import dataclass, field
 from typing import Any
 
 import yaml
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 from yaml.reader import Reader
+
+from crashstudy.safefs import file_kind
 
 try:  # libyaml, bundled with PyYAML's wheels
     from yaml._yaml import CParser
@@ -374,16 +375,14 @@ def load_yaml(path: str | os.PathLike[str], text: str | None = None) -> LoadedYa
     return loads_yaml(text, file)
 
 
-def not_regular(mode: int) -> str:
-    """What a file of ``mode`` (``os.stat``) is, if it is not a regular file ("" if it is one)."""
-    if stat.S_ISREG(mode):
+def not_regular(mode: int, expected: str = "a YAML file") -> str:
+    """Why a file of ``mode`` (``os.stat``) cannot be read as ``expected`` ("" for a regular file)."""
+    kind = file_kind(mode)
+    if not kind:
         return ""
-    if stat.S_ISDIR(mode):
-        return "is a directory, expected a YAML file"
-    kinds = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
-             (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))  # fmt: skip
-    kind = next((name for test, name in kinds if test(mode)), "a special file")
-    return f"not a regular file: it is {kind}; expected a YAML file"
+    if kind == "a folder":
+        return f"is a directory, expected {expected}"
+    return f"not a regular file: it is {kind}; expected {expected}"
 
 
 def _read(file: str) -> str:

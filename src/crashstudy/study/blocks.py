@@ -145,7 +145,7 @@ def check_calibrate(ctx: Context) -> list[Problem]:
             problems.append(ctx.problem(at + ("node",), f"quantity {ch.quantity} is a spring's: remove node:"))
     path = ctx.base_dir / spec.data
     try:
-        why = not_regular(path.stat().st_mode)
+        why = not_regular(path.stat().st_mode, "a regular file")
     except FileNotFoundError:
         why = "no such file"
     except (OSError, ValueError) as exc:
