@@ -50,20 +50,33 @@ def indices(summary: pd.DataFrame, attrs: dict[str, Any], metric: str, method: s
     """One row per (group, axis, index): columns ``metric, group, axis, index, value, confidence, note``."""
     axes = [str(a) for a in json.loads(attrs.get("crashstudy_axes", "[]"))]
     if method == "correlation":
-        return _correlation(summary, axes, metric)
+        table, names = _factor_columns(summary, attrs, axes)
+        return _correlation(table, names, metric)
     design = _design(attrs)
     if design is None or design.get("method") != ("saltelli" if method == "sobol" else "morris"):
         need = "saltelli" if method == "sobol" else "morris"
         raise ValueError(f"--method {method} needs a study with design: {{method: {need}}} (its estimator needs "
                          f"that sample structure); use --method correlation for any study")  # fmt: skip
     d_axes = list(design["axes"])
-    other = [a for a in axes if a not in d_axes]
+    from crashstudy.analysis.factors import factors
+
+    other = list(factors(attrs, [a for a in axes if a not in d_axes]))  # a zip group by its first path
     rows: list[dict[str, Any]] = []
     groups = summary.groupby(other, sort=False) if other else [((), summary)]
     for key, part in groups:
         label = ", ".join(f"{a}={v:g}" for a, v in zip(other, key if isinstance(key, tuple) else (key,), strict=True))
         rows += _salib(part.sort_values("variant"), design, d_axes, metric, method, label)
     return pd.DataFrame(rows)
+
+
+def _factor_columns(summary: pd.DataFrame, attrs: dict[str, Any], axes: list[str]) -> tuple[pd.DataFrame, list[str]]:
+    """The summary with one column per factor: a zip group's paths move together, so it is one row of the
+    table, named by :func:`crashstudy.analysis.factors.factor_name`, with its first path's values."""
+    from crashstudy.analysis.factors import factor_name, factors
+
+    groups = factors(attrs, axes)
+    named = {first: factor_name(m) for first, m in groups.items() if len(m) > 1}
+    return summary.assign(**{name: summary[first] for first, name in named.items()}), [named.get(a, a) for a in groups]
 
 
 def _correlation(summary: pd.DataFrame, axes: list[str], metric: str) -> pd.DataFrame:
