@@ -393,3 +393,16 @@ def test_pulse_plot_draws_the_signed_deceleration_along_the_travel(tied: Path) -
         assert np.all(raw[late] < -3.0) and np.all(filt[late] < -3.0)  # pulled back along the travel
         assert np.allclose(np.abs(filt), stored[j], rtol=1e-12, equal_nan=True)
         assert filt[np.argmin(np.abs(t_ms - 30.0))] > 5.0  # decelerating while the springs compress
+
+
+def test_sensitivity_over_time_has_one_curve_per_factor(tied: Path) -> None:
+    """--history: the zip group of three paths is one curve (before: three identical ones)."""
+    from crashstudy.analysis.sensitivity import over_time
+
+    res = open_results(tied)
+    try:
+        da = over_time(res.dataset, "spring_force", "pad")
+    finally:
+        res.close()
+    assert list(da["axis_path"].values) == ["impact_velocity", "zip: springs.ep.material.yield_force, "
+                                            "springs.ep.material.tangent_stiffness, ... (3 paths)"]  # fmt: skip

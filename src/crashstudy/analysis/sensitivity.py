@@ -197,7 +197,10 @@ def over_time(ds: Any, quantity: str, item: str | None = None) -> Any:
     import xarray as xr
     from scipy import stats
 
-    axes = [str(a) for a in json.loads(ds.attrs.get("crashstudy_axes", "[]"))]
+    from crashstudy.analysis.factors import factor_name, factors
+
+    groups = factors(dict(ds.attrs), [str(a) for a in json.loads(ds.attrs.get("crashstudy_axes", "[]"))])
+    axes = list(groups)  # a zip group once, by its first path's values
     da = ds[quantity]
     for dim in ("spring", "node", "wall"):
         if dim in da.dims:
@@ -219,7 +222,8 @@ def over_time(ds: Any, quantity: str, item: str | None = None) -> Any:
         den = np.sqrt((cx**2).sum() * (cy**2).sum(axis=0))
         with np.errstate(invalid="ignore", divide="ignore"):
             out[k] = np.where(den > 0, (cx[:, None] * cy).sum(axis=0) / den, np.nan)
-    return xr.DataArray(out, dims=("axis_path", "time"), coords={"axis_path": axes, "time": ds["time"].values},
+    return xr.DataArray(out, dims=("axis_path", "time"), coords={"axis_path": [factor_name(groups[a]) for a in axes],
+                                                                  "time": ds["time"].values},
                         name=f"spearman_{quantity}", attrs={"units": "1", "long_name": (
                             f"Spearman correlation of {quantity}" + (f" of {item}" if item else "")
                             + f" with each study axis ({int(ok.sum())} variants that ran)")})  # fmt: skip
