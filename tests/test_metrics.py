@@ -198,7 +198,7 @@ def test_pulse_plot_shows_the_filtered_pulse_in_g_over_ms_beside_the_raw_channel
     res = open_results(sweeps["baseline"])
     fig = plot_pulse(res.dataset)
     ax = fig.axes[0]
-    assert ax.get_xlabel() == "time [ms]" and ax.get_ylabel() == "resultant acceleration [g]"
+    assert ax.get_xlabel() == "time [ms]" and ax.get_ylabel() == "deceleration along travel [g]"  # signed (item 23.10)
     for j, s in enumerate(SCALES):
         raw, filt = ax.lines[2 * j], ax.lines[2 * j + 1]
         assert max(raw.get_xdata()) == pytest.approx(30.0)  # end_time 0.03 s in ms

@@ -64,6 +64,7 @@ from crashstudy.analysis.compare_inputs import (  # noqa: F401 - re-exported
     load_results,
     study_tolerances,
 )
+from crashstudy.analysis.factors import factors
 from crashstudy.safefs import replacing
 from crashstudy.schema.study import Tolerance
 
@@ -130,6 +131,7 @@ class Comparison:
     rtol: float = DEFAULT_RTOL
     atol: float = DEFAULT_ATOL
     study_name: str = ""
+    factors: dict[str, list[str]] = field(default_factory=dict)  #: first path -> its zip group (one factor)
     _frame: pd.DataFrame | None = field(default=None, repr=False)
 
     @property
@@ -234,7 +236,10 @@ class Comparison:
         return head + "\n" + text.to_string(index=False)
 
     def _params(self, row: pd.Series) -> str:
-        return " ".join(f"{ax}={row[ax]:.6g}" for ax in self.axes if ax in row and pd.notna(row[ax])) or "-"
+        """``axis=value`` per factor: a zip group by its first path (its other paths move with it)."""
+        groups = self.factors or {a: [a] for a in self.axes}
+        return " ".join(f"{ax}={row[ax]:.6g}" + (f" (+{len(m) - 1} zipped)" if len(m) > 1 else "")
+                        for ax, m in groups.items() if ax in row and pd.notna(row[ax])) or "-"  # fmt: skip
 
     def verdict(self) -> str:
         """One line: FAILED or OK, with what failed."""
@@ -460,5 +465,5 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
         columns=columns, missing_columns=[c for c in b_cols if c not in n_cols],
         extra_columns=[c for c in n_cols if c not in b_cols], notes=notes, rtol=rtol, atol=atol,
         damaged=[s.damage for s in (n_side, b_side) if s.damage],
-        study_name=n_side.study_name,
+        study_name=n_side.study_name, factors=factors(n_side.attrs, axes),
     )  # fmt: skip

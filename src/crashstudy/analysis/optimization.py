@@ -289,6 +289,8 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
         return (r[1:] - r[0]).T / step
 
     x0 = (lo + hi) / 2.0
+    print(f"calibrating {len(variables)} variable(s) to {len(t_data)} data points (a line per batch of runs; the "
+          "first may compile the kernel)", file=progress, flush=True)  # fmt: skip
     t0 = time.perf_counter()
     fit = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=hi - lo, xtol=1e-10, ftol=1e-12, gtol=1e-12)
     seconds = time.perf_counter() - t0

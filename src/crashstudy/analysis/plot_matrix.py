@@ -54,7 +54,8 @@ def default_metric(summary: pd.DataFrame, nodes: Sequence[str] | None = None,
 
 def plot_matrix(summary: pd.DataFrame, metric: str | None = None, x: str | None = None, y: str | None = None,
                 agg: Aggregate = "max", axes: Sequence[str] | None = None, units: str | None = None,
-                title: str | None = None, axis_units: dict[str, str] | None = None) -> Figure:  # fmt: skip
+                title: str | None = None, axis_units: dict[str, str] | None = None,
+                factors: dict[str, list[str]] | None = None) -> Figure:  # fmt: skip
     """A summary metric over the study matrix: a line plot over one axis or a heat map over two.
 
     Parameters
@@ -81,6 +82,10 @@ def plot_matrix(summary: pd.DataFrame, metric: str | None = None, x: str | None 
         Unit of each study axis for the labels (``plot_command``: the axis variables' ``units``).
     title : str, optional
         Figure title (default the metric).
+    factors : dict of str to list of str, optional
+        First path -> paths of each factor (:func:`crashstudy.analysis.factors.factors`: a zip group is
+        one factor); default every axis its own. The paths that move with ``x`` or ``y`` are not "other"
+        axes, and the others are named once per factor.
 
     Returns
     -------
@@ -117,12 +122,21 @@ def plot_matrix(summary: pd.DataFrame, metric: str | None = None, x: str | None 
         df = df.assign(**{metric: df[metric] * factor})
     label = f"{metric}{unit_text(units)}"
     note = f"{n_failed} failed variant{'s' if n_failed > 1 else ''} skipped" if n_failed else ""
-    others = [a for a in axes if a not in (x, y)]
+    from crashstudy.analysis.factors import factor_name
+
+    groups = factors or {a: [a] for a in axes}
+    with_x = next((m for m in groups.values() if x in m), [x])
+    if y is not None and y in with_x:
+        raise _fail("<summary>", f"x {x!r} and y {y!r} move together (one zip group); choose an axis of another factor")
+    others = [first for first, m in groups.items() if x not in m and (y is None or y not in m)]
+    fnames = {a: factor_name(groups.get(a, [a])) for a in others}
+    moved = [f"{a} moves with {', '.join(p for p in m if p != a)} (one zip group)"
+             for a in (x, y) if a is not None for m in groups.values() if a in m and len(m) > 1]  # fmt: skip
     if y is None:
         fig = Figure(figsize=(8.0, 5.0), layout="constrained")
         FigureCanvasAgg(fig)
         ax = fig.subplots()
-        _matrix_lines(ax, df, metric, x, others, axis_units or {})
+        _matrix_lines(ax, df, metric, x, others, axis_units or {}, fnames)
         handles, names = ax.get_legend_handles_labels()
         if len(handles) > 1:  # below the panel, as in the other figures
             fitting_legend(fig, handles, names, "")
@@ -139,12 +153,14 @@ def plot_matrix(summary: pd.DataFrame, metric: str | None = None, x: str | None 
         ax.set_xlabel(axis_label(x, axis_units))
         ax.set_ylabel(axis_label(y, axis_units))
         if others:
-            note = "; ".join(filter(None, [f"each cell: {agg} over {', '.join(others)}", note]))
+            note = "; ".join(filter(None, [f"each cell: {agg} over {', '.join(fnames[a] for a in others)}", note]))
+    note = "; ".join(filter(None, [*moved, note]))
     finish(fig, title or f"{metric} over the study matrix", note)
     return fig
 
 
-def _matrix_lines(ax, df: pd.DataFrame, metric: str, x: str, others: list[str], units: dict[str, str]) -> None:
+def _matrix_lines(ax, df: pd.DataFrame, metric: str, x: str, others: list[str], units: dict[str, str],
+                  names: dict[str, str]) -> None:  # fmt: skip
     if not others:
         d = df.sort_values(x)
         ax.plot(d[x].to_numpy(), d[metric].to_numpy(), "o-", label=metric)
@@ -155,13 +171,13 @@ def _matrix_lines(ax, df: pd.DataFrame, metric: str, x: str, others: list[str], 
         for i, (key, d) in enumerate(groups):
             key = key if isinstance(key, tuple) else (key,)
             d = d.groupby(x)[metric].mean()  # zip groups may repeat an x; one point per x
-            name = ", ".join(f"{a}={float(v):g}{_plain(units.get(a))}" for a, v in zip(others, key, strict=True))
+            name = ", ".join(f"{names[a]}={float(v):g}{_plain(units.get(a))}" for a, v in zip(others, key, strict=True))
             ax.plot(d.index.to_numpy(), d.to_numpy(), "o-", color=cmap(i % 10), label=name)
         return
     stats = df.groupby(x)[metric].agg(["mean", "min", "max"])
     xs = stats.index.to_numpy()
     ax.fill_between(xs, stats["min"].to_numpy(), stats["max"].to_numpy(), alpha=0.25,
-                    label=f"min-max over {len(groups)} combinations of {', '.join(others)}")  # fmt: skip
+                    label=f"min-max over {len(groups)} combinations of {', '.join(names[a] for a in others)}")  # fmt: skip
     ax.plot(xs, stats["mean"].to_numpy(), "o-", label="mean")
 
 

@@ -120,7 +120,7 @@ def finish(fig: Figure, title: str, note: str) -> None:
     height = fig.bbox.height
     bottom = PAD / 2
     if note:
-        text = fig.text(0.01, bottom, note, fontsize="small", color="0.35", ha="left", va="bottom")
+        text = _wrapped_note(fig, note, renderer)
         bottom += text.get_window_extent(renderer).height / height + PAD / 2
     for leg in getattr(fig, "_crashstudy_legends", []):
         leg.set_bbox_to_anchor((0.5, bottom), transform=fig.transFigure)
@@ -131,11 +131,25 @@ def finish(fig: Figure, title: str, note: str) -> None:
             engine.set(rect=(0.0, bottom, 1.0, 1.0 - bottom))
 
 
+def _wrapped_note(fig: Figure, note: str, renderer: Any) -> Any:
+    """The note at the bottom left, wrapped at word boundaries to the figure's width (never cut off)."""
+    width = fig.bbox.width
+    chars = max(20, int(width / 6.5))
+    while True:
+        wrapped = "\n".join(textwrap.fill(part, chars, break_long_words=True) for part in note.split("\n"))
+        text = fig.text(0.01, PAD / 2, wrapped, fontsize="small", color="0.35", ha="left", va="bottom")
+        if text.get_window_extent(renderer).x1 <= width - 2 or chars <= 20:
+            return text
+        text.remove()
+        chars = int(chars * 0.9)
+
+
 def fitting_legend(fig: Figure, handles: list, labels: list[str], title: str, max_cols: int = 4) -> Legend:
     """A legend below the panels with as many columns (up to ``max_cols``) as fit the figure's width."""
     width = fig.bbox.width
     chars = max(20, int(width / 6.5))  # small font: ~6.5 px per character at 100 dpi
     title = "\n".join(textwrap.wrap(title, chars)) if title else title
+    labels = ["\n".join(textwrap.wrap(lb, chars - 6)) or lb for lb in labels]  # a long label wraps, never cut off
     for ncols in range(min(max_cols, max(len(labels), 1)), 0, -1):
         leg = fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncols=ncols,
                          fontsize="small", title=title or None, title_fontsize="small", frameon=False)  # fmt: skip
@@ -163,9 +177,14 @@ class Variants:
     """How each drawn variant looks: colour, line style and label (see the module docstring)."""
 
     def __init__(self, ds: xr.Dataset, index: np.ndarray, axes: list[str]) -> None:
+        from crashstudy.analysis.factors import factor_name, factors
+
+        groups = factors(dict(ds.attrs), axes)  # a zip group is one factor, shown by its first path
+        axes = list(groups)
         self.index = index
         self.axes = axes
         self.units = axis_units(ds, axes)
+        self.names = {a: factor_name(groups[a]) for a in axes}
         self.mappable: ScalarMappable | None = None
         self.style_axis: str | None = None
         values = {a: np.asarray(ds[a].values, dtype=float)[index] for a in axes}
@@ -195,15 +214,19 @@ class Variants:
 
     def decorate(self, fig: Figure, axs: list) -> None:
         if self.mappable is not None:
-            fig.colorbar(self.mappable, ax=axs, label=axis_label(self.axes[0], self.units), shrink=0.9)
+            fig.colorbar(self.mappable, ax=axs, label=self._label(self.axes[0]), shrink=0.9)
             if self.style_axis is not None:
                 handles = [Line2D([], [], color="0.2", ls=s) for s in STYLES[: len(self.style_labels)]]
-                rest = [a for a in self.axes if a not in (self.axes[0], self.style_axis)]
-                title = axis_label(self.style_axis, self.units)
+                rest = [self.names[a] for a in self.axes if a not in (self.axes[0], self.style_axis)]
+                title = self._label(self.style_axis)
                 if rest:
                     title += f" (lines differing only in {', '.join(rest)} look alike)"
                 fitting_legend(fig, handles, self.style_labels, title)
         elif len(self.index) > 1:
             handles, labels = axs[0].get_legend_handles_labels()
-            title = ", ".join(axis_label(a, self.units) for a in self.axes)
+            title = ", ".join(self._label(a) for a in self.axes)
             fitting_legend(fig, handles, labels, title)
+
+    def _label(self, axis: str) -> str:
+        """The factor's name with the unit of its first path."""
+        return f"{self.names[axis]}{unit_text(self.units.get(axis))}"

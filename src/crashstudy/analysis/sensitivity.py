@@ -50,20 +50,33 @@ def indices(summary: pd.DataFrame, attrs: dict[str, Any], metric: str, method: s
     """One row per (group, axis, index): columns ``metric, group, axis, index, value, confidence, note``."""
     axes = [str(a) for a in json.loads(attrs.get("crashstudy_axes", "[]"))]
     if method == "correlation":
-        return _correlation(summary, axes, metric)
+        table, names = _factor_columns(summary, attrs, axes)
+        return _correlation(table, names, metric)
     design = _design(attrs)
     if design is None or design.get("method") != ("saltelli" if method == "sobol" else "morris"):
         need = "saltelli" if method == "sobol" else "morris"
         raise ValueError(f"--method {method} needs a study with design: {{method: {need}}} (its estimator needs "
                          f"that sample structure); use --method correlation for any study")  # fmt: skip
     d_axes = list(design["axes"])
-    other = [a for a in axes if a not in d_axes]
+    from crashstudy.analysis.factors import factors
+
+    other = list(factors(attrs, [a for a in axes if a not in d_axes]))  # a zip group by its first path
     rows: list[dict[str, Any]] = []
     groups = summary.groupby(other, sort=False) if other else [((), summary)]
     for key, part in groups:
         label = ", ".join(f"{a}={v:g}" for a, v in zip(other, key if isinstance(key, tuple) else (key,), strict=True))
         rows += _salib(part.sort_values("variant"), design, d_axes, metric, method, label)
     return pd.DataFrame(rows)
+
+
+def _factor_columns(summary: pd.DataFrame, attrs: dict[str, Any], axes: list[str]) -> tuple[pd.DataFrame, list[str]]:
+    """The summary with one column per factor: a zip group's paths move together, so it is one row of the
+    table, named by :func:`crashstudy.analysis.factors.factor_name`, with its first path's values."""
+    from crashstudy.analysis.factors import factor_name, factors
+
+    groups = factors(attrs, axes)
+    named = {first: factor_name(m) for first, m in groups.items() if len(m) > 1}
+    return summary.assign(**{name: summary[first] for first, name in named.items()}), [named.get(a, a) for a in groups]
 
 
 def _correlation(summary: pd.DataFrame, axes: list[str], metric: str) -> pd.DataFrame:
@@ -184,7 +197,10 @@ def over_time(ds: Any, quantity: str, item: str | None = None) -> Any:
     import xarray as xr
     from scipy import stats
 
-    axes = [str(a) for a in json.loads(ds.attrs.get("crashstudy_axes", "[]"))]
+    from crashstudy.analysis.factors import factor_name, factors
+
+    groups = factors(dict(ds.attrs), [str(a) for a in json.loads(ds.attrs.get("crashstudy_axes", "[]"))])
+    axes = list(groups)  # a zip group once, by its first path's values
     da = ds[quantity]
     for dim in ("spring", "node", "wall"):
         if dim in da.dims:
@@ -206,7 +222,8 @@ def over_time(ds: Any, quantity: str, item: str | None = None) -> Any:
         den = np.sqrt((cx**2).sum() * (cy**2).sum(axis=0))
         with np.errstate(invalid="ignore", divide="ignore"):
             out[k] = np.where(den > 0, (cx[:, None] * cy).sum(axis=0) / den, np.nan)
-    return xr.DataArray(out, dims=("axis_path", "time"), coords={"axis_path": axes, "time": ds["time"].values},
+    return xr.DataArray(out, dims=("axis_path", "time"), coords={"axis_path": [factor_name(groups[a]) for a in axes],
+                                                                  "time": ds["time"].values},
                         name=f"spearman_{quantity}", attrs={"units": "1", "long_name": (
                             f"Spearman correlation of {quantity}" + (f" of {item}" if item else "")
                             + f" with each study axis ({int(ok.sum())} variants that ran)")})  # fmt: skip

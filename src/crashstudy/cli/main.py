@@ -56,7 +56,8 @@ def _parser() -> argparse.ArgumentParser:
 
     sm = sub.add_parser("summary", help="print the summary table of a result folder")
     sm.add_argument("dir", help="result folder (written by run or simulate)")
-    sm.add_argument("--sort", help="column to sort by (e.g. peak_deceleration_g.cabin; a part of one name will do)")
+    sm.add_argument("--sort", help="column to sort by, any column (always shown; e.g. peak_deceleration_g.cabin; a part of "
+                    "one name will do)")
     sm.add_argument("--ascending", action="store_true", help="sort ascending (default descending)")
     sm.add_argument("--head", type=int, default=30, help="rows to show (0 = all)")
     sm.add_argument("--columns", nargs="+", help="columns to show besides variant and the study axes (substrings match)")

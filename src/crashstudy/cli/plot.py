@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 from matplotlib.figure import Figure
 
+from crashstudy.analysis.factors import factors
 from crashstudy.analysis.plot import (
     ITEM_DIM,
     ITEMS_PER_FIGURE,
@@ -106,14 +107,14 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
             if args.y_axis is not None:
                 y = None if args.y_axis.lower() == "none" else args.y_axis  # --y none: line plot
             else:
-                y = next((a for a in axes if a != x), None)
+                y = next((a for a, m in factors(dict(ds.attrs), axes).items() if x not in m), None)  # another factor
             node = crash_node(ds)
             for metric in _matrix_metrics(summary, axes, args.quantity, args.items, free_nodes(ds), where, node):
                 units = (
                     ds[metric.split(".", 1)[0]].attrs.get("units") if metric.split(".", 1)[0] in ds else None
                 )
                 fig = plot_matrix(summary, metric, x, y, axes=axes, units=units, title=f"{study_name(ds)}: {metric}",
-                                  axis_units=axis_units(ds, axes))  # fmt: skip
+                                  axis_units=axis_units(ds, axes), factors=factors(dict(ds.attrs), axes))  # fmt: skip
                 suffix = f"-{x}" + (f"-{y}" if y else "") if args.x_axis or args.y_axis else ""
                 figures.append((f"matrix-{metric}{suffix}", fig))
         elif args.kind == "pulse":
