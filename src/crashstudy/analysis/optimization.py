@@ -223,9 +223,10 @@ def read_data(path: Path, end_time: float | None = None) -> tuple[np.ndarray, np
     return t, y
 
 
-def check_span(path: Path, t: np.ndarray, end_time: float) -> None:
-    """Refuse data times outside 0 .. ``end_time`` (the model's channel would be clamped there, silently)."""
-    outside = np.flatnonzero((t < 0.0) | (t > end_time * (1.0 + 1e-9)))
+def check_span(path: Path, t: np.ndarray, end_time: float, slack: float = 0.0) -> None:
+    """Refuse data times outside 0 .. ``end_time`` (+ ``slack``): the model's channel would be clamped
+    there, silently."""
+    outside = np.flatnonzero((t < 0.0) | (t > end_time * (1.0 + 1e-9) + slack))
     if len(outside):
         raise DataFileError(
             f"{path}, line {int(outside[0]) + 2}: the data run from t = {t[0]:g} to {t[-1]:g}, the model from "
@@ -249,7 +250,8 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
     lo, hi = np.array([b[0] for b in variables.values()]), np.array([b[1] for b in variables.values()])
     interval = float(np.min(np.diff(t_data))) / 2.0  # the model sampled at least twice as often as the data
     ev = Evaluator(study, variables, histories=[channel["quantity"]], interval=interval)
-    check_span(base_dir / spec["data"], t_data, float(np.max(ev.plan.times)))
+    # the last history sample (end_time, up to one sampling interval): data past it would meet a clamped channel
+    check_span(base_dir / spec["data"], t_data, float(np.max(ev.plan.times)), 0.5 * ev.plan.interval)
     from crashstudy.results.attributes import units_of
 
     unit = units_of(ev.plan)

@@ -34,6 +34,7 @@ from crashstudy.results.tables import PARQUET, SUMMARY, decode_texts, summary_fr
 from crashstudy.safefs import PlantedEntryError, open_regular
 
 __all__ = ["Results", "open_results"]
+NOT_THE_RUNS = "it is not the file that run wrote (changed or copied in since)"
 
 
 class Results:
@@ -66,9 +67,9 @@ class Results:
         if not isinstance(entry, dict):
             why = f"{name} is not listed in {MANIFEST}: the run that wrote {FINAL} did not write it"
         elif entry.get("size") != size:
-            why = f"{name} has {size} bytes, {MANIFEST} records {entry.get('size')}: it was changed after the run"
+            why = f"{name} has {size} bytes, {MANIFEST} records {entry.get('size')}: {NOT_THE_RUNS}"
         elif "sha256" in entry and integrity.sha256_of(fh) != entry["sha256"]:
-            why = f"the SHA-256 of {name} is not the one {MANIFEST} records: it was changed after the run"
+            why = f"the SHA-256 of {name} is not the one {MANIFEST} records: {NOT_THE_RUNS}"
         if why:
             fh.close()
             raise InputError([Problem(str(self.dir), None, "", f"{integrity.INCONSISTENT} ({why})")])
