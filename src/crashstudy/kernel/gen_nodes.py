@@ -128,7 +128,7 @@ def emit_results(g: Any, ind: str) -> None:
         emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if static[n] or not movable[n] else f"np.sqrt({R[f'pa{n}']})"))
     for wl in range(W):
         emit(f"{ind}peak_wall[{wl}, q] = {R[f'pw{wl}']}")
-        emit(f"{ind}wall_impulse[{wl}, q] = {R[f'wi{wl}']}")
+        emit(f"{ind}w_impulse[{wl}, q] = {R[f'wi{wl}']}")
 
 
 
