@@ -98,7 +98,20 @@ def _check_full_twin(ref: KernelOutput, batch: Any) -> None:
 
 def _check_walls(ref: KernelOutput, batch: Any) -> None:
     assert batch.x0.shape[1] == 2 and np.all(ref.status == 0)
-    assert np.all(np.max(ref.peak_wall_force, axis=1) > 0), "both walls are hit"
+    # a wall that only stops a node reports an impulse; one that holds it against a force, a contact force
+    assert np.all(np.max(ref.peak_wall_force + ref.wall_impulse, axis=1) > 0), "both walls are hit"
+
+
+def _helicopter_penalty_side() -> dict[str, Any]:
+    """:func:`_helicopter_walls` with a penalty side wall (contact stiffness a study axis)."""
+    model = _helicopter_walls()
+    model["rigid_walls"][1]["stiffness"] = 1.0e6
+    return model
+
+
+def _check_penalty(ref: KernelOutput, batch: Any) -> None:
+    _check_walls(ref, batch)
+    assert np.all(batch.wall_stiffness[1] > 0) and np.all(ref.wall_impulse[1] == 0.0) and np.all(ref.peak_wall_force[1] > 0)
 
 
 def _check_crushed(ref: KernelOutput, batch: Any) -> None:
@@ -189,6 +202,8 @@ CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]], Cal
        for case in TWINS},
     "2d-two-walls-gravity-load": (_helicopter_walls, {"nodes.cabin.mass": [200.0, 250, 300, 350, 400]},
                                   _check_walls),
+    "2d-rigid-and-penalty-walls": (_helicopter_penalty_side, {"rigid_walls.1.stiffness": [2e5, 5e5, 1e6, 2e6, 4e6]},
+                                   _check_penalty),
     "2d-crushed-to-zero": (_helicopter_crushed, {"impact_velocity": [6.0, 8.2, 10.0, 30.0]}, _check_crushed),
     "general-nonlinear-reversal": (_mount_reversal, {"impact_velocity": [2.0, 2.5, 3.0, 3.5]}, _check_reversal),
     "knots-crush-rebound": (lambda: dict(CRUSH_REBOUND, time_step={"tolerance": 1e-3},

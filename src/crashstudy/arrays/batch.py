@@ -77,6 +77,7 @@ class Batch:
     pm_scale: np.ndarray  # (P, V)
     wall_point: np.ndarray  # (W, D, V) [length]
     wall_normal: np.ndarray  # (W, D, V) unit normal
+    wall_stiffness: np.ndarray  # (W, V) contact stiffness [force/length]: 0 a rigid wall, > 0 a penalty wall
     dt: np.ndarray  # (V,) [time]
     n_steps: np.ndarray  # (V,) int
     out_every: np.ndarray  # (V,) int
@@ -187,7 +188,8 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         unit = np.where(nlen[:, None, :] > 0, normal / nlen[:, None, :], 0.0)
     end_time = P[b["end_time"].start]
     spacing = time_curve_spacing(topo, cx)
-    steps = choose_steps(topo, mass, kmax, damp, end_time, P[b["time_step"].start], interval, spacing)
+    wall_k = np.ascontiguousarray(P[b["wall_k"]])
+    steps = choose_steps(topo, mass, kmax, damp, end_time, P[b["time_step"].start], interval, spacing, wall_k)
 
     too_many = steps.too_many if steps.too_many is not None else np.zeros(V, dtype=bool)
     for code, bad in ((7, too_many), (6, ~(end_time > 0)), (5, bad_normal), (4, np.any(length0 == 0, axis=0)),
@@ -206,7 +208,7 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         load_force=np.ascontiguousarray(P[b["load"]].reshape(len(topo.load_node), D, V)),
         pm_scale=np.ascontiguousarray(P[b["pm_scale"]]),
         wall_point=np.ascontiguousarray(P[b["wall_point"]].reshape(W, D, V)),
-        wall_normal=np.ascontiguousarray(unit), dt=steps.dt, n_steps=steps.n_steps,
+        wall_normal=np.ascontiguousarray(unit), wall_stiffness=wall_k, dt=steps.dt, n_steps=steps.n_steps,
         out_every=steps.out_every, ke_fraction=P[b["ke_fraction"].start].copy(),
         min_time=P[b["min_time"].start].copy(), invalid=invalid,
         energy_floor=_energy_floor(kmax, length0, mass, v0), rec_block=np.ones(V, dtype=np.int64),
@@ -352,7 +354,8 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     for mask, _ in rules:
         bad |= mask.any(axis=0)
     kmax, damp = spring_stiffness_bound(topo, k, P[b["cx"]], P[b["cy_"]])
-    steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, P[b["cx"]]))
+    steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, P[b["cx"]]),
+                         P[b["wall_k"]])
     assert steps.too_many is not None
     over = steps.too_many & ~bad  # a variant that breaks another rule has no meaningful step
     def too_small(c: int) -> str:

@@ -144,7 +144,7 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
 
     sizes = [("mass", N), ("position", N * D), ("velocity", N * D), ("k", S), ("ty", S), ("cy", S),
              ("cx", ptot), ("cy_", ptot), ("gravity", D), ("load", L * D), ("pm_scale", P),
-             ("wall_point", W * D), ("wall_normal", W * D), ("end_time", 1), ("time_step", 1),
+             ("wall_point", W * D), ("wall_normal", W * D), ("wall_k", W), ("end_time", 1), ("time_step", 1),
              ("ke_fraction", 1), ("min_time", 1),
              ("kt", S), ("fy", S), ("e0", S), ("fail_t", S), ("fail_c", S)]  # fmt: skip
     blocks: dict[str, slice] = {}
@@ -242,6 +242,7 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
         for d in range(D):
             put("wall_point", i * D + d, w.point[d], f"rigid_walls.{i}.point.{d}")
             put("wall_normal", i * D + d, w.normal[d], f"rigid_walls.{i}.normal.{d}")
+        put("wall_k", i, w.stiffness or 0.0, f"rigid_walls.{i}.stiffness" if w.stiffness is not None else None)
     put("end_time", 0, m.end_time, "end_time")
     mode = m.time_step.mode
     put("time_step", 0, getattr(m.time_step, mode), f"time_step.{mode}")

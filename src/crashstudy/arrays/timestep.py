@@ -8,6 +8,9 @@ Dampers enter as the nodal damping rate ``gamma_n = 2 C_n / m_n`` (``C_n`` the s
 coefficients at the node; the same bound as for the stiffness) with the damped limit
 ``dt <= (2 / omega) (sqrt(1 + xi^2) - xi)``, ``xi = gamma / omega`` (``-> 1/gamma`` for a pure damper,
 the limit of the kernel's second-order damper velocity ``v^{n-1/2} + dt/2 a^{n-1}``).
+A penalty wall of contact stiffness ``k_w`` is a spring to the ground at each node it holds:
+``k_w |u_n|^2 = 2 (k_w / 2) |u_n|^2``, so it adds ``k_w / 2`` to ``K_n`` (one mass on a penalty wall:
+``omega = sqrt(k_w / m)``, the exact bound).
 
 Accuracy (``tolerance`` mode): central difference is second order, and the relative error of the
 reported peaks behaves as ``~ (omega dt)^2 / 8``; the step ``dt = min(dt_crit, 2 sqrt(2 tol) / omega)``
@@ -97,6 +100,7 @@ def choose_steps(
     step_value: np.ndarray,
     interval: float,
     time_curve_spacing: np.ndarray,
+    wall_k: np.ndarray | None = None,
 ) -> StepChoice:
     """Choose the step of every variant.
 
@@ -106,6 +110,7 @@ def choose_steps(
     end_time, step_value : (V,) end time [time] and the ``time_step`` value of the topology's mode.
     interval : history sampling interval [time]; the step divides it exactly.
     time_curve_spacing : (V,) shortest segment of any load/prescribed-motion curve [time] (inf if none).
+    wall_k : (W, V) contact stiffness of each wall [force/length] (0: rigid); None: no penalty wall.
     """
     N, V = mass.shape
     K = np.zeros((N, V))
@@ -116,6 +121,9 @@ def choose_steps(
         K[j[s]] += kmax[s]
         Cn[i[s]] += damp[s]
         Cn[j[s]] += damp[s]
+    for w in range(len(wall_k) if wall_k is not None else 0):
+        assert wall_k is not None
+        K[np.asarray(topo.wall_nodes[w], dtype=bool)] += 0.5 * wall_k[w]
     movable = np.asarray(~topo.fixed.all(axis=1))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         m = np.where(movable[:, None], mass, np.inf)

@@ -17,6 +17,7 @@ import numpy as np
 
 from crashstudy.kernel import generic_block as gb
 from crashstudy.kernel import laws as lw
+from crashstudy.kernel import wall_contact as wc
 from crashstudy.kernel.codes import (
     CRUSH,
     DAMPER,
@@ -63,7 +64,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
     W = wall_nodes.shape[0]
     NL = load_node.shape[0]
     NP = pm_node.shape[0]
-    has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot = gb.flags(T, P, H)
+    has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp = gb.flags(T, P, H)
     # 1-D models without walls, prescribed motion or external forces take a fused node update
     fused_1d = D == 1 and W == 0 and NP == 0 and no_ext
     for bi in range(b_lo, b_hi):
@@ -75,6 +76,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
          e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act,
          actf, n_fail, nst, next_rec, st_ok, me, broken, v2, ftmp, e_init, nmax) = gb.block_arrays(
             lo, B, has_state, any_knot, T, P, Out)
+        pen_e = np.zeros((W, N, B))  # stored energy of each node at each penalty wall
         for n in range(nmax + 1):
             nact = 0
             n_end = nmax + 1  # the first step at which an active variant ends
@@ -114,8 +116,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         ax_tmp[0, w] = sg
                     if kind == DAMPER or kind == NONLINEAR_DAMPER or has_term:
                         for w in range(B):
-                            vpj = lw.end_rate(v[j, 0, w], acc[j, 0, w], dt_b[w])
-                            vpi = lw.end_rate(v[i, 0, w], acc[i, 0, w], dt_b[w])
+                            vpj = lw.end_rate(v[j, 0, w], 0.0 if pm_disp[j, 0] else acc[j, 0, w], dt_b[w])
+                            vpi = lw.end_rate(v[i, 0, w], 0.0 if pm_disp[i, 0] else acc[i, 0, w], dt_b[w])
                             ed_tmp[w] = sg_b[s, w] * (vpj - vpi)
                 else:
                     for w in range(B):
@@ -136,8 +138,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         edot = 0.0
                         for d in range(D):
                             ax_tmp[d, w] = ax_tmp[d, w] / dn
-                            vpj = lw.end_rate(v[j, d, w], acc[j, d, w], dt_b[w])
-                            vpi = lw.end_rate(v[i, d, w], acc[i, d, w], dt_b[w])
+                            vpj = lw.end_rate(v[j, d, w], 0.0 if pm_disp[j, d] else acc[j, d, w], dt_b[w])
+                            vpi = lw.end_rate(v[i, d, w], 0.0 if pm_disp[i, d] else acc[i, d, w], dt_b[w])
                             edot += ax_tmp[d, w] * (vpj - vpi)
                         e_tmp[w] = lw.elongation_2d(ln, l0_b[s, w])
                         ed_tmp[w] = edot
@@ -280,6 +282,9 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     for d in range(D):
                         for w in range(B):
                             acc_prev[n_, d, w] = acc[n_, d, w]
+            if W > 0:  # penalty walls' forces (kernel.wall_contact)
+                wc.penalty(lo, B, W, N, D, wall_nodes, wall_normal, wall_point, P.wall_stiffness, x, f, wforce, wall_e,
+                           pen_e, act)  # fmt: skip
             # external forces, accelerations, velocities
             if fused:
                 # a = f/m, v^{n+1/2}, kinetic energy, peak |a| and x^{n+1} in one pass (the same
@@ -349,32 +354,9 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     acc[p, d, w] = pm_acc[k, w]
                     ftot = f[p, d, w] + fext[p, d, w]
                     fext[p, d, w] += m_b[p, w] * acc[p, d, w] - ftot
-            if W > 0:
-                wforce[:] = 0.0
-            for wl in range(W):
-                for n_ in range(N):
-                    if wall_nodes[wl, n_] == 0.0:
-                        continue
-                    for w in range(B):
-                        q = lo + w
-                        vn = 0.0
-                        gap = 0.0
-                        dist = 0.0
-                        for d in range(D):
-                            nr = wall_normal[wl, d, q]
-                            vn += vnew[n_, d, w] * nr
-                            gap += (x[n_, d, w] - wall_point[wl, d, q]) * nr
-                            dist += (x[n_, d, w] + dt_b[w] * vnew[n_, d, w] - wall_point[wl, d, q]) * nr
-                        dvn = lw.wall_jump(vn, gap, dist, dt_b[w])
-                        we = 0.0
-                        for d in range(D):
-                            jmp = dvn * wall_normal[wl, d, q] * free[n_, d]
-                            vnew[n_, d, w] = vnew[n_, d, w] + jmp
-                            we += v[n_, d, w] * (jmp + jump_prev[wl, n_, d, w])
-                            jump_prev[wl, n_, d, w] = jmp
-                        if act[w]:
-                            wall_e[w] += -0.5 * m_b[n_, w] * we
-                        wforce[wl, w] += lw.wall_force(m_b[n_, w], dvn, dt_b[w])
+            if W > 0:  # rigid walls (kernel.wall_contact)
+                wc.rigid(lo, B, W, N, D, h, wall_nodes, wall_normal, wall_point, P.wall_stiffness, free, x, v, vnew,
+                         acc, m_b, dt_b, jump_prev, wall_e, wforce, Out.wall_impulse, act, actf)  # fmt: skip
 
             # energies (sums over nodes/springs with the variant loop innermost)
             if fused:

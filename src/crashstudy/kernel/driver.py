@@ -33,7 +33,7 @@ _THREADS = [os.cpu_count() or 1]
 TOPO_FIELDS = ("spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_off", "free", "load_node",
                "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check")  # fmt: skip
 VARS_FIELDS = ("mass", "inv_mass", "x0", "v0", "length0", "sign", "kpar", "yield_t", "yield_c", "cx", "cy", "cds",
-               "cs0", "cs1", "knot_y", "gravity", "load_force", "pm_scale", "wall_point", "wall_normal", "dt",
+               "cs0", "cs1", "knot_y", "gravity", "load_force", "pm_scale", "wall_point", "wall_normal", "wall_stiffness", "dt",
                "n_steps", "out_every", "ke_fraction", "min_time", "invalid", "energy_floor",
                "rec_block", "ktan", "fy", "e0", "fail_t", "fail_c", "state0", "ie0", "rate0")  # fmt: skip
 Topo = namedtuple("Topo", TOPO_FIELDS)  # type: ignore[misc]
@@ -45,7 +45,7 @@ Hist = namedtuple("Hist", ("rec", "pos", "disp", "vel", "acc", "force", "elong",
                            "steps"))  # type: ignore[misc]  # fmt: skip
 Summ = namedtuple("Summ", ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed",
                            "peak_acc", "peak_wall", "energy_error", "final_energy", "max_elongation",
-                           "spring_fail_time"))  # type: ignore[misc]  # fmt: skip
+                           "spring_fail_time", "wall_impulse"))  # type: ignore[misc]  # fmt: skip
 
 
 def set_threads(n: int) -> None:
@@ -86,7 +86,7 @@ def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int,
                 np.asarray(record, dtype=np.int64), steps)  # fmt: skip
     summ = Summ(out.status, out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush,
                 out.absorbed_energy, out.peak_acceleration, out.peak_wall_force, out.energy_error, out.final_energy,
-                out.max_elongation, out.spring_fail_time)  # fmt: skip
+                out.max_elongation, out.spring_fail_time, out.wall_impulse)  # fmt: skip
     return out, hist, summ
 
 

@@ -40,7 +40,7 @@ __all__ = ["error_estimate", "get_threads", "run_batch", "run_ordered", "set_thr
 SORT_SPREAD = 0.05  # step counts within this fraction of the longest: the batch runs unsorted (a copy saved)
 SUMMARIES = ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed_energy",
              "peak_acceleration", "peak_wall_force", "energy_error", "final_energy", "max_elongation",
-             "spring_fail_time")  # fmt: skip
+             "spring_fail_time", "wall_impulse")  # fmt: skip
 
 
 def compile_first(kernel: KernelName, batch: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,

@@ -43,6 +43,10 @@ def pass_b(g: Any, ind: str) -> None:
         node(g, i2, n)
     if W:  # wall work in the reference's order (wall by wall, node by node), running variants only
         emit(f"{i2}wall_e = {R['wall_e']}")
+        for wl in range(W):  # the penalty walls' stored energy first (as the reference)
+            for n in walls[wl]:
+                if not static[n]:
+                    emit(f"{i2}wall_e = wall_e + pe{wl}_{n} if af > 0.0 else wall_e")
         for wl in range(W):
             for n in walls[wl]:
                 if not static[n]:
@@ -124,6 +128,7 @@ def emit_results(g: Any, ind: str) -> None:
         emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if static[n] or not movable[n] else f"np.sqrt({R[f'pa{n}']})"))
     for wl in range(W):
         emit(f"{ind}peak_wall[{wl}, q] = {R[f'pw{wl}']}")
+        emit(f"{ind}w_impulse[{wl}, q] = {R[f'wi{wl}']}")
 
 
 
@@ -131,8 +136,17 @@ def node(g: Any, i2: str, n: int) -> None:
     """Node n's forces (the reference scatter's order), a^n, v^{n+1/2}, prescribed motion, external
     work, walls, kinetic energy, x^{n+1} and peak |a|."""
     D, R, W, emit, grav, keep_a, loaded, loads, movable, pm, walls = g.D, g.R, g.W, g.emit, g.grav, g.keep_a, g.loaded, g.loads, g.movable, g.pm, g.walls  # fmt: skip
+    held = [wl for wl in range(W) if n in walls[wl]]
+    for wl in held:  # penalty walls: force k pen of x^n, stored energy (0 for a rigid wall)
+        gap = _lsum([f"({R[f'x{n}_{d}']} - {R[f'wp{wl}_{d}']}) * {R[f'wn{wl}_{d}']}" for d in range(D)])
+        emit(f"{i2}fp{wl}, ep = wall_penalty({R[f'wk{wl}']}, {gap})")
+        emit(f"{i2}wf{wl} = wf{wl} + fp{wl}")
+        emit(f"{i2}pe{wl}_{n} = ep - {R[f'pen{wl}_{n}']}")
+        emit(f"{i2}{R[f'pen{wl}_{n}']} = ep")
     for d in range(D):
         chain = _chain(g, n, d, lambda s: f"F{s}", lambda s, d: f"ax{s}_{d}")
+        for wl in held:
+            chain = f"({chain} + fp{wl} * {R[f'wn{wl}_{d}']})"
         fext = f"{R[f'm{n}']} * {R[f'g{d}']}" if grav else "0.0"
         if n in loaded:  # gravity, then the loads on this node in load order
             for k, (p, _) in enumerate(loads):
@@ -176,9 +190,15 @@ def node(g: Any, i2: str, n: int) -> None:
         if n in keep_a:  # a^{n-1}: dampers' velocity estimate, knot crossings (R ao)
             emit(f"{i2}{R[f'ao{n}_{d}']} = {R[f'a{n}_{d}']}")
             emit(f"{i2}{R[f'a{n}_{d}']} = a")
-    for wl in range(W):  # rigid walls, in wall order
-        if n in walls[wl]:
-            wall(g, i2, n, wl)
+    for wl in held:  # rigid walls, in wall order
+        wall(g, i2, n, wl)
+    for d in range(D if held else 0):  # a^n with the walls' contact forces (held: 0)
+        if n in keep_a:
+            emit(f"{i2}{R[f'a{n}_{d}']} = a_{d}")
+        if n in g.record:
+            emit(f"{i2}{R[f'am{n}_{d}']} = a_{d}")
+        if "acceleration" in g.hist:
+            emit(f"{i2}{R[f'wa{n}_{d}']} = a_{d}")
     for d in range(D):
         x, v = R[f"x{n}_{d}"], R[f"v{n}_{d}"]
         emit(f"{i2}ke = ke + 0.5 * {R[f'm{n}']} * vo_{d} * vn_{d}")
@@ -198,13 +218,16 @@ def wall(g: Any, i2: str, n: int, wl: int) -> None:
     emit(f"{i2}wv = {_lsum([f'vn_{d} * {nr[d]}' for d in range(D)])}")
     emit(f"{i2}gap = {_lsum([f'({xw[d]} - {pt[d]}) * {nr[d]}' for d in range(D)])}")
     emit(f"{i2}dist = {_lsum([f'(({xw[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]}' for d in range(D)])}")
-    emit(f"{i2}dvn = wall_jump(wv, gap, dist, dtw)")
+    emit(f"{i2}dvn = wall_jump(wv, gap, dist, dtw, {R[f'wk{wl}']})")
+    emit(f"{i2}c = wall_hold(dvn, {_lsum([f'a_{d} * {nr[d]}' for d in range(D)])}, h * dtw)")
     emit(f"{i2}we = 0.0")
     for d in range(D):
         jp = R[f"jp{wl}_{n}_{d}"]
         emit(f"{i2}jmp = dvn * {nr[d]} * {float(free[n][d])!r}")
         emit(f"{i2}vn_{d} = vn_{d} + jmp")
+        emit(f"{i2}a_{d} = a_{d} + c * {nr[d]} * {float(free[n][d])!r}")
         emit(f"{i2}we = we + vo_{d} * (jmp + {jp})")
         emit(f"{i2}{jp} = jmp")
     emit(f"{i2}we{wl}_{n} = -0.5 * {R[f'm{n}']} * we")
-    emit(f"{i2}wf{wl} = wf{wl} + wall_force({R[f'm{n}']}, dvn, dtw)")
+    emit(f"{i2}wf{wl} = wf{wl} + wall_force({R[f'm{n}']}, c)")
+    emit(f"{i2}{R[f'wi{wl}']} = {R[f'wi{wl}']} + wall_impulse({R[f'm{n}']}, dvn, c, h * dtw) * af")

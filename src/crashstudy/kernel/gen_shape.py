@@ -24,7 +24,7 @@ from crashstudy.kernel.codes import (
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-GEN_VERSION = 9  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 10  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = environment.gen_block()  # variants per block (CRASHSTUDY_GEN_BLOCK)
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 
@@ -182,6 +182,8 @@ def layout(shape: dict[str, Any]) -> Any:
         R.add("wall_e")
     for wl in range(W):
         R.add(f"pw{wl}")
+        R.add(f"wi{wl}")
+        R.add(f"wk{wl}")
         if "wall_force" in hist:
             R.add(f"wf{wl}")
         for d in range(D):
@@ -190,6 +192,8 @@ def layout(shape: dict[str, Any]) -> Any:
         for n in walls[wl]:
             for d in range(D if not static[n] else 0):
                 R.add(f"jp{wl}_{n}_{d}")
+            if not static[n]:
+                R.add(f"pen{wl}_{n}")
     live = [n for n in range(N) if not static[n]]
     for n in range(N if D > 1 else 0):
         if static[n]:
@@ -249,6 +253,10 @@ def layout(shape: dict[str, Any]) -> Any:
     for n in record:
         for d in range(D):
             R.add(f"am{n}_{d}")
+    if "acceleration" in hist:  # a^n of a wall node with the walls' contact forces
+        for n in sorted({n for wn in walls for n in wn} - {n for n in range(N) if static[n]}):
+            for d in range(D):
+                R.add(f"wa{n}_{d}")
     if hist:
         for n in live:
             for d in range(D):

@@ -15,7 +15,7 @@ from crashstudy.kernel.gen_springs import pass_a, pass_k
 LAWS = ("collapsed", "crush_knot_force", "crush_law", "crush_window", "damper_force", "elongation_1d", "elongation_2d",
         "end_rate", "energy_increment", "ext_power", "general_law", "general_reverse_call", "general_window",
         "knot_accel", "knot_crossing", "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window",
-        "peak", "time_window", "wall_force", "wall_jump", "work_increment",
+        "peak", "time_window", "wall_force", "wall_hold", "wall_impulse", "wall_jump", "wall_penalty", "work_increment",
         "elastoplastic_law", "energy_first_half", "broken_at")  # fmt: skip
 # local name in the generated kernel -> (record, field) of crashstudy.kernel.driver
 RECORD_NAMES = [(n, "P", f) for n, f in (
@@ -24,14 +24,15 @@ RECORD_NAMES = [(n, "P", f) for n, f in (
     ("cs0", "cs0"), ("cs1", "cs1"), ("knot_y", "knot_y"), ("gravity", "gravity"), ("dt", "dt"),
     ("n_steps", "n_steps"), ("out_every", "out_every"), ("invalid", "invalid"), ("e_floor", "energy_floor"),
     ("ke_fraction", "ke_fraction"), ("min_time", "min_time"), ("wall_point", "wall_point"),
-    ("wall_normal", "wall_normal"), ("load_force", "load_force"), ("pm_scale", "pm_scale"),
+    ("wall_normal", "wall_normal"), ("wall_k", "wall_stiffness"), ("load_force", "load_force"), ("pm_scale", "pm_scale"),
     ("ktan", "ktan"), ("fyld", "fy"), ("elong0", "e0"), ("state0", "state0"), ("ie0", "ie0"), ("rate0", "rate0"),
     ("fail_t", "fail_t"), ("fail_c", "fail_c"))] + [
     ("off", "T", "curve_off")] + [(n, "H", f) for n, f in (
     ("h_pos", "pos"), ("h_disp", "disp"), ("h_vel", "vel"), ("h_acc", "acc"), ("h_force", "force"),
     ("h_elong", "elong"), ("h_energy", "energy"), ("h_wall", "wall"))] + [(n, "O", n) for n in (
     "status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed", "peak_acc", "peak_wall",
-    "energy_error", "final_energy", "max_elongation", "spring_fail_time")]  # fmt: skip
+    "energy_error", "final_energy", "max_elongation", "spring_fail_time")] + [
+    ("w_impulse", "O", "wall_impulse")]  # fmt: skip  (not "wall_impulse": that name is the law)
 
 
 def source(shape: dict[str, Any]) -> str:
@@ -163,6 +164,7 @@ def lanes(g: Any, ind: str) -> None:
         for d in range(D):
             emit(f"{i2}{R[f'wn{wl}_{d}']} = wall_normal[{wl}, {d}, q]")
             emit(f"{i2}{R[f'wp{wl}_{d}']} = wall_point[{wl}, {d}, q]")
+        emit(f"{i2}{R[f'wk{wl}']} = wall_k[{wl}, q]")
     for n in live:
         emit(f"{i2}{R[f'm{n}']} = mass[{n}, q]")
         for d in range(D):
@@ -289,6 +291,7 @@ def records(g: Any, i3: str) -> None:
                     for k, (p, dd, _, _) in enumerate(pm):  # a prescribed dof: its kinematic acceleration
                         if (p, dd) == (n, d):
                             acc = R[f"pma{k}"]
+                    acc = R[f"wa{n}_{d}"] if f"wa{n}_{d}" in R.at else acc  # a wall node: with the contact force
                 for name, arr, val in (("position", "h_pos", pos), ("displacement", "h_disp", dsp),
                                        ("velocity", "h_vel", vel), ("acceleration", "h_acc", acc)):  # fmt: skip
                     if name in hist:

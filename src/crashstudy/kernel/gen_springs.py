@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from crashstudy.kernel import codes
 from crashstudy.kernel.codes import CRUSH, DAMPER, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR, NONLINEAR_DAMPER
 from crashstudy.kernel.gen_shape import _lsum
 
@@ -99,7 +100,9 @@ def time_curve(g: Any, ind: str, name: str, c: int, t: str) -> None:
 
 def vp(g: Any, n: int, d: int) -> str:
     R, static = g.R, g.static  # fmt: skip
-    return "0.0" if static[n] else f"end_rate({R[f'v{n}_{d}']}, {R[f'a{n}_{d}']}, dtw)"
+    # a dof driven by a displacement curve: v^{n-1/2}, the slope of its segment (see the reference)
+    disp = any((p, dd, kind) == (n, d, codes.PM_DISPLACEMENT) for p, dd, kind, _ in g.pm)
+    return "0.0" if static[n] else f"end_rate({R[f'v{n}_{d}']}, {'0.0' if disp else R[f'a{n}_{d}']}, dtw)"
 
 
 

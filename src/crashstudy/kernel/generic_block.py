@@ -16,6 +16,7 @@ from crashstudy.kernel.codes import (
     INVALID,
     NONLINEAR,
     NSTATE,
+    PM_DISPLACEMENT,
     STATE_MATERIALS,
     UNSTABLE,
     UNSTABLE_ENERGY,
@@ -49,7 +50,8 @@ def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - com
 
 @_jit
 def flags(T, P, H):  # pragma: no cover - compiled
-    """What the model contains: (has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot)."""
+    """What the model contains: (has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot,
+    pm_disp: (N, D) the dofs driven by a displacement curve, whose rate is v^{n-1/2} (see the reference))."""
     material, gravity, rec_mask, ke_fraction, free = T.material, P.gravity, H.rec, P.ke_fraction, T.free
     pm_node, curve_a, off, knot_check = T.pm_node, T.curve_a, T.curve_off, T.knot_check
     N, D, _ = P.x0.shape
@@ -90,7 +92,11 @@ def flags(T, P, H):  # pragma: no cover - compiled
                 if knot_check[k]:
                     knotted[s] = True
                     any_knot = True
-    return has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot
+    pm_disp = np.zeros((N, D), dtype=np.bool_)
+    for k in range(NP):
+        if T.pm_kind[k] == PM_DISPLACEMENT:
+            pm_disp[pm_node[k], T.pm_dir[k]] = True
+    return has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp
 
 
 @_jit

@@ -288,14 +288,41 @@ def work_increment(work, bal, dt, af):  # pragma: no cover - compiled
 
 
 @_jit
-def wall_jump(vn, gap, dist, dt):  # pragma: no cover - compiled
-    """Normal velocity change that lands a node crossing a rigid wall exactly on the plane."""
-    return (-gap / dt - vn) if ((dist < 0.0) & (vn < 0.0)) else 0.0
+def wall_jump(vn, gap, dist, dt, k):  # pragma: no cover - compiled
+    """Normal velocity change that lands a node crossing a rigid wall (``k`` = 0) exactly on the plane."""
+    return (-gap / dt - vn) if ((dist < 0.0) & (vn < 0.0) & (k == 0.0)) else 0.0
 
 
 @_jit
-def wall_force(m, dvn, dt):  # pragma: no cover - compiled
-    return m * abs(dvn) / dt
+def wall_penalty(k, gap):  # pragma: no cover - compiled
+    """Penalty wall of contact stiffness ``k`` (0: rigid, an exact 0): (force k pen along the normal,
+    stored energy k pen^2 / 2) for the penetration ``pen = max(0, -gap)``."""
+    pen = -gap if -gap > 0.0 else 0.0
+    fp = k * pen
+    return fp, 0.5 * fp * pen
+
+
+@_jit
+def wall_hold(dvn, an, dtn):  # pragma: no cover - compiled
+    """The normal acceleration a rigid wall cancels in this step (per unit mass, >= 0): the part of its
+    velocity jump ``dvn`` that the node's own forces (normal acceleration ``an``) pushed into the wall
+    over the velocity update ``dtn``; the rest of the jump is the impact (docs/solver.md, "Rigid walls")."""
+    h = -an if -an > 0.0 else 0.0
+    c = dvn / dtn
+    return c if c < h else h
+
+
+@_jit
+def wall_impulse(m, dvn, c, dtn):  # pragma: no cover - compiled
+    """Impact impulse of one node in one step: the momentum its jump removes beyond the held part ``c dtn``."""
+    d = dvn - c * dtn
+    return m * (d if d > 0.0 else 0.0)
+
+
+@_jit
+def wall_force(m, c):  # pragma: no cover - compiled
+    """Contact force of a held node: the reaction ``m c`` to the forces pushing it into the wall."""
+    return m * c
 
 
 @_jit

@@ -33,7 +33,7 @@ class KernelOutput:
     max_crush: np.ndarray  # (S, V) max shortening max(-e) [length]
     absorbed_energy: np.ndarray  # (S, V) work done on the spring up to the end [energy]
     peak_acceleration: np.ndarray  # (N, V) max |a| [length/time^2]
-    peak_wall_force: np.ndarray  # (W, V) [force]
+    peak_wall_force: np.ndarray  # (W, V) [force] largest contact force (docs/solver.md, "Rigid walls")
     energy_error: np.ndarray  # (V,) max relative energy balance error
     final_energy: np.ndarray  # (4, V) KE, IE, W_ext, E_wall at the end [energy]
     histories: dict[str, np.ndarray] = field(default_factory=dict)
@@ -47,6 +47,7 @@ class KernelOutput:
     # means, centred on t = r k dt; k = 1: a^n at every step, as the acceleration history has it); zero after a
     # variant's last block. None: not recorded
     step_acceleration: np.ndarray | None = None
+    wall_impulse: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (W, V) [force*time] impacts
     # derived from the record after the kernel (crashstudy.metrics.record.ChunkCriteria: .take(columns)); None: none
     criteria: Any = None
 
@@ -77,7 +78,7 @@ def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...],
         t_end=np.zeros(V), peak_force=np.zeros((S, V)), max_crush=np.zeros((S, V)),
         absorbed_energy=np.zeros((S, V)), peak_acceleration=np.zeros((N, V)), peak_wall_force=np.zeros((W, V)),
         energy_error=np.zeros(V), final_energy=np.zeros((4, V)), histories=hist,
-        max_elongation=np.zeros((S, V)), spring_fail_time=np.full((S, V), np.nan),
+        max_elongation=np.zeros((S, V)), spring_fail_time=np.full((S, V), np.nan), wall_impulse=np.zeros((W, V)),
     )  # fmt: skip
 
 

@@ -11,7 +11,11 @@ Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0`
 2. external forces (loads, gravity) and accelerations ``a^n = f^n / m`` on free dofs;
 3. ``v^{n+1/2} = v^{n-1/2} + dt a^n`` (half a step at ``n = 0``), then prescribed motion and
    rigid walls (a node that would cross a wall gets the normal velocity that lands it exactly on
-   the plane, and none into it afterwards: a perfectly plastic stonewall impact);
+   the plane, and none into it afterwards: a perfectly plastic stonewall impact). The part of that
+   jump the node's own forces pushed into the wall (``laws.wall_hold``) is the wall's contact force
+   and joins the node's acceleration (a held node has a = 0); the rest is the impact impulse. A
+   penalty wall (``wall_stiffness`` > 0) has no jump: its force ``k pen`` of ``x^n`` joins the nodal
+   forces in step 2 and its stored energy ``k pen^2 / 2`` the wall energy;
 4. energies: internal and external work by the trapezoidal rule, kinetic energy as
    ``1/2 m v^{n-1/2} . v^{n+1/2}`` (exactly conserved with the trapezoidal internal energy for a
    linear system), wall energy ``-1/2 v^{n-1/2} . (J^n + J^{n-1})`` for the wall impulses ``J``
@@ -78,6 +82,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     fext_prev = np.zeros((N, D, V))
     a_prev = np.zeros((N, D, V))  # a^{n-1}: dampers use the second-order velocity v^{n-1/2} + dt/2 a^{n-1}
     jump_prev = np.zeros((W, N, D, V))  # velocity jump of each node at each wall in the previous step
+    pen_e = np.zeros((W, N, V))  # energy stored by each node at each penalty wall
     # 2-D: the previous direction of each spring; a reversal means the nodes passed through each other
     axis_prev = (b.x0[b.spring_j] - b.x0[b.spring_i]) if D > 1 else np.zeros((0, D, V))
     ie = b.ie0.copy()  # IE includes the energy stored at t = 0 (initial_elongation)
@@ -104,6 +109,11 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     knot_dfax = np.zeros((S, D, V))  # that knot's force minus the force interpolated in time, times the axis
     movable = ~np.all(b.free == 0.0, axis=1)
     movable[b.pm_node] = True
+    # a dof driven by a displacement curve: its rate at t^n is v^{n-1/2}, the slope of the segment it is
+    # on (no extrapolation by a^{n-1}, which is a velocity jump / dt at a kink of the curve)
+    pm_disp = np.zeros((N, D, 1), dtype=bool)
+    for k in range(len(b.pm_node)):
+        pm_disp[b.pm_node[k], b.pm_dir[k]] = b.pm_kind[k] == PM_DISPLACEMENT
 
     for n in range(int(nst.max(initial=-1)) + 1):
         if check is not None and n % STOP_EVERY == 0:
@@ -118,10 +128,11 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         elong = np.zeros((S, V))
         edot_min = np.full(V, np.inf)
         crushed = np.full(V, -1)
+        a_rate = np.where(pm_disp, 0.0, a_prev)
         for s in range(S):
             i, j = b.spring_i[s], b.spring_j[s]
-            vpj = v[j] + 0.5 * dt * a_prev[j]
-            vpi = v[i] + 0.5 * dt * a_prev[i]
+            vpj = v[j] + 0.5 * dt * a_rate[j]
+            vpi = v[i] + 0.5 * dt * a_rate[i]
             if D == 1:
                 e = b.e0[s] + b.sign[s] * ((x[j, 0] - b.x0[j, 0]) - (x[i, 0] - b.x0[i, 0]))
                 edot = b.sign[s] * (vpj[0] - vpi[0])
@@ -177,6 +188,17 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
             c = b.load_curve[k]
             scale = mat.time_curve_eval(c, t, *cargs) if c >= 0 else 1.0
             fext[b.load_node[k]] += b.load_force[k] * scale
+        wall_force = np.zeros((W, V))
+        for w in range(W):  # penalty walls (wall_stiffness > 0; 0: the law gives an exact 0)
+            for k in range(N):
+                if b.wall_nodes[w, k] == 0.0:
+                    continue
+                gap = np.sum((x[k] - b.wall_point[w]) * b.wall_normal[w], axis=0)
+                fp, ep = wall_penalty_np(b.wall_stiffness[w], gap)
+                f[k] += fp * b.wall_normal[w]
+                wall_force[w] += fp
+                wall_e += np.where(act, ep - pen_e[w, k], 0.0)
+                pen_e[w, k] = ep
         ftot = f + fext
         a = ftot * b.inv_mass
         vnew = v + dtn * a
@@ -195,7 +217,6 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
             a[p, d] = np.where(n == nst, a_prev[p, d], (vnew[p, d] - v[p, d]) / dtn)
             fext[p, d] += m[p] * a[p, d] - ftot[p, d]
 
-        wall_force = np.zeros((W, V))
         for w in range(W):
             for k in range(N):
                 if b.wall_nodes[w, k] == 0.0:
@@ -204,13 +225,17 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                 vn = np.sum(vnew[k] * nrm, axis=0)
                 gap = np.sum((x[k] - b.wall_point[w]) * nrm, axis=0)
                 dist = np.sum((x[k] + dt * vnew[k] - b.wall_point[w]) * nrm, axis=0)
-                hit = (dist < 0.0) & (vn < 0.0)
+                hit = (dist < 0.0) & (vn < 0.0) & (b.wall_stiffness[w] == 0.0)
                 dvn = np.where(hit, -gap / dt - vn, 0.0)  # lands the node exactly on the plane
+                c = wall_hold_np(dvn, np.sum(a[k] * nrm, axis=0), dtn)
                 jump = dvn * nrm * b.free[k][:, None]
                 vnew[k] = vnew[k] + jump
+                a[k] = a[k] + c * nrm * b.free[k][:, None]  # the contact force's part: a held node has a = 0
                 # wall work of the impulses of this and the previous step, at v^{n-1/2}
                 wall_e += np.where(act, -0.5 * m[k] * np.sum(v[k] * (jump + jump_prev[w, k]), axis=0), 0.0)
-                wall_force[w] += m[k] * np.abs(dvn) / dt
+                wall_force[w] += m[k] * c
+                imp = dvn - c * dtn
+                out.wall_impulse[w] += np.where(act, m[k] * np.where(imp > 0.0, imp, 0.0), 0.0)
                 jump_prev[w, k] = jump
 
         if n == 0:
@@ -290,6 +315,20 @@ def spring_knotted(b: Batch) -> np.ndarray:
         if b.material[s] in (NONLINEAR, CRUSH, GENERAL) and c >= 0:
             out[s] = bool(np.any(b.knot_check[int(b.curve_off[c]) + 1 : int(b.curve_off[c + 1]) - 1]))
     return out
+
+
+def wall_hold_np(dvn: np.ndarray, an: np.ndarray, dtn: np.ndarray) -> np.ndarray:
+    """NumPy twin of :func:`crashstudy.kernel.laws.wall_hold`."""
+    h = np.where(-an > 0.0, -an, 0.0)
+    c = dvn / dtn
+    return np.where(c < h, c, h)
+
+
+def wall_penalty_np(k: np.ndarray, gap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """NumPy twin of :func:`crashstudy.kernel.laws.wall_penalty`."""
+    pen = np.where(-gap > 0.0, -gap, 0.0)
+    fp = k * pen
+    return fp, 0.5 * fp * pen
 
 
 def knot_peak_np(cand: np.ndarray, e_lo: np.ndarray, e_hi: np.ndarray, xk: np.ndarray, yk: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ def units_of(plan: Plan) -> dict[str, str]:
     return {"length": u.length, "time": u.time, "velocity": u.velocity, "acceleration": u.acceleration,
             "force": u.force, "energy": u.energy, "mass": u.mass, "1": "1", "g": "g",
             "stiffness": f"{u.force}/{u.length}", "damping": f"{u.force}*{u.time}/{u.length}",
+            "impulse": f"{u.force}*{u.time}",
             "curve": "curve units (x: length or time, y: force or motion)"}  # fmt: skip
 
 

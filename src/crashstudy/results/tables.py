@@ -37,7 +37,9 @@ SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
     "absorbed_energy": (("spring",), "energy", "work done on the spring up to the end, plus its energy at t = 0"),
     "peak_deceleration": (("node",), "acceleration", "largest acceleration magnitude over every time step"),
     "peak_deceleration_g": (("node",), "g", "peak_deceleration in standard gravities"),
-    "peak_wall_force": (("wall",), "force", "largest rigid wall force"),
+    "peak_wall_force": (("wall",), "force", "largest rigid wall contact force: the reaction to the forces pushing "
+                        "the held nodes into the wall (impacts are wall_impulse)"),
+    "wall_impulse": (("wall",), "impulse", "impact impulse of the rigid wall: the momentum its impacts removed"),
     "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - IE0 - W_ext| / max(KE0 + |IE0| + |W_ext|, tiny), IE "
                      "including IE0 (energy stored at t = 0)"),
     "dt": ((), "time", "time step used"),
@@ -59,7 +61,7 @@ HISTORY_META = {  # name: (unit kind, long name)
     "internal_energy": ("energy", "work done on all springs and dampers, plus the energy they stored at t = 0"),
     "external_work": ("energy", "work of loads, gravity and prescribed motion"),
     "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
-    "wall_force": ("force", "rigid wall force (momentum removed per unit time)"),
+    "wall_force": ("force", "rigid wall contact force (reaction to the forces pushing held nodes into it)"),
     "filtered_acceleration": ("g", "resultant acceleration of a metric node, SAE J211 filtered (its cfc)"),
 }
 
@@ -190,6 +192,7 @@ def summary_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
     }  # fmt: skip
     if plan.topology.wall_ids:
         summary["peak_wall_force"] = o.peak_wall_force.T
+        summary["wall_impulse"] = o.wall_impulse.T
     failed = o.status != 0
     out = {}
     for name, arr in summary.items():

@@ -188,6 +188,8 @@ class RigidWall(Strict):
     point: Vector = Field(description="a point of the wall plane [length]")
     normal: Vector = Field(description="direction the wall faces (nodes stay on this side) [1], any length but not zero")
     nodes: list[Id] | None = Field(default=None, description="ids of the nodes the wall stops; absent: every node")
+    stiffness: Positive | None = Field(default=None, description="contact stiffness [force/length] > 0: a penalty "
+                                       "wall (force = stiffness x penetration); absent: a rigid wall")
 
 
 class TimeStep(Strict):

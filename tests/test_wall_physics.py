@@ -1,0 +1,176 @@
+"""Rigid-wall numbers that mean what they say (issue 23 item 4) and the rate of a prescribed node at a
+kink of its displacement curve (item 12), on every kernel (reference, generic, generated).
+
+Independent truths are closed forms: the momentum of a mass stopped by a wall, the force of a preloaded
+spring, the peak force of a mass on a spring brought to rest, a damper's law at the prescribed speed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from conftest import run_model
+
+KERNELS = ["reference", "generic", "generated"]
+
+
+def _rel(a: float, b: float) -> float:
+    return abs(a - b) / abs(b)
+
+
+def _hit(dt: float, spring: bool = False) -> dict[str, Any]:
+    """1-D: a 4 t front mass at 15.6 m/s 0.5 m in front of a wall (normal +x at x = 0); with ``spring``
+    a 1 t rear mass 1 m behind it on a 1e6 N/m spring, moving at the same speed."""
+    model: dict[str, Any] = {
+        "name": "hit",
+        "nodes": {"front": {"position": [0.5], "mass": 4000.0}},
+        "rigid_walls": [{"id": "wall", "point": [0.0], "normal": [1.0], "nodes": ["front"]}],
+        "initial_velocity": {"front": [-15.6]},
+        "end_time": 0.08,
+        "time_step": {"dt": dt},
+        "output": {"interval": 1.0e-3},
+    }
+    if spring:
+        model["nodes"]["rear"] = {"position": [1.5], "mass": 1000.0}
+        model["springs"] = {
+            "s": {"nodes": ["front", "rear"], "material": {"type": "linear_elastic", "stiffness": 1.0e6}}
+        }
+        model["initial_velocity"]["rear"] = [-15.6]
+    return model
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_rigid_wall_impulse_is_the_momentum_and_does_not_depend_on_dt(kernel: str) -> None:
+    """A free 4 t mass at 15.6 m/s stopped by a rigid wall: wall_impulse = m v0 (1 + e), e = 0, within
+    1e-9 relative at dt = 0.1 ms and 0.05 ms; no force holds it afterwards, so peak_wall_force = 0 and
+    its peak deceleration is 0 (before: peak_wall_force = m v0 / dt = 624 MN at 0.1 ms, 1248 MN at dt/2)."""
+    m, v0 = 4000.0, 15.6
+    got = []
+    for dt in (1.0e-4, 0.5e-4):
+        out, _, _ = run_model(_hit(dt), kernel)
+        assert out.status[0] == 0
+        assert _rel(out.wall_impulse[0, 0], m * v0) < 1e-9, out.wall_impulse[0, 0]
+        assert out.peak_wall_force[0, 0] == 0.0
+        assert out.peak_acceleration[0, 0] == 0.0
+        got.append(out.wall_impulse[0, 0])
+    assert _rel(got[0], got[1]) < 1e-9
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_front_mass_held_by_the_wall_reports_the_spring_force_and_no_deceleration(kernel: str) -> None:
+    """The front mass hits the wall with a rear mass on a spring behind it. Impulse: the front mass's
+    momentum m1 v0 (the spring pushes it into the wall, that part is contact force), 1e-9 relative at dt
+    and dt/2. Contact force: the spring force while the front is held, peak v0 sqrt(k m2) (the rear mass
+    stopped by the spring; 15.6 sqrt(1e9) = 493 kN) within 1% (coarse step) and converging (dt/2 closer).
+    The held front mass: peak deceleration 0 up to round-off (before: the spring force over its mass,
+    12.5 g)."""
+    m1, m2, v0, k = 4000.0, 1000.0, 15.6, 1.0e6
+    f_peak = v0 * np.sqrt(k * m2)
+    errs = []
+    for dt in (1.0e-4, 0.5e-4):
+        out, _, _ = run_model(_hit(dt, spring=True), kernel)
+        assert out.status[0] == 0
+        assert _rel(out.wall_impulse[0, 0], m1 * v0) < 1e-9, out.wall_impulse[0, 0]
+        assert abs(out.peak_force[0, 0] - out.peak_wall_force[0, 0]) <= 1e-9 * f_peak
+        errs.append(_rel(out.peak_wall_force[0, 0], f_peak))
+        assert out.peak_acceleration[0, 0] <= 1e-9 * f_peak / m1, out.peak_acceleration[0, 0]
+    assert errs[0] < 1e-2 and errs[1] < errs[0], errs
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_mass_resting_against_a_wall_under_a_preloaded_spring(kernel: str) -> None:
+    """A 10 kg mass sits on a wall, a spring (k = 1e5 N/m, compressed 0.01 m) pushes it in: contact force
+    = k 0.01 = 1000 N at every sample (1e-9 relative), deceleration 0 (before: 1000 N / 10 kg = 10.2 g),
+    no impulse."""
+    model = {
+        "name": "rest",
+        "nodes": {"anchor": {"position": [1.0], "fixed": True}, "m": {"position": [0.0], "mass": 10.0}},
+        "springs": {"s": {"nodes": ["m", "anchor"], "initial_elongation": -0.01,
+                          "material": {"type": "linear_elastic", "stiffness": 1.0e5}}},
+        "rigid_walls": [{"id": "wall", "point": [0.0], "normal": [1.0], "nodes": ["m"]}],
+        "end_time": 0.05,
+        "output": {"interval": 1.0e-3, "histories": ["wall_force", "acceleration"]},
+    }  # fmt: skip
+    out, _, _ = run_model(model, kernel)
+    assert out.status[0] == 0
+    assert _rel(out.peak_wall_force[0, 0], 1000.0) < 1e-9
+    assert np.all(np.abs(out.histories["wall_force"][:, 0, 0] - 1000.0) <= 1e-9 * 1000.0)
+    assert out.peak_acceleration[1, 0] <= 1e-9 * 100.0
+    assert np.all(np.abs(out.histories["acceleration"][:, 1, 0, 0]) <= 1e-9 * 100.0)
+    assert out.wall_impulse[0, 0] <= 1e-9 * 1000.0 * 0.05
+
+
+def _damped_stroke() -> dict[str, Any]:
+    """1-D: node p (1 kg) driven by a piecewise-linear displacement (rest 10 ms, then 6 m/s for 10 ms,
+    then rest) against a fixed anchor through a spring (1e4 N/m) and a damper (c = 1000 N s/m) in parallel."""
+    return {
+        "name": "stroke",
+        "nodes": {"anchor": {"position": [0.0], "fixed": True}, "p": {"position": [1.0], "mass": 1.0}},
+        "springs": {
+            "k": {"nodes": ["anchor", "p"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}},
+            "c": {"nodes": ["anchor", "p"], "material": {"type": "damper", "damping": 1000.0}},
+        },
+        "curves": {"u": {"x": [0.0, 0.01, 0.02, 0.05], "y": [0.0, 0.0, 0.06, 0.06]}},
+        "prescribed_motion": [{"node": "p", "quantity": "displacement", "direction": "x", "curve": "u"}],
+        "end_time": 0.04,
+        "time_step": {"dt": 1.0e-4},
+        "output": {"interval": 1.0e-3},
+    }
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_damper_on_a_prescribed_stroke_peaks_at_the_law_of_the_fastest_prescribed_rate(kernel: str) -> None:
+    """The damper's peak force is c times the fastest prescribed rate, 1000 x 6 = 6000 N (1e-6 relative:
+    the rate is the step's displacement difference over dt), not the extrapolation across the kink
+    v + dt/2 a (6 + 3 = 9 m/s: 9000 N before)."""
+    out, _, _ = run_model(_damped_stroke(), kernel)
+    assert out.status[0] == 0
+    assert _rel(out.peak_force[1, 0], 1000.0 * 6.0) < 1e-6, out.peak_force[1, 0]
+
+
+def _penalty(dt: float | None, k: float = 1.0e6) -> dict[str, Any]:
+    """1-D: a 1 kg mass at 2 m/s, 1 mm in front of a penalty wall of contact stiffness k."""
+    return {
+        "name": "penalty",
+        "nodes": {"p": {"position": [0.001], "mass": 1.0}},
+        "rigid_walls": [{"id": "wall", "point": [0.0], "normal": [1.0], "stiffness": k}],
+        "initial_velocity": {"p": [-2.0]},
+        "end_time": 0.006,
+        **({"time_step": {"dt": dt}} if dt else {}),
+        "output": {"interval": 1.0e-5, "histories": ["wall_force", "velocity", "wall_energy"]},
+    }
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_penalty_wall_force_is_physical_and_converges_as_dt_halves(kernel: str) -> None:
+    """A mass m at v0 into a penalty wall of stiffness k (an undamped contact spring): peak force
+    v0 sqrt(k m) = 2000 N, contact time pi sqrt(m / k) = 3.14 ms (within one 10 us sample), an elastic
+    rebound at v0 (1e-4), no impulse, the stored energy given back (wall_energy 0 after), energy_error
+    < 1e-4. The peak force's error shrinks as dt halves (1e-5, 5e-6, 2.5e-6 s; measured 1.2e-5, 2.8e-6,
+    4.6e-7 relative)."""
+    m, v0, k = 1.0, 2.0, 1.0e6
+    errs = []
+    for dt in (1.0e-5, 5.0e-6, 2.5e-6):
+        out, _, _ = run_model(_penalty(dt), kernel)
+        assert out.status[0] == 0
+        errs.append(_rel(out.peak_wall_force[0, 0], v0 * np.sqrt(k * m)))
+        on = np.flatnonzero(out.histories["wall_force"][:, 0, 0] > 0.0)
+        assert abs((on[-1] - on[0] + 1) * 1.0e-5 - np.pi * np.sqrt(m / k)) <= 1.0e-5
+        assert _rel(out.histories["velocity"][-1, 0, 0, 0], v0) < 1e-4
+        assert out.wall_impulse[0, 0] == 0.0
+        assert abs(out.histories["wall_energy"][-1, 0]) < 1e-12
+        assert out.energy_error[0] < 1e-4
+    assert errs[0] < 1e-4 and errs[1] < errs[0] and errs[2] < errs[1], errs
+
+
+def test_penalty_wall_stiffness_bounds_the_step() -> None:
+    """One mass on a penalty wall is a mass on a spring: dt_crit = 0.99 x 2 / sqrt(k / m) = 1.98 ms for
+    k = 1e6 N/m, m = 1 kg. A fixed dt of 2.5 ms is refused (invalid: above the critical step; before, the
+    wall's stiffness did not enter the bound), 1.9 ms runs."""
+    from conftest import model_batch
+
+    assert model_batch(_penalty(2.5e-3))[0].invalid[0] == 1
+    assert model_batch(_penalty(1.9e-3))[0].invalid[0] == 0
