@@ -296,7 +296,8 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
     """Compile ``kernels`` in a detached low-priority process (it outlives this run, so the kernels
     are ready for the next one; a thread reaps it when it ends, so it never stays a zombie); None when
     no private cache folder is available. ``must``: a run waits for it (:func:`compile_foreground`), so it
-    compiles even when another process holds the lock."""
+    compiles even when another process holds the lock, at normal priority (a background one runs at
+    nice 10: on a loaded machine a niced compile the run waited for took 3-4x its time)."""
     from crashstudy.kernel import generated
 
     folder = cache_dir()
@@ -312,7 +313,7 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
            "keys": keys, "seconds": [compile_seconds(k, b, record) for k in kernels], "must": must}  # fmt: skip
     cmd = [sys.executable, "-m", "crashstudy.kernel.warm", json.dumps(job)]
     proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            start_new_session=True, preexec_fn=_lower_priority)  # fmt: skip
+                            start_new_session=True, preexec_fn=None if must else _lower_priority)  # fmt: skip
     if not must:
         _BACKGROUND[:] = [p for p in _BACKGROUND if p.returncode is None] + [proc]
         threading.Thread(target=proc.wait, name=f"reap-{proc.pid}", daemon=True).start()
