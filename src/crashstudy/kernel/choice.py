@@ -383,7 +383,8 @@ def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...]
         return False
     what = " and ".join(f"the {k} kernel" if k != "criteria" else "the crash criteria" for k in group)
     own = sum(compile_seconds(k, b, record) for k in group)
-    limit, why = compile_lock.plan_wait(holder, kernel_key(group[-1], b, histories, vary, record), own)
+    key = kernel_key(group[-1], b, histories, vary, record)
+    limit, why = compile_lock.plan_wait(holder, key, own)
     if limit <= 0:
         say(f"compiling {what} here (~{own:.0f} s) beside another compile: {why}")
         return False
@@ -392,11 +393,13 @@ def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...]
     def ready() -> bool:
         return all(_ready(k, b, histories, vary, record) for k in group)
 
-    end = compile_lock.wait(lock, holder, limit, ready, stop)
+    end = compile_lock.wait(lock, holder, limit, ready, stop, key)
     if end == "ready":
         return True
-    because = {"released": "the lock was released without it", "gone": "the holder is gone", "stopped": "the holder "
-               "is stopped", "stuck": "the holder uses no CPU", "limit": "it takes longer than expected"}[end]  # fmt: skip
+    because = {"released": "the lock was released without it", "gone": "the holder is gone",
+               "stopped": "the holder is stopped", "stuck": "the holder uses no CPU",
+               "slow": "at the CPU share it gets, the holder would finish later than compiling here",
+               "limit": "it takes longer than expected"}[end]  # fmt: skip
     say(f"stopped waiting ({because}); compiling {what} here (~{own:.0f} s)")
     return False
 
