@@ -43,6 +43,12 @@ if mode == "busy":  # compiling: uses a core until it is done
     while time.time() - t0 < 1.5:
         pass
     open(done, "w").close()
+elif mode == "trickle":  # a niced compile on a loaded machine: a tenth of a core
+    while True:
+        t0 = time.time()
+        while time.time() - t0 < 0.02:
+            pass
+        time.sleep(0.18)
 else:
     time.sleep(120)
 """
@@ -113,6 +119,17 @@ def test_a_stuck_holder_is_waited_for_only_until_it_shows_no_progress(setup) -> 
     assert started == [(("generic",), True)] and not done.exists()
     assert said[0].startswith("waiting for") and said[1] == (
         f"stopped waiting (the holder uses no CPU); compiling the generic kernel here (~{choice.GENERIC_COMPILE:.0f} s)")
+
+
+def test_a_holder_that_gets_too_little_cpu_to_finish_first_is_not_waited_for_long(setup
+                                                                                  ) -> None:  # type: ignore[no-untyped-def]  # fmt: skip
+    """Expected in ~20 CPU-s, but it gets a tenth of a core: it would end in ~200 s, later than compiling here."""
+    batch, plan, hold, started, done = setup
+    hold("trickle", "generic", 20.0)
+    said: list[str] = []
+    choice.compile_foreground(("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append)
+    assert started == [(("generic",), True)] and said[0].startswith("waiting for")
+    assert said[1].startswith("stopped waiting (at the CPU share it gets, the holder would finish later")
 
 
 def test_a_holder_compiling_other_kernels_is_not_waited_for(setup) -> None:  # type: ignore[no-untyped-def]

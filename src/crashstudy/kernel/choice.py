@@ -296,7 +296,8 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
     """Compile ``kernels`` in a detached low-priority process (it outlives this run, so the kernels
     are ready for the next one; a thread reaps it when it ends, so it never stays a zombie); None when
     no private cache folder is available. ``must``: a run waits for it (:func:`compile_foreground`), so it
-    compiles even when another process holds the lock."""
+    compiles even when another process holds the lock, at normal priority (a background one runs at
+    nice 10: on a loaded machine a niced compile the run waited for took 3-4x its time)."""
     from crashstudy.kernel import generated
 
     folder = cache_dir()
@@ -312,7 +313,7 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
            "keys": keys, "seconds": [compile_seconds(k, b, record) for k in kernels], "must": must}  # fmt: skip
     cmd = [sys.executable, "-m", "crashstudy.kernel.warm", json.dumps(job)]
     proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            start_new_session=True, preexec_fn=_lower_priority)  # fmt: skip
+                            start_new_session=True, preexec_fn=None if must else _lower_priority)  # fmt: skip
     if not must:
         _BACKGROUND[:] = [p for p in _BACKGROUND if p.returncode is None] + [proc]
         threading.Thread(target=proc.wait, name=f"reap-{proc.pid}", daemon=True).start()
@@ -382,7 +383,8 @@ def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...]
         return False
     what = " and ".join(f"the {k} kernel" if k != "criteria" else "the crash criteria" for k in group)
     own = sum(compile_seconds(k, b, record) for k in group)
-    limit, why = compile_lock.plan_wait(holder, kernel_key(group[-1], b, histories, vary, record), own)
+    key = kernel_key(group[-1], b, histories, vary, record)
+    limit, why = compile_lock.plan_wait(holder, key, own)
     if limit <= 0:
         say(f"compiling {what} here (~{own:.0f} s) beside another compile: {why}")
         return False
@@ -391,11 +393,13 @@ def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...]
     def ready() -> bool:
         return all(_ready(k, b, histories, vary, record) for k in group)
 
-    end = compile_lock.wait(lock, holder, limit, ready, stop)
+    end = compile_lock.wait(lock, holder, limit, ready, stop, key)
     if end == "ready":
         return True
-    because = {"released": "the lock was released without it", "gone": "the holder is gone", "stopped": "the holder "
-               "is stopped", "stuck": "the holder uses no CPU", "limit": "it takes longer than expected"}[end]  # fmt: skip
+    because = {"released": "the lock was released without it", "gone": "the holder is gone",
+               "stopped": "the holder is stopped", "stuck": "the holder uses no CPU",
+               "slow": "at the CPU share it gets, the holder would finish later than compiling here",
+               "limit": "it takes longer than expected"}[end]  # fmt: skip
     say(f"stopped waiting ({because}); compiling {what} here (~{own:.0f} s)")
     return False
 

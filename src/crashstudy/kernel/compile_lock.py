@@ -7,7 +7,8 @@ of each, and when it started. A run that needs a kernel while the lock is held (
 waits only when the holder compiles that very kernel, is running (not stopped, not a zombie, not gone)
 and is expected to finish it sooner than the run could compile it itself (:func:`plan_wait`); then
 :func:`wait` polls until the lock is released, the kernel is ready, the holder dies or stops using
-CPU (stuck), or the wait reaches the run's own compile time (or the holder's estimate with margin).
+CPU (stuck), its CPU rate puts its end past the limit (slow: a niced compile on a loaded machine),
+or the wait reaches the run's own compile time (or the holder's estimate with margin).
 Otherwise the run compiles privately beside the holder: numba writes each cache file atomically
 (a temporary file renamed into place), so two compiles of one kernel leave one valid entry.
 """
@@ -119,12 +120,18 @@ def plan_wait(holder: Holder | None, key: str, own_seconds: float, now: float | 
     return min(own_seconds, SLACK + MARGIN * left), f"process {holder.pid} compiles it, expected in ~{left:.0f} s"
 
 
-def wait(lock: Path, holder: Holder, limit: float, ready: Callable[[], bool], stop: Callable[[], None]) -> str:
+def wait(lock: Path, holder: Holder, limit: float, ready: Callable[[], bool], stop: Callable[[], None],
+         key: str | None = None) -> str:  # fmt: skip
     """Wait at most ``limit`` seconds for ``holder`` to release ``lock``; why the wait ended: "ready",
-    "released", "gone", "stopped", "stuck" or "limit". ``stop()`` raising (Ctrl-C) ends it at once."""
+    "released", "gone", "stopped", "stuck", "slow" or "limit". ``stop()`` raising (Ctrl-C) ends it at once.
+
+    "slow": the holder's CPU time so far and its rate while waited for (a niced compile on a loaded
+    machine gets a fraction of a core) put the end of kernel ``key`` (its expected seconds are CPU
+    seconds) past ``limit``: compiling here is quicker."""
     t0 = time.monotonic()
     _, cpu = state(holder.pid)
-    last_cpu, last_change = cpu, t0
+    first_cpu, last_cpu, last_change = cpu, cpu, t0
+    due = None if key is None or key not in holder.kernels else sum(holder.seconds[: holder.kernels.index(key) + 1])
     while True:
         stop()
         if ready():
@@ -139,6 +146,10 @@ def wait(lock: Path, holder: Holder, limit: float, ready: Callable[[], bool], st
             last_cpu, last_change = cpu, now
         elif cpu is not None and now - last_change > STUCK_AFTER:
             return "stuck"
+        if due is not None and cpu is not None and first_cpu is not None and now - t0 >= STUCK_AFTER:
+            rate = (cpu - first_cpu) / (now - t0)  # [CPU s / s] the holder gets
+            if rate > 0 and now - t0 + max(0.0, due - cpu) / rate > limit:
+                return "slow"
         if now - t0 >= limit:
             return "limit"
         time.sleep(POLL)
