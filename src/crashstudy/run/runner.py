@@ -234,6 +234,8 @@ class RunReport:
 def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
     """Contiguous ranges of the variants still to do, each at most ``size`` long."""
     out: list[tuple[int, int]] = []
+    if todo.all():  # a fresh run: no index array of every variant (np.nonzero + diff took 4 s at 10^7 under load)
+        return [(lo, min(lo + size, len(todo))) for lo in range(0, len(todo), size)]
     idx = np.nonzero(todo)[0]
     if not len(idx):
         return out

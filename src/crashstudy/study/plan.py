@@ -228,7 +228,8 @@ def _model_message(data: dict[str, Any], path: str, val: float) -> str:
 
 
 def _check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, Any], path: str, ref: PathRef,
-                  values: list[float], topo: Topology, base: np.ndarray, interval: float) -> list[Problem]:  # fmt: skip
+                  values: list[float] | np.ndarray, topo: Topology, base: np.ndarray, interval: float
+                  ) -> list[Problem]:  # fmt: skip
     """Each distinct value of an axis must make a valid model, the rest of the model as written.
 
     Every distinct value is checked, vectorised, on the parameter vector (:func:`check_parameters`:
@@ -236,25 +237,27 @@ def _check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str,
     the model validation's own where it has one. At most :data:`MAX_REPORTED` values per axis are listed.
     """
     problems: list[Problem] = []
+    arr = np.asarray(values, dtype=np.float64)  # a design's rows stay an array (a list took ~50 bytes a value)
     if ref.op in ("scale", "speed"):
-        for k, val in enumerate(values):
-            ok = val > 0 if ref.op == "scale" else val >= 0
-            if not ok:
-                what = "a scale factor > 0" if ref.op == "scale" else "a speed >= 0"
-                problems.append(_study_problem(doc, where + (k,), f"expected {what}, got {val!r}"))
+        wrong = np.nonzero(~(arr > 0) if ref.op == "scale" else ~(arr >= 0))[0]
+        what = "a scale factor > 0" if ref.op == "scale" else "a speed >= 0"
+        for k in wrong[:MAX_REPORTED]:
+            problems.append(_study_problem(doc, where + (int(k),), f"expected {what}, got {float(arr[k])!r}"))
+        if len(wrong) > MAX_REPORTED:
+            problems.append(_study_problem(doc, where, f"and {len(wrong) - MAX_REPORTED:,} more values that are not "
+                                           f"{what}"))  # fmt: skip
         if problems:
             return problems
-    uniq, first = np.unique(np.asarray(values, dtype=np.float64), return_index=True)
+    uniq, first = np.unique(arr, return_index=True)
     bad = np.zeros(len(uniq), dtype=bool)
     for lo in range(0, len(uniq), CHECK_BLOCK):
         bad[lo : lo + CHECK_BLOCK] = _check(topo, base, ref, uniq[lo : lo + CHECK_BLOCK], interval).bad
     if not bad.any():
         return problems
     shown = np.sort(first[bad])[:MAX_REPORTED]  # the first invalid values in file order
-    shown_values = np.asarray(values, dtype=np.float64)[shown]
-    check = _check(topo, base, ref, shown_values, interval)
+    check = _check(topo, base, ref, arr[shown], interval)
     for c, k in enumerate(shown):
-        val = values[int(k)]
+        val = float(arr[int(k)])
         msg = (_model_message(data, path, val) if ref.op == "set" else "") or check.reason(c)
         problems.append(_study_problem(doc, where + (int(k),), f"value {val!r} makes the model invalid: {msg}"))
     if bad.sum() > MAX_REPORTED:
@@ -265,15 +268,15 @@ def _check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str,
 
 def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], base: np.ndarray,
           interval: float) -> tuple[list[Axis], list[int], list[Problem]]:  # fmt: skip
-    groups: list[tuple[tuple[str | int, ...], dict[str, list[float]]]] = [
+    groups: list[tuple[tuple[str | int, ...], dict[str, Any]]] = [
         (("matrix", key), {key: vals}) for key, vals in study.matrix.items()
     ] + [(("zip", g), grp) for g, grp in enumerate(study.zip)]
     if study.design is not None:  # its rows: one dimension after matrix and zip, its axes varying together
         from crashstudy.study.design import rows
 
         d = study.design
-        groups.append((("design", "axes"), {k: v.tolist() for k, v in rows(
-            d.method, d.n, d.seed, {path: dist.spec() for path, dist in d.axes.items()}).items()}))  # fmt: skip
+        groups.append((("design", "axes"), rows(
+            d.method, d.n, d.seed, {path: dist.spec() for path, dist in d.axes.items()})))  # fmt: skip
     axes: list[Axis] = []
     shape: list[int] = []
     problems: list[Problem] = []
