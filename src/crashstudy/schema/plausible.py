@@ -120,9 +120,10 @@ def unit_warnings(m: Model, dt_crit: float | None = None, where: str = "", perio
     out: list[str] = []
     end_s = m.end_time * t
     if not END_TIME_S[0] <= end_s <= END_TIME_S[1]:
-        why = likely_unit(m.end_time, m.units, (0, 1), END_TIME_S) + f"; {_hint(m.units)}"
+        likely = likely_unit(m.end_time, m.units, (0, 1), END_TIME_S)
+        why = (f"{likely};" if likely else "") + f" {_hint(m.units)}"
         out.append(f"{pre}end_time {m.end_time:g} {u.time} is {end_s:.3g} s; crash and drop events last "
-                   f"{END_TIME_S[0] * 1e3:g} ms to {END_TIME_S[1]:g} s{why}")  # fmt: skip
+                   f"{END_TIME_S[0] * 1e3:g} ms to {END_TIME_S[1]:g} s:{why}")  # fmt: skip
     if m.gravity is not None:
         gmag = math.sqrt(sum(c * c for c in m.gravity))
         if gmag > 0 and not GRAVITY_RATIO[0] <= gmag / u.g <= GRAVITY_RATIO[1]:
