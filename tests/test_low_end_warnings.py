@@ -10,15 +10,16 @@ closed-form periods of one and two masses on springs. The examples in ``studies/
 
 from __future__ import annotations
 
-import contextlib
 import glob
-import io
 import math
 from pathlib import Path
 
 import pytest
 
-from crashstudy.cli.main import main
+try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
+    from test_properties import run_main
+except ImportError:  # ... or as a package
+    from tests.test_properties import run_main  # type: ignore[no-redef]
 from crashstudy.schema.plausible import first_period, peak_g_warnings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,10 +41,9 @@ output: {histories: none}
 
 
 def run(*argv: str) -> tuple[int, str]:
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        rc = main(list(argv))
-    return rc, err.getvalue()
+    """``crashstudy ARGV`` in this process: (exit code, stderr)."""
+    rc, _, err = run_main(*argv)
+    return rc, err
 
 
 def test_a_speed_in_m_s_in_an_mm_s_t_n_model_warns_and_names_the_likely_unit(tmp_path: Path) -> None:

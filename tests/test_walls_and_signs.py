@@ -13,14 +13,15 @@ The truth of each case is arithmetic on the input (the signed distance to the pl
 
 from __future__ import annotations
 
-import contextlib
-import io
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from crashstudy.cli.main import main
+try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
+    from test_properties import run_main
+except ImportError:  # ... or as a package
+    from tests.test_properties import run_main  # type: ignore[no-redef]
 from crashstudy.schema.signs import depth_behind_walls, wrong_sign_points
 
 WALL_1D = """\
@@ -75,10 +76,9 @@ output: {histories: none}
 
 
 def run(*argv: str) -> tuple[int, str]:
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        rc = main(list(argv))
-    return rc, err.getvalue()
+    """``crashstudy ARGV`` in this process: (exit code, stderr)."""
+    rc, _, err = run_main(*argv)
+    return rc, err
 
 
 def write(tmp: Path, name: str, text: str) -> Path:
