@@ -97,7 +97,7 @@ def increasing(draw: st.DrawFn, n: int, lo: float, hi: float, min_gap: float) ->
 
 @st.composite
 def force_curve(draw: st.DrawFn, through_origin: bool, need_compression: bool = False,
-                increasing_y: bool = False, kmax: float = 1e5) -> dict[str, list[float]]:  # fmt: skip
+                increasing_y: bool = False, kmax: float = 1e5, signed: bool = False) -> dict[str, list[float]]:  # fmt: skip
     """A material curve (elongation -> force): compression knots, the origin, tension knots."""
     n_neg = draw(st.integers(1 if need_compression or through_origin else 0, 3))
     n_pos = draw(st.integers(1 if through_origin or n_neg == 0 else 0, 3))
@@ -112,6 +112,8 @@ def force_curve(draw: st.DrawFn, through_origin: bool, need_compression: bool = 
             lo = 0.02 * kmax if increasing_y else -kmax
             slope = draw(_num(lo, kmax))
             prev_y = round(prev_y + slope * (x - prev_x), 6)
+            if signed:  # force of the sign of the elongation (validate refuses a negative stiffness)
+                prev_y = max(prev_y, 0.0) if direction > 0 else min(prev_y, 0.0)
             prev_x = x
             side.append(prev_y)
         ys = side[::-1] + ys if direction < 0 else ys + side
@@ -177,7 +179,7 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
             mat = {"type": kind, "damping": round(draw(_num(0.0, 100.0)), 3)}
         elif kind == "nonlinear_elastic":
             cid = f"c{k}"
-            curves[cid] = draw(force_curve(through_origin=True, kmax=kmax))  # a preload: initial_elongation
+            curves[cid] = draw(force_curve(through_origin=True, kmax=kmax, signed=True))  # a preload: initial_elongation
             mat = {"type": kind, "curve": cid}
         elif kind == "crush":
             cid = f"c{k}"
@@ -185,7 +187,7 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
             mat = {"type": kind, "loading": cid, "unloading_stiffness": round(draw(_num(1e2, 2e5)), 3)}
         else:
             lid, uid = f"l{k}", f"u{k}"
-            curves[lid] = draw(force_curve(through_origin=True, kmax=kmax))
+            curves[lid] = draw(force_curve(through_origin=True, kmax=kmax, signed=True))
             curves[uid] = draw(force_curve(through_origin=True, increasing_y=True, kmax=kmax))
             mat = {"type": kind, "loading": lid, "unloading": uid}
             if draw(st.booleans()):
@@ -234,6 +236,14 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
                                 "normal": normal}  # fmt: skip
         if draw(st.booleans()):
             wall["nodes"] = draw(st.lists(st.sampled_from(ids), min_size=1, unique=True))
+        # every node the wall stops starts on its front side (validate refuses one behind it): move the wall back
+        unit = np.asarray(normal) / np.linalg.norm(normal)
+        held = [positions[k] for k, nid in enumerate(ids) if nid in wall.get("nodes", ids)]
+        behind = min(float(np.dot(np.subtract(x, wall["point"]), unit)) for x in held)
+        if behind < 0:
+            back = behind - draw(_num(0.0, 0.5))
+            wall["point"] = [float(round(p + back * u, 3) - 1e-3 * math.copysign(1.0, u))
+                             for p, u in zip(wall["point"], unit, strict=True)]
         model["rigid_walls"] = [wall]
     model["end_time"] = end_time
     if draw(st.booleans()):

@@ -34,6 +34,14 @@ from crashstudy.arrays.compiler import (
 )
 from crashstudy.arrays.timestep import MAX_STEPS, StepChoice, choose_steps, spring_stiffness_bound
 from crashstudy.kernel.preload import preload
+from crashstudy.schema.signs import (
+    SIGNED_TYPES,
+    behind_message,
+    depth_behind_walls,
+    sign_message,
+    wrong_sign_points,
+)
+from crashstudy.units import UNIT_SYSTEMS
 
 MATERIAL_NAMES = {code: name for name, code in MATERIAL_CODES.items()}
 
@@ -337,6 +345,7 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
          "fixed along this axis; its initial velocity there must be 0")  # fmt: skip
     normal = P[b["wall_normal"]].reshape(len(topo.wall_ids), D, V)
     rule(np.all(normal == 0, axis=1), lambda r, c: f"rigid_walls.{r}.normal must not be the zero vector")
+    _wall_side_rule(topo, P, x0, normal, rule)
     end, step = P[b["end_time"].start], P[b["time_step"].start]
     rule(~(end > 0), lambda r, c: f"end_time: expected a value > 0, got {end[c]:g}")
     if topo.output_interval is not None:
@@ -386,6 +395,26 @@ def _v2_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None], ranged: 
          f"initial_elongation ({e0[r, c]:g}), got {fc[r, c]:g}: the spring would be broken at t = 0")  # fmt: skip
 
 
+def _wall_side_rule(topo: Topology, P: np.ndarray, x0: np.ndarray, normal: np.ndarray,
+                    rule: Callable[..., None]) -> None:  # fmt: skip
+    """Every node a wall stops starts on its front side (:func:`~crashstudy.schema.signs.depth_behind_walls`):
+    an axis on a node position or a wall point or normal must keep it there."""
+    W, D, V = normal.shape
+    if not W:
+        return
+    point = P[topo.blocks["wall_point"]].reshape(W, D, V)
+    depth = depth_behind_walls(x0, ~topo.fixed, point, normal, topo.wall_nodes)  # (W, N, V)
+    length = UNIT_SYSTEMS[topo.units].length
+
+    def text(r: int, c: int) -> str:
+        bad = np.flatnonzero(depth[r, :, c] > 0)
+        k = int(bad[0])
+        return f"rigid_walls.{r}.point: " + behind_message(topo.node_ids[k], float(depth[r, k, c]),
+                                                            topo.wall_ids[r], length, bad.size - 1)
+
+    rule(np.any(depth > 0, axis=1), text)
+
+
 def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> None:
     """Curves: x strictly increasing; every material curve through the origin (a preload is written with
     initial_elongation); the general_nonlinear unloading curve increasing, a nonlinear_damper curve
@@ -399,11 +428,14 @@ def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> No
         rule(~(np.diff(xs, axis=0) > 0), lambda r, col, cid=cid, xs=xs: f"curves.{cid}.x must be strictly increasing "
              f"(x.{r} = {xs[r, col]:g} is followed by {xs[r + 1, col]:g})")  # fmt: skip
     origin: dict[int, str] = {}  # curve -> material type of a spring that uses it
+    signed: dict[int, str] = {}  # curve -> a material whose force has the sign of the elongation
     rising, crush, damper = set(), set(), set()
     for s in range(topo.n_springs):
         c0, c1 = (int(v) for v in topo.spring_curves[s])
         kind = int(topo.material[s])
         origin.update({c: MATERIAL_NAMES[kind] for c in (c0, c1) if c >= 0})
+        if MATERIAL_NAMES[kind] in SIGNED_TYPES:  # the loading curve (an unloading one is increasing)
+            signed[c0] = MATERIAL_NAMES[kind] + (" loading" if kind == GENERAL else "")
         if kind == GENERAL:
             rising.add(c1)
         elif kind == CRUSH:
@@ -420,6 +452,16 @@ def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> No
                "initial_elongation, never with a shifted curve")  # fmt: skip
         rule(np.abs(at0) > 1e-9 * scale, lambda r, col, cid=ids[c], at0=at0, kn=kind_name, why=why: f"curves.{cid} "
              f"must pass through the origin (a {kn} curve; its force at 0 is {at0[col]:g}): {why}")  # fmt: skip
+    for c, kind_name in sorted(signed.items()):
+        a, e = int(off[c]), int(off[c + 1])
+        wrong = wrong_sign_points(cx[a:e], cy[a:e])
+
+        def signed_text(r: int, col: int, cid: str = ids[c], a: int = a, wrong: np.ndarray = wrong,
+                        use: str = kind_name) -> str:  # fmt: skip
+            k = int(np.argmax(wrong[:, col]))
+            return f"curves.{cid}: " + sign_message(cid, k, float(cx[a + k, col]), float(cy[a + k, col]), use)
+
+        rule(np.any(wrong, axis=0), signed_text)
     for c in sorted(rising):
         a, e = int(off[c]), int(off[c + 1])
         rule(~(np.diff(cy[a:e], axis=0) > 0), lambda r, col, cid=ids[c]: f"curves.{cid}.y must be strictly increasing "

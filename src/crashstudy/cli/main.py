@@ -223,7 +223,7 @@ def _after_run(res: Any) -> None:
     if not s[col].notna().any():
         return
     k = s[col].idxmax()
-    _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, float(s.loc[k, col]), int(s.loc[k, "variant"])))
+    _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, float(s.loc[k, col]), int(s.loc[k, "variant"]), m))
 
 
 def _run(args: argparse.Namespace) -> int:

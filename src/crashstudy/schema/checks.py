@@ -20,6 +20,14 @@ from crashstudy.schema.model import (
     RigidWall,
     Spring,
 )
+from crashstudy.schema.signs import (
+    SIGNED_TYPES,
+    behind_message,
+    depth_behind_walls,
+    sign_message,
+    wrong_sign_points,
+)
+from crashstudy.units import UNIT_SYSTEMS
 
 Path = tuple[str | int, ...]
 Found = Iterator[tuple[Path, str]]
@@ -112,6 +120,12 @@ def _material(m: Model, sid: str, sp: Spring) -> Found:
             at0 = curve_value(c.x, c.y, 0.0)
             if abs(at0) > 1e-9 * scale:
                 yield base + (key,), origin_message(cid, key, at0, mat.type in DAMPER_TYPES)
+            elif key != "unloading" and mat.type in SIGNED_TYPES:  # force of the sign of the elongation
+                bad = np.flatnonzero(wrong_sign_points(np.asarray(c.x)[:, None], np.asarray(c.y)[:, None])[:, 0])
+                if bad.size:
+                    k = int(bad[0])
+                    use = mat.type if key == "curve" else f"{mat.type} {key}"
+                    yield base + (key,), sign_message(cid, k, c.x[k], c.y[k], use)
     if isinstance(mat, GeneralNonlinear) and mat.unloading in m.curves:
         c = m.curves[mat.unloading]
         if any(not b > a for a, b in zip(c.y, c.y[1:], strict=False)):
@@ -202,6 +216,27 @@ def _walls(m: Model, dim: int) -> Found:
             if nid not in m.nodes:
                 yield path + ("nodes", k), f"unknown node {nid!r}"
         yield from _wall_and_motion(m, dim, i, w)
+    yield from _behind_walls(m, dim)
+
+
+def _behind_walls(m: Model, dim: int) -> Found:
+    """A node a wall stops starts on the wall's front side (:func:`~crashstudy.schema.signs.depth_behind_walls`)."""
+    walls = [(i, w) for i, w in enumerate(m.rigid_walls) if len(w.point) == dim and len(w.normal) == dim]
+    if not walls or any(len(n.position) != dim for n in m.nodes.values()):
+        return
+    ids = list(m.nodes)
+    x = np.array([n.position for n in m.nodes.values()], dtype=np.float64)[:, :, None]
+    free = np.array([[ax not in _fixed_axes(n.fixed, dim) for ax in "xy"[:dim]] for n in m.nodes.values()])
+    point = np.array([w.point for _, w in walls], dtype=np.float64)[:, :, None]
+    normal = np.array([w.normal for _, w in walls], dtype=np.float64)[:, :, None]
+    held = np.array([[w.nodes is None or nid in w.nodes for nid in ids] for _, w in walls])
+    depth = depth_behind_walls(x, free, point, normal, held)[:, :, 0]
+    for (i, w), row in zip(walls, depth, strict=True):
+        bad = np.flatnonzero(row > 0)
+        if bad.size:
+            k = int(bad[0])
+            yield ("rigid_walls", i, "point"), behind_message(ids[k], float(row[k]), w.id,
+                                                            UNIT_SYSTEMS[m.units].length, bad.size - 1)
 
 
 def _wall_and_motion(m: Model, dim: int, i: int, w: RigidWall) -> Found:

@@ -34,7 +34,7 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     Warnings: a fixed ``dt`` above the critical step of some variants (those fail at run time with the
     reason, the others run), and numbers that contradict the model's ``units``
     (:mod:`crashstudy.schema.plausible`)."""
-    from crashstudy.schema.plausible import unit_warnings
+    from crashstudy.schema.plausible import first_period, unit_warnings
 
     sdoc = loads_yaml(plan.study_text, file=plan.study_file) if plan.study_text else None
     mdoc = loads_yaml(plan.model_text, file=plan.model_file)
@@ -49,13 +49,27 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     data = mdoc.data if sdoc is None else _apply_set(mdoc.data, Study.model_validate(sdoc.data).set, sdoc)
     m, _ = validate_model_data(data)
     where = plan.study_file or plan.model_file
-    warnings = dt_warnings + (unit_warnings(m, _first_dt_crit(plan), where) if m is not None else [])
+    period = first_period(plan.topology, plan.params(0, 1)[:, 0])
+    warnings = dt_warnings + (unit_warnings(m, _first_dt_crit(plan), where, period) if m is not None else [])
+    warnings += _speed_axis_warnings(plan, where)
     warnings += plan_warnings(plan)
     if plan.study_file == DICT_STUDY:
         problems = [
             Problem(p.file, None, p.field, p.message) if p.file == DICT_STUDY else p for p in problems
         ]
     return problems, warnings
+
+
+def _speed_axis_warnings(plan: Plan, where: str) -> list[str]:
+    """The slowest ``impact_velocity`` axis value > 0, when it is slower than a walking pace."""
+    from crashstudy.schema.plausible import speed_warnings
+
+    out: list[str] = []
+    for ax in plan.axes:
+        if ax.ref.op == "speed" and np.any(ax.values > 0):
+            slowest = float(np.min(ax.values[ax.values > 0]))
+            out += speed_warnings(plan.topology.units, [slowest], f"{ax.path} value", where)
+    return out
 
 
 NOOP_COLUMNS = 200_000  #: parameter columns at most built to check an axis for doing nothing

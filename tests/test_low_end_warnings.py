@@ -1,0 +1,160 @@
+"""Issue 23 item 3: plausibility warnings at the low end, naming the likely cause.
+
+A speed left in m/s in an ``mm-s-t-N`` file (15.6 read as 15.6 mm/s = 0.0156 m/s) ran silently and the
+coach peaked at 0.1 g. Now ``validate``/``simulate``/``run`` warn about an impact slower than a walking
+pace (and say "did you mean 15.6 m/s? In mm-s-t-N that is 15600 mm/s"), about a body that never reaches
+1 g, and about an ``end_time`` far from the model's first natural period. Truths: unit arithmetic and the
+closed-form periods of one and two masses on springs. The examples in ``studies/`` raise none of these
+(test_new_user.py::test_the_example_models_raise_no_plausibility_warning and the period check below).
+"""
+
+from __future__ import annotations
+
+import glob
+import math
+from pathlib import Path
+
+import pytest
+
+try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
+    from test_properties import run_main
+except ImportError:  # ... or as a package
+    from tests.test_properties import run_main  # type: ignore[no-redef]
+from crashstudy.schema.plausible import first_period, peak_g_warnings
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SLOW = """\
+name: slow
+units: mm-s-t-N
+curves:
+  crush: {x: [-500.0, -10.0, 0.0], y: [-4.0e5, -4.0e5, 0.0]}
+nodes:
+  base: {position: [0.0], fixed: true}
+  m1: {position: [1000.0], mass: 1.5}
+springs:
+  s: {nodes: [base, m1], material: {type: crush, loading: crush, unloading_stiffness: 1.0e5}}
+initial_velocity: {m1: [-15.6]}
+end_time: 0.1
+output: {histories: none}
+"""
+
+
+def run(*argv: str) -> tuple[int, str]:
+    """``crashstudy ARGV`` in this process: (exit code, stderr)."""
+    rc, _, err = run_main(*argv)
+    return rc, err
+
+
+def test_a_speed_in_m_s_in_an_mm_s_t_n_model_warns_and_names_the_likely_unit(tmp_path: Path) -> None:
+    model = tmp_path / "slow.yaml"
+    model.write_text(SLOW, encoding="utf-8")
+    rc, err = run("validate", str(model))
+    assert rc == 0
+    # 15.6 mm/s = 0.0156 m/s; read as m/s it is 15600 mm/s
+    assert (f"warning: {model}: initial velocity 15.6 mm/s is 0.0156 m/s, slower than a walking pace (1 m/s): did "
+            "you mean 15.6 m/s? In mm-s-t-N that is 15600 mm/s") in err  # fmt: skip
+    rc, err = run("simulate", str(model), "-o", str(tmp_path / "out"))
+    assert rc == 0
+    # KE 182 mJ stops within 0.1 mm on the 4e4 N/mm first segment: 3.8 kN on 1.5 t = 0.26 g
+    lines = [ln for ln in err.splitlines() if "peak deceleration" in ln]
+    assert lines and "of node 'm1'" in lines[0] and "is below 1 g" in lines[0], err
+    assert "likely cause: its initial velocity 15.6 mm/s is 0.0156 m/s" in lines[0]
+    fixed = SLOW.replace("[-15.6]", "[-15600.0]")
+    model.write_text(fixed, encoding="utf-8")
+    rc, err = run("simulate", str(model), "-o", str(tmp_path / "out2"))
+    assert rc == 0 and "warning" not in err, err
+
+
+def test_a_bumper_test_at_4_km_h_does_not_warn(tmp_path: Path) -> None:
+    model = tmp_path / "m.yaml"
+    model.write_text(SLOW.replace("[-15.6]", "[-1111.0]"), encoding="utf-8")  # 4 km/h = 1.11 m/s
+    rc, err = run("validate", str(model))
+    assert rc == 0 and "walking pace" not in err, err
+
+
+def test_a_slow_impact_velocity_axis_value_warns_naming_the_axis(tmp_path: Path) -> None:
+    (tmp_path / "m.yaml").write_text(SLOW.replace("[-15.6]", "[-15600.0]"), encoding="utf-8")
+    study = tmp_path / "s.yaml"
+    study.write_text("name: s\nmodel: m.yaml\nmatrix:\n  impact_velocity: [0.0, 15.6, 15600.0]\n", encoding="utf-8")
+    rc, err = run("validate", str(study))
+    assert rc == 0
+    assert f"warning: {study}: impact_velocity value 15.6 mm/s is 0.0156 m/s, slower than a walking pace" in err, err
+
+
+def test_a_body_below_1_g_at_a_plausible_speed_names_forces_or_masses() -> None:
+    from crashstudy.schema import validate_model_data
+    from crashstudy.schema.yamlio import loads_yaml
+
+    m, _ = validate_model_data(loads_yaml(SLOW.replace("[-15.6]", "[-15600.0]")).data)
+    assert m is not None
+    got = peak_g_warnings("mm-s-t-N", "m1", 0.5, 3, m)
+    assert len(got) == 1 and "0.5 g of node 'm1'" in got[0] and "forces too small or masses too large" in got[0]
+    assert peak_g_warnings("mm-s-t-N", "m1", 1.5, 3, m) == []
+    assert peak_g_warnings("mm-s-t-N", "m1", 0.5, 3) == []  # no model: nothing known about the cause
+
+
+TWO_DOF = """\
+name: two
+units: SI
+nodes:
+  base: {{position: [0.0], fixed: true}}
+  body: {{position: [1.0], mass: 1000.0}}
+  tip: {{position: [1.1], mass: 0.1}}
+springs:
+  soft: {{nodes: [base, body], material: {{type: linear_elastic, stiffness: 1.0e5}}}}
+  stiff: {{nodes: [body, tip], material: {{type: linear_elastic, stiffness: 1.0e9}}}}
+initial_velocity: {{body: [-5.0], tip: [-5.0]}}
+end_time: {end}
+output: {{histories: none}}
+"""
+
+
+def _plan(text: str):  # type: ignore[no-untyped-def]
+    try:
+        from conftest import model_plan
+    except ImportError:
+        from tests.conftest import model_plan  # type: ignore[no-redef]
+    return model_plan(text)
+
+
+def test_the_first_natural_period_is_the_closed_form_of_one_and_two_masses() -> None:
+    one = _plan(TWO_DOF.format(end=0.1).replace("  tip: {position: [1.1], mass: 0.1}\n", "").replace(
+        "  stiff: {nodes: [body, tip], material: {type: linear_elastic, stiffness: 1.0e9}}\n", "").replace(
+        ", tip: [-5.0]", ""))  # fmt: skip
+    assert first_period(one.topology, one.base) == pytest.approx(2 * math.pi * math.sqrt(1000.0 / 1.0e5), rel=1e-12)
+    free = _plan(TWO_DOF.format(end=0.1).replace("base: {position: [0.0], fixed: true}",
+                                                 "base: {position: [0.0], mass: 500.0}"))  # fmt: skip
+    # three free masses on two springs: omega^2 are the eigenvalues of M^-1 K; here the soft pair dominates
+    import numpy as np
+
+    m = np.array([500.0, 1000.0, 0.1])
+    K = np.array([[1e5, -1e5, 0.0], [-1e5, 1e5 + 1e9, -1e9], [0.0, -1e9, 1e9]])
+    w2 = np.sort(np.linalg.eigvals(K / m[:, None]).real)
+    assert first_period(free.topology, free.base) == pytest.approx(2 * math.pi / math.sqrt(w2[1]), rel=1e-6)
+
+
+@pytest.mark.parametrize(("end", "side"), [(0.01, "shorter"), (70.0, "longer")])
+def test_an_end_time_far_from_the_first_natural_period_warns(tmp_path: Path, end: float, side: str) -> None:
+    """T1 = 2 pi sqrt(1000 / 1e5) = 0.628 s: 0.01 s is 0.016 T1 (yet 500 critical steps of the stiff tip),
+    70 s is 111 T1."""
+    model = tmp_path / "m.yaml"
+    model.write_text(TWO_DOF.format(end=end), encoding="utf-8")
+    rc, err = run("validate", str(model))
+    assert rc == 0
+    assert f"times the model's first natural period (0.628 s, springs at their steepest slope): far {side}" in err, err
+    model.write_text(TWO_DOF.format(end=1.0), encoding="utf-8")
+    assert "natural period" not in run("validate", str(model))[1]
+
+
+def test_no_example_ends_far_from_its_first_natural_period() -> None:
+    from crashstudy.schema import load_model
+    from crashstudy.schema.plausible import PERIOD_RATIO
+    from crashstudy.study.plan import load_study, plan_from_model
+
+    for f in sorted(glob.glob(str(ROOT / "studies" / "models" / "*.yaml"))):
+        plan = plan_from_model(load_model(f))
+        T = first_period(plan.topology, plan.base)
+        end = float(plan.base[plan.topology.blocks["end_time"].start])
+        assert T == math.inf or PERIOD_RATIO[0] * 10 <= end / T <= PERIOD_RATIO[1] / 10, (f, end, T)
+    assert load_study  # the studies run these models (their warnings: test_examples)
