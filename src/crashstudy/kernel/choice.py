@@ -39,6 +39,7 @@ import tempfile
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -120,6 +121,13 @@ def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] |
     from crashstudy.kernel import generated
 
     return generated.unsupported(b) is None and generated.is_compiled(b, histories, vary, record)
+
+
+def compiling(folder: Path | None = None) -> bool:
+    """Whether a process holds the compile lock of the kernel cache ``folder`` (default: this user's)."""
+    folder = cache_dir() if folder is None else folder
+    lock = folder / LOCK_NAME
+    return why_not_private(folder) is None and lock.exists() and compile_lock.read_holder(lock) is not None
 
 
 def own_compile_running() -> bool:
