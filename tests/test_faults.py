@@ -65,7 +65,7 @@ model: models/fault-model.yaml
 matrix:
   nodes.body.mass: [1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5]
   springs.spring.material.stiffness: [1.0e4, 1.5e4, 2.0e4, 2.5e4, 3.0e4, 3.5e4, 4.0e4, 4.5e4, 5.0e4, 5.5e4]
-  impact_velocity: [0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0, 8.5, 9.0, 9.5, 10.0]
+  impact_velocity: [1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0, 8.5, 9.0, 9.5, 10.0, 10.5]
 """
 
 SMALL_STUDY = """\
@@ -555,7 +555,7 @@ def test_resume_onto_another_studys_partial_is_a_clear_input_error(fault_dir: Pa
     run.proc.send_signal(signal.SIGINT)
     assert run.finish()[0] == 130
     changed = fault_dir / "changed.yaml"
-    changed.write_text(FAULT_STUDY.replace("impact_velocity: [0.5,", "impact_velocity: [0.25,"))
+    changed.write_text(FAULT_STUDY.replace("impact_velocity: [1.0,", "impact_velocity: [1.25,"))
     data = (out / "results.nc.partial").read_bytes()
     p = cli("run", changed, "-o", out, "--resume", "--progress", "off")
     assert (out / "results.nc.partial").read_bytes() == data  # kept for the study it belongs to

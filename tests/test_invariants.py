@@ -42,7 +42,7 @@ from crashstudy.kernel.codes import OK
 
 COUNTS: Counter[str] = Counter()
 HISTORIES = ["position", "velocity", "spring_force", "spring_elongation"]
-SETTINGS = settings(max_examples=40, deadline=None, derandomize=True, database=None,
+SETTINGS = settings(max_examples=25, deadline=None, derandomize=True, database=None,
                     suppress_health_check=list(HealthCheck))  # fmt: skip
 
 
