@@ -60,7 +60,7 @@ HISTORY_META = {  # name: (unit kind, long name)
     "kinetic_energy": ("energy", "kinetic energy"),
     "internal_energy": ("energy", "work done on all springs and dampers, plus the energy they stored at t = 0"),
     "external_work": ("energy", "work of loads, gravity and prescribed motion"),
-    "wall_energy": ("energy", "kinetic energy removed by rigid walls"),
+    "wall_energy": ("energy", "kinetic energy removed by rigid walls, plus the energy stored in penalty walls"),
     "wall_force": ("force", "rigid wall contact force (reaction to the forces pushing held nodes into it)"),
     "filtered_acceleration": ("g", "resultant acceleration of a metric node, SAE J211 filtered (its cfc)"),
 }
