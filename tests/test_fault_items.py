@@ -251,6 +251,7 @@ def test_compare_fails_a_baseline_whose_summary_lost_variants(two_results: tuple
     df = pd.read_csv(damaged / "summary.csv")
     df.iloc[:3].to_csv(damaged / "summary.csv", index=False)
     pd.read_parquet(damaged / "summary.parquet").iloc[:3].to_parquet(damaged / "summary.parquet", index=False)
+    reseal(damaged)  # as if the run had written them so (edited files are refused: test_write_read.py)
     p = cli("compare", new, damaged)
     assert p.returncode == 1, p.stdout
     verdict = p.stdout.strip().splitlines()[-1]
@@ -365,3 +366,13 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
             compared += 1
             invalid += bool(schema_says)
     assert compared > 400 and invalid > 100, (compared, invalid)  # every rule kind was exercised
+
+
+def reseal(folder: Path) -> None:
+    """Record the folder's files as they are now in its manifest (a defect the run itself wrote)."""
+    import json
+
+    from crashstudy.results.integrity import write_manifest
+
+    m = json.loads((folder / "manifest.json").read_text())
+    write_manifest(folder, m["run_id"], [n for n in m["files"] if (folder / n).exists()])

@@ -28,7 +28,7 @@ import pytest
 from crashstudy.errors import InputError
 from crashstudy.schema import yamlio
 from crashstudy.study.plan import load_study
-from test_fault_items import TINY_MODEL, Cli, K, assert_exit_2  # noqa: E402 - shared helpers
+from test_fault_items import TINY_MODEL, Cli, K, assert_exit_2, reseal  # noqa: E402 - shared helpers
 
 MODEL = TINY_MODEL  # the tiny model of test_fault_items (K = 2e4 N/m, 2 kg at 1 m/s)
 STUDY = "name: tiny-study\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: [1.0, 2.0]\n"
@@ -287,6 +287,7 @@ def test_compare_names_metrics_that_failed_by_nan_instead_of_a_zero_rel_diff(tmp
             df = pd.read_parquet(new / name) if name.endswith("parquet") else pd.read_csv(new / name)
             df.loc[1, column] = np.nan
             df.to_parquet(new / name, index=False) if name.endswith("parquet") else df.to_csv(new / name, index=False)
+    reseal(new)  # as if the run had written the NaN (an edited file is refused: test_write_read.py)
     p = cli("compare", new, tmp_path / "base")
     assert p.returncode == 1, p.stdout + p.stderr
     line = next(ln for ln in p.stdout.splitlines() if ln.startswith(f"  {column}:"))

@@ -43,8 +43,10 @@ class Results:
     def __init__(self, directory: str | os.PathLike[str]) -> None:
         self.dir = Path(directory)
         final = self.dir / FINAL
-        if not os.path.lexists(final):
-            raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})")
+        try:
+            os.lstat(final)  # a path too long or a loop of links raises here, named as such by the CLI
+        except FileNotFoundError:
+            raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})") from None
         problem, self.manifest = integrity.check_folder(self.dir, FINAL, (PARQUET, SUMMARY))
         if problem:
             raise InputError([Problem(str(self.dir), None, "", problem)])
