@@ -1,7 +1,8 @@
 """Hand-specialised reference loop for ``studies/models/frontal-9mass.yaml`` (benchmarks only).
 
 What the hardware gives for this one model: the topology is hard-coded (which nodes each spring
-joins, which material it has), the curves are compile-time constants, and one fused loop over the
+joins, which material it has), the curves' shapes are compile-time constants (the crush springs' curve
+scale and x_scale and the flange's stiffness come per variant: a study's curve axes), and one fused loop over the
 variants of a block (innermost, contiguous, ``BLOCK`` columns) does every spring, every node update
 and every summary of a time step, with branch-free curves and material laws (selects, ``min``/``max``)
 so that LLVM can put several variants in one SIMD instruction. It computes the same physics as the
@@ -117,7 +118,9 @@ R_PA = 82  # per node: peak a^2
 R_CS = 91  # crush state (e_min, F*): 2 rows per spring index
 R_GS = 107  # general_nonlinear state: 8 rows per slot (slot 0: occupant-cell, slot 1: engine-mount)
 R_FH, R_EH, R_UH, R_AH, R_VH, R_KEH, R_IEH = 123, 131, 139, 148, 157, 166, 167  # recorded values
-N_ROWS = 168
+R_YS, R_IX, R_KF = 168, 173, 178  # per variant: the crush springs' curve scale and 1 / x_scale, the flange's k
+N_ROWS = 179
+CRUSH_SPRINGS = (0, 1, 2, 4, 5)  # crash-box, front-rail, rear-rail, radiator-support, engine-stackup
 
 
 @_jit
@@ -160,10 +163,11 @@ def _line(e, c):  # pragma: no cover - compiled
 
 
 @_jit
-def _crush(e, emin, fstar, ramp, c, ku):  # pragma: no cover - compiled
-    """Crush law (docs/format.md), branch-free: returns (F, e_min, F*) after this step."""
+def _crush(e, emin, fstar, ramp, c, ku, ys, ixs):  # pragma: no cover - compiled
+    """Crush law (docs/format.md), branch-free: returns (F, e_min, F*) after this step; the loading curve
+    is ``ys * curve(e * ixs)`` (a study's curve scale and 1 / x_scale)."""
     on = e <= emin
-    f_load = _min(0.0, ramp(e, c))
+    f_load = _min(0.0, ys * ramp(e * ixs, c))
     f_unl = _min(0.0, fstar + ku * (e - emin))
     return (f_load if on else f_unl), (e if on else emin), (f_load if on else fstar)
 
@@ -265,19 +269,19 @@ def _step(Z, B, n, rec):  # pragma: no cover - compiled
         e6 = Z[(R_U + 4) * ROW + w] - Z[(R_U + 3) * ROW + w]
         e7 = Z[(R_U + 6) * ROW + w] - Z[(R_U + 3) * ROW + w]
         F0, Z[(R_CS + 0) * ROW + w], Z[(R_CS + 1) * ROW + w] = _crush(
-            e0, Z[(R_CS + 0) * ROW + w], Z[(R_CS + 1) * ROW + w], _ramp4, C_BOX, KU_BOX
+            e0, Z[(R_CS + 0) * ROW + w], Z[(R_CS + 1) * ROW + w], _ramp4, C_BOX, KU_BOX, Z[(R_YS + 0) * ROW + w], Z[(R_IX + 0) * ROW + w]
         )
         F1, Z[(R_CS + 2) * ROW + w], Z[(R_CS + 3) * ROW + w] = _crush(
-            e1, Z[(R_CS + 2) * ROW + w], Z[(R_CS + 3) * ROW + w], _ramp4, C_RAIL, KU_RAIL
+            e1, Z[(R_CS + 2) * ROW + w], Z[(R_CS + 3) * ROW + w], _ramp4, C_RAIL, KU_RAIL, Z[(R_YS + 1) * ROW + w], Z[(R_IX + 1) * ROW + w]
         )
         F2, Z[(R_CS + 4) * ROW + w], Z[(R_CS + 5) * ROW + w] = _crush(
-            e2, Z[(R_CS + 4) * ROW + w], Z[(R_CS + 5) * ROW + w], _ramp3, C_REAR, KU_REAR
+            e2, Z[(R_CS + 4) * ROW + w], Z[(R_CS + 5) * ROW + w], _ramp3, C_REAR, KU_REAR, Z[(R_YS + 2) * ROW + w], Z[(R_IX + 2) * ROW + w]
         )
         F4, Z[(R_CS + 8) * ROW + w], Z[(R_CS + 9) * ROW + w] = _crush(
-            e4, Z[(R_CS + 8) * ROW + w], Z[(R_CS + 9) * ROW + w], _ramp3, C_RAD, KU_RAD
+            e4, Z[(R_CS + 8) * ROW + w], Z[(R_CS + 9) * ROW + w], _ramp3, C_RAD, KU_RAD, Z[(R_YS + 3) * ROW + w], Z[(R_IX + 3) * ROW + w]
         )
         F5, Z[(R_CS + 10) * ROW + w], Z[(R_CS + 11) * ROW + w] = _crush(
-            e5, Z[(R_CS + 10) * ROW + w], Z[(R_CS + 11) * ROW + w], _ramp3, C_ENG, KU_ENG
+            e5, Z[(R_CS + 10) * ROW + w], Z[(R_CS + 11) * ROW + w], _ramp3, C_ENG, KU_ENG, Z[(R_YS + 4) * ROW + w], Z[(R_IX + 4) * ROW + w]
         )
         g = R_GS
         (F3, Z[(g) * ROW + w], Z[(g + 1) * ROW + w], Z[(g + 2) * ROW + w], Z[(g + 3) * ROW + w], Z[(g + 4) * ROW + w], Z[(g + 5) * ROW + w], Z[(g + 6) * ROW + w],
@@ -289,7 +293,7 @@ def _step(Z, B, n, rec):  # pragma: no cover - compiled
          Z[(g + 7) * ROW + w]) = _general(e6, Z[(g) * ROW + w], Z[(g + 1) * ROW + w], Z[(g + 2) * ROW + w], Z[(g + 3) * ROW + w], Z[(g + 4) * ROW + w],
                                  Z[(g + 5) * ROW + w], Z[(g + 6) * ROW + w], Z[(g + 7) * ROW + w], _ramp5, C_MOUNT, _ramp5, C_MOUNT_INV, C_MOUNT_U,
                                  KU_MOUNT, YT_MOUNT, YC_MOUNT)  # fmt: skip
-        F7 = K_FLANGE * e7
+        F7 = Z[R_KF * ROW + w] * e7
         # summaries in spring order (the generic kernel's order of operations)
         ie0, Z[(R_PF + 0) * ROW + w], Z[(R_MC + 0) * ROW + w] = _summary(F0, e0, Z[(R_IE + 0) * ROW + w], Z[(R_FP + 0) * ROW + w], Z[(R_EP + 0) * ROW + w], Z[(R_PF + 0) * ROW + w], Z[(R_MC + 0) * ROW + w], af, wt)  # fmt: skip
         Z[(R_IE + 0) * ROW + w], Z[(R_FP + 0) * ROW + w], Z[(R_EP + 0) * ROW + w] = ie0, F0, e0
@@ -365,7 +369,7 @@ def _step(Z, B, n, rec):  # pragma: no cover - compiled
 
 
 @nb.njit(nogil=True, error_model="numpy", cache=True)
-def _run_blocks(b_lo, b_hi, starts, record, mass, inv_mass, x0, v0, dt, n_steps, out_every, n_out,
+def _run_blocks(b_lo, b_hi, starts, record, mass, inv_mass, x0, v0, dt, n_steps, out_every, n_out, ys, ixs, kf,
                 h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy,
                 peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy, t_end):  # pragma: no cover  # fmt: skip
     N = 9
@@ -380,8 +384,13 @@ def _run_blocks(b_lo, b_hi, starts, record, mass, inv_mass, x0, v0, dt, n_steps,
                 Z[(R_M + n_) * ROW + w] = mass[n_, lo + w]
                 Z[(R_IM + n_) * ROW + w] = inv_mass[n_, 0, lo + w]
                 Z[(R_V + n_) * ROW + w] = v0[n_, 0, lo + w]
+        for k in range(5):
+            for w in range(B):
+                Z[(R_YS + k) * ROW + w] = ys[k, lo + w]
+                Z[(R_IX + k) * ROW + w] = ixs[k, lo + w]
         nmax = 0
         for w in range(B):
+            Z[R_KF * ROW + w] = kf[lo + w]
             Z[R_DT * ROW + w] = dt[lo + w]
             Z[R_NST * ROW + w] = n_steps[lo + w]
             nmax = max(nmax, n_steps[lo + w])
@@ -458,7 +467,12 @@ def run_specialised(b: Any, histories: tuple[str, ...], n_out: int, block: int =
         return out.histories[name] if name in out.histories else np.empty((1,) * nd)
 
     starts = np.unique(np.minimum(np.arange(0, V + block, block), V)).astype(np.int64)
-    args = (starts, record, b.mass, b.inv_mass, b.x0, b.v0, b.dt, b.n_steps, b.out_every, n_out,
+    curves = b.curve_a[list(CRUSH_SPRINGS)]
+    others = [c for c in range(b.cfac.shape[1]) if c not in set(curves.tolist())]
+    assert np.all(b.cfac[:2, others] == 1.0), "the loop scales the crush springs' curves only"
+    ys, ixs = np.ascontiguousarray(b.cfac[0, curves]), np.ascontiguousarray(1.0 / b.cfac[1, curves])
+    args = (starts, record, b.mass, b.inv_mass, b.x0, b.v0, b.dt, b.n_steps, b.out_every, n_out, ys, ixs,
+            np.ascontiguousarray(b.kpar[7]),
             buf("position", 4), buf("displacement", 4), buf("velocity", 4), buf("acceleration", 4),
             buf("spring_force", 3), buf("spring_elongation", 3), h_energy,
             out.peak_force, out.max_crush, out.absorbed_energy, out.peak_acceleration, out.energy_error,

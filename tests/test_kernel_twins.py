@@ -79,6 +79,22 @@ _COMPACTION_AXES = {"nodes.bumper.mass": list(np.random.default_rng(7).permutati
                     "curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 48))}  # fmt: skip
 
 
+# force and abscissa scales of spring, time and motion curves (a constant shape and per-variant factors)
+_SCALED_1D = {"curves.plateau.scale": [0.6, 0.7, 0.8, 0.9, 1.0], "curves.soft.x_scale": [1.0, 1.1, 1.2, 1.3, 1.4],
+              "curves.gn-load.scale": [1.0, 0.9, 0.8, 0.7, 0.95], "curves.pulse.x_scale": [0.5, 0.8, 1.0, 1.5, 2.0],
+              "curves.pull.x_scale": [1.0, 0.5, 2.0, 1.5, 0.8]}  # fmt: skip
+_SCALED_KNOTS = {f"curves.{c}.{f}": v for c in ("crush", "elastic") for f, v in
+                 (("scale", [0.7, 0.8, 0.9, 1.0, 0.75]), ("x_scale", [1.0, 1.1, 1.2, 1.3, 1.4]))}  # fmt: skip
+
+
+def _check_scaled(ref: KernelOutput, batch: Any) -> None:
+    """Every variant runs; the scaled curves keep one shape (the generated kernel's factor curves)."""
+    from crashstudy.kernel.gen_shape import _constant_curves, _factor_curves
+
+    assert np.all(ref.status == 0) and np.unique(batch.cfac[0], axis=1).shape[1] > 1
+    assert _factor_curves(batch, None, _constant_curves(batch, None))
+
+
 def _check_ok(ref: KernelOutput, batch: Any) -> None:
     assert np.all(ref.status == 0)
 
@@ -213,6 +229,9 @@ CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]], Cal
                                 _check_knots)
        for kind in ("crush", "nonlinear_elastic", "general_nonlinear") for dim in (1, 2)},
     "frontal-curve-and-mass-axes": (lambda: _frontal("all", 0.06), _FRONTAL_AXES, _check_ok),
+    "scaled-curves-1d": ((lambda: TWINS["1d-all-materials"][0]), _SCALED_1D, _check_scaled),
+    **{f"scaled-knots-{kind}": ((lambda k=kind: _one_mass(k, dim=1, dt=4e-4)), _SCALED_KNOTS, _check_scaled)
+       for kind in ("crush", "nonlinear_elastic", "general_nonlinear")},
     "frontal-lane-compaction": (lambda: _frontal(["spring_force", "kinetic_energy"], 0.03), _COMPACTION_AXES,
                                 _check_compaction),
     "early-termination": (_bounce_many, {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}, _check_termination),

@@ -108,6 +108,10 @@ class Batch:
     state0: np.ndarray  # (S, NSTATE, V) material state at t = 0 (kernel.preload), (0, NSTATE, V) if no preload
     ie0: np.ndarray  # (S, V) [energy] energy stored in each spring at t = 0 (IE0)
     rate0: np.ndarray  # (S, V) [length/time] elongation rate at t = 0 (a preload's first half step)
+    # a curve's shape and its per-variant factors (curve_shapes): cx = bx xs, cy = by ys, slopes = shape's slopes ys/xs
+    bx: np.ndarray  # (K, V) knot abscissae as written
+    by: np.ndarray  # (K, V) knot ordinates as written
+    cfac: np.ndarray  # (3, C, V) force scale ys, abscissa scale xs, slope factor ys / xs
 
     @property
     def n_variants(self) -> int:
@@ -164,22 +168,22 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
     length0 = np.sqrt(np.sum(dx * dx, axis=1))
     sign = np.sign(dx[:, 0, :]) if D == 1 else np.ones((S, V))
 
-    cx = np.ascontiguousarray(P[b["cx"]])
-    cy = np.ascontiguousarray(P[b["cy_"]])
+    bx, by, cfac = curve_shapes(topo, P)
+    cx, cy = curve_points(topo, P)
     off = topo.curve_offsets
     C = len(topo.curve_ids)
     cds = np.zeros_like(cx)
     cs0 = np.zeros((C, V))
     cs1 = np.zeros((C, V))
     bad_curve = np.zeros(V, dtype=bool)
-    for c in range(C):
+    for c in range(C):  # the shape's slopes times the variant's slope factor (one law: kernel.gen_shape)
         a, e = int(off[c]), int(off[c + 1])
-        dxk = np.diff(cx[a:e], axis=0)
-        bad_curve |= np.any(~(dxk > 0), axis=0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            slope = np.diff(cy[a:e], axis=0) / dxk
-        cs0[c], cs1[c] = slope[0], slope[-1]
-        cds[a + 1 : e - 1] = np.diff(slope, axis=0)
+        dxk = np.diff(bx[a:e], axis=0)
+        bad_curve |= np.any(~(np.diff(cx[a:e], axis=0) > 0), axis=0)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            shape = np.diff(by[a:e], axis=0) / dxk
+            cs0[c], cs1[c] = shape[0] * cfac[2, c], shape[-1] * cfac[2, c]
+            cds[a + 1 : e - 1] = np.diff(shape, axis=0) * cfac[2, c]
 
     kpar = np.ascontiguousarray(P[b["k"]])
     ktan, fy, e0 = (np.ascontiguousarray(P[b[k]]) for k in ("kt", "fy", "e0"))
@@ -223,8 +227,29 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         **knot_peaks(topo, cx, cy),
         ktan=ktan, fy=fy, e0=e0, fail_t=np.ascontiguousarray(P[b["fail_t"]]),
         fail_c=np.ascontiguousarray(P[b["fail_c"]]), state0=state0, ie0=ie0, rate0=_rate0(dx, length0, v0, i, j),
+        bx=bx, by=by, cfac=cfac,
     )  # fmt: skip
     return batch, steps
+
+
+def curve_shapes(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The curves' points as written (their shape, (K, V) x and y) and each variant's factors
+    ``cfac`` (3, C, V): force scale ``ys``, abscissa scale ``xs`` and slope factor ``ys / xs``
+    (``curves.<id>.scale`` and ``x_scale``)."""
+    b, V, C = topo.blocks, P.shape[1], len(topo.curve_ids)
+    fac = P[b["cfac"]].reshape(C, 2, V) if "cfac" in b else np.ones((C, 2, V))
+    with np.errstate(all="ignore"):
+        cfac = np.ascontiguousarray(np.stack([fac[:, 0], fac[:, 1], fac[:, 0] / fac[:, 1]]))
+    return np.ascontiguousarray(P[b["cx"]]), np.ascontiguousarray(P[b["cy_"]]), cfac
+
+
+def curve_points(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The curves' points of each variant, (K, V) x and y: the shape's points times the variant's
+    abscissa and force scales (what every check and every kernel sees)."""
+    bx, by, cfac = curve_shapes(topo, P)
+    c = np.repeat(np.arange(len(topo.curve_ids)), np.diff(topo.curve_offsets))
+    with np.errstate(over="ignore", invalid="ignore"):
+        return bx * cfac[1, c], by * cfac[0, c]
 
 
 def _rate0(dx: np.ndarray, length0: np.ndarray, v0: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -362,9 +387,9 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     bad = np.zeros(V, dtype=bool)
     for mask, _ in rules:
         bad |= mask.any(axis=0)
-    kmax, damp = spring_stiffness_bound(topo, k, P[b["cx"]], P[b["cy_"]])
-    steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, P[b["cx"]]),
-                         P[b["wall_k"]])
+    pcx, pcy = curve_points(topo, P)
+    kmax, damp = spring_stiffness_bound(topo, k, pcx, pcy)
+    steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, pcx), P[b["wall_k"]])
     assert steps.too_many is not None
     over = steps.too_many & ~bad  # a variant that breaks another rule has no meaningful step
     def too_small(c: int) -> str:
@@ -419,12 +444,15 @@ def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> No
     """Curves: x strictly increasing; every material curve through the origin (a preload is written with
     initial_elongation); the general_nonlinear unloading curve increasing, a nonlinear_damper curve
     non-decreasing; a crush loading curve starting in compression (x < 0)."""
-    b, off = topo.blocks, topo.curve_offsets
-    cx, cy = P[b["cx"]], P[b["cy_"]]
+    off = topo.curve_offsets
+    cx, cy = curve_points(topo, P)
     ids = topo.curve_ids
     for c, cid in enumerate(ids):
         a, e = int(off[c]), int(off[c + 1])
         xs = cx[a:e]
+        for pts, axis in ((xs, "x"), (cy[a:e], "y")):  # a point times its curve's scale
+            rule(~np.isfinite(pts), lambda r, col, cid=cid, pts=pts, axis=axis: f"curves.{cid}.{axis}.{r} is not "
+                 f"finite ({pts[r, col]:g}): an axis value or a scale factor made it overflow")  # fmt: skip
         rule(~(np.diff(xs, axis=0) > 0), lambda r, col, cid=cid, xs=xs: f"curves.{cid}.x must be strictly increasing "
              f"(x.{r} = {xs[r, col]:g} is followed by {xs[r + 1, col]:g})")  # fmt: skip
     origin: dict[int, str] = {}  # curve -> material type of a spring that uses it

@@ -141,12 +141,13 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     lengths = [len(c.x) for c in m.curves.values()]
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
     ptot = int(offsets[-1])
+    C = len(curve_ids)
 
     sizes = [("mass", N), ("position", N * D), ("velocity", N * D), ("k", S), ("ty", S), ("cy", S),
              ("cx", ptot), ("cy_", ptot), ("gravity", D), ("load", L * D), ("pm_scale", P),
              ("wall_point", W * D), ("wall_normal", W * D), ("wall_k", W), ("end_time", 1), ("time_step", 1),
              ("ke_fraction", 1), ("min_time", 1),
-             ("kt", S), ("fy", S), ("e0", S), ("fail_t", S), ("fail_c", S)]  # fmt: skip
+             ("kt", S), ("fy", S), ("e0", S), ("fail_t", S), ("fail_c", S), ("cfac", 2 * C)]  # fmt: skip
     blocks: dict[str, slice] = {}
     pos = 0
     for name, n in sizes:
@@ -221,8 +222,10 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
         for k, (x, y) in enumerate(zip(curve.x, curve.y, strict=False)):  # lengths checked by the schema
             xs.append(put("cx", o + k, x, f"curves.{cid}.x.{k}"))
             ys.append(put("cy_", o + k, y, f"curves.{cid}.y.{k}"))
-        paths[f"curves.{cid}.scale"] = PathRef("scale", tuple(ys))
-        paths[f"curves.{cid}.x_scale"] = PathRef("scale", tuple(xs))
+        # a curve's force and abscissa scales are one factor each per variant (arrays.batch.curve_points):
+        # the points stay the curve's shape, so a study scaling a curve keeps one ramp for all variants
+        paths[f"curves.{cid}.scale"] = PathRef("scale", (put("cfac", 2 * c, 1.0, None),))
+        paths[f"curves.{cid}.x_scale"] = PathRef("scale", (put("cfac", 2 * c + 1, 1.0, None),))
 
     if m.gravity is not None:
         for d in range(D):

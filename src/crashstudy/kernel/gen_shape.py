@@ -24,7 +24,7 @@ from crashstudy.kernel.codes import (
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-GEN_VERSION = 10  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 11  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = environment.gen_block()  # variants per block (CRASHSTUDY_GEN_BLOCK)
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 
@@ -45,12 +45,13 @@ def unsupported(b: Batch) -> str | None:
 
 
 def _constant_curves(b: Batch, vary: frozenset[int] | None) -> list[int]:
-    """Curves whose coefficients are the same in every variant of ``b`` and, when ``vary`` (curve
-    indices a study varies) is given, not among those: their numbers stay in registers."""
+    """Curves whose coefficients are the same in every variant of ``b`` and, when ``vary`` (the curves a
+    study changes, :attr:`crashstudy.study.plan.Plan.varying_curves`) is given, not among those: their
+    numbers stay in registers."""
     out = []
     for c in range(len(b.curve_off) - 1):
         a0, b0 = b.curve_off[c], b.curve_off[c + 1]
-        if vary is not None and c in vary:
+        if vary is not None and (c in vary or -1 - c in vary):
             continue
         rows = [b.cx[a0:b0], b.cy[a0:b0], b.cds[a0:b0], b.knot_y[a0:b0], b.cs0[c : c + 1]]
         if all(np.all(r == r[:, :1]) for r in rows):
@@ -58,31 +59,59 @@ def _constant_curves(b: Batch, vary: frozenset[int] | None) -> list[int]:
     return out
 
 
+def _factor_curves(b: Batch, vary: frozenset[int] | None, const: list[int]) -> list[int]:
+    """Curves with a constant shape (the points as written, the same in every variant) whose variants
+    differ by their factors only (``curves.<id>.scale``, ``x_scale``: Batch.cfac): the shape stays in
+    registers and a lane carries its three factors (an effective coefficient is shape x factor, the
+    product arrays.batch.build_batch takes)."""
+    out = []
+    for c in range(len(b.curve_off) - 1):
+        a0, b0 = b.curve_off[c], b.curve_off[c + 1]
+        if c in const or (vary is not None and c in vary):
+            continue
+        if all(np.all(r == r[:, :1]) for r in (b.bx[a0:b0], b.by[a0:b0])):
+            out.append(c)
+    return out
+
+
 def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
-    """(coefficient name, Batch array, row) of every constant-curve coefficient the springs read, in
-    the order of the kernel's ``cst`` argument."""
+    """(coefficient name, Batch array, row) of every register coefficient the springs read, in the order
+    of the kernel's ``cst`` argument: the constant curves' coefficients and the factor curves' shapes
+    (arrays ``bcy``, ``bs0``, ``bds``, ``bx``: see :func:`_constants`)."""
     off, S = shape["off"], shape["S"]
+    fac = set(shape.get("fac", ()))
     tcurves = {c for _, c in shape["loads"] if c >= 0} | {c for _, _, _, c in shape["pm"]}
     used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0} | tcurves
     out = []
-    for c in shape["const"]:
+    for c in shape["const"] + sorted(fac):
         if c not in used:
             continue
+        cx, cy, cds, cs0 = ("bx", "by", "bds", "bs0") if c in fac else ("cx", "cy", "cds", "cs0")
         if c in tcurves:
-            out.append((f"cx{off[c + 1] - 1}", "cx", off[c + 1] - 1))
-        out += [(f"cy0_{c}", "cy", off[c]), (f"s0_{c}", "cs0", c)]
+            out.append((f"cx{off[c + 1] - 1}", cx, off[c + 1] - 1))
+        out += [(f"cy0_{c}", cy, off[c]), (f"s0_{c}", cs0, c)]
         for k in range(off[c], off[c + 1] - 1):
-            out.append((f"cx{k}", "cx", k))
+            out.append((f"cx{k}", cx, k))
             if k > off[c]:
-                out.append((f"ds{k}", "cds", k))
-            if k in shape["kcheck"]:
+                out.append((f"ds{k}", cds, k))
+            if k in shape["kcheck"] and c not in fac:  # a factor curve's knot forces: per-variant rows
                 out.append((f"kyv{k}", "knot_y", k))
     return out
 
 
 def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
-    """The ``cst`` argument: the constant curves' coefficients (the same in every variant)."""
-    return np.array([getattr(b, arr)[row, 0] for _, arr, row in _const_layout(shape)] + [0.0])
+    """The ``cst`` argument: the constant curves' coefficients (the same in every variant) and the
+    factor curves' shape coefficients (from the points as written, as arrays.batch.build_batch)."""
+    off = b.curve_off
+    with np.errstate(all="ignore"):
+        slope = [np.diff(b.by[off[c] : off[c + 1], :1], axis=0) / np.diff(b.bx[off[c] : off[c + 1], :1], axis=0)
+                 for c in range(len(off) - 1)]  # fmt: skip
+    bds = np.zeros((len(b.bx), 1))
+    for c, sl in enumerate(slope):
+        bds[off[c] + 1 : off[c + 1] - 1] = np.diff(sl, axis=0)
+    arrays = {"bx": b.bx, "by": b.by, "bds": bds, "bs0": np.array([sl[0] for sl in slope]).reshape(-1, 1)}
+    return np.array([(arrays[arr] if arr in arrays else getattr(b, arr))[row, 0]
+                     for _, arr, row in _const_layout(shape)] + [0.0])  # fmt: skip
 
 
 def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None,
@@ -95,8 +124,9 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
     static = [bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0) and n not in pm_nodes) for n in range(N)]
     sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
             for s in range(len(b.spring_i))]  # fmt: skip
+    const = _constant_curves(b, vary) if const is None else const
     return {
-        "const": _constant_curves(b, vary) if const is None else const, "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
+        "const": const, "fac": _factor_curves(b, vary, const), "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
         "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
         "gravity": bool(np.any(b.gravity != 0.0)), "term": bool(np.any(b.ke_fraction > 0.0)),
         "walls": [[n for n in range(N) if b.wall_nodes[k, n] != 0.0] for k in range(b.wall_nodes.shape[0])],
@@ -208,8 +238,19 @@ def layout(shape: dict[str, Any]) -> Any:
                 R.add(f"{f}{n}_{d}")
     curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0} | set(tcurves))
     cname = {nm: f"k_{nm}" for nm, _, _ in _const_layout(shape)}  # coefficient -> local constant
+    fac = shape.get("fac", [])
+    cmul: dict[str, str] = {}  # a factor curve's coefficient -> the row of its lane's factor
     for c in curves:
         if c in const:
+            continue
+        if c in fac:  # the shape in registers, the lane's factors ys, xs, ys / xs in rows
+            for f in ("fy", "fx", "ff"):
+                R.add(f"{f}{c}")
+            cmul[f"cy0_{c}"], cmul[f"s0_{c}"] = R[f"fy{c}"], R[f"ff{c}"]
+            for k in range(off[c], off[c + 1]):
+                cmul[f"cx{k}"], cmul[f"ds{k}"] = R[f"fx{c}"], R[f"ff{c}"]
+                if k in kcheck and k < off[c + 1] - 1:
+                    R.add(f"kyv{k}")
             continue
         R.add(f"cy0_{c}")
         R.add(f"s0_{c}")
@@ -267,7 +308,10 @@ def layout(shape: dict[str, Any]) -> Any:
                 R.add(f"axh{s}_{d}")
 
     def co(name: str) -> str:
-        return cname[name] if name in cname else R[name]
+        """A curve coefficient as source: a register, a register times the lane's factor, or a row."""
+        if name in cname:
+            return f"({cname[name]} * {cmul[name]})" if name in cmul else cname[name]
+        return R[name]
 
     def ramp(c: int, arg: str) -> str:
         a0, b0 = off[c], off[c + 1]

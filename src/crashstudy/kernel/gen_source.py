@@ -26,7 +26,7 @@ RECORD_NAMES = [(n, "P", f) for n, f in (
     ("ke_fraction", "ke_fraction"), ("min_time", "min_time"), ("wall_point", "wall_point"),
     ("wall_normal", "wall_normal"), ("wall_k", "wall_stiffness"), ("load_force", "load_force"), ("pm_scale", "pm_scale"),
     ("ktan", "ktan"), ("fyld", "fy"), ("elong0", "e0"), ("state0", "state0"), ("ie0", "ie0"), ("rate0", "rate0"),
-    ("fail_t", "fail_t"), ("fail_c", "fail_c"))] + [
+    ("fail_t", "fail_t"), ("fail_c", "fail_c"), ("cfac", "cfac"))] + [
     ("off", "T", "curve_off")] + [(n, "H", f) for n, f in (
     ("h_pos", "pos"), ("h_disp", "disp"), ("h_vel", "vel"), ("h_acc", "acc"), ("h_force", "force"),
     ("h_elong", "elong"), ("h_energy", "energy"), ("h_wall", "wall"))] + [(n, "O", n) for n in (
@@ -157,8 +157,9 @@ def lanes(g: Any, ind: str) -> None:
         emit(f"{i2}{R[f'pms{k}']} = pm_scale[{k}, q]")
     if pm:
         emit(f"{i2}{R['nst']} = float(n_steps[q])")
+    fac = g.fac
     for c in tcurves:
-        if c not in const:
+        if c not in const and c not in fac:
             emit(f"{i2}{R[f'cx{off[c + 1] - 1}']} = cx[{off[c + 1] - 1}, q]")
     for wl in range(W):
         for d in range(D):
@@ -176,6 +177,13 @@ def lanes(g: Any, ind: str) -> None:
                 emit(f"{i2}{R[f'v0{n}_{d}']} = v0[{n}, {d}, q]")
     for c in curves:
         if c in const:
+            continue
+        if c in fac:  # force scale, abscissa scale, slope factor; the knot forces (they flag peaks)
+            for i, f in enumerate(("fy", "fx", "ff")):
+                emit(f"{i2}{R[f'{f}{c}']} = cfac[{i}, {c}, q]")
+            for k in range(off[c], off[c + 1] - 1):
+                if k in kcheck:
+                    emit(f"{i2}{R[f'kyv{k}']} = knot_y[{k}, q]")
             continue
         a0 = off[c]
         emit(f"{i2}{R[f'cy0_{c}']} = cy[{a0}, q]")

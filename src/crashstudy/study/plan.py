@@ -93,12 +93,17 @@ class Plan:
 
     @functools.cached_property
     def varying_curves(self) -> frozenset[int]:
-        """Indices of the curves whose knots some axis changes (the axes' parameter slots that fall in a
-        curve's knots): the generated kernel keeps the other curves as constants."""
+        """The curves some axis changes: index ``c`` when an axis sets one of its knots (the axes' parameter
+        slots that fall in a curve's knots), ``-1 - c`` when axes only scale it (``scale``, ``x_scale``:
+        one factor per variant on a constant shape). The generated kernel keeps the other curves as
+        constants, and a scaled curve's shape as constants too (kernel.gen_shape)."""
         touched = {s for ax in self.axes for s in ax.ref.slots}
         off, blocks = self.topology.curve_offsets, self.topology.blocks
-        return frozenset(c for c in range(len(off) - 1) for b in ("cx", "cy_") if b in blocks
-                         and any(blocks[b].start + k in touched for k in range(int(off[c]), int(off[c + 1]))))  # fmt: skip
+        points = {c for c in range(len(off) - 1) for b in ("cx", "cy_") if b in blocks
+                  and any(blocks[b].start + k in touched for k in range(int(off[c]), int(off[c + 1])))}  # fmt: skip
+        fac = blocks.get("cfac", slice(0, 0))
+        scaled = {(s - fac.start) // 2 for s in touched if fac.start <= s < fac.stop} - points
+        return frozenset(points | {-1 - c for c in scaled})
 
     def axis_values(self, lo: int, hi: int) -> dict[str, np.ndarray]:
         """Value of every axis for variants ``lo`` .. ``hi - 1``."""
