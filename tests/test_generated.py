@@ -150,7 +150,8 @@ def test_bad_kernel_environment_variable_is_an_input_error_before_anything_is_wr
     proc = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(HELICOPTER), "--output", str(out)],
                           capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
     assert proc.returncode == 2, proc.stderr
-    assert "environment: CRASHSTUDY_KERNEL: unknown kernel 'fastest': expected reference, generic or generated" in proc.stderr
+    assert ("environment: CRASHSTUDY_KERNEL: expected reference, generic or generated (unset: the fastest kernel "
+            "that is ready), got 'fastest'") in proc.stderr
     assert "Traceback" not in proc.stderr and not out.exists()
 
 
