@@ -340,8 +340,8 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
     """check_parameters (what every distinct axis value now goes through) against the schema (the truth) on
     each numeric field of a model with all five materials, a wall, a load curve and termination."""
     from conftest import model_plan
-    from crashstudy.arrays.batch import check_parameters
     from crashstudy.arrays.compiler import apply_axis
+    from crashstudy.arrays.parameter_checks import check_parameters
     from crashstudy.schema.yamlio import loads_yaml
     from crashstudy.study.plan import _model_message
 

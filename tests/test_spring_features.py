@@ -22,8 +22,8 @@ import pytest
 import yaml
 
 from conftest import model_plan, run_model
-from crashstudy.arrays.batch import check_parameters
 from crashstudy.arrays.compiler import apply_axis
+from crashstudy.arrays.parameter_checks import check_parameters
 from crashstudy.cli.main import main
 from crashstudy.errors import InputError
 from crashstudy.kernel import choice, generated
@@ -399,7 +399,7 @@ def test_bad_v2_spring_input_is_refused_with_field_and_expectation(case: str) ->
 
 
 def test_study_axis_values_that_break_a_v2_rule_are_refused_per_variant() -> None:
-    """The per-variant check of a study's axis values (batch.check_parameters) holds the same rules as the
+    """The per-variant check of a study's axis values (parameter_checks.check_parameters) holds the same rules as the
     schema: a failure elongation on the wrong side of the initial elongation, a tangent stiffness not below
     the stiffness, a damper curve point that takes the curve off the origin (the reason names
     initial_elongation). Valid columns pass."""

@@ -28,7 +28,7 @@ VARIABLES: dict[str, str] = {
     GEN_BLOCK: f"a whole number of variants per block of the generated kernel, 1 to {GEN_BLOCK_MAX} "
                f"(default {GEN_BLOCK_DEFAULT})",  # fmt: skip
     "CRASHSTUDY_MAX_VALUES": "a whole number of values > 0 (schema/yamlcompose.py max_values)",
-    "CRASHSTUDY_MAX_WORK": "a number of element-steps > 0 (study/plan.py max_work)",
+    "CRASHSTUDY_MAX_WORK": "a number of element-steps > 0 (study/work.py max_work)",
     "CRASHSTUDY_KERNEL_CACHE": "a folder only you can write to (else it is skipped with a warning)",
     "NUMBA_CACHE_DIR": "a folder only you can write to (else numba's cache moves with a warning)",
 }

@@ -286,7 +286,7 @@ def _validate(args: argparse.Namespace) -> int:
 
 def _work(plan: Any) -> None:
     """Say how long a run of ``plan`` takes when that is long (its refusal beyond the limit is an input error)."""
-    from crashstudy.study.plan import WORK_ENV, WORK_RATE, WORK_REPORT, format_duration, max_work
+    from crashstudy.study.work import WORK_ENV, WORK_RATE, WORK_REPORT, format_duration, max_work
 
     if plan.work >= WORK_REPORT:
         print(f"  about {plan.work:.3g} element-steps (springs x time steps, summed over the variants): about "

@@ -16,7 +16,7 @@ Two slips pass every field's own check and end in numbers no engineer would beli
 
 Both functions take arrays with a trailing variant axis ``V`` (1 for a model file): the schema
 (:mod:`crashstudy.schema.checks`) and the vectorised check of study axis values
-(:func:`crashstudy.arrays.batch.check_parameters`) call the same code.
+(:func:`crashstudy.arrays.parameter_checks.check_parameters`) call the same code.
 """
 
 from __future__ import annotations
