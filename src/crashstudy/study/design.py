@@ -71,9 +71,32 @@ def salib_problem(d: int) -> dict[str, Any]:
 def _salib_rows(method: str, n: int, seed: int, d: int) -> np.ndarray:
     if method == "saltelli":
         return saltelli_rows(n, seed, d)
-    from SALib.sample import morris
+    return morris_rows(n, seed, d)
 
-    return np.asarray(morris.sample(salib_problem(d), n, num_levels=4, seed=seed))
+
+def morris_rows(n: int, seed: int, d: int, levels: int = 4) -> np.ndarray:
+    """The rows of ``SALib.sample.morris.sample(salib_problem(d), n, num_levels=levels, seed=seed)``, the
+    same numbers in the same order, with SALib's random draws made in its order (per trajectory: a
+    shuffled order of the axes, a direction per axis, a start level per axis) and the trajectories built
+    with array operations: SALib builds each with matrix products (20 s for n = 10^5, this 3.5 s).
+    Trajectory t starts at x* and moves axis perm[k] at step k + 1 by +-delta: row r holds
+    ``x* + delta/2 ((2 [perm < r] - 1) D + 1)`` (tests/test_design.py compares it with SALib)."""
+    rng = np.random.default_rng(seed)
+    delta = levels / (2.0 * (levels - 1))
+    grid = np.linspace(0.0, 1.0 - delta, levels // 2)
+    perm = np.empty((n, d), dtype=np.int64)
+    up = np.empty((n, d), dtype=np.int64)
+    start = np.empty((n, d), dtype=np.int64)
+    for t in range(n):  # SALib's draws: shuffle, choice([-1, 1], d), choice(grid, d) (choice draws integers)
+        p = np.arange(d)
+        rng.shuffle(p)
+        perm[t] = p
+        up[t] = rng.integers(0, 2, d)
+        start[t] = rng.integers(0, len(grid), d)
+    moved = (perm[:, None, :] < np.arange(d + 1)[None, :, None]).astype(np.float64)  # (n, d + 1, d)
+    sign = np.array([-1.0, 1.0])[up][:, None, :]
+    out = grid[start][:, None, :] + (delta / 2.0) * ((2.0 * moved - 1.0) * sign + 1.0)
+    return out.reshape(n * (d + 1), d)
 
 
 def saltelli_rows(n: int, seed: int, d: int) -> np.ndarray:
