@@ -37,6 +37,8 @@ def reduced_copy(study: Path, folder: Path) -> Path:
     """The study with each axis cut to its first and last values and an absolute model path."""
     data = load_yaml(study).data  # YAML 1.2 numbers, as crashstudy reads them
     data["model"] = str((study.parent / data["model"]).resolve())
+    if data.get("calibrate"):  # measured data beside the study (validate checks the file)
+        data["calibrate"]["data"] = str((study.parent / data["calibrate"]["data"]).resolve())
     if data.get("matrix"):
         data["matrix"] = {path: ends(vals) for path, vals in data["matrix"].items()}
     if data.get("zip"):

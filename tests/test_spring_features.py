@@ -469,20 +469,16 @@ def test_results_files_hold_no_negative_zero(tmp_path: Path, monkeypatch: pytest
                 assert not np.any((values == 0.0) & np.signbit(values)), name
 
 
-@pytest.mark.parametrize("kernel", ["reference", "generic", "generated"])
-def test_a_preload_against_a_curve_that_pushes_the_wrong_way_runs(kernel: str) -> None:
-    """Found by the model generator: a nonlinear_elastic curve with F = -514 e (positive force in
-    compression) preloaded to e0 = -0.0312 stores IE0 = -257 e0^2 = -0.2502 J; with KE0 = 0.25 J (0.5 kg
-    at 1 m/s) KE0 + IE0 < 0, and the instability test scaled by it failed every step ("energy balance
-    lost at t=0"). The scale is KE0 + |IE0|: the run is ok, the balance holds to round-off and IE0 is
-    in the absorbed energy at the start (closed form, 1e-9)."""
+def test_a_preload_against_a_curve_that_pushes_the_wrong_way_is_refused() -> None:
+    """Found by the model generator (2026-11-25): a nonlinear_elastic curve with F = -514 e (positive force
+    in compression) preloaded to e0 = -0.0312 stores IE0 = -257 e0^2 < 0, and the instability test failed at
+    t = 0 (the kernels now scale it by KE0 + |IE0|). Such a curve is a negative stiffness, a sign slip: since
+    issue 23 item 2 it is refused before anything runs, naming the curve and its first wrong point."""
     model = {"name": "wrong-way", "curves": {"c": {"x": [-0.5, 0.0, 0.5], "y": [257.0, 0.0, -257.0]}},
              "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [-1.0], "mass": 0.5}},
              "springs": {"s": {"nodes": ["b", "a"], "material": {"type": "nonlinear_elastic", "curve": "c"},
                                "initial_elongation": -0.0312}},
              "initial_velocity": {"b": [1.0]}, "end_time": 0.002, "output": {"histories": ["internal_energy"]}}  # fmt: skip
-    out, batch, _ = run_model(model, kernel=kernel)
-    assert batch.ie0[0, 0] == pytest.approx(-257.0 * 0.0312**2, rel=1e-9)
-    assert out.status[0] == 0
-    assert out.energy_error[0] < 1e-9
-    assert out.histories["internal_energy"][0, 0] == pytest.approx(-257.0 * 0.0312**2, rel=1e-9)
+    with pytest.raises(InputError) as err:
+        run_model(model)
+    assert "curve 'c' has force 257 at x = -0.5 (point 0)" in str(err.value)
