@@ -33,6 +33,31 @@ settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 
+LINEAR_SPRING = """\
+name: lin
+units: SI
+nodes:
+  anchor: {position: [0.0], fixed: true}
+  body: {position: [0.1], mass: 2.0}
+springs:
+  s: {nodes: [anchor, body], material: {type: linear_elastic, stiffness: 2.0e4}}
+initial_velocity: {body: [1.0]}
+end_time: 0.1
+"""  # a 2 kg body on a 2e4 N/m spring at 1 m/s: the optimize / calibrate / block-check tests' model
+
+
+def noisy_spring_force(k: float, m: float, noise: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+    """(t, force) of k [N/m], m [kg] set moving at 1 m/s, integrated by scipy's RK45 (rtol 1e-10) and
+    sampled at 201 points over 0.1 s, with Gaussian noise of ``noise`` x the peak force (seed 0)."""
+    from scipy.integrate import solve_ivp
+
+    sol = solve_ivp(lambda t, y: [y[1], -k / m * y[0]], (0.0, 0.1), [0.0, 1.0], rtol=1e-10, atol=1e-12,
+                    dense_output=True)  # fmt: skip
+    t = np.linspace(0.0, 0.1, 201)
+    force = k * sol.sol(t)[0]
+    return t, force + np.random.default_rng(0).normal(0.0, noise * np.abs(force).max(), t.size)
+
+
 def model_plan(model: str | dict[str, Any]) -> Plan:
     """A one-variant plan from YAML text or a plain dict (validated like a file)."""
     text = model if isinstance(model, str) else yaml.safe_dump(model, sort_keys=False)

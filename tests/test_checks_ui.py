@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import noisy_spring_force
 from crashstudy.cli.main import main
 from crashstudy.results.store import open_results
 
@@ -219,14 +220,8 @@ def test_calibration_gives_intervals_that_hold_the_truth_and_names_an_undetermin
     no remark, no intervals, no output while it ran. After: k and m have 95% intervals that contain the
     truth and are narrow (under 2% of the value), the third is 'undetermined' in calibrated.yaml and in a
     warning, and a progress line is printed per batch of runs."""
-    from scipy.integrate import solve_ivp
-
     k, m = 3.1e4, 2.6
-    sol = solve_ivp(lambda t, y: [y[1], -k / m * y[0]], (0.0, 0.1), [0.0, 1.0], rtol=1e-10, atol=1e-12,
-                    dense_output=True)  # fmt: skip
-    t = np.linspace(0.0, 0.1, 201)
-    force = k * sol.sol(t)[0]
-    noisy = force + np.random.default_rng(0).normal(0.0, 0.01 * np.abs(force).max(), t.size)
+    t, noisy = noisy_spring_force(k, m)
     import pandas as pd
 
     pd.DataFrame({"time": t, "value": noisy}).to_csv(tmp_path / "data.csv", index=False)

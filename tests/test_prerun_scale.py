@@ -10,21 +10,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from conftest import LINEAR_SPRING
 from crashstudy.study.plan import load_study
 from crashstudy.study.sanity import _axis_changes_model, check_plan
 
-MODEL = """\
-name: lin
-units: SI
-nodes:
-  anchor: {position: [0.0], fixed: true}
-  body: {position: [0.1], mass: 2.0}
-springs:
-  s: {nodes: [anchor, body], material: {type: linear_elastic, stiffness: 2.0e4}}
-initial_velocity: {body: [1.0]}
-end_time: 0.05
-output: {histories: none}
-"""
+MODEL = LINEAR_SPRING.replace("end_time: 0.1", "end_time: 0.05") + "output: {histories: none}\n"
 
 
 def _brute(plan: Any, path: str) -> bool:

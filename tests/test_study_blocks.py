@@ -12,21 +12,12 @@ from typing import Any
 import pytest
 import yaml
 
+from conftest import LINEAR_SPRING
 from crashstudy.cli.main import main
 from crashstudy.schema.study import Study
 from crashstudy.study.blocks import BLOCKS
 
-MODEL = """\
-name: lin
-units: SI
-nodes:
-  anchor: {position: [0.0], fixed: true}
-  body: {position: [0.1], mass: 2.0}
-springs:
-  s: {nodes: [anchor, body], material: {type: linear_elastic, stiffness: 2.0e4}}
-initial_velocity: {body: [1.0]}
-end_time: 0.1
-"""
+MODEL = LINEAR_SPRING
 OPTIMIZE = {"minimize": "peak_deceleration_g.body", "constraints": ["max_crush.s <= 0.2"],
             "variables": {"springs.s.material.stiffness": [1.0e4, 4.0e4]}}  # fmt: skip
 CALIBRATE = {"data": "data.csv", "channel": {"quantity": "spring_force", "spring": "s"},
