@@ -20,7 +20,6 @@ chosen as usual) in memory, and tabulated like ``summary.parquet`` (histories ke
 from __future__ import annotations
 
 import dataclasses
-import re
 import sys
 import time
 from pathlib import Path
@@ -30,9 +29,9 @@ import numpy as np
 import pandas as pd
 
 from crashstudy import interrupt
+from crashstudy.schema.study import CONSTRAINT
 
 INFEASIBLE = 1e15
-_CONSTRAINT = re.compile(r"^\s*(\S+)\s*(<=|>=)\s*(\S+)\s*$")
 
 
 @dataclasses.dataclass
@@ -90,7 +89,7 @@ def evaluate_columns(ev: Evaluator, x: np.ndarray, columns: list[str]) -> pd.Dat
 def parse_constraints(texts: list[str]) -> list[tuple[str, str, float]]:
     out = []
     for t in texts:
-        m = _CONSTRAINT.match(t)
+        m = CONSTRAINT.match(t)
         if not m:
             raise ValueError(f"constraint {t!r}: expected 'COLUMN <= NUMBER' or 'COLUMN >= NUMBER'")
         out.append((m.group(1), m.group(2), float(m.group(3))))

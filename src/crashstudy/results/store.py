@@ -9,7 +9,7 @@ only when every variant is in it: an interrupted run never leaves a file that lo
 ``results.nc`` (marked ``complete``), the tables and last ``manifest.json`` are renamed into place;
 :class:`Results` refuses a folder whose files are not one finished run's (:mod:`crashstudy.results.integrity`).
 
-Texts that repeat across variants are stored compactly (docs/results.md): ``status`` is a CF flag
+Texts that repeat across variants are stored compactly (docs/format.md, "Results"): ``status`` is a CF flag
 variable (``int8``, ``flag_values`` 0 1, ``flag_meanings`` "ok failed"); ``failure_reason`` and
 ``dt_control`` are ``int32`` indices into a table of their distinct texts (``failure_reason_text``,
 ``dt_control_text``, named by the index variable's ``texts`` attribute); ``input_hash`` is two

@@ -1,7 +1,7 @@
 """Summary tables: one row per variant (:func:`summary_frame`), written as ``summary.parquet`` and
 ``summary.csv`` (:func:`write_summary`), and the texts stored as indices decoded (:func:`decode_texts`).
 
-Texts that repeat across variants are stored compactly in ``results.nc`` (docs/results.md): ``status``
+Texts that repeat across variants are stored compactly in ``results.nc`` (docs/format.md, "Results"): ``status``
 is a CF flag variable (``STATUS_MEANINGS``); ``failure_reason`` and ``dt_control`` are indices into a
 table of their distinct texts (``TEXT_TABLES``). See :mod:`crashstudy.results.store` for the file itself.
 """

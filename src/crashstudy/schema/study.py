@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
@@ -61,7 +62,9 @@ class Design(Strict):
 
 
 Bounds = Annotated[list[Finite], Field(min_length=2, max_length=2)]
-Constraint = Annotated[str, Field(pattern=r"^\s*\S+\s*(<=|>=)\s*\S+\s*$")]
+#: a constraint of ``optimize:``: COLUMN (<= | >=) NUMBER; groups column, operator, number
+CONSTRAINT = re.compile(r"^\s*(\S+)\s*(<=|>=)\s*(\S+)\s*$")
+Constraint = Annotated[str, Field(pattern=CONSTRAINT.pattern)]
 
 
 class Optimize(Strict):

@@ -14,7 +14,6 @@ block added later cannot go unchecked.
 from __future__ import annotations
 
 import difflib
-import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,10 +23,9 @@ import numpy as np
 
 from crashstudy.arrays.compiler import Topology
 from crashstudy.errors import Problem
-from crashstudy.schema.study import Study
+from crashstudy.schema.study import CONSTRAINT, Study
 from crashstudy.schema.yamlio import LoadedYaml
 
-_CONSTRAINT = re.compile(r"^\s*(\S+)\s*(<=|>=)\s*(\S+)\s*$")
 NODE_QUANTITIES = ("acceleration", "velocity", "displacement")
 
 
@@ -56,8 +54,6 @@ def summary_column_names(topo: Topology) -> list[str]:
     items = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
     cols: list[str] = []
     for name, (dims, _, _) in SUMMARY_META.items():
-        if name == "peak_wall_force" and not topo.wall_ids:
-            continue
         cols += [f"{name}.{i}" for i in items[dims[0]]] if dims else [name]
     for name in result_names(topo):
         cols += [f"{name}.{n}" for n in asked_nodes(topo, name)]
@@ -67,7 +63,7 @@ def summary_column_names(topo: Topology) -> list[str]:
 def _unknown_column(col: str, columns: list[str]) -> str:
     close = difflib.get_close_matches(col, columns, n=3, cutoff=0.5)
     hint = f"closest: {', '.join(close)}" if close else f"e.g. {', '.join(columns[:4])}"
-    return f"no summary column {col!r}: not a numeric column of this model's results ({hint}; docs/results.md)"
+    return f"no summary column {col!r}: not a numeric column of this model's results ({hint}; docs/format.md, Results)"
 
 
 def _variables(ctx: Context, block: str, variables: dict[str, list[float]]) -> list[Problem]:
@@ -96,7 +92,7 @@ def check_optimize(ctx: Context) -> list[Problem]:
     if spec.minimize not in columns:
         problems.append(ctx.problem(("optimize", "minimize"), _unknown_column(spec.minimize, columns)))
     for k, text in enumerate(spec.constraints):
-        m = _CONSTRAINT.match(text)
+        m = CONSTRAINT.match(text)
         assert m is not None  # the schema's pattern
         col, _, limit = m.groups()
         at = ("optimize", "constraints", k)
