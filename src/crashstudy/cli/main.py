@@ -20,6 +20,10 @@ from crashstudy.safefs import PlantedEntryError
 
 EXIT_OK, EXIT_FAILED, EXIT_INVALID, EXIT_INTERRUPTED = 0, 1, 2, 130
 
+# Modules of further commands, one per command family. Each has ``register(sub)``, which adds its sub-parsers and
+# returns ``{command name: handler(args) -> exit code}``; it imports nothing heavy at module level (cold start).
+PLUGGED: tuple[str, ...] = ()
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="crashstudy", description="Lumped-parameter crash models over design matrices.")
@@ -96,6 +100,10 @@ def _parser() -> argparse.ArgumentParser:
 
     add_parsers(sub)
     add_search_parsers(sub)
+    import importlib
+
+    for name in PLUGGED:  # commands that live in a module of their own: register(sub) -> {name: handler}
+        COMMANDS.update(importlib.import_module(name).register(sub))
     sc = sub.add_parser("schema", help="print the JSON Schema of model or study files")
     sc.add_argument("kind", choices=["model", "study"], help="which file format")
     return p
