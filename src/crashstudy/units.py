@@ -37,3 +37,18 @@ UNIT_SYSTEMS: dict[str, UnitSystem] = {
     "mm-ms-kg-kN": UnitSystem("mm-ms-kg-kN", "mm", "ms", "kg", "kN", "J", 9.80665e-3),
     "mm-s-t-N": UnitSystem("mm-s-t-N", "mm", "s", "t", "N", "mJ", 9806.65),
 }
+
+
+#: each base unit name of :data:`UNIT_SYSTEMS` in SI (1 of it is this many m, s, kg, N or J)
+SI_VALUE: dict[str, float] = {"m": 1.0, "mm": 1e-3, "s": 1.0, "ms": 1e-3, "kg": 1.0, "t": 1e3,
+                              "N": 1.0, "kN": 1e3, "J": 1.0, "mJ": 1e-3}  # fmt: skip
+
+
+def si_per_unit(system: str, kind: str) -> float:
+    """How many SI units one ``kind`` unit (length, time, velocity, acceleration, force, mass, energy) of
+    ``system`` is: a value in the system times this is the value in SI."""
+    u = UNIT_SYSTEMS[system]
+    length, time = SI_VALUE[u.length], SI_VALUE[u.time]
+    derived = {"velocity": length / time, "acceleration": length / time**2, "length": length, "time": time,
+               "force": SI_VALUE[u.force], "mass": SI_VALUE[u.mass], "energy": SI_VALUE[u.energy]}  # fmt: skip
+    return derived[kind]

@@ -180,46 +180,39 @@ def channel_history(plan: Any, res: Any, channel: dict[str, Any]) -> tuple[np.nd
     return np.asarray(plan.times, dtype=float), np.asarray(v, dtype=float).T
 
 
-DATA_MAX = 256 * 2**20  # bytes: a measured channel of ~10^7 rows
-
-
 class DataFileError(ValueError):
     """``calibrate.data`` cannot be used (the message names the file, a line, what was expected)."""
 
     data_file = True
 
 
-def read_data(path: Path, end_time: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The measured channel: a CSV with columns ``time`` and ``value`` (model units), times within
-    0 .. ``end_time``. Read only as a regular file of at most :data:`DATA_MAX` bytes (a FIFO would
-    hang, ``/dev/zero`` fill memory); a message never quotes the file's content (it may be a link to
-    a secret), it says what was expected where."""
-    import io
+def read_data(path: Path, end_time: float | None = None, *, channel: str | None = None, unit: str | None = None,
+              quantity: str | None = None, system: str = "SI") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The measured channel in model units (:func:`crashstudy.exchange.testcurve.read_curve`: a CSV
+    ``time,value``, or ``channel`` of an ISO-MME test, converted from its unit or ``unit``), its missing
+    (NOVALUE) samples dropped, times within 0 .. ``end_time``. A message never quotes the file's content
+    (it may be a link to a secret), it says what was expected where."""
+    from crashstudy.exchange.testcurve import read_curve
 
-    from crashstudy.safefs import PlantedEntryError, open_regular
-
-    try:
-        with open_regular(path, DATA_MAX, what=str(path), follow=True) as fh:
-            raw = fh.read()
-    except PlantedEntryError as exc:
-        raise DataFileError(str(exc)) from None
-    try:
-        df = pd.read_csv(io.BytesIO(raw))
-    except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
-        raise DataFileError(f"{path}: not a CSV table ({type(exc).__name__}); expected a header line "
-                            "'time,value' and rows of two numbers") from None  # fmt: skip
-    if not {"time", "value"} <= set(df.columns):
-        raise DataFileError(f"{path}, line 1: expected the header 'time,value' (columns time and value); "
-                            f"that line has {len(df.columns)} column(s) with other names")  # fmt: skip
-    try:
-        t, y = df["time"].to_numpy(dtype=float), df["value"].to_numpy(dtype=float)
-    except (ValueError, TypeError):
-        raise DataFileError(f"{path}: expected numbers in columns time and value") from None
-    if len(t) < 3 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(y)) or np.any(np.diff(t) <= 0):
-        raise DataFileError(f"{path}: expected at least 3 rows of finite numbers with increasing time")
+    curve = read_curve(path, channel=channel, unit=unit, quantity=quantity, system=system)
+    keep = np.isfinite(curve.value)
+    t, y = curve.time[keep], curve.value[keep]
+    if len(t) < 3 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise DataFileError(f"{curve.label}: expected at least 3 samples of finite numbers with increasing time")
     if end_time is not None:
         check_span(path, t, end_time)
     return t, y
+
+
+def _model_units(study: dict[str, Any]) -> str:
+    """The unit system of the study's model (``set: {units: ...}`` over the model file's ``units:``)."""
+    import yaml
+
+    setting = study.get("set") or {}
+    if "units" in setting:
+        return str(setting["units"])
+    model = yaml.safe_load(Path(study["model"]).read_text(encoding="utf-8")) if isinstance(study["model"], str) else None
+    return str(model.get("units", "SI")) if isinstance(model, dict) else "SI"
 
 
 def check_span(path: Path, t: np.ndarray, end_time: float, slack: float = 0.0) -> None:
@@ -243,14 +236,19 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
     progress = progress or sys.stderr
 
     spec = study["calibrate"]
-    t_data, y_data = read_data(base_dir / spec["data"])
+    from crashstudy.exchange.testcurve import data_block
+
     channel = spec["channel"]
+    rel, code, data_unit = data_block(spec["data"])
+    data_path = base_dir / rel
+    system = _model_units(study)
+    t_data, y_data = read_data(data_path, channel=code, unit=data_unit, quantity=channel["quantity"], system=system)
     variables = {k: [float(a), float(b)] for k, (a, b) in spec["variables"].items()}
     lo, hi = np.array([b[0] for b in variables.values()]), np.array([b[1] for b in variables.values()])
     interval = float(np.min(np.diff(t_data))) / 2.0  # the model sampled at least twice as often as the data
     ev = Evaluator(study, variables, histories=[channel["quantity"]], interval=interval)
     # the last history sample (end_time, up to one sampling interval): data past it would meet a clamped channel
-    check_span(base_dir / spec["data"], t_data, float(np.max(ev.plan.times)), 0.5 * ev.plan.interval)
+    check_span(data_path, t_data, float(np.max(ev.plan.times)), 0.5 * ev.plan.interval)
     from crashstudy.results.attributes import units_of
 
     unit = units_of(ev.plan)

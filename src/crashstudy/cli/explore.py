@@ -219,9 +219,11 @@ def calibrate_command(args: argparse.Namespace) -> int:
         try:
             result = calibrate(data, base, out)
         except (ValueError, FloatingPointError, FileNotFoundError) as exc:
-            field = "calibrate.data" if getattr(exc, "data_file", False) else "calibrate"
-            line = load_yaml(args.study).line_of(("calibrate", "data")) if field == "calibrate.data" else None
-            raise InputError([Problem(args.study, line, field, str(exc))]) from None
+            at: tuple[str, ...] = ("calibrate", "data") if getattr(exc, "data_file", False) else ("calibrate",)
+            if len(at) == 2 and isinstance(data["calibrate"]["data"], dict):  # {path, channel, unit}
+                at += (getattr(exc, "field", "path"),)
+            line = load_yaml(args.study).line_of(at) if len(at) > 1 else None
+            raise InputError([Problem(args.study, line, ".".join(at), str(exc))]) from None
         except KeyboardInterrupt:
             raise _searching("calibrate", out) from None
         t, y, model, units = result.pop("_fit")

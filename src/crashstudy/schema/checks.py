@@ -47,7 +47,7 @@ def model_problems(m: Model) -> list[tuple[Path, str]]:
     """All relational problems of a shape-valid model, in file order."""
     dim = len(next(iter(m.nodes.values())).position)
     out: list[tuple[Path, str]] = []
-    for check in (_nodes, _springs, _vectors, _loads_and_motion, _walls, _output, _metrics):
+    for check in (_nodes, _springs, _vectors, _loads_and_motion, _walls, _output, _metrics, _iso_mme):
         out.extend(check(m, dim))
     return out
 
@@ -349,3 +349,16 @@ def raw_reference_problems(data: object) -> list[tuple[Path, str]]:
         for k, nid in enumerate(ids if isinstance(ids, list) else []):
             node_ref(("rigid_walls", i, "nodes", k), nid)
     return out
+
+
+def _iso_mme(m: Model, dim: int) -> Found:
+    """Each ``iso_mme`` key is a node or spring id, and no two items share a code prefix (their channels
+    would get the same codes)."""
+    seen: dict[str, str] = {}
+    for key, prefix in m.iso_mme.items():
+        if key not in m.nodes and key not in m.springs:
+            yield ("iso_mme", key), (f"unknown id {key!r}: expected a node or spring id (nodes: "
+                                     f"{', '.join(list(m.nodes)[:6])}; springs: {', '.join(list(m.springs)[:6])})")  # fmt: skip
+        elif prefix in seen:
+            yield ("iso_mme", key), f"code {prefix} is already {seen[prefix]!r}'s: each id needs its own"
+        seen.setdefault(prefix, key)

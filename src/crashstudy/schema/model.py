@@ -216,6 +216,7 @@ class TimeStep(Strict):
         return next(k for k in ("safety_factor", "dt", "tolerance") if getattr(self, k) is not None)
 
 
+ISO_MME_PREFIX = r"^[0-9A-Z]{12}$"  #: an ISO/TS 13499 code's test object, position and locations
 HISTORY_NAMES = (*HISTORY_ORDER, "filtered_acceleration")  # the last: computed from the per-step record (metrics)
 
 
@@ -288,5 +289,8 @@ class Model(Strict):
     output: Output = Field(default=Output(), description="history sampling interval and which histories to keep")
     termination: Termination | None = Field(default=None, description="optional early end once the crash is over")
     metrics: list[Metric] = Field(default=[], description="crash criteria of nodes (HIC, 3 ms clip, OLC, ...)")
+    iso_mme: dict[Id, Annotated[str, Field(pattern=ISO_MME_PREFIX)]] = Field(default={}, description=(
+        "node or spring id -> the first 12 characters of its ISO-MME channel codes (export --isomme), e.g. "
+        "10VEHCCG0000; absent: 10NODEnnnn00 / 10SPRGnnnn00 by position (docs/isomme.md)"))  # fmt: skip
     accuracy_check: bool = Field(default=        False, description="re-run each variant at dt/2 and report a Richardson error estimate [1]"
     )

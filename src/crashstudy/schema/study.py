@@ -90,10 +90,21 @@ class Channel(Strict):
     direction: Literal["x", "y"] = Field(default="x", description="axis of a node quantity")
 
 
+class TestData(Strict):
+    """A test curve: a CSV (time, value) or one channel of an ISO-MME test (docs/format.md, calibrate)."""
+
+    path: str = Field(min_length=1, description="CSV file, or ISO-MME test (.mme, its folder or a .zip), relative to the study")
+    channel: str | None = Field(default=None, description="ISO-MME channel code, 16 characters, '?' matches any one; "
+                                "exactly one channel must match")  # fmt: skip
+    unit: str | None = Field(default=None, description="unit of the values (g, m/(s*s), m/s, km/h, mm, m, N, kN, ...), "
+                             "overriding the file's; converted into the model's units")  # fmt: skip
+
+
 class Calibrate(Strict):
     """``crashstudy calibrate``: fit variables to a measured channel by least squares (docs/optimize.md)."""
 
-    data: str = Field(min_length=1, description="CSV file with columns time, value (model units), relative to the study")
+    data: Annotated[str, Field(min_length=1)] | TestData = Field(
+        description="the test curve: a CSV path (time, value in model units), or {path, channel, unit}; relative to the study")
     channel: Channel = Field(description="what the data measured")
     variables: dict[str, Bounds] = Field(min_length=1, description="axis path -> [low, high] in its units")
 

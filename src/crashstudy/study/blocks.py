@@ -112,7 +112,6 @@ def check_calibrate(ctx: Context) -> list[Problem]:
     spec = ctx.study.calibrate
     if spec is None:
         return []
-    from crashstudy.schema.yamlio import not_regular
 
     problems = _variables(ctx, "calibrate", spec.variables)
     ch, topo = spec.channel, ctx.topo
@@ -139,17 +138,40 @@ def check_calibrate(ctx: Context) -> list[Problem]:
                                         f"{', '.join(topo.spring_ids[:8])}"))  # fmt: skip
         if ch.node is not None:
             problems.append(ctx.problem(at + ("node",), f"quantity {ch.quantity} is a spring's: remove node:"))
-    path = ctx.base_dir / spec.data
+    problems += _test_data(ctx, spec.data, ch.quantity)
+    return problems
+
+
+def _test_data(ctx: Context, data: Any, quantity: str) -> list[Problem]:
+    """``calibrate.data``: the file exists; an ISO-MME test (or a unit: given) is read, so that a channel
+    pattern matching none or several channels, or an unknown unit, is found before anything runs."""
+    from crashstudy.exchange.testcurve import data_block, is_isomme, read_curve
+    from crashstudy.schema.yamlio import not_regular
+
+    rel, code, unit = data_block(data)
+    at: tuple[str, ...] = ("calibrate", "data") if isinstance(data, str) else ("calibrate", "data", "path")
+    path = ctx.base_dir / rel
     try:
-        why = not_regular(path.stat().st_mode, "a regular file")
+        why = "" if path.is_dir() else not_regular(path.stat().st_mode, "a regular file")
     except FileNotFoundError:
         why = "no such file"
     except (OSError, ValueError) as exc:
         why = getattr(exc, "strerror", None) or type(exc).__name__
     if why:
-        problems.append(ctx.problem(("calibrate", "data"), f"data file {path}: {why} (expected a CSV file with "
-                                    "columns time, value, relative to the study file)"))  # fmt: skip
-    return problems
+        return [ctx.problem(at, f"data file {path}: {why} (expected a CSV file with columns time, value, or an "
+                            "ISO-MME test: its .mme file, folder or .zip; relative to the study file)")]  # fmt: skip
+    if not (is_isomme(path) or code or unit):
+        return []
+    try:
+        read_curve(path, channel=code, unit=unit, quantity=quantity, system=ctx.topo.units)
+    except ValueError as exc:
+        fld = getattr(exc, "field", "path")
+        sub = ("calibrate", "data") + ((fld,) if not isinstance(data, str) and fld in ("channel", "unit") else
+                                       (() if isinstance(data, str) else ("path",)))  # fmt: skip
+        if isinstance(data, str) and fld == "channel":
+            return [ctx.problem(sub, f"{exc} (write data: {{path: {rel}, channel: CODE}})")]
+        return [ctx.problem(sub, str(exc))]
+    return []
 
 
 # Every top-level field of a study file -> what checks it beyond the schema (a check of this module, or
