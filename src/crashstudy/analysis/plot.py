@@ -29,7 +29,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import xarray as xr
@@ -183,8 +183,8 @@ def history_values(ds: xr.Dataset, quantity: str, item: str | None) -> tuple[np.
 
 
 def plot_history(ds: xr.Dataset, quantity: str = "spring_force", items: Sequence[str] | None = None,
-                 max_variants: int = 50, time_unit: str | None = None, accel_unit: str | None = None
-                 ) -> Figure:  # fmt: skip
+                 max_variants: int = 50, time_unit: str | None = None, accel_unit: str | None = None,
+                 test: Any = None) -> Figure:  # fmt: skip
     """Time histories of one quantity, one subplot per node, spring or wall, one line per variant.
 
     Parameters
@@ -204,6 +204,8 @@ def plot_history(ds: xr.Dataset, quantity: str = "spring_force", items: Sequence
         Unit of the time axis (default the results' own).
     accel_unit : {"g"}, optional
         ``"g"``: accelerations in standard gravities (default the results' length/time^2).
+    test : crashstudy.exchange.testcurve.TestCurve, optional
+        A test curve in the results' units, drawn in black over the one panel (its last line).
 
     Returns
     -------
@@ -241,6 +243,8 @@ def plot_history(ds: xr.Dataset, quantity: str = "spring_force", items: Sequence
         for v, row, colour, style, label in zip(index, values * factor, look.colours, look.styles, look.labels,
                                                 strict=True):  # fmt: skip
             ax.plot(t, row, color=colour, ls=style, lw=1.0, label=label, gid=f"variant {int(v)}")
+        if test is not None:
+            ax.plot(test.time * t_factor, test.value * factor, color="k", lw=1.6, label=f"test {test.label}", gid="test")
         ax.set_title(f"{dim} {item}" if item is not None else name, fontsize="medium")
         ax.set_ylabel(ylabel + unit_text(unit))
         ax.grid(True, alpha=0.3)

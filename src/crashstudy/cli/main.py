@@ -82,6 +82,8 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("--items", nargs="+", help="nodes or springs to plot (they are part of the file names)")
     pl.add_argument("--time-unit", choices=["s", "ms"], help="unit of the time axis (default the results' own)")
     pl.add_argument("--accel-unit", choices=["g"], help="show accelerations in g (default length/time^2)")
+    pl.add_argument("--test", metavar="FILE", help="history: overlay a test curve (CSV time,value or ISO-MME test)")
+    pl.add_argument("--channel", metavar="CODE", help="with an ISO-MME --test: its channel code ('?' any one)")
     pl.add_argument("--x", dest="x_axis", help="matrix plot: study axis on the x axis")
     pl.add_argument("--y", dest="y_axis", help="matrix plot: second study axis (heat map)")
     pl.add_argument("--max-variants", type=int, default=50, help="most variants drawn in one figure (default 50)")

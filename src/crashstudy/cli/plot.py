@@ -76,6 +76,26 @@ def _matrix_metrics(summary: pd.DataFrame, axes: list[str], quantity: str | None
     return [f"{base}.{i}" for i in items]
 
 
+def _test_curve(args: argparse.Namespace, ds: object, name: str, groups: list) -> object:
+    """``--test FILE [--channel CODE]``: the test curve in the results' units (one history panel only)."""
+    if getattr(args, "test", None) is None:
+        if getattr(args, "channel", None):
+            raise InputError([Problem(str(args.dir), None, "--channel", "--channel names a channel of --test FILE: "
+                                      "give --test")])  # fmt: skip
+        return None
+    if len(groups) != 1 or (groups[0] is not None and len(groups[0]) != 1):
+        raise InputError([Problem(str(args.dir), None, "--test", "a test curve belongs to one item: give --items "
+                                  "with one node or spring")])  # fmt: skip
+    from crashstudy.exchange.testcurve import read_curve
+
+    try:
+        return read_curve(Path(args.test), channel=args.channel, quantity=name,
+                          system=str(ds.attrs.get("units", "SI")))  # type: ignore[attr-defined]  # fmt: skip
+    except ValueError as exc:
+        raise InputError([Problem(str(args.test), None, f"--{getattr(exc, 'field', 'test')}".replace("--path", "--test"),
+                                  str(exc))]) from None  # fmt: skip
+
+
 def plot_command(args: argparse.Namespace) -> list[Path]:
     """``crashstudy plot DIR``: write the figures of ``args.kind`` as PNGs; return their paths.
 
@@ -152,8 +172,9 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
                     chosen[lo : lo + ITEMS_PER_FIGURE] for lo in range(0, len(chosen), ITEMS_PER_FIGURE)
                 ]
             units = {"time_unit": getattr(args, "time_unit", None), "accel_unit": getattr(args, "accel_unit", None)}
+            test = _test_curve(args, ds, name, groups)
             for n, group in enumerate(groups):
-                fig = plot_history(ds, quantity, group, args.max_variants, **units)
+                fig = plot_history(ds, quantity, group, args.max_variants, **units, test=test)
                 figures.append((f"history-{quantity}{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig))
         out.mkdir(parents=True, exist_ok=True)
         paths = []
