@@ -97,7 +97,7 @@ def test_wildcards_and_ambiguity() -> None:
 
 def test_unit_errors_and_override() -> None:
     path = VARIANTS["utf8"]
-    with pytest.raises(IsoMmeError, match="is a velocity, the model's acceleration") as e:
+    with pytest.raises(IsoMmeError, match="is a unit of velocity; the model's acceleration needs a unit of acceleration") as e:
         read_curve(path, channel="10VEHCCG0000VEX0", quantity="acceleration")
     assert e.value.field == "unit"
     with pytest.raises(IsoMmeError, match="unknown unit 'furlong'"):

@@ -62,7 +62,7 @@ def known_unit(unit: str, quantity: str | None) -> str:
         return f"unknown unit {unit[:30]!r}; known: {', '.join(UNITS)}"
     kind = QUANTITY_KIND.get(quantity or "", None)
     if kind is not None and entry[0] != kind:
-        return f"unit {unit!r} is a {entry[0]}, the model's {quantity} is a {kind}"
+        return f"unit {unit!r} is a unit of {entry[0]}; the model's {quantity} needs a unit of {kind}"
     return ""
 
 
