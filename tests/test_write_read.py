@@ -275,7 +275,7 @@ ALLOWED = {
     ("kernel/choice.py", "open-for-writing"): 1,  # a lock file in the private, owner-checked kernel folder
     ("kernel/warm.py", "open-for-writing"): 1,  # ditto
     ("kernel/compile_lock.py", "open-for-writing"): 1,  # ditto (the compile lock and what its holder compiles)
-    ("analysis/optimization.py", "read_csv"): 1,  # calibrate.data from bytes read by safefs.open_regular
+    ("exchange/testcurve.py", "read_csv"): 1,  # a CSV test curve from bytes read by safefs.open_regular
     ("results/reader.py", "open_dataset"): 1,  # the reader itself
     ("results/reader.py", "read_parquet"): 2,  # the reader itself, from a manifest-checked handle
     ("results/reader.py", "read_csv"): 1,  # the reader itself, from a manifest-checked handle

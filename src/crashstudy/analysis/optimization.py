@@ -192,13 +192,13 @@ def read_data(path: Path, end_time: float | None = None, *, channel: str | None 
     ``time,value``, or ``channel`` of an ISO-MME test, converted from its unit or ``unit``), its missing
     (NOVALUE) samples dropped, times within 0 .. ``end_time``. A message never quotes the file's content
     (it may be a link to a secret), it says what was expected where."""
-    from crashstudy.exchange.testcurve import read_curve
+    from crashstudy.exchange.testcurve import is_isomme, read_curve
 
     curve = read_curve(path, channel=channel, unit=unit, quantity=quantity, system=system)
-    keep = np.isfinite(curve.value)
+    keep = np.isfinite(curve.value) | (not is_isomme(Path(path)))  # a CSV's empty cell stays an error
     t, y = curve.time[keep], curve.value[keep]
-    if len(t) < 3 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        raise DataFileError(f"{curve.label}: expected at least 3 samples of finite numbers with increasing time")
+    if len(t) < 3 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(y)) or np.any(np.diff(t) <= 0):
+        raise DataFileError(f"{curve.label}: expected at least 3 rows of finite numbers with increasing time")
     if end_time is not None:
         check_span(path, t, end_time)
     return t, y
