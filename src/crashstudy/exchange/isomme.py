@@ -220,8 +220,9 @@ def _reader_of(path: Path) -> tuple[object, str, str]:
 
 
 def read_test(path: Path) -> Test:
-    """The test at ``path`` (its ``.mme`` file, its folder or a ``.zip``); channel files listed from
-    ``Channel/<test>.chn`` (or, without one, every ``Channel/<test>.NNN`` of a zip or folder)."""
+    """The test at ``path`` (its ``.mme`` file, its folder or a ``.zip``); its channel files are the ones
+    ``Channel/<test>.chn`` lists (``Name of channel NNN : CODE / name`` -> ``Channel/<test>.NNN``), read
+    when a channel is asked for. File and folder names match without regard to case."""
     read, mme, where = _reader_of(Path(path))
     header, _, _ = parse_header(decode(read(mme)), where)  # type: ignore[operator]
     stem = PurePosixPath(mme).stem
