@@ -71,6 +71,9 @@ def fmt_float(v: float, width: int) -> tuple[str, bool]:
     for p in range(17):
         m, _, e = f"{v:.{p}e}".partition("e")
         candidates.append(f"{m if '.' in m else m + '.'}e{int(e)}")
+        fixed = f"{v:.{p + 1}f}"
+        if float(fixed) != 0.0:
+            candidates.append(fixed.replace("0.", ".", 1) if fixed.startswith(("0.", "-0.")) and len(fixed) > width else fixed)
     exact = [c for c in candidates if float(c) == v]
     if candidates[0] == plain and len(plain) <= width:  # readable first: 100.0 rather than 1.e2
         return plain, True

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from crashstudy.errors import InputError, Problem
-from crashstudy.exchange.dyna_cards import LAYOUTS, Rounded, card, titles
+from crashstudy.exchange.dyna_cards import LAYOUTS, Rounded, card, fmt_float, titles
 from crashstudy.exchange.dyna_materials import BY_TYPE, crush_curve_out
 from crashstudy.schema.model import Model
 from crashstudy.schema.yamlio import LoadedYaml
@@ -109,8 +109,14 @@ def _pad_time(xs: list[float], ys: list[float]) -> tuple[list[float], list[float
         tail = [(xs[-1] + PAD * span, 0.0), (xs[-1] + PAD * span + span, 0.0)]
     elif ys[-2] != 0.0:
         tail = [(xs[-1] + span, 0.0)]
+    head = [(_short(x), y) for x, y in head]  # where the step sits within PAD does not matter: a short text
+    tail = [(_short(x), y) for x, y in tail]
     pts = head + list(zip(xs, ys, strict=True)) + tail
     return [p[0] for p in pts], [p[1] for p in pts], [len(head), len(tail)]
+
+
+def _short(x: float) -> float:
+    return float(fmt_float(x, LAYOUTS["DEFINE_CURVE_POINT"][0][1])[0])
 
 
 def _meta_lines(meta: dict[str, Any]) -> list[str]:
@@ -247,5 +253,3 @@ def _walls(d: _Deck, nid: dict[str, int], dim: int) -> None:
               card("RIGIDWALL_PLANAR_2", {"XT": p[0], "YT": p[1], "ZT": p[2], "XH": head[0], "YH": head[1], "ZH": head[2]},
                    d.rounded, f"rigid_walls.{i - 1}.point / normal"))  # fmt: skip
 
-
-assert set(LAYOUTS)  # the card table is this module's single source of field widths

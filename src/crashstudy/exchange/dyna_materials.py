@@ -70,7 +70,7 @@ MATERIALS: tuple[MaterialMap, ...] = (
                 lambda f, c: {"type": "elastoplastic", "stiffness": _num(f["K"]), "tangent_stiffness": _num(f["KT"]),
                               "yield_force": _num(f["FY"])}),
     MaterialMap("nonlinear_elastic", "MAT_SPRING_NONLINEAR_ELASTIC",
-                lambda m, c: {"LCD": c.lcid(m["curve"], "same")},
+                lambda m, c: {"LCD": c.lcid(m["curve"], "same"), "LCR": 0},
                 lambda f, c: {"type": "nonlinear_elastic", "curve": c.curve(f["LCD"], "same", "LCD")},
                 lambda f, c: not c.is_table(f["LCD"]) and not f["LCR"]),
     MaterialMap("nonlinear_damper", "MAT_DAMPER_NONLINEAR_VISCOUS",
