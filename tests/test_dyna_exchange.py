@@ -143,7 +143,7 @@ def _curve_points(deck: Path) -> dict[int, tuple[list[float], list[float]]]:
     import dynars
 
     d = dynars.parse_deck(str(deck))
-    heads = sorted(((c.line, c.id) for c in d.curves()))
+    heads = sorted((c.line, c.id) for c in d.curves())
     rows = d.table_with("DEFINE_CURVE", [[("a", "float", 20, 1), ("o", "float", 20, 1)]], repeat=True)
     a, o = _col(rows, "a"), _col(rows, "o")
     lines = deck.read_text().splitlines()
@@ -253,3 +253,118 @@ def test_every_card_of_our_decks_read_back_by_dynars(case: Path | str, tmp_path:
     pytest.importorskip("dynars")
     deck, data = _deck(case if isinstance(case, Path) else copy.deepcopy(MATERIAL_MODELS[case]), tmp_path)
     _check_with_dynars(deck, data)
+
+
+# --- decks written by hand from the manual's layouts, against closed forms ---------------------------
+
+DECKS = Path(__file__).resolve().parent / "dyna_decks"
+
+
+def _run_deck(name: str) -> tuple[Any, dict[str, Any]]:
+    data, _ = import_deck(str(DECKS / name))
+    out, _, plan = run_model(data, kernel="generic")
+    return out, data
+
+
+def test_hand_written_fixed_width_oscillator_peaks_at_v0_over_omega() -> None:
+    out, data = _run_deck("oscillator-fixed.k")
+    assert data["units"] == "SI" and data["springs"]["s1"]["material"] == {"type": "linear_elastic", "stiffness": 2.0e4}
+    omega = np.sqrt(2.0e4 / 2.0)  # rad/s
+    assert out.max_elongation[0, 0] == pytest.approx(1.0 / omega, rel=1e-3)  # 0.01 m
+
+
+def test_hand_written_comma_format_damper_decays_exponentially() -> None:
+    out, data = _run_deck("damper-comma.k")
+    assert data["units"] == "mm-ms-kg-kN" and data["output"] == {"interval": 0.1}
+    t = np.arange(out.histories["velocity"].shape[0]) * 0.1  # ms
+    v = out.histories["velocity"][:, 1, 0, 0]
+    x = out.histories["displacement"][:, 1, 0, 0]
+    assert np.allclose(v, 5.0 * np.exp(-t / 20.0), rtol=1e-3, atol=1e-4 * 5.0)
+    assert x[-1] == pytest.approx(100.0 * (1.0 - np.exp(-2.0)), rel=1e-3)  # 86.47 mm
+
+
+def test_hand_written_deck_with_include_crushes_and_rebounds_as_energy_says() -> None:
+    out, data = _run_deck("crush-main.k")
+    assert data["springs"]["s1"]["material"]["type"] == "crush"
+    assert out.max_crush[0, 0] == pytest.approx(0.001 + (5.0e4 - 50.0) / 1.0e5, rel=1e-3)  # 0.5005 m
+    assert out.histories["velocity"][-1, 1, 0, 0] == pytest.approx(1.0, rel=1e-2)  # sqrt(2 F^2 / (2 KU) / m)
+
+
+# --- a study variant -----------------------------------------------------------------------------------
+
+
+def test_study_variant_exported_runs_as_that_variant(tmp_path: Path, cli: Any) -> None:
+    model = tmp_path / "m.yaml"
+    model.write_text(yaml.safe_dump(MATERIAL_MODELS["nonlinear_elastic"], sort_keys=False))
+    study = tmp_path / "s.yaml"
+    study.write_text("name: s\nmodel: m.yaml\nmatrix:\n  nodes.b.mass: [2.0, 3.0]\n  curves.c.scale: [1.0, 1.3]\n")
+    r = cli("export", str(study), "--dyna", str(tmp_path / "v3.k"), "--variant", "3")
+    assert r.returncode == 0, r.stderr
+    data, _ = import_deck(str(tmp_path / "v3.k"))
+    assert data["nodes"]["b"]["mass"] == 3.0
+    ref, _, _ = run_model(MATERIAL_MODELS["nonlinear_elastic"], kernel="generic",
+                          variants={"nodes.b.mass": [3.0], "curves.c.scale": [1.3]})  # fmt: skip
+    got, _, _ = run_model(data, kernel="generic")
+    for name, h in ref.histories.items():  # the scale applied to the points, not in the kernel: round-off only
+        assert np.allclose(got.histories[name], h, rtol=1e-12, atol=1e-12 * np.nanmax(np.abs(h))), name
+    r = cli("export", str(study), "--dyna", str(tmp_path / "v9.k"), "--variant", "9")
+    assert r.returncode == 2 and "variant 9 does not exist" in r.stderr and "0 to 3" in r.stderr
+
+
+# --- bad input: exit 2 naming file, line and keyword ----------------------------------------------------
+
+GOOD = (DECKS / "oscillator-fixed.k").read_text()
+
+
+@pytest.mark.parametrize("edit, where, words", [
+    (lambda t: t.replace("*END", "*CONTACT_AUTOMATIC_SINGLE_SURFACE\n0\n*END"), ":39: *CONTACT_AUTOMATIC_SINGLE_SURFACE",
+     "--skip-unsupported"),
+    (lambda t: t.replace("         1   20000.0", "         1   2OOOO.0"), ":35: *MAT_SPRING_ELASTIC", "field K"),
+    (lambda t: t.replace("*SECTION_DISCRETE\n$#   secid       dro        kd        v0        cl        fd\n"
+                         "         1         0       0.0       0.0       0.0       0.0\n$#     cdl       tdl\n"
+                         "       0.0       0.0\n", "*SECTION_DISCRETE\n         1         0\n"),
+     ":29: *SECTION_DISCRETE", "second is missing"),
+    (lambda t: t.replace("0             1.0       0", "0                       0"), ":38: *ELEMENT_DISCRETE S",
+     "blank S reads as 0"),
+    (lambda t: t.replace("*END", "*INCLUDE\nnot-there.k\n*END"), ":40: *INCLUDE", "not-there.k"),
+])  # fmt: skip
+def test_bad_deck_exits_2_naming_file_line_and_keyword(edit: Any, where: str, words: str, tmp_path: Path,
+                                                       cli: Any) -> None:  # fmt: skip
+    deck = tmp_path / "bad.k"
+    deck.write_text(edit(GOOD))
+    assert edit(GOOD) != GOOD
+    r = cli("import", str(deck), "-o", str(tmp_path / "m.yaml"))
+    assert r.returncode == 2, r.stderr
+    assert f"{deck}{where}" in r.stderr and words in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "m.yaml").exists()
+
+
+def test_skip_unsupported_lists_and_skips(tmp_path: Path, cli: Any) -> None:
+    deck = tmp_path / "extra.k"
+    deck.write_text(GOOD.replace("*END", "*CONTROL_ENERGY\n2\n*END"))
+    r = cli("import", str(deck), "-o", str(tmp_path / "m.yaml"), "--skip-unsupported")
+    assert r.returncode == 0, r.stderr
+    assert f"{deck}:39: *CONTROL_ENERGY" in r.stderr
+    assert yaml.safe_load((tmp_path / "m.yaml").read_text())["springs"]["s1"]["material"]["stiffness"] == 2.0e4
+    r = cli("import", str(deck), "-o", str(tmp_path / "m.yaml"), "--skip-unsupported")
+    assert r.returncode == 2 and "--force" in r.stderr  # never overwritten without --force
+
+
+def test_include_loop_is_an_error(tmp_path: Path) -> None:
+    (tmp_path / "a.k").write_text("*KEYWORD\n*INCLUDE\nb.k\n*END\n")
+    (tmp_path / "b.k").write_text("*KEYWORD\n*INCLUDE\na.k\n*END\n")
+    from crashstudy.errors import InputError
+
+    with pytest.raises(InputError, match="include loop: a.k -> b.k -> a.k"):
+        import_deck(str(tmp_path / "a.k"))
+
+
+def test_feature_without_keyword_is_refused_by_name(tmp_path: Path, cli: Any) -> None:
+    m = copy.deepcopy(MATERIAL_MODELS["linear_elastic"])
+    m["springs"]["s"]["failure"] = {"tension": 0.05}
+    m["rigid_walls"] = [{"id": "w", "point": [0.0, -1.0], "normal": [0.0, 1.0], "stiffness": 1.0e6}]
+    (tmp_path / "m.yaml").write_text(yaml.safe_dump(m, sort_keys=False))
+    r = cli("export", str(tmp_path / "m.yaml"), "--dyna", str(tmp_path / "m.k"))
+    assert r.returncode == 2, r.stderr
+    assert "springs.s.failure:" in r.stderr and "rigid_walls.0.stiffness:" in r.stderr
+    assert f"{tmp_path / 'm.yaml'}:" in r.stderr and not (tmp_path / "m.k").exists()

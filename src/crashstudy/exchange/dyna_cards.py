@@ -99,7 +99,7 @@ def card(layout: str, values: dict[str, object], rounded: Rounded | None = None,
     out = []
     fields = LAYOUTS[layout]
     last = max((i for i, (n, _, _) in enumerate(fields) if values.get(n) is not None), default=-1)
-    for i, (name, width, kind) in enumerate(fields[: last + 1]):
+    for name, width, kind in fields[: last + 1]:
         v = values.get(name)
         if v is None:
             out.append(" " * width)

@@ -135,8 +135,10 @@ def import_deck(path: str, skip_unsupported: bool = False) -> tuple[dict[str, An
 
 def _title(model: dict[str, Any], by: dict[str, list[Block]], meta: dict[str, Any], path: Path, notes: list[str]) -> None:
     title = by["TITLE"][0].cards[0].text.strip() if by.get("TITLE") and by["TITLE"][0].cards else ""
-    name = meta.get("name") or re.sub(r"[^A-Za-z0-9_-]+", "-", title.split("(")[0].strip() or path.stem).strip("-")[:64]
-    model["name"] = name or "imported"
+    name = meta.get("name") or re.sub(r"[^A-Za-z0-9_-]+", "-", re.split(r"[(,]", title)[0].strip() or path.stem)
+    model["name"] = name.strip("-")[:64] or "imported"
+    if not meta and title:
+        model["description"] = title
     units = meta.get("units") or next((u for u in UNIT_SYSTEMS if re.search(rf"\b{re.escape(u)}\b", title)), None)
     if units is None:
         notes.append(f"no unit system named in *TITLE ({title!r}): the model says units: SI; if the deck uses "
@@ -312,9 +314,10 @@ def _boundary(r: _Reader, model: dict[str, Any], rows: dict[str, list[tuple[Bloc
     gravity = [0.0] * dim
     for k, axis in enumerate("XYZ"):
         for b in by.get(f"LOAD_BODY_{axis}", []):
-            f = r.fields(b, b.cards[0], "LOAD_BODY") if b.cards else None
-            if f is None:
+            body = r.fields(b, b.cards[0], "LOAD_BODY") if b.cards else None
+            if body is None:
                 continue
+            f = body
             lc = int(f["LCID"] or 0)  # type: ignore[call-overload]
             ys = r.curves_raw.get(lc, (b, [], []))[2]
             if k >= dim or not ys or min(ys) != max(ys) or any(f[x] for x in ("LCIDDR", "CID")):
@@ -348,7 +351,7 @@ def _walls(r: _Reader, model: dict[str, Any], by: dict[str, list[Block]], nid_na
             sets[int(h["SID"] or 0)] = [int(v) for c in b.cards[1:] if (f := r.fields(b, c, "SET_NODE_LIST_IDS"))  # type: ignore[call-overload]
                                         for v in f.values() if v]  # fmt: skip
     known = {w[0]: w[1] for w in meta.get("walls", [])}
-    walls = []
+    walls: list[dict[str, Any]] = []
     for b in by.get("RIGIDWALL_PLANAR", []) + by.get("RIGIDWALL_PLANAR_ID", []):
         cards = b.cards
         wid = f"wall-{len(walls) + 1}"
