@@ -137,13 +137,13 @@ def _col(table: dict[str, Any], name: str) -> list[Any]:
     return v.tolist() if hasattr(v, "tolist") else list(v)
 
 
-def _curve_points(deck: Path) -> dict[int, tuple[list[float], list[float]]]:
+def _curve_points(deck: Path, headers: bool = True) -> dict[int, tuple[list[float], list[float]]]:
     """Each curve's points as dynars reads them: its header fields, and the (A, O) rows of a one-card
     repeated schema (in which each curve's header line reads as one extra row, dropped here)."""
     import dynars
 
     d = dynars.parse_deck(str(deck))
-    heads = sorted((c.line, c.id) for c in d.curves())
+    heads = sorted((c.line, c.id) for c in d.curves() if c.keyword.startswith("DEFINE_CURVE"))  # not tables
     rows = d.table_with("DEFINE_CURVE", [[("a", "float", 20, 1), ("o", "float", 20, 1)]], repeat=True)
     a, o = _col(rows, "a"), _col(rows, "o")
     lines = deck.read_text().splitlines()
@@ -160,6 +160,9 @@ def _curve_points(deck: Path) -> dict[int, tuple[list[float], list[float]]]:
     for (_, lcid), n in zip(heads, counts, strict=True):
         out[lcid] = (a[pos + 1 : pos + 1 + n], o[pos + 1 : pos + 1 + n])
         c = d.curve(lcid)
+        if not headers:  # dynars gives no fields for the curves that follow a *DEFINE_TABLE
+            pos += n + 1
+            continue
         assert (c.field("SFA"), c.field("SFO"), c.field("SIDR")) == (1.0, 1.0, 0)
         assert (c.field("A1"), c.field("O1")) == (out[lcid][0][0], out[lcid][1][0])
         pos += n + 1
@@ -368,3 +371,35 @@ def test_feature_without_keyword_is_refused_by_name(tmp_path: Path, cli: Any) ->
     assert r.returncode == 2, r.stderr
     assert "springs.s.failure:" in r.stderr and "rigid_walls.0.stiffness:" in r.stderr
     assert f"{tmp_path / 'm.yaml'}:" in r.stderr and not (tmp_path / "m.k").exists()
+
+
+def test_define_table_for_rate_curves_written_and_read_back(tmp_path: Path) -> None:
+    """The table helpers a rate_elastic row (S04 with a *DEFINE_TABLE) will use: written with its curves
+    right after it, read back by dynars and by the importer."""
+    import dynars
+
+    from crashstudy.exchange.dyna_deck import read_deck
+    from crashstudy.exchange.dyna_export import _Deck
+    from crashstudy.exchange.dyna_import import _read_curves, _Reader
+
+    m = copy.deepcopy(MATERIAL_MODELS["nonlinear_elastic"])
+    m["curves"]["fast"] = _curve([-0.1, 0.0, 0.1], [-3000.0, 0.0, 2500.0])
+    d = _Deck(load_model_data(m))
+    tbid = d.table([{"rate": 0.0, "curve": "c"}, {"rate": 2.5, "curve": "fast"}])
+    deck = tmp_path / "t.k"
+    deck.write_text("\n".join(["*KEYWORD", *d.curve_cards, "*END"]) + "\n")
+    parsed = dynars.parse_deck(str(deck))
+    assert _col(parsed.table("DEFINE_TABLE"), "TBID") == [tbid]
+    table = parsed.table_with("DEFINE_TABLE", [[("VALUE", "float", 20, 1), ("LCID", "int", 20, 1)]], repeat=True)
+    table = {k: _col(table, k)[1:] for k in ("VALUE", "LCID")}  # row 0: the TBID card
+    assert table["VALUE"] == [0.0, 2.5]
+    assert _curve_points(deck, headers=False)[table["LCID"][1]] == (m["curves"]["fast"]["x"], m["curves"]["fast"]["y"])
+    by: dict[str, list[Any]] = {}
+    for b in read_deck(str(deck)).blocks:
+        by.setdefault(b.keyword, []).append(b)
+    r = _Reader({})
+    _read_curves(r, by)
+    assert r.is_table(tbid) and not r.is_table(table["LCID"][0])
+    rows = r.table_curves(tbid, "LCD")
+    assert [row["rate"] for row in rows] == [0.0, 2.5]
+    assert [r.curves[row["curve"]] for row in rows] == [m["curves"]["c"], m["curves"]["fast"]]

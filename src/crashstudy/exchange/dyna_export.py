@@ -59,6 +59,7 @@ class _Deck:
     lcids: dict[tuple[str, str], int] = field(default_factory=dict)
     curve_cards: list[str] = field(default_factory=list)
     meta_curves: dict[str, list[Any]] = field(default_factory=dict)
+    count: int = 0
 
     def add(self, keyword: str, *cards: str) -> None:
         self.lines.append(f"*{keyword}")
@@ -68,15 +69,34 @@ class _Deck:
         """LCID of ``curve`` in the sign convention ``role`` (written once per curve and role)."""
         key = (curve, role)
         if key not in self.lcids:
-            self.lcids[key] = n = len(self.lcids) + 1
+            self.lcids[key] = n = self._next()
             self._write_curve(n, curve, role)
         return self.lcids[key]
+
+    def table(self, rows: list[dict[str, Any]]) -> int:
+        """TBID of a ``*DEFINE_TABLE`` of ``[{rate, curve}, ...]`` (rates ascending), its curves right after it."""
+        tbid = self._next()
+        ids = [self._next() for _ in rows]
+        self.curve_cards += [f"*DEFINE_TABLE\n{titles('DEFINE_TABLE')}", card("DEFINE_TABLE", {"TBID": tbid})]
+        self.curve_cards += [card("DEFINE_TABLE_ROW", {"VALUE": r["rate"], "LCID": n}, self.rounded, "table rate")
+                             for r, n in zip(rows, ids, strict=True)]  # fmt: skip
+        for r, n in zip(rows, ids, strict=True):
+            self._write_curve(n, r["curve"], "same")
+        self.meta_curves[str(tbid)] = ["table", "table", 0, 0]
+        return tbid
+
+    def _next(self) -> int:  # curves and tables share one id space in LS-DYNA
+        self.count += 1
+        return self.count
 
     def curve(self, lcid: object, role: str, field: str) -> str:  # pragma: no cover - import side only
         raise NotImplementedError
 
     def is_table(self, lcid: object) -> bool:  # pragma: no cover - import side only
         return False
+
+    def table_curves(self, tbid: object, field: str) -> list[dict[str, Any]]:  # pragma: no cover - import side only
+        raise NotImplementedError
 
     def _write_curve(self, n: int, cid: str, role: str) -> None:
         if role == "constant":  # a constant load or gravity (1.0), or the step cap (dt): from t = 0 to past end_time

@@ -70,6 +70,18 @@ class _Reader:
     def is_table(self, lcid: object) -> bool:
         return isinstance(lcid, int) and lcid in self.tables and lcid not in self.curves_raw
 
+    def table(self, rows: list[dict[str, Any]]) -> int:  # pragma: no cover - export side only
+        raise NotImplementedError
+
+    def table_curves(self, tbid: object, fld: str) -> list[dict[str, Any]]:
+        """``[{rate, curve}, ...]`` of the ``*DEFINE_TABLE`` ``tbid`` (each curve read as force vs elongation)."""
+        if not self.is_table(tbid):
+            b, c = self.where or (None, None)
+            if b is not None:
+                self.fail(b, f"{fld} = {tbid}: no *DEFINE_TABLE with this id in the deck", c, fld)
+            return []
+        return [{"rate": rate, "curve": self.curve(lcid, "same", fld)} for rate, lcid in self.tables[int(tbid)]]  # type: ignore[call-overload]
+
     def curve(self, lcid: object, role: str, fld: str) -> str:
         """The model curve id of deck curve ``lcid`` read in the sign convention ``role``."""
         b, c = self.where or (None, None)

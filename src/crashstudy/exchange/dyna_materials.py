@@ -23,13 +23,25 @@ NEVER = 1.0e30  #: yield force written for "never yields" (S06 TYI / CYI have no
 
 
 class Curves(Protocol):
-    """Curve ids on the deck side: ``lcid`` (export: curve id -> LCID) and ``curve`` (import: LCID -> id)."""
+    """Curve ids on the deck side. Export: ``lcid`` (curve id -> LCID), ``table`` ([{rate, curve}] -> TBID of a
+    ``*DEFINE_TABLE``). Import: ``curve`` (LCID -> curve id), ``is_table``, ``table_curves`` (TBID -> [{rate, curve}]).
+    A ``rate_elastic`` row (S04 with a table) is then::
+
+        MaterialMap("rate_elastic", "MAT_SPRING_NONLINEAR_ELASTIC",
+                    lambda m, c: {"LCD": c.table(m["curves"]), "LCR": 0},
+                    lambda f, c: {"type": "rate_elastic", "curves": c.table_curves(f["LCD"], "LCD")},
+                    lambda f, c: c.is_table(f["LCD"]) and not f["LCR"]),
+    """
 
     def lcid(self, curve: str, role: str) -> int: ...
 
     def curve(self, lcid: object, role: str, field: str) -> str: ...
 
     def is_table(self, lcid: object) -> bool: ...
+
+    def table(self, rows: list[dict[str, Any]]) -> int: ...
+
+    def table_curves(self, tbid: object, field: str) -> list[dict[str, Any]]: ...
 
 
 Mat = dict[str, Any]
