@@ -403,3 +403,21 @@ def test_define_table_for_rate_curves_written_and_read_back(tmp_path: Path) -> N
     rows = r.table_curves(tbid, "LCD")
     assert [row["rate"] for row in rows] == [0.0, 2.5]
     assert [r.curves[row["curve"]] for row in rows] == [m["curves"]["c"], m["curves"]["fast"]]
+
+
+def test_damaged_crashstudy_comments_are_ignored_not_a_traceback(tmp_path: Path) -> None:
+    deck, _ = _deck(copy.deepcopy(MATERIAL_MODELS["elastoplastic"]), tmp_path)
+    text = deck.read_text().replace('"nodes":["a","b"]', '"nodes":[1,2]')
+    assert text != deck.read_text()
+    deck.write_text(text)
+    data, notes = import_deck(str(deck))
+    assert "damaged" in notes[0] and set(data["nodes"]) == {"n1", "n2"} and data["rigid_walls"][0]["nodes"] == ["n2"]
+
+
+def test_node_defined_twice_is_an_error(tmp_path: Path) -> None:
+    from crashstudy.errors import InputError
+
+    deck = tmp_path / "twice.k"
+    deck.write_text(GOOD.replace("       2             0.1", "       1             0.1"))
+    with pytest.raises(InputError, match=r"twice.k:12: \*NODE NID: node 1 is defined twice \(also at line 11"):
+        import_deck(str(deck))

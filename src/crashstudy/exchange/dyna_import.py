@@ -111,11 +111,8 @@ def import_deck(path: str, skip_unsupported: bool = False) -> tuple[dict[str, An
 
     Raises :class:`InputError` with every problem found (file, line, keyword, field)."""
     deck = read_deck(path)
-    try:
-        meta = json.loads(deck.meta) if deck.meta else {}
-    except json.JSONDecodeError:
-        meta = {}
     notes: list[str] = []
+    meta = _meta(deck.meta, notes)
     other = [b for b in deck.blocks if not supported(b.keyword)]
     if other:
         listed = [f"{b.file}:{b.line}: *{b.keyword}" for b in other]
@@ -141,8 +138,30 @@ def import_deck(path: str, skip_unsupported: bool = False) -> tuple[dict[str, An
     _walls(r, model, by, nid_name, dim, meta)
     _controls(r, model, by, rows, meta, path)
     if r.problems:
-        raise InputError(r.problems)
+        raise InputError(sorted(r.problems, key=lambda p: (p.file, p.line or 0)))
     return {k: v for k, v in model.items() if v not in ({}, [], None) or k in ("nodes",)}, notes
+
+
+def _meta(text: str, notes: list[str]) -> dict[str, Any]:
+    """The ``$crashstudy:`` record, or ``{}`` when absent or not of the shape export writes (ids from numbers)."""
+    if not text:
+        return {}
+    try:
+        meta = json.loads(text)
+        shapes = {"name": str, "description": str, "units": str, "nodes": list, "springs": list, "walls": list,
+                  "curves": dict, "time_step": dict, "output": dict, "termination": dict, "metrics": list,
+                  "accuracy_check": bool}  # fmt: skip
+        ok = isinstance(meta, dict) and all(isinstance(meta[k], t) for k, t in shapes.items() if k in meta)
+        ok = ok and all(isinstance(n, str) for k in ("nodes", "springs") for n in meta.get(k, []))
+        ok = ok and all(isinstance(w, list) and len(w) == 2 and isinstance(w[0], str) for w in meta.get("walls", []))
+        ok = ok and all(isinstance(c, list) and len(c) == 4 and [type(v) for v in c] == [str, str, int, int]
+                        for c in meta.get("curves", {}).values())  # fmt: skip
+    except (json.JSONDecodeError, AttributeError, TypeError):
+        ok = False
+    if not ok:
+        notes.append("the deck's $crashstudy: comment lines are damaged: ignored (ids made from the deck's numbers)")
+        return {}
+    return dict(meta)
 
 
 def _title(model: dict[str, Any], by: dict[str, list[Block]], meta: dict[str, Any], path: Path, notes: list[str]) -> None:
@@ -194,6 +213,12 @@ def _nodes(r: _Reader, rows: dict[str, list[tuple[Block, Card, dict[str, object]
            ) -> tuple[dict[str, dict[str, Any]], dict[int, str], int]:  # fmt: skip
     names = meta.get("nodes") or []
     found = [(b, c, f) for b, c, f in rows["NODE"] if f["NID"] is not None]
+    seen: dict[object, Card] = {}
+    for b, c, f in rows["NODE"]:
+        if f["NID"] is None or f["NID"] in seen:
+            r.fail(b, "NID is blank" if f["NID"] is None else f"node {f['NID']} is defined twice (also at line "
+                   f"{seen[f['NID']].line} of {seen[f['NID']].file})", c, "NID")  # fmt: skip
+        seen.setdefault(f["NID"], c)
     use_meta = len(names) == len(found) and sorted(int(f["NID"]) for _, _, f in found) == list(range(1, len(found) + 1))  # type: ignore[call-overload]
     nid_name = {int(f["NID"]): (names[int(f["NID"]) - 1] if use_meta else f"n{f['NID']}") for _, _, f in found}  # type: ignore[call-overload]
     spc = {int(f["NID"]): f for _, _, f in rows["BOUNDARY_SPC_NODE"] if f["NID"] is not None}  # type: ignore[call-overload]
@@ -267,6 +292,10 @@ def _springs(r: _Reader, by: dict[str, list[Block]], rows: dict[str, list[tuple[
             mats[int(f["MID"] or 0)] = (b, cards[0], row.read(f, r))  # type: ignore[call-overload]
     names = meta.get("springs") or []
     elems = [(b, c, f) for b, c, f in rows["ELEMENT_DISCRETE"]]
+    eids = [f["EID"] for _, _, f in elems]
+    for b, c, f in elems:
+        if f["EID"] is None or eids.count(f["EID"]) > 1:
+            r.fail(b, "EID is blank" if f["EID"] is None else f"element {f['EID']} is defined twice", c, "EID")
     use_meta = len(names) == len(elems) and [f["EID"] for _, _, f in elems] == list(range(1, len(elems) + 1))
     springs: dict[str, dict[str, Any]] = {}
     for k, (b, c, f) in enumerate(elems):
