@@ -421,3 +421,15 @@ def test_node_defined_twice_is_an_error(tmp_path: Path) -> None:
     deck.write_text(GOOD.replace("       2             0.1", "       1             0.1"))
     with pytest.raises(InputError, match=r"twice.k:12: \*NODE NID: node 1 is defined twice \(also at line 11"):
         import_deck(str(deck))
+
+
+def test_node_constraint_codes_hold_like_spcs(tmp_path: Path) -> None:
+    """*NODE TC = 7 (all translations held) reads as the fixed node of an SPC card."""
+    deck = tmp_path / "tc.k"
+    spc = "         1         0         1         1         1         1         1         1\n"
+    text = GOOD.replace(spc, "").replace("       1             0.0             0.0             0.0\n",
+                                         "       1             0.0             0.0             0.0       7       7\n")
+    assert text.count("\n") == GOOD.count("\n") - 1
+    deck.write_text(text)
+    assert import_deck(str(deck))[0]["nodes"] == import_deck(str(DECKS / "oscillator-fixed.k"))[0]["nodes"] == {
+        "n1": {"position": [0.0], "fixed": True}, "n2": {"position": [0.1], "mass": 2.0}}

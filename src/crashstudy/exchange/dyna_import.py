@@ -27,6 +27,7 @@ SIMPLE = {"CONTROL_TERMINATION", "CONTROL_TIMESTEP", "NODE", "ELEMENT_MASS", "EL
 OTHER = {"KEYWORD", "TITLE", "PART", "SECTION_DISCRETE", "DEFINE_CURVE", "DEFINE_CURVE_TITLE", "DEFINE_TABLE",
          "LOAD_BODY_X", "LOAD_BODY_Y", "LOAD_BODY_Z", "RIGIDWALL_PLANAR", "RIGIDWALL_PLANAR_ID", "SET_NODE_LIST",
          "DATABASE_NODOUT", "DATABASE_DEFORC", "DATABASE_GLSTAT"}  # fmt: skip
+TC_CODES = {0: "", 1: "x", 2: "y", 3: "z", 4: "xy", 5: "yz", 6: "zx", 7: "xyz"}  #: *NODE TC: translations held
 NEVER_TIME = 1.0e28  #: BIRTH/DEATH at or beyond this: "always" (LS-DYNA's default DEATH)
 
 
@@ -221,9 +222,19 @@ def _nodes(r: _Reader, rows: dict[str, list[tuple[Block, Card, dict[str, object]
         seen.setdefault(f["NID"], c)
     use_meta = len(names) == len(found) and sorted(int(f["NID"]) for _, _, f in found) == list(range(1, len(found) + 1))  # type: ignore[call-overload]
     nid_name = {int(f["NID"]): (names[int(f["NID"]) - 1] if use_meta else f"n{f['NID']}") for _, _, f in found}  # type: ignore[call-overload]
-    spc = {int(f["NID"]): f for _, _, f in rows["BOUNDARY_SPC_NODE"] if f["NID"] is not None}  # type: ignore[call-overload]
     xyz = {int(f["NID"]): [float(f[k] or 0.0) for k in ("X", "Y", "Z")] for _, _, f in found}  # type: ignore[call-overload, arg-type]
-    held = {n: (bool(spc.get(n, {}).get("DOFY")), bool(spc.get(n, {}).get("DOFZ"))) for n in xyz}
+    held_dirs: dict[int, set[str]] = {n: set() for n in xyz}  # translations held: *NODE TC (1 x, 2 y, 3 z, 4 xy, 5 yz, 6 zx, 7 all), SPCs
+    for b, c, f in found:
+        held_dirs[int(f["NID"])] |= set(TC_CODES.get(int(f["TC"] or 0), ""))  # type: ignore[call-overload]
+        if f["TC"] and int(f["TC"]) not in TC_CODES:  # type: ignore[call-overload]
+            r.fail(b, f"TC = {f['TC']}: expected 0 to 7", c, "TC")
+    for b, c, f in rows["BOUNDARY_SPC_NODE"]:
+        n = int(f["NID"] or 0)  # type: ignore[call-overload]
+        if n not in held_dirs or f["CID"]:
+            r.fail(b, f"NID {n}, CID {f['CID']}: expected a node of the deck and CID 0 (global axes)", c, "NID")
+            continue
+        held_dirs[n] |= {a for a, k in (("x", "DOFX"), ("y", "DOFY"), ("z", "DOFZ")) if f[k]}
+    held = {n: ("y" in d, "z" in d) for n, d in held_dirs.items()}
     if not all(p[2] == 0.0 and held[n][1] for n, p in xyz.items()):
         bad = next(n for n, p in xyz.items() if not (p[2] == 0.0 and held[n][1]))
         b, c, _ = next(t for t in found if t[2]["NID"] == bad)
@@ -238,8 +249,7 @@ def _nodes(r: _Reader, rows: dict[str, list[tuple[Block, Card, dict[str, object]
         mass[n] = mass.get(n, 0.0) + float(f["MASS"] or 0.0)  # type: ignore[arg-type]
     nodes: dict[str, dict[str, Any]] = {}
     for n, p in xyz.items():
-        s = spc.get(n, {})
-        fixed = [a for a, k in (("x", "DOFX"), ("y", "DOFY"))[:dim] if s.get(k)]
+        fixed = [a for a in "xy"[:dim] if a in held_dirs[n]]
         node: dict[str, Any] = {"position": p[:dim]}
         if n in mass:
             node["mass"] = mass[n]
