@@ -433,3 +433,15 @@ def test_node_constraint_codes_hold_like_spcs(tmp_path: Path) -> None:
     deck.write_text(text)
     assert import_deck(str(deck))[0]["nodes"] == import_deck(str(DECKS / "oscillator-fixed.k"))[0]["nodes"] == {
         "n1": {"position": [0.0], "fixed": True}, "n2": {"position": [0.1], "mass": 2.0}}
+
+
+def test_a_link_planted_at_the_output_is_replaced_never_followed(tmp_path: Path) -> None:
+    from crashstudy.cli.main import main
+
+    victim = tmp_path / "victim"
+    for argv, out in ((["export", str(MODELS[0]), "--dyna"], tmp_path / "m.k"),
+                      (["import", str(DECKS / "oscillator-fixed.k"), "-o"], tmp_path / "m.yaml")):  # fmt: skip
+        victim.write_text("precious\n")
+        out.symlink_to(victim)
+        assert main([*argv, str(out), "--force"]) == 0
+        assert victim.read_text() == "precious\n" and not out.is_symlink() and out.stat().st_size > 100
