@@ -297,21 +297,27 @@ def test_hand_written_deck_with_include_crushes_and_rebounds_as_energy_says() ->
 
 
 def test_study_variant_exported_runs_as_that_variant(tmp_path: Path, cli: Any) -> None:
+    """Variants are numbered row-major over (mass, curve scale, impact speed): 5 = (3 kg, 1.0, 4 m/s) is
+    bitwise the study's run; 7 = (3 kg, 1.3, 4 m/s) to round-off (the scale multiplies the written points)."""
     model = tmp_path / "m.yaml"
     model.write_text(yaml.safe_dump(MATERIAL_MODELS["nonlinear_elastic"], sort_keys=False))
     study = tmp_path / "s.yaml"
-    study.write_text("name: s\nmodel: m.yaml\nmatrix:\n  nodes.b.mass: [2.0, 3.0]\n  curves.c.scale: [1.0, 1.3]\n")
-    r = cli("export", str(study), "--dyna", str(tmp_path / "v3.k"), "--variant", "3")
-    assert r.returncode == 0, r.stderr
-    data, _ = import_deck(str(tmp_path / "v3.k"))
-    assert data["nodes"]["b"]["mass"] == 3.0
-    ref, _, _ = run_model(MATERIAL_MODELS["nonlinear_elastic"], kernel="generic",
-                          variants={"nodes.b.mass": [3.0], "curves.c.scale": [1.3]})  # fmt: skip
-    got, _, _ = run_model(data, kernel="generic")
-    for name, h in ref.histories.items():  # the scale applied to the points, not in the kernel: round-off only
-        assert np.allclose(got.histories[name], h, rtol=1e-12, atol=1e-12 * np.nanmax(np.abs(h))), name
+    study.write_text("name: s\nmodel: m.yaml\nmatrix:\n  nodes.b.mass: [2.0, 3.0]\n  curves.c.scale: [1.0, 1.3]\n"
+                     "  impact_velocity: [2.0, 4.0]\n")  # fmt: skip
+    for n, scale in ((5, 1.0), (7, 1.3)):
+        r = cli("export", str(study), "--dyna", str(tmp_path / f"v{n}.k"), "--variant", str(n))
+        assert r.returncode == 0, r.stderr
+        data, _ = import_deck(str(tmp_path / f"v{n}.k"))
+        assert data["nodes"]["b"]["mass"] == 3.0
+        ref, _, _ = run_model(MATERIAL_MODELS["nonlinear_elastic"], kernel="generic",
+                              variants={"nodes.b.mass": [3.0], "curves.c.scale": [scale], "impact_velocity": [4.0]})  # fmt: skip
+        got, _, _ = run_model(data, kernel="generic")
+        if scale == 1.0:
+            assert outputs_equal(ref, 0, got, 0) == []
+        for name, h in ref.histories.items():
+            assert np.allclose(got.histories[name], h, rtol=1e-12, atol=1e-12 * np.nanmax(np.abs(h))), name
     r = cli("export", str(study), "--dyna", str(tmp_path / "v9.k"), "--variant", "9")
-    assert r.returncode == 2 and "variant 9 does not exist" in r.stderr and "0 to 3" in r.stderr
+    assert r.returncode == 2 and "variant 9 does not exist" in r.stderr and "0 to 7" in r.stderr
 
 
 # --- bad input: exit 2 naming file, line and keyword ----------------------------------------------------
@@ -445,3 +451,26 @@ def test_a_link_planted_at_the_output_is_replaced_never_followed(tmp_path: Path)
         out.symlink_to(victim)
         assert main([*argv, str(out), "--force"]) == 0
         assert victim.read_text() == "precious\n" and not out.is_symlink() and out.stat().st_size > 100
+
+
+def test_a_value_too_long_for_its_field_is_rounded_in_the_deck_and_restored_on_import(tmp_path: Path) -> None:
+    import dynars
+
+    m = copy.deepcopy(MATERIAL_MODELS["linear_elastic"])
+    m["springs"]["s"]["material"]["stiffness"] = 20000.123456789  # 15 digits: a 10-character K holds 7
+    m["springs"]["t"] = {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 20000.1234567}}
+    lm = load_model_data(m)
+    text, rounded = export_deck(lm)
+    assert len(rounded) == 2 and "20000.123456789 written as 20000.1235" in rounded[0]
+    deck = tmp_path / "r.k"
+    deck.write_text(text)
+    assert _col(dynars.parse_deck(str(deck)).table("MAT_SPRING_ELASTIC"), "K") == [20000.1235, 20000.1235]
+    data, _ = import_deck(str(deck))
+    # two values behind one written text: ambiguous, both stay rounded (and were reported)
+    assert [s["material"]["stiffness"] for s in data["springs"].values()] == [20000.1235, 20000.1235]
+    del m["springs"]["t"]
+    text, rounded = export_deck(load_model_data(m))
+    deck.write_text(text)
+    data, _ = import_deck(str(deck))
+    assert data["springs"]["s"]["material"]["stiffness"] == 20000.123456789
+    _same_results(m, data)

@@ -11,7 +11,7 @@ separated by commas, each value no longer than its fixed width; an empty field i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 Field = tuple[str, int, str]  # (name, width [characters], kind: "i" | "f" | "a")
 
@@ -86,12 +86,21 @@ def fmt_float(v: float, width: int) -> tuple[str, bool]:
 
 @dataclass
 class Rounded:
-    """Values that did not fit their field exactly (reported to the user)."""
+    """Values that did not fit their field exactly: reported to the user, and kept as pairs (written value,
+    exact value) so that crashstudy's import can restore the exact one (:meth:`restore_table`)."""
 
     items: list[str]
+    pairs: dict[float, set[float]] = field(default_factory=dict)
+    written: set[float] = field(default_factory=lambda: {0.0, 1.0})  # values written exactly
 
     def note(self, what: str, v: float, text: str) -> None:
         self.items.append(f"{what}: {v!r} written as {text}")
+        self.pairs.setdefault(float(text), set()).add(v)
+
+    def restore_table(self) -> list[list[float]]:
+        """``[[written, exact], ...]`` for the written values that stand for one exact value only and that
+        no field holds exactly (so replacing them on import can change nothing else)."""
+        return [[w, next(iter(xs))] for w, xs in self.pairs.items() if len(xs) == 1 and w not in self.written]
 
 
 def card(layout: str, values: dict[str, object], rounded: Rounded | None = None, what: str = "") -> str:
@@ -112,8 +121,10 @@ def card(layout: str, values: dict[str, object], rounded: Rounded | None = None,
             out.append(text.rjust(width))
         else:
             text, exact = fmt_float(float(v), width)  # type: ignore[arg-type]
-            if not exact and rounded is not None:
+            if rounded is not None and not exact:
                 rounded.note(f"{what} (*{layout} {name})", float(v), text)  # type: ignore[arg-type]
+            elif rounded is not None:
+                rounded.written.add(float(text))
             out.append(text.rjust(width))
     return "".join(out).rstrip()
 
@@ -128,8 +139,9 @@ class FieldError(ValueError):
     """A field that is not a number of the expected kind (the message names field and text)."""
 
 
-def read_card(text: str, layout: str) -> dict[str, object]:
-    """Fields of one card (fixed or comma format): name -> int | float | str, or None when blank."""
+def read_card(text: str, layout: str, exact: dict[float, float] | None = None) -> dict[str, object]:
+    """Fields of one card (fixed or comma format): name -> int | float | str, or None when blank. A real
+    that ``exact`` lists (a value crashstudy's export had to round) is replaced by its exact value."""
     fields = LAYOUTS[layout]
     if "," in text and fields[0][2] != "a":
         parts = text.split(",")
@@ -159,5 +171,5 @@ def read_card(text: str, layout: str) -> dict[str, object]:
                     raise FieldError(f"field {name} is {s!r}: expected an integer")
                 out[name] = int(num)
             else:
-                out[name] = num
+                out[name] = exact.get(num, num) if exact else num
     return out

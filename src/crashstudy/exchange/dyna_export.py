@@ -191,7 +191,7 @@ def export_deck(m: Model, doc: LoadedYaml | None = None) -> tuple[str, list[str]
     meta = {"format": 1, "name": m.name, "description": m.description, "units": m.units, "nodes": list(m.nodes),
             "springs": list(m.springs), "walls": [[w.id, w.normal] for w in m.rigid_walls], "curves": d.meta_curves,
             **m.model_dump(include={"time_step", "output", "termination", "metrics", "accuracy_check"},
-                           exclude_none=True)}  # fmt: skip
+                           exclude_none=True), "exact": d.rounded.restore_table()}  # fmt: skip
     text = "\n".join([d.lines[0], *_meta_lines(meta), *d.lines[1:], *d.curve_cards, "*END"]) + "\n"
     return text, d.rounded.items
 

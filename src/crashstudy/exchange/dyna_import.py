@@ -53,10 +53,11 @@ class _Reader:
     curves: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     made: dict[tuple[int, str], str] = field(default_factory=dict)
     where: tuple[Block, Card | None] | None = None
+    exact: dict[float, float] = field(default_factory=dict)  # values export rounded -> their exact values
 
     def fields(self, b: Block, c: Card, layout: str) -> dict[str, object] | None:
         try:
-            return read_card(c.text, layout)
+            return read_card(c.text, layout, self.exact)
         except FieldError as exc:
             self.problems.append(b.problem(str(exc), c))
             return None
@@ -121,7 +122,7 @@ def import_deck(path: str, skip_unsupported: bool = False) -> tuple[dict[str, An
             raise InputError([b.problem("keyword not supported by crashstudy import (it has no model equivalent); "
                                         "remove it or pass --skip-unsupported to skip it") for b in other])  # fmt: skip
         notes.append("skipped unsupported keywords:\n  " + "\n  ".join(listed))
-    r = _Reader(meta)
+    r = _Reader(meta, exact={float(w): float(x) for w, x in meta.get("exact", [])})
     by: dict[str, list[Block]] = {}
     for b in deck.blocks:
         if supported(b.keyword):
@@ -151,10 +152,12 @@ def _meta(text: str, notes: list[str]) -> dict[str, Any]:
         meta = json.loads(text)
         shapes = {"name": str, "description": str, "units": str, "nodes": list, "springs": list, "walls": list,
                   "curves": dict, "time_step": dict, "output": dict, "termination": dict, "metrics": list,
-                  "accuracy_check": bool}  # fmt: skip
+                  "accuracy_check": bool, "exact": list}  # fmt: skip
         ok = isinstance(meta, dict) and all(isinstance(meta[k], t) for k, t in shapes.items() if k in meta)
         ok = ok and all(isinstance(n, str) for k in ("nodes", "springs") for n in meta.get(k, []))
         ok = ok and all(isinstance(w, list) and len(w) == 2 and isinstance(w[0], str) for w in meta.get("walls", []))
+        ok = ok and all(isinstance(p, list) and len(p) == 2 and all(isinstance(v, float) for v in p)
+                        for p in meta.get("exact", []))  # fmt: skip
         ok = ok and all(isinstance(c, list) and len(c) == 4 and [type(v) for v in c] == [str, str, int, int]
                         for c in meta.get("curves", {}).values())  # fmt: skip
     except (json.JSONDecodeError, AttributeError, TypeError):

@@ -1,16 +1,15 @@
 """One variant of a study as a model (the data a model file of that variant would hold).
 
-The runner never needs this (it works on parameter vectors, :meth:`Plan.params`); exporting a variant
-to another program does. The model file with the study's ``set:`` applied, then each axis value of
-variant ``n`` (numbered as :mod:`crashstudy.study.plan` says) applied the way :func:`apply_axis` applies
-it to the parameter vector: ``set`` replaces the value at the path, ``scale`` multiplies a curve's
-values (``curves.<id>.scale``) or abscissae (``x_scale``), ``speed`` rescales every initial velocity.
+The runner never needs this: it runs parameter vectors (:meth:`Plan.params`). Exporting a variant to
+another program does. So the variant's vector is made exactly as the runner makes it, and each slot
+an axis changed is written back at its model path (``Topology.paths``, a "set" path per slot:
+``nodes.<id>.mass``, ``initial_velocity.<id>.<k>`` after an ``impact_velocity`` axis, ...); a curve's
+``scale`` / ``x_scale`` factor (one slot each, applied in the kernel) multiplies the curve's points.
 """
 
 from __future__ import annotations
 
 import copy
-import math
 from typing import Any
 
 from crashstudy.errors import InputError, Problem
@@ -27,17 +26,14 @@ def variant_data(plan: Plan, study_file: str, n: int) -> dict[str, Any]:
     sdoc = load_yaml(study_file)
     study = Study.model_validate(sdoc.data)
     data = _apply_set(copy.deepcopy(load_yaml(plan.model_file).data), study.set, sdoc)
-    for ax in plan.axes:
-        value = float(plan.axis_values(n, n + 1)[ax.path][0])
-        parts = ax.path.split(".")  # curve ids hold no '.' (schema.model.Id)
-        if ax.ref.op == "speed":
-            for node, v in data.get("initial_velocity", {}).items():
-                size = math.sqrt(sum(c * c for c in v))
-                data["initial_velocity"][node] = [c * (value / size) if size > 0 else 0.0 for c in v]
-        elif ax.ref.op == "scale":
-            curve = data["curves"][parts[1]]
-            key = "y" if parts[2] == "scale" else "x"
-            curve[key] = [c * value for c in curve[key]]
-        else:
-            _set_in(data, _dict_path(data, ax.path), value)
+    topo = plan.topology
+    P = plan.params(n, n + 1)[:, 0]
+    for path, ref in topo.paths.items():
+        if ref.op == "set" and len(ref.slots) == 1 and P[ref.slots[0]] != plan.base[ref.slots[0]]:
+            _set_in(data, _dict_path(data, path), float(P[ref.slots[0]]))
+    fac = topo.blocks["cfac"].start
+    for c, cid in enumerate(topo.curve_ids):
+        for key, slot in (("y", fac + 2 * c), ("x", fac + 2 * c + 1)):
+            if P[slot] != 1.0:
+                data["curves"][cid][key] = [v * float(P[slot]) for v in data["curves"][cid][key]]
     return data
