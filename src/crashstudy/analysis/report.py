@@ -211,14 +211,15 @@ class Report:
 
     def failures_section(self) -> str:
         s = self.summary[~self.ok]
-        head = ["variant", *self.axes, "failure reason"]
+        head = ["variant", *[f"{a} [{_shown_unit(self.units[a])}]" if self.units[a] else a for a in self.axes],
+                "failure reason"]
         rows = [[int(r["variant"]), *[f"{r[a]:.6g}" for a in self.axes], r.get("failure_reason", "")]
                 for _, r in s.head(FAILURES_SHOWN).iterrows()]  # fmt: skip
         more = f'<p class="note">and {len(s) - FAILURES_SHOWN} more (filter the table: status=failed)</p>' \
             if len(s) > FAILURES_SHOWN else ""  # fmt: skip
-        reasons = s["failure_reason"].astype(str).str.split(":").str[0].value_counts() if "failure_reason" in s else {}
-        summary = "".join(f"<li>{esc(k)}: {v}</li>" for k, v in list(reasons.items())[:10])
-        return (f'<p class="bad">{len(s)} of {len(self.summary)} variants failed.</p><ul>{summary}</ul>'
+        kinds = s["failure_reason"].astype(str).str.replace(r"[-+]?\d[\d.]*(e[-+]?\d+)?", "#", regex=True)
+        summary = "".join(f"<li>{v} x {esc(k)}</li>" for k, v in list(kinds.value_counts().items())[:10])
+        return (f'<p class="bad">{len(s)} of {len(self.summary)} variants failed; reasons (numbers as #):</p><ul>{summary}</ul>'
                 + html_table(head, rows, text_cols=(len(head) - 1,), cls="failures") + more)  # fmt: skip
 
     def table_section(self) -> str:

@@ -96,8 +96,8 @@ def sensitivity_section(rep: Any, df: pd.DataFrame) -> str:
     out = ""
     for metric, part in df.groupby("metric", sort=False):
         unit = rf.label(str(metric), _unit_of(rep, str(metric)))
-        names = [str(a) if not isinstance(g, str) or not g else f"{g}: {a}" for g, a in
-                 zip(part.get("group", pd.Series([""] * len(part))).fillna(""), part["axis"], strict=True)]  # fmt: skip
+        groups = part["group"].astype(object).where(part["group"].notna(), "") if "group" in part else [""] * len(part)
+        names = [f"{g}: {a}" if isinstance(g, str) and g else str(a) for g, a in zip(groups, part["axis"], strict=True)]
         conf = part["confidence"].to_numpy(dtype=float) if "confidence" in part else None
         fig = rf.bars(names, part["value"].to_numpy(dtype=float), conf, "index [-] (error bars: confidence)",
                       f"sensitivity of {unit}", group=[str(i) for i in part["index"]])  # fmt: skip
