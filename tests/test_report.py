@@ -74,7 +74,7 @@ def test_report_page_shows_the_study_with_closed_form_numbers(folder: Path, tmp_
     ok = [(m, v) for m in rs.MASSES for v, k in zip(rs.SPEEDS, rs.STIFFNESS, strict=True) if not rs.fails(m, k)]
     expected = [1 if rs.PLATEAU / (m * rs.G) <= rs.CONSTRAINT_G else 0 for m, _ in ok]
     assert par["data"][0]["line"]["color"] == expected == [0, 0, 1, 1]
-    dims = {d["label"]: d["values"] for d in par["data"][0]["dimensions"]}
+    dims = {d["label"].replace("<br>", ""): d["values"] for d in par["data"][0]["dimensions"]}
     np.testing.assert_allclose(dims["peak_deceleration_g.body [g]"], [rs.PLATEAU / (m * rs.G) for m, _ in ok], rtol=1e-4)
     # an anthill figure per response, one panel per axis (x axis titles carry the units)
     hill = next(f for f in figs if f["layout"].get("title", {}).get("text") == "peak_deceleration_g.body")

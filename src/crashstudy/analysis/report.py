@@ -24,7 +24,7 @@ import yaml
 
 from crashstudy.analysis import report_figures as rf
 from crashstudy.analysis.plot import crash_node, free_nodes, study_axes, study_name
-from crashstudy.analysis.plot_style import axis_units
+from crashstudy.analysis.plot_style import axis_units, unit_text
 from crashstudy.analysis.report_limits import (
     LIMITS,
     NO_LIMIT,
@@ -266,7 +266,7 @@ class Report:
             npass = int(passes_all(self.summary[self.ok], self.checks).sum())
             out += (f"<p>Pass (green) = every check holds; fail (red) = at least one does not. {npass} of "
                     f"{int(self.ok.sum())} ok variants pass.</p><ul>"
-                    + "".join(f"<li>{esc(c.text)} {esc(_shown_unit(_unit(self.ds, c.column)))} &mdash; "
+                    + "".join(f"<li>{esc(c.text)}{esc(unit_text(_unit(self.ds, c.column)))} &mdash; "
                               f"{esc(c.source)}</li>" for c in self.checks) + "</ul>")  # fmt: skip
         else:
             out += "<p class=\"note\">No limits or constraints apply to these responses: lines coloured by " \

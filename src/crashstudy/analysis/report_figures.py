@@ -67,7 +67,8 @@ def parcoords(columns: Sequence[tuple[str, str, np.ndarray]], passed: np.ndarray
         lo, hi = (float(np.nanmin(v)), float(np.nanmax(v))) if np.isfinite(v).any() else (0.0, 1.0)
         if lo == hi:
             lo, hi = lo - 0.5 * (abs(lo) or 1.0), hi + 0.5 * (abs(hi) or 1.0)
-        dims.append({"label": label(name, unit), "values": _vals(v, 5), "range": [lo, hi]})
+        text = name if len(name) <= 18 or "." not in name else name.replace(".", ".<br>", 1)  # no overlap
+        dims.append({"label": label(text, unit), "values": _vals(v, 5), "range": [lo, hi]})
     if passed is not None:
         line = {"color": [1 if p else 0 for p in passed], "colorscale": [[0, FAIL], [1, PASS]], "cmin": 0, "cmax": 1}
     elif colour_by is not None:

@@ -29,7 +29,7 @@ th,td{border:1px solid #ddd;padding:2px 6px;text-align:right;white-space:nowrap}
 td.t,th.t{text-align:left;white-space:normal}.note{font-size:12px;color:#555}.bad{color:#b00020;font-weight:600}
 .good{color:#1b7f3b}.fig{width:100%;min-height:360px}.scroll{overflow-x:auto;max-height:640px;overflow-y:auto}
 #cs-table th{cursor:pointer;position:sticky;top:0}#cs-table th.sorted{background:#d6e4f0}
-.controls{font-size:13px;margin:6px 0}.controls input{width:320px}
+.controls{font-size:13px;margin:6px 0}section p,section ul{font-size:14px}.controls input{width:320px}
 """
 
 TABLE_JS = r"""
