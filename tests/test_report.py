@@ -105,6 +105,8 @@ def test_report_refuses_to_overwrite_and_bad_choices(folder: Path, tmp_path: Pat
     assert "--variants" in err and "'9'" in err and "0 to 5" in err
     assert main(["report", str(folder), "-o", str(tmp_path / "s.html"), "--responses", "nope"]) == 2
     assert "'nope'" in capsys.readouterr().err
+    assert main(["report", str(folder), "-o", str(tmp_path / "s.html"), "--limits", "nope<=1"]) == 2
+    assert "--limits: 'nope<=1': 'nope' is not a summary column" in capsys.readouterr().err
     assert main(["report", str(folder), "-o", str(folder / "summary.csv")]) == 2
     assert main(["report", str(tmp_path / "missing")]) == 2
     assert not (tmp_path / "s.html").exists()
@@ -114,6 +116,17 @@ def test_report_refuses_to_overwrite_and_bad_choices(folder: Path, tmp_path: Pat
         "text") == "time [ms]"][0]  # fmt: skip
     assert [t["name"].split(",")[0] for t in hist["data"]] == ["variant 3 (best)", "variant 2"]
     assert hist["data"][1]["name"].endswith("FAILED")
+
+
+def test_report_limits_of_the_user_join_the_checks(folder: Path, tmp_path: Path) -> None:
+    # crush m v^2 / (2 F) + 0.005 m: 0.105 / 0.405 m at 800 kg, 0.13 / 0.505 m at 1000 kg (5 / 10 m/s)
+    out = tmp_path / "r.html"
+    assert main(["report", str(folder), "-o", str(out), "--limits", "max_crush.s1<=0.3"]) == 0
+    par = next(f for f in _figures(out.read_text()) if f["data"][0]["type"] == "parcoords")
+    ok = [(m, v) for m in rs.MASSES for v, k in zip(rs.SPEEDS, rs.STIFFNESS, strict=True) if not rs.fails(m, k)]
+    crush_ok = [m * v * v / (2 * rs.PLATEAU) + 0.005 <= 0.3 for m, v in ok]
+    peak_ok = [rs.PLATEAU / (m * rs.G) <= rs.CONSTRAINT_G for m, _ in ok]
+    assert par["data"][0]["line"]["color"] == [int(a and b) for a, b in zip(crush_ok, peak_ok, strict=True)] == [0, 0, 1, 0]
 
 
 def test_report_samples_above_the_documented_sizes(folder: Path, tmp_path: Path,

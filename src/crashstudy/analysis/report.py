@@ -33,6 +33,7 @@ from crashstudy.analysis.report_limits import (
     criteria_columns,
     limit_checks,
     passes_all,
+    user_checks,
 )
 from crashstudy.analysis.report_page import Figures, esc, html_table, interactive_table, page, table_data
 from crashstudy.errors import InputError, Problem
@@ -126,7 +127,8 @@ class Report:
     """Gathers what the page shows; :meth:`html` renders it."""
 
     def __init__(self, res: Any, variants: str | None = None, responses: Sequence[str] | None = None,
-                 test: tuple[np.ndarray, np.ndarray] | None = None, where: str = "") -> None:  # fmt: skip
+                 test: tuple[np.ndarray, np.ndarray] | None = None, where: str = "",
+                 limits: Sequence[str] = ()) -> None:  # fmt: skip
         self.res, self.where = res, where or str(res.dir)
         self.ds = res.dataset
         self.summary = res.summary.reset_index(drop=True)
@@ -144,8 +146,8 @@ class Report:
         else:
             self.responses = default_responses(self.summary, self.ds)
         self.criteria = criteria_columns(self.summary)
-        self.checks: list[Check] = constraint_checks(self.study, cols) + limit_checks(
-            [c for c in self.criteria if c in self.responses])
+        self.checks: list[Check] = user_checks(limits, cols, self.where) + constraint_checks(self.study, cols)
+        self.checks += limit_checks([c for c in self.criteria if c in self.responses])
         self.key = self.responses[0] if self.responses else None
         self.named = self._named()
         n = len(self.summary)
@@ -274,8 +276,9 @@ class Report:
         out += self.figures.div(rf.parcoords(cols, passed, cb, f"axes to responses{sampled}"), 460)
         if self.axes:
             out += "<h3>Each response against each axis</h3>"
-            out += ('<p class="note">Green/red: the response\'s own limit or constraint (dashed line) holds or not; '
-                    "a response without one is coloured by every check.</p>")
+            if self.checks:
+                out += ('<p class="note">Green/red: the response\'s own limit or constraint (dashed line) holds or '
+                        "not; a response without one is coloured by every check.</p>")
             for r in self.responses:
                 own = [c for c in self.checks if c.column == r]
                 colour = passes_all(s, own) if own else passed
@@ -383,9 +386,10 @@ class Report:
 
 
 def build_report(res: Any, variants: str | None = None, responses: Sequence[str] | None = None,
-                 test: tuple[np.ndarray, np.ndarray] | None = None, where: str = "") -> str:  # fmt: skip
+                 test: tuple[np.ndarray, np.ndarray] | None = None, where: str = "",
+                 limits: Sequence[str] = ()) -> str:  # fmt: skip
     """The HTML text of the report of the open result folder ``res``."""
     from plotly.offline import get_plotlyjs
 
-    return Report(res, variants, responses, test, where).html(get_plotlyjs())
+    return Report(res, variants, responses, test, where, limits).html(get_plotlyjs())
 

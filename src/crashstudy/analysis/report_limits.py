@@ -8,11 +8,13 @@ limit", never "unsafe".
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from crashstudy.errors import InputError, Problem
 from crashstudy.schema.study import CONSTRAINT
 
 
@@ -81,6 +83,28 @@ def constraint_checks(study: dict, columns: list[str]) -> list[Check]:
             continue
         out.append(Check(m.group(1), m.group(2), value, "the study's optimize: constraints"))
     return out
+
+
+def user_checks(texts: Sequence[str], columns: list[str], where: str) -> list[Check]:
+    """``--limits 'COLUMN<=NUMBER' ...``: the user's own checks (the optimize: constraint syntax)."""
+    out = []
+    for text in texts:
+        m = CONSTRAINT.match(str(text))
+        value = _number(m.group(3)) if m else None
+        if m is None or value is None or m.group(1) not in columns:
+            why = (f"{m.group(1)!r} is not a summary column" if m and value is not None and m.group(1) not in columns
+                   else "expected COLUMN<=NUMBER or COLUMN>=NUMBER")  # fmt: skip
+            raise InputError([Problem(where, None, "--limits", f"{text!r}: {why}")])
+        out.append(Check(m.group(1), m.group(2), value, "--limits"))
+    return out
+
+
+def _number(text: str) -> float | None:
+    try:
+        value = float(text)
+    except ValueError:
+        return None
+    return value if np.isfinite(value) else None
 
 
 def passes_all(summary: pd.DataFrame, checks: list[Check]) -> np.ndarray:

@@ -26,6 +26,9 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     rp.add_argument("--responses", nargs="+", metavar="COLUMN",
                     help="summary columns drawn against the axes (default: the crash node's peak deceleration "
                          "in g and the crash criteria)")  # fmt: skip
+    rp.add_argument("--limits", nargs="+", metavar="COLUMN<=NUMBER", default=[],
+                    help="your own pass/fail checks on summary columns (as optimize: constraints), drawn with the "
+                         "usual criteria limits and the study's optimize: constraints")  # fmt: skip
     rp.add_argument("--test", metavar="CSV",
                     help="a test curve to draw over the histories: CSV with columns time, value (time in s, "
                          "value in the units of the drawn history)")  # fmt: skip
@@ -80,7 +83,7 @@ def report_command(args: argparse.Namespace) -> int:
     except FileNotFoundError as exc:
         raise _problem(str(args.dir), "", str(exc)) from None
     try:
-        text = build_report(res, args.variants, args.responses, test, where=str(args.dir))
+        text = build_report(res, args.variants, args.responses, test, where=str(args.dir), limits=args.limits)
     finally:
         res.close()
     write_text(out, text)
