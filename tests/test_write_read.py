@@ -104,8 +104,8 @@ def snapshot(folder: Path) -> dict[str, tuple[int, int, int]]:
     return out
 
 
-WRITERS = {"run", "simulate", "optimize", "calibrate", "sensitivity", "plot", "compare"}
-READERS = {"summary", "plot", "compare", "sensitivity"}  # of a result folder (besides Results in the API)
+WRITERS = {"run", "simulate", "optimize", "calibrate", "sensitivity", "plot", "compare", "report"}
+READERS = {"summary", "plot", "compare", "sensitivity", "report"}  # of a result folder (besides Results in the API)
 NEITHER = {"validate", "schema"}
 
 
@@ -116,9 +116,10 @@ def test_every_command_is_known_as_a_writer_a_reader_or_neither() -> None:
 
 def _argv(made: dict[str, Path], command: str, tmp: Path) -> tuple[list[str], Path]:
     """(command line, the folder it writes into) for each writing command."""
-    if command in ("sensitivity", "plot", "compare"):
+    if command in ("sensitivity", "plot", "compare", "report"):
         r = copy(made["R"], tmp / "R")
         return {"sensitivity": ["sensitivity", str(r), "--metric", "peak_force", "--history", "spring_force"],
+                "report": ["report", str(r)],
                 "plot": ["plot", str(r), "--kind", "history"],
                 "compare": ["compare", str(r), str(made["R"]), "--junit", str(r / "junit.xml")]}[command], r  # fmt: skip
     study = {"run": made["study"], "simulate": made["model"], "optimize": made["opt"], "calibrate": made["cal"]}[command]
@@ -144,7 +145,7 @@ def test_a_link_planted_at_every_file_a_command_writes_is_replaced_never_followe
         target.write_text(f"precious {k}\n")
         (folder / name).unlink()
         (folder / name).symlink_to(target)
-    again = argv + (["--force"] if command in ("run", "simulate", "optimize", "calibrate") else [])
+    again = argv + (["--force"] if command in ("run", "simulate", "optimize", "calibrate", "report") else [])
     assert main(again) in (0, 1)
     for k, name in enumerate(written):
         assert (outside / f"victim{k}").read_text() == f"precious {k}\n", name
@@ -224,7 +225,7 @@ def _tampered(made: dict[str, Path], tmp: Path, how: str) -> Path:
 READS = {"summary": ["summary", "{d}"], "exceed": ["summary", "{d}", "--exceed", "peak_force.s", "1"],
          "sensitivity": ["sensitivity", "{d}", "--metric", "peak_force"],
          "plot": ["plot", "{d}", "--kind", "matrix", "--quantity", "peak_force.s", "-o", "{d}/../plots-{h}"],
-         "compare": ["compare", "{d}", "{r}"]}  # fmt: skip
+         "compare": ["compare", "{d}", "{r}"], "report": ["report", "{d}", "-o", "{d}/../report-{h}.html"]}  # fmt: skip
 
 
 @pytest.mark.parametrize("how", ["edited", "beside-another"])
@@ -276,6 +277,7 @@ ALLOWED = {
     ("kernel/warm.py", "open-for-writing"): 1,  # ditto
     ("kernel/compile_lock.py", "open-for-writing"): 1,  # ditto (the compile lock and what its holder compiles)
     ("analysis/optimization.py", "read_csv"): 1,  # calibrate.data from bytes read by safefs.open_regular
+    ("analysis/report_extra.py", "read_csv"): 1,  # sensitivity/correlation/history.csv from safefs.open_regular bytes
     ("results/reader.py", "open_dataset"): 1,  # the reader itself
     ("results/reader.py", "read_parquet"): 2,  # the reader itself, from a manifest-checked handle
     ("results/reader.py", "read_csv"): 1,  # the reader itself, from a manifest-checked handle
