@@ -11,6 +11,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+TIMEOUT_MS = 300_000  # a loaded 2-core CI machine parses 4.5 MiB of script and draws 10 figures slowly (30 s seen)
 CHROMIUM = os.environ.get("CRASHSTUDY_CHROMIUM", "/usr/bin/chromium")
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
          "--disable-component-update", "--no-first-run", "--enable-unsafe-swiftshader"]  # fmt: skip
@@ -25,6 +26,7 @@ def open_report(browser: Any, path: Path, width: int = 1280, height: int = 900) 
     and recorded; returns (page, {"errors": console errors and page errors, "requests": refused URLs})."""
     seen: dict[str, list] = {"errors": [], "requests": []}
     page = browser.new_page(viewport={"width": width, "height": height})
+    page.set_default_timeout(TIMEOUT_MS)
     url = path.resolve().as_uri()
 
     def route(r: Any) -> None:
@@ -37,7 +39,7 @@ def open_report(browser: Any, path: Path, width: int = 1280, height: int = 900) 
     page.route("**/*", route)
     page.on("console", lambda m: seen["errors"].append(m.text) if m.type == "error" else None)
     page.on("pageerror", lambda e: seen["errors"].append(str(e)))
-    page.goto(url, wait_until="load")
+    page.goto(url, wait_until="load", timeout=TIMEOUT_MS)
     page.wait_for_function("Array.from(document.querySelectorAll('div.fig')).every(d => d.querySelector('.main-svg'))",
-                           timeout=60_000)
+                           timeout=TIMEOUT_MS)
     return page, seen
