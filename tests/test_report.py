@@ -155,9 +155,14 @@ def test_report_sections_of_derived_files(folder: Path, tmp_path: Path) -> None:
                                        "feasible: true\n")
     (work / "history.csv").write_text("nodes.body.mass,status,max_crush.s1,feasible,score\n800,ok,0.2,False,1e15\n"
                                       "900,ok,0.15,True,0.15\n1000,ok,0.13,True,0.13\n")
+    (tmp_path / "test.csv").write_text("time,value\n0.0,0.0\n0.01,9.5\n0.05,10.0\n")
     out = tmp_path / "r.html"
-    assert main(["report", str(work), "-o", str(out)]) == 0
+    assert main(["report", str(work), "-o", str(out), "--test", str(tmp_path / "test.csv")]) == 0
     html = out.read_text()
+    test_curve = [t for f in _figures(html) for t in f["data"] if t.get("name") == "test"]
+    assert [(c["x"], c["y"]) for c in test_curve] == [([0.0, 10.0, 50.0], [0.0, 9.5, 10.0])]  # time in ms
+    (tmp_path / "bad.csv").write_text("t,v\n1,2\n")
+    assert main(["report", str(work), "-o", str(tmp_path / "b.html"), "--test", str(tmp_path / "bad.csv")]) == 2
     sens = _section(html, "sensitivity")
     # mass alone lowers the peak (F / m): Spearman -1 among the ok variants, impact speed 0
     fig = next(f for f in _figures(html) if "sensitivity of" in f["layout"]["title"]["text"])
