@@ -104,23 +104,33 @@ def snapshot(folder: Path) -> dict[str, tuple[int, int, int]]:
     return out
 
 
-WRITERS = {"run", "simulate", "optimize", "calibrate", "sensitivity", "plot", "compare"}
-READERS = {"summary", "plot", "compare", "sensitivity"}  # of a result folder (besides Results in the API)
+WRITERS = {"run", "simulate", "optimize", "calibrate", "sensitivity", "plot", "compare", "report", "export", "import"}
+READERS = {"summary", "plot", "compare", "sensitivity", "report", "export"}  # of a result folder (besides the API)
 NEITHER = {"validate", "schema"}
 
 
 def test_every_command_is_known_as_a_writer_a_reader_or_neither() -> None:
     """A new command fails here until it is added to the link test (writer) and the tamper test (reader)."""
+    from crashstudy.cli.main import _parser
+
+    _parser()  # the plugged command families register while the parser is built
     assert set(COMMANDS) == WRITERS | READERS | NEITHER
 
 
 def _argv(made: dict[str, Path], command: str, tmp: Path) -> tuple[list[str], Path]:
     """(command line, the folder it writes into) for each writing command."""
-    if command in ("sensitivity", "plot", "compare"):
+    if command in ("sensitivity", "plot", "compare", "report"):
         r = copy(made["R"], tmp / "R")
         return {"sensitivity": ["sensitivity", str(r), "--metric", "peak_force", "--history", "spring_force"],
+                "report": ["report", str(r)],
                 "plot": ["plot", str(r), "--kind", "history"],
                 "compare": ["compare", str(r), str(made["R"]), "--junit", str(r / "junit.xml")]}[command], r  # fmt: skip
+    if command == "export":  # the ISO-MME side reads a result folder (the LS-DYNA side: tests/test_dyna_exchange.py)
+        return ["export", str(made["R"]), "--isomme", str(tmp / "ISO")], tmp / "ISO"
+    if command == "import":
+        (tmp / "M").mkdir()
+        assert main(["export", str(made["model"]), "--dyna", str(tmp / "model.k")]) == 0
+        return ["import", str(tmp / "model.k"), "-o", str(tmp / "M" / "model.yaml")], tmp / "M"
     study = {"run": made["study"], "simulate": made["model"], "optimize": made["opt"], "calibrate": made["cal"]}[command]
     return [command, str(study), "-o", str(tmp / "O")], tmp / "O"
 
@@ -144,7 +154,8 @@ def test_a_link_planted_at_every_file_a_command_writes_is_replaced_never_followe
         target.write_text(f"precious {k}\n")
         (folder / name).unlink()
         (folder / name).symlink_to(target)
-    again = argv + (["--force"] if command in ("run", "simulate", "optimize", "calibrate") else [])
+    forced = ("run", "simulate", "optimize", "calibrate", "report", "export", "import")
+    again = argv + (["--force"] if command in forced else [])
     assert main(again) in (0, 1)
     for k, name in enumerate(written):
         assert (outside / f"victim{k}").read_text() == f"precious {k}\n", name
@@ -224,7 +235,8 @@ def _tampered(made: dict[str, Path], tmp: Path, how: str) -> Path:
 READS = {"summary": ["summary", "{d}"], "exceed": ["summary", "{d}", "--exceed", "peak_force.s", "1"],
          "sensitivity": ["sensitivity", "{d}", "--metric", "peak_force"],
          "plot": ["plot", "{d}", "--kind", "matrix", "--quantity", "peak_force.s", "-o", "{d}/../plots-{h}"],
-         "compare": ["compare", "{d}", "{r}"]}  # fmt: skip
+         "compare": ["compare", "{d}", "{r}"], "report": ["report", "{d}", "-o", "{d}/../report-{h}.html"],
+         "export": ["export", "{d}", "--isomme", "{d}/../iso-{h}"]}  # fmt: skip
 
 
 @pytest.mark.parametrize("how", ["edited", "beside-another"])
@@ -276,6 +288,7 @@ ALLOWED = {
     ("kernel/warm.py", "open-for-writing"): 1,  # ditto
     ("kernel/compile_lock.py", "open-for-writing"): 1,  # ditto (the compile lock and what its holder compiles)
     ("exchange/testcurve.py", "read_csv"): 1,  # a CSV test curve from bytes read by safefs.open_regular
+    ("analysis/report_extra.py", "read_csv"): 1,  # sensitivity/correlation/history.csv from safefs.open_regular bytes
     ("results/reader.py", "open_dataset"): 1,  # the reader itself
     ("results/reader.py", "read_parquet"): 2,  # the reader itself, from a manifest-checked handle
     ("results/reader.py", "read_csv"): 1,  # the reader itself, from a manifest-checked handle

@@ -13,7 +13,6 @@ from crashstudy.errors import InputError, Problem
 
 
 def export_isomme(args: argparse.Namespace) -> int:
-    import numpy as np
     import yaml
 
     from crashstudy.exchange.isomme import mme_files
@@ -42,7 +41,7 @@ def export_isomme(args: argparse.Namespace) -> int:
     model.update({k: v for k, v in setting.items() if k in ("iso_mme", "metrics")})
     name = str(ds.attrs.get("study_name") or ds.attrs.get("model_name") or "crashstudy")
     free = [str(n) for n in _json_list(ds.attrs.get("free_nodes"))] or [str(n) for n in ds["node"].values]
-    status = np.asarray(ds["status"].values) if "status" in ds else np.zeros(len(numbers))
+    status = res.summary_columns(["status"])["status"].astype(str).to_numpy()  # manifest-checked, in variant order
     out = Path(args.isomme)
     if os.path.lexists(out) and not out.is_dir():
         raise InputError([Problem(str(out), None, "--isomme", "is a file; expected a folder (new or of tests)")])
@@ -56,7 +55,7 @@ def export_isomme(args: argparse.Namespace) -> int:
     with folder_lock(out):
         for v, test in tests.items():
             k = numbers.index(v)
-            if str(status[k]) not in ("0", "ok", "b'ok'"):
+            if status[k] != "ok":
                 skipped.append(v)
                 continue
             header = [("Laboratory name", "crashstudy (calculated)"), ("Laboratory test ref. number", test),
