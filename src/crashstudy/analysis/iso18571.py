@@ -245,3 +245,35 @@ def _slope_error(c, t, dt):  # pragma: no cover - compiled
         num += abs(sc[i] - st[i])
         den += abs(st[i])
     return num / den if den > 0 else np.nan
+
+
+def rated_interval(t_model: np.ndarray, t_test: np.ndarray, window: tuple[float, float] | None) -> tuple[float, float]:
+    """The interval both curves cover (cut to ``window`` when given), in model time."""
+    t0, t1 = max(float(t_model[0]), float(t_test[0])), min(float(t_model[-1]), float(t_test[-1]))
+    if window is not None:
+        t0, t1 = max(t0, float(window[0])), min(t1, float(window[1]))
+    return t0, t1
+
+
+def rate_histories(t_model: np.ndarray, models: np.ndarray, t_test: np.ndarray, test: np.ndarray, second: float,
+                   window: tuple[float, float] | None = None) -> dict[str, np.ndarray]:  # fmt: skip
+    """:func:`rate` of the histories ``models`` (V, len(t_model)) against the test curve (``t_test``,
+    ``test``), both resampled to :data:`RATE_HZ` on their common interval (cut to ``window``); times in
+    model units, ``second`` of them in one second. Rows that are not finite score NaN. Adds ``t0``,
+    ``t1`` (the interval) and ``samples``. ValueError when the interval holds too few samples."""
+    t0, t1 = rated_interval(t_model, t_test, window)
+    grid = rating_grid(t0 / second, t1 / second) * second if t1 > t0 else np.empty(0)
+    if len(grid) < MIN_SAMPLES:
+        raise ValueError(f"the test ({t_test[0]:g} .. {t_test[-1]:g}) and the model ({t_model[0]:g} .. "
+                         f"{t_model[-1]:g}) overlap{f' within the window {window[0]:g} .. {window[1]:g}' if window else ''}"
+                         f" on {max(len(grid), 0)} samples at 10 kHz; at least {MIN_SAMPLES} are needed")  # fmt: skip
+    y_test = resample(t_test, test, grid)
+    y = resample(t_model, models, grid)
+    ok = np.all(np.isfinite(y), axis=1)
+    out = {k: np.full(len(models), np.nan) for k in ("R", "Z", "EP", "EM", "ES", "shift")}
+    if ok.any():
+        scores = rate(y_test, y[ok])
+        for k, v in scores.items():
+            out[k][ok] = v
+    out["t0"], out["t1"], out["samples"] = np.array(t0), np.array(t1), np.array(len(grid))
+    return out

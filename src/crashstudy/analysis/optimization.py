@@ -189,9 +189,9 @@ class DataFileError(ValueError):
     data_file = True
 
 
-def read_data(path: Path, end_time: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The measured channel: a CSV with columns ``time`` and ``value`` (model units), times within
-    0 .. ``end_time``. Read only as a regular file of at most :data:`DATA_MAX` bytes (a FIFO would
+def read_data(path: Path, end_time: float | None = None, channel: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The measured channel: a CSV with columns ``time`` and ``value`` (or the column ``channel``; model
+    units), times within 0 .. ``end_time``. Read only as a regular file of at most :data:`DATA_MAX` bytes (a FIFO would
     hang, ``/dev/zero`` fill memory); a message never quotes the file's content (it may be a link to
     a secret), it says what was expected where."""
     import io
@@ -208,13 +208,14 @@ def read_data(path: Path, end_time: float | None = None) -> tuple[np.ndarray, np
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
         raise DataFileError(f"{path}: not a CSV table ({type(exc).__name__}); expected a header line "
                             "'time,value' and rows of two numbers") from None  # fmt: skip
-    if not {"time", "value"} <= set(df.columns):
-        raise DataFileError(f"{path}, line 1: expected the header 'time,value' (columns time and value); "
+    column = channel or "value"
+    if not {"time", column} <= set(df.columns):
+        raise DataFileError(f"{path}, line 1: expected the header 'time,{column}' (columns time and {column}); "
                             f"that line has {len(df.columns)} column(s) with other names")  # fmt: skip
     try:
-        t, y = df["time"].to_numpy(dtype=float), df["value"].to_numpy(dtype=float)
+        t, y = df["time"].to_numpy(dtype=float), df[column].to_numpy(dtype=float)
     except (ValueError, TypeError):
-        raise DataFileError(f"{path}: expected numbers in columns time and value") from None
+        raise DataFileError(f"{path}: expected numbers in columns time and {column}") from None
     if len(t) < 3 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(y)) or np.any(np.diff(t) <= 0):
         raise DataFileError(f"{path}: expected at least 3 rows of finite numbers with increasing time")
     if end_time is not None:
@@ -257,6 +258,11 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
     kinds = {"acceleration": "acceleration", "velocity": "velocity", "displacement": "length",
              "spring_force": "force", "spring_elongation": "length"}  # fmt: skip
     units = {"time": unit["time"], "value": unit[kinds[channel["quantity"]]]}
+    if spec.get("objective", "rms") == "iso18571":
+        from crashstudy.analysis.calibration_iso import calibrate_iso18571
+
+        second = 1000.0 if unit["time"] == "ms" else 1.0
+        return calibrate_iso18571(ev, spec, t_data, y_data, second, units, progress)
     cache: dict[bytes, np.ndarray] = {}
     best = [float("inf")]  # the smallest rms error so far, for the progress lines
 

@@ -91,11 +91,16 @@ class Channel(Strict):
 
 
 class Calibrate(Strict):
-    """``crashstudy calibrate``: fit variables to a measured channel by least squares (docs/optimize.md)."""
+    """``crashstudy calibrate``: fit variables to a measured channel by least squares, or by the ISO/TS 18571
+    rating (docs/optimize.md, docs/correlation.md)."""
 
     data: str = Field(min_length=1, description="CSV file with columns time, value (model units), relative to the study")
     channel: Channel = Field(description="what the data measured")
     variables: dict[str, Bounds] = Field(min_length=1, description="axis path -> [low, high] in its units")
+    objective: Literal["rms", "iso18571"] = Field(
+        default="rms", description="rms: least squares of the residuals; iso18571: maximise the ISO/TS 18571 rating R"
+    )
+    budget: int = Field(default=600, ge=10, le=1_000_000, description="model evaluations at most (iso18571) [1]")
 
 
 class Study(Strict):
