@@ -67,5 +67,7 @@ def pairs() -> dict[str, tuple[np.ndarray, np.ndarray]]:
         "random_walks": (np.cumsum(rng.normal(0, 1, 1500)), np.cumsum(rng.normal(0, 1, 1500))),
         "unrelated_sine": (np.sin(2 * np.pi * 30 * t1), np.cos(2 * np.pi * 47 * t1) * 0.5),
         "short_curves": (base[:60], 1.1 * base[3:63]),
+        # two nearly straight rises: every shift correlates to ~1 (an ill-conditioned phase search)
+        "near_linear_ramps": (np.sqrt(200.0) * np.sin(t1[:501] * np.sqrt(50.0)), 10.0 * np.sin(10.0 * t1[:501])),
     }
     return out

@@ -138,3 +138,12 @@ def test_validate_checks_the_objective(tmp_path: Path, capsys: pytest.CaptureFix
     assert main(["validate", str(tmp_path / "cal.yaml")]) == 2
     err = capsys.readouterr().err
     assert "calibrate.objective" in err and "'rms' or 'iso18571'" in err
+
+
+def test_new_results_remove_an_old_correlation(tmp_path: Path) -> None:
+    from crashstudy.results.outdir import remove_derived
+
+    (tmp_path / "correlation.csv").write_text("variant,R\n0,1.0\n")
+    (tmp_path / "notes.csv").write_text("mine\n")
+    assert remove_derived(tmp_path) == [tmp_path / "correlation.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.csv"]

@@ -104,21 +104,27 @@ def snapshot(folder: Path) -> dict[str, tuple[int, int, int]]:
     return out
 
 
-WRITERS = {"run", "simulate", "optimize", "calibrate", "sensitivity", "plot", "compare"}
-READERS = {"summary", "plot", "compare", "sensitivity"}  # of a result folder (besides Results in the API)
+WRITERS = {"run", "simulate", "optimize", "calibrate", "sensitivity", "plot", "compare", "correlate"}
+READERS = {"summary", "plot", "compare", "sensitivity", "correlate"}  # of a result folder (besides Results in the API)
 NEITHER = {"validate", "schema"}
+EXCHANGE = {"export", "import"}  # cli/exchange.py: to be classified with their own tests (issue 20 items 1, 3)
 
 
 def test_every_command_is_known_as_a_writer_a_reader_or_neither() -> None:
     """A new command fails here until it is added to the link test (writer) and the tamper test (reader)."""
-    assert set(COMMANDS) == WRITERS | READERS | NEITHER
+    from crashstudy.cli.main import _parser
+
+    _parser()  # the commands of cli/main.PLUGGED modules join COMMANDS when the parser is built
+    assert set(COMMANDS) == WRITERS | READERS | NEITHER | EXCHANGE
 
 
 def _argv(made: dict[str, Path], command: str, tmp: Path) -> tuple[list[str], Path]:
     """(command line, the folder it writes into) for each writing command."""
-    if command in ("sensitivity", "plot", "compare"):
+    if command in ("sensitivity", "plot", "compare", "correlate"):
         r = copy(made["R"], tmp / "R")
         return {"sensitivity": ["sensitivity", str(r), "--metric", "peak_force", "--history", "spring_force"],
+                "correlate": ["correlate", str(r), "--test", str(made["tmp"] / "data.csv"), "--item", "s",
+                              "--quantity", "force"],
                 "plot": ["plot", str(r), "--kind", "history"],
                 "compare": ["compare", str(r), str(made["R"]), "--junit", str(r / "junit.xml")]}[command], r  # fmt: skip
     study = {"run": made["study"], "simulate": made["model"], "optimize": made["opt"], "calibrate": made["cal"]}[command]
@@ -225,6 +231,7 @@ READS = {"summary": ["summary", "{d}"], "exceed": ["summary", "{d}", "--exceed",
          "sensitivity": ["sensitivity", "{d}", "--metric", "peak_force"],
          "plot": ["plot", "{d}", "--kind", "matrix", "--quantity", "peak_force.s", "-o", "{d}/../plots-{h}"],
          "compare": ["compare", "{d}", "{r}"]}  # fmt: skip
+# correlate reads no summary, only results.nc: the test below
 
 
 @pytest.mark.parametrize("how", ["edited", "beside-another"])
@@ -239,6 +246,18 @@ def test_every_reader_refuses_summaries_the_manifest_does_not_vouch_for(
     err = capsys.readouterr().err
     assert "manifest.json" in err and "Traceback" not in err, err
     assert (t / "sensitivity.csv").read_bytes() == kept  # nothing written from refused results
+
+
+def test_correlate_refuses_a_results_file_the_manifest_does_not_vouch_for(
+        made: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    t = copy(made["R"], tmp_path / "grown")
+    with open(t / "results.nc", "ab") as fh:
+        fh.write(b"\0")
+    capsys.readouterr()
+    assert main(["correlate", str(t), "--test", str(made["tmp"] / "data.csv"), "--item", "s", "--quantity", "force"]) == 2
+    err = capsys.readouterr().err
+    assert "manifest.json" in err and "Traceback" not in err, err
+    assert not (t / "correlation.csv").exists()
 
 
 def test_open_results_refuses_an_edited_summary(made: dict[str, Path], tmp_path: Path) -> None:
