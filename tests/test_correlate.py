@@ -75,6 +75,22 @@ def test_a_shifted_test_curve_scores_its_phase_by_the_closed_form(study: Path) -
     assert row["R"] == pytest.approx(0.4 * z + 0.2 * row["EP"] + 0.2 + 0.2, abs=1e-6)
 
 
+def test_cfc_filters_both_curves_before_rating(study: Path) -> None:
+    """Variant 1's curve plus a 2 kHz ripple of 10 % of its peak: the slope score suffers unfiltered;
+    CFC 60 (-3 dB at 100 Hz, < -60 dB at 2 kHz) removes the ripple, and the same filter on both curves
+    leaves variant 1 at R > 0.999."""
+    t, f = _history(study / "out", 1)
+    rippled = f + 0.1 * np.abs(f).max() * np.sin(2 * np.pi * 2000.0 * t)
+    pd.DataFrame({"time": t, "value": rippled}).to_csv(study / "ripple.csv", index=False)
+    rows = {}
+    for cfc in ([], ["--cfc", "60"]):
+        assert main(["correlate", str(study / "out"), "--test", str(study / "ripple.csv"), "--item", "s",
+                     "--quantity", "force", *cfc]) == 0  # fmt: skip
+        rows[bool(cfc)] = pd.read_csv(study / "out" / "correlation.csv").set_index("variant").loc[1]
+    assert rows[False]["ES"] < 0.7 and rows[False]["R"] < 0.9  # measured 0.59, 0.86
+    assert rows[True]["R"] > 0.999
+
+
 @pytest.mark.parametrize("extra, field, words", [
     (["--test", "missing.csv", "--item", "s", "--quantity", "force"], "--test", "no such file"),
     (["--test", "test.csv", "--item", "s", "--quantity", "force"], "--test", "line 1: expected the header 'time,value'"),
@@ -85,12 +101,15 @@ def test_a_shifted_test_curve_scores_its_phase_by_the_closed_form(study: Path) -
      "--window", "at least 20 are needed"),
     (["--test", "test.csv", "--channel", "force", "--item", "s", "--quantity", "force", "--window", "0.05", "0.01"],
      "--window", "expected T0 < T1"),
+    (["--test", "uneven.csv", "--item", "s", "--quantity", "force", "--cfc", "60"], "--cfc", "constant step"),
 ])  # fmt: skip
 def test_bad_input_is_exit_2_naming_file_and_field(study: Path, capsys: pytest.CaptureFixture[str], extra: list[str],
                                                    field: str, words: str, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
     if not (study / "test.csv").exists():
         t, f = _history(study / "out", 1)
         pd.DataFrame({"time": t, "force": f}).to_csv(study / "test.csv", index=False)
+    pd.DataFrame({"time": [0.0, 0.001, 0.003, 0.004], "value": [0.0, 1.0, 2.0, 3.0]}).to_csv(study / "uneven.csv",
+                                                                                          index=False)  # fmt: skip
     monkeypatch.chdir(study)
     assert main(["correlate", "out", *extra]) == 2
     err = capsys.readouterr().err
