@@ -60,13 +60,18 @@ def rating_grid(t0: float, t1: float) -> np.ndarray:
 
 
 def resample(t: np.ndarray, y: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    """Linear interpolation of ``y`` (..., len(t)) sampled at increasing ``t`` onto ``grid`` (inside ``t``),
-    for every row at once."""
+    """Linear interpolation of ``y`` (len(t)) or of each row of ``y`` (rows, len(t)), sampled at increasing
+    ``t``, onto ``grid`` (inside ``t``)."""
     t = np.asarray(t, dtype=float)
     i = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 2)
     w = (grid - t[i]) / (t[i + 1] - t[i])
     y = np.asarray(y, dtype=float)
-    return y[..., i] * (1.0 - w) + y[..., i + 1] * w
+    if y.ndim == 1:
+        return y[i] * (1.0 - w) + y[i + 1] * w
+    out = np.empty((len(y), len(grid)))
+    for lo in range(0, len(y), BLOCK):  # blocks of rows: no temporaries of the whole size
+        out[lo : lo + BLOCK] = y[lo : lo + BLOCK, i] * (1.0 - w) + y[lo : lo + BLOCK, i + 1] * w
+    return out
 
 
 def corridor(test: np.ndarray, models: np.ndarray) -> np.ndarray:

@@ -113,7 +113,8 @@ def correlate_command(args: argparse.Namespace) -> int:
             models = _filtered(t_model, models, args.cfc, second, f"the histories of {where}", where)
             y_test = _filtered(t_test, y_test, args.cfc, second, f"the test curve {args.test}", args.test)[0]
         ok = np.asarray(ds["status"].values).astype(str) == "ok"
-        models = np.where(ok[:, None], models, np.nan)
+        if not ok.all():
+            models = np.where(ok[:, None], models, np.nan)
         try:
             scores = rate_histories(t_model, models, t_test, y_test, second, tuple(args.window) if args.window else None)
         except ValueError as exc:
