@@ -102,6 +102,7 @@ def test_cfc_filters_both_curves_before_rating(study: Path) -> None:
     (["--test", "test.csv", "--channel", "force", "--item", "s", "--quantity", "force", "--window", "0.05", "0.01"],
      "--window", "expected T0 < T1"),
     (["--test", "uneven.csv", "--item", "s", "--quantity", "force", "--cfc", "60"], "--cfc", "constant step"),
+    (["--test", "flat.csv", "--item", "s", "--quantity", "force"], "--test", "the test curve is constant"),
 ])  # fmt: skip
 def test_bad_input_is_exit_2_naming_file_and_field(study: Path, capsys: pytest.CaptureFixture[str], extra: list[str],
                                                    field: str, words: str, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
@@ -110,6 +111,7 @@ def test_bad_input_is_exit_2_naming_file_and_field(study: Path, capsys: pytest.C
         pd.DataFrame({"time": t, "force": f}).to_csv(study / "test.csv", index=False)
     pd.DataFrame({"time": [0.0, 0.001, 0.003, 0.004], "value": [0.0, 1.0, 2.0, 3.0]}).to_csv(study / "uneven.csv",
                                                                                           index=False)  # fmt: skip
+    pd.DataFrame({"time": [0.0, 0.05, 0.1], "value": [2.0, 2.0, 2.0]}).to_csv(study / "flat.csv", index=False)
     monkeypatch.chdir(study)
     assert main(["correlate", "out", *extra]) == 2
     err = capsys.readouterr().err

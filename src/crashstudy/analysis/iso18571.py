@@ -139,6 +139,9 @@ def rate(test: np.ndarray, models: np.ndarray) -> dict[str, np.ndarray]:
     n = test.shape[-1]
     if models.shape[-1] != n or n < MIN_SAMPLES:
         raise ValueError(f"expected curves of one length >= {MIN_SAMPLES}; got {n} and {models.shape[-1]}")
+    if not np.all(np.isfinite(test)) or not np.any(test != test[0]):
+        raise ValueError("the test curve is constant (or not finite) on the rated interval: its corridor, "
+                         "correlation and slopes are undefined; rate another interval or channel")  # fmt: skip
     z = np.concatenate([corridor(test, models[lo : lo + BLOCK]) for lo in range(0, len(models), BLOCK)])
     shift = best_shift(test, models)
     err_m, err_s = _shifted_errors(test, models, shift, DTW_BAND, DT)
