@@ -2,8 +2,9 @@
 tests/iso18571_pairs.py by the ``objective-rating-metrics`` package (VSI TU Graz), the independent
 implementation crashstudy's :mod:`crashstudy.analysis.iso18571` is tested against.
 
-That package needs ``dtwalign`` (which pulls seaborn, networkx, ...), so it is not a dependency of
-crashstudy or of its tests; run this script in a separate environment:
+The package is in crashstudy's ``test`` extra (it pulls ``dtwalign``, seaborn, networkx, shapely); run
+the script where it is installed, e.g. ``pip install -e ".[test]" && python scripts/make_iso18571_reference.py``,
+or in an environment of its own:
 
     python3 -m venv /tmp/ormvenv && /tmp/ormvenv/bin/pip install objective-rating-metrics==1.3 scipy
     /tmp/ormvenv/bin/python scripts/make_iso18571_reference.py
