@@ -104,8 +104,9 @@ def snapshot(folder: Path) -> dict[str, tuple[int, int, int]]:
     return out
 
 
-WRITERS = {"run", "simulate", "optimize", "calibrate", "sensitivity", "plot", "compare", "report", "export", "import"}
-READERS = {"summary", "plot", "compare", "sensitivity", "report", "export"}  # of a result folder (besides the API)
+WRITERS = {"run", "simulate", "optimize", "calibrate", "sensitivity", "plot", "compare", "report", "export", "import",
+           "correlate"}
+READERS = {"summary", "plot", "compare", "sensitivity", "report", "export", "correlate"}  # of a result folder
 NEITHER = {"validate", "schema"}
 
 
@@ -119,10 +120,12 @@ def test_every_command_is_known_as_a_writer_a_reader_or_neither() -> None:
 
 def _argv(made: dict[str, Path], command: str, tmp: Path) -> tuple[list[str], Path]:
     """(command line, the folder it writes into) for each writing command."""
-    if command in ("sensitivity", "plot", "compare", "report"):
+    if command in ("sensitivity", "plot", "compare", "report", "correlate"):
         r = copy(made["R"], tmp / "R")
         return {"sensitivity": ["sensitivity", str(r), "--metric", "peak_force", "--history", "spring_force"],
                 "report": ["report", str(r)],
+                "correlate": ["correlate", str(r), "--test", str(made["tmp"] / "data.csv"), "--item", "s",
+                              "--quantity", "force"],
                 "plot": ["plot", str(r), "--kind", "history"],
                 "compare": ["compare", str(r), str(made["R"]), "--junit", str(r / "junit.xml")]}[command], r  # fmt: skip
     if command == "export":  # the ISO-MME side reads a result folder (the LS-DYNA side: tests/test_dyna_exchange.py)
@@ -237,6 +240,7 @@ READS = {"summary": ["summary", "{d}"], "exceed": ["summary", "{d}", "--exceed",
          "plot": ["plot", "{d}", "--kind", "matrix", "--quantity", "peak_force.s", "-o", "{d}/../plots-{h}"],
          "compare": ["compare", "{d}", "{r}"], "report": ["report", "{d}", "-o", "{d}/../report-{h}.html"],
          "export": ["export", "{d}", "--isomme", "{d}/../iso-{h}"]}  # fmt: skip
+# correlate reads no summary, only results.nc: test_correlate_refuses_a_results_file_the_manifest_does_not_vouch_for
 
 
 @pytest.mark.parametrize("how", ["edited", "beside-another"])
@@ -251,6 +255,18 @@ def test_every_reader_refuses_summaries_the_manifest_does_not_vouch_for(
     err = capsys.readouterr().err
     assert "manifest.json" in err and "Traceback" not in err, err
     assert (t / "sensitivity.csv").read_bytes() == kept  # nothing written from refused results
+
+
+def test_correlate_refuses_a_results_file_the_manifest_does_not_vouch_for(
+        made: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    t = copy(made["R"], tmp_path / "grown")
+    with open(t / "results.nc", "ab") as fh:
+        fh.write(b"\0")
+    capsys.readouterr()
+    assert main(["correlate", str(t), "--test", str(made["tmp"] / "data.csv"), "--item", "s", "--quantity", "force"]) == 2
+    err = capsys.readouterr().err
+    assert "manifest.json" in err and "Traceback" not in err, err
+    assert not (t / "correlation.csv").exists()
 
 
 def test_open_results_refuses_an_edited_summary(made: dict[str, Path], tmp_path: Path) -> None:

@@ -29,6 +29,9 @@ import numpy as np
 import pandas as pd
 
 from crashstudy import interrupt
+from crashstudy.exchange.isomme import (
+    IsoMmeError as DataFileError,  # the one "a test curve is unusable" error
+)
 from crashstudy.schema.study import CONSTRAINT
 
 INFEASIBLE = 1e15
@@ -180,10 +183,6 @@ def channel_history(plan: Any, res: Any, channel: dict[str, Any]) -> tuple[np.nd
     return np.asarray(plan.times, dtype=float), np.asarray(v, dtype=float).T
 
 
-class DataFileError(ValueError):
-    """``calibrate.data`` cannot be used (the message names the file, a line, what was expected)."""
-
-    data_file = True
 
 
 def read_data(path: Path, end_time: float | None = None, *, channel: str | None = None, unit: str | None = None,
@@ -198,7 +197,7 @@ def read_data(path: Path, end_time: float | None = None, *, channel: str | None 
     keep = np.isfinite(curve.value) | (not is_isomme(Path(path)))  # a CSV's empty cell stays an error
     t, y = curve.time[keep], curve.value[keep]
     if len(t) < 3 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(y)) or np.any(np.diff(t) <= 0):
-        raise DataFileError(f"{curve.label}: expected at least 3 rows of finite numbers with increasing time")
+        raise DataFileError(curve.label, "expected at least 3 rows of finite numbers with increasing time")
     if end_time is not None:
         check_span(path, t, end_time)
     return t, y
@@ -221,7 +220,7 @@ def check_span(path: Path, t: np.ndarray, end_time: float, slack: float = 0.0) -
     outside = np.flatnonzero((t < 0.0) | (t > end_time * (1.0 + 1e-9) + slack))
     if len(outside):
         raise DataFileError(
-            f"{path}, line {int(outside[0]) + 2}: the data run from t = {t[0]:g} to {t[-1]:g}, the model from "
+            f"{path}, line {int(outside[0]) + 2}", f"the data run from t = {t[0]:g} to {t[-1]:g}, the model from "
             f"0 to end_time {end_time:g}; {len(outside)} row(s) lie outside it (the model's channel is not "
             "defined there): remove them, or make end_time cover the data")  # fmt: skip
 
@@ -255,6 +254,11 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
     kinds = {"acceleration": "acceleration", "velocity": "velocity", "displacement": "length",
              "spring_force": "force", "spring_elongation": "length"}  # fmt: skip
     units = {"time": unit["time"], "value": unit[kinds[channel["quantity"]]]}
+    if spec.get("objective", "rms") == "iso18571":
+        from crashstudy.analysis.calibration_iso import calibrate_iso18571
+
+        second = 1000.0 if unit["time"] == "ms" else 1.0
+        return calibrate_iso18571(ev, spec, t_data, y_data, second, units, progress)
     cache: dict[bytes, np.ndarray] = {}
     best = [float("inf")]  # the smallest rms error so far, for the progress lines
 

@@ -22,7 +22,7 @@ EXIT_OK, EXIT_FAILED, EXIT_INVALID, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 # Modules of further commands, one per command family. Each has ``register(sub)``, which adds its sub-parsers and
 # returns ``{command name: handler(args) -> exit code}``; it imports nothing heavy at module level (cold start).
-PLUGGED: tuple[str, ...] = ("crashstudy.cli.exchange", "crashstudy.cli.report")
+PLUGGED: tuple[str, ...] = ("crashstudy.cli.exchange", "crashstudy.cli.report", "crashstudy.cli.correlate")
 
 
 def _parser() -> argparse.ArgumentParser:

@@ -68,17 +68,14 @@ def known_unit(unit: str, quantity: str | None) -> str:
 
 def read_curve(path: Path, *, channel: str | None = None, unit: str | None = None, quantity: str | None = None,
                system: str = "SI") -> TestCurve:  # fmt: skip
-    """The test curve at ``path`` in the units of ``system``. A CSV needs no ``channel``; its values are in
-    model units unless ``unit`` names theirs. An ISO-MME test needs ``channel`` (16 characters, ``?``
+    """The test curve at ``path`` in the units of ``system``. A CSV's ``channel`` is its value column
+    (default ``value``); its values are in model units unless ``unit`` names theirs. An ISO-MME test needs ``channel`` (16 characters, ``?``
     wildcards, exactly one match); its unit (or ``unit``, which overrides it) must be known and of
     ``quantity``'s kind. Raises :class:`DataFileError` (file, line, field, what was expected)."""
     path = Path(path)
     if is_isomme(path):
         return _isomme(path, channel, unit, quantity, system)
-    if channel is not None:
-        raise DataFileError(str(path), "channel: is for an ISO-MME test (.mme, its folder or a .zip); a CSV has "
-                            "one curve: remove channel:", "channel")  # fmt: skip
-    t, y = _csv(path)
+    t, y = _csv(path, channel or "value")
     if unit is None:
         return TestCurve(t, y, str(path), "")
     return TestCurve(t, y * _factor(str(path), unit, quantity, system), str(path), unit)
@@ -103,7 +100,7 @@ def _isomme(path: Path, channel: str | None, unit: str | None, quantity: str | N
     return TestCurve(t / si_per_unit(system, "time"), ch.values * factor, f"{path} {ch.code}", given)
 
 
-def _csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _csv(path: Path, column: str) -> tuple[np.ndarray, np.ndarray]:
     import io
 
     import pandas as pd
@@ -122,13 +119,14 @@ def _csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
         raise DataFileError(str(path), f"not a CSV table ({type(exc).__name__}); expected a header line "
                             "'time,value' and rows of two numbers") from None  # fmt: skip
-    if not {"time", "value"} <= set(df.columns):
-        raise DataFileError(f"{path}, line 1", "expected the header 'time,value' (columns time and value); "
-                            f"that line has {len(df.columns)} column(s) with other names")  # fmt: skip
+    if not {"time", column} <= set(df.columns):
+        field = "path" if column == "value" else "channel"
+        raise DataFileError(f"{path}, line 1", f"expected the header 'time,{column}' (columns time and {column}); "
+                            f"that line has {len(df.columns)} column(s) with other names", field)  # fmt: skip
     try:
-        t, y = df["time"].to_numpy(dtype=float), df["value"].to_numpy(dtype=float)
+        t, y = df["time"].to_numpy(dtype=float), df[column].to_numpy(dtype=float)
     except (ValueError, TypeError):
-        raise DataFileError(str(path), "expected numbers in columns time and value") from None
+        raise DataFileError(str(path), f"expected numbers in columns time and {column}") from None
     return t, y
 
 

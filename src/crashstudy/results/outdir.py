@@ -24,7 +24,8 @@ from crashstudy.results.store import FINAL, PARQUET, PARTIAL, SUMMARY
 from crashstudy.safefs import PlantedEntryError, clear_entry, open_regular
 
 DERIVED = ("sensitivity.csv", "sensitivity_*.nc", "sensitivity_*.png", "optimum.yaml", "history.csv",
-           "calibrated.yaml", "calibration.png", "report.html")  # fmt: skip
+           "calibrated.yaml", "calibration.png", "report.html",
+           "correlation.csv")  # fmt: skip
 """Files written beside a result from it (name patterns in the result folder); plus ``plots/``."""
 
 

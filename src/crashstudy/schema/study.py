@@ -101,12 +101,17 @@ class TestData(Strict):
 
 
 class Calibrate(Strict):
-    """``crashstudy calibrate``: fit variables to a measured channel by least squares (docs/optimize.md)."""
+    """``crashstudy calibrate``: fit variables to a measured channel by least squares, or by the ISO/TS 18571
+    rating (docs/optimize.md, docs/correlation.md)."""
 
     data: Annotated[str, Field(min_length=1)] | TestData = Field(
         description="the test curve: a CSV path (time, value in model units), or {path, channel, unit}; relative to the study")
     channel: Channel = Field(description="what the data measured")
     variables: dict[str, Bounds] = Field(min_length=1, description="axis path -> [low, high] in its units")
+    objective: Literal["rms", "iso18571"] = Field(
+        default="rms", description="rms: least squares of the residuals; iso18571: maximise the ISO/TS 18571 rating R"
+    )
+    budget: int = Field(default=600, ge=10, le=1_000_000, description="model evaluations at most (iso18571) [1]")
 
 
 class Study(Strict):
