@@ -168,3 +168,17 @@ def test_new_results_remove_an_old_correlation(tmp_path: Path) -> None:
     (tmp_path / "notes.csv").write_text("mine\n")
     assert remove_derived(tmp_path) == [tmp_path / "correlation.csv"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.csv"]
+
+
+def test_an_isomme_test_of_one_variant_rates_it_1(study: Path) -> None:
+    """Variant 2 exported as an ISO-MME test (SI, force in N) and read back as the test curve by its channel
+    code: the same curve to the 12 digits written, so every score is 1 within 1e-9; a code that matches
+    no channel is exit 2 naming --test."""
+    assert main(["export", str(study / "out"), "--isomme", str(study / "iso"), "--variants", "2"]) == 0
+    assert main(["correlate", str(study / "out"), "--test", str(study / "iso" / "corr-2"), "--channel",
+                 "????????????FO0?", "--item", "s", "--quantity", "force"]) == 0  # fmt: skip
+    row = pd.read_csv(study / "out" / "correlation.csv").set_index("variant").loc[2]
+    for score in ("R", "Z", "EP", "EM", "ES"):
+        assert row[score] == pytest.approx(1.0, abs=1e-9)
+    assert main(["correlate", str(study / "out"), "--test", str(study / "iso" / "corr-2"), "--channel",
+                 "????????????XX??", "--item", "s", "--quantity", "force"]) == 2  # fmt: skip
