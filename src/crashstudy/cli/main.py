@@ -427,7 +427,7 @@ def _plot(args: argparse.Namespace) -> int:
 def _result_folder_of(path: Path) -> Path | None:
     """The result folder (one holding results.nc or an unfinished run) that ``path`` is or sits directly in."""
     for folder in (path, path.parent):
-        if (folder / "results.nc").exists() or (folder / "results.nc.partial").exists():
+        if any((folder / n).exists() for n in ("results.nc", "results.nc.partial", "results.zarr", "results.zarr.partial")):
             return folder
     return None
 
