@@ -60,7 +60,7 @@ def traced_peak(study: Path, out: Path, **kw: object) -> int:
 
 def test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants(tmp_path: Path, small_blocks: None
                                                                                ) -> None:  # fmt: skip
-    """At N and 4N variants, a fresh run and a re-run (every variant reused) peak at the same traced memory
+    """At N = 2048 and 4N variants, a fresh run and a re-run (every variant reused) peak at the same traced memory
     within 1 byte per variant of the 3N more: the per-variant done flags (1 byte each) are the only
     whole-study arrays left. Before: the re-run's hash lookup and copy held ~40 bytes per variant, the
     summary's variant index 8 and the decoded texts of the dataset ~100."""

@@ -345,8 +345,8 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
         resume = False
     backend = make_backend(jobs, scheduler)  # before any file is written: a backend that cannot start leaves none
     size = chunk or chunk_size(plan)
+    slots = backend.worker_threads() if hasattr(backend, "worker_threads") else jobs
     if chunk is None and (scheduler or jobs > 1):  # several chunks per worker thread keep every worker busy
-        slots = backend.worker_threads() if hasattr(backend, "worker_threads") else jobs
         size = min(size, max(1, -(-plan.n_variants // (4 * max(1, slots)))))
     if store == "zarr" and resume:  # the chunks of the unfinished store: each computed chunk is one stored object
         size = variant_chunk(partial) or size
@@ -363,6 +363,8 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
         if not resume and final.exists():
             reused = _reuse_finished(writer, plan, final, chunk or MAX_CHUNK)
         todo = ~writer.done()
+        if chunk is None and (scheduler or jobs > 1) and store != "zarr":  # of what is left (resume, reuse)
+            size = min(size, max(1, -(-int(todo.sum()) // (4 * max(1, slots)))))
         if small:
             size = min(size, choice.REF_CHUNK)
         ranges = _ranges(todo, size)
