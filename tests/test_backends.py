@@ -193,8 +193,9 @@ class KillOneWorker:
         self.inner.close()
 
 
-def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, reference: xr.Dataset,
-                                                              tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+@pytest.mark.parametrize("store", ["netcdf", "zarr"])
+def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, reference: xr.Dataset, tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch, store: str) -> None:  # fmt: skip
     marker = tmp_path / "worker-killed"
     real = crashstudy.run.backends.make_backend
     monkeypatch.setattr(
@@ -202,7 +203,7 @@ def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, r
     )
     out = tmp_path / "out"
     rep = run_plan(
-        load_study(study_file), out, scheduler="local", chunk=SMALL_CHUNK, force=True, progress=False
+        load_study(study_file), out, scheduler="local", chunk=SMALL_CHUNK, force=True, progress=False, store=store
     )
     assert marker.exists(), "no worker was killed"
     assert rep.n_computed == N_VARIANTS and rep.n_failed == 0
