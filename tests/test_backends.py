@@ -70,6 +70,10 @@ def study_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _load(out: Path) -> xr.Dataset:
+    if (out / "results.zarr").is_dir():  # --store zarr: as xarray reads it, less the writer's own bookkeeping
+        with xr.open_dataset(out / "results.zarr", engine="zarr", consolidated=False) as ds:
+            ds.attrs.pop("crashstudy_dims", None)
+            return ds.load()
     with xr.open_dataset(out / "results.nc") as ds:
         return ds.load()
 
@@ -109,6 +113,7 @@ class BackendSuite:
     """Tests run for every backend; subclasses set ``options`` (keyword arguments of ``run_plan``)."""
 
     options: dict[str, Any] = {}
+    partial, final = PARTIAL, "results.nc"  # the store's names (results.zarr[.partial] with store="zarr")
 
     def run(self, study_file: Path, out: Path, **kw: Any) -> Any:
         return run_plan(load_study(study_file), out, force=not kw.get("resume", False), progress=False,
@@ -134,7 +139,7 @@ class BackendSuite:
             m.setattr(crashstudy.run.backends, "make_backend", lambda *a, **k: InterruptAfter(real(*a, **k), 2))
             with pytest.raises(KeyboardInterrupt):
                 self.run(study_file, tmp_path, chunk=SMALL_CHUNK)
-        assert (tmp_path / PARTIAL).exists() and not (tmp_path / "results.nc").exists()
+        assert (tmp_path / self.partial).exists() and not (tmp_path / self.final).exists()
         rep = self.run(study_file, tmp_path, chunk=SMALL_CHUNK, resume=True)
         assert rep.n_computed == N_VARIANTS - 2 * SMALL_CHUNK  # only the chunks not yet written
         assert_same_results(_load(tmp_path), reference)
@@ -150,6 +155,17 @@ class TestProcessPool(BackendSuite):
 
 class TestDaskLocalCluster(BackendSuite):
     options = {"scheduler": "local"}
+
+
+class TestInProcessZarr(BackendSuite):
+    """``--store zarr``: the same numbers (issue 19 item 2)."""
+
+    options = {"store": "zarr"}
+    partial, final = "results.zarr.partial", "results.zarr"
+
+
+class TestDaskLocalClusterZarr(TestInProcessZarr):
+    options = {"scheduler": "local", "store": "zarr"}
 
 
 # --- Dask only ------------------------------------------------------------------------------------
@@ -177,8 +193,9 @@ class KillOneWorker:
         self.inner.close()
 
 
-def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, reference: xr.Dataset,
-                                                              tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+@pytest.mark.parametrize("store", ["netcdf", "zarr"])
+def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, reference: xr.Dataset, tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch, store: str) -> None:  # fmt: skip
     marker = tmp_path / "worker-killed"
     real = crashstudy.run.backends.make_backend
     monkeypatch.setattr(
@@ -186,7 +203,7 @@ def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, r
     )
     out = tmp_path / "out"
     rep = run_plan(
-        load_study(study_file), out, scheduler="local", chunk=SMALL_CHUNK, force=True, progress=False
+        load_study(study_file), out, scheduler="local", chunk=SMALL_CHUNK, force=True, progress=False, store=store
     )
     assert marker.exists(), "no worker was killed"
     assert rep.n_computed == N_VARIANTS and rep.n_failed == 0

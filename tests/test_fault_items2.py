@@ -20,12 +20,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-import netCDF4
 import numpy as np
 import psutil
 import pytest
 
 from crashstudy.errors import InputError
+from crashstudy.results.integrity import open_store
 from crashstudy.results.store import Results
 from crashstudy.run import runner
 from crashstudy.study.plan import load_study
@@ -188,7 +188,11 @@ def test_a_kill_at_any_rename_leaves_old_results_or_a_refused_folder_never_a_mix
 # ------------------------------------------------------------------------------------------------
 
 
-def _interrupted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunks: int) -> tuple[Path, Path]:
+STORES = {"netcdf": ("results.nc", "results.nc.partial"), "zarr": ("results.zarr", "results.zarr.partial")}
+
+
+def _interrupted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunks: int, store: str = "netcdf"
+                 ) -> tuple[Path, Path]:  # fmt: skip
     """A run of TINY_STUDY (one variant a chunk) stopped after ``chunks`` chunks: (study, out)."""
     study = write(tmp_path)
     out = tmp_path / "out"
@@ -204,8 +208,8 @@ def _interrupted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunks: int) -
     with monkeypatch.context() as mp:
         mp.setattr(runner, "run_chunk", stop_after)
         with pytest.raises(KeyboardInterrupt):
-            runner.run_plan(load_study(study), out, chunk=1, progress=False)
-    assert (out / "results.nc.partial").exists()
+            runner.run_plan(load_study(study), out, chunk=1, progress=False, store=store)
+    assert (out / STORES[store][1]).exists()
     return study, out
 
 
@@ -222,28 +226,31 @@ def test_a_partial_renamed_by_hand_is_not_a_finished_result(tmp_path: Path, cli:
     assert_analytic(out)
 
 
-def test_a_corrupted_number_in_a_partial_is_computed_again_on_resume(tmp_path: Path,
-                                                                     monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
-    study, out = _interrupted(tmp_path, monkeypatch, 2)
-    with netCDF4.Dataset(out / "results.nc.partial", "a") as nc:
+@pytest.mark.parametrize("store", list(STORES))
+def test_a_corrupted_number_in_a_partial_is_computed_again_on_resume(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                     store: str) -> None:  # fmt: skip
+    study, out = _interrupted(tmp_path, monkeypatch, 2, store)
+    with open_store(out / STORES[store][1], "a") as nc:
         assert np.ma.filled(nc.variables["done"][:], 0).tolist() == [1, 1, 0]
         good = float(nc.variables["peak_force"][1, 0])
         nc.variables["peak_force"][0, 0] = 1.0e9  # a changed float in the first variant
     report = runner.run_plan(load_study(study), out, resume=True, progress=False)
     assert report.n_computed == 2  # the corrupted variant and the one never done
     assert_analytic(out)
-    with netCDF4.Dataset(out / "results.nc") as nc:
+    with open_store(out / STORES[store][0]) as nc:
         assert float(nc.variables["peak_force"][1, 0]) == good  # the intact variant was kept, not recomputed
         assert int(nc.getncattr("complete")) == 1
 
 
-def test_a_rerun_does_not_reuse_a_variant_whose_stored_numbers_changed(tmp_path: Path) -> None:
+@pytest.mark.parametrize("store", list(STORES))
+def test_a_rerun_does_not_reuse_a_variant_whose_stored_numbers_changed(tmp_path: Path, store: str) -> None:
     study = write(tmp_path)
     out = tmp_path / "out"
-    runner.run_study(study, out)
-    with netCDF4.Dataset(out / "results.nc", "a") as nc:
+    runner.run_plan(load_study(study), out, progress=False, store=store)
+    with open_store(out / STORES[store][0], "a") as nc:
         nc.variables["peak_force"][2, 0] = 1.0e9  # damaged after the run finished
-    report = runner.run_plan(load_study(study), out, progress=False)
+    report = runner.run_plan(load_study(study), out, progress=False)  # the folder's kind of store is kept
+    assert (out / STORES[store][0]).exists()
     assert (report.n_reused, report.n_computed) == (2, 1)
     assert_analytic(out)
 

@@ -39,10 +39,12 @@ def _identical(a: xr.Dataset, b: xr.Dataset) -> None:
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
 
 
-def test_rerun_reuses_unchanged_variants_and_recomputes_changed_ones(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize("store", ["netcdf", "zarr"])
+def test_rerun_reuses_unchanged_variants_and_recomputes_changed_ones(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                                     store: str) -> None:  # fmt: skip
     study = _study(tmp_path, "[1.0, 2.0, 3.0]")
     out = tmp_path / "out"
-    assert main(["run", str(study), "-o", str(out)]) == 0
+    assert main(["run", str(study), "-o", str(out), "--store", store]) == 0
     first = capsys.readouterr().out
     assert "6 variants computed" in first
     assert main(["run", str(study), "-o", str(out)]) == 0
@@ -53,8 +55,9 @@ def test_rerun_reuses_unchanged_variants_and_recomputes_changed_ones(tmp_path: P
     assert "2 variants computed" in capsys.readouterr().out  # only the two variants with the new mass
     reused = open_results(out).dataset.load()
 
+    assert open_results(out).final == f"results.{'zarr' if store == 'zarr' else 'nc'}"
     fresh_dir = tmp_path / "fresh"
-    assert main(["run", str(study), "-o", str(fresh_dir)]) == 0
+    assert main(["run", str(study), "-o", str(fresh_dir)]) == 0  # netCDF: the same numbers in either store
     fresh = open_results(fresh_dir).dataset.load()
     _identical(fresh, reused)  # reuse gives exactly the numbers a fresh run gives
     assert np.allclose(fresh["nodes.body.mass"].values, [1.0, 1.0, 2.5, 2.5, 3.0, 3.0])

@@ -290,8 +290,8 @@ SAFE_OPENERS = {"replacing", "replacing_path", "open_new", "open_regular", "open
 # the writes and reads that do not go through safefs / results.reader, each with its reason
 ALLOWED = {
     ("results/store.py", "Dataset"): 3,  # the run's own results.nc.partial (created by safefs.create_new)
-    ("results/store.py", "open_dataset"): 1,  # the same partial file, read to write the summaries
-    ("results/store.py", "replace"): 2,  # results.nc.partial and the summaries renamed into place (checked names)
+    ("results/store.py", "replace"): 4,  # the partial store and the summaries renamed into place (checked names);
+    # a Zarr folder cannot replace a folder: the old results.zarr is renamed aside first
     ("results/tables.py", "ParquetWriter"): 1,  # into a handle from safefs.open_new
     ("results/tables.py", "CSVWriter"): 1,  # into a handle from safefs.open_new
     ("results/tables.py", "replace"): 1,  # the staged summaries renamed into place
@@ -305,7 +305,7 @@ ALLOWED = {
     ("kernel/compile_lock.py", "open-for-writing"): 1,  # ditto (the compile lock and what its holder compiles)
     ("exchange/testcurve.py", "read_csv"): 1,  # a CSV test curve from bytes read by safefs.open_regular
     ("analysis/report_extra.py", "read_csv"): 1,  # sensitivity/correlation/history.csv from safefs.open_regular bytes
-    ("results/reader.py", "open_dataset"): 1,  # the reader itself
+    ("results/reader.py", "open_dataset"): 3,  # the reader itself: results.nc, results.zarr, the raw store
     ("results/reader.py", "read_parquet"): 2,  # the reader itself, from a manifest-checked handle
     ("results/reader.py", "read_csv"): 1,  # the reader itself, from a manifest-checked handle
 }

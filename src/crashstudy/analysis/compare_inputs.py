@@ -16,7 +16,9 @@ import pandas as pd
 from pydantic import TypeAdapter, ValidationError
 
 from crashstudy.errors import InputError, Problem
+from crashstudy.results import integrity
 from crashstudy.results.store import FINAL, PARTIAL, Results
+from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL
 from crashstudy.schema.study import Tolerance
 from crashstudy.schema.yamlio import format_path, loads_yaml
 
@@ -90,9 +92,11 @@ def load_results(directory: str | os.PathLike[str], role: str = "result") -> Res
     if not d.is_dir():
         msg = "is a file, not a result folder" if d.exists() else "result folder not found"
         raise InputError([Problem(str(d), None, "", f"{role}: {msg}")])
-    if not (d / FINAL).is_file():
-        why = (f"the run did not finish (only {PARTIAL}); finish it with `crashstudy run STUDY -o {d} --resume`"
-               if (d / PARTIAL).exists() else
+    final = integrity.final_name(d)
+    if not (d / final).is_file() and not (final == ZARR_FINAL and (d / final).is_dir()):
+        partial = next((p for p in (PARTIAL, ZARR_PARTIAL) if (d / p).exists()), None)
+        why = (f"the run did not finish (only {partial}); finish it with `crashstudy run STUDY -o {d} --resume`"
+               if partial else
                f"no {FINAL} here: not a result folder (write one with `crashstudy run STUDY -o {d}`)")  # fmt: skip
         raise InputError([Problem(str(d), None, "", f"{role}: {why}")])
     return Results(d)

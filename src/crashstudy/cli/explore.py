@@ -38,11 +38,14 @@ def exceed_text(dir_: str, column: str, limit: str) -> str:
 
     value = _number("--exceed", limit)
     res = open_results(dir_)
-    try:
-        df, attrs = res.summary, dict(res.dataset.attrs)
+    try:  # only the column asked for and status are read (a 10^8-variant summary is ~25 GB in memory)
+        with res.raw_dataset as raw:
+            attrs = dict(raw.attrs)
+        name = _match_column(dir_, column, res.summary_names())
+        df = res.summary_columns(["status", name])
     finally:
         res.close()
-    text = exceedance(df, _match_column(dir_, column, list(df.columns)), value).text()
+    text = exceedance(df, name, value).text()
     caveat = sample_caveat(attrs)
     if caveat:
         import textwrap

@@ -43,6 +43,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--dry-run", action="store_true", help="validate and print the number of variants, run nothing")
     r.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
                    help="progress line (variants done, variants/s, ETA) on stderr: auto = only on a terminal")
+    r.add_argument("--store", choices=["netcdf", "zarr"], default=None,
+                   help="results.nc (default) or results.zarr (Zarr v3, chunked along variant; see docs/format.md)")
     csv = r.add_mutually_exclusive_group()
     csv.add_argument("--csv", dest="csv", action="store_true", default=None,
                      help="also write summary.csv however many variants (default: up to 100,000)")
@@ -216,24 +218,19 @@ def _after_run(res: Any) -> None:
     from crashstudy.schema.plausible import body_node, peak_g_warnings
     from crashstudy.schema.yamlio import loads_yaml
 
-    _warn(warnings_of(res.dataset))
-    attrs = res.dataset.attrs
+    with res.raw_dataset as raw:  # no texts decoded, nothing of every variant in memory
+        _warn(warnings_of(raw))
+        attrs = dict(raw.attrs)
     try:
         m, _ = validate_model_data(loads_yaml(str(attrs.get("model_yaml", "")), "results.nc").data)
     except InputError:
         return
     node = body_node(m) if m is not None else None
-    col = f"peak_deceleration_g.{node}"
     if node is None:
         return
-    try:
-        s = res.summary_columns(["variant", col])
-    except (KeyError, ValueError):  # pyarrow: no such column (the node has no summary column)
-        return
-    if not s[col].notna().any():
-        return
-    k = s[col].idxmax()
-    _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, float(s.loc[k, col]), int(s.loc[k, "variant"]), m))
+    peak = res.column_peak(f"peak_deceleration_g.{node}")
+    if peak is not None:
+        _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, peak[0], peak[1], m))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -253,7 +250,7 @@ def _run(args: argparse.Namespace) -> int:
     progress = None if args.progress == "auto" else args.progress == "on"
     out = Path(args.output) if args.output else default_out(plan.name)
     rep = run_plan(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume, force=args.force,
-                   progress=progress, notes=sys.stderr, csv=args.csv)  # fmt: skip
+                   progress=progress, notes=sys.stderr, csv=args.csv, store=args.store)  # fmt: skip
     reused = f", {rep.n_reused} unchanged variants reused" if rep.n_reused else ""
     print(f"wrote {rep.results.path} and {_tables(rep.results.dir)} ({rep.n_computed} variants computed in "
           f"{rep.seconds:.1f} s{reused})")  # fmt: skip
@@ -432,7 +429,7 @@ def _plot(args: argparse.Namespace) -> int:
 def _result_folder_of(path: Path) -> Path | None:
     """The result folder (one holding results.nc or an unfinished run) that ``path`` is or sits directly in."""
     for folder in (path, path.parent):
-        if (folder / "results.nc").exists() or (folder / "results.nc.partial").exists():
+        if any((folder / n).exists() for n in ("results.nc", "results.nc.partial", "results.zarr", "results.zarr.partial")):
             return folder
     return None
 

@@ -51,17 +51,23 @@ def past_curve_ends(b: Any, max_crush: np.ndarray, max_elongation: np.ndarray, c
     return out
 
 
+BLOCK = 1_000_000  # variants read at once
+
+
 def warnings_of(ds: Any) -> list[str]:
     """One line per spring of a results dataset that went past a curve end in some variant."""
     if "past_curve_end" not in ds:
         return []
-    codes = np.asarray(ds["past_curve_end"].values)  # (variant, spring), NaN where a variant failed
     springs = [str(s) for s in ds["spring"].values]
-    n = codes.shape[0]
+    n = ds.sizes["variant"]
+    counts = np.zeros((len(springs), 2), dtype=np.int64)
+    for lo in range(0, n, BLOCK):  # block by block: bounded memory for any number of variants
+        codes = np.asarray(ds["past_curve_end"][lo : lo + BLOCK].values)  # (variant, spring), NaN: failed
+        counts[:, 0] += np.isin(codes, (1.0, 3.0)).sum(axis=0)
+        counts[:, 1] += np.isin(codes, (2.0, 3.0)).sum(axis=0)
     out = []
     for k, spring in enumerate(springs):
-        first = int(np.sum(np.isin(codes[:, k], (1.0, 3.0))))
-        last = int(np.sum(np.isin(codes[:, k], (2.0, 3.0))))
+        first, last = int(counts[k, 0]), int(counts[k, 1])
         said = [f"compressed past its curve's first point in {first}" if first else "",
                 f"stretched past its last point in {last}" if last else ""]  # fmt: skip
         if first or last:

@@ -37,6 +37,7 @@ from typing import Any
 import netCDF4
 import numpy as np
 
+from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, ZarrFile, store_size
 from crashstudy.safefs import PlantedEntryError, open_regular, replacing
 
 MANIFEST = "manifest.json"
@@ -49,6 +50,7 @@ CHECKSUM = "checksum"
 NOT_CHECKED = ("failure_reason", "dt_control", "criteria_note")  # renumbered when the text tables are sorted
 _ODD = np.uint64(0x9E3779B97F4A7C15)  # odd: every weight below is odd, so a change of any one word shows
 BLOCK_BYTES = 64 * 2**20  # stored bytes read at once when checking a file
+CHECK_BLOCK = 1_000_000  # variants read at once by the whole-file passes (checksums, run id, tables)
 
 
 def checked_names(nc: netCDF4.Dataset) -> list[str]:
@@ -124,14 +126,12 @@ def intact(nc: netCDF4.Dataset, among: np.ndarray) -> np.ndarray:
     ok = np.zeros(len(among), dtype=bool)
     if CHECKSUM not in nc.variables:
         return among.copy()
-    want = stored(nc, CHECKSUM, 0, len(among))
-    idx = np.flatnonzero(among)
-    if not len(idx):
-        return ok
-    brk = np.nonzero(np.diff(idx) != 1)[0] + 1
-    for run in np.split(idx, brk):
-        lo, hi = int(run[0]), int(run[-1]) + 1
-        ok[lo:hi] = file_sums(nc, lo, hi) == want[lo:hi]
+    # run by run, in blocks: no whole-study array besides the masks (bounded memory at 10^8 variants)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], among.astype(np.int8), [0]])))
+    for lo, hi in zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True):
+        for a in range(lo, hi, CHECK_BLOCK):
+            b = min(hi, a + CHECK_BLOCK)
+            ok[a:b] = file_sums(nc, a, b) == stored(nc, CHECKSUM, a, b)
     return ok
 
 
@@ -144,8 +144,8 @@ def run_id(nc: netCDF4.Dataset) -> str:
         if name not in nc.variables:  # criteria_note: only with metrics
             continue
         v = nc.variables[name]
-        for lo in range(0, max(len(nc.dimensions[v.dimensions[0]]), 1), 1_000_000):
-            h.update(stored(nc, name, lo, min(lo + 1_000_000, len(nc.dimensions[v.dimensions[0]]))).tobytes())
+        for lo in range(0, max(len(nc.dimensions[v.dimensions[0]]), 1), CHECK_BLOCK):
+            h.update(stored(nc, name, lo, min(lo + CHECK_BLOCK, len(nc.dimensions[v.dimensions[0]]))).tobytes())
     h.update(str(n).encode())
     return h.hexdigest()[:32]
 
@@ -160,6 +160,29 @@ def finished_problem(nc: netCDF4.Dataset) -> str:
     if "done" in nc.variables and not np.ma.filled(nc.variables["done"][:], 0).all():  # an older file
         return UNFINISHED
     return ""
+
+
+def final_name(folder: Path) -> str:
+    """The name of the finished result store in ``folder``: ``results.zarr`` when there is one, else
+    ``results.nc`` (a run removes the other store's final when it finishes)."""
+    return ZARR_FINAL if os.path.lexists(folder / ZARR_FINAL) else FINAL
+
+
+def partial_name(final: str) -> str:
+    return ZARR_PARTIAL if final == ZARR_FINAL else PARTIAL
+
+
+def open_store(path: Path, mode: str = "r") -> Any:
+    """``results.nc[.partial]`` as a ``netCDF4.Dataset``, ``results.zarr[.partial]`` as a
+    :class:`~crashstudy.results.zarr_file.ZarrFile` (the same API)."""
+    if path.name.startswith(ZARR_FINAL):
+        return ZarrFile(path, mode)
+    return netCDF4.Dataset(path, mode)  # type: ignore[arg-type]
+
+
+def store_bytes(path: Path) -> int:
+    """Size of a result store for the manifest: a file's size, a Zarr folder's total."""
+    return store_size(path) if path.name.startswith(ZARR_FINAL) else os.stat(path).st_size
 
 
 def sha256(path: Path, block: int = 2**20) -> str:
@@ -181,8 +204,8 @@ def write_manifest(folder: Path, run_id: str, names: list[str]) -> None:
     ``names`` in ``folder``, its size and (summaries) SHA-256."""
     entries: dict[str, dict[str, object]] = {}
     for name in names:
-        entry: dict[str, object] = {"size": os.stat(folder / name).st_size}
-        if not name.endswith(".nc"):
+        entry: dict[str, object] = {"size": store_bytes(folder / name)}
+        if not name.startswith(("results.nc", ZARR_FINAL)):
             entry["sha256"] = sha256(folder / name)
         entries[name] = entry
     with replacing(folder / MANIFEST) as fh:
@@ -201,9 +224,14 @@ def check_folder(folder: Path, final: str, summaries: tuple[str, ...]) -> tuple[
     ``results.nc`` and ``manifest.json`` are opened only as regular files (a FIFO, a link or a device
     there is refused, never read), and ``results.nc`` must have the size the manifest records."""
     try:
-        with open_regular(folder / final, what=final) as fh:
-            size = os.fstat(fh.fileno()).st_size
-        with netCDF4.Dataset(folder / final) as nc:
+        if final == ZARR_FINAL:  # a folder: a real one, never a link
+            if os.path.islink(folder / final) or not (folder / final).is_dir():
+                raise PlantedEntryError(f"{folder / final} is not a folder (a link or a file planted there)")
+            size = store_size(folder / final)
+        else:
+            with open_regular(folder / final, what=final) as fh:
+                size = os.fstat(fh.fileno()).st_size
+        with open_store(folder / final) as nc:
             problem = finished_problem(nc)
             run_id = str(nc.getncattr("run_id")) if "run_id" in nc.ncattrs() else None
     except PlantedEntryError as exc:

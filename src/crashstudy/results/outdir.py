@@ -19,8 +19,9 @@ import stat
 from pathlib import Path
 
 from crashstudy.errors import InputError, Problem
-from crashstudy.results.integrity import MANIFEST
-from crashstudy.results.store import FINAL, PARQUET, PARTIAL, SUMMARY
+from crashstudy.results.integrity import MANIFEST, final_name, partial_name
+from crashstudy.results.store import FINAL, PARQUET, PARTIAL, SUMMARY, remove_store
+from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL
 from crashstudy.safefs import PlantedEntryError, clear_entry, open_regular
 
 DERIVED = ("sensitivity.csv", "sensitivity_*.nc", "sensitivity_*.png", "optimum.yaml", "history.csv",
@@ -34,7 +35,7 @@ def check_output(out_dir: Path, force: bool, source: str, study_name: str) -> No
     unfinished run (unless ``force``); nothing is changed. A finished result of the same study is
     replaced. ``optimize``/``calibrate`` call it before their search, :func:`prepare_output` again
     before writing."""
-    final, partial = out_dir / FINAL, out_dir / PARTIAL
+    final = out_dir / final_name(out_dir)
     if os.path.lexists(out_dir) and not out_dir.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
     if force:
@@ -44,7 +45,7 @@ def check_output(out_dir: Path, force: bool, source: str, study_name: str) -> No
         if other != study_name:
             raise InputError([Problem(source, None, "", f"{out_dir} holds the results of {other!r}, not of "
                                       f"{study_name!r}; use --force to overwrite or choose another -o")])  # fmt: skip
-    if os.path.lexists(partial):
+    if os.path.lexists(out_dir / PARTIAL) or os.path.lexists(out_dir / ZARR_PARTIAL):
         raise InputError([Problem(source, None, "", f"an unfinished run is in {out_dir}; use --resume to finish it "
                                   "(run only) or --force to start again")])  # fmt: skip
 
@@ -56,12 +57,15 @@ def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_
     Whenever new results are about to be written, the files derived from the earlier results in the
     folder (:func:`remove_derived`) are removed: they would no longer describe these results.
     """
-    final, partial = out_dir / FINAL, out_dir / PARTIAL
+    final = out_dir / final_name(out_dir)
+    partial = out_dir / partial_name(final.name)
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
     if force and out_dir.exists():
-        for p in (final, partial, out_dir / SUMMARY, out_dir / PARQUET, out_dir / MANIFEST):
+        for p in (out_dir / FINAL, out_dir / PARTIAL, out_dir / SUMMARY, out_dir / PARQUET, out_dir / MANIFEST):
             clear_entry(p)  # a link is removed, never followed (a dangling one too)
+        for p in (out_dir / ZARR_FINAL, out_dir / ZARR_PARTIAL):
+            remove_store(p)
         remove_derived(out_dir)
         return
     if not resume:
@@ -109,11 +113,12 @@ def remove_stale_plots(out_dir: Path) -> list[Path]:
 
 
 def study_of(final: Path) -> str:
-    import netCDF4
+    from crashstudy.results.integrity import open_store
 
     try:
-        open_regular(final).close()  # a FIFO there would hang netCDF
-        with netCDF4.Dataset(final) as nc:
+        if final.name == FINAL:
+            open_regular(final).close()  # a FIFO there would hang netCDF
+        with open_store(final) as nc:
             return str(nc.getncattr("study_name")) if "study_name" in nc.ncattrs() else "an unknown study"
     except (OSError, PlantedEntryError):
         return "an unreadable file"

@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import pandas as pd
 import xarray as xr
@@ -31,6 +31,7 @@ from crashstudy.metrics.record import NOTE_TEXT
 from crashstudy.results import integrity
 from crashstudy.results.integrity import FINAL, MANIFEST, PARTIAL
 from crashstudy.results.tables import PARQUET, SUMMARY, decode_texts, summary_frame
+from crashstudy.results.zarr_file import DIMS, ZARR_FINAL
 from crashstudy.safefs import PlantedEntryError, open_regular
 
 __all__ = ["Results", "open_results"]
@@ -42,12 +43,13 @@ class Results:
 
     def __init__(self, directory: str | os.PathLike[str]) -> None:
         self.dir = Path(directory)
-        final = self.dir / FINAL
+        self.final = integrity.final_name(self.dir)  # results.zarr or results.nc
+        final = self.dir / self.final
         try:
             os.lstat(final)  # a path too long or a loop of links raises here, named as such by the CLI
         except FileNotFoundError:
             raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})") from None
-        problem, self.manifest = integrity.check_folder(self.dir, FINAL, (PARQUET, SUMMARY))
+        problem, self.manifest = integrity.check_folder(self.dir, self.final, (PARQUET, SUMMARY))
         if problem:
             raise InputError([Problem(str(self.dir), None, "", problem)])
         self.path = final
@@ -82,17 +84,53 @@ class Results:
     def dataset(self) -> xr.Dataset:
         """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``)."""
         if self._ds is None:
-            open_regular(self.path, what=FINAL).close()  # still a regular file (checked on open, too)
-            ds = xr.open_dataset(self.path)
+            if self.final == FINAL:
+                open_regular(self.path, what=FINAL).close()  # still a regular file (checked on open, too)
+                ds = xr.open_dataset(self.path)
+            else:  # Zarr: lazily, without dask (one array region read per access)
+                ds = _open_zarr(self.path)
             axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
             self._raw = ds
             self._ds = decode_texts(ds).set_coords([a for a in axes if a in ds])
         return self._ds
 
     @property
+    def raw_dataset(self) -> xr.Dataset:
+        """The results as stored (texts as indices into their tables), lazily loaded and without an
+        index of the variant numbers: what reads a few variables of a large result in bounded memory."""
+        if self.final == FINAL:
+            open_regular(self.path, what=FINAL).close()
+        return open_raw(self.path)
+
+    def column_peak(self, column: str) -> tuple[float, int] | None:
+        """(largest value, its variant) of a summary column, read batch by batch; None when the column
+        has no value (all NaN) or no such column exists."""
+        if self.summary_source != PARQUET:
+            s = self.summary
+            if column not in s or not s[column].notna().any():
+                return None
+            k = s[column].idxmax()
+            return float(s.loc[k, column]), int(s.loc[k, "variant"])
+        import numpy as np
+        import pyarrow.parquet as pq
+
+        best: tuple[float, int] | None = None
+        with self.open_file(PARQUET) as fh:
+            f = pq.ParquetFile(fh)
+            if column not in f.schema_arrow.names:
+                return None
+            for b in f.iter_batches(columns=["variant", column]):
+                vals = b.column(1).to_numpy(zero_copy_only=False)
+                if np.isfinite(vals).any():
+                    k = int(np.nanargmax(vals))
+                    if best is None or vals[k] > best[0]:
+                        best = (float(vals[k]), int(b.column(0)[k].as_py()))
+        return best
+
+    @property
     def summary_source(self) -> str:
         """The file :attr:`summary` reads: summary.parquet, summary.csv, or results.nc."""
-        return next((n for n in (PARQUET, SUMMARY) if os.path.lexists(self.dir / n)), FINAL)
+        return next((n for n in (PARQUET, SUMMARY) if os.path.lexists(self.dir / n)), self.final)
 
     def summary_columns(self, columns: list[str]) -> pd.DataFrame:
         """Only ``columns`` of :attr:`summary` (read without the others where the file allows: a
@@ -101,6 +139,26 @@ class Results:
             with self.open_file(PARQUET) as fh:
                 return pd.read_parquet(fh, columns=columns)
         return self.summary[columns]
+
+    def count_failed(self) -> int:
+        """Variants whose status is not ok, counted batch by batch (bounded memory for any size)."""
+        if self.summary_source != PARQUET:
+            return int((self.summary["status"] != "ok").sum())
+        import pyarrow.compute as pc
+        import pyarrow.parquet as pq
+
+        with self.open_file(PARQUET) as fh:
+            return sum(int(pc.sum(pc.not_equal(b.column(0).cast("string"), "ok")).as_py() or 0)
+                       for b in pq.ParquetFile(fh).iter_batches(columns=["status"]))  # fmt: skip
+
+    def summary_names(self) -> list[str]:
+        """The column names of :attr:`summary` (from the Parquet schema, without reading its rows)."""
+        if self.summary_source != PARQUET:
+            return list(self.summary.columns)
+        import pyarrow.parquet as pq
+
+        with self.open_file(PARQUET) as fh:
+            return list(pq.ParquetFile(fh).schema_arrow.names)
 
     @property
     def summary(self) -> pd.DataFrame:
@@ -130,6 +188,26 @@ class Results:
 
     def __repr__(self) -> str:
         return f"Results({str(self.dir)!r})"
+
+
+def open_raw(path: Path) -> xr.Dataset:
+    """A result store (netCDF file or Zarr folder) as xarray reads it, lazily, texts as stored, without
+    the variant coordinate (its index would hold every variant number in memory)."""
+    if path.name.startswith(ZARR_FINAL):
+        return _open_zarr(path, drop_variables=["variant"])
+    return xr.open_dataset(path, drop_variables=["variant"])
+
+
+def _open_zarr(path: Path, **kw: Any) -> xr.Dataset:
+    """A Zarr store as xarray reads it, lazily without dask; the writer's own bookkeeping attribute
+    dropped (so that it shows what ``results.nc`` shows)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # zarr: 'S1' (CF character arrays) has no v3 specification yet
+        ds = xr.open_dataset(path, engine="zarr", chunks=None, consolidated=False, **kw)
+    ds.attrs.pop(DIMS, None)
+    return ds
 
 
 def open_results(directory: str | os.PathLike[str]) -> Results:

@@ -29,7 +29,6 @@ from typing import Any
 import netCDF4
 import numpy as np
 import pandas as pd
-import xarray as xr
 
 from crashstudy import __version__
 from crashstudy.errors import InputError, Problem
@@ -39,7 +38,7 @@ from crashstudy.results import integrity
 from crashstudy.results.attributes import axis_unit, model_facts, plan_fingerprint, units_of
 from crashstudy.results.curve_ends import curve_springs
 from crashstudy.results.integrity import FINAL, PARTIAL
-from crashstudy.results.reader import Results, open_results  # the one reader, re-exported
+from crashstudy.results.reader import Results, open_raw, open_results  # the one reader, re-exported
 from crashstudy.results.tables import (
     CSV_MAX,
     HISTORY_META,
@@ -54,6 +53,7 @@ from crashstudy.results.tables import (
     text_tables,
     write_summary,
 )
+from crashstudy.results.zarr_file import ZARR_FINAL, ZarrFile
 from crashstudy.run.provenance import HASH_WORDS, text_hash
 from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study.plan import Plan
@@ -64,6 +64,7 @@ __all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "
 ID_LEN = 64  # longest id (the schema allows 64 characters)
 TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
 AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
+REUSE_BLOCK = 65536  # variants copied at once from an earlier result
 
 
 def _chars(texts: list[str], width: int) -> np.ndarray:
@@ -92,8 +93,10 @@ class ResultWriter:
     """Writes a plan's results into ``directory`` chunk by chunk (see the module docstring)."""
 
     def __init__(self, directory: str | os.PathLike[str], plan: Plan, resume: bool = False,
-                 csv: bool | None = None) -> None:  # fmt: skip
+                 csv: bool | None = None, store: str = "netcdf", chunk: int = 4096) -> None:  # fmt: skip
         self.dir = Path(directory)
+        self.final_name = ZARR_FINAL if store == "zarr" else FINAL
+        self.chunk = chunk  # variants per stored chunk along ``variant`` (Zarr: the run's chunk size)
         self.csv = plan.n_variants <= CSV_MAX if csv is None else csv
         self.plan = plan
         self.plan_axes = {a.path for a in plan.axes}
@@ -101,7 +104,7 @@ class ResultWriter:
         # study peaked at 1.2 GiB); chunks are written once, so a small cache costs nothing
         netCDF4.set_chunk_cache(4 * 2**20)
         self.dir.mkdir(parents=True, exist_ok=True)
-        self.path = self.dir / PARTIAL
+        self.path = self.dir / integrity.partial_name(self.final_name)
         if resume and os.path.islink(self.path):
             raise InputError([Problem(plan.study_file or plan.model_file, None, "",
                                       f"{self.path} is a symbolic link, not a partial result of crashstudy; "
@@ -110,9 +113,9 @@ class ResultWriter:
             # cut off before its first chunk was flushed (SIGKILL, full disk): nothing in it can be used
             print(f"note: {self.path} could not be read (cut off while being written); starting it again",
                   file=sys.stderr)  # fmt: skip
-            self.path.unlink()
+            remove_store(self.path)
         if resume and self.path.exists():
-            self.nc = netCDF4.Dataset(self.path, "a")
+            self.nc = integrity.open_store(self.path, "a")
             if self.nc.getncattr("plan_fingerprint") != plan_fingerprint(plan):
                 self.nc.close()
                 raise InputError([Problem(plan.study_file or plan.model_file, None, "",
@@ -161,9 +164,13 @@ class ResultWriter:
         p = self.plan
         topo = p.topology
         units = units_of(p)
-        create_new(self.path)  # a planted link at the partial's name is removed, never written through
-        nc = netCDF4.Dataset(self.path, "w", format="NETCDF4")
         V = p.n_variants
+        if self.final_name == ZARR_FINAL:
+            remove_store(self.path)  # a planted link at the partial's name is removed, never written through
+            nc: Any = ZarrFile(self.path, "w", chunk=min(self.chunk, max(V, 1)))
+        else:
+            create_new(self.path)  # a planted link at the partial's name is removed, never written through
+            nc = netCDF4.Dataset(self.path, "w", format="NETCDF4")
         nc.createDimension("variant", V)
         nc.createDimension("time", p.n_out)
         nc.createDimension("node", topo.n_nodes)
@@ -302,28 +309,35 @@ class ResultWriter:
                  if v.dimensions[:1] == ("variant",) and n != "variant" and n not in self.plan_axes
                  and n in old.variables]  # fmt: skip
         brk = np.nonzero((np.diff(new_idx) != 1) | (np.diff(old_idx) != 1))[0] + 1
-        for nrun, orun in zip(np.split(new_idx, brk), np.split(old_idx, brk), strict=True):
-            a, b = int(nrun[0]), int(nrun[-1]) + 1
-            c, d = int(orun[0]), int(orun[-1]) + 1
-            for n in names:
-                if n in self.tables:  # texts: re-coded into this file's tables
-                    self.nc.variables[n][a:b] = self._codes(n, read_texts(old, n, c, d))
-                elif n == "status":
-                    self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
-                else:
-                    self.nc.variables[n][a:b] = old.variables[n][c:d]
-            if integrity.CHECKSUM not in old.variables:  # a file from before checksums: trusted, summed now
-                self.nc.variables[integrity.CHECKSUM][a:b] = integrity.file_sums(self.nc, a, b)
-        copied = np.zeros(self.plan.n_variants, dtype=bool)
-        copied[new_idx] = True
-        bad = copied & ~integrity.intact(self.nc, copied)
-        self.nc.variables["done"][:] = (self.done() & ~bad).astype("i1")
+        starts = np.concatenate([[0], brk]).tolist()
+        ends = np.concatenate([brk, [len(new_idx)]]).tolist()
+        kept = 0
+        done = self.nc.variables["done"]
+        for s, e in zip(starts, ends, strict=True):  # runs of consecutive variants on both sides
+            for k in range(s, e, REUSE_BLOCK):  # in blocks: bounded memory however long the run
+                a, c = int(new_idx[k]), int(old_idx[k])
+                m = min(e - k, REUSE_BLOCK)
+                b, d = a + m, c + m
+                for n in names:
+                    if n in self.tables:  # texts: re-coded into this file's tables
+                        self.nc.variables[n][a:b] = self._codes(n, read_texts(old, n, c, d))
+                    elif n == "status":
+                        self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
+                    else:
+                        self.nc.variables[n][a:b] = old.variables[n][c:d]
+                if integrity.CHECKSUM not in old.variables:  # a file from before checksums: trusted, summed now
+                    self.nc.variables[integrity.CHECKSUM][a:b] = integrity.file_sums(self.nc, a, b)
+                # a copied variant whose data do not match its checksum is left to compute
+                good = integrity.file_sums(self.nc, a, b) == integrity.stored(self.nc, integrity.CHECKSUM, a, b)
+                done[a:b] = good.astype("i1")
+                kept += int(good.sum())
         self.nc.sync()
-        return int(copied.sum() - bad.sum())
+        return kept
 
-    def _sort_tables(self, block: int = 1_000_000) -> None:
+    def _sort_tables(self) -> None:
         """Put each text table in sorted order (and renumber its indices), so that a file does not depend
         on the order in which chunks finished (process pools, resume)."""
+        block = integrity.CHECK_BLOCK
         for name, table in self.tables.items():
             texts = sorted(table, key=lambda t: table[t])
             order = sorted(range(len(texts)), key=lambda k: texts[k])
@@ -352,17 +366,27 @@ class ResultWriter:
         run_id = integrity.run_id(self.nc)
         self.nc.setncatts({"complete": np.int8(1), "run_id": run_id})
         self.nc.close()
-        final = self.dir / FINAL
-        with xr.open_dataset(self.path) as ds:
+        final = self.dir / self.final_name
+        with open_raw(self.path) as ds:  # no index of every variant
             tables = write_summary(ds, self.dir, self.csv, rename=False)
-        if not is_regular(self.path):
+        zarr = self.final_name == ZARR_FINAL
+        if not (self.path.is_dir() and not self.path.is_symlink() if zarr else is_regular(self.path)):
             raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
-        os.replace(self.path, final)  # first: the old manifest names this file only if its results are the same
+        if zarr:  # a folder cannot replace a folder in one rename: the old store is moved aside, then removed
+            old = self.dir / (ZARR_FINAL + ".replaced")
+            remove_store(old)
+            if os.path.lexists(final):
+                os.replace(final, old)
+            os.replace(self.path, final)
+            remove_store(old)
+        else:
+            os.replace(self.path, final)  # first: the old manifest names this file only if its results are the same
+        remove_store(self.dir / (FINAL if zarr else ZARR_FINAL))  # one store per folder: the other is stale
         for name, tmp in tables.items():
             os.replace(tmp, self.dir / name)
         if SUMMARY not in tables:
             clear_entry(self.dir / SUMMARY)
-        integrity.write_manifest(self.dir, run_id, [FINAL, *tables])  # last: the set is whole
+        integrity.write_manifest(self.dir, run_id, [self.final_name, *tables])  # last: the set is whole
         return final
 
 
@@ -372,10 +396,20 @@ def _ranges_of(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
+def remove_store(path: Path) -> None:
+    """Remove a result store at ``path``: a link or file is unlinked (never followed), a folder removed."""
+    if os.path.isdir(path) and not os.path.islink(path):
+        import shutil
+
+        shutil.rmtree(path)
+    else:
+        clear_entry(path)
+
+
 def _readable(path: Path) -> bool:
-    """Whether a partial result file opens and carries its fingerprint and done flags."""
+    """Whether a partial result store opens and carries its fingerprint and done flags."""
     try:
-        with netCDF4.Dataset(path, "r") as nc:
+        with integrity.open_store(path, "r") as nc:
             nc.getncattr("plan_fingerprint")
             nc.variables["done"][:]
         return True

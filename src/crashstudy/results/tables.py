@@ -26,6 +26,7 @@ from crashstudy.units import UNIT_SYSTEMS
 SUMMARY = "summary.csv"
 PARQUET = "summary.parquet"
 CSV_MAX = 100_000  # variants up to which summary.csv is written by default
+SUMMARY_BLOCK = 200_000  # rows of the summary tables made and written at once (a Parquet row group each)
 STATUS_MEANINGS = ("ok", "failed")  # flag_meanings of ``status`` (value = index)
 TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
                "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
@@ -108,7 +109,9 @@ def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[
     """The columns of :func:`summary_frame`, in order (arrays; the texts as categoricals)."""
     sub = ds.isel(variant=slice(lo, hi))
     axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
-    cols: dict[str, Any] = {"variant": sub["variant"].values}
+    # opened without the variant coordinate (its index would hold 8 bytes per variant): its numbers
+    variant = sub["variant"].values if "variant" in ds.variables else np.arange(lo, lo + sub.sizes["variant"])
+    cols: dict[str, Any] = {"variant": variant}
     for ax in axes:
         cols[ax] = sub[ax].values
     for name in ("status", "failure_reason"):
@@ -133,7 +136,7 @@ def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[
     return cols
 
 
-def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000, rename: bool = True
+def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int | None = None, rename: bool = True
                   ) -> dict[str, Path]:  # fmt: skip
     """Write ``summary.parquet`` and, when ``csv``, ``summary.csv`` chunk by chunk (bounded memory),
     each through a temporary file and a rename; without ``csv`` an older ``summary.csv`` is removed.
@@ -145,6 +148,7 @@ def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int = 200_000,
     import pyarrow.parquet as pq
 
     n = ds.sizes["variant"]
+    chunk = chunk or SUMMARY_BLOCK
     tmp_pq, tmp_csv = folder / (PARQUET + ".partial"), folder / (SUMMARY + ".partial")
     writers: list[Any] = []
     try:

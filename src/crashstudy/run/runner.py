@@ -25,9 +25,11 @@ from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
 from crashstudy.kernel.codes import KernelName
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
+from crashstudy.results import integrity
 from crashstudy.results.curve_ends import past_curve_ends
 from crashstudy.results.outdir import prepare_output, remove_derived, remove_stale_plots, study_of
-from crashstudy.results.store import FINAL, PARTIAL, ChunkResult, Results, ResultWriter
+from crashstudy.results.store import FINAL, ChunkResult, Results, ResultWriter
+from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
 from crashstudy.run.provenance import variant_hashes
 from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study.plan import Plan, load_study, plan_from_model
@@ -247,42 +249,54 @@ def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
 
 
 def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) -> int:
-    """Copy the variants of an earlier result of this study whose input hash is unchanged."""
-    import netCDF4
+    """Copy the variants of an earlier result of this study whose input hash is unchanged.
 
-    from crashstudy.results import integrity
+    Block by block of the new study: a variant is first looked up at its own number in the earlier
+    file (a re-run of an unchanged or extended study: no whole-study array is built); only the
+    variants not found there are looked up in a sorted index of the earlier hashes, built when first
+    needed (a study whose variants moved: 24 bytes per earlier variant)."""
     from crashstudy.run.provenance import topology_signature
 
-    with netCDF4.Dataset(final) as old:
+    with integrity.open_store(final) as old:
         if "input_hash" not in old.variables or integrity.finished_problem(old):
             return 0  # a file without hashes, or not a finished result (a partial renamed by hand)
-        old_h = np.asarray(old.variables["input_hash"][:])
-        if old_h.dtype != np.uint64 or old_h.ndim != 2:  # crashstudy 0.1 hashed differently: nothing matches
+        hv = old.variables["input_hash"]
+        if hv.dtype != np.uint64 or hv.ndim != 2:  # crashstudy 0.1 hashed differently: nothing matches
             return 0
-        order = np.argsort(old_h[:, 0], kind="stable")
-        keys = old_h[order, 0]
+        n_old = hv.shape[0]
+        if not n_old:
+            return 0
         sig = topology_signature(plan)
-        new_parts: list[np.ndarray] = []
-        old_parts: list[np.ndarray] = []
+        index: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        kept = 0
         for lo in range(0, plan.n_variants, size):
             hi = min(plan.n_variants, lo + size)
             h = variant_hashes(plan, lo, hi, sig)
-            pos = np.minimum(np.searchsorted(keys, h[:, 0]), max(len(keys) - 1, 0))
-            if not len(keys):
-                break
-            cand = order[pos]
-            hit = (keys[pos] == h[:, 0]) & (old_h[cand, 1] == h[:, 1])
-            new_parts.append(lo + np.flatnonzero(hit))
-            old_parts.append(cand[hit])
-        new_idx = np.concatenate(new_parts) if new_parts else np.zeros(0, dtype=np.int64)
-        old_idx = np.concatenate(old_parts) if old_parts else np.zeros(0, dtype=np.int64)
-        return writer.reuse(old, new_idx.astype(np.int64), old_idx.astype(np.int64))  # checksums verified
+            cand = np.full(hi - lo, -1, dtype=np.int64)
+            top = min(hi, n_old)
+            if top > lo:  # the same variant number in the earlier file
+                same = np.all(np.asarray(hv[lo:top]) == h[: top - lo], axis=1)
+                cand[: top - lo][same] = np.arange(lo, top)[same]
+            rest = np.flatnonzero(cand < 0)
+            if len(rest):
+                if index is None:
+                    words = np.asarray(hv[:])
+                    order = np.argsort(words[:, 0], kind="stable")
+                    index = (order, words[order, 0], words[order, 1])
+                    del words
+                order, keys, seconds = index
+                pos = np.minimum(np.searchsorted(keys, h[rest, 0]), len(keys) - 1)
+                hit = (keys[pos] == h[rest, 0]) & (seconds[pos] == h[rest, 1])
+                cand[rest[hit]] = order[pos[hit]]
+            new_idx = lo + np.flatnonzero(cand >= 0)
+            kept += writer.reuse(old, new_idx.astype(np.int64), cand[cand >= 0])  # checksums verified
+        return kept
 
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
              resume: bool = False, force: bool = False, progress: bool | None = None,
              kernel: KernelName = "compiled", chunk: int | None = None, notes: Any = None, csv: bool | None = None,
-             locked: bool = False) -> RunReport:  # fmt: skip
+             locked: bool = False, store: str | None = None) -> RunReport:  # fmt: skip
     """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
     one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent. ``csv``: write
     ``summary.csv`` (None: up to ``results.CSV_MAX`` variants); ``summary.parquet`` is always written."""
@@ -293,9 +307,9 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     if out.exists() and not out.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out} is a file, not a folder")])
     if locked:  # the caller holds the folder's lock (optimize, calibrate: over their whole search)
-        return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0)
+        return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0, store)
     with output_folder(out, source):  # one run at a time in a folder: held until the run ends
-        return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0)
+        return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0, store)
 
 
 @contextlib.contextmanager
@@ -310,24 +324,34 @@ def output_folder(out: Path, source: str) -> Iterator[None]:
 
 
 def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume: bool, force: bool,
-                progress: bool | None, kernel: KernelName, chunk: int | None, notes: Any, csv: bool | None, t0: float
-                ) -> RunReport:  # fmt: skip
+                progress: bool | None, kernel: KernelName, chunk: int | None, notes: Any, csv: bool | None, t0: float,
+                store: str | None = None) -> RunReport:  # fmt: skip
     """:func:`run_plan` once the output folder is locked."""
     from crashstudy.run.backends import make_backend
 
     prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
-    if resume and (out / FINAL).exists() and not os.path.lexists(out / PARTIAL):
+    if store is None:  # the folder's kind of store is kept (--resume continues it); a new folder: netCDF
+        store = "zarr" if any(os.path.lexists(out / n) for n in (ZARR_PARTIAL, ZARR_FINAL)) else "netcdf"
+    final = out / integrity.final_name(out)
+    partial = out / integrity.partial_name(ZARR_FINAL if store == "zarr" else FINAL)
+    if resume and final.exists() and not os.path.lexists(partial):
         # nothing to resume: the run finished. Run it again like a plain re-run of the same study (its
         # unchanged variants are reused by input hash, changed ones computed); another study is refused
-        other = study_of(out / FINAL)
+        other = study_of(final)
         if other != plan.name:
             raise InputError([Problem(plan.study_file or plan.model_file, None, "",
                                       f"{out} holds the finished results of {other!r}, not of study {plan.name!r}: "
                                       "nothing to resume; use --force to overwrite or choose another -o")])  # fmt: skip
         resume = False
     backend = make_backend(jobs, scheduler)  # before any file is written: a backend that cannot start leaves none
+    size = chunk or chunk_size(plan)
+    slots = backend.worker_threads() if hasattr(backend, "worker_threads") else jobs
+    if chunk is None and (scheduler or jobs > 1):  # several chunks per worker thread keep every worker busy
+        size = min(size, max(1, -(-plan.n_variants // (4 * max(1, slots)))))
+    if store == "zarr" and resume:  # the chunks of the unfinished store: each computed chunk is one stored object
+        size = variant_chunk(partial) or size
     try:
-        writer = ResultWriter(out, plan, resume=resume, csv=csv)
+        writer = ResultWriter(out, plan, resume=resume, csv=csv, store=store, chunk=size)
     except BaseException:
         backend.close()
         raise
@@ -336,12 +360,10 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
     bar = Progress(plan.n_variants, progress)
     try:
         small, bar.estimate, later = _start_kernels(plan, kernel, notes)
-        if not resume and (out / FINAL).exists():
-            reused = _reuse_finished(writer, plan, out / FINAL, chunk or MAX_CHUNK)
+        if not resume and final.exists():
+            reused = _reuse_finished(writer, plan, final, chunk or MAX_CHUNK)
         todo = ~writer.done()
-        size = chunk or chunk_size(plan)
-        if chunk is None and (scheduler or jobs > 1):  # several chunks per worker thread keep every worker busy
-            slots = backend.worker_threads() if hasattr(backend, "worker_threads") else jobs
+        if chunk is None and (scheduler or jobs > 1) and store != "zarr":  # of what is left (resume, reuse)
             size = min(size, max(1, -(-int(todo.sum()) // (4 * max(1, slots)))))
         if small:
             size = min(size, choice.REF_CHUNK)
@@ -364,7 +386,7 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
         later()
     results = Results(out)
     if resume or reused:
-        n_failed = int((results.summary["status"] != "ok").sum())
+        n_failed = results.count_failed()
     return RunReport(results, plan.n_variants, n_failed, int(todo.sum()), time.perf_counter() - t0, reused)
 
 

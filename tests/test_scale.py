@@ -1,0 +1,97 @@
+"""Issue 19: a run's memory does not grow with the number of variants (the large sizes live in
+benchmarks/scale.py; here the block sizes are made small so that a few 10^4 variants show the trend)."""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+
+from crashstudy.results import curve_ends, integrity, store, tables
+from crashstudy.run import runner
+from crashstudy.study.plan import load_study
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from matrix import TWO_SPRING  # noqa: E402 - the 2-spring model of issues 19 and 25 (benchmarks/matrix.py)
+
+BLOCK = 256  # every whole-study pass reads or writes this many variants at once in these tests
+CHUNK = 256  # variants per computed chunk
+
+
+def two_spring_study(folder: Path, n: int, name: str = "scale") -> Path:
+    """A 2-spring study of n variants (n / 8 masses of m2 x 8 of m1), histories none."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "model.yaml").write_text(TWO_SPRING.replace("END", "0.0086"))  # 86 steps
+    m2 = [round(float(v), 9) for v in np.linspace(1.0, 3.0, n // 8)]
+    m1 = [round(float(v), 9) for v in np.linspace(0.5, 2.0, 8)]
+    path = folder / "study.yaml"
+    path.write_text(f"name: {name}\nmodel: model.yaml\nmatrix:\n  nodes.m2.mass: {m2}\n  nodes.m1.mass: {m1}\n")
+    return path
+
+
+@pytest.fixture
+def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    for mod, name in ((integrity, "CHECK_BLOCK"), (store, "REUSE_BLOCK"), (store, "AXIS_BLOCK"),
+                      (tables, "SUMMARY_BLOCK"), (curve_ends, "BLOCK")):  # fmt: skip
+        monkeypatch.setattr(mod, name, BLOCK, raising=False)  # raising=False: the test runs at main too
+
+
+def traced_peak(study: Path, out: Path, **kw: object) -> int:
+    """Peak bytes allocated by Python and NumPy (tracemalloc) while running ``study`` into ``out``
+    (reference kernel, chunks of CHUNK), with what the command line does after it."""
+    from crashstudy.cli.main import _after_run
+
+    plan = load_study(study)
+    tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        rep = runner.run_plan(plan, out, kernel="reference", chunk=CHUNK, progress=False, **kw)  # type: ignore[arg-type]
+        _after_run(rep.results)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants(tmp_path: Path, small_blocks: None
+                                                                               ) -> None:  # fmt: skip
+    """At N = 2048 and 4N variants, a fresh run and a re-run (every variant reused) peak at the same traced memory
+    within 1 byte per variant of the 3N more: the per-variant done flags (1 byte each) are the only
+    whole-study arrays left. Before: the re-run's hash lookup and copy held ~40 bytes per variant, the
+    summary's variant index 8 and the decoded texts of the dataset ~100."""
+    n = 8 * BLOCK
+    peaks = {}
+    for size in (n, 4 * n):
+        study = two_spring_study(tmp_path / str(size), size)
+        out = tmp_path / str(size) / "out"
+        peaks[("fresh", size)] = traced_peak(study, out)
+        peaks[("rerun", size)] = traced_peak(study, out)
+    for kind in ("fresh", "rerun"):
+        grown = peaks[(kind, 4 * n)] - peaks[(kind, n)]
+        assert grown < 3 * n * 1.0 + 256 * 1024, (kind, peaks)
+
+
+def test_a_rerun_in_blocks_gives_the_files_of_a_fresh_run(tmp_path: Path, small_blocks: None) -> None:
+    """The block-wise reuse copies every variant bitwise: the re-run's results.nc variables and summary
+    equal the fresh run's, and the summary equals the dataset's variables (a second reader)."""
+    study = two_spring_study(tmp_path, 8 * BLOCK + 40)
+    out = tmp_path / "out"
+    plan = load_study(study)
+    runner.run_plan(plan, out, kernel="reference", chunk=CHUNK, progress=False)
+    first = (out / "summary.parquet").read_bytes()
+    with xr.open_dataset(out / "results.nc") as ds:
+        before = ds.load()
+    rep = runner.run_plan(plan, out, kernel="reference", chunk=CHUNK, progress=False)
+    assert rep.n_reused == plan.n_variants and rep.n_computed == 0
+    assert hashlib.sha256((out / "summary.parquet").read_bytes()).digest() == hashlib.sha256(first).digest()
+    with xr.open_dataset(out / "results.nc") as ds:
+        xr.testing.assert_identical(ds.drop_attrs(), before.drop_attrs())
+    summary = pd.read_parquet(out / "summary.parquet")
+    np.testing.assert_array_equal(summary["variant"], np.arange(plan.n_variants))
+    np.testing.assert_array_equal(summary["peak_force.s2"].to_numpy(), before["peak_force"].values[:, 1])
+    np.testing.assert_array_equal(summary["nodes.m2.mass"].to_numpy(), before["nodes.m2.mass"].values)
