@@ -137,9 +137,9 @@ def warm_other_core() -> None:
     """Compile the crash criteria and the generated kernels, with the per-step record, of
     ``WARM_RECORD_CASES`` exactly as tests/test_metrics.py runs them (the same batch: the same shape key)."""
     from crashstudy.kernel.entry import run_batch
-    from crashstudy.kernel.warm import _criteria
+    from crashstudy.metrics.warmup import compile_criteria
 
-    _criteria()
+    compile_criteria()
     for case in WARM_RECORD_CASES:
         batch, plan, record = record_case(case)
         run_batch(batch, plan.topology.histories, plan.n_out, "generated", record=record)

@@ -469,16 +469,16 @@ def test_plain_python_criteria_equal_the_compiled_ones_bitwise(monkeypatch: pyte
 
 
 def test_the_criteria_warm_up_process_takes_the_compiled_functions(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The process that compiles the criteria beside a kernel (kernel/warm.py) runs a short pulse, which
+    """The process that compiles the criteria beside a kernel (kernel/warm.py calls
+    metrics/warmup.compile_criteria) runs a short pulse, which
     would otherwise run as plain Python and leave nothing compiled: it must call the numba functions
     (recorded by wrapping the driver the warm-up gets)."""
-    from crashstudy.kernel import warm
-    from crashstudy.metrics import interpreted
+    from crashstudy.metrics import interpreted, warmup
 
     monkeypatch.setattr(interpreted, "compiled_or_cached", lambda fn: False)
     monkeypatch.setattr(interpreted, "_SPENT", [0])
     got: list[bool] = []
     real = interpreted.driver_for
     monkeypatch.setattr(C, "driver_for", lambda fn, n: got.append(real(fn, n)[1]) or real(fn, n))
-    warm._criteria()
+    warmup.compile_criteria()
     assert got == [True]
