@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import model_plan
 from crashstudy.arrays.batch import build_batch
 from crashstudy.kernel import choice, compile_lock
+from helpers import model_plan
 
 MODEL = {"name": "lock-probe", "units": "SI",
          "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},

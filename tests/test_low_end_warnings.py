@@ -16,11 +16,8 @@ from pathlib import Path
 
 import pytest
 
-try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
-    from test_properties import run_main
-except ImportError:  # ... or as a package
-    from tests.test_properties import run_main  # type: ignore[no-redef]
 from crashstudy.schema.plausible import first_period, peak_g_warnings
+from helpers import run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -161,10 +158,8 @@ output: {{histories: none}}
 
 
 def _plan(text: str):  # type: ignore[no-untyped-def]
-    try:
-        from conftest import model_plan
-    except ImportError:
-        from tests.conftest import model_plan  # type: ignore[no-redef]
+    from helpers import model_plan
+
     return model_plan(text)
 
 
