@@ -108,7 +108,7 @@ def run_main(*argv: str) -> tuple[int, str, str]:
 
 
 # ------------------------------------------------------------------------------------------------
-# a tiny model and study, and what every command-line fault test asserts (tests/test_fault_items*.py)
+# a tiny model and study, and what every command-line fault test asserts (tests/test_study_input_faults.py, test_result_folder_faults.py, test_hangs_limits_and_messages.py)
 # ------------------------------------------------------------------------------------------------
 
 Cli = Callable[..., Any]

@@ -100,7 +100,7 @@ def test_early_termination_stops_when_the_spring_has_separated(kernel: str) -> N
     t_sep = m * v0 / f0 + 0.5 * np.pi * np.sqrt(m / ku)
     out, batch, _ = run_model(crush_bounce(v0), kernel=kernel)
     full_model = {k: v for k, v in crush_bounce(v0).items() if k != "termination"}
-    full, _, _ = run_model(full_model, kernel="generic")  # (bitwise the reference's: test_physics twins)
+    full, _, _ = run_model(full_model, kernel="generic")  # (bitwise the reference's: test_kernel_twins)
     assert out.status[0] == 0
     assert abs(out.t_end[0] - t_sep) <= 2.0 * batch.dt[0] + 2.0e-5, (out.t_end[0], t_sep)
     assert full.t_end[0] == pytest.approx(0.2)
