@@ -29,6 +29,7 @@ from helpers import (  # noqa: E402, F401 - re-exported: test files written agai
     run_cli,
     run_model,
 )
+from twins import record_case  # noqa: E402, F401 - re-exported likewise
 
 settings.register_profile("default", derandomize=True)
 settings.register_profile("explore", derandomize=False)
@@ -62,7 +63,7 @@ def warm_other_core() -> None:
     ``twins.WARM_RECORD_CASES`` exactly as tests/test_metrics.py runs them (the same batch: the same shape key)."""
     from crashstudy.kernel.entry import run_batch
     from crashstudy.metrics.warmup import compile_criteria
-    from twins import WARM_RECORD_CASES, record_case
+    from twins import WARM_RECORD_CASES
 
     compile_criteria()
     for case in WARM_RECORD_CASES:
