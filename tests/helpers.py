@@ -176,7 +176,7 @@ def same_bits(r: np.ndarray, g: np.ndarray) -> bool:
     return bool(np.array_equal(np.signbit(r[zero]), np.signbit(g[zero])))
 
 
-def output_differences(a: KernelOutput, b: KernelOutput, ia: Any = ..., ib: Any = ...) -> list[str]:
+def output_differences(a: KernelOutput, b: KernelOutput, ia: Any = slice(None), ib: Any = slice(None)) -> list[str]:
     """Names of what differs between variants ``ia`` of ``a`` and ``ib`` of ``b`` (default: all of both),
     bit for bit: every summary (:func:`same_bits`), each optional output (the metrics' step record,
     criteria) present in both or neither, the same histories with equal values and NaN where NaN (the
