@@ -68,7 +68,6 @@ SMALL_MODEL = ROOT / "studies" / "models" / "linear-spring.yaml"
 REPORT = ROOT / "benchmarks" / "results" / "skipping.md"
 sys.path.insert(0, str(ROOT / "tests"))
 
-from conftest import model_plan  # noqa: E402  (tests/conftest.py: a one-variant plan from a dict)
 from crashstudy.arrays.batch import build_batch  # noqa: E402
 from crashstudy.arrays.compiler import apply_axis  # noqa: E402
 from crashstudy.kernel.compiled import set_threads  # noqa: E402
@@ -76,6 +75,7 @@ from crashstudy.kernel.output import KernelOutput  # noqa: E402
 from crashstudy.run.runner import run_chunk, run_kernel  # noqa: E402
 from crashstudy.schema.yamlio import load_yaml  # noqa: E402
 from crashstudy.study.plan import load_study  # noqa: E402
+from helpers import model_plan  # noqa: E402  (tests/helpers.py: a one-variant plan from a dict)
 
 PEAKS = ("peak_force", "peak_acceleration", "max_crush")
 PLOTTED: list[tuple[str, list[Case]]] = []  # kernel comparisons, for the figure

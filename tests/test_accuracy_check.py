@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import yaml
 
-from conftest import STUDIES, run_model
 from crashstudy.run.runner import error_estimate
+from helpers import STUDIES, run_model
 
 LINEAR = {
     "name": "acc-linear",

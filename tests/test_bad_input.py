@@ -18,11 +18,8 @@ from pathlib import Path
 
 import pytest
 
-try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
-    from conftest import STUDIES, run_cli
-except ImportError:  # ... or as a package
-    from tests.conftest import STUDIES, run_cli  # type: ignore[no-redef]
 from crashstudy.cli.main import main
+from helpers import STUDIES, run_cli
 
 BASE = """\
 name: bad-input-base

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import model_plan
 from crashstudy.arrays.batch import build_batch
 from crashstudy.kernel import choice, compile_lock
+from helpers import model_plan
 
 MODEL = {"name": "lock-probe", "units": "SI",
          "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
@@ -62,7 +62,7 @@ def setup(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-u
     done = tmp_path / "done"
     started: list[tuple[tuple[str, ...], bool]] = []
     monkeypatch.setattr(choice, "generic_ready", lambda: done.exists())
-    monkeypatch.setattr(choice, "start_background", lambda kernels, *a, must=False: started.append((kernels, must))
+    monkeypatch.setattr(choice, "start_background", lambda kernels, *a, must=False, **k: started.append((kernels, must))
                         or subprocess.Popen([sys.executable, "-c", "pass"]))  # fmt: skip
     holders: list[subprocess.Popen[str]] = []
 

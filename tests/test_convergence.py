@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from conftest import run_model
+from helpers import run_model
 from reference_scipy import solve_reference
 
 G = 9.80665  # m/s^2

@@ -15,21 +15,7 @@ from scipy.optimize import brentq
 from crashstudy.metrics import criteria as C
 from crashstudy.metrics import criteria_clips as CL
 from crashstudy.metrics import criteria_rows as R
-
-G = 9.80665
-
-
-def one(acc_1d: np.ndarray, dt: float, names=C.CRITERIA, cfc: int = 1000, v0: float = 15.0, **kw):
-    """compute() for one 1-D variant; returns {name: float}."""
-    acc = np.asarray(acc_1d, dtype=float)[None, :, None]
-    r = C.compute(
-        acc, np.array([acc.shape[1]]), np.array([dt]), np.array([[v0]]), np.array([1.0]), cfc, names, G, **kw
-    )
-    return {k: (v[0] if k == "criteria_note" else float(v[0])) for k, v in r.items()}
-
-
-def half_sine(t: np.ndarray, peak: float, tau: float) -> np.ndarray:
-    return np.where(t <= tau, peak * np.sin(np.pi * np.clip(t, 0.0, tau) / tau), 0.0)
+from pulses import G, half_sine, one
 
 
 def hic_half_sine(peak: float, tau: float, window: float) -> tuple[float, float, float]:
@@ -469,16 +455,16 @@ def test_plain_python_criteria_equal_the_compiled_ones_bitwise(monkeypatch: pyte
 
 
 def test_the_criteria_warm_up_process_takes_the_compiled_functions(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The process that compiles the criteria beside a kernel (kernel/warm.py) runs a short pulse, which
+    """The process that compiles the criteria beside a kernel (kernel/warm.py calls
+    metrics/warmup.compile_criteria) runs a short pulse, which
     would otherwise run as plain Python and leave nothing compiled: it must call the numba functions
     (recorded by wrapping the driver the warm-up gets)."""
-    from crashstudy.kernel import warm
-    from crashstudy.metrics import interpreted
+    from crashstudy.metrics import interpreted, warmup
 
     monkeypatch.setattr(interpreted, "compiled_or_cached", lambda fn: False)
     monkeypatch.setattr(interpreted, "_SPENT", [0])
     got: list[bool] = []
     real = interpreted.driver_for
     monkeypatch.setattr(C, "driver_for", lambda fn, n: got.append(real(fn, n)[1]) or real(fn, n))
-    warm._criteria()
+    warmup.compile_criteria()
     assert got == [True]

@@ -11,7 +11,7 @@ import scipy.signal
 from scipy.optimize import brentq
 
 from crashstudy.metrics import criteria_filter as F
-from test_criteria import G, half_sine, one
+from pulses import G, half_sine, one
 
 F_N = {60: 100.0, 180: 300.0, 600: 1000.0, 1000: 1650.0}  # J211-1 -3 dB frequencies [Hz]
 STOP_DB = {60: -30.0, 180: -30.0, 600: -40.0, 1000: -40.0}

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import model_batch, run_model
 from crashstudy.kernel import driver
 from crashstudy.kernel.gen_shape import _shape
 from crashstudy.kernel.gen_source import source
 from crashstudy.study.plan import load_study
+from helpers import model_batch, run_model
 
 K0, M, V0 = 4.0e4, 2.0, 3.0  # N/m, kg, m/s
 

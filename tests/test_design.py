@@ -16,19 +16,7 @@ from crashstudy.cli.main import main
 from crashstudy.results.store import open_results
 from crashstudy.study.design import n_rows, rows
 from crashstudy.study.plan import load_study
-
-MODEL = """\
-name: drop
-nodes:
-  ground: {position: [0.0], fixed: true}
-  body: {position: [0.5], mass: 100.0}
-springs:
-  pad: {nodes: [ground, body], material: {type: linear_elastic, stiffness: 1.0e6}}
-initial_velocity: {body: [-5.0]}
-end_time: 0.03
-time_step: {safety_factor: 0.9}
-output: {histories: none}
-"""
+from models import DROP as MODEL
 
 
 def _study(tmp: Path, design: dict[str, Any], matrix: dict[str, list[float]] | None = None) -> Path:

@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import ROOT
 from crashstudy import environment
 from crashstudy.errors import InputError
+from helpers import ROOT
 
 MODEL = {"name": "env-probe", "units": "SI",
          "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},

@@ -14,11 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT
 from crashstudy.cli.main import main
 from crashstudy.schema import load_model
 from crashstudy.schema.yamlio import loads_yaml
 from crashstudy.study.plan import load_study
+from helpers import ROOT
 
 DOC = ROOT / "docs" / "format.md"
 BLOCK = re.compile(r"(?:<!-- example: (?P<marker>[^>]*?) -->\n)?```yaml\n(?P<body>.*?)```", re.S)

@@ -1,6 +1,6 @@
 """Invariants checked on every result of random small models and studies (issue 23, "the generator").
 
-The models come from :func:`test_properties.valid_model` (1-D and 2-D trees of 2-6 nodes, every material of
+The models come from :func:`strategies.valid_model` (1-D and 2-D trees of 2-6 nodes, every material of
 the generator, walls, loads, gravity, three unit systems); a "study" here is a batch of 1-4 variants of one
 model that differ in axis values (``impact_velocity``, a mass, a stiffness, a wall moved back), run in one
 kernel call as ``run`` does. On every variant that ran (status ok):
@@ -32,13 +32,9 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
-    from conftest import run_model
-    from test_properties import _num, dump, force_curve, valid_model
-except ImportError:  # ... or as a package
-    from tests.conftest import run_model  # type: ignore[no-redef]
-    from tests.test_properties import _num, dump, force_curve, valid_model  # type: ignore[no-redef]
 from crashstudy.kernel.codes import OK
+from helpers import dump, run_model
+from strategies import force_curve, num, valid_model
 
 COUNTS: Counter[str] = Counter()
 HISTORIES = ["position", "velocity", "spring_force", "spring_elongation"]
@@ -69,18 +65,18 @@ def small_study(draw: st.DrawFn) -> tuple[dict[str, Any], dict[str, list[float]]
         return model, {}
     choices: list[tuple[str, st.SearchStrategy[float]]] = []
     if model.get("initial_velocity"):
-        choices.append(("impact_velocity", _num(0.5, 20.0)))
+        choices.append(("impact_velocity", num(0.5, 20.0)))
     for nid, node in model["nodes"].items():
         if "mass" in node:
-            choices.append((f"nodes.{nid}.mass", _num(0.1, 100.0)))
+            choices.append((f"nodes.{nid}.mass", num(0.1, 100.0)))
     for sid, sp in model["springs"].items():
         if sp["material"]["type"] == "linear_elastic":
-            choices.append((f"springs.{sid}.material.stiffness", _num(1e2, 1e5)))
+            choices.append((f"springs.{sid}.material.stiffness", num(1e2, 1e5)))
     if model.get("rigid_walls"):  # moved back along its normal: every node stays in front of it
         w = model["rigid_walls"][0]
         unit = np.asarray(w["normal"]) / np.linalg.norm(w["normal"])
         k = int(np.argmax(np.abs(unit)))
-        back = draw(st.lists(_num(0.0, 0.5), min_size=n, max_size=n))
+        back = draw(st.lists(num(0.0, 0.5), min_size=n, max_size=n))
         return model, {f"rigid_walls.0.point.{k}": [w["point"][k] - b * math.copysign(1.0, unit[k]) for b in back]}
     path, values = draw(st.sampled_from(choices))
     return model, {path: draw(st.lists(values, min_size=n, max_size=n))}
@@ -152,14 +148,14 @@ def test_invariants_hold_on_random_models_and_studies(case: tuple[dict[str, Any]
 @st.composite
 def crush_stop(draw: st.DrawFn) -> dict[str, Any]:
     """One mass driven into a fixed base through a crush spring that stops it within its curve."""
-    kmax = draw(_num(1e3, 1e6))
+    kmax = draw(num(1e3, 1e6))
     curve = draw(force_curve(through_origin=True, need_compression=True, kmax=kmax, signed=True))
     xs, ys = curve["x"], curve["y"]
     # the energy a full crush to the first point absorbs (forces <= 0 there: exact for a polyline)
     work = -float(np.trapezoid(ys[: xs.index(0.0) + 1], xs[: xs.index(0.0) + 1]))
     assume(work > 0)
-    mass = draw(_num(0.5, 50.0))
-    v0 = math.sqrt(2 * draw(_num(0.05, 0.9)) * work / mass)  # stops before the curve's first point
+    mass = draw(num(0.5, 50.0))
+    v0 = math.sqrt(2 * draw(num(0.05, 0.9)) * work / mass)  # stops before the curve's first point
     end = 10.0 * abs(xs[0]) / v0
     return {"name": "crush-stop", "units": "SI", "curves": {"c": curve},
             "nodes": {"base": {"position": [0.0], "fixed": True}, "m": {"position": [1.0], "mass": round(mass, 4)}},

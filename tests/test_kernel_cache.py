@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import model_plan
 from crashstudy.arrays.batch import build_batch
 from crashstudy.kernel import cache, generated
+from helpers import model_plan
 
 MODEL = {"name": "cache-probe", "units": "SI",
          "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},

@@ -13,13 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import ROOT, model_plan
 from crashstudy.arrays.batch import build_batch
 from crashstudy.arrays.compiler import apply_axis
 from crashstudy.kernel import choice
 from crashstudy.kernel.output import KernelOutput
 from crashstudy.kernel.reference import STOP_EVERY, run_reference
 from crashstudy.run.runner import Progress, run_kernel
+from helpers import ROOT, model_plan
 
 
 def _chain(n_springs: int, end_time: float, stiffness: float = 2.0e5) -> dict:

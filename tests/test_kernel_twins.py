@@ -5,86 +5,29 @@ itself checked against closed forms and scipy in test_physics and test_materials
 share their laws (:mod:`crashstudy.kernel.laws`) but not the reference's code. Tolerance: bitwise
 (every summary, every history; NaN where the reference has NaN).
 
-Cases: every material in 1-D drawn both ways; the three full twins of test_physics (all materials,
+Cases (the models: tests/twins.py): every material in 1-D drawn both ways; three full twins (all materials,
 gravity, loads, prescribed displacement / velocity / acceleration, rigid walls incl. an inclined one,
 1-D and 2-D); 2-D walls; a 2-D spring crushed to zero length; the general_nonlinear reversal (rule 4);
 knot crossings of every curve material in 1-D and 2-D; the frontal model with per-variant and constant
-curves; lane compaction; early termination; an unstable variant; the SPEC v2 spring features (elastoplastic,
+curves; lane compaction; early termination; the SPEC v2 spring features (elastoplastic,
 nonlinear_damper, initial_elongation, failure, max_elongation) in 1-D and 2-D.
 """
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from dataclasses import fields
 from typing import Any
 
 import numpy as np
 import pytest
-import yaml
 
-from conftest import run_model
 from crashstudy.kernel import entry, generated
-from crashstudy.kernel.output import CRUSHED_TO_ZERO, UNSTABLE, KernelOutput
-from crashstudy.run.runner import run_kernel
-from test_generated import (
-    FRONTAL,
-    HELICOPTER,
-    _crush_bounce,
-    _mount_reversal,
-    _one_d_materials,
-    _without_walls_and_loads,
-    assert_bitwise,
-)
-from test_knot_peaks import CRUSH_REBOUND, _one_mass
-from test_physics import TWIN_2D_HELI, TWINS
-from test_stress import forced_batch, outputs_equal
+from crashstudy.kernel.output import CRUSHED_TO_ZERO, KernelOutput
+from helpers import output_differences, run_model
+from twins import CASES, one_d_materials
 
 FAST = ["generic", "generated"]
-MASSES = [6.0, 8.0, 10.0, 12.0, 14.0]
-
-
-def _helicopter_walls() -> dict[str, Any]:
-    model = _without_walls_and_loads(TWIN_2D_HELI, keep_walls=True)
-    model["rigid_walls"][0]["nodes"] = ["transmission", "cabin"]  # the floor
-    model["rigid_walls"].append({"id": "side", "point": [0.03, 0.0], "normal": [-1.0, 0.0],
-                                 "nodes": ["transmission", "cabin"]})  # fmt: skip
-    return model
-
-
-def _frontal(histories: Any, end_time: float) -> dict[str, Any]:
-    model = yaml.safe_load(FRONTAL.read_text())
-    model["output"] = {"interval": 1.0e-3, "histories": histories}
-    model["end_time"] = end_time
-    return model
-
-
-def _helicopter_crushed() -> dict[str, Any]:
-    model = yaml.safe_load(HELICOPTER.read_text())
-    model["output"]["histories"] = ["position", "spring_force", "kinetic_energy"]
-    return model
-
-
-def _bounce_many() -> dict[str, Any]:
-    model = _crush_bounce()
-    model["end_time"] = 0.3
-    return model
-
-
-_rng = np.random.default_rng(4)
-_FRONTAL_AXES = {"curves.rail-loading.scale": list(_rng.uniform(0.6, 1.6, 12)),
-                 "nodes.engine.mass": list(_rng.uniform(100.0, 250.0, 12))}  # fmt: skip
-_COMPACTION_AXES = {"nodes.bumper.mass": list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 48))),
-                    "curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 48))}  # fmt: skip
-
-
-# force and abscissa scales of spring, time and motion curves (a constant shape and per-variant factors)
-_SCALED_1D = {"curves.plateau.scale": [0.6, 0.7, 0.8, 0.9, 1.0], "curves.soft.x_scale": [1.0, 1.1, 1.2, 1.3, 1.4],
-              "curves.gn-load.scale": [1.0, 0.9, 0.8, 0.7, 0.95], "curves.pulse.x_scale": [0.5, 0.8, 1.0, 1.5, 2.0],
-              "curves.pull.x_scale": [1.0, 0.5, 2.0, 1.5, 0.8]}  # fmt: skip
-_SCALED_KNOTS = {f"curves.{c}.{f}": v for c in ("crush", "elastic") for f, v in
-                 (("scale", [0.7, 0.8, 0.9, 1.0, 0.75]), ("x_scale", [1.0, 1.1, 1.2, 1.3, 1.4]))}  # fmt: skip
 
 
 def _check_scaled(ref: KernelOutput, batch: Any) -> None:
@@ -109,20 +52,15 @@ def _check_1d(mirror: bool) -> Callable[[KernelOutput, Any], None]:
 
 def _check_full_twin(ref: KernelOutput, batch: Any) -> None:
     assert len(batch.pm_node) + len(batch.load_node) > 0 and np.all(ref.status == 0)
+    assert np.unique(batch.mass, axis=1).shape[1] == batch.mass.shape[1] == 5, "5 different variants"
     assert np.nanmax(np.abs(ref.histories["external_work"])) > 0
+    assert np.nanmax(ref.histories["wall_energy"]) > 0
 
 
 def _check_walls(ref: KernelOutput, batch: Any) -> None:
     assert batch.x0.shape[1] == 2 and np.all(ref.status == 0)
     # a wall that only stops a node reports an impulse; one that holds it against a force, a contact force
     assert np.all(np.max(ref.peak_wall_force + ref.wall_impulse, axis=1) > 0), "both walls are hit"
-
-
-def _helicopter_penalty_side() -> dict[str, Any]:
-    """:func:`_helicopter_walls` with a penalty side wall (contact stiffness a study axis)."""
-    model = _helicopter_walls()
-    model["rigid_walls"][1]["stiffness"] = 1.0e6
-    return model
 
 
 def _check_penalty(ref: KernelOutput, batch: Any) -> None:
@@ -153,47 +91,6 @@ def _check_termination(ref: KernelOutput, batch: Any) -> None:
     assert np.all(ref.t_end < 0.2) and len(np.unique(ref.t_end)) >= 30
 
 
-def _v2_springs(dim: int) -> dict[str, Any]:
-    """The SPEC v2 spring features together: elastoplastic (preloaded, breaking in tension), a blow-off
-    nonlinear_damper, a preloaded general_nonlinear that yielded on the way, a preloaded crush, a linear
-    spring breaking both ways."""
-    ax = [1.0] if dim == 1 else [0.6, 0.8]
-    at = lambda r: [r * c for c in ax]  # noqa: E731
-    return {
-        "name": f"v2-springs-{dim}d",
-        "curves": {"blow-off": {"x": [-10.0, -1.0, 0.0, 1.0, 10.0], "y": [-300.0, -300.0, 0.0, 300.0, 300.0]},
-                   "load": {"x": [-0.1, 0.0, 0.01, 0.02, 0.2], "y": [-1.0e4, 0.0, 600.0, 400.0, 900.0]},
-                   "unload": {"x": [-0.1, 0.0, 0.1], "y": [-1.0e4, 0.0, 1.0e4]},
-                   "crush": {"x": [-0.3, -0.01, 0.0], "y": [-3000.0, -1500.0, 0.0]}},
-        "nodes": {"a": {"position": at(0.0), "fixed": True}, "b": {"position": at(1.0), "mass": 10.0},
-                  "c": {"position": at(2.0), "mass": 5.0}},
-        "springs": {
-            "ep": {"nodes": ["a", "b"], "initial_elongation": 0.02, "failure": {"tension": 0.12},
-                   "material": {"type": "elastoplastic", "stiffness": 4.0e4, "tangent_stiffness": 1.0e4,
-                                "yield_force": 2.0e3}},
-            "nd": {"nodes": ["a", "b"], "material": {"type": "nonlinear_damper", "curve": "blow-off"}},
-            "gn": {"nodes": ["b", "c"], "initial_elongation": 0.015,
-                   "material": {"type": "general_nonlinear", "loading": "load", "unloading": "unload",
-                                "tension_yield": 500.0}},
-            "cr": {"nodes": ["b", "c"], "initial_elongation": -0.01, "failure": {"compression": -0.2},
-                   "material": {"type": "crush", "loading": "crush", "unloading_stiffness": 2.0e5}},
-            "lin": {"nodes": ["a", "c"], "failure": {"tension": 0.06, "compression": -0.06},
-                    "material": {"type": "linear_elastic", "stiffness": 2.0e3}},
-        },
-        "initial_velocity": {"b": at(3.0), "c": at(-2.0)},
-        "end_time": 0.3, "time_step": {"safety_factor": 0.5},
-        "output": {"interval": 1.0e-3},
-    }  # fmt: skip
-
-
-def _v2_intact(dim: int) -> dict[str, Any]:
-    """:func:`_v2_springs` without failures (another generated shape: no thresholds, no broken flags)."""
-    model = _v2_springs(dim)
-    for sp in model["springs"].values():
-        sp.pop("failure", None)
-    return model
-
-
 def _check_v2_intact(ref: KernelOutput, batch: Any) -> None:
     assert np.all(ref.status == 0) and generated.unsupported(batch) is None and np.all(np.isnan(ref.spring_fail_time))
     assert np.all(batch.ie0[[0, 2, 3]] > 0) and np.all(ref.max_elongation[0] > 0)
@@ -208,73 +105,43 @@ def _check_v2(ref: KernelOutput, batch: Any) -> None:
     assert np.all(batch.ie0[[0, 2, 3]] > 0) and np.all(ref.max_elongation[0] > 0)
 
 
-# case -> (model builder, study axes, what the case must exercise)
-CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]], Callable[[KernelOutput, Any], None]]] = {
-    "1d-every-material": (lambda: _one_d_materials(False), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]},
-                          _check_1d(False)),
-    "1d-every-material-mirrored": (lambda: _one_d_materials(True), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]},
-                                   _check_1d(True)),
-    **{f"full-twin-{case}": ((lambda c=case: TWINS[c][0]), {TWINS[case][1]: TWINS[case][2]}, _check_full_twin)
-       for case in TWINS},
-    "2d-two-walls-gravity-load": (_helicopter_walls, {"nodes.cabin.mass": [200.0, 250, 300, 350, 400]},
-                                  _check_walls),
-    "2d-rigid-and-penalty-walls": (_helicopter_penalty_side, {"rigid_walls.1.stiffness": [2e5, 5e5, 1e6, 2e6, 4e6]},
-                                   _check_penalty),
-    "2d-crushed-to-zero": (_helicopter_crushed, {"impact_velocity": [6.0, 8.2, 10.0, 30.0]}, _check_crushed),
-    "general-nonlinear-reversal": (_mount_reversal, {"impact_velocity": [2.0, 2.5, 3.0, 3.5]}, _check_reversal),
-    "knots-crush-rebound": (lambda: dict(CRUSH_REBOUND, time_step={"tolerance": 1e-3},
-                                         output={"interval": 1e-3, "histories": ["spring_force"]}),
-                            {"nodes.body.mass": [900.0, 1100.0, 1200.0, 1300.0, 1500.0]}, _check_knots),
-    **{f"knots-{kind}-{dim}d": ((lambda k=kind, d=dim: _one_mass(k, dim=d, dt=4e-4)), {"nodes.body.mass": MASSES},
-                                _check_knots)
-       for kind in ("crush", "nonlinear_elastic", "general_nonlinear") for dim in (1, 2)},
-    "frontal-curve-and-mass-axes": (lambda: _frontal("all", 0.06), _FRONTAL_AXES, _check_ok),
-    "scaled-curves-1d": ((lambda: TWINS["1d-all-materials"][0]), _SCALED_1D, _check_scaled),
-    **{f"scaled-knots-{kind}": ((lambda k=kind: _one_mass(k, dim=1, dt=4e-4)), _SCALED_KNOTS, _check_scaled)
-       for kind in ("crush", "nonlinear_elastic", "general_nonlinear")},
-    "frontal-lane-compaction": (lambda: _frontal(["spring_force", "kinetic_energy"], 0.03), _COMPACTION_AXES,
-                                _check_compaction),
-    "early-termination": (_bounce_many, {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}, _check_termination),
-    **{f"v2-spring-features-{dim}d": ((lambda d=dim: _v2_springs(d)), {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]},
-                                      _check_v2) for dim in (1, 2)},
-    **{f"v2-preload-and-materials-{dim}d": ((lambda d=dim: _v2_intact(d)),
-                                            {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]}, _check_v2_intact)
-       for dim in (1, 2)},
+# case (tests/twins.py CASES) -> what the case must exercise
+CHECKS: dict[str, Callable[[KernelOutput, Any], None]] = {
+    "1d-every-material": _check_1d(False),
+    "1d-every-material-mirrored": _check_1d(True),
+    **{f"full-twin-{case}": _check_full_twin for case in ("1d-all-materials", "2d-helicopter-wall", "2d-mixed-prescribed")},
+    "2d-two-walls-gravity-load": _check_walls,
+    "2d-rigid-and-penalty-walls": _check_penalty,
+    "2d-crushed-to-zero": _check_crushed,
+    "general-nonlinear-reversal": _check_reversal,
+    "knots-crush-rebound": _check_knots,
+    **{f"knots-{kind}-{dim}d": _check_knots for kind in ("crush", "nonlinear_elastic", "general_nonlinear") for dim in (1, 2)},
+    "frontal-curve-and-mass-axes": _check_ok,
+    "scaled-curves-1d": _check_scaled,
+    **{f"scaled-knots-{kind}": _check_scaled for kind in ("crush", "nonlinear_elastic", "general_nonlinear")},
+    "frontal-lane-compaction": _check_compaction,
+    "early-termination": _check_termination,
+    **{f"v2-spring-features-{dim}d": _check_v2 for dim in (1, 2)},
+    **{f"v2-preload-and-materials-{dim}d": _check_v2_intact for dim in (1, 2)},
 }  # fmt: skip
 
 
-@functools.cache
-def _reference(case: str) -> tuple[KernelOutput, Any]:
-    build, axes, _ = CASES[case]
-    ref, batch, _ = run_model(build(), kernel="reference", variants=axes)
-    return ref, batch
+def test_every_case_has_its_check() -> None:
+    assert set(CHECKS) == set(CASES)
 
 
-@pytest.mark.parametrize("kernel", FAST)
 @pytest.mark.parametrize("case", list(CASES))
-def test_fast_kernel_bitwise_equal_to_reference(case: str, kernel: str) -> None:
-    """Every summary and history of ``kernel`` equals the reference's bit for bit on ``case``, and the
-    case really exercises its feature (checked on the reference's output)."""
-    build, axes, check = CASES[case]
-    ref, batch = _reference(case)
-    check(ref, batch)
-    got, _, _ = run_model(build(), kernel=kernel, variants=axes)
-    assert_bitwise(ref, got)
-
-
-@pytest.mark.parametrize("kernel", FAST)
-@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
-def test_instability_fails_that_variant_only_as_in_the_reference(kernel: str) -> None:
-    """One variant of four runs at 3 x dt_crit (forced by hand): UNSTABLE at the reference's step, NaN
-    histories after it, the other three bitwise equal to their runs alone."""
-    batch, _, plan = forced_batch(3.0)
-    hist = plan.topology.histories
-    ref = run_kernel(batch, hist, plan.n_out, "reference")
-    got = run_kernel(batch, hist, plan.n_out, kernel)
-    assert list(got.status) == [0, UNSTABLE, 0, 0]
-    assert_bitwise(ref, got)
-    alone = run_kernel(batch.take(np.array([2])), hist, plan.n_out, kernel)
-    assert outputs_equal(got, 2, alone, 0) == []
+def test_fast_kernels_bitwise_equal_to_reference(case: str) -> None:
+    """Every summary and history of both fast kernels equals the reference's bit for bit on ``case``, and
+    the case really exercises its feature (checked on the reference's output). One reference run serves
+    both kernels (it is the costly part: NumPy, step by step)."""
+    build, axes = CASES[case]
+    ref, batch, _ = run_model(build(), kernel="reference", variants=axes)
+    CHECKS[case](ref, batch)
+    for kernel in FAST:
+        got, _, _ = run_model(build(), kernel=kernel, variants=axes)
+        diff = output_differences(ref, got)
+        assert not diff, f"{kernel} kernel: {diff} differ from the reference's"
 
 
 def test_ordered_run_spreads_each_variant_back_to_the_callers_columns() -> None:
@@ -282,7 +149,7 @@ def test_ordered_run_spreads_each_variant_back_to_the_callers_columns() -> None:
     (here 6 columns from 5 variants of different masses, one taken twice): column k equals, bitwise,
     column ``spread[k]`` of the reference run in the caller's order; no error estimate was asked (NaN)."""
     axes = {"nodes.a.mass": [8.0, 1.0, 4.0, 2.0, 6.0]}
-    ref, batch, plan = run_model(_one_d_materials(False), kernel="reference", variants=axes)
+    ref, batch, plan = run_model(one_d_materials(False), kernel="reference", variants=axes)
     assert not np.all(np.diff(batch.n_steps) >= 0), "the variants are not in step-count order"
     spread = np.array([2, 0, 2, 4, 1, 3])
     got, estimate = entry.run_ordered(batch, plan.topology.histories, plan.n_out, spread, "generic")

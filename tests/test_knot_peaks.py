@@ -18,46 +18,23 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
-from conftest import model_plan, run_model
 from crashstudy.arrays.batch import build_batch
-
-# A curve whose |force| has a local maximum of 1500 N at the knot x = -0.01 m (and, mirrored, at +0.01):
-# from there the force falls to 1000 N (crush) or 500 N (elastic, general) over the next 0.09 m.
-PEAK_Y = 1500.0  # N
-MASS = 10.0  # kg
-CURVES = {
-    "crush": {"x": [-1.0, -0.1, -0.01, 0.0], "y": [-2000.0, -1000.0, -PEAK_Y, 0.0]},
-    "elastic": {"x": [-0.1, -0.01, 0.0, 0.01, 0.1], "y": [-500.0, -PEAK_Y, 0.0, PEAK_Y, 500.0]},
-    "steep": {"x": [-0.01, 0.0, 0.01], "y": [-1.0e5, 0.0, 1.0e5]},
-}
-MATERIALS = {
-    "crush": {"type": "crush", "loading": "crush", "unloading_stiffness": 1.0e6},
-    "nonlinear_elastic": {"type": "nonlinear_elastic", "curve": "elastic"},
-    # yields at -1000 N on the first segment, then crushes on over the knot (mode -1 loading path)
-    "general_nonlinear": {"type": "general_nonlinear", "loading": "elastic", "unloading": "steep",
-                          "compression_yield": -1000.0},
-}  # fmt: skip
-
-
-def _one_mass(kind: str, dim: int = 1, dt: float = 2.5e-4) -> dict[str, Any]:
-    """A 10 kg mass at 1 m from a fixed node, moving toward it at 4 m/s on one spring of ``kind``.
-
-    The spring passes over the 1500 N knot while loading (at ~2.5 ms), turns at -0.064 / -0.073 m below
-    1300 N,
-    and (crush) separates. ``dim`` 2 puts the spring on the diagonal (0.6, 0.8). Fixed ``dt``; histories at
-    every step.
-    """
-    pos, vel = ([1.0], [-4.0]) if dim == 1 else ([0.6, 0.8], [-2.4, -3.2])
-    return {
-        "name": f"knot-{kind}-{dim}d",
-        "curves": CURVES,
-        "nodes": {"ground": {"position": [0.0] * dim, "fixed": True}, "body": {"position": pos, "mass": MASS}},
-        "springs": {"s": {"nodes": ["ground", "body"], "material": MATERIALS[kind]}},
-        "initial_velocity": {"body": vel},
-        "end_time": 0.06,
-        "time_step": {"dt": dt},
-        "output": {"interval": dt, "histories": ["spring_force", "spring_elongation"]},
-    }
+from helpers import model_plan, run_model
+from twins import (
+    CRUSH_REBOUND,
+    FRONT_X,
+    FRONT_Y,
+    K_BELT,
+    K_U,
+    M_B,
+    M_O,
+    MASS,
+    MATERIALS,
+    PEAK_Y,
+    T_END,
+    V0,
+    one_mass,
+)
 
 
 @pytest.mark.parametrize("dim", [1, 2])
@@ -72,7 +49,7 @@ def test_peak_at_a_knot_between_two_steps_is_the_knot_force(kind: str, dim: int,
     Measured: peak force error 0, deceleration error 0 .. 2e-16; sampled maxima 1491-1496 N (1.5e-4 m
     from the knot).
     """
-    out, _, _ = run_model(_one_mass(kind, dim), kernel=kernel)
+    out, _, _ = run_model(one_mass(kind, dim), kernel=kernel)
     assert out.status[0] == 0
     e = out.histories["spring_elongation"][:, 0, 0]
     f = out.histories["spring_force"][:, 0, 0]
@@ -136,28 +113,6 @@ def test_knot_flags_mark_the_local_maxima_of_the_curve_magnitude() -> None:
 # --------------------------------------------------------------------------------------------------
 # crush-rebound (benchmarks/wp_models.py) against an independent hybrid scipy solution
 # --------------------------------------------------------------------------------------------------
-
-FRONT_X = [-0.9, -0.7, -0.05, -0.01, 0.0]  # m
-FRONT_Y = [-2.0e6, -3.5e5, -2.5e5, -3.2e5, 0.0]  # N
-M_B, M_O, K_BELT, K_U, V0, T_END = 1200.0, 80.0, 1.5e5, 4.0e7, 15.0, 0.15
-CRUSH_REBOUND: dict[str, Any] = {
-    "name": "crush-rebound",
-    "curves": {"front": {"x": FRONT_X, "y": FRONT_Y}},
-    "nodes": {
-        "barrier": {"position": [0.0], "fixed": True},
-        "body": {"position": [0.8], "mass": M_B},
-        "occupant": {"position": [1.6], "mass": M_O},
-    },
-    "springs": {
-        "front": {"nodes": ["barrier", "body"],
-                  "material": {"type": "crush", "loading": "front", "unloading_stiffness": K_U}},
-        "belt": {"nodes": ["body", "occupant"], "material": {"type": "linear_elastic", "stiffness": K_BELT}},
-    },  # fmt: skip
-    "initial_velocity": {"body": [-V0], "occupant": [-V0]},
-    "end_time": T_END,
-    "output": {"interval": T_END, "histories": "none"},
-}
-
 
 def _front_load(e: float) -> float:
     return min(0.0, float(np.interp(e, FRONT_X, FRONT_Y)))
@@ -276,15 +231,3 @@ def test_knot_peak_deceleration_of_crush_rebound_converges_at_second_order() -> 
         errs.append(abs(out.peak_acceleration[1, 0] / truth["peak_deceleration"][0] - 1.0))
     slope = np.polyfit(np.log(sfs), np.log(errs), 1)[0]
     assert 1.8 <= slope <= 3.0, f"errors {errs}, slope {slope:.2f}"
-
-
-# --------------------------------------------------------------------------------------------------
-# knot-crossing cases (the bitwise twins of both fast kernels: test_kernel_twins)
-# --------------------------------------------------------------------------------------------------
-
-TWINS = {
-    "crush-rebound": (dict(CRUSH_REBOUND, time_step={"tolerance": 1e-3}, output={"interval": 1e-3}),
-                      "nodes.body.mass", [900.0, 1100.0, 1200.0, 1300.0, 1500.0]),
-    "general-2d": (_one_mass("general_nonlinear", dim=2, dt=4e-4), "nodes.body.mass", [6.0, 8.0, 10.0, 12.0, 14.0]),
-    "elastic-1d": (_one_mass("nonlinear_elastic", dim=1, dt=4e-4), "nodes.body.mass", [6.0, 8.0, 10.0, 12.0, 14.0]),
-}  # fmt: skip

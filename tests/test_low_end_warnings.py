@@ -16,11 +16,8 @@ from pathlib import Path
 
 import pytest
 
-try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
-    from test_properties import run_main
-except ImportError:  # ... or as a package
-    from tests.test_properties import run_main  # type: ignore[no-redef]
 from crashstudy.schema.plausible import first_period, peak_g_warnings
+from helpers import run_main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -83,15 +80,65 @@ def test_a_slow_impact_velocity_axis_value_warns_naming_the_axis(tmp_path: Path)
 
 
 def test_a_body_below_1_g_at_a_plausible_speed_names_forces_or_masses() -> None:
-    from crashstudy.schema import validate_model_data
-    from crashstudy.schema.yamlio import loads_yaml
-
-    m, _ = validate_model_data(loads_yaml(SLOW.replace("[-15.6]", "[-15600.0]")).data)
-    assert m is not None
-    got = peak_g_warnings("mm-s-t-N", "m1", 0.5, 3, m)
+    speeds = [15600.0]  # mm/s: 15.6 m/s, a plausible crash speed
+    got = peak_g_warnings("mm-s-t-N", "m1", 0.5, 3, speeds)
     assert len(got) == 1 and "0.5 g of node 'm1'" in got[0] and "forces too small or masses too large" in got[0]
-    assert peak_g_warnings("mm-s-t-N", "m1", 1.5, 3, m) == []
-    assert peak_g_warnings("mm-s-t-N", "m1", 0.5, 3) == []  # no model: nothing known about the cause
+    assert peak_g_warnings("mm-s-t-N", "m1", 1.5, 3, speeds) == []
+    assert peak_g_warnings("mm-s-t-N", "m1", 0.5, 3) == []  # no speeds: nothing known about the cause
+    assert peak_g_warnings("mm-s-t-N", "m1", 0.5, 3, speeds, prescribed=True) == []  # driven: not a crash pulse
+
+
+BODIES = """\
+name: bodies
+units: SI
+nodes:
+  base: {position: [0.0, 0.0], fixed: true}
+  rail: {position: [0.0, 1.0], mass: 5000.0, fixed: [x]}
+  body: {position: [1.0, 0.0], mass: 1000.0}
+  tip: {position: [2.0, 0.0], mass: 10.0}
+  cart: {position: [3.0, 0.0], mass: 3000.0}
+springs:
+  s1: {nodes: [base, body], material: {type: linear_elastic, stiffness: 1.0e5}}
+  s2: {nodes: [body, tip], material: {type: linear_elastic, stiffness: 1.0e5}}
+  s3: {nodes: [base, rail], material: {type: linear_elastic, stiffness: 1.0e5}}
+  s4: {nodes: [tip, cart], material: {type: linear_elastic, stiffness: 1.0e5}}
+prescribed_motion:
+  - {node: cart, quantity: velocity, direction: x, curve: v}
+curves:
+  v: {x: [0.0, 1.0], y: [0.0, 0.0]}
+initial_velocity: {body: [-3.0, 4.0], tip: [1.0, 0.0]}
+end_time: 0.01
+output: {histories: none}
+"""
+
+
+def test_results_carry_the_body_node_and_the_warning_after_a_run_reads_it_not_the_yaml(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    """The body is the heaviest node fixed in no direction and not driven: not the partly fixed 5 t rail,
+    not the driven 3 t cart, but the 1 t body; the initial speeds are |(-3, 4)| = 5 and 1. The check after
+    ``simulate`` takes them from the results' ``body`` attribute, never re-validating the stored YAML."""
+    import json
+
+    from crashstudy.cli import main as cli_main
+    from crashstudy.results.attributes import body_facts
+    from crashstudy.results.store import open_results
+
+    assert body_facts(_plan(BODIES)) == {"node": "body", "initial_speeds": [5.0, 1.0], "prescribed_motion": True}
+    (tmp_path / "slow.yaml").write_text(SLOW, encoding="utf-8")
+    assert run("simulate", str(tmp_path / "slow.yaml"), "-o", str(tmp_path / "out"))[0] == 0
+    res = open_results(tmp_path / "out")
+    assert json.loads(res.dataset.attrs["body"]) == {"node": "m1", "initial_speeds": [15.6],
+                                                     "prescribed_motion": False}  # fmt: skip
+
+    def refuse(*a: object, **k: object) -> None:
+        raise AssertionError("the stored model was validated again")
+
+    monkeypatch.setattr("crashstudy.schema.validate_model_data", refuse)
+    said: list[str] = []
+    monkeypatch.setattr(cli_main, "_warn", said.extend)
+    cli_main._after_run(res)  # 0.26 g: the low-g warning names the stored 15.6 mm/s as the likely cause
+    res.close()
+    assert len(said) == 1 and "of node 'm1'" in said[0] and "likely cause: its initial velocity 15.6 mm/s" in said[0]
 
 
 TWO_DOF = """\
@@ -111,10 +158,8 @@ output: {{histories: none}}
 
 
 def _plan(text: str):  # type: ignore[no-untyped-def]
-    try:
-        from conftest import model_plan
-    except ImportError:
-        from tests.conftest import model_plan  # type: ignore[no-redef]
+    from helpers import model_plan
+
     return model_plan(text)
 
 

@@ -23,10 +23,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
-    from conftest import run_model
-except ImportError:  # ... or as a package
-    from tests.conftest import run_model  # type: ignore[no-redef]
+from helpers import run_model
 
 ORACLE_RTOL = 1e-9  # oracle vs kernel, relative to the peak |force|
 KERNEL_RTOL = 1e-12  # compiled vs reference kernel, relative to the peak

@@ -219,23 +219,23 @@ RECORD_CASES = ["full-twin-1d-all-materials", "full-twin-2d-mixed-prescribed", "
                 "2d-crushed-to-zero", "early-termination", "frontal-lane-compaction"]
 
 
-@pytest.mark.parametrize("kernel", ["generic", "generated"])
 @pytest.mark.parametrize("case", RECORD_CASES)
-def test_fast_kernels_record_every_step_bitwise_as_the_reference(case: str, kernel: str) -> None:
+def test_fast_kernels_record_every_step_bitwise_as_the_reference(case: str) -> None:
     """The per-step acceleration record of every movable node (and every other output) of both fast
     kernels equals the reference's bit for bit: prescribed displacement / velocity / acceleration,
     loads, gravity, walls, a variant crushed to zero length (record zero from its failure step), early
-    termination and lane compaction (tests/test_kernel_twins.py's cases)."""
-    from conftest import record_case
+    termination and lane compaction (tests/test_kernel_twins.py's cases). One reference run serves both."""
     from crashstudy.kernel.entry import run_batch
-    from test_generated import assert_bitwise
+    from helpers import output_differences
+    from twins import record_case
 
     batch, plan, record = record_case(case)
     topo = plan.topology
     ref = run_batch(batch, topo.histories, plan.n_out, "reference", record=record)
-    got = run_batch(batch, topo.histories, plan.n_out, kernel, record=record)
     assert ref.step_acceleration is not None and np.any(ref.step_acceleration != 0.0)
-    assert_bitwise(ref, got)
+    for kernel in ("generic", "generated"):
+        got = run_batch(batch, topo.histories, plan.n_out, kernel, record=record)
+        assert output_differences(ref, got) == [], kernel
 
 
 def test_step_record_is_the_acceleration_history_at_its_samples(tmp_path: Path) -> None:
@@ -449,26 +449,27 @@ def test_block_record_with_k_1_is_the_every_step_record_bit_for_bit(tmp_path: Pa
 
 @pytest.mark.parametrize("case", ["full-twin-2d-mixed-prescribed", "early-termination", "frontal-lane-compaction",
                                   "2d-crushed-to-zero"])  # fmt: skip
-@pytest.mark.parametrize("kernel", ["generic", "generated"])
-def test_block_record_is_bitwise_the_references_on_the_fast_kernels(kernel: str, case: str) -> None:
+def test_block_record_is_bitwise_the_references_on_the_fast_kernels(case: str) -> None:
     """Blocks of 1, 3, 5 and 7 steps mixed over the variants (lanes compacted, variants ending early or
-    failing): every kernel adds a^n into the same rows in step order, so the sums are equal bit for bit."""
+    failing): every kernel adds a^n into the same rows in step order, so the sums are equal bit for bit
+    (both fast kernels against one reference run)."""
     from dataclasses import replace
 
-    from conftest import record_case
     from crashstudy.kernel.entry import run_batch
     from crashstudy.kernel.output import block_rows
-    from test_generated import assert_bitwise
+    from helpers import output_differences
+    from twins import record_case
 
     batch, plan, record = record_case(case)
     topo = plan.topology
     batch = replace(batch, rec_block=np.resize(np.array([1, 3, 5, 7]), batch.n_variants))
     ref = run_batch(batch, topo.histories, plan.n_out, "reference", record=record)
-    got = run_batch(batch, topo.histories, plan.n_out, kernel, record=record)
     assert ref.step_acceleration is not None and np.any(ref.step_acceleration != 0.0)
     seven = batch.rec_block == 7  # blocks, not every step: nothing past the last block's row
     assert np.all(ref.step_acceleration[int(np.max(block_rows(batch.n_steps[seven], 7))) :, ..., seven] == 0.0)
-    assert_bitwise(ref, got)
+    for kernel in ("generic", "generated"):
+        got = run_batch(batch, topo.histories, plan.n_out, kernel, record=record)
+        assert output_differences(ref, got) == [], kernel
 
 
 def test_record_blocks_are_odd_and_keep_the_record_rate() -> None:

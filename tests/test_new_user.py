@@ -29,7 +29,7 @@ import crashstudy
 from crashstudy.analysis.compare import compare
 from crashstudy.cli.main import _parser, main
 from crashstudy.errors import InputError
-from test_study import MODEL  # noqa: E402 - the two-spring crush model of the study tests
+from models import TWO_SPRING_CRUSH as MODEL  # noqa: E402 - the two-spring crush model of the study tests
 
 K_FRONT = 5.0e6 + 2.0e6  # N/m: springs at the front node (crush unloading + body)
 RTOL = 1e-12

@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import LINEAR_SPRING, noisy_spring_force
 from crashstudy.analysis.optimization import INFEASIBLE, scores
 from crashstudy.cli.main import main
+from helpers import LINEAR_SPRING, noisy_spring_force
 
 CRUSH = """\
 name: crush-stop

@@ -12,14 +12,13 @@ shrink the step and the test would no longer check the step that the default tol
 
 from __future__ import annotations
 
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
-from conftest import STUDIES, run_cli, run_model
+from helpers import STUDIES, run_cli, run_model
 from reference_scipy import solve_reference
 
 G = 9.80665  # m/s^2
@@ -483,143 +482,8 @@ def test_example_model_runs_with_energy_error_below_1e_3(path: Path) -> None:
 # 9. Reference kernel == compiled kernel
 # --------------------------------------------------------------------------------------------------
 
-TWIN_1D: dict[str, Any] = {  # crush, linear + damper, nonlinear, general_nonlinear; wall, gravity, load, pm
-    "name": "twin-1d",
-    "curves": {
-        "plateau": {"x": [-1.0, -0.002, 0.0], "y": [-3000.0, -3000.0, 0.0]},
-        "soft": {"x": [-0.1, -0.01, 0.0, 0.01, 0.1], "y": [-4000.0, -500.0, 0.0, 500.0, 4000.0]},
-        "gn-load": {"x": [-0.5, -0.005, 0.0, 0.005, 0.5], "y": [-2500.0, -1500.0, 0.0, 1500.0, 2500.0]},
-        "gn-unload": {"x": [-0.01, 0.0, 0.01], "y": [-3000.0, 0.0, 3000.0]},
-        "pulse": {"x": [0.0, 0.01, 0.03], "y": [0.0, 1.0, 0.0]},
-        "pull": {"x": [0.0, 0.2], "y": [-1.0, -1.0]},
-    },
-    "nodes": {
-        "ground": {"position": [0.0], "fixed": True},
-        "a": {"position": [0.5], "mass": 4.0},
-        "b": {"position": [1.0], "mass": 3.0},
-        "c": {"position": [1.5], "mass": 2.0},
-        "driver": {"position": [2.0], "mass": 1.0},
-    },
-    "springs": {
-        "crush": {"nodes": ["ground", "a"],
-                  "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": 2.0e6}},
-        "link": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 2.0e5}},
-        "dash": {"nodes": ["a", "b"], "material": {"type": "damper", "damping": 150.0}},
-        "rubber": {"nodes": ["b", "c"], "material": {"type": "nonlinear_elastic", "curve": "soft"}},
-        "yielding": {"nodes": ["c", "driver"],
-                     "material": {"type": "general_nonlinear", "loading": "gn-load", "unloading": "gn-unload",
-                                  "tension_yield": 1500.0, "compression_yield": -1500.0}},
-    },
-    "initial_velocity": {"a": [-6.0], "b": [-6.0], "c": [-6.0], "driver": [-2.0]},
-    "gravity": [-G],
-    "loads": [{"node": "b", "force": [-800.0], "curve": "pulse"}],
-    "prescribed_motion": [{"node": "driver", "quantity": "velocity", "direction": "x", "curve": "pull", "scale": 2.0}],
-    "rigid_walls": [{"id": "stop", "point": [0.47], "normal": [1.0], "nodes": ["a"]}],
-    "end_time": 0.06,
-    "output": {"interval": 5.0e-4},
-}  # fmt: skip
-
-TWIN_2D_HELI: dict[str, Any] = {  # helicopter-like, 2 general_nonlinear, sliding onto a floor, gravity, load
-    "name": "twin-2d-heli",
-    "curves": {
-        "uf-load": {"x": [-0.5, -0.223, -0.045, -0.009, 0.0, 10.0],
-                    "y": [-76000.0, -57200.0, -70000.0, -40000.0, 0.0, 5000.0]},
-        "uf-unload": {"x": [-0.009, 0.0, 0.009], "y": [-40000.0, 0.0, 40000.0]},
-        "cab-load": {"x": [-0.3, -0.27, -0.225, -0.01, 0.0], "y": [-1.0e6, -5.0e5, -1.5e5, -1.5e5, 0.0]},
-        "cab-unload": {"x": [-0.006, 0.0, 0.006], "y": [-1.7e5, 0.0, 1.7e5]},
-        "gust": {"x": [0.0, 0.02, 0.04], "y": [0.0, 1.0, 0.0]},
-    },
-    "nodes": {
-        "ground": {"position": [0.0, 0.0], "fixed": True},
-        "transmission": {"position": [0.02, 0.3], "mass": 100.0},
-        "cabin": {"position": [0.0, 0.9], "mass": 300.0},
-    },
-    "springs": {
-        "underfloor": {"nodes": ["ground", "transmission"],
-                       "material": {"type": "general_nonlinear", "loading": "uf-load", "unloading": "uf-unload",
-                                    "tension_yield": 5000.0, "compression_yield": -40000.0}},
-        "cabin": {"nodes": ["transmission", "cabin"],
-                  "material": {"type": "general_nonlinear", "loading": "cab-load", "unloading": "cab-unload",
-                               "compression_yield": -150000.0}},
-    },
-    "initial_velocity": {"transmission": [0.5, -8.2], "cabin": [0.0, -8.2]},
-    "gravity": [0.0, -G],
-    "loads": [{"node": "cabin", "force": [2000.0, -5000.0], "curve": "gust"}],
-    "rigid_walls": [{"id": "floor", "point": [0.0, 0.1], "normal": [0.0, 1.0], "nodes": ["transmission"]}],
-    "end_time": 0.12,
-    "output": {"interval": 1.0e-3},
-}  # fmt: skip
-
-TWIN_2D_MIXED: dict[str, Any] = {  # crush, damper, linear, nonlinear; displacement + acceleration pm; inclined wall
-    "name": "twin-2d-mixed",
-    "curves": {
-        "crumple": {"x": [-1.0, -0.05, -0.005, 0.0], "y": [-9000.0, -4000.0, -5000.0, 0.0]},
-        "bushing": {"x": [-0.02, 0.0, 0.02], "y": [-3000.0, 0.0, 1500.0]},
-        "push": {"x": [0.0, 0.05, 0.1], "y": [0.0, -0.03, -0.02]},
-        "shake": {"x": [0.0, 0.02, 0.04, 0.1], "y": [0.0, 50.0, -50.0, 0.0]},
-    },
-    "nodes": {
-        "base": {"position": [0.0, 0.0], "fixed": True},
-        "ram": {"position": [0.0, 0.4], "mass": 2.0, "fixed": ["x"]},
-        "bob": {"position": [0.3, 0.5], "mass": 1.5},
-        "tip": {"position": [0.6, 0.3], "mass": 1.0},
-        "shaker": {"position": [0.6, 0.0], "mass": 0.5},
-    },
-    "springs": {
-        "crumple": {"nodes": ["base", "bob"],
-                    "material": {"type": "crush", "loading": "crumple", "unloading_stiffness": 4.0e5}},
-        "dash": {"nodes": ["ram", "bob"], "material": {"type": "damper", "damping": 40.0}},
-        "strut": {"nodes": ["ram", "bob"], "material": {"type": "linear_elastic", "stiffness": 5.0e4}},
-        "bushing": {"nodes": ["bob", "tip"], "material": {"type": "nonlinear_elastic", "curve": "bushing"}},
-        "arm": {"nodes": ["tip", "shaker"], "material": {"type": "linear_elastic", "stiffness": 2.0e4}},
-    },
-    "initial_velocity": {"bob": [-2.0, -3.0], "tip": [1.0, -1.0]},
-    "gravity": [0.0, -G],
-    "prescribed_motion": [
-        {"node": "ram", "quantity": "displacement", "direction": "y", "curve": "push", "scale": 1.0},
-        {"node": "shaker", "quantity": "acceleration", "direction": "x", "curve": "shake", "scale": 1.0},
-    ],
-    "rigid_walls": [{"id": "slope", "point": [0.6, 0.297], "normal": [-0.3, 1.0], "nodes": ["tip"]}],
-    "end_time": 0.1,
-    "output": {"interval": 1.0e-3},
-}  # fmt: skip
-
-TWINS = {
-    "1d-all-materials": (TWIN_1D, "nodes.a.mass", [1.0, 2.0, 4.0, 6.0, 8.0]),
-    "2d-helicopter-wall": (TWIN_2D_HELI, "nodes.cabin.mass", [200.0, 250.0, 300.0, 350.0, 400.0]),
-    "2d-mixed-prescribed": (TWIN_2D_MIXED, "nodes.bob.mass", [0.5, 1.0, 1.5, 2.0, 3.0]),
-}
-
-
-def _assert_twin(name: str, ref: np.ndarray | None, got: np.ndarray | None) -> None:
-    if ref is None and got is None:  # an optional output neither kernel was asked for
-        return
-    ref, got = np.asarray(ref), np.asarray(got)
-    assert ref.shape == got.shape, name
-    same_nan = np.isnan(ref) == np.isnan(got) if ref.dtype.kind == "f" else np.ones(ref.shape, bool)
-    assert same_nan.all(), f"{name}: NaN at different places"
-    r, g = np.nan_to_num(ref), np.nan_to_num(got)
-    scale = np.maximum(np.abs(r), np.abs(g))
-    bad = np.abs(r - g) > 1e-12 * scale
-    assert not bad.any(), f"{name}: {int(bad.sum())} entries differ by more than 1e-12 relative"
-
-
-@pytest.mark.parametrize("case", list(TWINS))
-def test_reference_and_compiled_kernels_agree_on_every_output(case: str) -> None:
-    """Every summary array and every history of the NumPy reference kernel equals the numba kernel's to
-    1e-12 relative, over a batch of 5 variants with different masses. Measured: bitwise identical."""
-    model, path, values = TWINS[case]
-    compiled, batch, _ = run_model(model, kernel="generic", variants={path: values})
-    reference, _, _ = run_model(model, kernel="reference", variants={path: values})
-    assert np.unique(batch.mass, axis=1).shape[1] == len(values), "5 different variants"
-    assert np.all(compiled.status == 0)
-    for f in fields(compiled):
-        if f.name != "histories":
-            _assert_twin(f.name, getattr(reference, f.name), getattr(compiled, f.name))
-    assert set(reference.histories) == set(compiled.histories)
-    assert "wall_energy" in compiled.histories and np.nanmax(compiled.histories["wall_energy"]) > 0
-    for name in compiled.histories:
-        _assert_twin(name, reference.histories[name], compiled.histories[name])
+# The NumPy reference kernel against the compiled ones on three full models (every material, walls,
+# gravity, loads, prescribed motion; tests/twins.py TWINS): tests/test_kernel_twins.py, bit for bit.
 
 
 # --------------------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from conftest import run_cli
+from helpers import run_cli
 
 MODEL = {"name": "link-probe", "units": "SI",
          "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},

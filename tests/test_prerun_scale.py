@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from conftest import LINEAR_SPRING
 from crashstudy.study.plan import load_study
 from crashstudy.study.sanity import _axis_changes_model, check_plan
+from helpers import LINEAR_SPRING
 
 MODEL = LINEAR_SPRING.replace("end_time: 0.1", "end_time: 0.05") + "output: {histories: none}\n"
 

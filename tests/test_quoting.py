@@ -7,7 +7,7 @@ from pathlib import Path
 
 import yaml
 
-from conftest import run_cli
+from helpers import run_cli
 
 SECRET = "s3cr3t-token-do-not-print"
 

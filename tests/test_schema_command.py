@@ -8,9 +8,9 @@ import json
 import jsonschema
 import pytest
 
-from conftest import STUDIES
 from crashstudy.cli.main import main
 from crashstudy.schema.yamlio import load_yaml
+from helpers import STUDIES
 
 
 def _schema(kind: str, capsys: pytest.CaptureFixture[str]) -> dict:

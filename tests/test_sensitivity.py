@@ -17,7 +17,7 @@ from scipy import stats
 from crashstudy.analysis.sensitivity import exceedance, indices, over_time
 from crashstudy.cli.main import main
 from crashstudy.study.design import unit_rows
-from test_design import MODEL as DROP
+from models import DROP
 
 
 def _frame(method: str, n: int, y_of: Any, d: int = 3) -> tuple[pd.DataFrame, dict[str, Any]]:

@@ -21,7 +21,6 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import model_plan, run_model
 from crashstudy.arrays.compiler import apply_axis
 from crashstudy.arrays.parameter_checks import check_parameters
 from crashstudy.cli.main import main
@@ -29,6 +28,7 @@ from crashstudy.errors import InputError
 from crashstudy.kernel import choice, generated
 from crashstudy.schema import parse_model
 from crashstudy.schema.yamlio import loads_yaml
+from helpers import model_plan, run_model
 
 
 def _one_spring(material: dict[str, Any], mass: float, v0: float = 0.0, dim: int = 1, end_time: float = 0.1,
@@ -436,7 +436,7 @@ def test_a_spring_only_in_tension_has_a_max_crush_of_plus_zero(kernel: str) -> N
     """A spring stretched from its rest length (x = sin(10 t) / 10, up to t = 0.1 s) never shortens:
     max_crush is +0.0 on every kernel (the reference's np.maximum(0.0, -0.0) gave -0.0, printed "-0.0"),
     max_elongation sin(1) / 10 (closed form, 1e-3)."""
-    from test_generated import same_bits
+    from helpers import same_bits
 
     out, _, _ = run_model(PULL, kernel=kernel)
     assert same_bits(out.max_crush, np.zeros_like(out.max_crush))
@@ -452,10 +452,10 @@ def test_results_files_hold_no_negative_zero(tmp_path: Path, monkeypatch: pytest
     from crashstudy.run.runner import run_chunk, simulate
     from crashstudy.schema import load_model
     from crashstudy.study.plan import plan_from_model
-    from test_kernel_twins import _one_d_materials
+    from twins import one_d_materials
 
     path = tmp_path / "m.yaml"
-    path.write_text(yaml.safe_dump(_one_d_materials(False)))
+    path.write_text(yaml.safe_dump(one_d_materials(False)))
     monkeypatch.setenv("CRASHSTUDY_KERNEL", "reference")
     acc = run_chunk(plan_from_model(load_model(str(path))), 0, 1).out.histories["acceleration"]  # what the run below computes
     assert np.any((acc == 0.0) & np.signbit(acc))  # the case has what the files must not show

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -28,14 +27,12 @@ import pytest
 import yaml
 from scipy.linalg import eigvalsh_tridiagonal
 
-from conftest import STUDIES
 from crashstudy.arrays.batch import build_batch
 from crashstudy.arrays.compiler import apply_axis
 from crashstudy.arrays.timestep import CRITICAL_MARGIN
-from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
-from crashstudy.schema import parse_model
-from crashstudy.schema.yamlio import LoadedYaml, load_yaml
-from crashstudy.study.plan import Plan, plan_from_model
+from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE
+from crashstudy.schema.yamlio import load_yaml
+from helpers import STUDIES, model_plan, output_differences, run_model
 
 FRONTAL = STUDIES / "models" / "frontal-9mass.yaml"
 HELICOPTER = STUDIES / "models" / "helicopter-subfloor.yaml"
@@ -45,28 +42,6 @@ SPEEDS = [6.0, 8.2, 10.0, 20.0, 50.0, 100.0]  # m/s; the underfloor bottoms out 
 # --------------------------------------------------------------------------------------------------
 # model builders (also used by benchmarks/stress.py)
 # --------------------------------------------------------------------------------------------------
-
-
-def model_plan(model: dict[str, Any]) -> Plan:
-    """A one-variant plan of a model dict, validated like a file (conftest's helper goes through YAML
-    text, which takes seconds for a 1000-node chain)."""
-    return plan_from_model(parse_model(LoadedYaml(model, "", f"<{model['name']}>", {})))
-
-
-def run_model(
-    model: dict[str, Any], kernel: str = "compiled", variants: dict[str, list[float]] | None = None
-):
-    """conftest.run_model for a model dict: (KernelOutput, batch, plan)."""
-    from crashstudy.run.runner import run_kernel
-
-    plan = model_plan(model)
-    topo = plan.topology
-    n = len(next(iter(variants.values()))) if variants else 1
-    P = np.repeat(plan.base[:, None], n, axis=1)
-    for path, vals in (variants or {}).items():
-        apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
-    batch, _ = build_batch(topo, P, plan.interval)
-    return run_kernel(batch, topo.histories, plan.n_out, kernel), batch, plan
 
 
 def critical(model: dict[str, Any]) -> tuple[float, str, str]:
@@ -294,24 +269,6 @@ def forced_batch(scale: float, n_variants: int = 4, bad: int = 1):
     batch, steps = build_batch(topo, P, plan.interval)
     batch.dt[bad] = scale * steps.dt_crit[bad]
     return batch, steps, plan
-
-
-def outputs_equal(a: KernelOutput, ia: int, b: KernelOutput, ib: int) -> list[str]:
-    """Names of the KernelOutput fields where variant ``ia`` of ``a`` and ``ib`` of ``b`` differ (bitwise)."""
-    diff = []
-    for f in fields(KernelOutput):
-        if f.name == "histories":
-            for h in a.histories:
-                if not np.array_equal(a.histories[h][..., ia], b.histories[h][..., ib], equal_nan=True):
-                    diff.append(h)
-        elif getattr(a, f.name) is None or getattr(b, f.name) is None:  # optional (metrics) outputs
-            if (getattr(a, f.name) is None) != (getattr(b, f.name) is None):
-                diff.append(f.name)
-        else:
-            x, y = getattr(a, f.name)[..., ia], getattr(b, f.name)[..., ib]
-            if not np.array_equal(x, y, equal_nan=np.issubdtype(np.asarray(x).dtype, np.floating)):
-                diff.append(f.name)
-    return diff
 
 
 # --------------------------------------------------------------------------------------------------
@@ -570,25 +527,26 @@ def test_fixed_dt_above_critical_refuses_only_the_light_variants_of_a_study(tmp_
     assert np.all(res.dt[2:] == pytest.approx(1.0e-3))
 
 
-@pytest.mark.filterwarnings(
-    "ignore:overflow encountered:RuntimeWarning"
-)  # the NumPy kernel on the way to inf
-@pytest.mark.parametrize("kernel", ["generic", "reference"])
-def test_instability_forced_by_hand_fails_that_variant_only(kernel: str) -> None:
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # the NumPy kernel on the way to inf
+def test_instability_forced_by_hand_fails_that_variant_only() -> None:
     """One variant of four gets dt = 3 x dt_crit by hand (omega_max dt about 4.4): status UNSTABLE at a finite
-    time, NaN histories after it; the three others are bitwise equal to running each alone."""
+    time, NaN histories after it; the three others are bitwise equal to running each alone, on every kernel;
+    both fast kernels bitwise equal to the reference."""
     from crashstudy.run.runner import run_kernel
 
     batch, steps, plan = forced_batch(3.0)
-    out = run_kernel(batch, plan.topology.histories, plan.n_out, kernel)
-    assert list(out.status) == [0, UNSTABLE, 0, 0]
-    assert np.isfinite(out.fail_time[1]) and 0 < out.fail_time[1] < batch.n_steps[1] * batch.dt[1]
-    k_fail = int(np.ceil(out.fail_time[1] / plan.interval))
-    assert np.all(np.isnan(out.histories["position"][k_fail + 1 :, :, :, 1]))
-    for k in (0, 2, 3):
-        alone = run_kernel(batch.take(np.array([k])), plan.topology.histories, plan.n_out, kernel)
-        assert alone.status[0] == 0
-        assert outputs_equal(out, k, alone, 0) == [], f"variant {k} differs from its run alone"
+    ref = run_kernel(batch, plan.topology.histories, plan.n_out, "reference")
+    for kernel in ("reference", "generic", "generated"):
+        out = run_kernel(batch, plan.topology.histories, plan.n_out, kernel)
+        assert list(out.status) == [0, UNSTABLE, 0, 0], kernel
+        assert np.isfinite(out.fail_time[1]) and 0 < out.fail_time[1] < batch.n_steps[1] * batch.dt[1]
+        k_fail = int(np.ceil(out.fail_time[1] / plan.interval))
+        assert np.all(np.isnan(out.histories["position"][k_fail + 1 :, :, :, 1]))
+        assert output_differences(ref, out) == [], kernel
+        for k in (0, 2, 3):
+            alone = run_kernel(batch.take(np.array([k])), plan.topology.histories, plan.n_out, kernel)
+            assert alone.status[0] == 0
+            assert output_differences(out, alone, k, 0) == [], f"{kernel}: variant {k} differs from its run alone"
 
 
 def test_instability_forced_by_hand_is_reported_by_the_runner_with_its_reason(
@@ -623,7 +581,7 @@ def test_instability_forced_by_hand_is_reported_by_the_runner_with_its_reason(
     assert m, res.reasons[2]
     assert float(m.group(2)) == pytest.approx(res.dt_crit[2], rel=1e-5)
     for k in (0, 1, 3):
-        assert res.reasons[k] == "" and outputs_equal(res.out, k, clean.out, k) == []
+        assert res.reasons[k] == "" and output_differences(res.out, clean.out, k, k) == []
 
 
 def test_finite_blow_up_is_not_reported_ok() -> None:

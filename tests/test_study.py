@@ -38,28 +38,9 @@ from crashstudy.cli.main import main
 from crashstudy.errors import InputError
 from crashstudy.run.runner import run_plan, simulate
 from crashstudy.study.plan import load_study
+from models import TWO_SPRING_CRUSH as MODEL
 
 RTOL = 1e-12  # "to round-off": a study variant against the same model run alone
-
-MODEL: dict[str, Any] = {
-    "name": "two-spring-crush",
-    "description": "1-D frontal impact: crush spring against a wall, body mass behind a linear spring.",
-    "units": "SI",
-    "curves": {"crush-loading": {"x": [-0.2, -0.02, 0.0], "y": [-60000.0, -40000.0, 0.0]}},
-    "nodes": {
-        "wall": {"position": [0.0], "fixed": True},
-        "front": {"position": [0.3], "mass": 50.0},
-        "body": {"position": [0.9], "mass": 800.0},
-    },
-    "springs": {
-        "crush": {"nodes": ["wall", "front"],
-                  "material": {"type": "crush", "loading": "crush-loading", "unloading_stiffness": 5.0e6}},
-        "body": {"nodes": ["front", "body"], "material": {"type": "linear_elastic", "stiffness": 2.0e6}},
-    },
-    "initial_velocity": {"front": [-10.0], "body": [-10.0]},
-    "end_time": 0.02,
-    "output": {"interval": 2.0e-4},
-}  # fmt: skip
 
 # the 3 x 4 x 5 matrix crossed with a zip group of 2 (120 variants)
 MASSES = [600.0, 800.0, 1000.0]

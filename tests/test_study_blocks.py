@@ -12,10 +12,10 @@ from typing import Any
 import pytest
 import yaml
 
-from conftest import LINEAR_SPRING
 from crashstudy.cli.main import main
 from crashstudy.schema.study import Study
 from crashstudy.study.blocks import BLOCKS
+from helpers import LINEAR_SPRING
 
 MODEL = LINEAR_SPRING
 OPTIMIZE = {"minimize": "peak_deceleration_g.body", "constraints": ["max_crush.s <= 0.2"],

@@ -20,7 +20,7 @@ import pytest
 import yaml
 
 from crashstudy.cli.main import main
-from test_write_read import files, peak_force, snapshot
+from folders import files, peak_force, snapshot
 
 
 def limited() -> None:

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from conftest import run_model
+from helpers import run_model
 
 KERNELS = ["reference", "generic", "generated"]
 
@@ -170,7 +170,7 @@ def test_penalty_wall_stiffness_bounds_the_step() -> None:
     """One mass on a penalty wall is a mass on a spring: dt_crit = 0.99 x 2 / sqrt(k / m) = 1.98 ms for
     k = 1e6 N/m, m = 1 kg. A fixed dt of 2.5 ms is refused (invalid: above the critical step; before, the
     wall's stiffness did not enter the bound), 1.9 ms runs."""
-    from conftest import model_batch
+    from helpers import model_batch
 
     assert model_batch(_penalty(2.5e-3))[0].invalid[0] == 1
     assert model_batch(_penalty(1.9e-3))[0].invalid[0] == 0

@@ -18,11 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
-    from test_properties import run_main
-except ImportError:  # ... or as a package
-    from tests.test_properties import run_main  # type: ignore[no-redef]
 from crashstudy.schema.signs import depth_behind_walls, wrong_sign_points
+from helpers import run_main
 
 WALL_1D = """\
 name: wall1d

@@ -71,7 +71,3 @@ class InputError(Exception):
 
     def __str__(self) -> str:  # dataclass would otherwise print the repr
         return self.format()
-
-
-class VariantFailure(Exception):
-    """A variant could not be run (numerical failure); recorded per variant, never fatal for a study."""

@@ -13,8 +13,6 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-from crashstudy.kernel.codes import KernelName
-
 STOP = threading.Event()
 
 
@@ -33,14 +31,6 @@ def check() -> None:
 
 def reset() -> None:
     STOP.clear()
-
-
-def compile_first(kernel: KernelName, batch: Any, histories: tuple[str, ...], vary: frozenset[int] | None) -> None:
-    """Compile ``kernel`` for ``batch`` in a child process when it is not compiled yet, so that a stop
-    request kills the compile at once (:func:`crashstudy.kernel.entry.compile_first` polls :func:`check`)."""
-    from crashstudy.kernel.entry import compile_first as first
-
-    first(kernel, batch, histories, vary, check)
 
 
 class Stopped(KeyboardInterrupt):

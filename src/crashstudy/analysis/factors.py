@@ -41,8 +41,3 @@ def factor_name(paths: Sequence[str]) -> str:
         return paths[0]
     shown = ", ".join(paths[:2]) + (", ..." if len(paths) > 2 else "")
     return f"zip: {shown} ({len(paths)} paths)"
-
-
-def factor_of(path: str, groups: dict[str, list[str]]) -> str:
-    """The first path of the factor ``path`` belongs to (itself when it is in none)."""
-    return next((first for first, members in groups.items() if path in members), path)

@@ -46,7 +46,6 @@ from crashstudy.analysis.plot_style import (
 )
 from crashstudy.errors import InputError, Problem
 
-PlotKind = Literal["history", "force-displacement", "matrix", "pulse"]
 Aggregate = Literal["max", "mean", "min"]
 
 ITEMS_PER_FIGURE = 6  # subplots in one PNG written by ``crashstudy plot``

@@ -33,7 +33,6 @@ import pandas as pd
 
 from crashstudy.study.design import salib_problem, unit_rows
 
-METHODS = ("correlation", "sobol", "morris")
 Z95 = 1.959963984540054
 
 

@@ -33,7 +33,7 @@ def add_parsers(sub: Any) -> None:
 def exceed_text(dir_: str, column: str, limit: str) -> str:
     """``summary --exceed COLUMN LIMIT``: the exceedance probability of a column."""
     from crashstudy.analysis.sensitivity import exceedance, sample_caveat
-    from crashstudy.cli.main import _match_column
+    from crashstudy.cli.columns import match_column as _match_column
     from crashstudy.results.store import open_results
 
     value = _number("--exceed", limit)
@@ -67,7 +67,7 @@ def _number(option: str, text: str) -> float:
 
 def sensitivity(args: argparse.Namespace) -> int:
     from crashstudy.analysis.sensitivity import indices
-    from crashstudy.cli.main import _match_column
+    from crashstudy.cli.columns import match_column as _match_column
     from crashstudy.results.store import open_results
 
     res = open_results(args.dir)

@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from crashstudy import environment
+from crashstudy.cli.columns import arg_problem as _arg_problem
+from crashstudy.cli.columns import match_column as _match_column
 from crashstudy.errors import InputError
 from crashstudy.safefs import PlantedEntryError
 
@@ -212,25 +214,21 @@ def _checked(plan: Any) -> None:
 
 def _after_run(res: Any) -> None:
     """Warn when springs went past the ends of their curves, and when the peak deceleration of the
-    model's body mass contradicts the result's unit system."""
+    model's body mass contradicts the result's unit system (the body as the results store it: ``body``)."""
     from crashstudy.results.curve_ends import warnings_of
-    from crashstudy.schema import validate_model_data
-    from crashstudy.schema.plausible import body_node, peak_g_warnings
-    from crashstudy.schema.yamlio import loads_yaml
+    from crashstudy.schema.plausible import peak_g_warnings
 
     with res.raw_dataset as raw:  # no texts decoded, nothing of every variant in memory
         _warn(warnings_of(raw))
         attrs = dict(raw.attrs)
-    try:
-        m, _ = validate_model_data(loads_yaml(str(attrs.get("model_yaml", "")), "results.nc").data)
-    except InputError:
-        return
-    node = body_node(m) if m is not None else None
+    body = json.loads(str(attrs.get("body", "{}")))
+    node = body.get("node")
     if node is None:
         return
     peak = res.column_peak(f"peak_deceleration_g.{node}")
     if peak is not None:
-        _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, peak[0], peak[1], m))
+        _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, peak[0], peak[1], body.get("initial_speeds"),
+                              bool(body.get("prescribed_motion"))))  # fmt: skip
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -376,22 +374,6 @@ def _column_units(ds: Any, columns: list[str]) -> dict[str, str]:
     return out
 
 
-def _match_column(where: str, wanted: str, columns: list[str]) -> str:
-    """The column ``wanted`` names: itself, or the one column it is a part of."""
-    if wanted in columns:
-        return wanted
-    hits = [c for c in columns if wanted in c]
-    named = [c for c in hits if c.split(".", 1)[0] == wanted]  # "hic15": hic15.occupant, not hic15_t1.occupant
-    if len(hits) == 1 or len(named) == 1:
-        return hits[0] if len(hits) == 1 else named[0]
-    if hits:
-        raise InputError([_arg_problem(where, f"--sort {wanted!r} is ambiguous: it matches {hits}; name one")])
-    import difflib
-
-    close = difflib.get_close_matches(wanted, columns, 5)
-    raise InputError([_arg_problem(where, f"no column {wanted!r}; columns like it: {close or columns}")])
-
-
 def _print_variant(df: Any, units: dict[str, str], args: argparse.Namespace) -> int:
     rows = df[df["variant"] == args.variant]
     if rows.empty:
@@ -405,12 +387,6 @@ def _print_variant(df: Any, units: dict[str, str], args: argparse.Namespace) -> 
         text = f"{v:.6g}" if isinstance(v, float) else str(v)
         print(f"{labels[c]:<{w}}  {text}")
     return EXIT_OK
-
-
-def _arg_problem(where: str, msg: str) -> Any:
-    from crashstudy.errors import Problem
-
-    return Problem(where, None, "", msg)
 
 
 def _plot(args: argparse.Namespace) -> int:

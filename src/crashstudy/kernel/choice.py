@@ -11,8 +11,9 @@ cost model in seconds, measured on the 2-core reference machine (benchmarks/resu
 - generated (numba, one per model shape): compiled once per shape, :func:`generated_compile_seconds`
   (2.6-10 s for the example models, benchmarks/results/compile_costs.md), then ``GENERATED_RATE``
   element-steps/s;
-- the crash criteria (a model with ``metrics:``): compiled once per machine, ``CRITERIA_COMPILE`` s,
-  whatever kernel runs; a compile in the foreground does it beside the kernel's, on the other core.
+- a companion compile (:class:`Companion`: the crash criteria of a model with ``metrics:``,
+  :data:`crashstudy.metrics.warmup.CRITERIA`): compiled once per machine, whatever kernel runs; a compile
+  in the foreground does it beside the kernel's, on the other core.
 
 :func:`pick` takes, per chunk, the fastest kernel that is already compiled; the NumPy reference is
 always ready, so a tiny run never waits for a compiler. When a whole run would take the reference
@@ -40,7 +41,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
@@ -58,17 +59,38 @@ REF_ELEMENT_STEP = 0.1e-6  # [s] per element-step (spring x step x variant)
 GENERIC_RATE = 3.5e8  # [element-steps/s] generic kernel, 2 threads
 GENERATED_RATE = 1.0e9  # [element-steps/s] generated kernel, 2 threads
 GENERIC_COMPILE = 24.0  # [s] compiling the generic kernel (once per machine)
-CRITERIA_COMPILE = 7.0  # [s] compiling the crash criteria (once per machine)
 GEN_BASE, GEN_GENERAL, GEN_SPRING, GEN_WALL, GEN_RECORD = 2.0, 3.5, 0.4, 1.0, 1.0  # [s] generated_compile_seconds
 LOAD = 0.3  # [s] loading a compiled kernel from the disk cache (once per process)
 BACKGROUND_MIN = 2.0  # [s] of reference time of a run above which missing kernels compile in the background
 KERNELS = ("reference", "generic", "generated")
 LOCK_NAME = "compile.lock"  # held by the process compiling kernels
-CRITERIA_LOCK = "criteria.lock"  # held by the process compiling the criteria
 REF_CHUNK = 1024  # variants per chunk while the reference runs and a compile may finish
 RECORDING = KERNELS  # kernels that record the per-step acceleration of metric nodes (crash criteria)
 _LOADED: set[str] = set()  # kinds of compiled kernel loaded in this process
 _BACKGROUND: list[subprocess.Popen[bytes]] = []  # background compiles started by this process
+
+
+class Companion(Protocol):
+    """A compile a run needs besides its kernel, done beside the kernel's on the other core (the crash
+    criteria: :data:`crashstudy.metrics.warmup.CRITERIA`). The kernel package knows it only through this,
+    as it knows the metrics' per-step record only through :class:`crashstudy.kernel.entry.Recorder`."""
+
+    @property
+    def name(self) -> str: ...  # what decisions and lock holders call it ("criteria")
+
+    @property
+    def label(self) -> str: ...  # what messages call it ("the crash criteria")
+
+    @property
+    def seconds(self) -> float: ...  # [s] expected compile time
+
+    @property
+    def lock(self) -> str: ...  # its lock file in the kernel cache folder (not LOCK_NAME: it compiles beside)
+
+    @property
+    def target(self) -> str: ...  # "module:function" that compiles it, called by ``python -m crashstudy.kernel.warm``
+
+    def ready(self) -> bool: ...  # compiled, in this process or in numba's disk cache
 
 
 def kernel_override() -> KernelName:
@@ -107,13 +129,6 @@ def _generic() -> Any:
 def generic_ready() -> bool:
     """Whether the generic kernel is compiled (in this process or in numba's disk cache)."""
     return compiled_or_cached(_generic())
-
-
-def criteria_ready() -> bool:
-    """Whether the crash criteria are compiled (in this process or in numba's disk cache)."""
-    from crashstudy.metrics import criteria
-
-    return compiled_or_cached(criteria._driver)
 
 
 def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
@@ -197,7 +212,8 @@ class StartPlan:
     generic_seconds: float  # ... on the generic kernel (compile not included)
     fast_seconds: float  # ... on the fastest kernel once everything is compiled
     shape: str  # the model shape in words
-    criteria: float = 0.0  # compile seconds of the crash criteria when the run needs them and they are missing
+    criteria: float = 0.0  # compile seconds of the companion (crash criteria) when the run needs it and it is missing
+    companion: str = "criteria"  # its name in the decision (Companion.name)
 
     @property
     def compile(self) -> tuple[str, ...]:
@@ -236,7 +252,7 @@ def decide(p: StartPlan, background: bool) -> Decision:
       the generated one in the background, during the run when it pays back twice, else after it.
     Without background compiles, only the foreground compiles that pay remain."""
     gen_cost = p.costs.get("generated")
-    beside = ("criteria",) if p.criteria else ()
+    beside = (p.companion,) if p.criteria else ()
     if "generic" in p.costs:
         ways = {"generic": p.costs["generic"] + p.generic_seconds}
         if gen_cost is not None:
@@ -265,10 +281,12 @@ def decide(p: StartPlan, background: bool) -> Decision:
 
 
 def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, n_variants: int,
-               kernel: KernelName = "compiled", record: tuple[int, ...] = ()) -> StartPlan | None:  # fmt: skip
+               kernel: KernelName = "compiled", record: tuple[int, ...] = (),
+               companion: Companion | None = None) -> StartPlan | None:  # fmt: skip
     """What a run of ``n_variants`` like ``b`` (a sample of them) is missing, or None (a kernel was
     named, everything is compiled, or the run is too short to care). ``record``: the metric nodes
-    whose acceleration the kernels keep at every step (a generated kernel of its own)."""
+    whose acceleration the kernels keep at every step (a generated kernel of its own); ``companion``:
+    what the run compiles beside its kernel when it is missing (the crash criteria)."""
     from crashstudy.kernel import generated
 
     if kernel != "compiled" or kernel_override() != "compiled":
@@ -295,13 +313,15 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     walls = b.wall_nodes.shape[0]
     shape = f"{N} nodes, {S} springs, {D}-D" + (f", {walls} wall{'s' * (walls > 1)}" if walls else "")
     t_fast = work / GENERATED_RATE + LOAD if gen_ok else t_generic
-    crit = CRITERIA_COMPILE if record and not criteria_ready() else 0.0
-    return StartPlan(costs, t_ref, t_generic, t_fast, shape, crit)
+    if companion is not None and not companion.ready():
+        return StartPlan(costs, t_ref, t_generic, t_fast, shape, companion.seconds, companion.name)
+    return StartPlan(costs, t_ref, t_generic, t_fast, shape)
 
 
 def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                     record: tuple[int, ...] = (), must: bool = False) -> subprocess.Popen[bytes] | None:  # fmt: skip
-    """Compile ``kernels`` in a detached low-priority process (it outlives this run, so the kernels
+                     record: tuple[int, ...] = (), must: bool = False, companion: Companion | None = None
+                     ) -> subprocess.Popen[bytes] | None:  # fmt: skip
+    """Compile ``kernels`` (or the ``companion`` alone, named in ``kernels``) in a detached low-priority process (it outlives this run, so the kernels
     are ready for the next one; a thread reaps it when it ends, so it never stays a zombie); None when
     no private cache folder is available. ``must``: a run waits for it (:func:`compile_foreground`), so it
     compiles even when another process holds the lock, at normal priority (a background one runs at
@@ -316,9 +336,12 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
     with os.fdopen(fd, "wb") as fh:
         np.savez(fh, **{k: v for k, v in vars(sample).items()})
     keys = [kernel_key(k, b, histories, vary, record) for k in kernels]
-    job = {"kernels": list(kernels), "histories": list(histories), "vary": sorted(vary or ()),
-           "const": generated._constant_curves(b, vary), "npz": npz, "record": [int(n) for n in record],
-           "keys": keys, "seconds": [compile_seconds(k, b, record) for k in kernels], "must": must}  # fmt: skip
+    job: dict[str, Any] = {
+        "kernels": list(kernels), "histories": list(histories), "vary": sorted(vary or ()),
+        "const": generated._constant_curves(b, vary), "npz": npz, "record": [int(n) for n in record], "keys": keys,
+        "seconds": [compile_seconds(k, b, record, companion) for k in kernels], "must": must}  # fmt: skip
+    if companion is not None and kernels == (companion.name,):
+        job |= {"lock": companion.lock, "call": companion.target}
     cmd = [sys.executable, "-m", "crashstudy.kernel.warm", json.dumps(job)]
     proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True, preexec_fn=None if must else _lower_priority)  # fmt: skip
@@ -330,8 +353,8 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
 
 def kernel_key(kernel: str, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
                record: tuple[int, ...] = ()) -> str:  # fmt: skip
-    """What a compile of ``kernel`` leaves in the cache, as a lock holder names it: "generic", "criteria",
-    or the generated kernel's shape key (one per model shape)."""
+    """What a compile of ``kernel`` leaves in the cache, as a lock holder names it: "generic", a
+    companion's name ("criteria"), or the generated kernel's shape key (one per model shape)."""
     if kernel != "generated":
         return kernel
     from crashstudy.kernel import generated
@@ -339,11 +362,11 @@ def kernel_key(kernel: str, b: Batch, histories: tuple[str, ...], vary: frozense
     return generated.shape_key(generated._shape(b, histories, vary, generated._constant_curves(b, vary), record))
 
 
-def compile_seconds(kernel: str, b: Batch, record: tuple[int, ...] = ()) -> float:
-    """Expected seconds to compile ``kernel`` ("generic", "generated" or "criteria") for batch ``b``."""
+def compile_seconds(kernel: str, b: Batch, record: tuple[int, ...] = (), companion: Companion | None = None) -> float:
+    """Expected seconds to compile ``kernel`` ("generic", "generated" or the companion's name) for batch ``b``."""
     if kernel == "generated":
         return generated_compile_seconds(b.material, b.wall_nodes.shape[0], bool(record))
-    return CRITERIA_COMPILE if kernel == "criteria" else GENERIC_COMPILE
+    return companion.seconds if companion is not None and kernel == companion.name else GENERIC_COMPILE
 
 
 def _lower_priority() -> None:  # pragma: no cover - runs in the child
@@ -352,21 +375,23 @@ def _lower_priority() -> None:  # pragma: no cover - runs in the child
 
 def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...],
                        vary: frozenset[int] | None, stop: Any, record: tuple[int, ...] = (),
-                       say: Callable[[str], None] | None = None) -> None:  # fmt: skip
-    """Compile ``kernels`` in child processes and wait: the crash criteria ("criteria") in one of their
-    own beside the others, so both cores compile; ``stop()`` raising (Ctrl-C) kills them at once.
+                       say: Callable[[str], None] | None = None, companion: Companion | None = None) -> None:  # fmt: skip
+    """Compile ``kernels`` in child processes and wait: the ``companion`` (the crash criteria, when
+    ``kernels`` names it) in one of its own beside the others, so both cores compile; ``stop()`` raising
+    (Ctrl-C) kills them at once.
 
     When another process holds the compile lock, wait for it only when it compiles what this run needs
     and is expected to finish sooner than compiling it here (:func:`crashstudy.kernel.compile_lock.plan_wait`;
     never longer than this run's own compile, not at all for a holder that is gone or stopped, and no
     more once it stops using CPU); else compile here beside it. ``say``: tells the terminal."""
-    groups = [g for g in (tuple(k for k in kernels if k == "criteria"), tuple(k for k in kernels if k != "criteria")) if g]
+    beside = companion.name if companion is not None else None
+    groups = [g for g in (tuple(k for k in kernels if k == beside), tuple(k for k in kernels if k != beside)) if g]
     procs: list[subprocess.Popen[bytes]] = []
     try:
         for group in groups:
-            if _other_compiles(group, b, histories, vary, record, stop, say or (lambda text: None)):
+            if _other_compiles(group, b, histories, vary, record, stop, say or (lambda text: None), companion):
                 continue
-            proc = start_background(group, b, histories, vary, record, must=True)
+            proc = start_background(group, b, histories, vary, record, must=True, companion=companion)
             if proc is not None:
                 procs.append(proc)
         for proc in procs:
@@ -383,14 +408,16 @@ def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str,
 
 
 def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                    record: tuple[int, ...], stop: Any, say: Callable[[str], None]) -> bool:  # fmt: skip
+                    record: tuple[int, ...], stop: Any, say: Callable[[str], None],
+                    companion: Companion | None = None) -> bool:  # fmt: skip
     """Whether another process compiled ``group`` while this run waited for it (see :func:`compile_foreground`)."""
-    lock = cache_dir() / (CRITERIA_LOCK if group == ("criteria",) else LOCK_NAME)
+    alone = companion is not None and group == (companion.name,)
+    lock = cache_dir() / (companion.lock if companion is not None and alone else LOCK_NAME)
     holder = compile_lock.read_holder(lock)
     if holder is None:
         return False
-    what = " and ".join(f"the {k} kernel" if k != "criteria" else "the crash criteria" for k in group)
-    own = sum(compile_seconds(k, b, record) for k in group)
+    what = companion.label if companion is not None and alone else " and ".join(f"the {k} kernel" for k in group)
+    own = sum(compile_seconds(k, b, record, companion) for k in group)
     key = kernel_key(group[-1], b, histories, vary, record)
     limit, why = compile_lock.plan_wait(holder, key, own)
     if limit <= 0:
@@ -399,7 +426,7 @@ def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...]
     say(f"waiting for {what}: {why}; compiling it here would take ~{own:.0f} s")
 
     def ready() -> bool:
-        return all(_ready(k, b, histories, vary, record) for k in group)
+        return all(_ready(k, b, histories, vary, record, companion) for k in group)
 
     end = compile_lock.wait(lock, holder, limit, ready, stop, key)
     if end == "ready":
@@ -413,9 +440,9 @@ def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...]
 
 
 def _ready(kernel: str, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-           record: tuple[int, ...]) -> bool:  # fmt: skip
+           record: tuple[int, ...], companion: Companion | None = None) -> bool:  # fmt: skip
     if kernel == "generic":
         return generic_ready()
-    if kernel == "criteria":
-        return criteria_ready()
+    if companion is not None and kernel == companion.name:
+        return companion.ready()
     return generated_ready(b, histories, vary, record)

@@ -1,10 +1,12 @@
 """A compile in its own process: ``python -m crashstudy.kernel.warm JOB`` (started by
 :func:`crashstudy.kernel.choice.start_background`).
 
-JOB is JSON: the kernels to compile (``generic``, ``generated``, or ``criteria`` alone: the crash
-criteria, under a lock of their own so they compile beside a kernel), the run's history names, varying
-curves and constant curves, and a ``.npz`` of one variant of the run's batch (read with
-``allow_pickle=False``: only plain arrays). Each kernel is compiled by running that variant for one
+JOB is JSON: the kernels to compile (``generic``, ``generated``, or a companion alone: a compile the
+run needs beside its kernel, :class:`crashstudy.kernel.choice.Companion`, e.g. the crash criteria; the job
+then names its ``lock``, of its own so that it compiles beside a kernel, and the function to ``call``,
+``module:function`` of a crashstudy module), the run's history names, varying curves and constant
+curves, and a ``.npz`` of one variant of the run's batch (read with ``allow_pickle=False``: only plain
+arrays). Each kernel is compiled by running that variant for one
 step, which leaves it in numba's disk cache. One compile per cache at a time: the process holds an
 exclusive lock on ``compile.lock`` in the cache folder and writes into it what it compiles
 (:func:`crashstudy.kernel.compile_lock.write_holder`: the job's ``keys`` and ``seconds``). When another
@@ -15,6 +17,7 @@ process holds the lock, a background job (run for later) exits at once; a job a 
 from __future__ import annotations
 
 import fcntl
+import importlib
 import json
 import os
 import sys
@@ -26,7 +29,7 @@ import numpy as np
 
 def main(argv: list[str]) -> int:
     from crashstudy.kernel.cache import checked_dir
-    from crashstudy.kernel.choice import CRITERIA_LOCK, LOCK_NAME
+    from crashstudy.kernel.choice import LOCK_NAME
     from crashstudy.kernel.compile_lock import write_holder
 
     job = json.loads(argv[0])
@@ -41,35 +44,30 @@ def main(argv: list[str]) -> int:
     b.n_steps[:] = 1
     histories = tuple(job["histories"])
     record = tuple(job.get("record", []))
-    with open(folder / (CRITERIA_LOCK if job["kernels"] == ["criteria"] else LOCK_NAME), "a+") as lock:
+    call = job.get("call")
+    if call is not None and not str(call).startswith("crashstudy."):
+        raise ValueError(f"warm-up calls only crashstudy functions, not {call!r}")
+    with open(folder / (os.path.basename(job["lock"]) if call is not None else LOCK_NAME), "a+") as lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
             write_holder(lock, list(job.get("keys", job["kernels"])), [float(s) for s in job.get("seconds", [])])
         except OSError:
             if not job.get("must"):
                 return 0  # another process compiles; it leaves the kernel in the same cache
+        if call is not None:  # a companion compile (the crash criteria)
+            module, _, name = str(call).partition(":")
+            getattr(importlib.import_module(module), name)()
+            return 0
         for kernel in job["kernels"]:
             if kernel == "generic":
                 from crashstudy.kernel.compiled import run_compiled
 
                 run_compiled(b, histories, 1, record=record)
-            elif kernel == "criteria":
-                _criteria()
             else:
                 from crashstudy.kernel.generated import run_generated
 
                 run_generated(b, histories, 1, frozenset(job["vary"]), list(job["const"]), record)
     return 0
-
-
-def _criteria() -> None:
-    """Compile the crash criteria and the filter of the filtered_acceleration history (a short pulse)."""
-    from crashstudy.metrics import criteria, interpreted
-
-    interpreted.compile_from_now()  # else this short pulse would run as plain Python, compiling nothing
-    acc = np.zeros((1, 8, 1))
-    criteria.compute(acc, np.array([8]), np.array([1e-4]), np.ones((1, 1)), np.ones(1), 180, criteria.CRITERIA, 9.80665)
-    criteria.j211_filter(acc[:, :, 0], np.array([8]), np.array([1e-4]), 180)
 
 
 if __name__ == "__main__":

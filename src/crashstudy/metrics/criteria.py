@@ -226,12 +226,12 @@ def _driver(
         if want[2]:
             out[v, 4], out[v, 5], out[v, 6] = hic_row(res, n, h, 0.036, cum, blk)
         if want[3] or want[4]:
-            lev, _ = clip_row(res, n, h, 0.003, mn, hmin)
+            lev, _ = clip_row(res, n, h, CLIP_WINDOW, mn, hmin)
             if np.isnan(lev):
                 status[v] |= 16
             out[v, 7] = lev
             if want[4]:
-                out[v, 8] = clip_cumulative_row(res, n, h, 0.003, lev if lev == lev else -np.inf, lo, hi)
+                out[v, 8] = clip_cumulative_row(res, n, h, CLIP_WINDOW, lev if lev == lev else -np.inf, lo, hi)
         if want[5]:
             u[0] = u0[v]
             for k in range(1, n):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from typing import Any
 
 import numpy as np
 
@@ -56,10 +57,27 @@ def plan_fingerprint(plan: Plan) -> str:
 
 
 def model_facts(p: Plan) -> dict[str, str]:
-    """JSON attributes for plot and compare (they never re-read the YAML): free nodes (not fixed in every
-    direction, not driven), node masses of the model, the ``regression:`` tolerances."""
+    """JSON attributes for plot, compare and the warnings after a run (they never re-read the YAML): free
+    nodes (not fixed in every direction, not driven), node masses of the model, the ``regression:``
+    tolerances, and the body (:func:`body_facts`)."""
     topo = p.topology
     driven = set(np.asarray(topo.pm_node).tolist())
     free = [n for k, n in enumerate(topo.node_ids) if not bool(np.all(topo.fixed[k])) and k not in driven]
     mass = {n: float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]]) for n in topo.node_ids if f"nodes.{n}.mass" in topo.paths}
-    return {"free_nodes": json.dumps(free), "node_mass": json.dumps(mass), "regression": json.dumps(p.regression)}
+    return {"free_nodes": json.dumps(free), "node_mass": json.dumps(mass), "regression": json.dumps(p.regression),
+            "body": json.dumps(body_facts(p))}  # fmt: skip
+
+
+def body_facts(p: Plan) -> dict[str, Any]:
+    """What the peak-deceleration check after a run needs of the model: ``node``, the heaviest node that
+    moves freely (fixed in no direction, no prescribed motion: the vehicle or occupant body; None when
+    there is none), ``initial_speeds`` (the model's initial speed of each node given one) and
+    ``prescribed_motion`` (whether the model drives a node)."""
+    topo = p.topology
+    driven = set(np.asarray(topo.pm_node).tolist())
+    free = [(float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]]), n) for k, n in enumerate(topo.node_ids)
+            if not bool(np.any(topo.fixed[k])) and k not in driven]  # fmt: skip
+    dim = topo.fixed.shape[1]
+    speeds = [float(np.linalg.norm([p.base[topo.paths[f"initial_velocity.{n}.{d}"].slots[0]] for d in range(dim)]))
+              for n in topo.node_ids if f"initial_velocity.{n}.0" in topo.paths]  # fmt: skip
+    return {"node": max(free)[1] if free else None, "initial_speeds": speeds, "prescribed_motion": bool(driven)}

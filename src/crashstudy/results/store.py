@@ -54,9 +54,9 @@ from crashstudy.results.tables import (
     write_summary,
 )
 from crashstudy.results.zarr_file import ZARR_FINAL, ZarrFile
-from crashstudy.run.provenance import HASH_WORDS, text_hash
 from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study.plan import Plan
+from crashstudy.study.provenance import HASH_WORDS, text_hash
 
 __all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "ResultWriter", "Results",
            "decode_texts", "open_results", "summary_frame", "write_summary"]  # fmt: skip

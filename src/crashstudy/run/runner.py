@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -30,9 +29,9 @@ from crashstudy.results.curve_ends import past_curve_ends
 from crashstudy.results.outdir import prepare_output, remove_derived, remove_stale_plots, study_of
 from crashstudy.results.store import FINAL, ChunkResult, Results, ResultWriter
 from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
-from crashstudy.run.provenance import variant_hashes
 from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study.plan import Plan, load_study, plan_from_model
+from crashstudy.study.provenance import variant_hashes
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
 MAX_CHUNK = 65536  # variants per chunk at most
@@ -191,22 +190,25 @@ def _start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, fl
     sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
     vary = plan.varying_curves
     rec = topo.metric_nodes  # metrics: the kernels record these nodes at every step (their own generated kernel)
-    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, rec)
+    from crashstudy.metrics.warmup import CRITERIA
+
+    companion = CRITERIA if rec else None  # the crash criteria compile beside the kernel
+    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, rec, companion)
     if start is None:
         return False, None, None
     do = choice.decide(start, choice.background_min_seconds() < float("inf"))
     say = (lambda text: print(f"note: {text}", file=notes)) if notes is not None else (lambda text: None)
 
     def what(kinds: tuple[str, ...]) -> str:
-        kernels = [k for k in kinds if k != "criteria"]
+        kernels = [k for k in kinds if k != start.companion]
         names = " and ".join(f"the {k} kernel" for k in kernels)
-        beside = " (the crash criteria beside it)" if "criteria" in kinds else ""
-        seconds = max([sum(start.costs[k] for k in kernels)] + [start.criteria] * ("criteria" in kinds))
+        beside = f" ({CRITERIA.label} beside it)" if start.companion in kinds else ""
+        seconds = max([sum(start.costs[k] for k in kernels)] + [start.criteria] * (start.companion in kinds))
         return f"{names} for this model shape ({start.shape}; first run on this machine){beside}, ~{seconds:.0f} s"
 
     if do.foreground:
         say(f"compiling {what(do.foreground)}; Ctrl-C stops")
-        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec, say)
+        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec, say, companion)
     if do.now and choice.start_background(do.now, sample, topo.histories, vary, rec) is not None:
         say(f"compiling {what(do.now)} in the background"
             + (f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
@@ -255,7 +257,7 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
     file (a re-run of an unchanged or extended study: no whole-study array is built); only the
     variants not found there are looked up in a sorted index of the earlier hashes, built when first
     needed (a study whose variants moved: 24 bytes per earlier variant)."""
-    from crashstudy.run.provenance import topology_signature
+    from crashstudy.study.provenance import topology_signature
 
     with integrity.open_store(final) as old:
         if "input_hash" not in old.variables or integrity.finished_problem(old):
@@ -451,6 +453,3 @@ def refuse_fixed_dt(plan: Plan, doc: Any) -> None:
                                   f"dt={dt:.6g} is above the critical step dt_crit={steps.dt_crit[0]:.6g} "
                                   f"(controlled by {ctrl}); use a smaller dt or safety_factor")])  # fmt: skip
 
-
-def remove_tree(path: Path) -> None:
-    shutil.rmtree(path, ignore_errors=True)

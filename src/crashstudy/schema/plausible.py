@@ -156,28 +156,19 @@ def unit_warnings(m: Model, dt_crit: float | None = None, where: str = "", perio
     return out
 
 
-def body_node(m: Model) -> str | None:
-    """The heaviest node that moves freely (not fixed, no prescribed motion): the vehicle or occupant body.
-
-    Its peak deceleration is what a crash limits; a light node between stiff springs (a bumper beam)
-    or a node whose motion is prescribed (kinematic spikes) may legitimately peak at thousands of g."""
-    driven = {pm.node for pm in m.prescribed_motion}
-    free = [(n.mass, nid) for nid, n in m.nodes.items()
-            if n.mass is not None and n.fixed is False and nid not in driven]  # fmt: skip
-    return max(free)[1] if free else None
-
-
-def peak_g_warnings(units: str, node: str, peak_g: float, variant: int, m: Model | None = None) -> list[str]:
+def peak_g_warnings(units: str, node: str, peak_g: float, variant: int, speeds: list[float] | None = None,
+                    prescribed: bool = False) -> list[str]:  # fmt: skip
     """A sentence when the body node's largest peak deceleration ``peak_g`` [g] is beyond any crash, or,
-    for a model ``m`` set moving by its initial velocity alone, below 1 g (naming the likely cause)."""
+    for a model set moving by its initial velocity alone (``speeds``: its initial speeds, None when not
+    known; ``prescribed``: it drives a node), below 1 g (naming the likely cause). The body node is the
+    results' ``body`` attribute (:func:`crashstudy.results.attributes.body_facts`)."""
     if not math.isfinite(peak_g):
         return []
     if peak_g > MAX_PEAK_G:
         return [f"peak deceleration {peak_g:,.0f} g of node {node!r}, the heaviest free mass (variant {variant}), is "
                 f"far beyond any crash (vehicle bodies and occupants stay below ~{MAX_PEAK_G:g} g): "
                 f"{_hint(units)}"]  # fmt: skip
-    speeds = [math.sqrt(sum(c * c for c in v)) for v in m.initial_velocity.values()] if m is not None else []
-    if m is None or peak_g >= MIN_PEAK_G or not any(speeds) or m.prescribed_motion:
+    if speeds is None or peak_g >= MIN_PEAK_G or not any(speeds) or prescribed:
         return []
     slow = speed_warnings(units, speeds, "its initial velocity")
     why = ("likely cause: " + slow[0]) if slow else (

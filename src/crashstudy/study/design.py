@@ -26,8 +26,6 @@ from typing import Any
 
 import numpy as np
 
-METHODS = ("lhs", "sobol", "halton", "random", "saltelli", "morris")
-DISTRIBUTIONS = {"uniform": 2, "normal": 2, "lognormal": 2, "truncnormal": 4}  # name: number of parameters
 _EDGE = 1e-12  # unit coordinates are kept inside (0, 1): the inverse CDF of a normal is infinite at 0 and 1
 
 
@@ -57,7 +55,7 @@ def unit_rows(method: str, n: int, seed: int, d: int) -> np.ndarray:
             u = engine.random(n)
     elif method in ("saltelli", "morris"):
         u = _salib_rows(method, n, seed, d)
-    else:  # the schema only lets the names of METHODS through
+    else:  # the schema (schema/study.py Design.method) lets only the methods above through
         raise ValueError(f"unknown design method {method!r}")
     return np.clip(u, _EDGE, 1.0 - _EDGE)
 

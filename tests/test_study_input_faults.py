@@ -11,9 +11,7 @@
 
 from __future__ import annotations
 
-import math
 import re
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,25 +22,7 @@ import pytest
 
 from crashstudy.errors import InputError
 from crashstudy.study.plan import load_study
-
-Cli = Callable[..., Any]
-
-K, V0 = 2.0e4, 1.0  # spring stiffness [N/m], initial speed [m/s] of TINY_MODEL
-TINY_MODEL = f"""\
-name: tiny
-nodes:
-  anchor: {{position: [0.0], fixed: true}}
-  body:   {{position: [0.1], mass: 2.0}}
-springs:
-  spring:
-    nodes: [anchor, body]
-    material: {{type: linear_elastic, stiffness: {K}}}
-initial_velocity: {{body: [{V0}]}}
-end_time: 0.05
-output: {{histories: none}}
-"""
-MASSES = [1.0, 2.0, 3.0]
-TINY_STUDY = f"name: tiny-study\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: {MASSES}\n"
+from helpers import MASSES, TINY_MODEL, TINY_STUDY, Cli, K, assert_exit_2, peak_force, reseal
 
 GENERAL_MODEL = """\
 name: general
@@ -62,25 +42,11 @@ output: {histories: none}
 """
 
 
-def peak_force(k: float, m: float) -> float:
-    """Undamped mass on a spring from speed V0: amplitude V0 / omega, peak force V0 sqrt(k m)."""
-    return V0 * math.sqrt(k * m)
-
-
 def write(folder: Path, study: str, model: str = TINY_MODEL) -> Path:
     (folder / "model.yaml").write_text(model)
     path = folder / "study.yaml"
     path.write_text(study)
     return path
-
-
-def assert_exit_2(p: Any, *expect: str) -> None:
-    """Exit 2, ``error: invalid input`` and the expected text; no traceback."""
-    assert p.returncode == 2, (p.returncode, p.stdout, p.stderr)
-    assert p.stderr.startswith("error: invalid input\n"), p.stderr
-    assert "Traceback" not in p.stderr
-    for text in expect:
-        assert text in p.stderr, (text, p.stderr)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -339,11 +305,11 @@ termination: {kinetic_energy_fraction: 0.01, min_time: 0.02}
 def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_every_field() -> None:
     """check_parameters (what every distinct axis value now goes through) against the schema (the truth) on
     each numeric field of a model with all five materials, a wall, a load curve and termination."""
-    from conftest import model_plan
     from crashstudy.arrays.compiler import apply_axis
     from crashstudy.arrays.parameter_checks import check_parameters
     from crashstudy.schema.yamlio import loads_yaml
     from crashstudy.study.plan import _model_message
+    from helpers import model_plan
 
     plan = model_plan(RICH_MODEL)
     data = loads_yaml(RICH_MODEL).data
@@ -368,11 +334,3 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
     assert compared > 400 and invalid > 100, (compared, invalid)  # every rule kind was exercised
 
 
-def reseal(folder: Path) -> None:
-    """Record the folder's files as they are now in its manifest (a defect the run itself wrote)."""
-    import json
-
-    from crashstudy.results.integrity import write_manifest
-
-    m = json.loads((folder / "manifest.json").read_text())
-    write_manifest(folder, m["run_id"], [n for n in m["files"] if (folder / n).exists()])

@@ -28,9 +28,9 @@ import pytest
 from crashstudy.errors import InputError
 from crashstudy.schema import yamlio
 from crashstudy.study.plan import load_study
-from test_fault_items import TINY_MODEL, Cli, K, assert_exit_2, reseal  # noqa: E402 - shared helpers
+from helpers import TINY_MODEL, Cli, K, assert_exit_2, reseal  # noqa: E402 - shared helpers
 
-MODEL = TINY_MODEL  # the tiny model of test_fault_items (K = 2e4 N/m, 2 kg at 1 m/s)
+MODEL = TINY_MODEL  # the tiny model of helpers.py (K = 2e4 N/m, 2 kg at 1 m/s)
 STUDY = "name: tiny-study\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: [1.0, 2.0]\n"
 
 

@@ -11,7 +11,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import subprocess
@@ -29,14 +28,9 @@ from crashstudy.results.integrity import open_store
 from crashstudy.results.store import Results
 from crashstudy.run import runner
 from crashstudy.study.plan import load_study
-from test_fault_items import MASSES, TINY_MODEL, TINY_STUDY, V0, Cli, K, assert_exit_2  # noqa: E402 - the shared tiny model
+from helpers import MASSES, TINY_MODEL, TINY_STUDY, Cli, K, assert_exit_2, peak_force  # noqa: E402 - the shared tiny model
 
 RTOL = 0.02  # the sampled peak of a harmonic oscillation at the default step: within 2 % of the analytic one
-
-
-def peak_force(k: float, m: float) -> float:
-    """Undamped mass on a spring from speed V0: amplitude V0 / omega, peak force V0 sqrt(k m)."""
-    return V0 * math.sqrt(k * m)
 
 
 def write(folder: Path, study: str = TINY_STUDY, model: str = TINY_MODEL) -> Path:
@@ -99,7 +93,7 @@ def test_a_wall_holding_a_node_with_prescribed_motion_into_it_is_refused(tmp_pat
 def test_a_floor_holding_a_node_driven_along_it_is_allowed_and_follows_the_motion(tmp_path: Path) -> None:
     """2-D: the floor's normal (y) is across the driven direction (x): no conflict. The node follows
     x = 0.3 + 2 t exactly and never goes below the floor (gravity pulls it onto it)."""
-    from conftest import run_model
+    from helpers import run_model
 
     model = {
         "name": "slide",

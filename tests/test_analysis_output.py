@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import noisy_spring_force
 from crashstudy.cli.main import main
 from crashstudy.results.store import open_results
+from helpers import noisy_spring_force
 
 MODEL = """\
 name: tied-body

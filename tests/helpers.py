@@ -1,0 +1,213 @@
+"""What the test modules share: running a model (as YAML text or a dict) with a chosen kernel, the command
+line in this process or in a subprocess, and the one comparer of kernel outputs. Test modules import from
+here (and from ``twins.py``, ``strategies.py``), never from each other."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from crashstudy.arrays.batch import build_batch
+from crashstudy.errors import InputError
+from crashstudy.kernel.output import KernelOutput
+from crashstudy.schema import parse_model
+from crashstudy.schema.yamlio import LoadedYaml, loads_yaml
+from crashstudy.study.plan import Plan, plan_from_model
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDIES = ROOT / "studies"
+
+LINEAR_SPRING = """\
+name: lin
+units: SI
+nodes:
+  anchor: {position: [0.0], fixed: true}
+  body: {position: [0.1], mass: 2.0}
+springs:
+  s: {nodes: [anchor, body], material: {type: linear_elastic, stiffness: 2.0e4}}
+initial_velocity: {body: [1.0]}
+end_time: 0.1
+"""  # a 2 kg body on a 2e4 N/m spring at 1 m/s: the optimize / calibrate / block-check tests' model
+
+
+def noisy_spring_force(k: float, m: float, noise: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+    """(t, force) of k [N/m], m [kg] set moving at 1 m/s, integrated by scipy's RK45 (rtol 1e-10) and
+    sampled at 201 points over 0.1 s, with Gaussian noise of ``noise`` x the peak force (seed 0)."""
+    from scipy.integrate import solve_ivp
+
+    sol = solve_ivp(lambda t, y: [y[1], -k / m * y[0]], (0.0, 0.1), [0.0, 1.0], rtol=1e-10, atol=1e-12,
+                    dense_output=True)  # fmt: skip
+    t = np.linspace(0.0, 0.1, 201)
+    force = k * sol.sol(t)[0]
+    return t, force + np.random.default_rng(0).normal(0.0, noise * np.abs(force).max(), t.size)
+
+
+def dump(data: dict[str, Any]) -> str:
+    """A model or study dict as YAML text (for files and for assertion messages)."""
+    return yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120)
+
+
+def model_plan(model: str | dict[str, Any]) -> Plan:
+    """A one-variant plan from YAML text or a plain dict, validated like a file. A dict of Python numbers
+    is validated as it is (a YAML round trip takes seconds for a 1000-node chain); one that is not valid
+    so, e.g. read by ``yaml.safe_load``, which leaves ``3.0e4`` a string, goes through crashstudy's YAML
+    reader as a file would."""
+    if isinstance(model, dict):
+        try:
+            return plan_from_model(parse_model(LoadedYaml(model, "", f"<{model.get('name', 'test model')}>", {})))
+        except InputError:
+            model = yaml.safe_dump(model, sort_keys=False)
+    return plan_from_model(parse_model(loads_yaml(model, file="<test model>")))
+
+
+def model_batch(model: str | dict[str, Any], variants: dict[str, list[float]] | None = None) -> tuple[Any, Plan]:
+    """(batch, plan) of a model with axis values per variant ({path: [v0, v1, ...]}; one variant without)."""
+    from crashstudy.arrays.compiler import apply_axis
+
+    plan = model_plan(model)
+    topo = plan.topology
+    n = len(next(iter(variants.values()))) if variants else 1
+    P = np.repeat(plan.base[:, None], n, axis=1)
+    for path, vals in (variants or {}).items():
+        apply_axis(P, topo.paths[path], np.asarray(vals, dtype=float))
+    batch, _ = build_batch(topo, P, plan.interval)
+    return batch, plan
+
+
+def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: dict[str, list[float]] | None = None
+              ) -> tuple[KernelOutput, Any, Plan]:  # fmt: skip
+    """Run a model (optionally with axis values per variant: {path: [v0, v1, ...]}).
+
+    Returns (kernel output, batch, plan); histories follow the model's ``output.histories``.
+    """
+    from crashstudy.run.runner import run_kernel
+
+    batch, plan = model_batch(model, variants)
+    out = run_kernel(batch, plan.topology.histories, plan.n_out, kernel)
+    return out, batch, plan
+
+
+def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """Run the installed command line in a subprocess (as a user would)."""
+    return subprocess.run([sys.executable, "-m", "crashstudy.cli", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=600)  # fmt: skip
+
+
+def run_main(*argv: str) -> tuple[int, str, str]:
+    """``crashstudy ARGV`` in this process; returns (exit code, stdout, stderr). Any exception propagates."""
+    from crashstudy.cli.main import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(list(argv))
+    return rc, out.getvalue(), err.getvalue()
+
+
+# ------------------------------------------------------------------------------------------------
+# a tiny model and study, and what every command-line fault test asserts (tests/test_study_input_faults.py, test_result_folder_faults.py, test_hangs_limits_and_messages.py)
+# ------------------------------------------------------------------------------------------------
+
+Cli = Callable[..., Any]
+
+K, V0 = 2.0e4, 1.0  # spring stiffness [N/m], initial speed [m/s] of TINY_MODEL
+TINY_MODEL = f"""\
+name: tiny
+nodes:
+  anchor: {{position: [0.0], fixed: true}}
+  body:   {{position: [0.1], mass: 2.0}}
+springs:
+  spring:
+    nodes: [anchor, body]
+    material: {{type: linear_elastic, stiffness: {K}}}
+initial_velocity: {{body: [{V0}]}}
+end_time: 0.05
+output: {{histories: none}}
+"""
+MASSES = [1.0, 2.0, 3.0]
+TINY_STUDY = f"name: tiny-study\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: {MASSES}\n"
+
+
+def peak_force(k: float, m: float) -> float:
+    """Undamped mass on a spring from speed V0: amplitude V0 / omega, peak force V0 sqrt(k m)."""
+    return V0 * math.sqrt(k * m)
+
+
+def assert_exit_2(p: Any, *expect: str) -> None:
+    """Exit 2, ``error: invalid input`` and the expected text; no traceback."""
+    assert p.returncode == 2, (p.returncode, p.stdout, p.stderr)
+    assert p.stderr.startswith("error: invalid input\n"), p.stderr
+    assert "Traceback" not in p.stderr
+    for text in expect:
+        assert text in p.stderr, (text, p.stderr)
+
+
+def reseal(folder: Path) -> None:
+    """Record the folder's files as they are now in its manifest (a defect the run itself wrote)."""
+    import json
+
+    from crashstudy.results.integrity import write_manifest
+
+    m = json.loads((folder / "manifest.json").read_text())
+    write_manifest(folder, m["run_id"], [n for n in m["files"] if (folder / n).exists()])
+
+
+# ------------------------------------------------------------------------------------------------
+# the one comparer of kernel outputs
+# ------------------------------------------------------------------------------------------------
+
+
+def same_bits(r: np.ndarray, g: np.ndarray) -> bool:
+    """Equal values, NaN where NaN, and the same sign of every zero (a summary's -0.0 prints as "-0.0")."""
+    if not np.array_equal(r, g, equal_nan=r.dtype.kind == "f"):
+        return False
+    if r.dtype.kind != "f":
+        return True
+    zero = r == 0.0
+    return bool(np.array_equal(np.signbit(r[zero]), np.signbit(g[zero])))
+
+
+def output_differences(a: KernelOutput, b: KernelOutput, ia: Any = slice(None), ib: Any = slice(None)) -> list[str]:
+    """Names of what differs between variants ``ia`` of ``a`` and ``ib`` of ``b`` (default: all of both),
+    bit for bit: every summary (:func:`same_bits`), each optional output (the metrics' step record,
+    criteria) present in both or neither, the same histories with equal values and NaN where NaN (the
+    sign of a zero sample may differ: the files hold +0.0 only)."""
+    diff = []
+    for f in fields(KernelOutput):
+        if f.name == "histories":
+            continue
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if x is None or y is None:
+            if (x is None) != (y is None):
+                diff.append(f"{f.name} (only in one of them)")
+            continue
+        if f.name == "criteria":  # the crash criteria of each variant (metrics.record.ChunkCriteria), variant first
+            same = set(x.values) == set(y.values) and np.array_equal(x.notes[ia], y.notes[ib])
+            if not same or any(not same_bits(x.values[k][ia], y.values[k][ib]) for k in x.values):
+                diff.append(f.name)
+            continue
+        x, y = np.asarray(x)[..., ia], np.asarray(y)[..., ib]
+        if x.shape != y.shape or not same_bits(x, y):
+            diff.append(f.name)
+    if set(a.histories) != set(b.histories):
+        diff.append(f"histories {sorted(set(a.histories) ^ set(b.histories))} (only in one of them)")
+    for name in set(a.histories) & set(b.histories):
+        x, y = a.histories[name][..., ia], b.histories[name][..., ib]
+        if x.shape != y.shape or not np.array_equal(x, y, equal_nan=True):
+            diff.append(f"history {name}")
+    return diff
+
+
+def assert_bitwise(ref: KernelOutput, got: KernelOutput) -> None:
+    """``got`` equals ``ref`` bit for bit (:func:`output_differences`)."""
+    diff = output_differences(ref, got)
+    assert not diff, f"differ: {diff}"

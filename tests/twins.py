@@ -1,0 +1,397 @@
+"""The model builders of the bitwise twin tests: the same model run by the NumPy reference kernel and by
+each fast kernel (tests/test_kernel_twins.py, tests/test_metrics.py's per-step record), shared with the
+physics and knot-peak tests that check some of them against closed forms. ``CASES``: every twin case,
+``case -> (model builder, study axes)``; :func:`record_case` gives a case's batch with the per-step
+record of every movable node."""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import yaml
+
+from helpers import STUDIES, model_batch
+
+G = 9.80665  # m/s^2
+FRONTAL = STUDIES / "models" / "frontal-9mass.yaml"
+HELICOPTER = STUDIES / "models" / "helicopter-subfloor.yaml"
+MASSES = [6.0, 8.0, 10.0, 12.0, 14.0]
+
+# --------------------------------------------------------------------------------------------------
+# the full twins (tests/test_physics.py's models): every material, walls, gravity, loads, prescribed motion
+# --------------------------------------------------------------------------------------------------
+
+TWIN_1D: dict[str, Any] = {  # crush, linear + damper, nonlinear, general_nonlinear; wall, gravity, load, pm
+    "name": "twin-1d",
+    "curves": {
+        "plateau": {"x": [-1.0, -0.002, 0.0], "y": [-3000.0, -3000.0, 0.0]},
+        "soft": {"x": [-0.1, -0.01, 0.0, 0.01, 0.1], "y": [-4000.0, -500.0, 0.0, 500.0, 4000.0]},
+        "gn-load": {"x": [-0.5, -0.005, 0.0, 0.005, 0.5], "y": [-2500.0, -1500.0, 0.0, 1500.0, 2500.0]},
+        "gn-unload": {"x": [-0.01, 0.0, 0.01], "y": [-3000.0, 0.0, 3000.0]},
+        "pulse": {"x": [0.0, 0.01, 0.03], "y": [0.0, 1.0, 0.0]},
+        "pull": {"x": [0.0, 0.2], "y": [-1.0, -1.0]},
+    },
+    "nodes": {
+        "ground": {"position": [0.0], "fixed": True},
+        "a": {"position": [0.5], "mass": 4.0},
+        "b": {"position": [1.0], "mass": 3.0},
+        "c": {"position": [1.5], "mass": 2.0},
+        "driver": {"position": [2.0], "mass": 1.0},
+    },
+    "springs": {
+        "crush": {"nodes": ["ground", "a"],
+                  "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": 2.0e6}},
+        "link": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 2.0e5}},
+        "dash": {"nodes": ["a", "b"], "material": {"type": "damper", "damping": 150.0}},
+        "rubber": {"nodes": ["b", "c"], "material": {"type": "nonlinear_elastic", "curve": "soft"}},
+        "yielding": {"nodes": ["c", "driver"],
+                     "material": {"type": "general_nonlinear", "loading": "gn-load", "unloading": "gn-unload",
+                                  "tension_yield": 1500.0, "compression_yield": -1500.0}},
+    },
+    "initial_velocity": {"a": [-6.0], "b": [-6.0], "c": [-6.0], "driver": [-2.0]},
+    "gravity": [-G],
+    "loads": [{"node": "b", "force": [-800.0], "curve": "pulse"}],
+    "prescribed_motion": [{"node": "driver", "quantity": "velocity", "direction": "x", "curve": "pull", "scale": 2.0}],
+    "rigid_walls": [{"id": "stop", "point": [0.47], "normal": [1.0], "nodes": ["a"]}],
+    "end_time": 0.06,
+    "output": {"interval": 5.0e-4},
+}  # fmt: skip
+
+TWIN_2D_HELI: dict[str, Any] = {  # helicopter-like, 2 general_nonlinear, sliding onto a floor, gravity, load
+    "name": "twin-2d-heli",
+    "curves": {
+        "uf-load": {"x": [-0.5, -0.223, -0.045, -0.009, 0.0, 10.0],
+                    "y": [-76000.0, -57200.0, -70000.0, -40000.0, 0.0, 5000.0]},
+        "uf-unload": {"x": [-0.009, 0.0, 0.009], "y": [-40000.0, 0.0, 40000.0]},
+        "cab-load": {"x": [-0.3, -0.27, -0.225, -0.01, 0.0], "y": [-1.0e6, -5.0e5, -1.5e5, -1.5e5, 0.0]},
+        "cab-unload": {"x": [-0.006, 0.0, 0.006], "y": [-1.7e5, 0.0, 1.7e5]},
+        "gust": {"x": [0.0, 0.02, 0.04], "y": [0.0, 1.0, 0.0]},
+    },
+    "nodes": {
+        "ground": {"position": [0.0, 0.0], "fixed": True},
+        "transmission": {"position": [0.02, 0.3], "mass": 100.0},
+        "cabin": {"position": [0.0, 0.9], "mass": 300.0},
+    },
+    "springs": {
+        "underfloor": {"nodes": ["ground", "transmission"],
+                       "material": {"type": "general_nonlinear", "loading": "uf-load", "unloading": "uf-unload",
+                                    "tension_yield": 5000.0, "compression_yield": -40000.0}},
+        "cabin": {"nodes": ["transmission", "cabin"],
+                  "material": {"type": "general_nonlinear", "loading": "cab-load", "unloading": "cab-unload",
+                               "compression_yield": -150000.0}},
+    },
+    "initial_velocity": {"transmission": [0.5, -8.2], "cabin": [0.0, -8.2]},
+    "gravity": [0.0, -G],
+    "loads": [{"node": "cabin", "force": [2000.0, -5000.0], "curve": "gust"}],
+    "rigid_walls": [{"id": "floor", "point": [0.0, 0.1], "normal": [0.0, 1.0], "nodes": ["transmission"]}],
+    "end_time": 0.12,
+    "output": {"interval": 1.0e-3},
+}  # fmt: skip
+
+TWIN_2D_MIXED: dict[str, Any] = {  # crush, damper, linear, nonlinear; displacement + acceleration pm; inclined wall
+    "name": "twin-2d-mixed",
+    "curves": {
+        "crumple": {"x": [-1.0, -0.05, -0.005, 0.0], "y": [-9000.0, -4000.0, -5000.0, 0.0]},
+        "bushing": {"x": [-0.02, 0.0, 0.02], "y": [-3000.0, 0.0, 1500.0]},
+        "push": {"x": [0.0, 0.05, 0.1], "y": [0.0, -0.03, -0.02]},
+        "shake": {"x": [0.0, 0.02, 0.04, 0.1], "y": [0.0, 50.0, -50.0, 0.0]},
+    },
+    "nodes": {
+        "base": {"position": [0.0, 0.0], "fixed": True},
+        "ram": {"position": [0.0, 0.4], "mass": 2.0, "fixed": ["x"]},
+        "bob": {"position": [0.3, 0.5], "mass": 1.5},
+        "tip": {"position": [0.6, 0.3], "mass": 1.0},
+        "shaker": {"position": [0.6, 0.0], "mass": 0.5},
+    },
+    "springs": {
+        "crumple": {"nodes": ["base", "bob"],
+                    "material": {"type": "crush", "loading": "crumple", "unloading_stiffness": 4.0e5}},
+        "dash": {"nodes": ["ram", "bob"], "material": {"type": "damper", "damping": 40.0}},
+        "strut": {"nodes": ["ram", "bob"], "material": {"type": "linear_elastic", "stiffness": 5.0e4}},
+        "bushing": {"nodes": ["bob", "tip"], "material": {"type": "nonlinear_elastic", "curve": "bushing"}},
+        "arm": {"nodes": ["tip", "shaker"], "material": {"type": "linear_elastic", "stiffness": 2.0e4}},
+    },
+    "initial_velocity": {"bob": [-2.0, -3.0], "tip": [1.0, -1.0]},
+    "gravity": [0.0, -G],
+    "prescribed_motion": [
+        {"node": "ram", "quantity": "displacement", "direction": "y", "curve": "push", "scale": 1.0},
+        {"node": "shaker", "quantity": "acceleration", "direction": "x", "curve": "shake", "scale": 1.0},
+    ],
+    "rigid_walls": [{"id": "slope", "point": [0.6, 0.297], "normal": [-0.3, 1.0], "nodes": ["tip"]}],
+    "end_time": 0.1,
+    "output": {"interval": 1.0e-3},
+}  # fmt: skip
+
+TWINS = {
+    "1d-all-materials": (TWIN_1D, "nodes.a.mass", [1.0, 2.0, 4.0, 6.0, 8.0]),
+    "2d-helicopter-wall": (TWIN_2D_HELI, "nodes.cabin.mass", [200.0, 250.0, 300.0, 350.0, 400.0]),
+    "2d-mixed-prescribed": (TWIN_2D_MIXED, "nodes.bob.mass", [0.5, 1.0, 1.5, 2.0, 3.0]),
+}
+
+
+# --------------------------------------------------------------------------------------------------
+# knot crossings (tests/test_knot_peaks.py)
+# --------------------------------------------------------------------------------------------------
+
+# A curve whose |force| has a local maximum of 1500 N at the knot x = -0.01 m (and, mirrored, at +0.01):
+# from there the force falls to 1000 N (crush) or 500 N (elastic, general) over the next 0.09 m.
+PEAK_Y = 1500.0  # N
+MASS = 10.0  # kg
+CURVES = {
+    "crush": {"x": [-1.0, -0.1, -0.01, 0.0], "y": [-2000.0, -1000.0, -PEAK_Y, 0.0]},
+    "elastic": {"x": [-0.1, -0.01, 0.0, 0.01, 0.1], "y": [-500.0, -PEAK_Y, 0.0, PEAK_Y, 500.0]},
+    "steep": {"x": [-0.01, 0.0, 0.01], "y": [-1.0e5, 0.0, 1.0e5]},
+}
+MATERIALS = {
+    "crush": {"type": "crush", "loading": "crush", "unloading_stiffness": 1.0e6},
+    "nonlinear_elastic": {"type": "nonlinear_elastic", "curve": "elastic"},
+    # yields at -1000 N on the first segment, then crushes on over the knot (mode -1 loading path)
+    "general_nonlinear": {"type": "general_nonlinear", "loading": "elastic", "unloading": "steep",
+                          "compression_yield": -1000.0},
+}  # fmt: skip
+
+
+def one_mass(kind: str, dim: int = 1, dt: float = 2.5e-4) -> dict[str, Any]:
+    """A 10 kg mass at 1 m from a fixed node, moving toward it at 4 m/s on one spring of ``kind``.
+
+    The spring passes over the 1500 N knot while loading (at ~2.5 ms), turns at -0.064 / -0.073 m below
+    1300 N,
+    and (crush) separates. ``dim`` 2 puts the spring on the diagonal (0.6, 0.8). Fixed ``dt``; histories at
+    every step.
+    """
+    pos, vel = ([1.0], [-4.0]) if dim == 1 else ([0.6, 0.8], [-2.4, -3.2])
+    return {
+        "name": f"knot-{kind}-{dim}d",
+        "curves": CURVES,
+        "nodes": {"ground": {"position": [0.0] * dim, "fixed": True}, "body": {"position": pos, "mass": MASS}},
+        "springs": {"s": {"nodes": ["ground", "body"], "material": MATERIALS[kind]}},
+        "initial_velocity": {"body": vel},
+        "end_time": 0.06,
+        "time_step": {"dt": dt},
+        "output": {"interval": dt, "histories": ["spring_force", "spring_elongation"]},
+    }
+
+
+FRONT_X = [-0.9, -0.7, -0.05, -0.01, 0.0]  # m
+FRONT_Y = [-2.0e6, -3.5e5, -2.5e5, -3.2e5, 0.0]  # N
+M_B, M_O, K_BELT, K_U, V0, T_END = 1200.0, 80.0, 1.5e5, 4.0e7, 15.0, 0.15
+CRUSH_REBOUND: dict[str, Any] = {
+    "name": "crush-rebound",
+    "curves": {"front": {"x": FRONT_X, "y": FRONT_Y}},
+    "nodes": {
+        "barrier": {"position": [0.0], "fixed": True},
+        "body": {"position": [0.8], "mass": M_B},
+        "occupant": {"position": [1.6], "mass": M_O},
+    },
+    "springs": {
+        "front": {"nodes": ["barrier", "body"],
+                  "material": {"type": "crush", "loading": "front", "unloading_stiffness": K_U}},
+        "belt": {"nodes": ["body", "occupant"], "material": {"type": "linear_elastic", "stiffness": K_BELT}},
+    },  # fmt: skip
+    "initial_velocity": {"body": [-V0], "occupant": [-V0]},
+    "end_time": T_END,
+    "output": {"interval": T_END, "histories": "none"},
+}
+
+# --------------------------------------------------------------------------------------------------
+# features of the generated kernel (tests/test_generated.py) and of both fast kernels
+# --------------------------------------------------------------------------------------------------
+
+def without_walls_and_loads(model: dict[str, Any], keep_gravity: bool = True, keep_walls: bool = False
+                             ) -> dict[str, Any]:  # fmt: skip
+    """``model`` without what generated kernels leave to the generic one (prescribed motion), and without
+    its walls and loads / gravity unless kept."""
+    m = copy.deepcopy(model)
+    for key in ("prescribed_motion",) + (() if keep_walls else ("rigid_walls", "loads")) + (
+            () if keep_gravity else ("gravity",)):  # fmt: skip
+        m.pop(key, None)
+    for node in m["nodes"].values():  # a prescribed dof of the twin becomes a free one
+        node.pop("fixed", None) if node.get("fixed") is not True else None
+    m["output"]["histories"] = "all"
+    return m
+
+
+def one_d_materials(mirror: bool = False, gravity: bool = False) -> dict[str, Any]:
+    """TWIN_1D without loads and prescribed motion: crush, linear + damper in parallel, nonlinear elastic,
+    general_nonlinear; ``gravity`` keeps its gravity, its rigid wall and its load pulse. ``mirror`` draws
+    the model right to left (every spring's 1-D sign is -1)."""
+    m = without_walls_and_loads(TWIN_1D, keep_gravity=gravity, keep_walls=gravity)
+    if mirror:
+        for node in m["nodes"].values():
+            node["position"] = [-node["position"][0]]
+        m["initial_velocity"] = {k: [-v[0]] for k, v in m["initial_velocity"].items()}
+    return m
+
+
+def mount_reversal() -> dict[str, Any]:
+    """A 170 kg engine driven at 3 m/s into an engine mount (general_nonlinear, yield +-20 kN): it yields
+    in compression, unloads along the 4.5e6 N/m line and the spring-back (about 100 J stored against
+    44 J needed) carries it past the tension yield: general_nonlinear rule 4 (the reversal path) runs."""
+    return {
+        "name": "mount-reversal",
+        "curves": {
+            "load": {"x": [-0.1, -0.04, -0.01, 0.0, 0.01, 0.04, 0.1],
+                     "y": [-3.0e5, -3.0e4, -2.0e4, 0.0, 2.0e4, 3.0e4, 3.0e5]},
+            "unload": {"x": [-0.01, 0.0, 0.01], "y": [-4.5e4, 0.0, 4.5e4]},
+        },
+        "nodes": {"frame": {"position": [0.0], "fixed": True}, "engine": {"position": [0.2], "mass": 170.0}},
+        "springs": {"mount": {"nodes": ["frame", "engine"],
+                              "material": {"type": "general_nonlinear", "loading": "load", "unloading": "unload",
+                                           "tension_yield": 2.0e4, "compression_yield": -2.0e4}}},
+        "initial_velocity": {"engine": [-3.0]},
+        "end_time": 0.08,
+        "output": {"interval": 2.0e-4, "histories": ["spring_force", "spring_elongation", "acceleration"]},
+    }  # fmt: skip
+
+
+def crush_bounce(v0: float = 10.0) -> dict[str, Any]:
+    """A 100 kg mass at v0 onto a crush spring with a 20 kN plateau (reached after 0.1 mm) and unloading
+    stiffness 2e6 N/m, then free flight: crush for m v0 / F0, spring-back for a quarter period of
+    sqrt(k_u / m), then the spring is separated and opening."""
+    return {
+        "name": "crush-bounce",
+        "curves": {"plateau": {"x": [-2.0, -1.0e-4, 0.0], "y": [-2.0e4, -2.0e4, 0.0]}},
+        "nodes": {"wall": {"position": [0.0], "fixed": True}, "body": {"position": [1.0], "mass": 100.0}},
+        "springs": {"pad": {"nodes": ["wall", "body"],
+                            "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": 2.0e6}}},
+        "initial_velocity": {"body": [-v0]},
+        "end_time": 0.2,
+        "time_step": {"tolerance": 1.0e-5},
+        "termination": {"kinetic_energy_fraction": 1.0e-3},
+        "output": {"interval": 1.0e-3, "histories": ["spring_force"]},
+    }  # fmt: skip
+
+
+def _helicopter_walls() -> dict[str, Any]:
+    model = without_walls_and_loads(TWIN_2D_HELI, keep_walls=True)
+    model["rigid_walls"][0]["nodes"] = ["transmission", "cabin"]  # the floor
+    model["rigid_walls"].append({"id": "side", "point": [0.03, 0.0], "normal": [-1.0, 0.0],
+                                 "nodes": ["transmission", "cabin"]})  # fmt: skip
+    return model
+
+
+def _frontal(histories: Any, end_time: float) -> dict[str, Any]:
+    model = yaml.safe_load(FRONTAL.read_text())
+    model["output"] = {"interval": 1.0e-3, "histories": histories}
+    model["end_time"] = end_time
+    return model
+
+
+def _helicopter_crushed() -> dict[str, Any]:
+    model = yaml.safe_load(HELICOPTER.read_text())
+    model["output"]["histories"] = ["position", "spring_force", "kinetic_energy"]
+    return model
+
+
+def _bounce_many() -> dict[str, Any]:
+    model = crush_bounce()
+    model["end_time"] = 0.3
+    return model
+
+
+_rng = np.random.default_rng(4)
+_FRONTAL_AXES = {"curves.rail-loading.scale": list(_rng.uniform(0.6, 1.6, 12)),
+                 "nodes.engine.mass": list(_rng.uniform(100.0, 250.0, 12))}  # fmt: skip
+_COMPACTION_AXES = {"nodes.bumper.mass": list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 48))),
+                    "curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 48))}  # fmt: skip
+
+
+# force and abscissa scales of spring, time and motion curves (a constant shape and per-variant factors)
+_SCALED_1D = {"curves.plateau.scale": [0.6, 0.7, 0.8, 0.9, 1.0], "curves.soft.x_scale": [1.0, 1.1, 1.2, 1.3, 1.4],
+              "curves.gn-load.scale": [1.0, 0.9, 0.8, 0.7, 0.95], "curves.pulse.x_scale": [0.5, 0.8, 1.0, 1.5, 2.0],
+              "curves.pull.x_scale": [1.0, 0.5, 2.0, 1.5, 0.8]}  # fmt: skip
+_SCALED_KNOTS = {f"curves.{c}.{f}": v for c in ("crush", "elastic") for f, v in
+                 (("scale", [0.7, 0.8, 0.9, 1.0, 0.75]), ("x_scale", [1.0, 1.1, 1.2, 1.3, 1.4]))}  # fmt: skip
+
+
+def _helicopter_penalty_side() -> dict[str, Any]:
+    """:func:`_helicopter_walls` with a penalty side wall (contact stiffness a study axis)."""
+    model = _helicopter_walls()
+    model["rigid_walls"][1]["stiffness"] = 1.0e6
+    return model
+
+
+def _v2_springs(dim: int) -> dict[str, Any]:
+    """The SPEC v2 spring features together: elastoplastic (preloaded, breaking in tension), a blow-off
+    nonlinear_damper, a preloaded general_nonlinear that yielded on the way, a preloaded crush, a linear
+    spring breaking both ways."""
+    ax = [1.0] if dim == 1 else [0.6, 0.8]
+    at = lambda r: [r * c for c in ax]  # noqa: E731
+    return {
+        "name": f"v2-springs-{dim}d",
+        "curves": {"blow-off": {"x": [-10.0, -1.0, 0.0, 1.0, 10.0], "y": [-300.0, -300.0, 0.0, 300.0, 300.0]},
+                   "load": {"x": [-0.1, 0.0, 0.01, 0.02, 0.2], "y": [-1.0e4, 0.0, 600.0, 400.0, 900.0]},
+                   "unload": {"x": [-0.1, 0.0, 0.1], "y": [-1.0e4, 0.0, 1.0e4]},
+                   "crush": {"x": [-0.3, -0.01, 0.0], "y": [-3000.0, -1500.0, 0.0]}},
+        "nodes": {"a": {"position": at(0.0), "fixed": True}, "b": {"position": at(1.0), "mass": 10.0},
+                  "c": {"position": at(2.0), "mass": 5.0}},
+        "springs": {
+            "ep": {"nodes": ["a", "b"], "initial_elongation": 0.02, "failure": {"tension": 0.12},
+                   "material": {"type": "elastoplastic", "stiffness": 4.0e4, "tangent_stiffness": 1.0e4,
+                                "yield_force": 2.0e3}},
+            "nd": {"nodes": ["a", "b"], "material": {"type": "nonlinear_damper", "curve": "blow-off"}},
+            "gn": {"nodes": ["b", "c"], "initial_elongation": 0.015,
+                   "material": {"type": "general_nonlinear", "loading": "load", "unloading": "unload",
+                                "tension_yield": 500.0}},
+            "cr": {"nodes": ["b", "c"], "initial_elongation": -0.01, "failure": {"compression": -0.2},
+                   "material": {"type": "crush", "loading": "crush", "unloading_stiffness": 2.0e5}},
+            "lin": {"nodes": ["a", "c"], "failure": {"tension": 0.06, "compression": -0.06},
+                    "material": {"type": "linear_elastic", "stiffness": 2.0e3}},
+        },
+        "initial_velocity": {"b": at(3.0), "c": at(-2.0)},
+        "end_time": 0.3, "time_step": {"safety_factor": 0.5},
+        "output": {"interval": 1.0e-3},
+    }  # fmt: skip
+
+
+def _v2_intact(dim: int) -> dict[str, Any]:
+    """:func:`_v2_springs` without failures (another generated shape: no thresholds, no broken flags)."""
+    model = _v2_springs(dim)
+    for sp in model["springs"].values():
+        sp.pop("failure", None)
+    return model
+
+
+# case -> (model builder, study axes); tests/test_kernel_twins.py CHECKS says what each case must exercise
+CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]]]] = {
+    "1d-every-material": (lambda: one_d_materials(False), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}),
+    "1d-every-material-mirrored": (lambda: one_d_materials(True), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}),
+    **{f"full-twin-{case}": ((lambda c=case: TWINS[c][0]), {TWINS[case][1]: TWINS[case][2]})
+       for case in TWINS},
+    "2d-two-walls-gravity-load": (_helicopter_walls, {"nodes.cabin.mass": [200.0, 250, 300, 350, 400]}),
+    "2d-rigid-and-penalty-walls": (_helicopter_penalty_side, {"rigid_walls.1.stiffness": [2e5, 5e5, 1e6, 2e6, 4e6]}),
+    "2d-crushed-to-zero": (_helicopter_crushed, {"impact_velocity": [6.0, 8.2, 10.0, 30.0]}),
+    "general-nonlinear-reversal": (mount_reversal, {"impact_velocity": [2.0, 2.5, 3.0, 3.5]}),
+    "knots-crush-rebound": (lambda: dict(CRUSH_REBOUND, time_step={"tolerance": 1e-3},
+                                         output={"interval": 1e-3, "histories": ["spring_force"]}),
+                            {"nodes.body.mass": [900.0, 1100.0, 1200.0, 1300.0, 1500.0]}),
+    **{f"knots-{kind}-{dim}d": ((lambda k=kind, d=dim: one_mass(k, dim=d, dt=4e-4)), {"nodes.body.mass": MASSES})
+       for kind in ("crush", "nonlinear_elastic", "general_nonlinear") for dim in (1, 2)},
+    "frontal-curve-and-mass-axes": (lambda: _frontal("all", 0.06), _FRONTAL_AXES),
+    "scaled-curves-1d": ((lambda: TWINS["1d-all-materials"][0]), _SCALED_1D),
+    **{f"scaled-knots-{kind}": ((lambda k=kind: one_mass(k, dim=1, dt=4e-4)), _SCALED_KNOTS)
+       for kind in ("crush", "nonlinear_elastic", "general_nonlinear")},
+    "frontal-lane-compaction": (lambda: _frontal(["spring_force", "kinetic_energy"], 0.03), _COMPACTION_AXES),
+    "early-termination": (_bounce_many, {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}),
+    **{f"v2-spring-features-{dim}d": ((lambda d=dim: _v2_springs(d)), {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]})
+       for dim in (1, 2)},
+    **{f"v2-preload-and-materials-{dim}d": ((lambda d=dim: _v2_intact(d)),
+                                            {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]})
+       for dim in (1, 2)},
+}  # fmt: skip
+
+
+WARM_RECORD_CASES = ("frontal-lane-compaction", "full-twin-2d-mixed-prescribed")  # the slowest compiles (~10 s each)
+
+
+def record_case(case: str) -> tuple[Any, Any, tuple[int, ...]]:
+    """(batch, plan, record) of a twin case run with the per-step record of every movable node
+    (tests/test_metrics.py)."""
+    build, axes = CASES[case]
+    batch, plan = model_batch(build(), axes)
+    topo = plan.topology
+    record = tuple(n for n in range(topo.n_nodes) if not topo.fixed[n].all() or n in batch.pm_node)
+    return batch, plan, record
