@@ -20,13 +20,13 @@ POPSIZE = 15
 
 
 def calibrate_iso18571(ev: Any, spec: dict[str, Any], t_data: np.ndarray, y_data: np.ndarray, second: float,
-                       units: dict[str, str], progress: Any) -> dict[str, Any]:  # fmt: skip
+                       units: dict[str, str], progress: Any, channel_history: Any) -> dict[str, Any]:  # fmt: skip
     """The calibration result (as :func:`crashstudy.analysis.optimization.calibrate` returns it, plus
-    ``objective``, ``iso18571``: R, Z, EP, EM, ES and the grade at the fit)."""
+    ``objective``, ``iso18571``: R, Z, EP, EM, ES and the grade at the fit). ``channel_history(plan, res,
+    channel)`` is the calibrated channel of every run (the caller's, so that this module does not import it)."""
     from scipy.optimize import differential_evolution
 
     from crashstudy.analysis.iso18571 import grade, rate_histories
-    from crashstudy.analysis.optimization import channel_history
 
     channel = spec["channel"]
     variables = list(spec["variables"])

@@ -258,7 +258,7 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
         from crashstudy.analysis.calibration_iso import calibrate_iso18571
 
         second = 1000.0 if unit["time"] == "ms" else 1.0
-        return calibrate_iso18571(ev, spec, t_data, y_data, second, units, progress)
+        return calibrate_iso18571(ev, spec, t_data, y_data, second, units, progress, channel_history)
     cache: dict[bytes, np.ndarray] = {}
     best = [float("inf")]  # the smallest rms error so far, for the progress lines
 
