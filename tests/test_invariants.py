@@ -38,7 +38,7 @@ try:  # ``tests`` as a plain directory on sys.path (pytest's default) ...
 except ImportError:  # ... or as a package
     from tests.conftest import run_model  # type: ignore[no-redef]
     from tests.test_properties import _num, dump, force_curve, valid_model  # type: ignore[no-redef]
-from crashstudy.kernel.codes import OK
+from crashstudy.vocabulary.codes import OK
 
 COUNTS: Counter[str] = Counter()
 HISTORIES = ["position", "velocity", "spring_force", "spring_elongation"]

@@ -13,7 +13,7 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-from crashstudy.kernel.codes import KernelName
+from crashstudy.vocabulary.codes import KernelName
 
 STOP = threading.Event()
 

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel.codes import (
+from crashstudy.kernel.gen_shape import _lsum
+from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
+from crashstudy.vocabulary.codes import (
     GENERAL,
     PM_ACCELERATION,
     PM_DISPLACEMENT,
 )
-from crashstudy.kernel.gen_shape import _lsum
-from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
 
 
 def pass_b(g: Any, ind: str) -> None:

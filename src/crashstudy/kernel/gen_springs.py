@@ -6,9 +6,19 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel import codes
-from crashstudy.kernel.codes import CRUSH, DAMPER, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR, NONLINEAR_DAMPER
 from crashstudy.kernel.gen_shape import _lsum
+from crashstudy.vocabulary import codes
+from crashstudy.vocabulary.codes import (
+    CRUSH,
+    DAMPER,
+    ELASTOPLASTIC,
+    GENERAL,
+    LINEAR,
+    NONLINEAR,
+    NONLINEAR_DAMPER,
+    RATE_ELASTIC,
+)
+from crashstudy.vocabulary.materials import DAMPER_MATERIALS
 
 
 def sg_text(g: Any, s: int) -> str:
@@ -250,6 +260,13 @@ def pass_b_springs(g: Any, i2: str) -> None:
         elif k == NONLINEAR_DAMPER:
             emit(f"{i2}rd = {edot(g, s)}")
             emit(f"{i2}F{s} = {ramp(ca[s], 'rd')}")
+        elif k == RATE_ELASTIC:  # the first curve, then each neighbouring pair folded in by the rate
+            rc = g.rc[s]
+            emit(f"{i2}rd = abs({edot(g, s)})")
+            emit(f"{i2}F{s} = {ramp(rc[0], f'e{s}')}")
+            for q in range(len(rc) - 1):
+                emit(f"{i2}F{s} = rate_segment(F{s}, rd, {R[f'rt{s}_{q}']}, {R[f'rt{s}_{q + 1}']}, "
+                     f"{ramp(rc[q], f'e{s}')}, {ramp(rc[q + 1], f'e{s}')})")
         else:  # pragma: no cover - the compiler knows no other material
             raise ValueError(f"material code {k}")
         failure(g, i2, s)
@@ -260,7 +277,7 @@ def pass_b_springs(g: Any, i2: str) -> None:
     for s in range(S):
         ie = R[f"ie{s}"]
         step = f"energy_increment({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, afw)"
-        if s in g.pre and mat[s] not in (DAMPER, NONLINEAR_DAMPER):  # a preload's first half step
+        if s in g.pre and mat[s] not in DAMPER_MATERIALS:  # a preload's first half step
             half = f"energy_first_half({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, {R['dt']}, {R[f'r0{s}']}, afw)"
             step = f"{half} if (n1 and {R[f'e0{s}']} != 0.0) else {step}"
         emit(f"{i2}{ie} = {step}")

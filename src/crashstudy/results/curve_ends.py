@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from crashstudy.kernel.codes import CRUSH, GENERAL, NONLINEAR
+from crashstudy.vocabulary.codes import CRUSH, GENERAL, NONLINEAR
 
 PAST_FIRST, PAST_LAST = 1.0, 2.0  # codes, added: 3 = both ends
 MEANING = ("0: within the curve's x range; 1: compressed past its first point; 2: stretched past its last "

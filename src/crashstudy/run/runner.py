@@ -23,7 +23,6 @@ from crashstudy import interrupt
 from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
-from crashstudy.kernel.codes import KernelName
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
 from crashstudy.results.curve_ends import past_curve_ends
 from crashstudy.results.outdir import prepare_output, remove_derived, remove_stale_plots, study_of
@@ -31,6 +30,7 @@ from crashstudy.results.store import FINAL, PARTIAL, ChunkResult, Results, Resul
 from crashstudy.run.provenance import variant_hashes
 from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study.plan import Plan, load_study, plan_from_model
+from crashstudy.vocabulary.codes import KernelName
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
 MAX_CHUNK = 65536  # variants per chunk at most
