@@ -16,16 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from crashstudy.vocabulary.codes import (
-    CRUSH,
-    DAMPER,
-    ELASTOPLASTIC,
-    GENERAL,
-    LINEAR,
-    NONLINEAR,
-    NONLINEAR_DAMPER,
-    RATE_ELASTIC,
-)
+from crashstudy.vocabulary import codes
 
 #: what the parameter checks require of a slot (each with its wording in the check's message)
 SlotRule = Literal["> 0", ">= 0", "< 0", "below k"]
@@ -85,17 +76,17 @@ class MaterialSpec:
 _K_POS = "a value > 0"
 MATERIALS: tuple[MaterialSpec, ...] = (
     MaterialSpec(
-        "linear_elastic", LINEAR, "LinearElastic", (Slot("k", "stiffness", rule="> 0", expect=_K_POS),), (), 0,
+        "linear_elastic", codes.LINEAR, "LinearElastic", (Slot("k", "stiffness", rule="> 0", expect=_K_POS),), (), 0,
         None, False, "none", "stiffness", ("linear_force",), "F{s} = linear_force(k, e{s})",
         "reference._force (k e)",
     ),
     MaterialSpec(
-        "nonlinear_elastic", NONLINEAR, "NonlinearElastic", (), (CurveRole("curve", "signed"),), 0, "nonlinear",
+        "nonlinear_elastic", codes.NONLINEAR, "NonlinearElastic", (), (CurveRole("curve", "signed"),), 0, "nonlinear",
         False, "curve_knots", "curve_slope", ("nonlinear_force", "nonlinear_window"),
         "F{s} = nonlinear_force(C(e{s}))", "materials.curve_eval",
     ),
     MaterialSpec(
-        "general_nonlinear", GENERAL, "GeneralNonlinear",
+        "general_nonlinear", codes.GENERAL, "GeneralNonlinear",
         (Slot("ty", "tension_yield", float("inf"), "> 0", "a tension_yield > 0"),
          Slot("cy", "compression_yield", float("-inf"), "< 0", "a compression_yield < 0")),
         (CurveRole("loading", "signed"), CurveRole("unloading", "increasing")), 8, "general", False, "curve_knots",
@@ -104,18 +95,18 @@ MATERIALS: tuple[MaterialSpec, ...] = (
         "materials.general_nonlinear",
     ),
     MaterialSpec(
-        "crush", CRUSH, "Crush", (Slot("k", "unloading_stiffness", rule="> 0", expect=_K_POS),),
+        "crush", codes.CRUSH, "Crush", (Slot("k", "unloading_stiffness", rule="> 0", expect=_K_POS),),
         (CurveRole("loading", "compression_part"),), 2, "crush", False, "crush_knots", "curve_slope_or_stiffness",
         ("crush_law", "crush_window", "crush_knot_force"), "F{s}, emin, fstar = crush_law(e{s}, emin, fstar, L(e{s}), k)",
         "materials.crush",
     ),
     MaterialSpec(
-        "damper", DAMPER, "Damper", (Slot("k", "damping", rule=">= 0", expect="a value >= 0"),), (), 0, None, True,
+        "damper", codes.DAMPER, "Damper", (Slot("k", "damping", rule=">= 0", expect="a value >= 0"),), (), 0, None, True,
         "none", "damping", ("damper_force",), "F{s} = damper_force(c, edot)", "reference._force (c de/dt)",
         reads_rate=True,
     ),
     MaterialSpec(
-        "elastoplastic", ELASTOPLASTIC, "Elastoplastic",
+        "elastoplastic", codes.ELASTOPLASTIC, "Elastoplastic",
         (Slot("k", "stiffness", rule="> 0", expect=_K_POS),
          Slot("kt", "tangent_stiffness", rule="below k", expect="a tangent_stiffness >= 0 and below stiffness"),
          Slot("fy", "yield_force", rule="> 0", expect="a yield_force > 0")),
@@ -123,11 +114,11 @@ MATERIALS: tuple[MaterialSpec, ...] = (
         "F{s}, ep, p = elastoplastic_law(e{s}, ep, p, k, kt, fy)", "materials.elastoplastic",
     ),
     MaterialSpec(
-        "nonlinear_damper", NONLINEAR_DAMPER, "NonlinearDamper", (), (CurveRole("curve", "non_decreasing"),), 0,
+        "nonlinear_damper", codes.NONLINEAR_DAMPER, "NonlinearDamper", (), (CurveRole("curve", "non_decreasing"),), 0,
         None, True, "none", "curve_damping", (), "F{s} = C(edot)", "materials.curve_eval", reads_rate=True,
     ),
     MaterialSpec(  # curve_a is its first (rate-0) curve: a preload loads along it
-        "rate_elastic", RATE_ELASTIC, "RateElastic", (), (), 0, None, False, "curve_knots", "rate_curve_slopes",
+        "rate_elastic", codes.RATE_ELASTIC, "RateElastic", (), (), 0, None, False, "curve_knots", "rate_curve_slopes",
         ("rate_segment",), "F{s} = rate_segment(F{s}, abs(edot), r_k, r_k+1, C_k(e{s}), C_k+1(e{s})) per k",
         "materials.rate_elastic", reads_rate=True, rate_curves="curves",
     ),
