@@ -169,3 +169,17 @@ def test_unknown_curve_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[
 
     err = _invalid(tmp_path, capsys, edit)
     assert "springs.s.material.curves.1.curve" in err and "nope" in err
+
+
+def test_stretching_past_the_shortest_curve_end_is_reported() -> None:
+    """past_curve_end: the soft curve ends at 1 m, the stiff one (here cut to 0.04 m) earlier; a spring
+    stretched to 0.05 m has passed the stiff curve's last point (code 2), one crushed to -0.05 m its
+    first point (code 1), one stretched to 0.03 m neither (0)."""
+    from crashstudy.results.curve_ends import past_curve_ends
+
+    for speed, code in ((1.0, 2.0), (-1.0, 1.0), (0.6, 0.0)):
+        model = _driven(speed)
+        model["curves"]["stiff"] = {"x": [-0.04, 0.0, 0.04], "y": [-0.04 * K2, 0.0, 0.04 * K2]}
+        out, batch, _ = run_model(model, kernel="reference")
+        got = past_curve_ends(batch, out.max_crush, out.max_elongation, np.arange(1))
+        assert got[0, 0] == code, (speed, got)

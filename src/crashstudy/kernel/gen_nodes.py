@@ -115,7 +115,7 @@ def emit_results(g: Any, ind: str) -> None:
     emit(f"{ind}q = vi[w]")
     wm = R["wmax"] if ext else "0.0"
     emit(f"{ind}energy_error[q] = {R['err']} / max({R[g.ES]} + {wm}, 1e-300)")
-    emit(f"{ind}if status[q] == 0:")
+    emit(f"{ind}if status[q] == OK:")
     emit(f"{ind}    t_end[q] = int({R['lim']}) * {R['dt']}")
     emit(f"{ind}elif n_fail[w] > 0:")
     emit(f"{ind}    t_end[q] = (n_fail[w] - 1) * {R['dt']}")

@@ -70,6 +70,8 @@ class MaterialSpec:
     call: str  # the call the generator emits (gen_springs.pass_b_springs / pass_a), for the reader
     twin: str  # its independent NumPy twin (the reference kernel)
     reads_rate: bool = False  # its force reads the elongation rate (dampers, rate_elastic)
+    # which drawn ends of its elongation curve(s) a run checks (results.curve_ends): (first, last)
+    curve_ends: tuple[bool, bool] = (False, False)
     rate_curves: str | None = None  # schema field of a list of {rate, curve} (rate_elastic: Batch.rate_curve)
 
 
@@ -83,7 +85,7 @@ MATERIALS: tuple[MaterialSpec, ...] = (
     MaterialSpec(
         "nonlinear_elastic", codes.NONLINEAR, "NonlinearElastic", (), (CurveRole("curve", "signed"),), 0, "nonlinear",
         False, "curve_knots", "curve_slope", ("nonlinear_force", "nonlinear_window"),
-        "F{s} = nonlinear_force(C(e{s}))", "materials.curve_eval",
+        "F{s} = nonlinear_force(C(e{s}))", "materials.curve_eval", curve_ends=(True, True),
     ),
     MaterialSpec(
         "general_nonlinear", codes.GENERAL, "GeneralNonlinear",
@@ -92,13 +94,13 @@ MATERIALS: tuple[MaterialSpec, ...] = (
         (CurveRole("loading", "signed"), CurveRole("unloading", "increasing")), 8, "general", False, "curve_knots",
         "curve_slopes", ("general_law", "general_reverse", "general_window"),
         "F{s}, mode, ... = general_law(e{s}, mode, ..., L(e), U(e - e_t*), U(e - e_c*), yt, yc)",
-        "materials.general_nonlinear",
+        "materials.general_nonlinear", curve_ends=(True, True),
     ),
     MaterialSpec(
         "crush", codes.CRUSH, "Crush", (Slot("k", "unloading_stiffness", rule="> 0", expect=_K_POS),),
         (CurveRole("loading", "compression_part"),), 2, "crush", False, "crush_knots", "curve_slope_or_stiffness",
         ("crush_law", "crush_window", "crush_knot_force"), "F{s}, emin, fstar = crush_law(e{s}, emin, fstar, L(e{s}), k)",
-        "materials.crush",
+        "materials.crush", curve_ends=(True, False),
     ),
     MaterialSpec(
         "damper", codes.DAMPER, "Damper", (Slot("k", "damping", rule=">= 0", expect="a value >= 0"),), (), 0, None, True,
@@ -120,7 +122,7 @@ MATERIALS: tuple[MaterialSpec, ...] = (
     MaterialSpec(  # curve_a is its first (rate-0) curve: a preload loads along it
         "rate_elastic", codes.RATE_ELASTIC, "RateElastic", (), (), 0, None, False, "curve_knots", "rate_curve_slopes",
         ("rate_segment",), "F{s} = rate_segment(F{s}, abs(edot), r_k, r_k+1, C_k(e{s}), C_k+1(e{s})) per k",
-        "materials.rate_elastic", reads_rate=True, rate_curves="curves",
+        "materials.rate_elastic", reads_rate=True, rate_curves="curves", curve_ends=(True, True),
     ),
 )  # fmt: skip  (one row per material reads as a table)
 
