@@ -142,7 +142,6 @@ def codes_where(test: str) -> tuple[int, ...]:
 
 
 MATERIAL_CODES = {m.name: m.code for m in MATERIALS}  # model file ``type`` -> code
-MATERIAL_NAMES = {m.code: m.name for m in MATERIALS}
 #: materials that follow their loading curve (curve_a) by elongation and so can have knot peaks
 KNOT_MATERIALS = codes_where("knots")
 #: materials with a state (rows of the (S, NSTATE, V) state array)
