@@ -10,21 +10,16 @@ import sys
 from pathlib import Path
 
 GOLDEN = Path(__file__).parent / "golden" / "two_spring_kernel.py"
-TWO_SPRINGS = """\
-name: two-springs
-curves:
-  crush: {x: [-0.3, -0.05, 0.0, 0.1], y: [-6.0e4, -4.0e4, 0.0, 1.0e4]}
-nodes:
-  wall: {position: [0.0], fixed: true}
-  bumper: {position: [0.5], mass: 20.0}
-  body: {position: [1.5], mass: 800.0}
-springs:
-  front: {nodes: [wall, bumper], material: {type: nonlinear_elastic, curve: crush}}
-  rail: {nodes: [bumper, body], material: {type: linear_elastic, stiffness: 2.0e6}}
-initial_velocity: {bumper: [-10.0], body: [-10.0]}
-end_time: 0.1
-output: {interval: 1.0e-3, histories: [spring_force, kinetic_energy]}
-"""
+TWO_SPRINGS = {  # a bumper on a crush curve against a wall, the body behind it on a linear rail
+    "name": "two-springs",
+    "curves": {"crush": {"x": [-0.3, -0.05, 0.0, 0.1], "y": [-6.0e4, -4.0e4, 0.0, 1.0e4]}},
+    "nodes": {"wall": {"position": [0.0], "fixed": True}, "bumper": {"position": [0.5], "mass": 20.0},
+              "body": {"position": [1.5], "mass": 800.0}},
+    "springs": {"front": {"nodes": ["wall", "bumper"], "material": {"type": "nonlinear_elastic", "curve": "crush"}},
+                "rail": {"nodes": ["bumper", "body"], "material": {"type": "linear_elastic", "stiffness": 2.0e6}}},
+    "initial_velocity": {"bumper": [-10.0], "body": [-10.0]}, "end_time": 0.1,
+    "output": {"interval": 1.0e-3, "histories": ["spring_force", "kinetic_energy"]},
+}  # fmt: skip
 
 
 def generated_source() -> str:
