@@ -76,7 +76,8 @@ MATERIALS = {"linear_elastic": {"stiffness": 1.0e5}, "nonlinear_elastic": {"curv
              "general_nonlinear": {"loading": "c", "unloading": "c", "tension_yield": 1.0e3, "compression_yield": -1.0e3},
              "crush": {"loading": "c", "unloading_stiffness": 1.0e5}, "damper": {"damping": 100.0},
              "elastoplastic": {"stiffness": 1.0e5, "tangent_stiffness": 1.0e4, "yield_force": 1.0e3},
-             "nonlinear_damper": {"curve": "c"}}  # fmt: skip
+             "nonlinear_damper": {"curve": "c"},
+             "rate_elastic": {"curves": [{"rate": 0.0, "curve": "c"}, {"rate": 2.0, "curve": "c"}]}}  # fmt: skip
 
 
 def _doc_material_units() -> dict[str, dict[str, str]]:
@@ -143,7 +144,10 @@ def test_every_material_parameter_axis_has_the_unit_the_docs_give(system: str, t
             got = units_of(plan)[axis_unit(plan.axes[0].path, plan)]
             assert got == _unit_of(docs[kind][field], system), (kind, field, got, docs[kind][field])
             checked += 1
-        if "curve" in MATERIALS[kind] or "loading" in MATERIALS[kind]:  # a point of its curve
+        if kind == "rate_elastic":  # a rate of its list: an elongation rate
+            plan = load_study({"name": "u", "model": str(file), "matrix": {"springs.s.material.curves.1.rate": [2.0, 3.0]}})
+            assert units_of(plan)[axis_unit(plan.axes[0].path, plan)] == _unit_of("length/time", system)
+        if {"curve", "loading", "curves"} & set(MATERIALS[kind]):  # a point of its curve
             plan = load_study({"name": "u", "model": str(file), "matrix": {"curves.c.x.0": [-1.0, -1.1], "curves.c.y.2": [1e3, 2e3]}})
             x_unit = "length/time" if kind == "nonlinear_damper" else "length"
             assert [units_of(plan)[axis_unit(a.path, plan)] for a in plan.axes] == [

@@ -32,7 +32,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from crashstudy.kernel.codes import OK
+from crashstudy.vocabulary.codes import OK
 from helpers import dump, run_model
 from strategies import force_curve, num, valid_model
 

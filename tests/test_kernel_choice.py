@@ -108,7 +108,7 @@ def test_compile_estimates_match_the_measured_cold_compiles() -> None:
     (generated kernel, histories none, 2-core machine), each within 30 %: linear spring 2.95 s,
     general_nonlinear 5.47 s, helicopter (2 general_nonlinear, 2-D) 8.15 s, frontal (2 general_nonlinear
     + 6 others) 10.3 s; and every one of them below the generic kernel's compile."""
-    from crashstudy.kernel.codes import GENERAL, LINEAR
+    from crashstudy.vocabulary.codes import GENERAL, LINEAR
 
     def mats(general: int, other: int) -> np.ndarray:
         return np.array([GENERAL] * general + [LINEAR] * other)

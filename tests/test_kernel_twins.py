@@ -105,6 +105,11 @@ def _check_v2(ref: KernelOutput, batch: Any) -> None:
     assert np.all(batch.ie0[[0, 2, 3]] > 0) and np.all(ref.max_elongation[0] > 0)
 
 
+def _check_rate_elastic(ref: KernelOutput, batch: Any) -> None:
+    """Every variant runs (on the generated kernel too); the preload stores energy."""
+    assert np.all(ref.status == 0) and generated.unsupported(batch) is None and np.all(batch.ie0[0] > 0)
+
+
 # case (tests/twins.py CASES) -> what the case must exercise
 CHECKS: dict[str, Callable[[KernelOutput, Any], None]] = {
     "1d-every-material": _check_1d(False),
@@ -123,6 +128,7 @@ CHECKS: dict[str, Callable[[KernelOutput, Any], None]] = {
     "early-termination": _check_termination,
     **{f"v2-spring-features-{dim}d": _check_v2 for dim in (1, 2)},
     **{f"v2-preload-and-materials-{dim}d": _check_v2_intact for dim in (1, 2)},
+    **{f"rate-elastic-{dim}d": _check_rate_elastic for dim in (1, 2)},
 }  # fmt: skip
 
 

@@ -356,6 +356,33 @@ def _v2_intact(dim: int) -> dict[str, Any]:
 
 
 # case -> (model builder, study axes); tests/test_kernel_twins.py CHECKS says what each case must exercise
+def rate_elastic_model(dim: int) -> dict[str, Any]:
+    """rate_elastic: three curves (rates 0, 2, 6 m/s) on a preloaded spring, one curve on another, beside a
+    linear spring; the impact speeds put the elongation rates below, between and above the rates, and a
+    curve scale axis makes one of its curves a per-variant factor curve."""
+    ax = [1.0] if dim == 1 else [0.6, 0.8]
+    at = lambda r: [r * c for c in ax]  # noqa: E731
+    return {
+        "name": f"rate-elastic-{dim}d",
+        "curves": {"soft": {"x": [-0.2, -0.05, 0.0, 0.05, 0.2], "y": [-800.0, -500.0, 0.0, 500.0, 800.0]},
+                   "mid": {"x": [-0.2, -0.05, 0.0, 0.05, 0.2], "y": [-1600.0, -1000.0, 0.0, 1000.0, 1600.0]},
+                   "stiff": {"x": [-0.2, 0.0, 0.1, 0.2], "y": [-4000.0, 0.0, 1500.0, 2500.0]}},
+        "nodes": {"a": {"position": at(0.0), "fixed": True}, "b": {"position": at(1.0), "mass": 10.0},
+                  "c": {"position": at(2.0), "mass": 5.0}},
+        "springs": {
+            "re": {"nodes": ["a", "b"], "initial_elongation": 0.01,
+                   "material": {"type": "rate_elastic", "curves": [{"rate": 0.0, "curve": "soft"},
+                                                                   {"rate": 2.0, "curve": "mid"},
+                                                                   {"rate": 6.0, "curve": "stiff"}]}},
+            "re1": {"nodes": ["b", "c"], "material": {"type": "rate_elastic", "curves": [{"rate": 1.0, "curve": "mid"}]}},
+            "lin": {"nodes": ["a", "c"], "material": {"type": "linear_elastic", "stiffness": 2.0e3}},
+        },
+        "initial_velocity": {"b": at(3.0), "c": at(-2.0)},
+        "end_time": 0.3, "time_step": {"safety_factor": 0.5},
+        "output": {"interval": 1.0e-3},
+    }  # fmt: skip
+
+
 CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]]]] = {
     "1d-every-material": (lambda: one_d_materials(False), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}),
     "1d-every-material-mirrored": (lambda: one_d_materials(True), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}),
@@ -381,6 +408,8 @@ CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]]]] = 
     **{f"v2-preload-and-materials-{dim}d": ((lambda d=dim: _v2_intact(d)),
                                             {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]})
        for dim in (1, 2)},
+    **{f"rate-elastic-{dim}d": ((lambda d=dim: rate_elastic_model(d)), {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0],
+                                "curves.mid.scale": [1.0, 0.8, 1.2, 1.0, 1.5]}) for dim in (1, 2)},
 }  # fmt: skip
 
 

@@ -20,17 +20,10 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from crashstudy.arrays.compiler import (
-    CRUSH,
-    GENERAL,
-    MATERIAL_CODES,
-    NONLINEAR,
-    Topology,
-)
+from crashstudy.arrays.compiler import Topology
 from crashstudy.arrays.timestep import MAX_STEPS, StepChoice, choose_steps, spring_stiffness_bound
 from crashstudy.kernel.preload import preload
-
-MATERIAL_NAMES = {code: name for name, code in MATERIAL_CODES.items()}
+from crashstudy.vocabulary.materials import KNOT_MATERIALS
 
 
 @dataclass
@@ -99,6 +92,10 @@ class Batch:
     bx: np.ndarray  # (K, V) knot abscissae as written
     by: np.ndarray  # (K, V) knot ordinates as written
     cfac: np.ndarray  # (3, C, V) force scale ys, abscissa scale xs, slope factor ys / xs
+    # rate_elastic: its curves in rate order, all springs' after another (R,), each spring's range (S + 1,)
+    rate_curve: np.ndarray  # (R,) int64 curve index, shared
+    rate_off: np.ndarray  # (S + 1,) int64, shared
+    rate_at: np.ndarray  # (R, V) [length/time] the rate of each of those curves
 
     @property
     def n_variants(self) -> int:
@@ -119,7 +116,7 @@ class Batch:
 
 
 _SHARED = {"spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_off", "free", "load_node",
-           "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check"}  # fmt: skip
+           "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check", "rate_curve", "rate_off"}  # fmt: skip
 
 INVALID_REASONS = {
     1: "fixed dt is above the critical step",
@@ -214,7 +211,8 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         **knot_peaks(topo, cx, cy),
         ktan=ktan, fy=fy, e0=e0, fail_t=np.ascontiguousarray(P[b["fail_t"]]),
         fail_c=np.ascontiguousarray(P[b["fail_c"]]), state0=state0, ie0=ie0, rate0=_rate0(dx, length0, v0, i, j),
-        bx=bx, by=by, cfac=cfac,
+        bx=bx, by=by, cfac=cfac, rate_curve=topo.rate_curves, rate_off=_rate_offsets(topo),
+        rate_at=np.ascontiguousarray(P[b["rate"]]) if "rate" in b else np.zeros((0, V)),
     )  # fmt: skip
     return batch, steps
 
@@ -237,6 +235,11 @@ def curve_points(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     c = np.repeat(np.arange(len(topo.curve_ids)), np.diff(topo.curve_offsets))
     with np.errstate(over="ignore", invalid="ignore"):
         return bx * cfac[1, c], by * cfac[0, c]
+
+
+def _rate_offsets(topo: Topology) -> np.ndarray:
+    """(S + 1,) each spring's range in ``topo.rate_curves`` (all empty for a topology without them)."""
+    return topo.rate_offsets if topo.rate_offsets is not None else np.zeros(topo.n_springs + 1, dtype=np.int64)
 
 
 def _rate0(dx: np.ndarray, length0: np.ndarray, v0: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -264,7 +267,7 @@ def knot_peaks(topo: Topology, cx: np.ndarray, cy: np.ndarray) -> dict[str, np.n
     knot_y = np.zeros((K, V))
     off = topo.curve_offsets
     curves = {int(topo.spring_curves[s, 0]) for s in range(topo.n_springs)
-              if topo.material[s] in (NONLINEAR, CRUSH, GENERAL) and topo.spring_curves[s, 0] >= 0}  # fmt: skip
+              if topo.material[s] in KNOT_MATERIALS and topo.spring_curves[s, 0] >= 0}  # fmt: skip
     for c in curves:
         a, e = int(off[c]), int(off[c + 1])
         for k in range(a + 1, e - 1):

@@ -14,31 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from crashstudy.kernel.codes import (  # noqa: F401
-    CRUSH,
-    DAMPER,
-    ELASTOPLASTIC,
-    GENERAL,
-    HISTORY_ORDER,
-    LINEAR,
-    MATERIAL_CODES,
-    NONLINEAR,
-    NONLINEAR_DAMPER,
-    PM_ACCELERATION,
-    PM_CODES,  # fmt: skip
-    PM_DISPLACEMENT,
-    PM_VELOCITY,
-)
-from crashstudy.schema.model import (
-    Crush,
-    Damper,
-    Elastoplastic,
-    GeneralNonlinear,
-    LinearElastic,
-    Model,
-    NonlinearDamper,
-    NonlinearElastic,
-)
+from crashstudy.schema.model import Model
+from crashstudy.vocabulary.codes import HISTORY_ORDER, PM_CODES
+from crashstudy.vocabulary.materials import BY_NAME
 
 TIME_STEP_MODES = ("safety_factor", "dt", "tolerance")
 
@@ -101,6 +79,10 @@ class Topology:
     n_params: int = 0
     metrics: tuple[MetricSpec, ...] = ()
     extra_histories: tuple[str, ...] = ()  # histories made after the kernel ("filtered_acceleration")
+    # rate_elastic: the curves of every spring in rate order (R,) and each spring's range in them (S + 1,);
+    # their rates are parameter block "rate"
+    rate_curves: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64), repr=False)
+    rate_offsets: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def metric_nodes(self) -> tuple[int, ...]:
@@ -142,12 +124,16 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
     ptot = int(offsets[-1])
     C = len(curve_ids)
+    rate_lists = [getattr(sp.material, BY_NAME[sp.material.type].rate_curves or "", None) or []
+                  for sp in m.springs.values()]  # fmt: skip
+    rate_offsets = np.concatenate([[0], np.cumsum([len(r) for r in rate_lists])]).astype(np.int64)
 
     sizes = [("mass", N), ("position", N * D), ("velocity", N * D), ("k", S), ("ty", S), ("cy", S),
              ("cx", ptot), ("cy_", ptot), ("gravity", D), ("load", L * D), ("pm_scale", P),
              ("wall_point", W * D), ("wall_normal", W * D), ("wall_k", W), ("end_time", 1), ("time_step", 1),
              ("ke_fraction", 1), ("min_time", 1),
-             ("kt", S), ("fy", S), ("e0", S), ("fail_t", S), ("fail_c", S), ("cfac", 2 * C)]  # fmt: skip
+             ("kt", S), ("fy", S), ("e0", S), ("fail_t", S), ("fail_c", S), ("cfac", 2 * C),
+             ("rate", int(rate_offsets[-1]))]  # fmt: skip
     blocks: dict[str, slice] = {}
     pos = 0
     for name, n in sizes:
@@ -183,33 +169,24 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     for s, (sid, sp) in enumerate(m.springs.items()):
         spring_nodes[s] = [nidx[sp.nodes[0]], nidx[sp.nodes[1]]]
         mat = sp.material
-        material[s] = MATERIAL_CODES[mat.type]
+        row = BY_NAME[mat.type]  # the material table: its code, parameter slots and curve roles
+        material[s] = row.code
         base = f"springs.{sid}.material"
         put("ty", s, np.inf, None)
         put("cy", s, -np.inf, None)
-        if isinstance(mat, LinearElastic):
-            put("k", s, mat.stiffness, f"{base}.stiffness")
-        elif isinstance(mat, Damper):
-            put("k", s, mat.damping, f"{base}.damping")
-        elif isinstance(mat, NonlinearElastic):
-            spring_curves[s, 0] = cidx[mat.curve]
-        elif isinstance(mat, Crush):
-            spring_curves[s, 0] = cidx[mat.loading]
-            put("k", s, mat.unloading_stiffness, f"{base}.unloading_stiffness")
-        elif isinstance(mat, GeneralNonlinear):
-            spring_curves[s] = [cidx[mat.loading], cidx[mat.unloading]]
-            put("ty", s, mat.tension_yield if mat.tension_yield is not None else np.inf, f"{base}.tension_yield")
-            put("cy", s, mat.compression_yield if mat.compression_yield is not None else -np.inf,
-                f"{base}.compression_yield")
-        elif isinstance(mat, Elastoplastic):
-            put("k", s, mat.stiffness, f"{base}.stiffness")
-            put("kt", s, mat.tangent_stiffness, f"{base}.tangent_stiffness")
-            put("fy", s, mat.yield_force, f"{base}.yield_force")
-        elif isinstance(mat, NonlinearDamper):
-            spring_curves[s, 0] = cidx[mat.curve]
-        # spring options (SPEC v2): preload / free length and failure elongations (inf: never breaks)
-        damper = isinstance(mat, (Damper, NonlinearDamper))
-        put("e0", s, sp.initial_elongation, None if damper else f"springs.{sid}.initial_elongation")
+        for slot in row.slots:
+            value = getattr(mat, slot.field)
+            if value is None:  # an optional field left out (a required one is never None)
+                assert slot.absent is not None
+                value = slot.absent
+            put(slot.block, s, value, f"{base}.{slot.field}")
+        for r, role in enumerate(row.curves):
+            spring_curves[s, r] = cidx[getattr(mat, role.field)]
+        for k, rc in enumerate(rate_lists[s]):  # rate_elastic: curve_a is the first (rate-0) curve
+            put("rate", int(rate_offsets[s]) + k, rc.rate, f"{base}.curves.{k}.rate")
+            spring_curves[s, 0] = spring_curves[s, 0] if k else cidx[rc.curve]
+        # spring options: preload / free length and failure elongations (inf: never breaks)
+        put("e0", s, sp.initial_elongation, None if row.by_rate else f"springs.{sid}.initial_elongation")
         fail = sp.failure
         put("fail_t", s, fail.tension if fail is not None and fail.tension is not None else np.inf,
             f"springs.{sid}.failure.tension")
@@ -276,6 +253,8 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
         time_step_mode=mode, output_interval=m.output.interval, histories=histories,
         termination=term is not None, accuracy_check=m.accuracy_check, blocks=blocks, paths=paths, n_params=pos,
         metrics=metrics, extra_histories=extra,
+        rate_curves=np.array([cidx[rc.curve] for r in rate_lists for rc in r], dtype=np.int64),
+        rate_offsets=rate_offsets,
     )  # fmt: skip
     return topo, p
 

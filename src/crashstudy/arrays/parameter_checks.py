@@ -9,25 +9,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crashstudy.arrays.batch import MATERIAL_NAMES, curve_points, time_curve_spacing
-from crashstudy.arrays.compiler import (
-    CRUSH,
-    DAMPER,
-    ELASTOPLASTIC,
-    GENERAL,
-    LINEAR,
-    NONLINEAR_DAMPER,
-    Topology,
-)
+from crashstudy.arrays.batch import curve_points, time_curve_spacing
+from crashstudy.arrays.compiler import Topology
 from crashstudy.arrays.timestep import MAX_STEPS, choose_steps, spring_stiffness_bound
 from crashstudy.schema.signs import (
-    SIGNED_TYPES,
     behind_message,
     depth_behind_walls,
     sign_message,
     wrong_sign_points,
 )
 from crashstudy.units import UNIT_SYSTEMS
+from crashstudy.vocabulary.materials import MATERIALS, spec
+
+SLOT_ORDER = ("k", "ty", "cy", "kt", "fy")  # the order of the material parameter checks' messages
 
 
 @dataclass
@@ -76,13 +70,9 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     mass = P[b["mass"]]
     movable = np.asarray(~topo.fixed.all(axis=1), dtype=bool)
     ranged("mass", np.arange(N), (movable[:, None] & ~(mass > 0)) | (mass < 0), "a mass > 0")
-    k, mat = P[b["k"]], topo.material
-    stiff, damper, general = np.isin(mat, (LINEAR, CRUSH, ELASTOPLASTIC)), mat == DAMPER, mat == GENERAL
-    ranged("k", np.flatnonzero(stiff), ~(k > 0), "a value > 0")
-    ranged("k", np.flatnonzero(damper), ~(k >= 0), "a value >= 0")
-    ranged("ty", np.flatnonzero(general), ~(P[b["ty"]] > 0), "a tension_yield > 0")
-    ranged("cy", np.flatnonzero(general), ~(P[b["cy"]] < 0), "a compression_yield < 0")
-    _v2_rules(topo, P, rule, ranged)
+    _material_rules(topo, P, ranged)
+    _rate_rules(topo, P, rule)
+    _option_rules(topo, P, rule, ranged)
     _curve_rules(topo, P, rule)
     x0 = P[b["position"]].reshape(N, D, V)
     dx = x0[topo.spring_nodes[:, 1]] - x0[topo.spring_nodes[:, 0]]
@@ -112,7 +102,7 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     for mask, _ in rules:
         bad |= mask.any(axis=0)
     pcx, pcy = curve_points(topo, P)
-    kmax, damp = spring_stiffness_bound(topo, k, pcx, pcy)
+    kmax, damp = spring_stiffness_bound(topo, P[b["k"]], pcx, pcy)
     steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, pcx), P[b["wall_k"]])
     assert steps.too_many is not None
     over = steps.too_many & ~bad  # a variant that breaks another rule has no meaningful step
@@ -127,13 +117,39 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     return ParameterCheck(bad | over, rules)
 
 
-def _v2_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None], ranged: Callable[..., None]) -> None:
-    """elastoplastic parameters (K > 0 is checked with the other stiffnesses) and the spring options."""
+def _material_rules(topo: Topology, P: np.ndarray, ranged: Callable[..., None]) -> None:
+    """Each material parameter slot's rule (the material table's ``Slot.rule``), one check per
+    (slot, rule) over every spring whose material has it."""
     b, mat = topo.blocks, topo.material
-    k, kt, e0, ft, fc = (P[b[name]] for name in ("k", "kt", "e0", "fail_t", "fail_c"))
-    plastic = np.flatnonzero(mat == ELASTOPLASTIC)
-    ranged("kt", plastic, ~((kt >= 0) & (kt < k)), "a tangent_stiffness >= 0 and below stiffness")
-    ranged("fy", plastic, ~(P[b["fy"]] > 0), "a yield_force > 0")
+    groups: dict[tuple[str, str, str], list[int]] = {}
+    for m in MATERIALS:
+        for slot in m.slots:
+            if slot.rule is not None:
+                groups.setdefault((slot.block, slot.rule, slot.expect), []).append(m.code)
+    for block, test, expect in sorted(groups, key=lambda g: SLOT_ORDER.index(g[0])):
+        v, k = P[b[block]], P[b["k"]]
+        ok = {"> 0": v > 0, ">= 0": v >= 0, "< 0": v < 0, "below k": (v >= 0) & (v < k)}[test]
+        ranged(block, np.flatnonzero(np.isin(mat, groups[block, test, expect])), ~ok, expect)
+
+
+def _rate_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> None:
+    """rate_elastic: its rates >= 0 and strictly increasing (an axis may set one)."""
+    if topo.rate_offsets is None or not len(topo.rate_curves):
+        return
+    rates, ro = P[topo.blocks["rate"]], topo.rate_offsets
+    for s in range(topo.n_springs):
+        a, e = int(ro[s]), int(ro[s + 1])
+        if e > a:
+            sid, r = topo.spring_ids[s], rates[a:e]
+            bad = np.concatenate([~(r[:1] >= 0), ~(np.diff(r, axis=0) > 0)])
+            rule(bad, lambda k, c, sid=sid, r=r: f"springs.{sid}.material.curves.{k}.rate: expected a rate >= 0 and "
+                 f"above the rate before it, got {r[k, c]:g}")  # fmt: skip
+
+
+def _option_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None], ranged: Callable[..., None]) -> None:
+    """The spring options: failure elongations beyond the initial elongation."""
+    b = topo.blocks
+    e0, ft, fc = (P[b[name]] for name in ("e0", "fail_t", "fail_c"))
     every = np.arange(topo.n_springs)
     ranged("fail_t", every, ~(ft > 0), "a tension failure elongation > 0")
     ranged("fail_c", every, ~(fc < 0), "a compression failure elongation < 0")
@@ -181,19 +197,20 @@ def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> No
              f"(x.{r} = {xs[r, col]:g} is followed by {xs[r + 1, col]:g})")  # fmt: skip
     origin: dict[int, str] = {}  # curve -> material type of a spring that uses it
     signed: dict[int, str] = {}  # curve -> a material whose force has the sign of the elongation
-    rising, crush, damper = set(), set(), set()
+    rising: set[int] = set()
+    crush: set[int] = set()
+    damper: set[int] = set()
     for s in range(topo.n_springs):
-        c0, c1 = (int(v) for v in topo.spring_curves[s])
-        kind = int(topo.material[s])
-        origin.update({c: MATERIAL_NAMES[kind] for c in (c0, c1) if c >= 0})
-        if MATERIAL_NAMES[kind] in SIGNED_TYPES:  # the loading curve (an unloading one is increasing)
-            signed[c0] = MATERIAL_NAMES[kind] + (" loading" if kind == GENERAL else "")
-        if kind == GENERAL:
-            rising.add(c1)
-        elif kind == CRUSH:
-            crush.add(c0)
-        elif kind == NONLINEAR_DAMPER:
-            damper.add(c0)
+        row = spec(topo.material[s])  # the material table's curve roles and their rules
+        if row.rate_curves and topo.rate_offsets is not None:  # rate_elastic: every curve an elastic one
+            for c in topo.rate_curves[int(topo.rate_offsets[s]) : int(topo.rate_offsets[s + 1])]:
+                origin[int(c)] = signed[int(c)] = row.name
+        for role, c in zip(row.curves, (int(v) for v in topo.spring_curves[s]), strict=False):
+            origin[c] = row.name
+            if role.rule == "signed":  # a loading curve (an unloading one is increasing)
+                signed[c] = row.name + (" loading" if len(row.curves) > 1 else "")
+            else:
+                {"increasing": rising, "compression_part": crush, "non_decreasing": damper}[str(role.rule)].add(c)
     for c, kind_name in sorted(origin.items()):
         a, e = int(off[c]), int(off[c + 1])
         at0 = _value_at_zero(cx[a:e], cy[a:e])

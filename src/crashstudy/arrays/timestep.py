@@ -27,16 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crashstudy.arrays.compiler import (
-    CRUSH,
-    DAMPER,
-    ELASTOPLASTIC,
-    GENERAL,
-    LINEAR,
-    NONLINEAR,
-    NONLINEAR_DAMPER,
-    Topology,
-)
+from crashstudy.arrays.compiler import Topology
+from crashstudy.vocabulary.materials import spec
 
 CRITICAL_MARGIN = 0.99  # the nodal bound is attained exactly by two free masses on one spring,
 # where omega dt = 2 is neutrally unstable (linear growth): dt_crit keeps a 1% margin below 2 / omega
@@ -74,20 +66,24 @@ def spring_stiffness_bound(topo: Topology, k: np.ndarray, cx: np.ndarray, cy: np
     damp = np.zeros((S, V))
     off = topo.curve_offsets
     for s in range(S):
-        mat = topo.material[s]
+        rule = spec(topo.material[s]).step  # the material table's stable-step rule
         c0, c1 = topo.spring_curves[s]
-        if mat in (LINEAR, ELASTOPLASTIC):  # elastoplastic: K bounds the tangent KT and the unloading slope
+        if rule == "stiffness":  # elastoplastic: K bounds the tangent KT and the unloading slope
             kmax[s] = k[s]
-        elif mat == NONLINEAR_DAMPER:  # the steepest slope of the force vs rate curve acts as c
+        elif rule == "curve_damping":  # the steepest slope of the force vs rate curve acts as c
             damp[s] = curve_max_slope(cx, cy, off, c0)
-        elif mat == DAMPER:
+        elif rule == "damping":
             damp[s] = k[s]
-        elif mat == NONLINEAR:
+        elif rule == "curve_slope":
             kmax[s] = curve_max_slope(cx, cy, off, c0)
-        elif mat == GENERAL:
+        elif rule == "curve_slopes":  # every curve of the material
             kmax[s] = np.maximum(curve_max_slope(cx, cy, off, c0), curve_max_slope(cx, cy, off, c1))
-        elif mat == CRUSH:
+        elif rule == "curve_slope_or_stiffness":  # crush: its curve or its unloading stiffness
             kmax[s] = np.maximum(curve_max_slope(cx, cy, off, c0), k[s])
+        elif rule == "rate_curve_slopes":  # rate_elastic: the steepest slope of any of its curves
+            ro = topo.rate_offsets if topo.rate_offsets is not None else np.zeros(S + 1, dtype=np.int64)
+            for c in topo.rate_curves[int(ro[s]) : int(ro[s + 1])]:
+                kmax[s] = np.maximum(kmax[s], curve_max_slope(cx, cy, off, int(c)))
     return kmax, damp
 
 

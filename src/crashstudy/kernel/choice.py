@@ -48,7 +48,7 @@ import numpy as np
 from crashstudy import environment
 from crashstudy.kernel import compile_lock
 from crashstudy.kernel.cache import cache_dir, compiled_or_cached, why_not_private
-from crashstudy.kernel.codes import GENERAL, KernelName
+from crashstudy.vocabulary.codes import GENERAL, KernelName
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch

@@ -18,18 +18,6 @@ import numpy as np
 from crashstudy.kernel import generic_block as gb
 from crashstudy.kernel import laws as lw
 from crashstudy.kernel import wall_contact as wc
-from crashstudy.kernel.codes import (
-    CRUSH,
-    DAMPER,
-    ELASTOPLASTIC,
-    GENERAL,
-    LINEAR,
-    NONLINEAR,
-    NONLINEAR_DAMPER,
-    PM_ACCELERATION,
-    PM_DISPLACEMENT,
-    UNSTABLE_ENERGY,
-)
 from crashstudy.kernel.driver import (
     block_starts,
     finish,
@@ -39,7 +27,22 @@ from crashstudy.kernel.driver import (
     run_blocks,
     set_threads,
 )
+from crashstudy.kernel.generic_block import BREAKABLE, PRELOADED
 from crashstudy.kernel.output import KernelOutput
+from crashstudy.vocabulary.codes import (
+    CRUSH,
+    DAMPER,
+    ELASTOPLASTIC,
+    GENERAL,
+    LINEAR,
+    NONLINEAR,
+    NONLINEAR_DAMPER,
+    PM_ACCELERATION,
+    PM_DISPLACEMENT,
+    RATE_ELASTIC,
+    UNSTABLE_ENERGY,
+)
+from crashstudy.vocabulary.materials import DAMPER_MATERIALS, RATE_MATERIALS
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
@@ -74,7 +77,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
          g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y, k_any, k_hit,
          k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie, pf, mc, pacc, pwall,
          e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act,
-         actf, n_fail, nst, next_rec, st_ok, me, broken, v2, ftmp, e_init, nmax) = gb.block_arrays(
+         actf, n_fail, nst, next_rec, st_ok, me, broken, options, ftmp, e_init, nmax) = gb.block_arrays(
             lo, B, has_state, any_knot, T, P, Out)
         pen_e = np.zeros((W, N, B))  # stored energy of each node at each penalty wall
         for n in range(nmax + 1):
@@ -114,7 +117,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         sg = sg_b[s, w]
                         e_tmp[w] = lw.elongation_1d(sg, x[j, 0, w] - x0_b[j, 0, w], x[i, 0, w] - x0_b[i, 0, w])
                         ax_tmp[0, w] = sg
-                    if kind == DAMPER or kind == NONLINEAR_DAMPER or has_term:
+                    if kind in RATE_MATERIALS or has_term:
                         for w in range(B):
                             vpj = lw.end_rate(v[j, 0, w], 0.0 if pm_disp[j, 0] else acc[j, 0, w], dt_b[w])
                             vpi = lw.end_rate(v[i, 0, w], 0.0 if pm_disp[i, 0] else acc[i, 0, w], dt_b[w])
@@ -143,7 +146,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                             edot += ax_tmp[d, w] * (vpj - vpi)
                         e_tmp[w] = lw.elongation_2d(ln, l0_b[s, w])
                         ed_tmp[w] = edot
-                if v2[0, s]:  # e = e0 + ... (initial_elongation)
+                if options[PRELOADED, s]:  # e = e0 + ... (initial_elongation)
                     for w in range(B):
                         e_tmp[w] = e0[s, lo + w] + e_tmp[w]
                 nhit = 0
@@ -189,6 +192,15 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                             e_tmp[w], state[s, 0, w], state[s, 1, w], kp_b[s, w], P.ktan[s, lo + w], P.fy[s, lo + w])
                 elif kind == NONLINEAR_DAMPER:
                     gb.ramp(curve_a[s], ed_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
+                elif kind == RATE_ELASTIC:  # its first curve, then each neighbouring pair folded in by the rate
+                    r_a, r_z = T.rate_off[s], T.rate_off[s + 1]
+                    gb.ramp(T.rate_curve[r_a], e_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
+                    for k in range(r_a, r_z - 1):
+                        gb.ramp(T.rate_curve[k], e_tmp, g_L, off, cx_b, cy_b, ds_b, s0_b, B)
+                        gb.ramp(T.rate_curve[k + 1], e_tmp, g_Ut, off, cx_b, cy_b, ds_b, s0_b, B)
+                        for w in range(B):
+                            F_tmp[w] = lw.rate_segment(F_tmp[w], abs(ed_tmp[w]), P.rate_at[k, lo + w],
+                                                       P.rate_at[k + 1, lo + w], g_L[w], g_Ut[w])  # fmt: skip
                 else:  # GENERAL: rules 1-4 of docs/format.md, branch-free over the block; reversals (rare) per lane
                     ca = curve_a[s]
                     cb = curve_b[s]
@@ -215,7 +227,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                                     e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w],
                                     state[s, 4, w], state[s, 6, w], state[s, 7, w], yt_b[s, w], yc_b[s, w], ca, cb,
                                     lo + w, cx, cy, cds, cs0, cs1, off)
-                if v2[1, s]:
+                if options[BREAKABLE, s]:
                     gb.failure(s, n, lo, B, P.fail_t, P.fail_c, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp, sft)
                 if kn:
                     k_any[s] = nhit > 0
@@ -232,10 +244,11 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                             k_dfax[s, d, w] = dF * ax_tmp[d, w]
                         pf[s, w] = lw.peak(pf[s, w], kcw * actf[w])
                 # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
-                fh = v2[0, s] and kind != DAMPER and kind != NONLINEAR_DAMPER
-                if v2[1, s] or (n == 1 and fh):  # a breakable spring, or a preloaded spring's first step
-                    gb.v2_scatter(s, i, j, n, fh, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, v2[1, s],
-                                  f, ie, ie_tot, pf, mc, me, forces, elong, f_prev, e_prev)  # fmt: skip
+                fh = options[PRELOADED, s] and kind not in DAMPER_MATERIALS
+                if options[BREAKABLE, s] or (n == 1 and fh):  # a breakable spring, or a preloaded spring's first step
+                    gb.option_scatter(s, i, j, n, fh, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp,
+                                      options[BREAKABLE, s], f, ie, ie_tot, pf, mc, me, forces, elong, f_prev,
+                                      e_prev)  # fmt: skip
                 elif D == 1 and n > 0:  # one pass: scatter and summaries
                     for w in range(B):
                         F = F_tmp[w]

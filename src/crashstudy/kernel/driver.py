@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from crashstudy.kernel.codes import ENERGIES, HISTORY_ORDER
 from crashstudy.kernel.output import KernelOutput, allocate, block_rows
+from crashstudy.vocabulary.codes import ENERGIES, HISTORY_ORDER
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
@@ -32,11 +32,11 @@ _THREADS = [os.cpu_count() or 1]
 PER_THREAD = 8  # runs of blocks per thread (a thread that finishes early takes the next run)
 
 TOPO_FIELDS = ("spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_off", "free", "load_node",
-               "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check")  # fmt: skip
+               "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check", "rate_curve", "rate_off")  # fmt: skip
 VARS_FIELDS = ("mass", "inv_mass", "x0", "v0", "length0", "sign", "kpar", "yield_t", "yield_c", "cx", "cy", "cds",
                "cs0", "cs1", "knot_y", "gravity", "load_force", "pm_scale", "wall_point", "wall_normal", "wall_stiffness", "dt",
                "n_steps", "out_every", "ke_fraction", "min_time", "invalid", "energy_floor",
-               "rec_block", "ktan", "fy", "e0", "fail_t", "fail_c", "state0", "ie0", "rate0", "cfac")  # fmt: skip
+               "rec_block", "ktan", "fy", "e0", "fail_t", "fail_c", "state0", "ie0", "rate0", "cfac", "rate_at")  # fmt: skip
 Topo = namedtuple("Topo", TOPO_FIELDS)  # type: ignore[misc]
 Vars = namedtuple("Vars", VARS_FIELDS)  # type: ignore[misc]
 # rec: which histories are kept (HISTORY_ORDER); energy: (T, 4, V) for the four ENERGIES

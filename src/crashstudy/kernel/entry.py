@@ -20,9 +20,9 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from crashstudy.kernel import choice
-from crashstudy.kernel.codes import KernelName
 from crashstudy.kernel.driver import get_threads, set_threads
 from crashstudy.kernel.output import KernelOutput, allocate
+from crashstudy.vocabulary.codes import KernelName
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch

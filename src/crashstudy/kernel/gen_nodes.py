@@ -6,13 +6,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel.codes import (
+from crashstudy.kernel.gen_shape import _lsum
+from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
+from crashstudy.vocabulary.codes import (
     GENERAL,
     PM_ACCELERATION,
     PM_DISPLACEMENT,
 )
-from crashstudy.kernel.gen_shape import _lsum
-from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
 
 
 def pass_b(g: Any, ind: str) -> None:
@@ -115,7 +115,7 @@ def emit_results(g: Any, ind: str) -> None:
     emit(f"{ind}q = vi[w]")
     wm = R["wmax"] if ext else "0.0"
     emit(f"{ind}energy_error[q] = {R['err']} / max({R[g.ES]} + {wm}, 1e-300)")
-    emit(f"{ind}if status[q] == 0:")
+    emit(f"{ind}if status[q] == OK:")
     emit(f"{ind}    t_end[q] = int({R['lim']}) * {R['dt']}")
     emit(f"{ind}elif n_fail[w] > 0:")
     emit(f"{ind}    t_end[q] = (n_fail[w] - 1) * {R['dt']}")

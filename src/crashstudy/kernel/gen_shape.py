@@ -10,21 +10,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from crashstudy import environment
-from crashstudy.kernel.codes import (
-    CRUSH,
-    DAMPER,
+from crashstudy.vocabulary.codes import (
     ELASTOPLASTIC,
     ENERGIES,
     GENERAL,
     HISTORY_ORDER,
-    NONLINEAR,
-    NONLINEAR_DAMPER,
 )
+from crashstudy.vocabulary.materials import KNOT_MATERIALS, RATE_MATERIALS, spec
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-GEN_VERSION = 11  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 12  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = environment.gen_block()  # variants per block (CRASHSTUDY_GEN_BLOCK)
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 
@@ -82,6 +79,7 @@ def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
     fac = set(shape.get("fac", ()))
     tcurves = {c for _, c in shape["loads"] if c >= 0} | {c for _, _, _, c in shape["pm"]}
     used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0} | tcurves
+    used |= {c for cs in shape.get("rc", ()) for c in cs}
     out = []
     for c in shape["const"] + sorted(fac):
         if c not in used:
@@ -125,6 +123,7 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
     sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
             for s in range(len(b.spring_i))]  # fmt: skip
     const = _constant_curves(b, vary) if const is None else const
+    rc = [b.rate_curve[b.rate_off[s] : b.rate_off[s + 1]].tolist() for s in range(len(b.spring_i))]
     return {
         "const": const, "fac": _factor_curves(b, vary, const), "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
         "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
@@ -139,6 +138,7 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
         "pm": [[int(b.pm_node[k]), int(b.pm_dir[k]), int(b.pm_kind[k]), int(b.pm_curve[k])] for k in range(len(b.pm_node))],
         "hist": [h for h in HISTORY_ORDER if h in histories or (h in ENERGIES and any(e in histories for e in ENERGIES))],
         **({"record": [int(n) for n in record]} if record else {}),
+        **({"rc": rc} if any(rc) else {}),  # rate_elastic: each spring's curves (a key only when there are some)
     }  # fmt: skip
 
 
@@ -176,7 +176,7 @@ def layout(shape: dict[str, Any]) -> Any:
     tcurves = sorted({c for _, c in loads if c >= 0} | {c for _, _, _, c in pm})
     loaded = {n for n, _ in loads} | {p for p, _, _, _ in pm}  # nodes whose external force changes in time
     general = [s for s in range(S) if mat[s] == GENERAL]
-    dampers = any(mat[s] in (DAMPER, NONLINEAR_DAMPER) for s in range(S))
+    dampers = any(mat[s] in RATE_MATERIALS for s in range(S))
     fragile = shape["fragile"]  # springs that can break (failure): thresholds and a broken flag
     pre = shape["pre"]  # preloaded springs (initial_elongation): e0, the rate at t = 0, KE0 + IE0
     E0 = "ein" if pre else "ke0"  # the row of the energy at t = 0
@@ -184,7 +184,7 @@ def layout(shape: dict[str, Any]) -> Any:
     kcheck = set(shape["kcheck"])
     # knots that can hold a peak of |force| (Batch.knot_check), per spring following that curve
     knots = {s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
-             for s in range(S) if mat[s] in (NONLINEAR, CRUSH, GENERAL) and ca[s] >= 0}  # fmt: skip
+             for s in range(S) if mat[s] in KNOT_MATERIALS and ca[s] >= 0}  # fmt: skip
     knotted = [s for s in range(S) if knots.get(s)]
     keep_a = {n for n in range(N) if not static[n] and (dampers or term or (movable[n] and any(
         n in (si[s], sj[s]) for s in knotted)))}  # fmt: skip  (a^{n-1} kept: dampers, knot crossings)
@@ -236,7 +236,9 @@ def layout(shape: dict[str, Any]) -> Any:
             for f in ("x", "x0", "v", "im") + (("a", "ao") if n in keep_a else ()) + (("v0",) if ext else ()) + (
                     ("fx",) if n in loaded else ()):  # fmt: skip
                 R.add(f"{f}{n}_{d}")
-    curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0} | set(tcurves))
+    rc = shape.get("rc", [[] for _ in range(S)])  # rate_elastic: each spring's curves, in rate order
+    ro = [sum(len(cs) for cs in rc[:s]) for s in range(S)]  # and where they start in Batch.rate_at
+    curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0} | set(tcurves) | {c for cs in rc for c in cs})
     cname = {nm: f"k_{nm}" for nm, _, _ in _const_layout(shape)}  # coefficient -> local constant
     fac = shape.get("fac", [])
     cmul: dict[str, str] = {}  # a factor curve's coefficient -> the row of its lane's factor
@@ -270,12 +272,13 @@ def layout(shape: dict[str, Any]) -> Any:
             R.add(f"kdf{s}_{d}")
         for d in range(D if D > 1 else 0):
             R.add(f"ap{s}_{d}")  # previous direction (un-normalised)
-        if mat[s] in (CRUSH, ELASTOPLASTIC):
-            R.add(f"st{s}_0")
-            R.add(f"st{s}_1")
+        for k in range(0 if s in general else spec(mat[s]).state_rows):  # general_nonlinear's follow its rows below
+            R.add(f"st{s}_{k}")
         if mat[s] == ELASTOPLASTIC:
             R.add(f"kt{s}")
             R.add(f"fy{s}")
+        for k in range(len(rc[s])):
+            R.add(f"rt{s}_{k}")
         if s in pre:
             R.add(f"e0{s}")
             R.add(f"r0{s}")
@@ -288,7 +291,7 @@ def layout(shape: dict[str, Any]) -> Any:
             R.add(f"{f}{s}")
         for d in range(D if D > 1 else 0):
             R.add(f"ax{s}_{d}")
-        for k in range(8):
+        for k in range(spec(GENERAL).state_rows):
             R.add(f"st{s}_{k}")
     record = shape.get("record", [])  # a^n of these nodes at every step (crash criteria)
     for n in record:

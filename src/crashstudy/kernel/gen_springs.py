@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel import codes
-from crashstudy.kernel.codes import CRUSH, DAMPER, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR, NONLINEAR_DAMPER
 from crashstudy.kernel.gen_shape import _lsum
+from crashstudy.vocabulary import codes
+from crashstudy.vocabulary.materials import DAMPER_MATERIALS
 
 
 def sg_text(g: Any, s: int) -> str:
@@ -62,7 +62,7 @@ def knot_search(g: Any, ind: str, s: int, lo: str, hi: str, shift: str, ep: str,
     co, emit, knots, mat = g.co, g.emit, g.knots, g.mat  # fmt: skip
     kc, kx, ky = out
     for idx, k in enumerate(knots[s]):
-        yk = f"crush_knot_force({co(f'kyv{k}')})" if mat[s] == CRUSH else co(f"kyv{k}")
+        yk = f"crush_knot_force({co(f'kyv{k}')})" if mat[s] == codes.CRUSH else co(f"kyv{k}")
         c0, xs0, ys0 = ("0.0", f"({ep} - {shift})", "0.0") if idx == 0 else (kc, kx, ky)
         emit(f"{ind}{kc}, {kx}, {ky} = knot_step({c0}, {xs0}, {ys0}, {lo}, {hi}, {co(f'cx{k}')}, {yk})")
 
@@ -212,7 +212,7 @@ def pass_b_springs(g: Any, i2: str) -> None:
     collapsed spring" needs that order. The material dispatch is one line per law."""
     D, R, S, ca, emit, hist, knotted, mat, ramp = g.D, g.R, g.S, g.ca, g.emit, g.hist, g.knotted, g.mat, g.ramp  # fmt: skip
     for s in range(S):
-        if mat[s] == GENERAL:
+        if mat[s] == codes.GENERAL:
             emit(f"{i2}F{s} = {R[f'F{s}']}")
             emit(f"{i2}e{s} = {R[f'E{s}']}")
             if D > 1:
@@ -227,29 +227,36 @@ def pass_b_springs(g: Any, i2: str) -> None:
             continue
         geometry(g, i2, [s], False)
         k = mat[s]
-        if k == LINEAR:
+        if k == codes.LINEAR:
             emit(f"{i2}F{s} = linear_force({R[f'kp{s}']}, e{s})")
-        elif k == DAMPER:
+        elif k == codes.DAMPER:
             emit(f"{i2}F{s} = damper_force({R[f'kp{s}']}, {edot(g, s)})")
-        elif k == NONLINEAR:
+        elif k == codes.NONLINEAR:
             emit(f"{i2}F{s} = nonlinear_force({ramp(ca[s], f'e{s}')})")
             if s in knotted:  # the whole path
                 emit(f"{i2}lo_, hi_, sh = nonlinear_window({R[f'ep{s}']}, e{s})")
                 knot_search(g, i2, s, "lo_", "hi_", "sh", R[f"ep{s}"], ("kc", "kx", "ky"))
-        elif k == CRUSH:
+        elif k == codes.CRUSH:
             emin, fstar = R[f"st{s}_0"], R[f"st{s}_1"]
             emit(f"{i2}emin = {emin}")
             emit(f"{i2}F{s}, {emin}, {fstar} = crush_law(e{s}, emin, {fstar}, {ramp(ca[s], f'e{s}')}, {R[f'kp{s}']})")
             if s in knotted:  # (e, e_min before the step): crushing further
                 emit(f"{i2}lo_, hi_, sh = crush_window(e{s}, emin)")
                 knot_search(g, i2, s, "lo_", "hi_", "sh", R[f"ep{s}"], ("kc", "kx", "ky"))
-        elif k == ELASTOPLASTIC:
+        elif k == codes.ELASTOPLASTIC:
             st0, st1 = R[f"st{s}_0"], R[f"st{s}_1"]
             emit(f"{i2}F{s}, {st0}, {st1} = elastoplastic_law(e{s}, {st0}, {st1}, {R[f'kp{s}']}, {R[f'kt{s}']}, "
                  f"{R[f'fy{s}']})")
-        elif k == NONLINEAR_DAMPER:
+        elif k == codes.NONLINEAR_DAMPER:
             emit(f"{i2}rd = {edot(g, s)}")
             emit(f"{i2}F{s} = {ramp(ca[s], 'rd')}")
+        elif k == codes.RATE_ELASTIC:  # the first curve, then each neighbouring pair folded in by the rate
+            rc = g.rc[s]
+            emit(f"{i2}rd = abs({edot(g, s)})")
+            emit(f"{i2}F{s} = {ramp(rc[0], f'e{s}')}")
+            for q in range(len(rc) - 1):
+                emit(f"{i2}F{s} = rate_segment(F{s}, rd, {R[f'rt{s}_{q}']}, {R[f'rt{s}_{q + 1}']}, "
+                     f"{ramp(rc[q], f'e{s}')}, {ramp(rc[q + 1], f'e{s}')})")
         else:  # pragma: no cover - the compiler knows no other material
             raise ValueError(f"material code {k}")
         failure(g, i2, s)
@@ -260,7 +267,7 @@ def pass_b_springs(g: Any, i2: str) -> None:
     for s in range(S):
         ie = R[f"ie{s}"]
         step = f"energy_increment({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, afw)"
-        if s in g.pre and mat[s] not in (DAMPER, NONLINEAR_DAMPER):  # a preload's first half step
+        if s in g.pre and mat[s] not in DAMPER_MATERIALS:  # a preload's first half step
             half = f"energy_first_half({ie}, F{s}, {R[f'fp{s}']}, e{s}, {R[f'ep{s}']}, {R['dt']}, {R[f'r0{s}']}, afw)"
             step = f"{half} if (n1 and {R[f'e0{s}']} != 0.0) else {step}"
         emit(f"{i2}{ie} = {step}")

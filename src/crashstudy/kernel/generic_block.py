@@ -9,18 +9,6 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from crashstudy.kernel.codes import (
-    CRUSH,
-    CRUSHED_TO_ZERO,
-    GENERAL,
-    INVALID,
-    NONLINEAR,
-    NSTATE,
-    PM_DISPLACEMENT,
-    STATE_MATERIALS,
-    UNSTABLE,
-    UNSTABLE_ENERGY,
-)
 from crashstudy.kernel.laws import (
     broken_at,
     crush_knot_force,
@@ -32,9 +20,24 @@ from crashstudy.kernel.laws import (
     nonlinear_window,
     peak,
 )
+from crashstudy.vocabulary.codes import (
+    CRUSH,
+    CRUSHED_TO_ZERO,
+    GENERAL,
+    INVALID,
+    NONLINEAR,
+    NSTATE,
+    PM_DISPLACEMENT,
+    UNSTABLE,
+    UNSTABLE_ENERGY,
+)
+from crashstudy.vocabulary.materials import KNOT_MATERIALS, STATE_MATERIALS
 
 _jit = nb.njit(cache=True, nogil=True)
 
+
+#: rows of the per-spring options array of a block: preloaded (initial_elongation), breakable (failure)
+PRELOADED, BREAKABLE = 0, 1
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - compiled
@@ -87,7 +90,7 @@ def flags(T, P, H):  # pragma: no cover - compiled
     any_knot = False
     for s in range(S):
         ca = curve_a[s]
-        if (material[s] == NONLINEAR or material[s] == CRUSH or material[s] == GENERAL) and ca >= 0:
+        if material[s] in KNOT_MATERIALS and ca >= 0:
             for k in range(off[ca] + 1, off[ca + 1] - 1):
                 if knot_check[k]:
                     knotted[s] = True
@@ -234,19 +237,19 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
                 x[n_, d, w] = x0_b[n_, d, w]
                 v[n_, d, w] = v0[n_, d, lo + w]
                 ke0[w] += 0.5 * m_b[n_, w] * v[n_, d, w] * v[n_, d, w]
-    # SPEC v2 spring features: max elongation, broken springs, (preloaded, breakable) per spring, the
+    # spring options: max elongation, broken springs, (preloaded, breakable) per spring, the
     # elongation / activity the extremes of a breakable spring take in this step, KE0 + IE0
     me = np.zeros((S, B))
     broken = np.zeros((S, B), dtype=np.bool_)
-    v2 = np.zeros((2, S), dtype=np.bool_)
+    options = np.zeros((2, S), dtype=np.bool_)  # rows PRELOADED, BREAKABLE
     ftmp = np.empty((2, B))
     e_init = np.zeros((2, B))  # KE0 + IE0 (the energy at t = 0), KE0 + |IE0| (the error's and stop tests' scale)
     for s in range(S):
         for w in range(B):
             q = lo + w
             ie[s, w] = P.ie0[s, q]
-            v2[0, s] = v2[0, s] or P.e0[s, q] != 0.0
-            v2[1, s] = v2[1, s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
+            options[PRELOADED, s] = options[PRELOADED, s] or P.e0[s, q] != 0.0
+            options[BREAKABLE, s] = options[BREAKABLE, s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
     if has_state and P.state0.shape[0] > 0:
         for s in range(S):
             for k in range(NSTATE):
@@ -259,7 +262,7 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
         e_init[0, w] = ke0[w] + ie0
         e_init[1, w] = ke0[w] + abs(ie0)
 
-    return (m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b, cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg, g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y, k_any, k_hit, k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie, pf, mc, pacc, pwall, e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act, actf, n_fail, nst, next_rec, st_ok, me, broken, v2, ftmp, e_init, nmax)
+    return (m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b, cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg, g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y, k_any, k_hit, k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie, pf, mc, pacc, pwall, e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke, ie_tot, err, bal, wforce, act, actf, n_fail, nst, next_rec, st_ok, me, broken, options, ftmp, e_init, nmax)
 
 
 @_jit
@@ -423,7 +426,7 @@ def final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, final_energy): 
             final_energy[3, q] = wall_e[w]
 
 
-# ---- SPEC v2 spring features in the step (inlined: no call, no increfs) ---------------------------
+# ---- spring options (failure, initial_elongation) in the step (inlined: no call, no increfs) ----
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -446,7 +449,7 @@ def failure(s, n, lo, B, fail_t, fail_c, dt_b, e_tmp, e_prev, F_tmp, act, actf, 
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def v2_scatter(s, i, j, n, fh, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, fr, f, ie, ie_tot, pf,
+def option_scatter(s, i, j, n, fh, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, fr, f, ie, ie_tot, pf,
                mc, me, forces, elong, f_prev, e_prev):  # pragma: no cover - compiled  # fmt: skip
     """Nodal forces and summaries of a breakable spring (``fr``: extremes up to the break) or of a preloaded
     spring's first step (``fh``: F^0 acts for the first half step, :func:`laws.energy_first_half`)."""
@@ -475,4 +478,4 @@ def v2_scatter(s, i, j, n, fh, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, 
         e_prev[s, w] = e
 
 
-_ = (CRUSH, GENERAL, INVALID, NONLINEAR, NSTATE, STATE_MATERIALS, np)
+_ = (CRUSH, GENERAL, INVALID, NONLINEAR, NSTATE, KNOT_MATERIALS, STATE_MATERIALS, np)

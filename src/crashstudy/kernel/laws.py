@@ -21,7 +21,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from crashstudy.kernel.codes import TIME_EPS, TINY_LENGTH
+from crashstudy.vocabulary.codes import TIME_EPS, TINY_LENGTH
 
 _jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 # per-step laws of the generic kernel that LLVM did not inline as well (time curves: arrays in;
@@ -56,6 +56,20 @@ def linear_force(k, e):  # pragma: no cover - compiled
 def damper_force(c, edot):  # pragma: no cover - compiled
     """``damper``: F = c de/dt."""
     return c * edot
+
+
+@_jit
+def rate_segment(F, r, rk, rk1, Ck, Ck1):  # pragma: no cover - compiled
+    """``rate_elastic``, one pair of neighbouring curves (rates ``rk < rk1``, forces ``Ck``, ``Ck1`` at e):
+    above ``rk`` the force interpolated linearly in the rate magnitude ``r`` (held at ``Ck1`` above
+    ``rk1``), else ``F`` unchanged. Folded over the pairs in rate order, starting from the first curve's
+    force, it gives the first curve below ``r_1``, the bracketing pair's interpolation between, the last
+    curve above the last rate."""
+    if r > rk:
+        t = (r - rk) / (rk1 - rk)
+        t = t if t < 1.0 else 1.0
+        return Ck + t * (Ck1 - Ck)
+    return F
 
 
 @_jit
@@ -236,12 +250,6 @@ def knot_accel(ao, a, th, dfax, im, side):  # pragma: no cover - compiled
 def elongation_1d(sg, dj, di):  # pragma: no cover - compiled
     """1-D elongation from the end displacements (sg = +-1, the spring's orientation)."""
     return sg * (dj - di)
-
-
-@_jit
-def rate_1d(sg, vj, aj, vi, ai, dt):  # pragma: no cover - compiled
-    """1-D elongation rate from v^{n-1/2} + dt/2 a^{n-1} at both ends."""
-    return sg * ((vj + 0.5 * dt * aj) - (vi + 0.5 * dt * ai))
 
 
 @_jit

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from crashstudy.kernel.codes import NSTATE, TIME_EPS
+from crashstudy.vocabulary.codes import NSTATE, TIME_EPS
 
-__all__ = ["NSTATE", "TIME_EPS", "crush", "curve_eval", "general_nonlinear", "time_curve_eval"]
+__all__ = ["NSTATE", "TIME_EPS", "crush", "curve_eval", "general_nonlinear", "rate_elastic", "time_curve_eval"]
 
 
 def curve_eval(c: int, e: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray,
@@ -182,3 +182,20 @@ def elastoplastic(e: np.ndarray, st: np.ndarray, k: np.ndarray, kt: np.ndarray, 
     st[0] = ep + sg * dp
     st[1] = p + dp
     return trial - sg * k * dp
+
+
+def rate_elastic(e: np.ndarray, rate: np.ndarray, curves: np.ndarray, rates: np.ndarray, cx: np.ndarray,
+                 cy: np.ndarray, cds: np.ndarray, cs0: np.ndarray, off: np.ndarray) -> np.ndarray:
+    """Force of a ``rate_elastic`` spring, ``C(e, |de/dt|)``: the curves ``curves`` (R,) at rates ``rates``
+    (R, V), increasing; linear in the rate between the two curves that bracket ``|rate|``, the first curve
+    below the first rate, the last above the last (docs/format.md)."""
+    r = np.abs(rate)
+    F = curve_eval(int(curves[0]), e, cx, cy, cds, cs0, off)
+    for k in range(len(curves) - 1):
+        ck = curve_eval(int(curves[k]), e, cx, cy, cds, cs0, off)
+        ck1 = curve_eval(int(curves[k + 1]), e, cx, cy, cds, cs0, off)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (r - rates[k]) / (rates[k + 1] - rates[k])
+        t = np.where(t < 1.0, t, 1.0)
+        F = np.where(r > rates[k], ck + t * (ck1 - ck), F)
+    return F

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from crashstudy.kernel.codes import CRUSHED_TO_ZERO, HISTORY_ORDER, HISTORY_SHAPES, INVALID, OK, UNSTABLE
+from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, HISTORY_ORDER, HISTORY_SHAPES, INVALID, OK, UNSTABLE
 
 # histories made after the kernel from its per-step record (crashstudy.metrics.record): never passed to a kernel
 EXTRA_SHAPES = {"filtered_acceleration": ("node",)}

@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from crashstudy.kernel import materials as mat
-from crashstudy.kernel.codes import CRUSH, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR
+from crashstudy.vocabulary.codes import CRUSH, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR, RATE_ELASTIC
+from crashstudy.vocabulary.materials import spec
 
 
 def preload(material: np.ndarray, curve_a: np.ndarray, curve_b: np.ndarray, e0: np.ndarray, kpar: np.ndarray,
@@ -55,13 +56,14 @@ def preload(material: np.ndarray, curve_a: np.ndarray, curve_b: np.ndarray, e0: 
 def _kinks(kind: int, c: int, k: np.ndarray, fy: np.ndarray, cx: np.ndarray, cy: np.ndarray, off: np.ndarray,
            V: int) -> np.ndarray:  # fmt: skip
     """Elongations (M, V) where the force law of a monotonic path may bend."""
-    if kind == ELASTOPLASTIC:
+    rule = spec(kind).kinks  # the material table's preload kinks
+    if rule == "elastic_limit":
         return np.stack([fy / k, -fy / k])
-    if kind not in (NONLINEAR, GENERAL, CRUSH) or c < 0:
+    if rule == "none" or c < 0:
         return np.zeros((0, V))
     a, b = int(off[c]), int(off[c + 1])
     xs, ys = cx[a:b], cy[a:b]
-    if kind != CRUSH:
+    if rule == "curve_knots":
         return xs
     # min(0, L) bends where L changes sign inside a segment
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -75,7 +77,7 @@ def _law(kind: int, s: int, c: int, cb: int, e: np.ndarray, st: np.ndarray, kpar
          cs0: np.ndarray, cs1: np.ndarray, off: np.ndarray) -> np.ndarray:  # fmt: skip
     if kind == LINEAR:
         return kpar[s] * e
-    if kind == NONLINEAR:
+    if kind == NONLINEAR or kind == RATE_ELASTIC:  # rate_elastic: loaded at rate 0, along its first curve
         return mat.curve_eval(c, e, cx, cy, cds, cs0, off)
     if kind == CRUSH:
         return mat.crush(e, st, c, kpar[s], cx, cy, cds, cs0, off)

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from crashstudy.kernel import materials as mat
-from crashstudy.kernel.codes import (
+from crashstudy.vocabulary.codes import (
     CRUSH,
     DAMPER,
     ELASTOPLASTIC,
@@ -42,9 +42,11 @@ from crashstudy.kernel.codes import (
     NONLINEAR_DAMPER,
     PM_ACCELERATION,
     PM_DISPLACEMENT,
+    RATE_ELASTIC,
     TINY_LENGTH,
     UNSTABLE_ENERGY,
 )
+from crashstudy.vocabulary.materials import DAMPER_MATERIALS, KNOT_MATERIALS
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
@@ -90,7 +92,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     for s in range(S):
         ie0 = ie0 + b.ie0[s]
     # preloaded springs (F^0 != 0 only with an initial elongation: every material curve passes the origin)
-    first_half = (b.e0 != 0.0) & ~np.isin(b.material, (DAMPER, NONLINEAR_DAMPER))[:, None]
+    first_half = (b.e0 != 0.0) & ~np.isin(b.material, DAMPER_MATERIALS)[:, None]
     broken = np.zeros((S, V), dtype=bool)  # springs past a failure elongation: no force for the rest of the run
     work = np.zeros(V)
     wall_e = np.zeros(V)
@@ -312,7 +314,7 @@ def spring_knotted(b: Batch) -> np.ndarray:
     out = np.zeros(len(b.spring_i), dtype=bool)
     for s in range(len(b.spring_i)):
         c = int(b.curve_a[s])
-        if b.material[s] in (NONLINEAR, CRUSH, GENERAL) and c >= 0:
+        if b.material[s] in KNOT_MATERIALS and c >= 0:
             out[s] = bool(np.any(b.knot_check[int(b.curve_off[c]) + 1 : int(b.curve_off[c + 1]) - 1]))
     return out
 
@@ -391,6 +393,9 @@ def _force(b: Batch, s: int, e: np.ndarray, edot: np.ndarray, st: np.ndarray, ca
         return mat.elastoplastic(e, st, b.kpar[s], b.ktan[s], b.fy[s])
     if kind == NONLINEAR_DAMPER:
         return mat.curve_eval(int(b.curve_a[s]), edot, *cargs)
+    if kind == RATE_ELASTIC:
+        a, z = int(b.rate_off[s]), int(b.rate_off[s + 1])
+        return mat.rate_elastic(e, edot, b.rate_curve[a:z], b.rate_at[a:z], *cargs)
     if kind == GENERAL:
         cx, cy, cds, cs0, off = cargs
         return mat.general_nonlinear(e, st, int(b.curve_a[s]), int(b.curve_b[s]), b.yield_t[s], b.yield_c[s],

@@ -12,6 +12,7 @@ scaling):
   compression yield a stretch follows the unloading curve, whose origin moved: the loading curve's
   range says nothing there);
 - ``crush`` (its loading curve), the compression end only (it never pulls);
+- ``rate_elastic`` (all its curves), both ends: the narrowest range of its curves;
 - other materials have no drawn curve of elongation (a ``nonlinear_damper`` curve is of the rate).
 """
 
@@ -21,12 +22,13 @@ from typing import Any
 
 import numpy as np
 
-from crashstudy.kernel.codes import CRUSH, GENERAL, NONLINEAR
+from crashstudy.vocabulary.codes import GENERAL
+from crashstudy.vocabulary.materials import MATERIALS
 
 PAST_FIRST, PAST_LAST = 1.0, 2.0  # codes, added: 3 = both ends
 MEANING = ("0: within the curve's x range; 1: compressed past its first point; 2: stretched past its last "
            "point; 3: both (the force there is extrapolated along the end segment)")  # fmt: skip
-ENDS_OF = {NONLINEAR: (True, True), GENERAL: (True, True), CRUSH: (True, False)}  # (first end, last end) checked
+ENDS_OF = {m.code: m.curve_ends for m in MATERIALS if any(m.curve_ends)}  # (first end, last end) checked
 
 
 def curve_springs(material: np.ndarray, curve: np.ndarray) -> list[int]:
@@ -39,12 +41,16 @@ def past_curve_ends(b: Any, max_crush: np.ndarray, max_elongation: np.ndarray, c
     passed an end of their curve; column k of the extremes belongs to variant ``cols[k]`` of ``b``."""
     out = np.zeros(max_crush.shape)
     for s in curve_springs(b.material, b.curve_a):
-        c = int(b.curve_a[s])
+        curves = [int(b.curve_a[s])]
+        if b.rate_off[s + 1] > b.rate_off[s]:  # rate_elastic: every one of its curves
+            curves = [int(c) for c in b.rate_curve[b.rate_off[s] : b.rate_off[s + 1]]]
+        first_x = np.max([b.cx[b.curve_off[c], cols] for c in curves], axis=0)
+        last_x = np.min([b.cx[b.curve_off[c + 1] - 1, cols] for c in curves], axis=0)
         first_end, last_end = ENDS_OF[int(b.material[s])]
         if first_end:
-            out[s] += np.where(-max_crush[s] < b.cx[b.curve_off[c], cols], PAST_FIRST, 0.0)
+            out[s] += np.where(-max_crush[s] < first_x, PAST_FIRST, 0.0)
         if last_end:
-            past = max_elongation[s] > b.cx[b.curve_off[c + 1] - 1, cols]
+            past = max_elongation[s] > last_x
             if int(b.material[s]) == GENERAL:
                 past &= np.isneginf(b.yield_c[s, cols])  # never yields in compression: a stretch stays on L
             out[s] += np.where(past, PAST_LAST, 0.0)

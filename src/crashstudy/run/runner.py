@@ -22,7 +22,6 @@ from crashstudy import interrupt
 from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
-from crashstudy.kernel.codes import KernelName
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
 from crashstudy.results import integrity
 from crashstudy.results.curve_ends import past_curve_ends
@@ -32,6 +31,7 @@ from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
 from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study.plan import Plan, load_study, plan_from_model
 from crashstudy.study.provenance import variant_hashes
+from crashstudy.vocabulary.codes import KernelName
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
 MAX_CHUNK = 65536  # variants per chunk at most

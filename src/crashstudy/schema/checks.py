@@ -17,6 +17,7 @@ from crashstudy.schema.model import (
     GeneralNonlinear,
     Model,
     NonlinearDamper,
+    RateElastic,
     RigidWall,
     Spring,
 )
@@ -109,23 +110,26 @@ def origin_message(cid: str, key: str, at0: float, damper: bool) -> str:
 def _material(m: Model, sid: str, sp: Spring) -> Found:
     mat = sp.material
     base: Path = ("springs", sid, "material")
-    keys = [k for k in ("curve", "loading", "unloading") if hasattr(mat, k)]
-    for key in keys:
-        yield from _curve_ref(m, base + (key,), getattr(mat, key))
-    for key in keys:  # every material curve passes through the origin (SPEC: initial_elongation)
-        cid = getattr(mat, key)
+    refs: list[tuple[Path, str, str]] = [(base + (k,), k, getattr(mat, k)) for k in ("curve", "loading", "unloading")
+                                         if hasattr(mat, k)]  # fmt: skip
+    if isinstance(mat, RateElastic):  # a list of {rate, curve}: each curve is an elastic curve of its own
+        refs = [(base + ("curves", i, "curve"), "curve", rc.curve) for i, rc in enumerate(mat.curves)]
+    for path, _key, cid in refs:
+        yield from _curve_ref(m, path, cid)
+    signed = mat.type in SIGNED_TYPES or isinstance(mat, RateElastic)
+    for path, key, cid in refs:  # every material curve passes through the origin (SPEC: initial_elongation)
         if cid in m.curves:
             c = m.curves[cid]
             scale = max(abs(v) for v in c.y) or 1.0
             at0 = curve_value(c.x, c.y, 0.0)
             if abs(at0) > 1e-9 * scale:
-                yield base + (key,), origin_message(cid, key, at0, mat.type in DAMPER_TYPES)
-            elif key != "unloading" and mat.type in SIGNED_TYPES:  # force of the sign of the elongation
+                yield path, origin_message(cid, key, at0, mat.type in DAMPER_TYPES)
+            elif key != "unloading" and signed:  # force of the sign of the elongation
                 bad = np.flatnonzero(wrong_sign_points(np.asarray(c.x)[:, None], np.asarray(c.y)[:, None])[:, 0])
                 if bad.size:
                     k = int(bad[0])
                     use = mat.type if key == "curve" else f"{mat.type} {key}"
-                    yield base + (key,), sign_message(cid, k, c.x[k], c.y[k], use)
+                    yield path, sign_message(cid, k, c.x[k], c.y[k], use)
     if isinstance(mat, GeneralNonlinear) and mat.unloading in m.curves:
         c = m.curves[mat.unloading]
         if any(not b > a for a, b in zip(c.y, c.y[1:], strict=False)):

@@ -88,6 +88,9 @@ def curve_kind(path: str, model: dict[str, Any]) -> str | None:
         for key in ("curve", "loading", "unloading"):
             if mat.get(key) == cid:
                 uses.add(("velocity" if mat.get("type") == "nonlinear_damper" else "length", "force"))
+        rate_curves = mat.get("curves")  # rate_elastic: a list of {rate, curve}
+        if isinstance(rate_curves, list) and any(isinstance(rc, dict) and rc.get("curve") == cid for rc in rate_curves):
+            uses.add(("length", "force"))
     for load in model.get("loads") or []:
         if (load or {}).get("curve") == cid:
             uses.add(("time", "1"))

@@ -12,8 +12,9 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
-from crashstudy.kernel.codes import HISTORY_ORDER, MATERIAL_CODES
 from crashstudy.units import UnitSystemName
+from crashstudy.vocabulary.codes import HISTORY_ORDER
+from crashstudy.vocabulary.materials import MATERIALS
 
 Id = Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]+$", min_length=1, max_length=64)]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -130,12 +131,40 @@ class NonlinearDamper(Strict):
     curve: Id = Field(description="id of the curve C: force [force] vs elongation rate [length/time], through the origin, non-decreasing")
 
 
+class RateCurve(Strict):
+    """One curve of a ``rate_elastic`` spring and the elongation rate magnitude it holds at."""
+
+    rate: NonNegative = Field(description="elongation rate magnitude |de/dt| [length/time] >= 0 of this curve")
+    curve: Id = Field(description="id of the curve: force [force] vs elongation [length], through the origin")
+
+
+class RateElastic(Strict):
+    """``F = C(e, |de/dt|)``: elastic curves at increasing rates, linear in the rate between them
+    (LS-DYNA S04 with a ``*DEFINE_TABLE``); loads and unloads along them."""
+
+    type: Literal["rate_elastic"] = Field(description="material law: F = C(e, |de/dt|), force curves at increasing rates")
+    curves: Annotated[list[RateCurve], Field(min_length=1, max_length=16)] = Field(
+        description="the curves and their rates, rates strictly increasing; the first one below the first rate, "
+        "the last one above the last rate, linear in the rate between"
+    )
+
+    @field_validator("curves")
+    @classmethod
+    def _rates_increasing(cls, curves: list[RateCurve]) -> list[RateCurve]:
+        for a, b in zip(curves, curves[1:], strict=False):
+            if not b.rate > a.rate:
+                raise ValueError(f"rates must be strictly increasing (found {a.rate:g} followed by {b.rate:g})")
+        return curves
+
+
 Material = Annotated[
-    LinearElastic | NonlinearElastic | GeneralNonlinear | Crush | Damper | Elastoplastic | NonlinearDamper,
+    LinearElastic | NonlinearElastic | GeneralNonlinear | Crush | Damper | Elastoplastic | NonlinearDamper
+    | RateElastic,
     Field(discriminator="type"),
 ]
-MATERIAL_TYPES = tuple(MATERIAL_CODES)
-DAMPER_TYPES = ("damper", "nonlinear_damper")  # materials whose force follows the elongation rate
+# the union above lists the classes of the material table (tests/test_material_table.py holds them equal)
+MATERIAL_TYPES = tuple(m.name for m in MATERIALS)
+DAMPER_TYPES = tuple(m.name for m in MATERIALS if m.by_rate)  # materials whose force follows the elongation rate
 
 
 class Failure(Strict):

@@ -9,8 +9,8 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from crashstudy.errors import Problem
-from crashstudy.kernel.codes import MATERIAL_CODES
 from crashstudy.schema.yamlio import LoadedYaml
+from crashstudy.vocabulary.materials import MATERIAL_CODES
 
 Path = tuple[str | int, ...]
 

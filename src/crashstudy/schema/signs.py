@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from crashstudy.vocabulary.materials import MATERIALS
+
 #: relative round-off below which a node counts as on the wall plane, and a force as zero
 ROUND_OFF = 1.0e-12
 FORCE_ZERO = 1.0e-9
 #: materials whose (loading) curve's force must have the sign of the elongation; an increasing unloading
 #: curve and a non-decreasing damper curve through the origin have it already, a crush curve its own rule
-SIGNED_TYPES = ("nonlinear_elastic", "general_nonlinear")
+SIGNED_TYPES = tuple(m.name for m in MATERIALS if m.curves and m.curves[0].rule == "signed")
 
 
 def depth_behind_walls(x: np.ndarray, free: np.ndarray, point: np.ndarray, normal: np.ndarray,

@@ -1,7 +1,6 @@
 """Codes and names the kernels share with the rest of crashstudy (one copy of each table).
 
-The compiler imports the material and motion codes from here; the kernel package imports nothing
-of the schema, YAML or pydantic.
+The ground floor: schema/, arrays/ and kernel/ import it; it imports nothing of crashstudy.
 """
 
 from __future__ import annotations
@@ -11,17 +10,10 @@ from typing import Literal
 #: a kernel named by a caller: "compiled" lets kernel.choice pick the fastest (CRASHSTUDY_KERNEL may name one)
 KernelName = Literal["compiled", "reference", "generic", "generated"]
 
-# material codes seen by the kernels (spring ``material`` array)
-LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER = 0, 1, 2, 3, 4
-MATERIAL_CODES = {"linear_elastic": LINEAR, "nonlinear_elastic": NONLINEAR,
-                  "general_nonlinear": GENERAL, "crush": CRUSH, "damper": DAMPER}  # fmt: skip
-# SPEC v2 materials
-ELASTOPLASTIC, NONLINEAR_DAMPER = 5, 6
-MATERIAL_CODES.update({"elastoplastic": ELASTOPLASTIC, "nonlinear_damper": NONLINEAR_DAMPER})
-# materials that follow a loading curve (curve_a) and so can have knot peaks
-CURVE_MATERIALS = (NONLINEAR, CRUSH, GENERAL)
-# materials with a state (rows of the (S, NSTATE, V) state array); see kernel.materials
-STATE_MATERIALS = (GENERAL, CRUSH, ELASTOPLASTIC)
+# material codes seen by the kernels (spring ``material`` array); each material's row, its name among
+# them, is in vocabulary.materials (MATERIALS, MATERIAL_CODES, KNOT_MATERIALS, STATE_MATERIALS)
+LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER, ELASTOPLASTIC, NONLINEAR_DAMPER, RATE_ELASTIC = 0, 1, 2, 3, 4, 5, 6, 7
+# rows of the (S, NSTATE, V) material state array (the most any material uses: MaterialSpec.state_rows)
 NSTATE = 8
 
 # prescribed-motion quantities
