@@ -67,6 +67,8 @@ MATERIAL_MODELS = {
                               "b": {"position": [0.3, 0.1], "mass": 2.0}},
                        prescribed_motion=[{"node": "a", "quantity": "velocity", "direction": "x", "curve": "v",
                                            "scale": 2.0}]),
+    "rate_elastic": _two_node({"type": "rate_elastic", "curves": [{"rate": 0.0, "curve": "c"}, {"rate": 4.0, "curve": "f"}]},
+                              {"c": ELASTIC, "f": _curve([-0.1, 0.0, 0.1], [-12000.0, 0.0, 10000.0])}),
 }  # fmt: skip
 MATERIAL_MODELS["crush"]["curves"]["v"] = _curve([0.0, 0.02, 0.04], [0.0, 1.0, 1.0])
 MATERIAL_MODELS["linear_elastic"]["springs"]["s"]["initial_elongation"] = 0.01
@@ -127,7 +129,7 @@ MAT_FIELDS = {  # keyword -> material type and {dynars field: expected value of 
 KEYWORD_OF = {"linear_elastic": "MAT_SPRING_ELASTIC", "damper": "MAT_DAMPER_VISCOUS",
               "elastoplastic": "MAT_SPRING_ELASTOPLASTIC", "general_nonlinear": "MAT_SPRING_GENERAL_NONLINEAR",
               "crush": "MAT_SPRING_INELASTIC", "nonlinear_elastic": "MAT_SPRING_NONLINEAR_ELASTIC",
-              "nonlinear_damper": "MAT_DAMPER_NONLINEAR_VISCOUS"}  # fmt: skip
+              "nonlinear_damper": "MAT_DAMPER_NONLINEAR_VISCOUS", "rate_elastic": "MAT_SPRING_NONLINEAR_ELASTIC"}  # fmt: skip
 CURVE_FIELD = {"nonlinear_elastic": [("LCD", "curve")], "nonlinear_damper": [("LCDR", "curve")],
                "general_nonlinear": [("LCDL", "loading"), ("LCDU", "unloading")], "crush": [("LCFD", "loading")]}
 

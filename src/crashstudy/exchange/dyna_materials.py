@@ -25,13 +25,7 @@ NEVER = 1.0e30  #: yield force written for "never yields" (S06 TYI / CYI have no
 class Curves(Protocol):
     """Curve ids on the deck side. Export: ``lcid`` (curve id -> LCID), ``table`` ([{rate, curve}] -> TBID of a
     ``*DEFINE_TABLE``). Import: ``curve`` (LCID -> curve id), ``is_table``, ``table_curves`` (TBID -> [{rate, curve}]).
-    A ``rate_elastic`` row (S04 with a table) is then::
-
-        MaterialMap("rate_elastic", "MAT_SPRING_NONLINEAR_ELASTIC",
-                    lambda m, c: {"LCD": c.table(m["curves"]), "LCR": 0},
-                    lambda f, c: {"type": "rate_elastic", "curves": c.table_curves(f["LCD"], "LCD")},
-                    lambda f, c: c.is_table(f["LCD"]) and not f["LCR"]),
-    """
+    ``rate_elastic`` is S04 whose LCD names a ``*DEFINE_TABLE`` (one curve per rate)."""
 
     def lcid(self, curve: str, role: str) -> int: ...
 
@@ -85,6 +79,10 @@ MATERIALS: tuple[MaterialMap, ...] = (
                 lambda m, c: {"LCD": c.lcid(m["curve"], "same"), "LCR": 0},
                 lambda f, c: {"type": "nonlinear_elastic", "curve": c.curve(f["LCD"], "same", "LCD")},
                 lambda f, c: not c.is_table(f["LCD"]) and not f["LCR"]),
+    MaterialMap("rate_elastic", "MAT_SPRING_NONLINEAR_ELASTIC",
+                lambda m, c: {"LCD": c.table(m["curves"]), "LCR": 0},
+                lambda f, c: {"type": "rate_elastic", "curves": c.table_curves(f["LCD"], "LCD")},
+                lambda f, c: c.is_table(f["LCD"]) and not f["LCR"]),
     MaterialMap("nonlinear_damper", "MAT_DAMPER_NONLINEAR_VISCOUS",
                 lambda m, c: {"LCDR": c.lcid(m["curve"], "same")},
                 lambda f, c: {"type": "nonlinear_damper", "curve": c.curve(f["LCDR"], "same", "LCDR")}),
