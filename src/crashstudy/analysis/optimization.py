@@ -29,9 +29,7 @@ import numpy as np
 import pandas as pd
 
 from crashstudy import interrupt
-from crashstudy.exchange.isomme import (
-    IsoMmeError as DataFileError,  # the one "a test curve is unusable" error
-)
+from crashstudy.exchange.testcurve import DataFileError  # the one "a test curve is unusable" error
 from crashstudy.schema.study import CONSTRAINT
 
 INFEASIBLE = 1e15
