@@ -12,8 +12,10 @@ unreachable scheduler, and the real command line with ``--scheduler local``.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
+import pickle
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -24,8 +26,9 @@ import xarray as xr
 
 import crashstudy.run.backends
 from crashstudy.errors import InputError
-from crashstudy.results.store import PARTIAL
-from crashstudy.run.runner import run_plan
+from crashstudy.results import integrity, regions
+from crashstudy.results.store import PARTIAL, ChunkResult, ResultWriter
+from crashstudy.run.runner import run_chunk, run_plan
 from crashstudy.study.plan import load_study
 
 MODEL = """\
@@ -172,35 +175,55 @@ class TestDaskLocalClusterZarr(TestInProcessZarr):
 
 
 def _die_once(marker: str, fn: Callable[..., Any], *args: Any) -> Any:
-    """Kill this worker process in the first task that runs (atomically claimed by creating ``marker``)."""
+    """Kill this worker process in the first task that runs (atomically claimed by creating ``marker``).
+    A task that writes a region of a Zarr store (``fn`` = ``regions.write_region`` with its store path)
+    first writes half of its region with wrong values: the worker dies with the region half written."""
     try:
         os.close(os.open(marker, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
     except FileExistsError:
         return fn(*args)
+    if getattr(fn, "func", None) is regions.write_region:
+        from crashstudy.results.zarr_file import ZarrFile
+
+        nc = ZarrFile(fn.args[1], "a")
+        lo, hi = args[1][0]
+        for name in integrity.checked_names(nc)[:3]:
+            nc.variables[name][lo:hi] = 1  # wrong values in the first variables; the others never written
     os._exit(1)  # the worker dies mid-task, as if killed; its nanny starts a new one
 
 
 class KillOneWorker:
-    """Wraps a backend so that the worker running the first task dies in it."""
+    """Wraps a backend so that the worker running the first task dies in it; records what each task
+    sends back to the client (the result and its size pickled, as Dask sends it)."""
 
     def __init__(self, inner: crashstudy.run.backends.Backend, marker: Path) -> None:
         self.inner, self.marker = inner, str(marker)
+        self.received: list[tuple[Any, int]] = []
 
     def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
-        return self.inner.imap_unordered(functools.partial(_die_once, self.marker, fn), tasks)
+        for res in self.inner.imap_unordered(functools.partial(_die_once, self.marker, fn), tasks):
+            self.received.append((res, len(pickle.dumps(res, protocol=5))))
+            yield res
 
     def close(self) -> None:
         self.inner.close()
 
 
+def receipt_bound(variants: int) -> int:
+    """Bytes a region's receipt may take: its checksums and a little more, not the arrays."""
+    return 64 * variants + 16 * 1024
+
+
 @pytest.mark.parametrize("store", ["netcdf", "zarr"])
 def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, reference: xr.Dataset, tmp_path: Path,
                                                               monkeypatch: pytest.MonkeyPatch, store: str) -> None:  # fmt: skip
+    """A worker dies in its first task (with Zarr: its region half written): the result is the in-process one.
+    With Zarr the workers write the store and send back only receipts (issue 19 item 3)."""
     marker = tmp_path / "worker-killed"
     real = crashstudy.run.backends.make_backend
-    monkeypatch.setattr(
-        crashstudy.run.backends, "make_backend", lambda *a, **k: KillOneWorker(real(*a, **k), marker)
-    )
+    made: list[KillOneWorker] = []
+    monkeypatch.setattr(crashstudy.run.backends, "make_backend",
+                        lambda *a, **k: made.append(KillOneWorker(real(*a, **k), marker)) or made[-1])  # fmt: skip
     out = tmp_path / "out"
     rep = run_plan(
         load_study(study_file), out, scheduler="local", chunk=SMALL_CHUNK, force=True, progress=False, store=store
@@ -208,6 +231,65 @@ def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, r
     assert marker.exists(), "no worker was killed"
     assert rep.n_computed == N_VARIANTS and rep.n_failed == 0
     assert_same_results(_load(out), reference)
+    received = made[0].received
+    assert sum(r.size for r, _ in received) == N_VARIANTS
+    if store == "zarr":
+        assert all(isinstance(r, regions.Receipt) for r, _ in received)
+        assert all(n < receipt_bound(r.size) for r, n in received), [n for _, n in received]
+    else:  # the client writes: every array comes back
+        assert all(isinstance(r, ChunkResult) for r, _ in received)
+
+
+def test_receipt_is_checksums_and_texts_not_arrays(study_file: Path, reference: xr.Dataset, tmp_path: Path) -> None:
+    """In this process: a region written by ``write_region`` and recorded from its receipt equals the
+    in-process result; its receipt is under 64 B per variant + 16 KiB, the chunk's arrays ~30 kB per
+    variant; a receipt whose checksums the store does not hold (a folder the client does not see) is an
+    input error naming -o."""
+    plan = load_study(study_file)
+    writer = ResultWriter(tmp_path, plan, store="zarr", chunk=8)
+    fn, tasks = regions.region_tasks(writer, run_chunk, plan, [(0, N_VARIANTS)], "compiled")
+    receipts = [fn(*t) for t in tasks]
+    assert [r.ranges for r in receipts] == [((0, 8),), ((8, 16),), ((16, 20),)]
+    arrays = len(pickle.dumps(run_chunk(plan, 0, 8), protocol=5))
+    for r in receipts:
+        assert len(pickle.dumps(r, protocol=5)) < receipt_bound(r.size) < arrays
+    bad = dataclasses.replace(receipts[0], sums=receipts[0].sums + 1)
+    with pytest.raises(InputError) as exc:
+        writer.write(bad)
+    assert exc.value.problems[0].file == "-o" and "every worker sees" in exc.value.problems[0].message
+    for r in reversed(receipts):  # in any order: the text codes are the store's
+        writer.write(r)
+    writer.finish()
+    assert_same_results(_load(tmp_path), reference)
+
+
+def test_regions_are_cut_at_stored_chunks() -> None:
+    assert list(regions.regions([(0, 3), (4, 11), (13, 14)], 5)) == [[(0, 3), (4, 5)], [(5, 10)], [(10, 11), (13, 14)]]
+
+
+@pytest.mark.parametrize("kill_at", [1, 2, 3])
+def test_zarr_store_replaced_whole_at_every_rename(study_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                   kill_at: int) -> None:  # fmt: skip
+    """A re-run that replaces a finished results.zarr is killed at its k-th rename: results.zarr is
+    still a whole, finished store (the old one or the new one), never missing."""
+    plan = load_study(study_file)
+    run_plan(plan, tmp_path, force=True, progress=False, store="zarr")
+    real, calls = os.replace, []
+
+    def dying(a: Any, b: Any) -> None:
+        if Path(a).parent == tmp_path:  # the folder's entries (not the files zarr writes inside a store)
+            calls.append(a)
+        if len(calls) == kill_at and Path(a).parent == tmp_path:
+            raise KeyboardInterrupt  # as if killed before this rename
+        real(a, b)
+
+    monkeypatch.setattr(os, "replace", dying)
+    with pytest.raises(KeyboardInterrupt):
+        run_plan(plan, tmp_path, progress=False, store="zarr")  # a re-run: the old store is replaced
+    monkeypatch.setattr(os, "replace", real)
+    with integrity.open_store(tmp_path / "results.zarr") as nc:
+        assert int(nc.getncattr("complete")) == 1
+        assert integrity.intact(nc, nc.variables["done"][:] == 1).all()
 
 
 def test_dask_backend_without_distributed_asks_for_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -28,17 +28,17 @@ from typing import Any
 
 import netCDF4
 import numpy as np
-import pandas as pd
 
 from crashstudy import __version__
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import ALL_SHAPES, KernelOutput
-from crashstudy.metrics.record import METRIC_META, NOTE_TEXT, asked_nodes, result_names, standard
+from crashstudy.metrics.record import METRIC_META, asked_nodes, result_names, standard
 from crashstudy.results import integrity
 from crashstudy.results.attributes import axis_unit, model_facts, plan_fingerprint, units_of
 from crashstudy.results.curve_ends import curve_springs
 from crashstudy.results.integrity import FINAL, PARTIAL
 from crashstudy.results.reader import Results, open_raw, open_results  # the one reader, re-exported
+from crashstudy.results.regions import Receipt, codes_in, record, stored_arrays, text_values
 from crashstudy.results.tables import (
     CSV_MAX,
     HISTORY_META,
@@ -47,13 +47,11 @@ from crashstudy.results.tables import (
     SUMMARY,
     SUMMARY_META,
     decode_texts,  # fmt: skip
-    metric_arrays,
-    summary_arrays,
     summary_frame,
     text_tables,
     write_summary,
 )
-from crashstudy.results.zarr_file import ZARR_FINAL, ZarrFile
+from crashstudy.results.zarr_file import ZARR_FINAL, ZarrFile, exchange
 from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study.plan import Plan
 from crashstudy.study.provenance import HASH_WORDS, text_hash
@@ -87,6 +85,15 @@ class ChunkResult:
     error_estimate: np.ndarray  # (V,) NaN unless the model asks for accuracy_check
     criteria: Any = None  # crashstudy.metrics.record.ChunkCriteria of a model with metrics, else None
     curve_end: np.ndarray | None = None  # (S, V) past_curve_end codes (crashstudy.results.curve_ends)
+
+    @property
+    def size(self) -> int:
+        """Variants computed."""
+        return len(self.index)
+
+    @property
+    def n_failed(self) -> int:
+        return int(np.count_nonzero(self.out.status))
 
 
 class ResultWriter:
@@ -249,30 +256,22 @@ class ResultWriter:
         })  # fmt: skip
         return nc
 
-    def write(self, res: ChunkResult) -> None:
-        """Write one chunk's variants (``res.index`` must be a contiguous range)."""
+    def write(self, res: ChunkResult | Receipt) -> None:
+        """Write one chunk's variants (``res.index`` must be a contiguous range), or record the region a
+        worker wrote (a :class:`~crashstudy.results.regions.Receipt`, :func:`~crashstudy.results.regions.record`)."""
+        if isinstance(res, Receipt):
+            record(self, res)
+            return
         lo, hi = int(res.index[0]), int(res.index[-1]) + 1
         assert hi - lo == len(res.index), "chunks are contiguous ranges"
-        nc, o = self.nc, res.out
-        data: dict[str, np.ndarray] = {}  # as stored: the chunk's checksum is taken over these
-        for name, arr in o.histories.items():
-            data[name] = np.ascontiguousarray(np.moveaxis(arr, -1, 0), dtype=np.float64)
-        data.update(summary_arrays(self.plan, res))
-        if self.plan.topology.metrics:
-            data.update(metric_arrays(self.plan, res))
-        data["status"] = (o.status != 0).astype("i1")
-        data["input_hash"] = np.ascontiguousarray(res.hashes, dtype=np.uint64)
-        for arr in data.values():  # -0.0 (a zero force on the other side, say) is stored and shown as 0.0
-            if arr.dtype.kind == "f":
-                np.add(arr, 0.0, out=arr)
+        nc = self.nc
+        data = stored_arrays(self.plan, res)  # as stored: the chunk's checksum is taken over these
         names = integrity.checked_names(nc)
         assert sorted(data) == names, (sorted(data), names)
         for name in names:
             nc.variables[name][lo:hi] = data[name]
-        nc.variables["failure_reason"][lo:hi] = self._codes("failure_reason", res.reasons)
-        nc.variables["dt_control"][lo:hi] = self._codes("dt_control", res.dt_control)
-        if res.criteria is not None:
-            nc.variables[NOTE_TEXT][lo:hi] = self._codes(NOTE_TEXT, np.where(o.status != 0, "", res.criteria.notes))
+        for name, texts in text_values(res).items():
+            nc.variables[name][lo:hi] = self._codes(name, texts)
         nc.variables["done"][lo:hi] = 1
         nc.variables[integrity.CHECKSUM][lo:hi] = integrity.variant_sums(data, names)
         nc.sync()
@@ -289,15 +288,12 @@ class ResultWriter:
 
     def _codes(self, name: str, texts: Any) -> np.ndarray:
         """Indices of ``texts`` in the file's table of ``name``; new texts are appended to it."""
-        codes, uniq = pd.factorize(np.asarray(texts, dtype=object))
         table = self.tables[name]
-        new = [t for t in uniq if t not in table]
+        start = len(table)
+        codes, new = codes_in(table, texts)
         if new:
-            start = len(table)
             self.nc.variables[f"{name}_text"][start : start + len(new)] = _chars(new, TEXT_LEN)
-            table.update({t: start + k for k, t in enumerate(new)})
-        ids = np.array([table[t] for t in uniq], dtype=np.int32)
-        return ids[codes] if len(codes) else np.zeros(0, dtype=np.int32)
+        return codes
 
     def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> int:
         """Copy finished variants ``old_idx`` of an earlier result into variants ``new_idx`` and mark them
@@ -372,13 +368,8 @@ class ResultWriter:
         zarr = self.final_name == ZARR_FINAL
         if not (self.path.is_dir() and not self.path.is_symlink() if zarr else is_regular(self.path)):
             raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
-        if zarr:  # a folder cannot replace a folder in one rename: the old store is moved aside, then removed
-            old = self.dir / (ZARR_FINAL + ".replaced")
-            remove_store(old)
-            if os.path.lexists(final):
-                os.replace(final, old)
-            os.replace(self.path, final)
-            remove_store(old)
+        if zarr:
+            swap_store(self.path, final)
         else:
             os.replace(self.path, final)  # first: the old manifest names this file only if its results are the same
         remove_store(self.dir / (FINAL if zarr else ZARR_FINAL))  # one store per folder: the other is stale
@@ -388,6 +379,25 @@ class ResultWriter:
             clear_entry(self.dir / SUMMARY)
         integrity.write_manifest(self.dir, run_id, [self.final_name, *tables])  # last: the set is whole
         return final
+
+
+def swap_store(new: Path, final: Path) -> None:
+    """Put the finished Zarr store ``new`` at ``final``, replacing an older one there: ``new`` is renamed
+    to ``final.replacing``, swapped with the old store in one step (:func:`exchange`) and the old store
+    removed after, so a kill at any moment leaves a whole store at ``final`` (the old, until the swap).
+    Where no swap exists (not Linux, some network file systems) the old store is moved aside first."""
+    staged = final.with_name(final.name + ".replacing")
+    remove_store(staged)
+    remove_store(final.with_name(final.name + ".replaced"))  # left by a run of an earlier version
+    if not os.path.lexists(final):
+        os.replace(new, final)
+        return
+    os.replace(new, staged)
+    if not exchange(staged, final):
+        os.replace(final, final.with_name(final.name + ".replaced"))
+        os.replace(staged, final)
+        staged = final.with_name(final.name + ".replaced")
+    remove_store(staged)  # now the old store
 
 
 def _ranges_of(mask: np.ndarray) -> list[tuple[int, int]]:

@@ -11,7 +11,9 @@ one stored object per variable), and xarray reads it as it reads the netCDF file
 ones (the text tables) are kept in the group's ``crashstudy_dims`` attribute.
 
 The store is a folder: it is built as ``results.zarr.partial`` and renamed to ``results.zarr`` when
-complete, like the netCDF file. Its size for the manifest is the sum of its files' sizes (:func:`store_size`).
+complete, like the netCDF file. A folder cannot replace a folder by ``rename``: a finished store that
+replaces an older one is swapped with it in one step (:func:`exchange`, Linux ``renameat2``), so the
+folder always holds a whole ``results.zarr``. Its size for the manifest is the sum of its files' sizes (:func:`store_size`).
 """
 
 from __future__ import annotations
@@ -208,6 +210,32 @@ def store_size(path: Path) -> int:
             st = os.lstat(os.path.join(root, f))
             total += st.st_size
     return total
+
+
+RENAME_EXCHANGE = 2  # renameat2 flag (Linux >= 3.15): swap two names in one step
+
+
+def exchange(a: Path, b: Path) -> bool:
+    """Swap the entries ``a`` and ``b`` (both must exist) in one atomic step; False where the system or
+    file system cannot (then nothing was changed)."""
+    import ctypes
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    at_fdcwd = -100
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    if fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), RENAME_EXCHANGE) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (22, 38, 95):  # EINVAL, ENOSYS, EOPNOTSUPP: not supported here
+        return False
+    raise OSError(err, os.strerror(err), str(a))
 
 
 def variant_chunk(path: Path) -> int | None:

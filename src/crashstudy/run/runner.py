@@ -26,6 +26,7 @@ from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelO
 from crashstudy.results import integrity
 from crashstudy.results.curve_ends import past_curve_ends
 from crashstudy.results.outdir import prepare_output, remove_derived, remove_stale_plots, study_of
+from crashstudy.results.regions import region_tasks
 from crashstudy.results.store import FINAL, ChunkResult, Results, ResultWriter
 from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
 from crashstudy.safefs import FolderBusy, folder_lock
@@ -371,10 +372,14 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
             size = min(size, choice.REF_CHUNK)
         ranges = _ranges(todo, size)
         bar.start(int((~todo).sum()))
-        for res in backend.imap_unordered(run_chunk, ((plan, lo, hi, kernel) for lo, hi in ranges)):
+        compute: Any = run_chunk
+        tasks: Iterator[tuple[Any, ...]] = ((plan, lo, hi, kernel) for lo, hi in ranges)
+        if scheduler and store == "zarr":  # the workers write their regions of the store (results/regions.py)
+            compute, tasks = region_tasks(writer, run_chunk, plan, ranges, kernel)
+        for res in backend.imap_unordered(compute, tasks):
             writer.write(res)
-            n_failed += int(np.count_nonzero(res.out.status))
-            bar.update(len(res.index))
+            n_failed += res.n_failed
+            bar.update(res.size)
             interrupt.check()  # a signal's stop request: after a whole chunk is written
     except BaseException:
         writer.abort()
