@@ -6,7 +6,8 @@ Backends are small and interchangeable (a test runs each and compares with the i
 - ``ProcessPool``: ``--jobs N`` worker processes, each kernel limited to ``cores // N`` threads;
   the workers end when the main process ends, however it ends (:func:`_die_with_parent`).
 - ``DaskBackend``: ``--scheduler tcp://HOST:PORT`` or ``local`` (a ``LocalCluster``); needs the
-  ``dask`` extra. Workers compute; the client (this process) writes the files.
+  ``dask`` extra. Workers compute; the client (this process) writes the files, or with ``--store zarr``
+  the workers write their regions of the store (:mod:`crashstudy.results.regions`).
 """
 
 from __future__ import annotations

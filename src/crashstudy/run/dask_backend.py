@@ -1,9 +1,13 @@
-"""Dask backend: chunks computed on a Dask cluster, results written by the client (this process).
+"""Dask backend: chunks computed on a Dask cluster; the results written by the client (this process),
+or, with ``--store zarr``, by the workers into the store at its shared path.
 
 ``--scheduler tcp://HOST:PORT`` connects to a running scheduler (``dask scheduler`` and ``dask worker``
 started by the user, see ``docs/dask.md``); ``--scheduler local`` starts a two-worker ``LocalCluster`` on
 the loopback interface for the run and stops it after. Workers compute :func:`crashstudy.run.runner.run_chunk`
-and send back a :class:`~crashstudy.results.store.ChunkResult`; only the client touches the result files.
+and send back a :class:`~crashstudy.results.store.ChunkResult` that the client writes; with ``--store zarr``
+each task (:func:`crashstudy.results.regions.write_region`) writes its chunk's region of ``results.zarr.partial``
+and sends back a small :class:`~crashstudy.results.regions.Receipt` (the backend maps whatever function
+it is given).
 
 Needs the optional extra ``pip install 'crashstudy[dask]'``; without it, constructing the backend raises
 :class:`~crashstudy.errors.InputError` (the command line exits with code 2 and says what to install).
