@@ -387,17 +387,18 @@ def swap_store(new: Path, final: Path) -> None:
     removed after, so a kill at any moment leaves a whole store at ``final`` (the old, until the swap).
     Where no swap exists (not Linux, some network file systems) the old store is moved aside first."""
     staged = final.with_name(final.name + ".replacing")
-    remove_store(staged)
-    remove_store(final.with_name(final.name + ".replaced"))  # left by a run of an earlier version
-    if not os.path.lexists(final):
-        os.replace(new, final)
-        return
-    os.replace(new, staged)
-    if not exchange(staged, final):
-        os.replace(final, final.with_name(final.name + ".replaced"))
-        os.replace(staged, final)
-        staged = final.with_name(final.name + ".replaced")
-    remove_store(staged)  # now the old store
+    aside = final.with_name(final.name + ".replaced")
+    remove_store(staged)  # left by a run killed here
+    remove_store(aside)
+    if os.path.lexists(final):
+        os.replace(new, staged)
+        if exchange(staged, final):
+            remove_store(staged)  # now the old store
+            return
+        os.replace(final, aside)
+        new = staged
+    os.replace(new, final)
+    remove_store(aside)
 
 
 def _ranges_of(mask: np.ndarray) -> list[tuple[int, int]]:
