@@ -242,8 +242,8 @@ def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, r
 
 def test_receipt_is_checksums_and_texts_not_arrays(study_file: Path, reference: xr.Dataset, tmp_path: Path) -> None:
     """In this process: a region written by ``write_region`` and recorded from its receipt equals the
-    in-process result; its receipt is under 64 B per variant + 16 KiB, the chunk's arrays ~30 kB per
-    variant; a receipt whose checksums the store does not hold (a folder the client does not see) is an
+    in-process result; its receipt is under 64 B per variant + 16 KiB, the chunk's arrays 32.6 kB per
+    variant; a task of another study writes nothing; a receipt whose checksums the store does not hold (a folder the client does not see) is an
     input error naming -o."""
     plan = load_study(study_file)
     writer = ResultWriter(tmp_path, plan, store="zarr", chunk=8)
@@ -253,6 +253,10 @@ def test_receipt_is_checksums_and_texts_not_arrays(study_file: Path, reference: 
     arrays = len(pickle.dumps(run_chunk(plan, 0, 8), protocol=5))
     for r in receipts:
         assert len(pickle.dumps(r, protocol=5)) < receipt_bound(r.size) < arrays
+    other = study_file.with_name("other-study.yaml")
+    other.write_text(STUDY.replace("1200.0]", "1300.0]"))
+    with pytest.raises(OSError, match="no longer the store of this task's study"):
+        fn(load_study(other), [(0, 8)], "compiled")  # a task left over from a run of another study
     bad = dataclasses.replace(receipts[0], sums=receipts[0].sums + 1)
     with pytest.raises(InputError) as exc:
         writer.write(bad)

@@ -16,7 +16,8 @@ the task's text tables. The client then (:func:`record`):
 A task never shares a stored object with another: its ranges lie in one chunk of the store
 (:func:`region_tasks` cuts and groups them), and only the client writes ``done`` and the tables. A worker
 that dies mid-task leaves a region without ``done``: Dask computes the task again (the region is written
-anew), and ``--resume`` computes it again. The worker checks its region by reading it back before it
+anew), and ``--resume`` computes it again. A task still running from an interrupted run (a remote
+worker finishes what it started) writes nothing into the store of another study. The worker checks its region by reading it back before it
 sends the receipt. The finished store is the in-process one, bit for bit: the same arrays, and the text
 tables sorted at the end as always.
 """
@@ -36,6 +37,7 @@ import pandas as pd
 from crashstudy.errors import InputError, Problem
 from crashstudy.metrics.record import NOTE_TEXT
 from crashstudy.results import integrity
+from crashstudy.results.attributes import plan_fingerprint
 from crashstudy.results.tables import metric_arrays, summary_arrays, text_tables
 from crashstudy.results.zarr_file import ZarrFile, variant_chunk
 
@@ -100,6 +102,8 @@ def write_region(compute: Callable[..., Any], path: str, plan: Any, ranges: list
     """On a worker: compute each range with ``compute(plan, lo, hi, kernel)`` (``run_chunk``), write it
     into the store at ``path``, read it back, and return the :class:`Receipt`."""
     nc: Any = ZarrFile(path, "a")  # the netCDF4 API subset integrity uses
+    if nc.getncattr("plan_fingerprint") != plan_fingerprint(plan):  # a task left running by an earlier run
+        raise OSError(f"{path} is no longer the store of this task's study (it was started again): not written")
     names = integrity.checked_names(nc)
     local: dict[str, dict[str, int]] = {name: {} for name in text_tables(plan.topology)}
     sums, failed = [], 0
