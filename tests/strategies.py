@@ -5,6 +5,7 @@ three unit systems, with the curves they need."""
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import numpy as np
@@ -12,6 +13,14 @@ from hypothesis import assume
 from hypothesis import strategies as st
 
 NAMES = ["a", "b", "c", "d", "e", "f"]
+
+
+def examples(default: int, explore: int) -> int:
+    """``max_examples`` of a property test: ``default`` under the default profile (conftest.py: derandomized,
+    the same examples on every run, kept few so the suite stays fast), ``explore`` under
+    ``HYPOTHESIS_PROFILE=explore`` (new random examples on every run, as many as the counts in
+    docs/robustness.md were taken with)."""
+    return explore if os.environ.get("HYPOTHESIS_PROFILE") == "explore" else default
 
 
 def num(lo: float, hi: float) -> st.SearchStrategy[float]:

@@ -15,7 +15,9 @@ kernel call as ``run`` does. On every variant that ran (status ok):
    every physical summary within a convergence error (25 % of the larger value, above a floor of 1e-3 of the
    largest value of that summary), never the factor 2 of a per-step quantity.
 
-Counts of what ran are printed at the end of the module (``-s``); docs/robustness.md quotes them. The kernel
+Each test draws 15 examples, the same on every run (derandomized, conftest.py); ``HYPOTHESIS_PROFILE=explore``
+draws 100 new ones per test. Counts of what ran are printed at the end of the module (``-s``);
+docs/robustness.md quotes them. The kernel
 is the compiled generic one (one compile for all models, cached; the automatic choice would take the
 NumPy reference for such small batches, 50 times slower here): a few seconds for the whole module.
 """
@@ -34,11 +36,13 @@ from hypothesis import strategies as st
 
 from crashstudy.vocabulary.codes import OK
 from helpers import dump, run_model
-from strategies import force_curve, num, valid_model
+from strategies import examples, force_curve, num, valid_model
 
 COUNTS: Counter[str] = Counter()
 HISTORIES = ["position", "velocity", "spring_force", "spring_elongation"]
-SETTINGS = settings(max_examples=25, deadline=None, derandomize=True, database=None,
+#: 15 examples per test in the default profile (derandomized: the same ones on every run), 100 new ones on
+#: every run under HYPOTHESIS_PROFILE=explore (strategies.examples)
+SETTINGS = settings(max_examples=examples(15, 100), deadline=None, database=None,
                     suppress_health_check=list(HealthCheck))  # fmt: skip
 
 

@@ -20,6 +20,11 @@ distinct axis values is caught at its position; random options of ``compare`` an
 
 The number of generated inputs that actually ran is counted and printed at the end of the module (run
 with ``-s`` to see it); docs/robustness.md quotes it.
+
+How many examples each property draws is :func:`strategies.examples`: few in the default profile (the same
+derandomized examples on every run, so that CI never fails on a new draw and the suite stays fast; each
+test's docstring says how many), and as many as docs/robustness.md's counts, new ones on every run, under
+``HYPOTHESIS_PROFILE=explore``.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import math
+import os
 import re
 import shutil
 import tempfile
@@ -42,7 +48,7 @@ from hypothesis import strategies as st
 
 from crashstudy.results.store import Results
 from helpers import STUDIES, dump, run_main
-from strategies import num, valid_model
+from strategies import examples, num, valid_model
 
 COUNTS: Counter[str] = Counter()
 
@@ -60,10 +66,30 @@ def _report_counts() -> Iterator[None]:
 # ------------------------------------------------------------------------------------------------
 
 
-@settings(max_examples=120, deadline=None, suppress_health_check=list(HealthCheck))
+@contextlib.contextmanager
+def _environ(**values: str) -> Iterator[None]:
+    """Environment variables set for the duration (for a hypothesis test, where a function-scoped
+    ``monkeypatch`` would be shared by all examples)."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+@settings(max_examples=examples(40, 120), deadline=None, suppress_health_check=list(HealthCheck))
 @given(valid_model())
 def test_random_valid_model_runs_or_fails_with_a_clear_status(model: dict[str, Any]) -> None:
-    with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp:
+    """Draws 40 models (120 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run). They run on the
+    generic compiled kernel (``CRASHSTUDY_KERNEL=generic``; the three kernels give bitwise equal results,
+    docs/kernels.md): where the generic kernel is not in the cache yet (a first ``pytest -n 0``), the
+    automatic choice compiles a generated kernel per model shape, 3-10 s each, which this property is not about."""
+    with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp, _environ(CRASHSTUDY_KERNEL="generic"):
         path = Path(tmp) / "model.yaml"
         path.write_text(dump(model), encoding="utf-8")
         rc, out, err = run_main("validate", str(path))
@@ -324,9 +350,10 @@ def _check_validate(path: Path, model_path: Path | None = None) -> None:
         assert re.search(r": valid (model|study) \(", out), out
 
 
-@settings(max_examples=250, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(100, 250), deadline=None, suppress_health_check=list(HealthCheck))
 @given(st.data())
 def test_corrupted_model_text_never_crashes_validate(studies_copy: Path, data: st.DataObject) -> None:
+    """Draws 100 corrupted models (250 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     source = data.draw(st.sampled_from(["generated"] + [p.name for p in EXAMPLE_MODELS]), label="source")
     text = dump(data.draw(valid_model(), label="model")) if source == "generated" \
         else (STUDIES / "models" / source).read_text(encoding="utf-8")  # fmt: skip
@@ -336,9 +363,10 @@ def test_corrupted_model_text_never_crashes_validate(studies_copy: Path, data: s
     _check_validate(path)
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(60, 150), deadline=None, suppress_health_check=list(HealthCheck))
 @given(st.data())
 def test_corrupted_study_text_never_crashes_validate(studies_copy: Path, data: st.DataObject) -> None:
+    """Draws 60 corrupted studies (150 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     source = data.draw(st.sampled_from([p.name for p in EXAMPLE_STUDIES]), label="source")
     text = (STUDIES / source).read_text(encoding="utf-8")
     raw = data.draw(corrupt(text), label="corrupted")
@@ -453,9 +481,10 @@ def _assert_axis_changes_no_parameter(plan: Any, path: str) -> None:
         assert np.array_equal(cols, np.repeat(cols[:, :1], cols.shape[1], axis=1)), path
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(50, 150), deadline=None, suppress_health_check=list(HealthCheck))
 @given(valid_study())
 def test_random_valid_study_counts_its_variants(case: tuple[dict[str, Any], list[int], list[list[str]]]) -> None:
+    """Draws 50 studies (150 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     from crashstudy.study.plan import load_study
 
     study, lengths, dims = case
@@ -515,9 +544,10 @@ SET_PATHS = st.one_of(st.lists(st.sampled_from(SET_PARTS), min_size=1, max_size=
      "gravity.0", "nodes.front.position.0", "loads.0.force.0", "curves.pulse.scale"]))  # fmt: skip
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(60, 150), deadline=None, suppress_health_check=list(HealthCheck))
 @given(st.dictionaries(SET_PATHS, st.one_of(SET_VALUES, num(1e-3, 1.0)), min_size=1, max_size=3))
 def test_random_set_paths_never_crash_validate(overrides: dict[str, Any]) -> None:
+    """Draws 60 ``set:`` blocks (150 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp:
         d = Path(tmp)
         (d / "model.yaml").write_text(SMALL_MODEL)
@@ -546,10 +576,11 @@ INVALID_AXIS_VALUES = {  # path -> (a valid value, invalid values)
 }
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(20, 60), deadline=None, suppress_health_check=list(HealthCheck))
 @given(st.sampled_from(sorted(INVALID_AXIS_VALUES)), st.integers(2, 1000), st.data())
 def test_an_invalid_value_anywhere_among_up_to_1000_distinct_axis_values_is_caught(path: str, n: int,
                                                                                   data: st.DataObject) -> None:  # fmt: skip
+    """Draws 20 axes (60 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     from crashstudy.errors import InputError
     from crashstudy.study.plan import load_study
 
@@ -610,11 +641,12 @@ def options(draw: st.DrawFn, command: str) -> list[str]:
     return args
 
 
-@settings(max_examples=120, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=examples(40, 120), deadline=None, suppress_health_check=list(HealthCheck))
 @given(st.sampled_from(["summary", "compare"]), st.data())
 def test_random_options_of_compare_and_summary_exit_0_1_or_2_without_a_traceback(
     two_results: tuple[Path, Path], command: str, data: st.DataObject
 ) -> None:
+    """Draws 40 command lines (120 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     new, base = two_results
     args = data.draw(options(command), label="options")
     with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp, contextlib.chdir(tmp):
