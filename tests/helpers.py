@@ -122,7 +122,9 @@ def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float | None = 
             else:
                 print(exc.code, file=sys.stderr)
                 rc = 1
-    text = [s.buffer.getvalue().decode(encoding) for s in (out, err)]  # type: ignore[attr-defined]
+    # decoded as subprocess.run(text=True) decodes a pipe: universal newlines ("\r" of a progress line is "\n")
+    text = [s.buffer.getvalue().decode(encoding).replace("\r\n", "\n").replace("\r", "\n")  # type: ignore[attr-defined]
+            for s in (out, err)]  # fmt: skip
     return subprocess.CompletedProcess(["crashstudy", *argv], rc, *text)
 
 
