@@ -38,6 +38,7 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 @pytest.fixture
 def cli():
+    """``crashstudy ARGS`` in this process (helpers.run_cli); helpers.run_cli_process for a real process."""
     return run_cli
 
 

@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import contextlib
 import io
+import locale
 import math
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -97,20 +98,85 @@ def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: d
     return out, batch, plan
 
 
-def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    """Run the installed command line in a subprocess (as a user would)."""
-    return subprocess.run([sys.executable, "-m", "crashstudy.cli", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=600)  # fmt: skip
-
-
-def run_main(*argv: str) -> tuple[int, str, str]:
-    """``crashstudy ARGV`` in this process; returns (exit code, stdout, stderr). Any exception propagates."""
+def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float | None = None
+            ) -> subprocess.CompletedProcess[str]:  # fmt: skip
+    """``crashstudy ARGS`` run IN THIS PROCESS as the installed command runs it (``python -m crashstudy.cli``):
+    what it prints on stdout and stderr, its exit code (``SystemExit`` of argparse included), in folder
+    ``cwd``; returned as the CompletedProcess of :func:`run_cli_process`. It saves a fresh interpreter's
+    start (2 s of CPU importing numpy, numba, xarray, ...) per call. An exception escaping ``main`` would be
+    a user's traceback: it is raised here and fails the test. What the call changes in this process is put
+    back (:func:`_as_its_own_process`). ``timeout`` is accepted for the subprocess runner's callers and not
+    enforced: a test of a hang or a timeout uses :func:`run_cli_process`."""
     from crashstudy.cli.main import main
 
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main(list(argv))
-    return rc, out.getvalue(), err.getvalue()
+    argv = [str(a) for a in args]
+    encoding = locale.getpreferredencoding(False)  # a pipe's, as python sets up sys.stdout and sys.stderr for one
+    out = io.TextIOWrapper(io.BytesIO(), encoding, errors="strict", write_through=True)
+    err = io.TextIOWrapper(io.BytesIO(), encoding, errors="backslashreplace", write_through=True)
+    with _as_its_own_process(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            rc = main(argv)
+        except SystemExit as exc:  # argparse's --help, --version and usage errors; as the interpreter exits
+            if exc.code is None or isinstance(exc.code, int):
+                rc = exc.code or 0
+            else:
+                print(exc.code, file=sys.stderr)
+                rc = 1
+    # decoded as subprocess.run(text=True) decodes a pipe: universal newlines ("\r" of a progress line is "\n")
+    text = [s.buffer.getvalue().decode(encoding).replace("\r\n", "\n").replace("\r", "\n")  # type: ignore[attr-defined]
+            for s in (out, err)]  # fmt: skip
+    return subprocess.CompletedProcess(["crashstudy", *argv], rc, *text)
+
+
+def run_cli_process(*args: str | Path, cwd: Path | None = None, timeout: float = 600
+                    ) -> subprocess.CompletedProcess[str]:  # fmt: skip
+    """The installed command line in a subprocess (as a user runs it): for tests of what only a process
+    boundary shows (signals, hangs and timeouts, variables read at import, pipes, the entry point)."""
+    return subprocess.run([sys.executable, "-m", "crashstudy.cli", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, timeout=timeout)  # fmt: skip
+
+
+#: a fresh interpreter's warning filters (python without -W or PYTHONWARNINGS): pytest's own, e.g.
+#: ``error::CrashstudyWarning`` of pyproject.toml, do not apply to a command a user runs
+_FRESH_FILTERS = (("default", DeprecationWarning, "__main__"), ("ignore", DeprecationWarning, ""),
+                  ("ignore", PendingDeprecationWarning, ""), ("ignore", ImportWarning, ""),
+                  ("ignore", ResourceWarning, ""))  # fmt: skip
+
+
+@contextlib.contextmanager
+def _as_its_own_process(cwd: Path | None) -> Iterator[None]:
+    """Run the body as a command in a process of its own would: in folder ``cwd``, with a fresh
+    interpreter's warning filters; afterwards put back the folder, the warning filters and
+    ``showwarning`` (``main`` installs its one-line printer), the SIGINT/SIGTERM handlers ``main``
+    installs, the stop request of :mod:`crashstudy.interrupt`, the environment, and the root logger."""
+    import logging
+    import os
+    import signal
+    import warnings
+
+    from crashstudy import interrupt
+
+    here, environ = os.getcwd(), dict(os.environ)
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    root = logging.getLogger()
+    log_handlers, log_level = list(root.handlers), root.level
+    try:
+        with warnings.catch_warnings():
+            warnings.resetwarnings()
+            for action, category, module in reversed(_FRESH_FILTERS):
+                warnings.filterwarnings(action, category=category, module=module)
+            if cwd is not None:
+                os.chdir(cwd)
+            yield
+    finally:
+        os.chdir(here)
+        for s, h in handlers.items():
+            signal.signal(s, h)
+        interrupt.reset()
+        if dict(os.environ) != environ:
+            os.environ.clear()
+            os.environ.update(environ)
+        root.handlers[:], root.level = log_handlers, log_level
 
 
 # ------------------------------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from crashstudy.cli.main import main
-from helpers import STUDIES, run_cli
+from helpers import STUDIES, run_cli_process
 
 BASE = """\
 name: bad-input-base
@@ -359,24 +359,24 @@ def test_command_line_in_a_subprocess(tmp_path: Path) -> None:
         "zip:\n  - {springs.s1.material.stiffness: [1.0e5, 2.0e5], end_time: [0.01, 0.02]}\n"
     )
 
-    p = run_cli("validate", "broken.yaml", cwd=tmp_path)
+    p = run_cli_process("validate", "broken.yaml", cwd=tmp_path)
     assert p.returncode == 2 and p.stdout == "" and "Traceback" not in p.stderr
     assert p.stderr.splitlines()[1].startswith("broken.yaml:10: invalid YAML: expected ',' or '}'")
     assert len(p.stderr.splitlines()) < 40
 
-    p = run_cli("simulate", "tagged.yaml", "-o", "out", cwd=tmp_path)
+    p = run_cli_process("simulate", "tagged.yaml", "-o", "out", cwd=tmp_path)
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert p.stderr.splitlines()[1].startswith(
         "tagged.yaml:15: end_time: unsupported tag !!python/object/apply"
     )
     assert_nothing_written(tmp_path / "out")
 
-    p = run_cli("run", "study.yaml", "--dry-run", "-o", "out", cwd=tmp_path)
+    p = run_cli_process("run", "study.yaml", "--dry-run", "-o", "out", cwd=tmp_path)
     assert p.returncode == 0, p.stderr
     assert p.stdout.splitlines()[0] == "study s: 12 variants (3 x 2 x 2)"
     assert_nothing_written(tmp_path / "out")
 
-    p = run_cli("validate", "study.yaml", cwd=tmp_path)
+    p = run_cli_process("validate", "study.yaml", cwd=tmp_path)
     assert p.returncode == 0 and p.stdout == "study.yaml: valid study (12 variants)\n", p.stderr
 
 

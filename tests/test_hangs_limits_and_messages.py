@@ -28,7 +28,7 @@ import pytest
 from crashstudy.errors import InputError
 from crashstudy.schema import yamlio
 from crashstudy.study.plan import load_study
-from helpers import TINY_MODEL, Cli, K, assert_exit_2, reseal  # noqa: E402 - shared helpers
+from helpers import TINY_MODEL, Cli, K, assert_exit_2, reseal, run_cli_process  # noqa: E402 - shared helpers
 
 MODEL = TINY_MODEL  # the tiny model of helpers.py (K = 2e4 N/m, 2 kg at 1 m/s)
 STUDY = "name: tiny-study\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: [1.0, 2.0]\n"
@@ -93,7 +93,7 @@ def test_a_scheduler_that_accepts_and_never_answers_exits_2_after_the_stated_tim
 def test_a_fifo_as_the_file_to_validate_is_refused_before_it_is_opened(tmp_path: Path, cli: Cli) -> None:
     fifo = tmp_path / "model.yaml"
     os.mkfifo(fifo)
-    p = cli("validate", fifo)  # opened, it would wait for a writer for good (run_cli stops it at 600 s)
+    p = run_cli_process("validate", fifo)  # opened, it would wait for a writer for good (stopped at 600 s)
     assert_exit_2(p, f"{fifo}: not a regular file: it is a named pipe (FIFO); expected a YAML file")
 
 
@@ -106,7 +106,7 @@ def test_a_fifo_device_or_directory_as_model_path_is_named_as_what_it_is(tmp_pat
     for model, expect in cases.items():
         study = tmp_path / "study.yaml"
         study.write_text(STUDY.replace("model.yaml", model))
-        p = cli("validate", study)
+        p = run_cli_process("validate", study)  # a FIFO opened would wait for a writer for good
         assert_exit_2(p, "study.yaml:2: model: model path ", expect)
         assert "not found" not in p.stderr  # was "model file not found" for an existing folder or device
 
@@ -230,9 +230,10 @@ def test_an_end_time_axis_up_to_1e12_is_refused_with_the_estimate_and_runs_with_
                   "  nodes.body.mass: [1.0, 2.0]\n")  # fmt: skip
     plan_work = []
     for env in ({}, {"CRASHSTUDY_MAX_WORK": "1e20"}):
-        p = subprocess.run([sys.executable, "-m", "crashstudy.cli", "validate", str(study)], capture_output=True,
-                           text=True, timeout=600, env={**os.environ, **env})  # fmt: skip
-        plan_work.append(p)
+        with pytest.MonkeyPatch.context() as mp:  # read when the plan is made, not at import: in this process
+            for name, value in env.items():
+                mp.setenv(name, value)
+            plan_work.append(cli("validate", study))
     assert_exit_2(plan_work[0], "study.yaml:4: matrix.end_time: the run would take about", "element-steps",
                   "the longest variant (4) takes", "CRASHSTUDY_MAX_WORK")  # fmt: skip
     assert plan_work[1].returncode == 0 and "about" in plan_work[1].stdout, plan_work[1].stderr

@@ -21,6 +21,7 @@ import yaml
 
 from crashstudy.cli.main import main
 from folders import files, peak_force, snapshot
+from helpers import run_cli
 
 
 def limited() -> None:
@@ -98,7 +99,8 @@ def test_calibrate_data_is_read_only_as_a_regular_file_within_the_models_time(
         made: dict[str, Path], tmp_path: Path, plant: str, expected: str) -> None:  # fmt: skip
     """Never hangs, never fills memory, never quotes the file (a link to a secret), names the line."""
     study = _with_data(made, tmp_path, plant)
-    done = cli("calibrate", str(study), "-o", str(tmp_path / "out"))
+    run = cli if plant in ("fifo", "zero") else run_cli  # a FIFO or /dev/zero read would hang or fill memory
+    done = run("calibrate", str(study), "-o", str(tmp_path / "out"))
     assert done.returncode == 2, done.stderr[-2000:]
     assert expected in done.stderr and "calibrate.data" in done.stderr, done.stderr
     assert "s3cr3t" not in done.stderr and "alice" not in done.stderr and "Traceback" not in done.stderr
