@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -72,8 +73,13 @@ def sensitivity(args: argparse.Namespace) -> int:
 
     res = open_results(args.dir)
     try:
-        df, attrs = res.summary, dict(res.dataset.attrs)
-        metric = _match_column(args.dir, args.metric, list(df.columns))
+        with res.raw_dataset as raw:
+            attrs = dict(raw.attrs)
+        names = res.summary_names()
+        metric = _match_column(args.dir, args.metric, names)
+        axes = [a for a in json.loads(attrs.get("crashstudy_axes", "[]")) if a in names]
+        # only the columns the indices use (a 10^8-variant summary is ~25 GB whole, these ~8 B each per variant)
+        df = res.summary_columns(list(dict.fromkeys(["variant", "status", *axes, metric])))
         try:
             table = indices(df, attrs, metric, args.method)
         except ValueError as exc:
