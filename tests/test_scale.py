@@ -131,9 +131,9 @@ def command_peak(argv: list[str]) -> tuple[int, str]:
     import contextlib
     import io
 
-    from crashstudy.cli.main import main
-
     import pyarrow as pa
+
+    from crashstudy.cli.main import main
 
     buf = io.StringIO()
     pool, before = pa.proxy_memory_pool(pa.default_memory_pool()), pa.default_memory_pool()

@@ -33,20 +33,24 @@ def add_parsers(sub: Any) -> None:
 
 def exceed_text(dir_: str, column: str, limit: str) -> str:
     """``summary --exceed COLUMN LIMIT``: the exceedance probability of a column."""
-    from crashstudy.analysis.sensitivity import exceedance, sample_caveat
+    import numpy as np
+
+    from crashstudy.analysis.sensitivity import exceed_counts, exceedance_of, sample_caveat
     from crashstudy.cli.columns import match_column as _match_column
     from crashstudy.results.store import open_results
 
     value = _number("--exceed", limit)
     res = open_results(dir_)
-    try:  # only the column asked for and status are read (a 10^8-variant summary is ~25 GB in memory)
+    try:  # the column asked for and status, block by block, counted (a 10^8-variant summary is ~25 GB whole)
         with res.raw_dataset as raw:
             attrs = dict(raw.attrs)
         name = _match_column(dir_, column, res.summary_names())
-        df = res.summary_columns(["status", name])
+        counts = np.zeros(3, dtype=np.int64)
+        for block in res.summary_batches(["status", name]):
+            counts += exceed_counts(block, name, value)
     finally:
         res.close()
-    text = exceedance(df, name, value).text()
+    text = exceedance_of(name, value, counts).text()
     caveat = sample_caveat(attrs)
     if caveat:
         import textwrap
