@@ -177,11 +177,21 @@ def sample_caveat(attrs: dict[str, Any]) -> str:
 
 
 def exceedance(summary: pd.DataFrame, column: str, limit: float) -> Exceedance:
+    return exceedance_of(column, limit, exceed_counts(summary, column, limit))
+
+
+def exceed_counts(summary: pd.DataFrame, column: str, limit: float) -> np.ndarray:
+    """(variants that ran, of which above ``limit``, failed) in a (block of a) summary: sums over blocks."""
+    y = summary[column].to_numpy(dtype=float)
+    ran = (summary["status"].astype(str) == "ok").to_numpy() & np.isfinite(y)
+    return np.array([int(ran.sum()), int((y[ran] > limit).sum()), int((~ran).sum())], dtype=np.int64)
+
+
+def exceedance_of(column: str, limit: float, counts: np.ndarray) -> Exceedance:
+    """The :class:`Exceedance` of the counts of :func:`exceed_counts` (exact: they are integers)."""
     from scipy import stats
 
-    y = summary[column].to_numpy(dtype=float)
-    ran = (summary["status"] == "ok").to_numpy() & np.isfinite(y)
-    n, k, failed = int(ran.sum()), int((y[ran] > limit).sum()), int((~ran).sum())
+    n, k, failed = (int(c) for c in counts)
     if n == 0:
         return Exceedance(column, limit, 0, 0, failed, float("nan"), float("nan"), float("nan"), float("nan"))
     ci = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")

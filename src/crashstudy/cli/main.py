@@ -16,7 +16,6 @@ from typing import Any
 
 from crashstudy import environment
 from crashstudy.cli.columns import arg_problem as _arg_problem
-from crashstudy.cli.columns import match_column as _match_column
 from crashstudy.errors import InputError
 from crashstudy.safefs import PlantedEntryError
 
@@ -316,79 +315,9 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _summary(args: argparse.Namespace) -> int:
-    import shutil
+    from crashstudy.cli.explore import summary_command  # read block by block (issue 19)
 
-    import pandas as pd
-
-    from crashstudy.results.store import open_results
-
-    if args.head < 0:
-        raise InputError([_arg_problem("--head", f"expected 0 (every row) or a number of rows, got {args.head}")])
-    if args.exceed:
-        from crashstudy.cli.explore import exceed_text
-
-        print(exceed_text(args.dir, *args.exceed))
-        return EXIT_OK
-    res = open_results(args.dir)
-    try:
-        df = res.summary
-        units = _column_units(res.dataset, list(df.columns))
-        axes = [a for a in json.loads(res.dataset.attrs.get("crashstudy_axes", "[]")) if a in df.columns]
-    finally:
-        res.close()
-    if args.variant is not None:
-        return _print_variant(df, units, args)
-    col = _match_column(args.dir, args.sort, list(df.columns)) if args.sort else None  # any column, shown or not
-    if args.columns:
-        picked = [c for c in df.columns if any(k in c for k in args.columns) and c != "variant" and c not in axes]
-        if col is not None and col not in ("variant", *axes, *picked):
-            picked.append(col)  # the sort column is always shown
-        df = df[["variant", *axes, *picked]]
-    if col is not None:
-        df = df.sort_values(col, ascending=args.ascending, kind="stable")
-    shown = df if not args.head else df.head(args.head)
-    reasons = shown.pop("failure_reason") if "failure_reason" in shown else None
-    width = shutil.get_terminal_size((100, 24)).columns  # COLUMNS, else the terminal, else 100
-    table = shown.copy()
-    table.columns = pd.MultiIndex.from_tuples([(c, f"[{units[c]}]" if units.get(c) else "") for c in shown.columns])
-    with pd.option_context("display.max_columns", None, "display.width", width, "display.max_colwidth", None,
-                           "display.expand_frame_repr", True, "display.max_rows", None):  # fmt: skip
-        print(table.to_string(line_width=width))
-    if args.head and len(df) > args.head:
-        print(f"... {len(df) - args.head} more rows (--head 0 shows all)")
-    if reasons is not None and (reasons != "").any():
-        import textwrap
-
-        print("failure reasons:")
-        for v, why in zip(shown["variant"], reasons, strict=True):
-            if why:
-                print(textwrap.fill(f"variant {v}: {why}", width, subsequent_indent="    ", break_long_words=False))
-    return EXIT_OK
-
-
-def _column_units(ds: Any, columns: list[str]) -> dict[str, str]:
-    """Unit of each summary column as results.nc stores it (``""`` for none or a pure number)."""
-    out = {}
-    for c in columns:
-        name = c if c in ds.variables else c.split(".", 1)[0]
-        unit = str(ds[name].attrs.get("units", "")) if name in ds.variables else ""
-        out[c] = "" if unit == "1" else unit
-    return out
-
-
-def _print_variant(df: Any, units: dict[str, str], args: argparse.Namespace) -> int:
-    rows = df[df["variant"] == args.variant]
-    if rows.empty:
-        raise InputError([_arg_problem(args.dir, f"--variant {args.variant}: the variants are numbered 0 to "
-                                       f"{len(df) - 1}")])  # fmt: skip
-    row = rows.iloc[0]
-    labels = {c: c + (f" [{units[c]}]" if units.get(c) else "") for c in df.columns}
-    w = max(len(x) for x in labels.values())
-    for c in df.columns:
-        v = row[c]
-        text = f"{v:.6g}" if isinstance(v, float) else str(v)
-        print(f"{labels[c]:<{w}}  {text}")
-    return EXIT_OK
+    return summary_command(args)
 
 
 def _plot(args: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 from matplotlib.figure import Figure
@@ -46,6 +47,19 @@ def _items_suffix(items: Sequence[str] | None) -> str:
     import hashlib
 
     return text[:48] + "-" + hashlib.sha256("\0".join(items).encode()).hexdigest()[:8]
+
+
+def _matrix_summary(res: Any, axes: list[str], quantity: str | None) -> pd.DataFrame:
+    """The summary columns a matrix plot of ``quantity`` uses (variant, axes, status, the metric's columns;
+    ~8 B per variant each instead of the whole table): the whole summary when none matches (its message
+    lists the valid metrics)."""
+    names = res.summary_names()
+    base = quantity or "peak_deceleration_g"
+    want = {c for c in names if c == quantity or c.startswith(base + ".")}
+    if not want:
+        return res.summary  # type: ignore[no-any-return]
+    keep = {"variant", "status", *axes, *want}
+    return res.summary_columns([c for c in names if c in keep])  # type: ignore[no-any-return]
 
 
 def _matrix_metrics(summary: pd.DataFrame, axes: list[str], quantity: str | None, items: Sequence[str] | None,
@@ -111,13 +125,13 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
         res = open_results(args.dir)
     except FileNotFoundError as exc:
         raise _fail(where, str(exc)) from None
-    ds = res.dataset
+    ds = res.raw_dataset if args.kind == "matrix" else res.dataset  # matrix: attributes only, no text decoded
     out = Path(args.output) if args.output else Path(args.dir) / "plots"
     figures: list[tuple[str, Figure]] = []
     try:
         if args.kind == "matrix":
-            summary = res.summary
             axes = study_axes(ds)
+            summary = _matrix_summary(res, axes, args.quantity)
             if not axes:
                 raise _fail(
                     where,
@@ -187,4 +201,6 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
     except InputError as exc:  # name the folder as the user typed it
         raise InputError([Problem(where, p.line, p.field, p.message) for p in exc.problems]) from None
     finally:
+        if args.kind == "matrix":
+            ds.close()
         res.close()

@@ -185,17 +185,20 @@ def store_bytes(path: Path) -> int:
     return store_size(path) if path.name.startswith(ZARR_FINAL) else os.stat(path).st_size
 
 
-def sha256(path: Path, block: int = 2**20) -> str:
+def sha256(path: Path, block: int = 2**16) -> str:
     with open_regular(path) as fh:
         return sha256_of(fh, block)
 
 
-def sha256_of(fh: Any, block: int = 2**20) -> str:
-    """SHA-256 of an open binary file from its start (left at its end)."""
+def sha256_of(fh: Any, block: int = 2**16) -> str:
+    """SHA-256 of an open binary file from its start (left at its end), read into one buffer of ``block``
+    bytes (a fresh 1 MiB bytes object per read showed as ~50 B per variant of memory growth up to 1 MiB)."""
     h = hashlib.sha256()
     fh.seek(0)
-    while chunk := fh.read(block):
-        h.update(chunk)
+    buf = bytearray(block)
+    view = memoryview(buf)
+    while n := fh.readinto(buf):
+        h.update(view[:n])
     return h.hexdigest()
 
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -36,6 +37,7 @@ from crashstudy.safefs import PlantedEntryError, open_regular
 
 __all__ = ["Results", "open_results"]
 NOT_THE_RUNS = "it is not the file that run wrote (changed or copied in since)"
+READ_BLOCK = 65_536  # rows of the summary table a block-wise reader holds at once (a few MiB per column)
 
 
 class Results:
@@ -112,11 +114,10 @@ class Results:
             k = s[column].idxmax()
             return float(s.loc[k, column]), int(s.loc[k, "variant"])
         import numpy as np
-        import pyarrow.parquet as pq
 
         best: tuple[float, int] | None = None
         with self.open_file(PARQUET) as fh:
-            f = pq.ParquetFile(fh)
+            f = _parquet(fh)
             if column not in f.schema_arrow.names:
                 return None
             for b in f.iter_batches(columns=["variant", column]):
@@ -145,20 +146,64 @@ class Results:
         if self.summary_source != PARQUET:
             return int((self.summary["status"] != "ok").sum())
         import pyarrow.compute as pc
-        import pyarrow.parquet as pq
 
         with self.open_file(PARQUET) as fh:
             return sum(int(pc.sum(pc.not_equal(b.column(0).cast("string"), "ok")).as_py() or 0)
-                       for b in pq.ParquetFile(fh).iter_batches(columns=["status"]))  # fmt: skip
+                       for b in _parquet(fh).iter_batches(columns=["status"]))  # fmt: skip
 
     def summary_names(self) -> list[str]:
         """The column names of :attr:`summary` (from the Parquet schema, without reading its rows)."""
         if self.summary_source != PARQUET:
             return list(self.summary.columns)
-        import pyarrow.parquet as pq
 
         with self.open_file(PARQUET) as fh:
-            return list(pq.ParquetFile(fh).schema_arrow.names)
+            return list(_parquet(fh).schema_arrow.names)
+
+    def summary_rows(self) -> int:
+        """The number of rows of :attr:`summary` (from the Parquet footer, without reading its rows)."""
+        if self.summary_source != PARQUET:
+            return len(self.summary)
+
+        with self.open_file(PARQUET) as fh:
+            return int(_parquet(fh).metadata.num_rows)
+
+    def summary_batches(self, columns: list[str] | None = None, rows: int | None = None) -> Iterator[pd.DataFrame]:
+        """:attr:`summary` (only ``columns``, in their order; default all) in blocks of at most ``rows``
+        rows (default :data:`READ_BLOCK`), in variant order: what reads a summary of any size in memory
+        bounded by the block (a Parquet row group at a time; text columns come as categoricals or strings
+        per block; the index numbers the rows of the whole table). A ``summary.csv`` or a dataset-only folder is read whole first (older folders)."""
+        rows = rows or READ_BLOCK
+        if self.summary_source == PARQUET:
+
+            with self.open_file(PARQUET) as fh:
+                lo = 0
+                for b in _parquet(fh).iter_batches(batch_size=rows, columns=columns):
+                    df = b.to_pandas()
+                    df.index = pd.RangeIndex(lo, lo + len(df))  # the row numbers of the whole table
+                    lo += len(df)
+                    yield df
+            return
+        df = self.summary if columns is None else self.summary[columns]
+        for lo in range(0, len(df), rows):
+            yield df.iloc[lo : lo + rows]
+
+    def summary_row(self, variant: int, columns: list[str] | None = None) -> pd.DataFrame:
+        """The rows of :attr:`summary` whose ``variant`` is ``variant`` (0 or 1 of them), read through
+        the Parquet row-group statistics (the row groups that cannot hold it are skipped)."""
+        if self.summary_source != PARQUET:
+            df = self.summary if columns is None else self.summary[columns]
+            return df[df["variant"] == variant].reset_index(drop=True)
+
+        with self.open_file(PARQUET) as fh:
+            f = _parquet(fh)
+            parts = []
+            for g in range(f.num_row_groups):
+                st = f.metadata.row_group(g).column(f.schema_arrow.get_field_index("variant")).statistics
+                if st is not None and st.has_min_max and not st.min <= variant <= st.max:
+                    continue
+                t = f.read_row_group(g, columns=columns).to_pandas()
+                parts.append(t[t["variant"] == variant])
+        return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns or f.schema_arrow.names)
 
     @property
     def summary(self) -> pd.DataFrame:
@@ -188,6 +233,14 @@ class Results:
 
     def __repr__(self) -> str:
         return f"Results({str(self.dir)!r})"
+
+
+def _parquet(fh: IO[bytes]) -> Any:
+    """``summary.parquet`` for reading row group by row group: without pyarrow's ``pre_buffer`` (on by
+    default, it reads every selected row group ahead: 8192 rows, 256 a group, held 1.1 MB, 2048 rows 0.3)."""
+    import pyarrow.parquet as pq
+
+    return pq.ParquetFile(fh, pre_buffer=False)
 
 
 def open_raw(path: Path) -> xr.Dataset:
