@@ -7,10 +7,13 @@ share their laws (:mod:`crashstudy.kernel.laws`) but not the reference's code. T
 
 Cases (the models: tests/twins.py): every material in 1-D drawn both ways; three full twins (all materials,
 gravity, loads, prescribed displacement / velocity / acceleration, rigid walls incl. an inclined one,
-1-D and 2-D); 2-D walls; a 2-D spring crushed to zero length; the general_nonlinear reversal (rule 4);
-knot crossings of every curve material in 1-D and 2-D; the frontal model with per-variant and constant
-curves; lane compaction; early termination; the SPEC v2 spring features (elastoplastic,
-nonlinear_damper, initial_elongation, failure, max_elongation) in 1-D and 2-D.
+1-D and 2-D; the 1-D one with per-variant scaled spring, load and motion curves); 2-D rigid and penalty walls;
+a 2-D spring crushed to zero length; the general_nonlinear reversal (rule 4); knot crossings of every curve
+material in 1-D and 2-D, on constant and on scaled curves; the frontal model with per-variant and constant
+curves and lane compaction; early termination; the SPEC v2 spring features (elastoplastic, nonlinear_damper,
+initial_elongation, failure, max_elongation) breaking and intact beside rate_elastic, in 1-D and 2-D.
+Where features can live together they are disjoint sub-systems of one model (``twins.disjoint``): one
+generated kernel compile instead of several, each sub-system keeping its own check.
 """
 
 from __future__ import annotations
