@@ -60,8 +60,9 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def warm_other_core() -> None:
-    """Compile the crash criteria and the generated kernels, with the per-step record, of
-    ``twins.WARM_RECORD_CASES`` exactly as tests/test_metrics.py runs them (the same batch: the same shape key)."""
+    """Compile the crash criteria and the generated kernels of ``twins.WARM_RECORD_CASES`` exactly as
+    tests/test_kernel_twins.py runs them (the same batch and record: the same shape key; tests/test_metrics.py's
+    block-record twins share it)."""
     from crashstudy.kernel.entry import run_batch
     from crashstudy.metrics.warmup import compile_criteria
     from twins import WARM_RECORD_CASES

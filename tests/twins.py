@@ -265,6 +265,58 @@ def crush_bounce(v0: float = 10.0) -> dict[str, Any]:
     }  # fmt: skip
 
 
+# --------------------------------------------------------------------------------------------------
+# the twin cases: several disjoint sub-systems share one model (one generated kernel compile) wherever
+# their features can live together; each sub-system keeps its own check (tests/test_kernel_twins.py)
+# --------------------------------------------------------------------------------------------------
+
+_CURVE_KEYS = ("loading", "unloading", "curve")
+
+
+def disjoint(parts: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """One model of the sub-systems ``parts`` (prefix -> model without walls, loads or prescribed motion),
+    side by side and unconnected: every node, spring and used curve ``id`` becomes ``<prefix>-<id>``; end
+    time, time step and output are the first part's."""
+    first = next(iter(parts.values()))
+    model: dict[str, Any] = {"name": "-".join(parts), "curves": {}, "nodes": {}, "springs": {},
+                             "initial_velocity": {}}  # fmt: skip
+    for p, part in parts.items():
+        assert not {"rigid_walls", "loads", "prescribed_motion", "gravity"} & set(part), p
+        for sid, sp in part["springs"].items():
+            sp = copy.deepcopy(sp)
+            sp["nodes"] = [f"{p}-{n}" for n in sp["nodes"]]
+            mat = sp["material"]
+            for key in _CURVE_KEYS:
+                if key in mat:
+                    model["curves"][f"{p}-{mat[key]}"] = part["curves"][mat[key]]
+                    mat[key] = f"{p}-{mat[key]}"
+            for rc in mat.get("curves", []):
+                model["curves"][f"{p}-{rc['curve']}"] = part["curves"][rc["curve"]]
+                rc["curve"] = f"{p}-{rc['curve']}"
+            model["springs"][f"{p}-{sid}"] = sp
+        model["nodes"].update({f"{p}-{n}": copy.deepcopy(v) for n, v in part["nodes"].items()})
+        model["initial_velocity"].update({f"{p}-{n}": v for n, v in part.get("initial_velocity", {}).items()})
+    model.update({k: copy.deepcopy(first[k]) for k in ("end_time", "time_step", "output") if k in first})
+    return model
+
+
+def both_ways() -> dict[str, Any]:
+    """:func:`one_d_materials` twice, drawn left to right (``fwd-``) and right to left (``rev-``)."""
+    return disjoint({"fwd": one_d_materials(False), "rev": one_d_materials(True)})
+
+
+def knots(dim: int) -> dict[str, Any]:
+    """:func:`one_mass` of every curve material side by side (``crush-``, ``elastic-``, ``general-``)."""
+    return disjoint({p: one_mass(k, dim=dim, dt=4e-4) for k, p in _KNOT_PREFIX.items()})
+
+
+_KNOT_PREFIX = {"crush": "crush", "nonlinear_elastic": "elastic", "general_nonlinear": "general"}
+KNOT_MASSES = {f"nodes.{p}-body.mass": MASSES for p in _KNOT_PREFIX.values()}
+# force and abscissa scales of every spring curve of :func:`knots` but the unloading one (per-variant factors)
+SCALED_KNOTS = {f"curves.{c}.{f}": v for c in ("crush-crush", "elastic-elastic", "general-elastic") for f, v in
+                (("scale", [0.7, 0.8, 0.9, 1.0, 0.75]), ("x_scale", [1.0, 1.1, 1.2, 1.3, 1.4]))}  # fmt: skip
+
+
 def _helicopter_walls() -> dict[str, Any]:
     model = without_walls_and_loads(TWIN_2D_HELI, keep_walls=True)
     model["rigid_walls"][0]["nodes"] = ["transmission", "cabin"]  # the floor
@@ -273,10 +325,17 @@ def _helicopter_walls() -> dict[str, Any]:
     return model
 
 
-def _frontal(histories: Any, end_time: float) -> dict[str, Any]:
+def _helicopter_penalty_side() -> dict[str, Any]:
+    """:func:`_helicopter_walls` with a penalty side wall (contact stiffness a study axis)."""
+    model = _helicopter_walls()
+    model["rigid_walls"][1]["stiffness"] = 1.0e6
+    return model
+
+
+def _frontal() -> dict[str, Any]:
     model = yaml.safe_load(FRONTAL.read_text())
-    model["output"] = {"interval": 1.0e-3, "histories": histories}
-    model["end_time"] = end_time
+    model["output"] = {"interval": 1.0e-3, "histories": "all"}
+    model["end_time"] = 0.03
     return model
 
 
@@ -293,25 +352,15 @@ def _bounce_many() -> dict[str, Any]:
 
 
 _rng = np.random.default_rng(4)
-_FRONTAL_AXES = {"curves.rail-loading.scale": list(_rng.uniform(0.6, 1.6, 12)),
-                 "nodes.engine.mass": list(_rng.uniform(100.0, 250.0, 12))}  # fmt: skip
-_COMPACTION_AXES = {"nodes.bumper.mass": list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 48))),
-                    "curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 48))}  # fmt: skip
-
+# per-variant and constant curves, and variants ending at different steps (lane compaction)
+_FRONTAL_AXES = {"curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 24)),
+                 "nodes.engine.mass": list(_rng.uniform(100.0, 250.0, 24)),
+                 "nodes.bumper.mass": list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 24)))}  # fmt: skip
 
 # force and abscissa scales of spring, time and motion curves (a constant shape and per-variant factors)
 _SCALED_1D = {"curves.plateau.scale": [0.6, 0.7, 0.8, 0.9, 1.0], "curves.soft.x_scale": [1.0, 1.1, 1.2, 1.3, 1.4],
               "curves.gn-load.scale": [1.0, 0.9, 0.8, 0.7, 0.95], "curves.pulse.x_scale": [0.5, 0.8, 1.0, 1.5, 2.0],
               "curves.pull.x_scale": [1.0, 0.5, 2.0, 1.5, 0.8]}  # fmt: skip
-_SCALED_KNOTS = {f"curves.{c}.{f}": v for c in ("crush", "elastic") for f, v in
-                 (("scale", [0.7, 0.8, 0.9, 1.0, 0.75]), ("x_scale", [1.0, 1.1, 1.2, 1.3, 1.4]))}  # fmt: skip
-
-
-def _helicopter_penalty_side() -> dict[str, Any]:
-    """:func:`_helicopter_walls` with a penalty side wall (contact stiffness a study axis)."""
-    model = _helicopter_walls()
-    model["rigid_walls"][1]["stiffness"] = 1.0e6
-    return model
 
 
 def _v2_springs(dim: int) -> dict[str, Any]:
@@ -348,14 +397,15 @@ def _v2_springs(dim: int) -> dict[str, Any]:
 
 
 def _v2_intact(dim: int) -> dict[str, Any]:
-    """:func:`_v2_springs` without failures (another generated shape: no thresholds, no broken flags)."""
+    """:func:`_v2_springs` without failures and without its general_nonlinear spring (never breaking, it is
+    the same code as :func:`_v2_springs`' one): springs that cannot break beside ones that can."""
     model = _v2_springs(dim)
+    model["springs"].pop("gn")
     for sp in model["springs"].values():
         sp.pop("failure", None)
     return model
 
 
-# case -> (model builder, study axes); tests/test_kernel_twins.py CHECKS says what each case must exercise
 def rate_elastic_model(dim: int) -> dict[str, Any]:
     """rate_elastic: three curves (rates 0, 2, 6 m/s) on a preloaded spring, one curve on another, beside a
     linear spring; the impact speeds put the elongation rates below, between and above the rates, and a
@@ -383,44 +433,50 @@ def rate_elastic_model(dim: int) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def v2_and_rate(dim: int) -> dict[str, Any]:
+    """The SPEC v2 spring features breaking (``f-``) and intact (``i-``) beside rate_elastic (``r-``)."""
+    return disjoint({"f": _v2_springs(dim), "i": _v2_intact(dim), "r": rate_elastic_model(dim)})
+
+
+_V2_AXES = {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0], "curves.r-mid.scale": [1.0, 0.8, 1.2, 1.0, 1.5]}
+
+# case -> (model builder, study axes); tests/test_kernel_twins.py CHECKS says what each case must exercise
 CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]]]] = {
-    "1d-every-material": (lambda: one_d_materials(False), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}),
-    "1d-every-material-mirrored": (lambda: one_d_materials(True), {"nodes.a.mass": [1.0, 2.0, 4.0, 6.0, 8.0]}),
-    **{f"full-twin-{case}": ((lambda c=case: TWINS[c][0]), {TWINS[case][1]: TWINS[case][2]})
-       for case in TWINS},
-    "2d-two-walls-gravity-load": (_helicopter_walls, {"nodes.cabin.mass": [200.0, 250, 300, 350, 400]}),
+    "1d-every-material-both-ways": (both_ways, {"nodes.fwd-a.mass": [1.0, 2.0, 4.0, 6.0, 8.0],
+                                                "nodes.rev-a.mass": [8.0, 6.0, 4.0, 2.0, 1.0]}),
+    "full-twin-1d-all-materials-scaled-curves": ((lambda: TWINS["1d-all-materials"][0]),
+                                                 {"nodes.a.mass": TWINS["1d-all-materials"][2], **_SCALED_1D}),
+    "full-twin-2d-helicopter-two-walls": (_helicopter_walls, {"nodes.cabin.mass": [200.0, 250, 300, 350, 400]}),
     "2d-rigid-and-penalty-walls": (_helicopter_penalty_side, {"rigid_walls.1.stiffness": [2e5, 5e5, 1e6, 2e6, 4e6]}),
+    "full-twin-2d-mixed-prescribed": ((lambda: TWINS["2d-mixed-prescribed"][0]),
+                                      {"nodes.bob.mass": TWINS["2d-mixed-prescribed"][2]}),
     "2d-crushed-to-zero": (_helicopter_crushed, {"impact_velocity": [6.0, 8.2, 10.0, 30.0]}),
     "general-nonlinear-reversal": (mount_reversal, {"impact_velocity": [2.0, 2.5, 3.0, 3.5]}),
     "knots-crush-rebound": (lambda: dict(CRUSH_REBOUND, time_step={"tolerance": 1e-3},
                                          output={"interval": 1e-3, "histories": ["spring_force"]}),
                             {"nodes.body.mass": [900.0, 1100.0, 1200.0, 1300.0, 1500.0]}),
-    **{f"knots-{kind}-{dim}d": ((lambda k=kind, d=dim: one_mass(k, dim=d, dt=4e-4)), {"nodes.body.mass": MASSES})
-       for kind in ("crush", "nonlinear_elastic", "general_nonlinear") for dim in (1, 2)},
-    "frontal-curve-and-mass-axes": (lambda: _frontal("all", 0.06), _FRONTAL_AXES),
-    "scaled-curves-1d": ((lambda: TWINS["1d-all-materials"][0]), _SCALED_1D),
-    **{f"scaled-knots-{kind}": ((lambda k=kind: one_mass(k, dim=1, dt=4e-4)), _SCALED_KNOTS)
-       for kind in ("crush", "nonlinear_elastic", "general_nonlinear")},
-    "frontal-lane-compaction": (lambda: _frontal(["spring_force", "kinetic_energy"], 0.03), _COMPACTION_AXES),
+    "knots-every-curve-material-1d": (lambda: knots(1), KNOT_MASSES),
+    "knots-every-curve-material-2d": (lambda: knots(2), KNOT_MASSES),
+    "scaled-knots-every-curve-material": (lambda: knots(1), SCALED_KNOTS),
+    "frontal-curve-and-mass-axes-lane-compaction": (_frontal, _FRONTAL_AXES),
     "early-termination": (_bounce_many, {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}),
-    **{f"v2-spring-features-{dim}d": ((lambda d=dim: _v2_springs(d)), {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]})
-       for dim in (1, 2)},
-    **{f"v2-preload-and-materials-{dim}d": ((lambda d=dim: _v2_intact(d)),
-                                            {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0]})
-       for dim in (1, 2)},
-    **{f"rate-elastic-{dim}d": ((lambda d=dim: rate_elastic_model(d)), {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0],
-                                "curves.mid.scale": [1.0, 0.8, 1.2, 1.0, 1.5]}) for dim in (1, 2)},
+    **{f"v2-spring-features-and-rate-elastic-{dim}d": ((lambda d=dim: v2_and_rate(d)), _V2_AXES) for dim in (1, 2)},
 }  # fmt: skip
 
-
-WARM_RECORD_CASES = ("frontal-lane-compaction", "full-twin-2d-mixed-prescribed")  # the slowest compiles (~10 s each)
+# cases run with the per-step record of every movable node (tests/test_metrics.py's record twins are these
+# shapes: one compile serves both files); the others run without a record
+RECORD_CASES = ("full-twin-1d-all-materials-scaled-curves", "full-twin-2d-helicopter-two-walls",
+                "2d-rigid-and-penalty-walls", "full-twin-2d-mixed-prescribed", "2d-crushed-to-zero",
+                "frontal-curve-and-mass-axes-lane-compaction", "early-termination")  # fmt: skip
+# the slowest compiles, started at session start on the other core (tests/conftest.py)
+WARM_RECORD_CASES = ("frontal-curve-and-mass-axes-lane-compaction", "full-twin-2d-helicopter-two-walls")
 
 
 def record_case(case: str) -> tuple[Any, Any, tuple[int, ...]]:
-    """(batch, plan, record) of a twin case run with the per-step record of every movable node
-    (tests/test_metrics.py)."""
+    """(batch, plan, record) of a twin case, ``record`` every movable node when the case is one of
+    ``RECORD_CASES``, else ()."""
     build, axes = CASES[case]
     batch, plan = model_batch(build(), axes)
     topo = plan.topology
     record = tuple(n for n in range(topo.n_nodes) if not topo.fixed[n].all() or n in batch.pm_node)
-    return batch, plan, record
+    return batch, plan, record if case in RECORD_CASES else ()
