@@ -128,6 +128,12 @@ def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float | None = 
     return subprocess.CompletedProcess(["crashstudy", *argv], rc, *text)
 
 
+def run_main(*argv: str | Path) -> tuple[int, str, str]:
+    """``crashstudy ARGV`` in this process (:func:`run_cli`); returns (exit code, stdout, stderr)."""
+    p = run_cli(*argv)
+    return p.returncode, p.stdout, p.stderr
+
+
 def run_cli_process(*args: str | Path, cwd: Path | None = None, timeout: float = 600
                     ) -> subprocess.CompletedProcess[str]:  # fmt: skip
     """The installed command line in a subprocess (as a user runs it): for tests of what only a process
