@@ -166,13 +166,14 @@ def one(cell: dict[str, Any]) -> dict[str, Any]:
         return kind
 
     choice.pick = pick
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     plan = load_study(study)
     rep = runner.run_plan(plan, folder / "out", force=True, progress=False)
     total = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     row = {"model": cell["model"], "kind": cell["kind"], "variants": plan.n_variants, "cache": cell["cache"],
            "steps_per_variant": spent["steps"] / max(plan.n_variants, 1) / max(len(plan.topology.spring_ids), 1),
-           "end_to_end_s": total, "kernel_s": spent["kernel"],
+           "end_to_end_s": total, "cpu_s": cpu, "kernel_s": spent["kernel"], "code": _code(),
            "outside_us_per_variant": 1e6 * (total - spent["kernel"]) / plan.n_variants,
            "element_steps_per_s": spent["steps"] / max(spent["kernel"], 1e-9), "failed": rep.n_failed,
            "kernel": "+".join(sorted(picked))}  # fmt: skip
@@ -191,6 +192,17 @@ def one(cell: dict[str, Any]) -> dict[str, Any]:
         row.update(hand_loop(spec["loop"], plan, ours, cell["threads"]))
         row["ratio"] = total / row["loop_s"]
     return row
+
+
+def _code() -> str:
+    """The commit of the crashstudy code this cell ran (+ "+edits" when src/ had uncommitted changes)."""
+    import crashstudy
+
+    src = Path(crashstudy.__file__).resolve().parent
+    git = ["git", "-C", str(src)]
+    head = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    dirty = subprocess.run([*git, "status", "--porcelain", "--", "."], capture_output=True, text=True).stdout.strip()
+    return head + ("+edits" if dirty else "")
 
 
 def hand_loop(family: str, plan: Any, ours: np.ndarray, threads: int) -> dict[str, Any]:
@@ -239,6 +251,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS))
     ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 100_000, 1_000_000])
     ap.add_argument("--caches", nargs="+", default=["warm", "cold"], choices=["warm", "cold"])
+    ap.add_argument("--cold-sizes", type=int, nargs="+", default=[1000],
+                    help="the sizes that also get a cold cell (fresh caches; default 10^3 only)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="2spring and frontal, 10^3 and 10^5 variants, warm")
     ap.add_argument("--out", type=Path, default=RESULTS / "matrix")
@@ -259,13 +273,15 @@ def main(argv: list[str] | None = None) -> int:
         kinds = [k for k in args.kinds if k == "design" or k in MODEL_SPECS[model]["kinds"]]
         with tempfile.TemporaryDirectory(prefix="csmatrix-") as shared:
             for kind in kinds:
-                if "cold" not in args.caches:  # warm only: one first run of this shape on the model's caches
+                warm = [s for s in args.sizes if "warm" in args.caches]
+                if "cold" in args.caches:  # fresh caches per cold cell, then its warm run on them
+                    for size in [s for s in args.sizes if s in args.cold_sizes]:
+                        with tempfile.TemporaryDirectory(prefix="csmatrix-") as tmp:
+                            rows += cells(args, model, kind, [size], tmp, ["cold", "warm"])
+                        warm = [s for s in warm if s != size]
+                if warm:  # one first run of this shape on the model's caches (not kept), then the warm cells
                     rows += cells(args, model, kind, [min(args.sizes)], shared, ["cold"], keep=False)
-                    rows += cells(args, model, kind, args.sizes, shared, ["warm"])
-                    continue
-                for size in args.sizes:  # cold: fresh caches per cell, then its warm run on them
-                    with tempfile.TemporaryDirectory(prefix="csmatrix-") as tmp:
-                        rows += cells(args, model, kind, [size], tmp, ["cold", "warm"])
+                    rows += cells(args, model, kind, warm, shared, ["warm"])
     write(rows, args.out, machine(start_load))
     return 0
 
@@ -293,8 +309,8 @@ def cells(args: Any, model: str, kind: str, sizes: list[int], caches: str, runs:
 
 
 def write(rows: list[dict[str, Any]], out: Path, info: dict[str, str]) -> None:
-    cols = ["model", "kind", "variants", "cache", "kernel", "steps_per_variant", "end_to_end_s", "kernel_s",
-            "outside_us_per_variant", "element_steps_per_s", "loop_s", "ratio", "check", "failed", "load"]  # fmt: skip
+    cols = ["model", "kind", "variants", "cache", "kernel", "steps_per_variant", "end_to_end_s", "cpu_s", "kernel_s",
+            "outside_us_per_variant", "element_steps_per_s", "loop_s", "ratio", "check", "failed", "load", "code"]  # fmt: skip
     write_csv(out.with_suffix(".csv"), [{c: r.get(c) for c in cols} for r in rows], info)
     looped = [r for r in rows if r.get("ratio") is not None]
     worst = max(looped, key=lambda r: r["ratio"]) if looped else None
