@@ -198,6 +198,8 @@ def _code() -> str:
     """The commit of the crashstudy code this cell ran (+ "+edits" when src/ had uncommitted changes)."""
     import crashstudy
 
+    if os.environ.get("MATRIX_CODE"):  # a snapshot of the code (git archive) names its commit
+        return os.environ["MATRIX_CODE"]
     src = Path(crashstudy.__file__).resolve().parent
     git = ["git", "-C", str(src)]
     head = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
@@ -280,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
                             rows += cells(args, model, kind, [size], tmp, ["cold", "warm"])
                         warm = [s for s in warm if s != size]
                 if warm:  # one first run of this shape on the model's caches (not kept), then the warm cells
-                    rows += cells(args, model, kind, [min(args.sizes)], shared, ["cold"], keep=False)
+                    rows += cells(args, model, kind, [min(1000, *args.sizes)], shared, ["cold"], keep=False)
                     rows += cells(args, model, kind, warm, shared, ["warm"])
     write(rows, args.out, machine(start_load))
     return 0
