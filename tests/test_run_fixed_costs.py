@@ -58,3 +58,59 @@ def test_a_ready_generated_kernel_never_loads_the_generic_one(monkeypatch: pytes
     assert not asked or truth == "generic"
     assert choice.plan_start(b, (), None, int(n * repeat)) is None
     assert not asked or truth == "generic"
+
+
+DT_MODEL = """\
+name: lin
+units: SI
+nodes:
+  anchor: {position: [0.0], fixed: true}
+  body: {position: [0.1], mass: 2.0}
+springs:
+  s: {nodes: [anchor, body], material: {type: linear_elastic, stiffness: 2.0e4}}
+initial_velocity: {body: [1.0]}
+end_time: 0.05
+time_step: {dt: 0.004}
+output: {histories: none}
+"""
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_fixed_dt_check_equals_every_variants_batch_and_builds_only_distinct_steps(
+        tmp_path: Any, monkeypatch: pytest.MonkeyPatch, seed: int) -> None:  # fmt: skip
+    """The pre-run check of a fixed dt (study.sanity._dt_refused) refuses exactly the variants whose
+    batch (build_batch over every variant: the independent truth) is refused, with their critical
+    steps; and it computes one step choice per distinct setting of the dimensions holding a non-velocity
+    axis (velocity axes and zip groups of velocities multiply the variants, not the work)."""
+    from crashstudy.arrays import batch as batch_mod
+    from crashstudy.arrays.batch import build_batch
+    from crashstudy.study import sanity
+    from crashstudy.study.plan import load_study
+
+    rng = np.random.default_rng(seed)
+    (tmp_path / "m.yaml").write_text(DT_MODEL)
+    choices = {"nodes.body.mass": [0.05, 0.3, 2.0, 0.1], "springs.s.material.stiffness": [1.0e4, 4.0e4, 9.0e4],
+               "impact_velocity": [1.0, 2.0, 3.0], "initial_velocity.body.0": [0.5, -1.0]}  # fmt: skip
+    matrix = {}
+    for path in rng.permutation(list(choices)):
+        k = int(rng.integers(1, len(choices[path]) + 1))
+        matrix[str(path)] = [float(v) for v in rng.choice(choices[path], size=k, replace=False)]
+    study: dict[str, Any] = {"name": "s", "model": str(tmp_path / "m.yaml"), "matrix": matrix}
+    if seed % 2:  # a zip group of two velocity axes beside the matrix
+        study["matrix"].pop("impact_velocity", None)
+        study["matrix"].pop("initial_velocity.body.0", None)
+        study["zip"] = [{"impact_velocity": [1.0, 2.5, 4.0], "initial_velocity.body.0": [1.0, -1.0, 2.0]}]
+    plan = load_study(study)
+    n = plan.n_variants
+    _, steps = build_batch(plan.topology, plan.params(0, n), plan.interval)
+    built = []
+    real = sanity.variant_steps
+    monkeypatch.setattr(sanity, "variant_steps", lambda t, P, i: built.append(P.shape[1]) or real(t, P, i))
+    refused, crit = sanity._dt_refused(plan)
+    np.testing.assert_array_equal(refused, np.flatnonzero(steps.refused))
+    np.testing.assert_array_equal(crit, steps.dt_crit[steps.refused])
+    other = [p for p in plan.topology.paths if p in ("nodes.body.mass", "springs.s.material.stiffness")]
+    distinct = int(np.prod([len(matrix[p]) for p in other if p in matrix] or [1]))
+    assert sum(built) == distinct, (matrix, built)
+    assert np.array_equal(batch_mod.variant_steps(plan.topology, plan.params(0, n), plan.interval).dt_crit,
+                          steps.dt_crit)  # the step choice alone equals the batch's  # fmt: skip
