@@ -114,3 +114,33 @@ def test_fixed_dt_check_equals_every_variants_batch_and_builds_only_distinct_ste
     assert sum(built) == distinct, (matrix, built)
     assert np.array_equal(batch_mod.variant_steps(plan.topology, plan.params(0, n), plan.interval).dt_crit,
                           steps.dt_crit)  # the step choice alone equals the batch's  # fmt: skip
+
+
+def test_a_chunk_is_built_in_step_order_never_copied_and_its_numbers_are_unchanged(
+        tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    """A chunk whose variants' step counts are unsorted (a safety-factor step over a mass axis given
+    heavy-light-heavy) is built in step order: the kernel entry never copies the batch into that order
+    (``Batch.take`` not called), and every output equals the earlier path's (build the batch in variant
+    order, then ``entry.run_ordered`` sorts it with a copy) bitwise, on the NumPy reference kernel."""
+    from crashstudy.arrays.batch import Batch, build_batch
+    from crashstudy.kernel import entry
+    from crashstudy.run.runner import run_chunk
+    from crashstudy.study.plan import load_study
+
+    text = DT_MODEL.replace("time_step: {dt: 0.004}", "time_step: {safety_factor: 0.5}")
+    (tmp_path / "m.yaml").write_text(text.replace("{histories: none}", "{histories: none, interval: 0.05}"))
+    masses = [2.0, 0.05, 1.0, 0.2, 3.0, 0.5, 0.1, 1.5]
+    plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"),
+                       "matrix": {"nodes.body.mass": masses, "impact_velocity": [1.0, 2.0]}})  # fmt: skip
+    n = plan.n_variants
+    batch, _ = build_batch(plan.topology, plan.params(0, n), plan.interval)
+    assert not np.all(np.diff(batch.n_steps) >= 0)  # the case: unsorted, spread beyond SORT_SPREAD
+    assert np.ptp(batch.n_steps) > entry.SORT_SPREAD * batch.n_steps.max()
+    before, _ = entry.run_ordered(batch, (), plan.n_out, np.arange(n), "reference")
+    taken = []
+    real = Batch.take
+    monkeypatch.setattr(Batch, "take", lambda self, idx: taken.append(len(idx)) or real(self, idx))
+    after = run_chunk(plan, 0, n, "reference")
+    assert not taken
+    for name in ("status", "peak_force", "max_crush", "absorbed_energy", "peak_acceleration", "energy_error"):
+        np.testing.assert_array_equal(getattr(after.out, name), getattr(before, name), err_msg=name)
