@@ -12,7 +12,7 @@ import pytest
 from crashstudy.arrays.batch import build_batch
 from crashstudy.arrays.compiler import apply_axis
 from crashstudy.kernel import choice
-from helpers import model_plan
+from helpers import LINEAR_SPRING, model_plan
 
 
 def _batch(n: int, end_time: float) -> Any:
@@ -60,19 +60,7 @@ def test_a_ready_generated_kernel_never_loads_the_generic_one(monkeypatch: pytes
     assert not asked or truth == "generic"
 
 
-DT_MODEL = """\
-name: lin
-units: SI
-nodes:
-  anchor: {position: [0.0], fixed: true}
-  body: {position: [0.1], mass: 2.0}
-springs:
-  s: {nodes: [anchor, body], material: {type: linear_elastic, stiffness: 2.0e4}}
-initial_velocity: {body: [1.0]}
-end_time: 0.05
-time_step: {dt: 0.004}
-output: {histories: none}
-"""
+DT_MODEL = LINEAR_SPRING.replace("end_time: 0.1", "end_time: 0.05") + "time_step: {dt: 0.004}\noutput: {histories: none}\n"
 
 
 @pytest.mark.parametrize("seed", range(8))
