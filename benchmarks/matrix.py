@@ -146,13 +146,14 @@ def one(cell: dict[str, Any]) -> dict[str, Any]:
     model_file.write_text(spec["text"].replace("END", str(end)) if "text" in spec else Path(spec["file"]).read_text())
     study = folder / "study.yaml"
     study.write_text(study_text(cell["model"], cell["kind"], cell["size"], model_file))
-    spent = {"kernel": 0.0, "steps": 0.0}
+    spent = {"kernel": 0.0, "kernel_cpu": 0.0, "steps": 0.0}
     real = entry.run_batch
 
     def timed(batch, *a, **k):  # type: ignore[no-untyped-def]
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = real(batch, *a, **k)
         spent["kernel"] += time.perf_counter() - t0
+        spent["kernel_cpu"] += time.process_time() - c0
         spent["steps"] += float(np.sum(batch.n_steps)) * len(batch.spring_i)
         return out
 
@@ -166,13 +167,14 @@ def one(cell: dict[str, Any]) -> dict[str, Any]:
         return kind
 
     choice.pick = pick
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     plan = load_study(study)
     rep = runner.run_plan(plan, folder / "out", force=True, progress=False)
     total = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     row = {"model": cell["model"], "kind": cell["kind"], "variants": plan.n_variants, "cache": cell["cache"],
            "steps_per_variant": spent["steps"] / max(plan.n_variants, 1) / max(len(plan.topology.spring_ids), 1),
-           "end_to_end_s": total, "kernel_s": spent["kernel"],
+           "end_to_end_s": total, "cpu_s": cpu, "kernel_s": spent["kernel"], "kernel_cpu_s": spent["kernel_cpu"], "code": _code(),
            "outside_us_per_variant": 1e6 * (total - spent["kernel"]) / plan.n_variants,
            "element_steps_per_s": spent["steps"] / max(spent["kernel"], 1e-9), "failed": rep.n_failed,
            "kernel": "+".join(sorted(picked))}  # fmt: skip
@@ -190,7 +192,21 @@ def one(cell: dict[str, Any]) -> dict[str, Any]:
         ours = rep.results.summary[[f"peak_force.{s}" for s in ids]].to_numpy().T
         row.update(hand_loop(spec["loop"], plan, ours, cell["threads"]))
         row["ratio"] = total / row["loop_s"]
+        row["cpu_ratio"] = cpu / max(row["loop_cpu_s"], 1e-9)
     return row
+
+
+def _code() -> str:
+    """The commit of the crashstudy code this cell ran (+ "+edits" when src/ had uncommitted changes)."""
+    import crashstudy
+
+    if os.environ.get("MATRIX_CODE"):  # a snapshot of the code (git archive) names its commit
+        return os.environ["MATRIX_CODE"]
+    src = Path(crashstudy.__file__).resolve().parent
+    git = ["git", "-C", str(src)]
+    head = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    dirty = subprocess.run([*git, "status", "--porcelain", "--", "."], capture_output=True, text=True).stdout.strip()
+    return head + ("+edits" if dirty else "")
 
 
 def hand_loop(family: str, plan: Any, ours: np.ndarray, threads: int) -> dict[str, Any]:
@@ -198,7 +214,7 @@ def hand_loop(family: str, plan: Any, ours: np.ndarray, threads: int) -> dict[st
     crashstudy's peak forces ``ours`` (S, V)."""
     from crashstudy.arrays.batch import build_batch
 
-    spent, worst, chunk = 0.0, 0.0, 1 << 16
+    spent, cpu, worst, chunk = 0.0, 0.0, 0.0, 1 << 16
     for lo in range(0, plan.n_variants, chunk):
         hi = min(lo + chunk, plan.n_variants)
         b, _ = build_batch(plan.topology, plan.params(lo, hi), plan.interval)
@@ -207,19 +223,20 @@ def hand_loop(family: str, plan: Any, ours: np.ndarray, threads: int) -> dict[st
 
             shapes, inp = cs.shapes(b), cs.inputs(b)
             cs.run(shapes, {k: np.ascontiguousarray(v[..., :256]) for k, v in inp.items()}, threads)  # compile
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             pf = cs.run(shapes, inp, threads)["peak_force"]
         else:
             import frontal_specialised as fs
 
             fs.set_threads(threads)
             fs.run_specialised(b.take(np.arange(min(8, hi - lo))), (), 1)  # compile / load
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             pf = fs.run_specialised(b, (), 1).peak_force
         spent += time.perf_counter() - t0
+        cpu += time.process_time() - c0
         ref = ours[:, lo:hi]
         worst = max(worst, float(np.max(np.abs(pf - ref) / np.maximum(np.abs(ref), 1e-300))))
-    return {"loop_s": spent, "check": worst}
+    return {"loop_s": spent, "loop_cpu_s": cpu, "check": worst}
 
 
 def run_cell(cell: dict[str, Any]) -> dict[str, Any] | None:
@@ -239,6 +256,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(KINDS))
     ap.add_argument("--sizes", type=int, nargs="+", default=[1000, 100_000, 1_000_000])
     ap.add_argument("--caches", nargs="+", default=["warm", "cold"], choices=["warm", "cold"])
+    ap.add_argument("--cold-sizes", type=int, nargs="+", default=[1000],
+                    help="the sizes that also get a cold cell (fresh caches; default 10^3 only)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="2spring and frontal, 10^3 and 10^5 variants, warm")
     ap.add_argument("--out", type=Path, default=RESULTS / "matrix")
@@ -259,13 +278,15 @@ def main(argv: list[str] | None = None) -> int:
         kinds = [k for k in args.kinds if k == "design" or k in MODEL_SPECS[model]["kinds"]]
         with tempfile.TemporaryDirectory(prefix="csmatrix-") as shared:
             for kind in kinds:
-                if "cold" not in args.caches:  # warm only: one first run of this shape on the model's caches
-                    rows += cells(args, model, kind, [min(args.sizes)], shared, ["cold"], keep=False)
-                    rows += cells(args, model, kind, args.sizes, shared, ["warm"])
-                    continue
-                for size in args.sizes:  # cold: fresh caches per cell, then its warm run on them
-                    with tempfile.TemporaryDirectory(prefix="csmatrix-") as tmp:
-                        rows += cells(args, model, kind, [size], tmp, ["cold", "warm"])
+                warm = [s for s in args.sizes if "warm" in args.caches]
+                if "cold" in args.caches:  # fresh caches per cold cell, then its warm run on them
+                    for size in [s for s in args.sizes if s in args.cold_sizes]:
+                        with tempfile.TemporaryDirectory(prefix="csmatrix-") as tmp:
+                            rows += cells(args, model, kind, [size], tmp, ["cold", "warm"])
+                        warm = [s for s in warm if s != size]
+                if warm:  # one first run of this shape on the model's caches (not kept), then the warm cells
+                    rows += cells(args, model, kind, [min(1000, *args.sizes)], shared, ["cold"], keep=False)
+                    rows += cells(args, model, kind, warm, shared, ["warm"])
     write(rows, args.out, machine(start_load))
     return 0
 
@@ -293,8 +314,9 @@ def cells(args: Any, model: str, kind: str, sizes: list[int], caches: str, runs:
 
 
 def write(rows: list[dict[str, Any]], out: Path, info: dict[str, str]) -> None:
-    cols = ["model", "kind", "variants", "cache", "kernel", "steps_per_variant", "end_to_end_s", "kernel_s",
-            "outside_us_per_variant", "element_steps_per_s", "loop_s", "ratio", "check", "failed", "load"]  # fmt: skip
+    cols = ["model", "kind", "variants", "cache", "kernel", "steps_per_variant", "end_to_end_s", "cpu_s", "kernel_s",
+            "kernel_cpu_s", "outside_us_per_variant", "element_steps_per_s", "loop_s", "loop_cpu_s", "ratio",
+            "cpu_ratio", "check", "failed", "load", "code"]  # fmt: skip  # fmt: skip
     write_csv(out.with_suffix(".csv"), [{c: r.get(c) for c in cols} for r in rows], info)
     looped = [r for r in rows if r.get("ratio") is not None]
     worst = max(looped, key=lambda r: r["ratio"]) if looped else None
@@ -303,9 +325,17 @@ def write(rows: list[dict[str, Any]], out: Path, info: dict[str, str]) -> None:
         head += [f"**Worst cell: {worst['model']} / {worst['kind']} / {worst['variants']} variants / {worst['cache']}: "
                  f"{worst['ratio']:.2f}x its hand-specialised loop end to end** ({worst['end_to_end_s']:.2f} s vs "
                  f"{worst['loop_s']:.2f} s).", ""]  # fmt: skip
+        warm = [r for r in looped if r["cache"] != "cold"]  # a cold cell's compile runs in a child process
+        by_cpu = max(warm or looped, key=lambda r: r.get("cpu_ratio") or 0.0)
+        if by_cpu.get("cpu_ratio") is not None:
+            head += [f"Worst by CPU seconds (steadier under load): {by_cpu['model']} / {by_cpu['kind']} / "
+                     f"{by_cpu['variants']} variants / {by_cpu['cache']}: {by_cpu['cpu_ratio']:.2f}x "
+                     f"({by_cpu['cpu_s']:.2f} CPU s vs {by_cpu['loop_cpu_s']:.2f}).", ""]  # fmt: skip
     head += ["ratio = crashstudy end to end / the hand loop's kernel time (same variants, same steps, same process); "
              "check = largest relative difference of the loop's peak forces to crashstudy's. Cells without a loop "
-             "have none (no hand loop for that model family). Only the cells listed ran.", ""]  # fmt: skip
+             "have none (no hand loop for that model family). Only the cells listed ran. cpu_s / kernel_cpu_s / "
+             "loop_cpu_s: process CPU seconds (all threads) of the same spans, without child processes (a cold cell's "
+             "compile); cpu_ratio = cpu_s / loop_cpu_s. code: the commit each row ran.", "", ""]  # fmt: skip
     out.with_suffix(".md").write_text("\n".join(head) + md_table(rows, cols) + "\n")
 
 

@@ -97,6 +97,7 @@ def prerun_one(study: Path) -> dict[str, Any]:
 
     def stop(*args: Any, **kwargs: Any) -> Any:
         marks["kernel"] = time.perf_counter()
+        marks["kernel_cpu"] = time.process_time()
         raise _FirstKernelCall
 
     entry.run_batch = stop  # type: ignore[assignment]  # runner and run_ordered call it through the module
@@ -109,7 +110,7 @@ def prerun_one(study: Path) -> dict[str, Any]:
     import crashstudy.results.store  # noqa: F401
 
     imports = time.perf_counter() - t_imp
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     plan = load_study(study)
     marks["load_study"] = time.perf_counter()
     problems, _ = check_plan(plan)
@@ -123,7 +124,8 @@ def prerun_one(study: Path) -> dict[str, Any]:
     end = marks.get("kernel", time.perf_counter())
     return {"variants": plan.n_variants, "imports_s": imports, "load_study_s": marks["load_study"] - t0,
             "check_plan_s": marks["check_plan"] - marks["load_study"], "run_plan_s": end - marks["check_plan"],
-            "total_s": end - t0, "reached_kernel": "kernel" in marks}  # fmt: skip
+            "total_s": end - t0, "total_cpu_s": marks.get("kernel_cpu", time.process_time()) - c0,
+            "reached_kernel": "kernel" in marks}  # fmt: skip
 
 
 def _peak(cmd: list[str]) -> tuple[int, float, int]:

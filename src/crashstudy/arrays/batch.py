@@ -175,7 +175,7 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
     with np.errstate(all="ignore"):  # a variant with bad parameters is refused by check_parameters
         state0, ie0 = preload(topo.material, topo.spring_curves[:, 0], topo.spring_curves[:, 1], e0, kpar, yield_t,
                               yield_c, ktan, fy, cx, cy, cds, cs0, cs1, off)  # fmt: skip
-    kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy)
+    kmax, damp, steps = _steps(topo, P, mass, kpar, cx, cy, interval)
     W = len(topo.wall_ids)
     normal = P[b["wall_normal"]].reshape(W, D, V)
     nlen = np.sqrt(np.sum(normal * normal, axis=1))
@@ -183,9 +183,7 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
     with np.errstate(divide="ignore", invalid="ignore"):
         unit = np.where(nlen[:, None, :] > 0, normal / nlen[:, None, :], 0.0)
     end_time = P[b["end_time"].start]
-    spacing = time_curve_spacing(topo, cx)
     wall_k = np.ascontiguousarray(P[b["wall_k"]])
-    steps = choose_steps(topo, mass, kmax, damp, end_time, P[b["time_step"].start], interval, spacing, wall_k)
 
     too_many = steps.too_many if steps.too_many is not None else np.zeros(V, dtype=bool)
     for code, bad in ((7, too_many), (6, ~(end_time > 0)), (5, bad_normal), (4, np.any(length0 == 0, axis=0)),
@@ -215,6 +213,25 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
         rate_at=np.ascontiguousarray(P[b["rate"]]) if "rate" in b else np.zeros((0, V)),
     )  # fmt: skip
     return batch, steps
+
+
+def _steps(topo: Topology, P: np.ndarray, mass: np.ndarray, kpar: np.ndarray, cx: np.ndarray, cy: np.ndarray,
+           interval: float) -> tuple[np.ndarray, np.ndarray, StepChoice]:  # fmt: skip
+    """(k_max, damping, the step choice) of the variants in ``P``: what :func:`build_batch` and
+    :func:`variant_steps` both use."""
+    b = topo.blocks
+    kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy)
+    steps = choose_steps(topo, mass, kmax, damp, P[b["end_time"].start], P[b["time_step"].start], interval,
+                         time_curve_spacing(topo, cx), np.ascontiguousarray(P[b["wall_k"]]))  # fmt: skip
+    return kmax, damp, steps
+
+
+def variant_steps(topo: Topology, P: np.ndarray, interval: float) -> StepChoice:
+    """The step choice of the variants in ``P`` alone (what ``build_batch(topo, P, interval)[1]`` holds),
+    without the rest of the batch: the pre-run check of a fixed ``dt`` (study.sanity)."""
+    cx, cy = curve_points(topo, P)
+    b = topo.blocks
+    return _steps(topo, P, np.ascontiguousarray(P[b["mass"]]), np.ascontiguousarray(P[b["k"]]), cx, cy, interval)[2]
 
 
 def curve_shapes(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

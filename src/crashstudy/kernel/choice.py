@@ -185,7 +185,9 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
     times: dict[KernelName, float] = {"reference": t_ref}
     if "generated" in usable and generated_ready(b, histories, vary, record):
         times["generated"] = run_time("generated", GENERATED_RATE)
-    if "generic" in usable and generic_ready():
+    if "generated" in times and times["generated"] <= run_time("generic", GENERIC_RATE):
+        pass  # the generic kernel cannot win even if compiled: its module is not imported, its cache not looked at
+    elif "generic" in usable and generic_ready():
         times["generic"] = run_time("generic", GENERIC_RATE)
     elif "generic" in usable and len(times) == 1 and not own_compile_running():  # compile the quicker one here?
         ways: dict[KernelName, float] = {"generic": GENERIC_COMPILE + run_time("generic", GENERIC_RATE)}
@@ -297,16 +299,16 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     chunks = -(-n_variants // REF_CHUNK)
     t_ref = reference_seconds(chunks * float(np.max(b.n_steps, initial=0)), S, work)
     t_generic = work / GENERIC_RATE + LOAD
+    gen_ok = generated.unsupported(b) is None
+    if gen_ok and generated.is_compiled(b, histories, vary, record):
+        return None  # the fastest kernel is ready: the generic one is not looked at (nor its module imported)
     have_generic = generic_ready()
     if (min(t_ref, t_generic) if have_generic else t_ref) < min(background_min_seconds(), BACKGROUND_MIN):
         return None
     costs: dict[str, float] = {}
     if not have_generic:
         costs["generic"] = GENERIC_COMPILE
-    gen_ok = generated.unsupported(b) is None
     if gen_ok:
-        if generated.is_compiled(b, histories, vary, record):
-            return None
         costs["generated"] = generated_compile_seconds(b.material, b.wall_nodes.shape[0], bool(record))
     if not costs:
         return None

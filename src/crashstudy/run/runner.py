@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from crashstudy import interrupt
-from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch
+from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch, variant_steps
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
@@ -95,7 +95,8 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
     else:
         uniq, inverse = P[:, :1], np.zeros(V, dtype=np.int64)
     inverse = inverse.reshape(-1)
-    batch, steps = build_batch(topo, np.ascontiguousarray(uniq), plan.interval)
+    uniq, inverse = _step_order(plan, np.ascontiguousarray(uniq), inverse)
+    batch, steps = build_batch(topo, uniq, plan.interval)
     repeat = plan.n_variants / max(V, 1) if repeat is None else repeat
     recorder = None
     if topo.metrics:
@@ -113,6 +114,22 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
     ends = past_curve_ends(batch, full.max_crush, full.max_elongation, inverse)
     return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, lo, hi),
                        estimate, full.criteria, ends)  # fmt: skip
+
+
+def _step_order(plan: Plan, uniq: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The columns of ``uniq`` in ascending step count (and ``inverse`` pointing at them), so that the batch
+    is built in the order the kernel runs it (``entry.run_ordered`` sorts an unsorted batch with a copy of
+    every array: 1 s of 10^6 variants' 4.7 s set-up under load). Only the step choice is computed for
+    it; a fixed ``dt`` (equal counts unless ``end_time`` varies) is left as it is."""
+    if plan.topology.time_step_mode == "dt" or uniq.shape[1] < 2:
+        return uniq, inverse
+    n = variant_steps(plan.topology, uniq, plan.interval).n_steps
+    if np.all(n[1:] >= n[:-1]) or n.max() - n.min() <= entry.SORT_SPREAD * n.max():
+        return uniq, inverse  # sorted already, or run unsorted (run_ordered's rule)
+    order = np.argsort(n, kind="stable")
+    pos = np.empty_like(order)
+    pos[order] = np.arange(len(order))
+    return np.ascontiguousarray(uniq[:, order]), pos[inverse]
 
 
 def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarray:

@@ -102,7 +102,10 @@ class Plan:
 
     def axis_values(self, lo: int, hi: int) -> dict[str, np.ndarray]:
         """Value of every axis for variants ``lo`` .. ``hi - 1``."""
-        idx = np.arange(lo, hi)
+        return self.axis_values_at(np.arange(lo, hi))
+
+    def axis_values_at(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """Value of every axis for the variants numbered ``idx``."""
         if not self.shape:
             return {}
         multi = np.unravel_index(idx, self.shape)
@@ -110,8 +113,12 @@ class Plan:
 
     def params(self, lo: int, hi: int) -> np.ndarray:
         """Parameter matrix (n_params, hi - lo) of variants ``lo`` .. ``hi - 1``."""
-        P = np.repeat(self.base[:, None], hi - lo, axis=1)
-        for ax, vals in zip(self.axes, self.axis_values(lo, hi).values(), strict=True):
+        return self.params_at(np.arange(lo, hi))
+
+    def params_at(self, idx: np.ndarray) -> np.ndarray:
+        """Parameter matrix (n_params, len(idx)) of the variants numbered ``idx``."""
+        P = np.repeat(self.base[:, None], len(idx), axis=1)
+        for ax, vals in zip(self.axes, self.axis_values_at(idx).values(), strict=True):
             apply_axis(P, ax.ref, np.asarray(vals, dtype=np.float64))
         return P
 

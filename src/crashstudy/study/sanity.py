@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from crashstudy.arrays.batch import build_batch
+from crashstudy.arrays.batch import build_batch, variant_steps
 from crashstudy.arrays.compiler import apply_axis
 from crashstudy.errors import Problem
 from crashstudy.metrics.record import plan_warnings
@@ -148,18 +148,55 @@ def _first_dt_crit(plan: Plan) -> float:
 
 
 def _dt_refused(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
-    """Variants (indices) whose fixed dt is above their critical step, and the critical step of each."""
+    """Variants (indices, among the first ``MAX_DT_CHECK``) whose fixed dt is above their critical step,
+    and the critical step of each.
+
+    The step depends on no initial velocity, so the critical steps are computed once per distinct
+    setting of the dimensions (matrix axes, zip groups, design rows) that hold an axis changing
+    anything else: a matrix over masses x curve scales x impact speeds computes masses x scales steps,
+    and only the step choice (``variant_steps``), not whole batches. Variants are listed only when some
+    are refused."""
     if plan.topology.time_step_mode != "dt":
         return np.zeros(0, dtype=np.int64), np.zeros(0)
-    idx: list[np.ndarray] = []
-    crit: list[np.ndarray] = []
-    for lo in range(0, min(plan.n_variants, MAX_DT_CHECK), 65536):
-        hi = min(plan.n_variants, lo + 65536)
-        _, steps = build_batch(plan.topology, plan.params(lo, hi), plan.interval)
-        bad = np.nonzero(steps.refused)[0]
-        idx.append(lo + bad)
-        crit.append(np.asarray(steps.dt_crit)[bad])
-    return np.concatenate(idx), np.concatenate(crit)
+    shape, dims = _step_dims(plan)
+    n_steps = math.prod(shape[d] for d in dims)
+    if not plan.shape or n_steps > MAX_DT_CHECK:  # a study whose every dimension matters: its first variants
+        return _refused_of(plan, np.arange(min(plan.n_variants, MAX_DT_CHECK)))
+    sub = tuple(shape[d] for d in dims)
+    refused = np.zeros(n_steps, dtype=bool)
+    crit = np.zeros(n_steps)
+    for lo in range(0, n_steps, 65536):
+        hi = min(n_steps, lo + 65536)
+        full = np.zeros((len(shape), hi - lo), dtype=np.int64)  # the other dimensions at their first value
+        full[list(dims)] = np.unravel_index(np.arange(lo, hi), sub)
+        steps = variant_steps(plan.topology, plan.params_at(np.asarray(np.ravel_multi_index(tuple(full), shape))),
+                              plan.interval)  # fmt: skip
+        refused[lo:hi], crit[lo:hi] = steps.refused, steps.dt_crit
+    if not refused.any():
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    idx = np.arange(min(plan.n_variants, MAX_DT_CHECK))
+    at = np.ravel_multi_index(tuple(np.unravel_index(idx, shape)[d] for d in dims), sub) if dims else np.zeros_like(idx)
+    bad = np.flatnonzero(refused[at])
+    return idx[bad], crit[at[bad]]
+
+
+def _step_dims(plan: Plan) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """(the plan's shape, the dimensions holding an axis that sets anything but initial velocities)."""
+    vel = plan.topology.blocks["velocity"]
+    dims = sorted({ax.dim for ax in plan.axes if any(not vel.start <= s < vel.stop for s in ax.ref.slots)})
+    return tuple(plan.shape), tuple(dims)
+
+
+def _refused_of(plan: Plan, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Refused variants among ``idx`` (ascending) and their critical steps, a chunk at a time."""
+    out: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+    crit: list[np.ndarray] = [np.zeros(0)]
+    for lo in range(0, len(idx), 65536):
+        part = idx[lo : lo + 65536]
+        steps = variant_steps(plan.topology, plan.params_at(part), plan.interval)
+        out.append(part[steps.refused])
+        crit.append(np.asarray(steps.dt_crit)[steps.refused])
+    return np.concatenate(out), np.concatenate(crit)
 
 
 def _dt_problem(plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml, refused: np.ndarray,
