@@ -175,7 +175,7 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
     with np.errstate(all="ignore"):  # a variant with bad parameters is refused by check_parameters
         state0, ie0 = preload(topo.material, topo.spring_curves[:, 0], topo.spring_curves[:, 1], e0, kpar, yield_t,
                               yield_c, ktan, fy, cx, cy, cds, cs0, cs1, off)  # fmt: skip
-    kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy)
+    kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy, P[b["rate"]] if "rate" in b else None)
     W = len(topo.wall_ids)
     normal = P[b["wall_normal"]].reshape(W, D, V)
     nlen = np.sqrt(np.sum(normal * normal, axis=1))
