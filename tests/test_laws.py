@@ -17,7 +17,14 @@ import pytest
 from conftest import model_batch
 from crashstudy.kernel import laws
 from crashstudy.kernel import materials as twin
-from crashstudy.kernel.reference import knot_peak_np, wall_hold_np, wall_penalty_np
+from crashstudy.kernel.reference import (
+    energy_balance_np,
+    knot_peak_np,
+    unstable_limit_np,
+    unstable_np,
+    wall_hold_np,
+    wall_penalty_np,
+)
 
 RNG_SEED = 20261126
 CURVES = {
@@ -170,3 +177,20 @@ def test_small_laws_equal_their_twins() -> None:
                                                                    np.array([abs(c) + 0.1]))[0]  # fmt: skip
         fp, energy = wall_penalty_np(np.array([abs(a)]), np.array([bb]))
         assert laws.wall_penalty(abs(a), bb) == (fp[0], energy[0])
+
+
+def test_energy_balance_and_instability_laws_equal_their_twins() -> None:
+    """``energy_balance``, ``unstable_limit`` and ``unstable`` against the reference's NumPy twins, bit
+    for bit, on random energies, and the instability verdict on balance errors at, above and below the
+    limit, infinite and not a number (a NaN balance is unstable)."""
+    rng = np.random.default_rng(RNG_SEED + 7)
+    for _ in range(200):
+        ke, ie, wall, e0, work = rng.normal(0.0, 1.0e3, 5)
+        scale, wmax, floor = np.abs(rng.normal(0.0, 1.0e3, 3))
+        bal = laws.energy_balance(ke, ie, wall, e0, work)
+        assert bal == energy_balance_np(*(np.array([x]) for x in (ke, ie, wall, e0, work)))[0]
+        limit = laws.unstable_limit(scale, wmax, floor)
+        assert limit == unstable_limit_np(np.array([scale]), np.array([wmax]), np.array([floor]))[0]
+        for b in (bal, limit, np.nextafter(limit, np.inf), 0.0, np.inf, np.nan):
+            assert laws.unstable(b, limit) == unstable_np(np.array([b]), np.array([limit]))[0], (b, limit)
+    assert laws.unstable(np.nan, 1.0) and laws.unstable(2.0, 1.0) and not laws.unstable(1.0, 1.0)

@@ -40,7 +40,6 @@ from crashstudy.vocabulary.codes import (
     PM_ACCELERATION,
     PM_DISPLACEMENT,
     RATE_ELASTIC,
-    UNSTABLE_ENERGY,
 )
 from crashstudy.vocabulary.materials import DAMPER_MATERIALS, RATE_MATERIALS
 
@@ -396,10 +395,10 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             nbad = 0
             for w in range(B):
                 wmax[w] = max(wmax[w], abs(work[w]))
-                b_ = abs(ke[w] + ie_tot[w] + (wall_e[w] if n > 0 else 0.0) - e_init[0, w] - work[w])  # t = 0: before impacts
+                b_ = lw.energy_balance(ke[w], ie_tot[w], wall_e[w] if n > 0 else 0.0, e_init[0, w], work[w])  # t = 0: before impacts
                 bal[w] = b_
                 err[w] = lw.peak(err[w], b_ * actf[w])
-                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (e_init[1, w] + wmax[w]) + e_floor[lo + w])
+                nbad += act[w] & lw.unstable(b_, lw.unstable_limit(e_init[1, w], wmax[w], e_floor[lo + w]))
             anybad = nbad > 0
             # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
             for n_ in range(N):

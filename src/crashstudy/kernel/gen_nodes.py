@@ -55,19 +55,20 @@ def pass_b(g: Layout, ind: str) -> None:
                 g.emit(f"{i2}{g.R[f'wf{wl}']} = wf{wl}")
         g.emit(f"{i2}{g.R['wall_e']} = wall_e")
     g.emit(f"{i2}ke = ke if wt > 0.0 else {g.R['ke0']}")
+    wall = "(wall_e if n > 0 else 0.0)" if g.W else "0.0"  # t = 0: before any impact
     if g.ext:
         g.emit(f"{i2}work = work_increment({g.R['work']}, bal, dtw, afw)")
         g.emit(f"{i2}{g.R['work']} = work")
         g.emit(f"{i2}wmax = peak({g.R['wmax']}, abs(work))")
         g.emit(f"{i2}{g.R['wmax']} = wmax")
-        g.emit(f"{i2}bal = abs((((ke + ie_tot) + {'(wall_e if n > 0 else 0.0)' if g.W else '0.0'}) - {g.R[g.E0]}) - work)")
-        g.emit(f"{i2}thr = unstable_energy * ({g.R[g.ES]} + wmax) + {g.R['efl']}")
+        g.emit(f"{i2}bal = energy_balance(ke, ie_tot, {wall}, {g.R[g.E0]}, work)")
+        g.emit(f"{i2}thr = unstable_limit({g.R[g.ES]}, wmax, {g.R['efl']})")
     else:
-        g.emit(f"{i2}bal = abs((((ke + ie_tot) + {'(wall_e if n > 0 else 0.0)' if g.W else '0.0'}) - {g.R[g.E0]}) - 0.0)")
+        g.emit(f"{i2}bal = energy_balance(ke, ie_tot, {wall}, {g.R[g.E0]}, 0.0)")
         g.emit(f"{i2}thr = {g.R['thr']}")
     g.emit(f"{i2}{g.R['err']} = peak({g.R['err']}, bal * af)")
     g.emit(f"{i2}{g.R['thr']} = thr")
-    bad = "not (bal <= thr)"
+    bad = "unstable(bal, thr)"
     if g.D > 1:
         bad = f"({bad} or {g.R['crushed']} >= 0.0)"
     g.emit(f"{i2}nbad += (1 if af > 0.0 else 0) if {bad} else 0")

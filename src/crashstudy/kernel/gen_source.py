@@ -9,7 +9,7 @@ from typing import Any
 from crashstudy.kernel.gen_nodes import _chain, emit_results, pass_b
 from crashstudy.kernel.gen_shape import ROW, Layout, _lsum, layout
 from crashstudy.kernel.gen_springs import pass_a, pass_k
-from crashstudy.vocabulary.codes import ELASTOPLASTIC, UNSTABLE_ENERGY
+from crashstudy.vocabulary.codes import ELASTOPLASTIC
 from crashstudy.vocabulary.materials import spec
 
 # the laws a generated module calls (crashstudy.kernel.laws)
@@ -17,7 +17,7 @@ LAWS = ("collapsed", "crush_knot_force", "crush_law", "crush_window", "damper_fo
         "end_rate", "energy_increment", "ext_power", "general_law", "general_reverse_call", "general_window",
         "knot_accel", "knot_crossing", "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window",
         "peak", "time_window", "wall_force", "wall_hold", "wall_impulse", "wall_jump", "wall_penalty", "work_increment",
-        "elastoplastic_law", "energy_first_half", "broken_at")  # fmt: skip
+        "elastoplastic_law", "energy_first_half", "broken_at", "energy_balance", "unstable_limit", "unstable")  # fmt: skip
 # local name in the generated kernel -> (record, field) of crashstudy.kernel.driver
 RECORD_NAMES = [(n, "P", f) for n, f in (
     ("mass", "mass"), ("inv_mass", "inv_mass"), ("x0", "x0"), ("v0", "v0"), ("sign", "sign"), ("length0", "length0"),
@@ -47,7 +47,6 @@ def source(shape: dict[str, Any]) -> str:
         f"from crashstudy.kernel.laws import {', '.join(LAWS + (('rate_segment',) if any(g.rc) else ()))}",
         "",
         f"_SHAPE = {shape!r}",
-        f"unstable_energy = {UNSTABLE_ENERGY!r}",
         "",
         "",
         '@nb.njit(nogil=True, error_model="numpy", cache=True)',
@@ -232,7 +231,7 @@ def lanes(g: Layout, ind: str) -> None:
         g.emit(f"{i2}{g.R['ein']} = ke0 + ie0t")
         g.emit(f"{i2}ke0 = ke0 + abs(ie0t)  # the scale KE0 + |IE0|")
         g.emit(f"{i2}{g.R['esc']} = ke0")
-    g.emit(f"{i2}{g.R['thr']} = unstable_energy * (ke0 + 0.0) + e_floor[q]")
+    g.emit(f"{i2}{g.R['thr']} = unstable_limit(ke0, 0.0, e_floor[q])")
     g.emit(f"{i2}if invalid[q] > 0:")
     g.emit(f"{i2}    status[q] = INVALID")
     g.emit(f"{i2}    fail_item[q] = invalid[q]")
@@ -250,9 +249,9 @@ def failures(g: Layout, i3: str) -> None:
     g.emit(f"{i3}        if not fn <= {g.R['lim']}:")
     g.emit(f"{i3}            continue")
     wall_now = f"({g.R['wall_e']} if n > 0 else 0.0)" if g.W else "0.0"  # t = 0: before any impact
-    bal_expr = (f"abs(((({g.R['ken']} + {g.R['ien']}) + {wall_now}) - {g.R[g.E0]}) - "
-                + (g.R["work"] if g.ext else "0.0") + ")")  # fmt: skip
-    g.emit(f"{i3}        if not ({bal_expr} <= {g.R['thr']}):")
+    work = g.R["work"] if g.ext else "0.0"
+    bal = f"energy_balance({g.R['ken']}, {g.R['ien']}, {wall_now}, {g.R[g.E0]}, {work})"
+    g.emit(f"{i3}        if unstable({bal}, {g.R['thr']}):")
     g.emit(f"{i3}            status[vi[w]] = UNSTABLE")
     if g.D > 1:
         g.emit(f"{i3}        elif {g.R['crushed']} >= 0.0:")

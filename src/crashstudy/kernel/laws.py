@@ -21,7 +21,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from crashstudy.vocabulary.codes import TIME_EPS, TINY_LENGTH
+from crashstudy.vocabulary.codes import TIME_EPS, TINY_LENGTH, UNSTABLE_ENERGY
 
 _jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 # per-step laws of the generic kernel that LLVM did not inline as well (time curves: arrays in;
@@ -293,6 +293,25 @@ def ext_power(bal, fx, v, fxp, vb):  # pragma: no cover - compiled
 @_jit
 def work_increment(work, bal, dt, af):  # pragma: no cover - compiled
     return work + (bal * dt) * af
+
+
+@_jit
+def energy_balance(ke, ie, wall, e_init, work):  # pragma: no cover - compiled
+    """The energy balance error of one variant, ``|KE + IE + E_wall - E^0 - W_ext|`` (docs/solver.md)."""
+    return abs((((ke + ie) + wall) - e_init) - work)
+
+
+@_jit
+def unstable_limit(scale, wmax, floor):  # pragma: no cover - compiled
+    """The largest energy balance error of a stable run: ``UNSTABLE_ENERGY`` times the energy scale
+    (KE0 + |IE0|) plus the largest |external work| so far, plus the variant's round-off floor."""
+    return UNSTABLE_ENERGY * (scale + wmax) + floor
+
+
+@_jit
+def unstable(bal, limit):  # pragma: no cover - compiled
+    """The run is unstable: its energy balance error is above the limit, or not a number."""
+    return not (bal <= limit)
 
 
 @_jit

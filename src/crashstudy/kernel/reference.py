@@ -252,7 +252,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         # the t = 0 balance is the state before any impact: an impulse of the first step is counted from
         # step 1 on, where v^{1/2} after it is in the kinetic energy (wall_e itself keeps the reference's sum)
         wall_now = wall_e if n > 0 else np.zeros_like(wall_e)
-        bal = np.abs(ke + ie_tot + wall_now - e_init - work)
+        bal = energy_balance_np(ke, ie_tot, wall_now, e_init, work)
         err = np.where(act, np.maximum(err, bal), err)
         amag = np.sqrt(np.sum(a * a, axis=1))
         out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
@@ -273,7 +273,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                                                     out.peak_acceleration[p])  # fmt: skip
         out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
 
-        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (e_scale + wmax) + b.energy_floor))
+        bad = act & unstable_np(bal, unstable_limit_np(e_scale, wmax, b.energy_floor))
         out.status[:] = np.where(bad, UNSTABLE, out.status)
         gone = act & ~bad & (crushed >= 0)
         out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)
@@ -317,6 +317,22 @@ def spring_knotted(b: Batch) -> np.ndarray:
         if b.material[s] in KNOT_MATERIALS and c >= 0:
             out[s] = bool(np.any(b.knot_check[int(b.curve_off[c]) + 1 : int(b.curve_off[c + 1]) - 1]))
     return out
+
+
+def energy_balance_np(ke: np.ndarray, ie: np.ndarray, wall: np.ndarray, e_init: np.ndarray, work: np.ndarray
+                      ) -> np.ndarray:  # fmt: skip
+    """|KE + IE + E_wall - E^0 - W_ext| per variant (the twin of ``laws.energy_balance``)."""
+    return np.abs(ke + ie + wall - e_init - work)
+
+
+def unstable_limit_np(scale: np.ndarray, wmax: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """The largest balance error of a stable run (the twin of ``laws.unstable_limit``)."""
+    return UNSTABLE_ENERGY * (scale + wmax) + floor
+
+
+def unstable_np(bal: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Balance error above the limit or not a number (the twin of ``laws.unstable``)."""
+    return ~np.isfinite(bal) | (bal > limit)
 
 
 def wall_hold_np(dvn: np.ndarray, an: np.ndarray, dtn: np.ndarray) -> np.ndarray:
