@@ -20,6 +20,9 @@ from crashstudy.kernel import materials as twin
 from crashstudy.kernel.reference import (
     energy_balance_np,
     knot_peak_np,
+    prescribed_step_np,
+    prescribed_time_np,
+    prescribed_velocity_np,
     unstable_limit_np,
     unstable_np,
     wall_hold_np,
@@ -194,3 +197,28 @@ def test_energy_balance_and_instability_laws_equal_their_twins() -> None:
         for b in (bal, limit, np.nextafter(limit, np.inf), 0.0, np.inf, np.nan):
             assert laws.unstable(b, limit) == unstable_np(np.array([b]), np.array([limit]))[0], (b, limit)
     assert laws.unstable(np.nan, 1.0) and laws.unstable(2.0, 1.0) and not laws.unstable(1.0, 1.0)
+
+
+def test_prescribed_motion_laws_equal_their_twins() -> None:
+    """``prescribed_time``, ``prescribed_velocity`` and ``prescribed_step`` against the reference's NumPy
+    twins, bit for bit, for each kind of prescribed motion, in the last step and before it; and the
+    closed forms: a displacement curve lands the dof on ``x0 + scale tc``, a velocity curve is the velocity."""
+    from crashstudy.vocabulary.codes import PM_CODES
+
+    rng = np.random.default_rng(RNG_SEED + 8)
+    arr = lambda *xs: tuple(np.array([x]) for x in xs)  # noqa: E731
+    for _ in range(100):
+        t, dt = abs(rng.normal(0.0, 1.0)), abs(rng.normal(0.0, 1e-3)) + 1e-6
+        x0, scale, tc, x, vo, pa = rng.normal(0.0, 1.0, 6)
+        dtn = 0.5 * dt if rng.random() < 0.2 else dt
+        for kind in PM_CODES.values():
+            assert laws.prescribed_time(kind, t, dt) == prescribed_time_np(kind, *arr(t, dt))[0]
+            vn = laws.prescribed_velocity(kind, x0, scale, tc, x, vo, dt, dtn)
+            assert vn == prescribed_velocity_np(kind, *arr(x0, scale, tc, x, vo, dt, dtn))[0]
+            for last in (False, True):
+                got = laws.prescribed_step(last, vn, vo, pa, dtn)
+                want = prescribed_step_np(np.array([last]), *arr(vn, vo, pa, dtn))
+                assert got == (want[0][0], want[1][0])
+        landed = x + dt * laws.prescribed_velocity(PM_CODES["displacement"], x0, scale, tc, x, vo, dt, dtn)
+        assert abs(landed - (x0 + scale * tc)) <= 1e-12 * (1.0 + abs(x0 + scale * tc) + abs(x) / dt * dt)
+        assert laws.prescribed_velocity(PM_CODES["velocity"], x0, scale, tc, x, vo, dt, dtn) == scale * tc

@@ -37,8 +37,6 @@ from crashstudy.vocabulary.codes import (
     LINEAR,
     NONLINEAR,
     NONLINEAR_DAMPER,
-    PM_ACCELERATION,
-    PM_DISPLACEMENT,
     RATE_ELASTIC,
 )
 from crashstudy.vocabulary.materials import DAMPER_MATERIALS, RATE_MATERIALS
@@ -352,17 +350,11 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     q = lo + w
                     t = n * dt_b[w]
                     dtn = h * dt_b[w]
-                    if pm_kind[k] == PM_DISPLACEMENT:
-                        target = x0_b[p, d, w] + pm_scale[k, q] * lw.time_curve_at(c, t + dt_b[w], q, cx, cy, cds, cs0, off)
-                        vnew[p, d, w] = (target - x[p, d, w]) / dt_b[w]
-                    elif pm_kind[k] == PM_ACCELERATION:
-                        vnew[p, d, w] = v[p, d, w] + dtn * pm_scale[k, q] * lw.time_curve_at(c, t, q, cx, cy, cds, cs0, off)
-                    else:
-                        vnew[p, d, w] = pm_scale[k, q] * lw.time_curve_at(c, t + 0.5 * dt_b[w], q, cx, cy, cds, cs0, off)
-                    if n != nst[w]:
-                        pm_acc[k, w] = (vnew[p, d, w] - v[p, d, w]) / dtn
-                    else:  # the last step's update would look past end_time: continue with the previous acceleration
-                        vnew[p, d, w] = v[p, d, w] + dtn * pm_acc[k, w]
+                    kind = pm_kind[k]
+                    tc = lw.time_curve_at(c, lw.prescribed_time(kind, t, dt_b[w]), q, cx, cy, cds, cs0, off)
+                    vn = lw.prescribed_velocity(kind, x0_b[p, d, w], pm_scale[k, q], tc, x[p, d, w], v[p, d, w], dt_b[w],
+                                                dtn)  # fmt: skip
+                    vnew[p, d, w], pm_acc[k, w] = lw.prescribed_step(n == nst[w], vn, v[p, d, w], pm_acc[k, w], dtn)
                     acc[p, d, w] = pm_acc[k, w]
                     ftot = f[p, d, w] + fext[p, d, w]
                     fext[p, d, w] += m_b[p, w] * acc[p, d, w] - ftot

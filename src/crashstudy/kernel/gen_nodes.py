@@ -8,11 +8,9 @@ from typing import Any
 
 from crashstudy.kernel.gen_shape import Layout, _lsum
 from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
-from crashstudy.vocabulary.codes import (
-    GENERAL,
-    PM_ACCELERATION,
-    PM_DISPLACEMENT,
-)
+from crashstudy.vocabulary.codes import GENERAL, PM_CODES
+
+PM_NAMES = {code: f"PM_{name.upper()}" for name, code in PM_CODES.items()}  # as the generated module imports them
 
 
 def pass_b(g: Layout, ind: str) -> None:
@@ -156,20 +154,13 @@ def node(g: Layout, i2: str, n: int) -> None:
             if (p, dd) != (n, d):
                 continue
             sc = g.R[f"pms{k}"]
-            if kind == PM_DISPLACEMENT:
-                time_curve(g, i2, "tc", c, "fn * dtw + dtw")
-                g.emit(f"{i2}vn_{d} = (({g.R[f'x0{n}_{d}']} + {sc} * tc) - {g.R[f'x{n}_{d}']}) / dtw")
-            elif kind == PM_ACCELERATION:
-                time_curve(g, i2, "tc", c, "fn * dtw")
-                g.emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * {sc} * tc")
-            else:
-                time_curve(g, i2, "tc", c, "fn * dtw + 0.5 * dtw")
-                g.emit(f"{i2}vn_{d} = {sc} * tc")
+            kn = PM_NAMES[kind]
+            time_curve(g, i2, "tc", c, f"prescribed_time({kn}, fn * dtw, dtw)")
+            x0, x = g.R[f"x0{n}_{d}"], g.R[f"x{n}_{d}"]
+            g.emit(f"{i2}vn_{d} = prescribed_velocity({kn}, {x0}, {sc}, tc, {x}, vo_{d}, dtw, h * dtw)")
             pa = g.R[f"pma{k}"]
-            g.emit(f"{i2}last = fn == {g.R['nst']}  # the last step continues with the previous acceleration")
-            g.emit(f"{i2}{pa} = {pa} if last else (vn_{d} - vo_{d}) / (h * dtw)")
-            g.emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * {pa} if last else vn_{d}")
-            g.emit(f"{i2}a = {pa}")
+            g.emit(f"{i2}vn_{d}, a = prescribed_step(fn == {g.R['nst']}, vn_{d}, vo_{d}, {pa}, h * dtw)")
+            g.emit(f"{i2}{pa} = a")
             g.emit(f"{i2}fx_{d} = fx_{d} + ({g.R[f'm{n}']} * a - (fs + fx_{d}))")
         g.emit(f"{i2}a_{d} = a")
         if n in g.record:  # kept for the per-step record (crash criteria), written after the failure check

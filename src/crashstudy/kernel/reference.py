@@ -207,16 +207,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
 
         for k in range(len(b.pm_node)):
             p, d, c = b.pm_node[k], b.pm_dir[k], b.pm_curve[k]
-            if b.pm_kind[k] == PM_DISPLACEMENT:
-                target = b.x0[p, d] + b.pm_scale[k] * mat.time_curve_eval(c, t + dt, *cargs)
-                vnew[p, d] = (target - x[p, d]) / dt
-            elif b.pm_kind[k] == PM_ACCELERATION:
-                vnew[p, d] = v[p, d] + dtn * b.pm_scale[k] * mat.time_curve_eval(c, t, *cargs)
-            else:
-                vnew[p, d] = b.pm_scale[k] * mat.time_curve_eval(c, t + 0.5 * dt, *cargs)
-            # the last step's update would look past end_time: continue with the previous acceleration
-            vnew[p, d] = np.where(n == nst, v[p, d] + dtn * a_prev[p, d], vnew[p, d])
-            a[p, d] = np.where(n == nst, a_prev[p, d], (vnew[p, d] - v[p, d]) / dtn)
+            tc = mat.time_curve_eval(c, prescribed_time_np(b.pm_kind[k], t, dt), *cargs)
+            vn = prescribed_velocity_np(b.pm_kind[k], b.x0[p, d], b.pm_scale[k], tc, x[p, d], v[p, d], dt, dtn)
+            vnew[p, d], a[p, d] = prescribed_step_np(n == nst, vn, v[p, d], a_prev[p, d], dtn)
             fext[p, d] += m[p] * a[p, d] - ftot[p, d]
 
         for w in range(W):
@@ -317,6 +310,28 @@ def spring_knotted(b: Batch) -> np.ndarray:
         if b.material[s] in KNOT_MATERIALS and c >= 0:
             out[s] = bool(np.any(b.knot_check[int(b.curve_off[c]) + 1 : int(b.curve_off[c + 1]) - 1]))
     return out
+
+
+def prescribed_time_np(kind: int, t: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """The time a prescribed motion's curve is read for the step from t (the twin of ``laws.prescribed_time``)."""
+    return t + dt if kind == PM_DISPLACEMENT else t if kind == PM_ACCELERATION else t + 0.5 * dt
+
+
+def prescribed_velocity_np(kind: int, x0: np.ndarray, scale: np.ndarray, tc: np.ndarray, x: np.ndarray,
+                           v: np.ndarray, dt: np.ndarray, dtn: np.ndarray) -> np.ndarray:  # fmt: skip
+    """v^{n+1/2} of a driven dof (the twin of ``laws.prescribed_velocity``)."""
+    if kind == PM_DISPLACEMENT:
+        return (x0 + scale * tc - x) / dt
+    if kind == PM_ACCELERATION:
+        return v + dtn * scale * tc
+    return scale * tc
+
+
+def prescribed_step_np(last: np.ndarray | bool, vn: np.ndarray, vo: np.ndarray, pa: np.ndarray, dtn: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """(v^{n+1/2}, a^n); the last step continues with ``pa`` (the twin of ``laws.prescribed_step``)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(last, vo + dtn * pa, vn), np.where(last, pa, (vn - vo) / dtn)
 
 
 def energy_balance_np(ke: np.ndarray, ie: np.ndarray, wall: np.ndarray, e_init: np.ndarray, work: np.ndarray
