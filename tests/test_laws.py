@@ -23,6 +23,7 @@ from crashstudy.kernel.reference import (
     prescribed_step_np,
     prescribed_time_np,
     prescribed_velocity_np,
+    stop_test_np,
     unstable_limit_np,
     unstable_np,
     wall_hold_np,
@@ -222,3 +223,19 @@ def test_prescribed_motion_laws_equal_their_twins() -> None:
         landed = x + dt * laws.prescribed_velocity(PM_CODES["displacement"], x0, scale, tc, x, vo, dt, dtn)
         assert abs(landed - (x0 + scale * tc)) <= 1e-12 * (1.0 + abs(x0 + scale * tc) + abs(x) / dt * dt)
         assert laws.prescribed_velocity(PM_CODES["velocity"], x0, scale, tc, x, vo, dt, dtn) == scale * tc
+
+
+def test_stop_test_law_equals_its_twin() -> None:
+    """``stop_test`` against the reference's twin on random sums (a quarter of them at the thresholds
+    exactly, both sides of ``<=``), with and without ``opening``."""
+    rng = np.random.default_rng(RNG_SEED + 9)
+    for _ in range(300):
+        kef, psum, scale, wmax = rng.uniform(0.0, 1.0, 4)
+        fsum, ke = rng.uniform(0.0, 1.0, 2) * np.array([psum, scale + wmax])
+        if rng.random() < 0.25:
+            fsum, ke = kef * psum, kef * (scale + wmax)
+        for opening in (False, True):
+            got = laws.stop_test(kef, fsum, psum, ke, scale, wmax, opening)
+            want = stop_test_np(*(np.array([x]) for x in (kef, fsum, psum, ke, scale, wmax, opening)))[0]
+            assert got == want, (kef, fsum, psum, ke, scale, wmax, opening)
+    assert laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, True) and not laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, False)

@@ -440,10 +440,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     for s in range(S):
                         fsum += abs(forces[s, w])
                         psum += pf[s, w]
-                    small_f = fsum <= ke_fraction[q] * psum
-                    small_ke = ke[w] <= ke_fraction[q] * (e_init[1, w] + wmax[w])
                     opening = edot_min[w] >= 0.0 and no_ext
-                    if small_f and (small_ke or opening):
+                    if lw.stop_test(ke_fraction[q], fsum, psum, ke[w], e_init[1, w], wmax[w], opening):
                         nst[w] = n
                         n_end = n
             if n == n_end:

@@ -79,10 +79,9 @@ def pass_b(g: Layout, ind: str) -> None:
         g.emit(f"{i2}fsum = {_lsum([f'abs(F{s})' for s in range(g.S)])}")
         g.emit(f"{i2}psum = {_lsum([g.R[f'pf{s}'] for s in range(g.S)])}")
         g.emit(f"{i2}kef = {g.R['kef']}")
-        g.emit(f"{i2}small_f = fsum <= kef * psum")
-        g.emit(f"{i2}small_ke = ke <= kef * ({g.R[g.ES]} + {g.R['wmax'] if g.ext else '0.0'})")
         g.emit(f"{i2}opening = " + ("False" if g.ext else "edmin >= 0.0"))
-        g.emit(f"{i2}stop = (wt > 0.0) & (kef > 0.0) & (not (fn * dtw < {g.R['tmin']})) & small_f & (small_ke | opening)")
+        test = f"stop_test(kef, fsum, psum, ke, {g.R[g.ES]}, {g.R['wmax'] if g.ext else '0.0'}, opening)"
+        g.emit(f"{i2}stop = (wt > 0.0) & (kef > 0.0) & (not (fn * dtw < {g.R['tmin']})) & {test}")
         g.emit(f"{i2}{g.R['stop']} = 1.0 if stop else 0.0")
         g.emit(f"{i2}nstop += 1 if stop else 0")
 

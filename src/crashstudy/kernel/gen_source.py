@@ -17,7 +17,7 @@ LAWS = ("collapsed", "crush_knot_force", "crush_law", "crush_window", "damper_fo
         "end_rate", "energy_increment", "ext_power", "general_law", "general_reverse_call", "general_window",
         "knot_accel", "knot_crossing", "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window",
         "peak", "time_window", "wall_force", "wall_hold", "wall_impulse", "wall_jump", "wall_penalty", "work_increment",
-        "elastoplastic_law", "energy_first_half", "broken_at", "energy_balance", "unstable_limit", "unstable")
+        "elastoplastic_law", "energy_first_half", "broken_at", "energy_balance", "unstable_limit", "unstable", "stop_test")
 PM_LAWS = ("prescribed_time", "prescribed_velocity", "prescribed_step")  # imported by a kernel with prescribed motion  # fmt: skip
 # local name in the generated kernel -> (record, field) of crashstudy.kernel.driver
 RECORD_NAMES = [(n, "P", f) for n, f in (

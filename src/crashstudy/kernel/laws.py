@@ -333,6 +333,14 @@ def prescribed_step(last, vn, vo, pa, dtn):  # pragma: no cover - compiled
 
 
 @_jit
+def stop_test(kef, fsum, psum, ke, scale, wmax, opening):  # pragma: no cover - compiled
+    """Early termination (docs/format.md, ``termination``): the sum of |spring force| has fallen to
+    ``kef`` (kinetic_energy_fraction) of the sum of the peaks, and the kinetic energy to ``kef`` of the
+    energy scale (KE0 + |IE0| + max |W_ext|) or every spring is opening (``opening``)."""
+    return (fsum <= kef * psum) & ((ke <= kef * (scale + wmax)) | opening)
+
+
+@_jit
 def energy_balance(ke, ie, wall, e_init, work):  # pragma: no cover - compiled
     """The energy balance error of one variant, ``|KE + IE + E_wall - E^0 - W_ext|`` (docs/solver.md)."""
     return abs((((ke + ie) + wall) - e_init) - work)

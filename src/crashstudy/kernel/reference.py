@@ -284,10 +284,10 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         out.t_end[:] = np.where(ok, t, out.t_end)
         last = ok & (n == nst)
         if b.ke_fraction.any():
-            small_f = np.sum(np.abs(forces), axis=0) <= b.ke_fraction * np.sum(out.peak_force, axis=0)
-            small_ke = ke <= b.ke_fraction * (e_scale + wmax)
             opening = (edot_min >= 0.0) & no_ext
-            stop = ok & (b.ke_fraction > 0) & (t >= b.min_time) & small_f & (small_ke | opening) & (n > 0)
+            small = stop_test_np(b.ke_fraction, np.sum(np.abs(forces), axis=0), np.sum(out.peak_force, axis=0), ke,
+                                 e_scale, wmax, opening)  # fmt: skip
+            stop = ok & (b.ke_fraction > 0) & (t >= b.min_time) & small & (n > 0)
             nst = np.where(stop, n, nst)
             last |= stop
         out.final_energy[:, last] = np.stack([ke, ie_tot, work, wall_e])[:, last]
@@ -332,6 +332,14 @@ def prescribed_step_np(last: np.ndarray | bool, vn: np.ndarray, vo: np.ndarray, 
     """(v^{n+1/2}, a^n); the last step continues with ``pa`` (the twin of ``laws.prescribed_step``)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(last, vo + dtn * pa, vn), np.where(last, pa, (vn - vo) / dtn)
+
+
+def stop_test_np(kef: np.ndarray, fsum: np.ndarray, psum: np.ndarray, ke: np.ndarray, scale: np.ndarray,
+                 wmax: np.ndarray, opening: np.ndarray) -> np.ndarray:  # fmt: skip
+    """Early termination's force and energy test (the twin of ``laws.stop_test``)."""
+    small_f = fsum <= kef * psum
+    small_ke = ke <= kef * (scale + wmax)
+    return small_f & (small_ke | opening)
 
 
 def energy_balance_np(ke: np.ndarray, ie: np.ndarray, wall: np.ndarray, e_init: np.ndarray, work: np.ndarray
