@@ -17,7 +17,18 @@ import pytest
 from conftest import model_batch
 from crashstudy.kernel import laws
 from crashstudy.kernel import materials as twin
-from crashstudy.kernel.reference import knot_peak_np, wall_hold_np, wall_penalty_np
+from crashstudy.kernel.reference import (
+    energy_balance_np,
+    knot_peak_np,
+    prescribed_step_np,
+    prescribed_time_np,
+    prescribed_velocity_np,
+    stop_test_np,
+    unstable_limit_np,
+    unstable_np,
+    wall_hold_np,
+    wall_penalty_np,
+)
 
 RNG_SEED = 20261126
 CURVES = {
@@ -170,3 +181,61 @@ def test_small_laws_equal_their_twins() -> None:
                                                                    np.array([abs(c) + 0.1]))[0]  # fmt: skip
         fp, energy = wall_penalty_np(np.array([abs(a)]), np.array([bb]))
         assert laws.wall_penalty(abs(a), bb) == (fp[0], energy[0])
+
+
+def test_energy_balance_and_instability_laws_equal_their_twins() -> None:
+    """``energy_balance``, ``unstable_limit`` and ``unstable`` against the reference's NumPy twins, bit
+    for bit, on random energies, and the instability verdict on balance errors at, above and below the
+    limit, infinite and not a number (a NaN balance is unstable)."""
+    rng = np.random.default_rng(RNG_SEED + 7)
+    for _ in range(200):
+        ke, ie, wall, e0, work = rng.normal(0.0, 1.0e3, 5)
+        scale, wmax, floor = np.abs(rng.normal(0.0, 1.0e3, 3))
+        bal = laws.energy_balance(ke, ie, wall, e0, work)
+        assert bal == energy_balance_np(*(np.array([x]) for x in (ke, ie, wall, e0, work)))[0]
+        limit = laws.unstable_limit(scale, wmax, floor)
+        assert limit == unstable_limit_np(np.array([scale]), np.array([wmax]), np.array([floor]))[0]
+        for b in (bal, limit, np.nextafter(limit, np.inf), 0.0, np.inf, np.nan):
+            assert laws.unstable(b, limit) == unstable_np(np.array([b]), np.array([limit]))[0], (b, limit)
+    assert laws.unstable(np.nan, 1.0) and laws.unstable(2.0, 1.0) and not laws.unstable(1.0, 1.0)
+
+
+def test_prescribed_motion_laws_equal_their_twins() -> None:
+    """``prescribed_time``, ``prescribed_velocity`` and ``prescribed_step`` against the reference's NumPy
+    twins, bit for bit, for each kind of prescribed motion, in the last step and before it; and the
+    closed forms: a displacement curve lands the dof on ``x0 + scale tc``, a velocity curve is the velocity."""
+    from crashstudy.vocabulary.codes import PM_CODES
+
+    rng = np.random.default_rng(RNG_SEED + 8)
+    arr = lambda *xs: tuple(np.array([x]) for x in xs)  # noqa: E731
+    for _ in range(100):
+        t, dt = abs(rng.normal(0.0, 1.0)), abs(rng.normal(0.0, 1e-3)) + 1e-6
+        x0, scale, tc, x, vo, pa = rng.normal(0.0, 1.0, 6)
+        dtn = 0.5 * dt if rng.random() < 0.2 else dt
+        for kind in PM_CODES.values():
+            assert laws.prescribed_time(kind, t, dt) == prescribed_time_np(kind, *arr(t, dt))[0]
+            vn = laws.prescribed_velocity(kind, x0, scale, tc, x, vo, dt, dtn)
+            assert vn == prescribed_velocity_np(kind, *arr(x0, scale, tc, x, vo, dt, dtn))[0]
+            for last in (False, True):
+                got = laws.prescribed_step(last, vn, vo, pa, dtn)
+                want = prescribed_step_np(np.array([last]), *arr(vn, vo, pa, dtn))
+                assert got == (want[0][0], want[1][0])
+        landed = x + dt * laws.prescribed_velocity(PM_CODES["displacement"], x0, scale, tc, x, vo, dt, dtn)
+        assert abs(landed - (x0 + scale * tc)) <= 1e-12 * (1.0 + abs(x0 + scale * tc) + abs(x) / dt * dt)
+        assert laws.prescribed_velocity(PM_CODES["velocity"], x0, scale, tc, x, vo, dt, dtn) == scale * tc
+
+
+def test_stop_test_law_equals_its_twin() -> None:
+    """``stop_test`` against the reference's twin on random sums (a quarter of them at the thresholds
+    exactly, both sides of ``<=``), with and without ``opening``."""
+    rng = np.random.default_rng(RNG_SEED + 9)
+    for _ in range(300):
+        kef, psum, scale, wmax = rng.uniform(0.0, 1.0, 4)
+        fsum, ke = rng.uniform(0.0, 1.0, 2) * np.array([psum, scale + wmax])
+        if rng.random() < 0.25:
+            fsum, ke = kef * psum, kef * (scale + wmax)
+        for opening in (False, True):
+            got = laws.stop_test(kef, fsum, psum, ke, scale, wmax, opening)
+            want = stop_test_np(*(np.array([x]) for x in (kef, fsum, psum, ke, scale, wmax, opening)))[0]
+            assert got == want, (kef, fsum, psum, ke, scale, wmax, opening)
+    assert laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, True) and not laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, False)

@@ -2,10 +2,9 @@
 import numba as nb
 import numpy as np
 from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, INVALID, OK, UNSTABLE
-from crashstudy.kernel.laws import collapsed, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, energy_increment, ext_power, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, time_window, wall_force, wall_hold, wall_impulse, wall_jump, wall_penalty, work_increment, elastoplastic_law, energy_first_half, broken_at
+from crashstudy.kernel.laws import collapsed, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, energy_increment, ext_power, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, time_window, wall_force, wall_hold, wall_impulse, wall_jump, wall_penalty, work_increment, elastoplastic_law, energy_first_half, broken_at, energy_balance, unstable_limit, unstable, stop_test
 
-_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 12, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
-unstable_energy = 1.0
+_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 15, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
 
 
 @nb.njit(nogil=True, error_model="numpy", cache=True)
@@ -109,7 +108,7 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
             ke0 += 0.5 * mass[1, q] * v0[1, 0, q] * v0[1, 0, q]
             ke0 += 0.5 * mass[2, q] * v0[2, 0, q] * v0[2, 0, q]
             Z[792 + w] = ke0
-            Z[528 + w] = unstable_energy * (ke0 + 0.0) + e_floor[q]
+            Z[528 + w] = unstable_limit(ke0, 0.0, e_floor[q])
             if invalid[q] > 0:
                 status[q] = INVALID
                 fail_item[q] = invalid[q]
@@ -185,18 +184,18 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
                 Z[4752 + w] = vn_0 * af + vo_0 * (1.0 - af)
                 Z[3960 + w] = peak(Z[3960 + w], (0.0 + a_0 * a_0) * af)
                 ke = ke if wt > 0.0 else Z[792 + w]
-                bal = abs((((ke + ie_tot) + 0.0) - Z[792 + w]) - 0.0)
+                bal = energy_balance(ke, ie_tot, 0.0, Z[792 + w], 0.0)
                 thr = Z[528 + w]
                 Z[1056 + w] = peak(Z[1056 + w], bal * af)
                 Z[528 + w] = thr
-                nbad += (1 if af > 0.0 else 0) if not (bal <= thr) else 0
+                nbad += (1 if af > 0.0 else 0) if unstable(bal, thr) else 0
                 Z[1320 + w] = ke
                 Z[1584 + w] = ie_tot
             if nbad > 0:
                 for w in range(B):
                     if not fn <= Z[264 + w]:
                         continue
-                    if not (abs((((Z[1320 + w] + Z[1584 + w]) + 0.0) - Z[792 + w]) - 0.0) <= Z[528 + w]):
+                    if unstable(energy_balance(Z[1320 + w], Z[1584 + w], 0.0, Z[792 + w], 0.0), Z[528 + w]):
                         status[vi[w]] = UNSTABLE
                     else:
                         continue

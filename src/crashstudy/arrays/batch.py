@@ -220,7 +220,7 @@ def _steps(topo: Topology, P: np.ndarray, mass: np.ndarray, kpar: np.ndarray, cx
     """(k_max, damping, the step choice) of the variants in ``P``: what :func:`build_batch` and
     :func:`variant_steps` both use."""
     b = topo.blocks
-    kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy)
+    kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy, P[b["rate"]] if "rate" in b else None)
     steps = choose_steps(topo, mass, kmax, damp, P[b["end_time"].start], P[b["time_step"].start], interval,
                          time_curve_spacing(topo, cx), np.ascontiguousarray(P[b["wall_k"]]))  # fmt: skip
     return kmax, damp, steps

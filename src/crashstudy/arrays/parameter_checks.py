@@ -102,7 +102,7 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     for mask, _ in rules:
         bad |= mask.any(axis=0)
     pcx, pcy = curve_points(topo, P)
-    kmax, damp = spring_stiffness_bound(topo, P[b["k"]], pcx, pcy)
+    kmax, damp = spring_stiffness_bound(topo, P[b["k"]], pcx, pcy, P[b["rate"]] if "rate" in b else None)
     steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, pcx), P[b["wall_k"]])
     assert steps.too_many is not None
     over = steps.too_many & ~bad  # a variant that breaks another rule has no meaningful step

@@ -7,7 +7,9 @@ the whole assembly in 1-D and 2-D: for any displacement field ``u``,
 Dampers enter as the nodal damping rate ``gamma_n = 2 C_n / m_n`` (``C_n`` the sum of damping
 coefficients at the node; the same bound as for the stiffness) with the damped limit
 ``dt <= (2 / omega) (sqrt(1 + xi^2) - xi)``, ``xi = gamma / omega`` (``-> 1/gamma`` for a pure damper,
-the limit of the kernel's second-order damper velocity ``v^{n-1/2} + dt/2 a^{n-1}``).
+the limit of the kernel's second-order damper velocity ``v^{n-1/2} + dt/2 a^{n-1}``). A spring whose
+force rises with the elongation rate (``rate_elastic``) is a damper too, ``c = dF/d(rate)``: its
+steepest force change per unit rate between neighbouring curves (:func:`rate_damping`) enters ``C_n``.
 A penalty wall of contact stiffness ``k_w`` is a spring to the ground at each node it holds:
 ``k_w |u_n|^2 = 2 (k_w / 2) |u_n|^2``, so it adds ``k_w / 2`` to ``K_n`` (one mass on a penalty wall:
 ``omega = sqrt(k_w / m)``, the exact bound).
@@ -58,8 +60,37 @@ def curve_max_slope(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, c: int) -> 
     return np.max(np.abs(slopes), axis=0)
 
 
-def spring_stiffness_bound(topo: Topology, k: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(k_max, c) per spring and variant, shape (S, V): steepest usable slope and damping."""
+def curve_values(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, c: int, x: np.ndarray) -> np.ndarray:
+    """Curve ``c`` at points ``x`` (n, V), per variant, linearly extrapolated beyond its end knots."""
+    a, b = int(off[c]), int(off[c + 1])
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        s = np.diff(cy[a:b], axis=0) / np.diff(cx[a:b], axis=0)  # (segments, V)
+        y = cy[a] + s[0] * (x - cx[a])
+        for k in range(1, b - a - 1):  # the ramp sum: each interior knot adds its slope change beyond it
+            y = y + (s[k] - s[k - 1]) * np.maximum(0.0, x - cx[a + k])
+    return y
+
+
+def rate_damping(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, curves: np.ndarray, rates: np.ndarray) -> np.ndarray:
+    """``rate_elastic``'s damping bound per variant: the steepest force change per unit rate,
+    ``max |C_{k+1}(e) - C_k(e)| / (r_{k+1} - r_k)`` over neighbouring curves and the elongations both
+    curves draw (the difference is piecewise linear with its kinks at their knots, so the knots of both
+    give its maximum there). ``curves`` (n,) the spring's curves in rate order, ``rates`` (n, V)."""
+    c_eff = np.zeros(cx.shape[1])
+    for k in range(len(curves) - 1):
+        c0, c1 = int(curves[k]), int(curves[k + 1])
+        x = np.concatenate([cx[int(off[c0]) : int(off[c0 + 1])], cx[int(off[c1]) : int(off[c1 + 1])]])
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a bad curve is refused elsewhere
+            gap = np.max(np.abs(curve_values(cx, cy, off, c1, x) - curve_values(cx, cy, off, c0, x)), axis=0)
+            c_eff = np.maximum(c_eff, gap / (rates[k + 1] - rates[k]))
+    return c_eff
+
+
+def spring_stiffness_bound(
+    topo: Topology, k: np.ndarray, cx: np.ndarray, cy: np.ndarray, rates: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(k_max, c) per spring and variant, shape (S, V): steepest usable slope and damping.
+    ``rates`` (R, V): the rates of the ``rate_elastic`` curves (parameter block ``rate``; None: none)."""
     S = topo.n_springs
     V = k.shape[1] if k.ndim == 2 else cx.shape[1]
     kmax = np.zeros((S, V))
@@ -80,10 +111,13 @@ def spring_stiffness_bound(topo: Topology, k: np.ndarray, cx: np.ndarray, cy: np
             kmax[s] = np.maximum(curve_max_slope(cx, cy, off, c0), curve_max_slope(cx, cy, off, c1))
         elif rule == "curve_slope_or_stiffness":  # crush: its curve or its unloading stiffness
             kmax[s] = np.maximum(curve_max_slope(cx, cy, off, c0), k[s])
-        elif rule == "rate_curve_slopes":  # rate_elastic: the steepest slope of any of its curves
+        elif rule == "rate_curves":  # rate_elastic: a spring (any curve's steepest slope) and a damper
             ro = topo.rate_offsets if topo.rate_offsets is not None else np.zeros(S + 1, dtype=np.int64)
-            for c in topo.rate_curves[int(ro[s]) : int(ro[s + 1])]:
+            mine = topo.rate_curves[int(ro[s]) : int(ro[s + 1])]
+            for c in mine:
                 kmax[s] = np.maximum(kmax[s], curve_max_slope(cx, cy, off, int(c)))
+            if len(mine) > 1 and rates is not None:  # c = dF/d(rate) between the curves
+                damp[s] = rate_damping(cx, cy, off, mine, rates[int(ro[s]) : int(ro[s + 1])])
     return kmax, damp
 
 

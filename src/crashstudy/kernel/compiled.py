@@ -37,10 +37,7 @@ from crashstudy.vocabulary.codes import (
     LINEAR,
     NONLINEAR,
     NONLINEAR_DAMPER,
-    PM_ACCELERATION,
-    PM_DISPLACEMENT,
     RATE_ELASTIC,
-    UNSTABLE_ENERGY,
 )
 from crashstudy.vocabulary.materials import DAMPER_MATERIALS, RATE_MATERIALS
 
@@ -353,17 +350,11 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     q = lo + w
                     t = n * dt_b[w]
                     dtn = h * dt_b[w]
-                    if pm_kind[k] == PM_DISPLACEMENT:
-                        target = x0_b[p, d, w] + pm_scale[k, q] * lw.time_curve_at(c, t + dt_b[w], q, cx, cy, cds, cs0, off)
-                        vnew[p, d, w] = (target - x[p, d, w]) / dt_b[w]
-                    elif pm_kind[k] == PM_ACCELERATION:
-                        vnew[p, d, w] = v[p, d, w] + dtn * pm_scale[k, q] * lw.time_curve_at(c, t, q, cx, cy, cds, cs0, off)
-                    else:
-                        vnew[p, d, w] = pm_scale[k, q] * lw.time_curve_at(c, t + 0.5 * dt_b[w], q, cx, cy, cds, cs0, off)
-                    if n != nst[w]:
-                        pm_acc[k, w] = (vnew[p, d, w] - v[p, d, w]) / dtn
-                    else:  # the last step's update would look past end_time: continue with the previous acceleration
-                        vnew[p, d, w] = v[p, d, w] + dtn * pm_acc[k, w]
+                    kind = pm_kind[k]
+                    tc = lw.time_curve_at(c, lw.prescribed_time(kind, t, dt_b[w]), q, cx, cy, cds, cs0, off)
+                    vn = lw.prescribed_velocity(kind, x0_b[p, d, w], pm_scale[k, q], tc, x[p, d, w], v[p, d, w], dt_b[w],
+                                                dtn)  # fmt: skip
+                    vnew[p, d, w], pm_acc[k, w] = lw.prescribed_step(n == nst[w], vn, v[p, d, w], pm_acc[k, w], dtn)
                     acc[p, d, w] = pm_acc[k, w]
                     ftot = f[p, d, w] + fext[p, d, w]
                     fext[p, d, w] += m_b[p, w] * acc[p, d, w] - ftot
@@ -396,10 +387,10 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             nbad = 0
             for w in range(B):
                 wmax[w] = max(wmax[w], abs(work[w]))
-                b_ = abs(ke[w] + ie_tot[w] + (wall_e[w] if n > 0 else 0.0) - e_init[0, w] - work[w])  # t = 0: before impacts
+                b_ = lw.energy_balance(ke[w], ie_tot[w], wall_e[w] if n > 0 else 0.0, e_init[0, w], work[w])  # t = 0: before impacts
                 bal[w] = b_
                 err[w] = lw.peak(err[w], b_ * actf[w])
-                nbad += act[w] & ~(b_ <= UNSTABLE_ENERGY * (e_init[1, w] + wmax[w]) + e_floor[lo + w])
+                nbad += act[w] & lw.unstable(b_, lw.unstable_limit(e_init[1, w], wmax[w], e_floor[lo + w]))
             anybad = nbad > 0
             # peak |a|: the square is tracked (sqrt is monotonic, so the peak is the same number)
             for n_ in range(N):
@@ -449,10 +440,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     for s in range(S):
                         fsum += abs(forces[s, w])
                         psum += pf[s, w]
-                    small_f = fsum <= ke_fraction[q] * psum
-                    small_ke = ke[w] <= ke_fraction[q] * (e_init[1, w] + wmax[w])
                     opening = edot_min[w] >= 0.0 and no_ext
-                    if small_f and (small_ke or opening):
+                    if lw.stop_test(ke_fraction[q], fsum, psum, ke[w], e_init[1, w], wmax[w], opening):
                         nst[w] = n
                         n_end = n
             if n == n_end:

@@ -6,228 +6,211 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel.gen_shape import _lsum
+from crashstudy.kernel.gen_shape import Layout, _lsum
 from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
-from crashstudy.vocabulary.codes import (
-    GENERAL,
-    PM_ACCELERATION,
-    PM_DISPLACEMENT,
-)
+from crashstudy.vocabulary.codes import GENERAL, PM_CODES
+
+PM_NAMES = {code: f"PM_{name.upper()}" for name, code in PM_CODES.items()}  # as the generated module imports them
 
 
-def pass_b(g: Any, ind: str) -> None:
-    D, R, S, W, emit, ext, hist, live, loads, mat, static, term, walls = g.D, g.R, g.S, g.W, g.emit, g.ext, g.hist, g.live, g.loads, g.mat, g.static, g.term, g.walls  # fmt: skip
-    emit(f"{ind}nbad = 0")
-    emit(f"{ind}nhit = 0")
-    emit(f"{ind}nstop = 0")
-    emit(f"{ind}for w in range(B):")
+def pass_b(g: Layout, ind: str) -> None:
+    g.emit(f"{ind}nbad = 0")
+    g.emit(f"{ind}nhit = 0")
+    g.emit(f"{ind}nstop = 0")
+    g.emit(f"{ind}for w in range(B):")
     i2 = ind + "    "
-    emit(f"{i2}af = 1.0 if fn <= {R['lim']} else 0.0")
-    emit(f"{i2}afw = af * wt  # no absorbed work in step 0 (adds an exact 0)")
-    emit(f"{i2}dtw = {R['dt']}")
-    for k, (_, c) in enumerate(loads):  # load scales: time curves at t = n dt (0 outside the curve)
+    g.emit(f"{i2}af = 1.0 if fn <= {g.R['lim']} else 0.0")
+    g.emit(f"{i2}afw = af * wt  # no absorbed work in step 0 (adds an exact 0)")
+    g.emit(f"{i2}dtw = {g.R['dt']}")
+    for k, (_, c) in enumerate(g.loads):  # load scales: time curves at t = n dt (0 outside the curve)
         if c < 0:
-            emit(f"{i2}sc{k} = 1.0")
+            g.emit(f"{i2}sc{k} = 1.0")
             continue
         time_curve(g, i2, f"sc{k}", c, "fn * dtw")
-    if D > 1:
-        emit(f"{i2}{R['crushed']} = -1.0")
+    if g.D > 1:
+        g.emit(f"{i2}{g.R['crushed']} = -1.0")
     pass_b_springs(g, i2)
     # nodal forces in the reference scatter's order, then the central-difference update
-    emit(f"{i2}ke = 0.0")
-    if ext:
-        emit(f"{i2}bal = 0.0")
-    for wl in range(W):
-        emit(f"{i2}wf{wl} = 0.0")
-    for n in live:
+    g.emit(f"{i2}ke = 0.0")
+    if g.ext:
+        g.emit(f"{i2}bal = 0.0")
+    for wl in range(g.W):
+        g.emit(f"{i2}wf{wl} = 0.0")
+    for n in g.live:
         node(g, i2, n)
-    if W:  # wall work in the reference's order (wall by wall, node by node), running variants only
-        emit(f"{i2}wall_e = {R['wall_e']}")
-        for wl in range(W):  # the penalty walls' stored energy first (as the reference)
-            for n in walls[wl]:
-                if not static[n]:
-                    emit(f"{i2}wall_e = wall_e + pe{wl}_{n} if af > 0.0 else wall_e")
-        for wl in range(W):
-            for n in walls[wl]:
-                if not static[n]:
-                    emit(f"{i2}wall_e = wall_e + we{wl}_{n} if af > 0.0 else wall_e")
-            emit(f"{i2}{R[f'pw{wl}']} = peak({R[f'pw{wl}']}, wf{wl} * af)")
-            if "wall_force" in hist:
-                emit(f"{i2}{R[f'wf{wl}']} = wf{wl}")
-        emit(f"{i2}{R['wall_e']} = wall_e")
-    emit(f"{i2}ke = ke if wt > 0.0 else {R['ke0']}")
-    if ext:
-        emit(f"{i2}work = work_increment({R['work']}, bal, dtw, afw)")
-        emit(f"{i2}{R['work']} = work")
-        emit(f"{i2}wmax = peak({R['wmax']}, abs(work))")
-        emit(f"{i2}{R['wmax']} = wmax")
-        emit(f"{i2}bal = abs((((ke + ie_tot) + {'(wall_e if n > 0 else 0.0)' if W else '0.0'}) - {R[g.E0]}) - work)")
-        emit(f"{i2}thr = unstable_energy * ({R[g.ES]} + wmax) + {R['efl']}")
+    if g.W:  # wall work in the reference's order (wall by wall, node by node), running variants only
+        g.emit(f"{i2}wall_e = {g.R['wall_e']}")
+        for wl in range(g.W):  # the penalty walls' stored energy first (as the reference)
+            for n in g.walls[wl]:
+                if not g.static[n]:
+                    g.emit(f"{i2}wall_e = wall_e + pe{wl}_{n} if af > 0.0 else wall_e")
+        for wl in range(g.W):
+            for n in g.walls[wl]:
+                if not g.static[n]:
+                    g.emit(f"{i2}wall_e = wall_e + we{wl}_{n} if af > 0.0 else wall_e")
+            g.emit(f"{i2}{g.R[f'pw{wl}']} = peak({g.R[f'pw{wl}']}, wf{wl} * af)")
+            if "wall_force" in g.hist:
+                g.emit(f"{i2}{g.R[f'wf{wl}']} = wf{wl}")
+        g.emit(f"{i2}{g.R['wall_e']} = wall_e")
+    g.emit(f"{i2}ke = ke if wt > 0.0 else {g.R['ke0']}")
+    wall = "(wall_e if n > 0 else 0.0)" if g.W else "0.0"  # t = 0: before any impact
+    if g.ext:
+        g.emit(f"{i2}work = work_increment({g.R['work']}, bal, dtw, afw)")
+        g.emit(f"{i2}{g.R['work']} = work")
+        g.emit(f"{i2}wmax = peak({g.R['wmax']}, abs(work))")
+        g.emit(f"{i2}{g.R['wmax']} = wmax")
+        g.emit(f"{i2}bal = energy_balance(ke, ie_tot, {wall}, {g.R[g.E0]}, work)")
+        g.emit(f"{i2}thr = unstable_limit({g.R[g.ES]}, wmax, {g.R['efl']})")
     else:
-        emit(f"{i2}bal = abs((((ke + ie_tot) + {'(wall_e if n > 0 else 0.0)' if W else '0.0'}) - {R[g.E0]}) - 0.0)")
-        emit(f"{i2}thr = {R['thr']}")
-    emit(f"{i2}{R['err']} = peak({R['err']}, bal * af)")
-    emit(f"{i2}{R['thr']} = thr")
-    bad = "not (bal <= thr)"
-    if D > 1:
-        bad = f"({bad} or {R['crushed']} >= 0.0)"
-    emit(f"{i2}nbad += (1 if af > 0.0 else 0) if {bad} else 0")
-    emit(f"{i2}{R['ken']} = ke")
-    emit(f"{i2}{R['ien']} = ie_tot")
-    if term:  # early termination (docs/format.md): decided for running lanes after the failure check
-        emit(f"{i2}edmin = np.inf")
-        for s in range(S):
-            emit(f"{i2}edmin = least(edmin, {R[f'ed{s}'] if mat[s] == GENERAL else edot(g, s)})")
-        emit(f"{i2}fsum = {_lsum([f'abs(F{s})' for s in range(S)])}")
-        emit(f"{i2}psum = {_lsum([R[f'pf{s}'] for s in range(S)])}")
-        emit(f"{i2}kef = {R['kef']}")
-        emit(f"{i2}small_f = fsum <= kef * psum")
-        emit(f"{i2}small_ke = ke <= kef * ({R[g.ES]} + {R['wmax'] if ext else '0.0'})")
-        emit(f"{i2}opening = " + ("False" if ext else "edmin >= 0.0"))
-        emit(f"{i2}stop = (wt > 0.0) & (kef > 0.0) & (not (fn * dtw < {R['tmin']})) & small_f & (small_ke | opening)")
-        emit(f"{i2}{R['stop']} = 1.0 if stop else 0.0")
-        emit(f"{i2}nstop += 1 if stop else 0")
+        g.emit(f"{i2}bal = energy_balance(ke, ie_tot, {wall}, {g.R[g.E0]}, 0.0)")
+        g.emit(f"{i2}thr = {g.R['thr']}")
+    g.emit(f"{i2}{g.R['err']} = peak({g.R['err']}, bal * af)")
+    g.emit(f"{i2}{g.R['thr']} = thr")
+    bad = "unstable(bal, thr)"
+    if g.D > 1:
+        bad = f"({bad} or {g.R['crushed']} >= 0.0)"
+    g.emit(f"{i2}nbad += (1 if af > 0.0 else 0) if {bad} else 0")
+    g.emit(f"{i2}{g.R['ken']} = ke")
+    g.emit(f"{i2}{g.R['ien']} = ie_tot")
+    if g.term:  # early termination (docs/format.md): decided for running lanes after the failure check
+        g.emit(f"{i2}edmin = np.inf")
+        for s in range(g.S):
+            g.emit(f"{i2}edmin = least(edmin, {g.R[f'ed{s}'] if g.mat[s] == GENERAL else edot(g, s)})")
+        g.emit(f"{i2}fsum = {_lsum([f'abs(F{s})' for s in range(g.S)])}")
+        g.emit(f"{i2}psum = {_lsum([g.R[f'pf{s}'] for s in range(g.S)])}")
+        g.emit(f"{i2}kef = {g.R['kef']}")
+        g.emit(f"{i2}opening = " + ("False" if g.ext else "edmin >= 0.0"))
+        test = f"stop_test(kef, fsum, psum, ke, {g.R[g.ES]}, {g.R['wmax'] if g.ext else '0.0'}, opening)"
+        g.emit(f"{i2}stop = (wt > 0.0) & (kef > 0.0) & (not (fn * dtw < {g.R['tmin']})) & {test}")
+        g.emit(f"{i2}{g.R['stop']} = 1.0 if stop else 0.0")
+        g.emit(f"{i2}nstop += 1 if stop else 0")
 
 
-
-def _chain(g: Any, n: int, d: int, force: Any, axis: Any) -> str:
+def _chain(g: Layout, n: int, d: int, force: Any, axis: Any) -> str:
     """Nodal force on dof (n, d) in the reference scatter's order: f[i] += F ax, f[j] -= F ax."""
-    D, R, S, si, sign, sj, term = g.D, g.R, g.S, g.si, g.sign, g.sj, g.term  # fmt: skip
     out = "0.0"
-    for s in range(S):
-        for side, op in ((si[s], "+"), (sj[s], "-")):
+    for s in range(g.S):
+        for side, op in ((g.si[s], "+"), (g.sj[s], "-")):
             if side != n:
                 continue
             term = force(s)
-            if D > 1:
+            if g.D > 1:
                 out = f"({out} {op} {term} * {axis(s, d)})"
-            elif sign[s] == 0:
-                out = f"({out} {op} {term} * {R[f'sg{s}']})"
+            elif g.sign[s] == 0:
+                out = f"({out} {op} {term} * {g.R[f'sg{s}']})"
             else:  # a - b == a + (-b): the sign folds into the operator exactly
-                out = f"({out} {op if sign[s] == 1 else ('-' if op == '+' else '+')} {term})"
+                out = f"({out} {op if g.sign[s] == 1 else ('-' if op == '+' else '+')} {term})"
     return out
 
 
-
-def emit_results(g: Any, ind: str) -> None:
+def emit_results(g: Layout, ind: str) -> None:
     """Write lane w's summaries to its variant's columns (the lane's variant has ended)."""
-    N, R, S, W, emit, ext, movable, static = g.N, g.R, g.S, g.W, g.emit, g.ext, g.movable, g.static  # fmt: skip
-    emit(f"{ind}q = vi[w]")
-    wm = R["wmax"] if ext else "0.0"
-    emit(f"{ind}energy_error[q] = {R['err']} / max({R[g.ES]} + {wm}, 1e-300)")
-    emit(f"{ind}if status[q] == OK:")
-    emit(f"{ind}    t_end[q] = int({R['lim']}) * {R['dt']}")
-    emit(f"{ind}elif n_fail[w] > 0:")
-    emit(f"{ind}    t_end[q] = (n_fail[w] - 1) * {R['dt']}")
-    for s in range(S):
-        emit(f"{ind}absorbed[{s}, q] = {R[f'ie{s}']}")
-        emit(f"{ind}peak_force[{s}, q] = {R[f'pf{s}']}")
-        emit(f"{ind}max_crush[{s}, q] = {R[f'mc{s}']}")
-        emit(f"{ind}max_elongation[{s}, q] = {R[f'me{s}']}")
-    for n in range(N):
-        emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if static[n] or not movable[n] else f"np.sqrt({R[f'pa{n}']})"))
-    for wl in range(W):
-        emit(f"{ind}peak_wall[{wl}, q] = {R[f'pw{wl}']}")
-        emit(f"{ind}w_impulse[{wl}, q] = {R[f'wi{wl}']}")
+    g.emit(f"{ind}q = vi[w]")
+    wm = g.R["wmax"] if g.ext else "0.0"
+    g.emit(f"{ind}energy_error[q] = {g.R['err']} / max({g.R[g.ES]} + {wm}, 1e-300)")
+    g.emit(f"{ind}if status[q] == OK:")
+    g.emit(f"{ind}    t_end[q] = int({g.R['lim']}) * {g.R['dt']}")
+    g.emit(f"{ind}elif n_fail[w] > 0:")
+    g.emit(f"{ind}    t_end[q] = (n_fail[w] - 1) * {g.R['dt']}")
+    for s in range(g.S):
+        g.emit(f"{ind}absorbed[{s}, q] = {g.R[f'ie{s}']}")
+        g.emit(f"{ind}peak_force[{s}, q] = {g.R[f'pf{s}']}")
+        g.emit(f"{ind}max_crush[{s}, q] = {g.R[f'mc{s}']}")
+        g.emit(f"{ind}max_elongation[{s}, q] = {g.R[f'me{s}']}")
+    for n in range(g.N):
+        g.emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if g.static[n] or not g.movable[n] else f"np.sqrt({g.R[f'pa{n}']})"))
+    for wl in range(g.W):
+        g.emit(f"{ind}peak_wall[{wl}, q] = {g.R[f'pw{wl}']}")
+        g.emit(f"{ind}w_impulse[{wl}, q] = {g.R[f'wi{wl}']}")
 
 
-
-def node(g: Any, i2: str, n: int) -> None:
+def node(g: Layout, i2: str, n: int) -> None:
     """Node n's forces (the reference scatter's order), a^n, v^{n+1/2}, prescribed motion, external
     work, walls, kinetic energy, x^{n+1} and peak |a|."""
-    D, R, W, emit, grav, keep_a, loaded, loads, movable, pm, walls = g.D, g.R, g.W, g.emit, g.grav, g.keep_a, g.loaded, g.loads, g.movable, g.pm, g.walls  # fmt: skip
-    held = [wl for wl in range(W) if n in walls[wl]]
+    held = [wl for wl in range(g.W) if n in g.walls[wl]]
     for wl in held:  # penalty walls: force k pen of x^n, stored energy (0 for a rigid wall)
-        gap = _lsum([f"({R[f'x{n}_{d}']} - {R[f'wp{wl}_{d}']}) * {R[f'wn{wl}_{d}']}" for d in range(D)])
-        emit(f"{i2}fp{wl}, ep = wall_penalty({R[f'wk{wl}']}, {gap})")
-        emit(f"{i2}wf{wl} = wf{wl} + fp{wl}")
-        emit(f"{i2}pe{wl}_{n} = ep - {R[f'pen{wl}_{n}']}")
-        emit(f"{i2}{R[f'pen{wl}_{n}']} = ep")
-    for d in range(D):
+        gap = _lsum([f"({g.R[f'x{n}_{d}']} - {g.R[f'wp{wl}_{d}']}) * {g.R[f'wn{wl}_{d}']}" for d in range(g.D)])
+        g.emit(f"{i2}fp{wl}, ep = wall_penalty({g.R[f'wk{wl}']}, {gap})")
+        g.emit(f"{i2}wf{wl} = wf{wl} + fp{wl}")
+        g.emit(f"{i2}pe{wl}_{n} = ep - {g.R[f'pen{wl}_{n}']}")
+        g.emit(f"{i2}{g.R[f'pen{wl}_{n}']} = ep")
+    for d in range(g.D):
         chain = _chain(g, n, d, lambda s: f"F{s}", lambda s, d: f"ax{s}_{d}")
         for wl in held:
-            chain = f"({chain} + fp{wl} * {R[f'wn{wl}_{d}']})"
-        fext = f"{R[f'm{n}']} * {R[f'g{d}']}" if grav else "0.0"
-        if n in loaded:  # gravity, then the loads on this node in load order
-            for k, (p, _) in enumerate(loads):
+            chain = f"({chain} + fp{wl} * {g.R[f'wn{wl}_{d}']})"
+        fext = f"{g.R[f'm{n}']} * {g.R[f'g{d}']}" if g.grav else "0.0"
+        if n in g.loaded:  # gravity, then the loads on this node in load order
+            for k, (p, _) in enumerate(g.loads):
                 if p == n:
-                    fext = f"({fext} + {R[f'lf{k}_{d}']} * sc{k})"
-            emit(f"{i2}fx_{d} = {fext}")
+                    fext = f"({fext} + {g.R[f'lf{k}_{d}']} * sc{k})"
+            g.emit(f"{i2}fx_{d} = {fext}")
             fext = f"fx_{d}"
-        emit(f"{i2}fs = {chain}")
-        emit(f"{i2}a = (fs + {fext}) * {R[f'im{n}_{d}']}")
-        emit(f"{i2}vo_{d} = {R[f'v{n}_{d}']}")
-        emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * a")
-        for k, (p, dd, kind, c) in enumerate(pm):  # prescribed motion of this dof, in order
+        g.emit(f"{i2}fs = {chain}")
+        g.emit(f"{i2}a = (fs + {fext}) * {g.R[f'im{n}_{d}']}")
+        g.emit(f"{i2}vo_{d} = {g.R[f'v{n}_{d}']}")
+        g.emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * a")
+        for k, (p, dd, kind, c) in enumerate(g.pm):  # prescribed motion of this dof, in order
             if (p, dd) != (n, d):
                 continue
-            sc = R[f"pms{k}"]
-            if kind == PM_DISPLACEMENT:
-                time_curve(g, i2, "tc", c, "fn * dtw + dtw")
-                emit(f"{i2}vn_{d} = (({R[f'x0{n}_{d}']} + {sc} * tc) - {R[f'x{n}_{d}']}) / dtw")
-            elif kind == PM_ACCELERATION:
-                time_curve(g, i2, "tc", c, "fn * dtw")
-                emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * {sc} * tc")
-            else:
-                time_curve(g, i2, "tc", c, "fn * dtw + 0.5 * dtw")
-                emit(f"{i2}vn_{d} = {sc} * tc")
-            pa = R[f"pma{k}"]
-            emit(f"{i2}last = fn == {R['nst']}  # the last step continues with the previous acceleration")
-            emit(f"{i2}{pa} = {pa} if last else (vn_{d} - vo_{d}) / (h * dtw)")
-            emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * {pa} if last else vn_{d}")
-            emit(f"{i2}a = {pa}")
-            emit(f"{i2}fx_{d} = fx_{d} + ({R[f'm{n}']} * a - (fs + fx_{d}))")
-        emit(f"{i2}a_{d} = a")
+            sc = g.R[f"pms{k}"]
+            kn = PM_NAMES[kind]
+            time_curve(g, i2, "tc", c, f"prescribed_time({kn}, fn * dtw, dtw)")
+            x0, x = g.R[f"x0{n}_{d}"], g.R[f"x{n}_{d}"]
+            g.emit(f"{i2}vn_{d} = prescribed_velocity({kn}, {x0}, {sc}, tc, {x}, vo_{d}, dtw, h * dtw)")
+            pa = g.R[f"pma{k}"]
+            g.emit(f"{i2}vn_{d}, a = prescribed_step(fn == {g.R['nst']}, vn_{d}, vo_{d}, {pa}, h * dtw)")
+            g.emit(f"{i2}{pa} = a")
+            g.emit(f"{i2}fx_{d} = fx_{d} + ({g.R[f'm{n}']} * a - (fs + fx_{d}))")
+        g.emit(f"{i2}a_{d} = a")
         if n in g.record:  # kept for the per-step record (crash criteria), written after the failure check
-            emit(f"{i2}{R[f'am{n}_{d}']} = a")
-        if n in loaded:  # external work: trapezoid with the previous step's force (R fx)
-            emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
-            emit(f"{i2}bal = ext_power(bal, fx_{d}, vo_{d}, {R[f'fx{n}_{d}']}, vb)")
-            emit(f"{i2}{R[f'fx{n}_{d}']} = fx_{d}")
-        elif grav:  # external work of gravity: trapezoid, f_ext^0 over the first half step
-            emit(f"{i2}vb = 0.5 * ({R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
-            emit(f"{i2}bal = ext_power(bal, ({fext}), vo_{d}, ({fext}) * wt, vb)")
-        if n in keep_a:  # a^{n-1}: dampers' velocity estimate, knot crossings (R ao)
-            emit(f"{i2}{R[f'ao{n}_{d}']} = {R[f'a{n}_{d}']}")
-            emit(f"{i2}{R[f'a{n}_{d}']} = a")
+            g.emit(f"{i2}{g.R[f'am{n}_{d}']} = a")
+        if n in g.loaded:  # external work: trapezoid with the previous step's force (R fx)
+            g.emit(f"{i2}vb = 0.5 * ({g.R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
+            g.emit(f"{i2}bal = ext_power(bal, fx_{d}, vo_{d}, {g.R[f'fx{n}_{d}']}, vb)")
+            g.emit(f"{i2}{g.R[f'fx{n}_{d}']} = fx_{d}")
+        elif g.grav:  # external work of gravity: trapezoid, f_ext^0 over the first half step
+            g.emit(f"{i2}vb = 0.5 * ({g.R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
+            g.emit(f"{i2}bal = ext_power(bal, ({fext}), vo_{d}, ({fext}) * wt, vb)")
+        if n in g.keep_a:  # a^{n-1}: dampers' velocity estimate, knot crossings (R ao)
+            g.emit(f"{i2}{g.R[f'ao{n}_{d}']} = {g.R[f'a{n}_{d}']}")
+            g.emit(f"{i2}{g.R[f'a{n}_{d}']} = a")
     for wl in held:  # rigid walls, in wall order
         wall(g, i2, n, wl)
-    for d in range(D if held else 0):  # a^n with the walls' contact forces (held: 0)
-        if n in keep_a:
-            emit(f"{i2}{R[f'a{n}_{d}']} = a_{d}")
+    for d in range(g.D if held else 0):  # a^n with the walls' contact forces (held: 0)
+        if n in g.keep_a:
+            g.emit(f"{i2}{g.R[f'a{n}_{d}']} = a_{d}")
         if n in g.record:
-            emit(f"{i2}{R[f'am{n}_{d}']} = a_{d}")
+            g.emit(f"{i2}{g.R[f'am{n}_{d}']} = a_{d}")
         if "acceleration" in g.hist:
-            emit(f"{i2}{R[f'wa{n}_{d}']} = a_{d}")
-    for d in range(D):
-        x, v = R[f"x{n}_{d}"], R[f"v{n}_{d}"]
-        emit(f"{i2}ke = ke + 0.5 * {R[f'm{n}']} * vo_{d} * vn_{d}")
-        emit(f"{i2}{x} = {x} + (dtw * af) * vn_{d}")
-        emit(f"{i2}{v} = vn_{d} * af + vo_{d} * (1.0 - af)")
-    if movable[n]:
-        a2 = _lsum([f"a_{d} * a_{d}" for d in range(D)])
-        emit(f"{i2}{R[f'pa{n}']} = peak({R[f'pa{n}']}, {a2} * af)")
+            g.emit(f"{i2}{g.R[f'wa{n}_{d}']} = a_{d}")
+    for d in range(g.D):
+        x, v = g.R[f"x{n}_{d}"], g.R[f"v{n}_{d}"]
+        g.emit(f"{i2}ke = ke + 0.5 * {g.R[f'm{n}']} * vo_{d} * vn_{d}")
+        g.emit(f"{i2}{x} = {x} + (dtw * af) * vn_{d}")
+        g.emit(f"{i2}{v} = vn_{d} * af + vo_{d} * (1.0 - af)")
+    if g.movable[n]:
+        a2 = _lsum([f"a_{d} * a_{d}" for d in range(g.D)])
+        g.emit(f"{i2}{g.R[f'pa{n}']} = peak({g.R[f'pa{n}']}, {a2} * af)")
 
 
-def wall(g: Any, i2: str, n: int, wl: int) -> None:
+def wall(g: Layout, i2: str, n: int, wl: int) -> None:
     """Rigid wall wl on node n: land on the plane, no velocity into it."""
-    D, R, emit, free = g.D, g.R, g.emit, g.free  # fmt: skip
-    nr = [R[f"wn{wl}_{d}"] for d in range(D)]
-    pt = [R[f"wp{wl}_{d}"] for d in range(D)]
-    xw = [R[f"x{n}_{d}"] for d in range(D)]
-    emit(f"{i2}wv = {_lsum([f'vn_{d} * {nr[d]}' for d in range(D)])}")
-    emit(f"{i2}gap = {_lsum([f'({xw[d]} - {pt[d]}) * {nr[d]}' for d in range(D)])}")
-    emit(f"{i2}dist = {_lsum([f'(({xw[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]}' for d in range(D)])}")
-    emit(f"{i2}dvn = wall_jump(wv, gap, dist, dtw, {R[f'wk{wl}']})")
-    emit(f"{i2}c = wall_hold(dvn, {_lsum([f'a_{d} * {nr[d]}' for d in range(D)])}, h * dtw)")
-    emit(f"{i2}we = 0.0")
-    for d in range(D):
-        jp = R[f"jp{wl}_{n}_{d}"]
-        emit(f"{i2}jmp = dvn * {nr[d]} * {float(free[n][d])!r}")
-        emit(f"{i2}vn_{d} = vn_{d} + jmp")
-        emit(f"{i2}a_{d} = a_{d} + c * {nr[d]} * {float(free[n][d])!r}")
-        emit(f"{i2}we = we + vo_{d} * (jmp + {jp})")
-        emit(f"{i2}{jp} = jmp")
-    emit(f"{i2}we{wl}_{n} = -0.5 * {R[f'm{n}']} * we")
-    emit(f"{i2}wf{wl} = wf{wl} + wall_force({R[f'm{n}']}, c)")
-    emit(f"{i2}{R[f'wi{wl}']} = {R[f'wi{wl}']} + wall_impulse({R[f'm{n}']}, dvn, c, h * dtw) * af")
+    nr = [g.R[f"wn{wl}_{d}"] for d in range(g.D)]
+    pt = [g.R[f"wp{wl}_{d}"] for d in range(g.D)]
+    xw = [g.R[f"x{n}_{d}"] for d in range(g.D)]
+    g.emit(f"{i2}wv = {_lsum([f'vn_{d} * {nr[d]}' for d in range(g.D)])}")
+    g.emit(f"{i2}gap = {_lsum([f'({xw[d]} - {pt[d]}) * {nr[d]}' for d in range(g.D)])}")
+    g.emit(f"{i2}dist = {_lsum([f'(({xw[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]}' for d in range(g.D)])}")
+    g.emit(f"{i2}dvn = wall_jump(wv, gap, dist, dtw, {g.R[f'wk{wl}']})")
+    g.emit(f"{i2}c = wall_hold(dvn, {_lsum([f'a_{d} * {nr[d]}' for d in range(g.D)])}, h * dtw)")
+    g.emit(f"{i2}we = 0.0")
+    for d in range(g.D):
+        jp = g.R[f"jp{wl}_{n}_{d}"]
+        g.emit(f"{i2}jmp = dvn * {nr[d]} * {float(g.free[n][d])!r}")
+        g.emit(f"{i2}vn_{d} = vn_{d} + jmp")
+        g.emit(f"{i2}a_{d} = a_{d} + c * {nr[d]} * {float(g.free[n][d])!r}")
+        g.emit(f"{i2}we = we + vo_{d} * (jmp + {jp})")
+        g.emit(f"{i2}{jp} = jmp")
+    g.emit(f"{i2}we{wl}_{n} = -0.5 * {g.R[f'm{n}']} * we")
+    g.emit(f"{i2}wf{wl} = wf{wl} + wall_force({g.R[f'm{n}']}, c)")
+    g.emit(f"{i2}{g.R[f'wi{wl}']} = {g.R[f'wi{wl}']} + wall_impulse({g.R[f'm{n}']}, dvn, c, h * dtw) * af")

@@ -4,7 +4,8 @@ histories kept) and the layout every emitter shares (:func:`layout`: rows of the
 
 from __future__ import annotations
 
-from types import SimpleNamespace
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -21,7 +22,7 @@ from crashstudy.vocabulary.materials import KNOT_MATERIALS, RATE_MATERIALS, spec
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-GEN_VERSION = 12  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 15  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = environment.gen_block()  # variants per block (CRASHSTUDY_GEN_BLOCK)
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 
@@ -163,7 +164,60 @@ def _lsum(terms: list[str]) -> str:
     """Source of ``0.0 + t0 + t1 + ...`` added left to right, as the reference's accumulating loops."""
     return "(" * len(terms) + "0.0" + "".join(f" + {t})" for t in terms)
 
-def layout(shape: dict[str, Any]) -> Any:
+@dataclass(frozen=True)
+class Layout:
+    """What the emitters (gen_source, gen_springs, gen_nodes) share for one shape: its topology, the rows
+    of the work array ``R``, the source lines ``L`` (``emit`` appends one), the curve emitters ``co`` and
+    ``ramp``. Built by :func:`layout`; lists are indexed by node ``n``, spring ``s``, wall ``wl``, curve ``c``."""
+
+    N: int  # nodes
+    S: int  # springs
+    D: int  # dimensions
+    W: int  # walls
+    si: list[int]  # spring end nodes
+    sj: list[int]
+    mat: list[int]  # material codes
+    ca: list[int]  # curve_a / curve_b of each spring (-1: none)
+    cb: list[int]
+    off: list[int]  # curve c's knots are off[c]:off[c + 1]
+    static: list[bool]  # a node that never moves (no free direction, no velocity, not driven)
+    movable: list[bool]
+    hist: list[str]  # histories kept, in HISTORY_ORDER
+    const: list[int]  # curves whose points are constants of the source
+    fac: list[int]  # curves that are a constant shape times per-lane factors
+    sign: list[int]  # 1-D: each spring's axis sign when all lanes share it (0: per lane)
+    grav: bool
+    term: bool  # early termination
+    walls: list[list[int]]  # the nodes each wall holds
+    free: list[list[float]]  # (N, D) 1.0 where the dof moves under forces
+    loads: list[list[int]]  # [node, time curve (-1: constant)]
+    pm: list[list[int]]  # prescribed motion: [node, direction, kind, curve]
+    ext: bool  # external work to book
+    tcurves: list[int]  # time curves (loads, prescribed motion)
+    loaded: set[int]  # nodes whose external force changes in time
+    general: list[int]  # general_nonlinear springs
+    fragile: list[int]  # springs that can break
+    pre: list[int]  # preloaded springs
+    E0: str  # the row of the energy at t = 0
+    ES: str  # the row of the energy scale
+    kcheck: set[int]  # knots that can hold a peak of |force|
+    knots: dict[int, list[int]]  # those knots per spring following that curve
+    knotted: list[int]
+    keep_a: set[int]  # nodes whose a^{n-1} is kept
+    R: _Rows
+    live: list[int]  # nodes that are not static
+    rc: list[list[int]]  # rate_elastic: each spring's curves, in rate order
+    ro: list[int]  # where they start in Batch.rate_at
+    curves: list[int]  # every curve the source evaluates
+    cname: dict[str, str]  # coefficient -> local constant
+    record: list[int]  # nodes whose a^n is kept at every step
+    co: Callable[[str], str]
+    ramp: Callable[[int, str], str]
+    L: list[str]
+    emit: Callable[[str], None]
+
+
+def layout(shape: dict[str, Any]) -> Layout:
     """Everything the emitters share for ``shape``: its numbers, the rows of the work array ``R``, the
     source lines ``L`` (``emit`` appends one) and the curve emitters ``co``/``ramp``."""
     N, S, D = shape["N"], shape["S"], shape["D"]
@@ -325,4 +379,8 @@ def layout(shape: dict[str, Any]) -> Any:
 
     L: list[str] = []
     emit = L.append
-    return SimpleNamespace(**{k: v for k, v in locals().items() if k != "shape"})
+    return Layout(
+        N, S, D, W, si, sj, mat, ca, cb, off, static, movable, hist, const, fac, sign, grav, term, walls, free, loads,
+        pm, ext, tcurves, loaded, general, fragile, pre, E0, ES, kcheck, knots, knotted, keep_a, R, live, rc, ro,
+        curves, cname, record, co, ramp, L, emit,
+    )

@@ -19,6 +19,8 @@ from crashstudy.kernel.laws import (
     knot_step,
     nonlinear_window,
     peak,
+    unstable,
+    unstable_limit,
 )
 from crashstudy.vocabulary.codes import (
     CRUSH,
@@ -29,7 +31,6 @@ from crashstudy.vocabulary.codes import (
     NSTATE,
     PM_DISPLACEMENT,
     UNSTABLE,
-    UNSTABLE_ENERGY,
 )
 from crashstudy.vocabulary.materials import KNOT_MATERIALS, STATE_MATERIALS
 
@@ -401,7 +402,7 @@ def fail_lanes(n, lo, B, D, act, actf, bal, e_scale, wmax, e_floor, crushed, st_
     for w in range(B):
         if not act[w]:
             continue
-        if not (bal[w] <= UNSTABLE_ENERGY * (e_scale[w] + wmax[w]) + e_floor[lo + w]):
+        if unstable(bal[w], unstable_limit(e_scale[w], wmax[w], e_floor[lo + w])):
             st_ok[w] = UNSTABLE
         elif D > 1 and crushed[w] >= 0:
             st_ok[w] = CRUSHED_TO_ZERO

@@ -21,7 +21,13 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from crashstudy.vocabulary.codes import TIME_EPS, TINY_LENGTH
+from crashstudy.vocabulary.codes import (
+    PM_ACCELERATION,
+    PM_DISPLACEMENT,
+    TIME_EPS,
+    TINY_LENGTH,
+    UNSTABLE_ENERGY,
+)
 
 _jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 # per-step laws of the generic kernel that LLVM did not inline as well (time curves: arrays in;
@@ -293,6 +299,64 @@ def ext_power(bal, fx, v, fxp, vb):  # pragma: no cover - compiled
 @_jit
 def work_increment(work, bal, dt, af):  # pragma: no cover - compiled
     return work + (bal * dt) * af
+
+
+@_jit
+def prescribed_time(kind, t, dt):  # pragma: no cover - compiled
+    """When the step from ``t`` reads a prescribed motion's curve: a displacement at the step's end
+    ``t + dt``, an acceleration at ``t``, a velocity at the half step ``t + dt/2`` (docs/solver.md)."""
+    if kind == PM_DISPLACEMENT:
+        return t + dt
+    if kind == PM_ACCELERATION:
+        return t
+    return t + 0.5 * dt
+
+
+@_jit
+def prescribed_velocity(kind, x0, scale, tc, x, vo, dt, dtn):  # pragma: no cover - compiled
+    """``v^{n+1/2}`` of a driven dof from its curve's value ``tc`` (times ``scale``): the velocity that
+    lands it on ``x0 + scale tc``, the velocity ``vo`` plus ``dtn`` times the acceleration, or the velocity."""
+    if kind == PM_DISPLACEMENT:
+        return ((x0 + scale * tc) - x) / dt
+    if kind == PM_ACCELERATION:
+        return vo + dtn * scale * tc
+    return scale * tc
+
+
+@_jit
+def prescribed_step(last, vn, vo, pa, dtn):  # pragma: no cover - compiled
+    """(``v^{n+1/2}``, ``a^n``) of a driven dof; the last step (whose update would read the curve past
+    end_time) continues with the previous acceleration ``pa``."""
+    if last:
+        return vo + dtn * pa, pa
+    return vn, (vn - vo) / dtn
+
+
+@_jit
+def stop_test(kef, fsum, psum, ke, scale, wmax, opening):  # pragma: no cover - compiled
+    """Early termination (docs/format.md, ``termination``): the sum of |spring force| has fallen to
+    ``kef`` (kinetic_energy_fraction) of the sum of the peaks, and the kinetic energy to ``kef`` of the
+    energy scale (KE0 + |IE0| + max |W_ext|) or every spring is opening (``opening``)."""
+    return (fsum <= kef * psum) & ((ke <= kef * (scale + wmax)) | opening)
+
+
+@_jit
+def energy_balance(ke, ie, wall, e_init, work):  # pragma: no cover - compiled
+    """The energy balance error of one variant, ``|KE + IE + E_wall - E^0 - W_ext|`` (docs/solver.md)."""
+    return abs((((ke + ie) + wall) - e_init) - work)
+
+
+@_jit
+def unstable_limit(scale, wmax, floor):  # pragma: no cover - compiled
+    """The largest energy balance error of a stable run: ``UNSTABLE_ENERGY`` times the energy scale
+    (KE0 + |IE0|) plus the largest |external work| so far, plus the variant's round-off floor."""
+    return UNSTABLE_ENERGY * (scale + wmax) + floor
+
+
+@_jit
+def unstable(bal, limit):  # pragma: no cover - compiled
+    """The run is unstable: its energy balance error is above the limit, or not a number."""
+    return not (bal <= limit)
 
 
 @_jit

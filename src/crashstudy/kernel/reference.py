@@ -207,16 +207,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
 
         for k in range(len(b.pm_node)):
             p, d, c = b.pm_node[k], b.pm_dir[k], b.pm_curve[k]
-            if b.pm_kind[k] == PM_DISPLACEMENT:
-                target = b.x0[p, d] + b.pm_scale[k] * mat.time_curve_eval(c, t + dt, *cargs)
-                vnew[p, d] = (target - x[p, d]) / dt
-            elif b.pm_kind[k] == PM_ACCELERATION:
-                vnew[p, d] = v[p, d] + dtn * b.pm_scale[k] * mat.time_curve_eval(c, t, *cargs)
-            else:
-                vnew[p, d] = b.pm_scale[k] * mat.time_curve_eval(c, t + 0.5 * dt, *cargs)
-            # the last step's update would look past end_time: continue with the previous acceleration
-            vnew[p, d] = np.where(n == nst, v[p, d] + dtn * a_prev[p, d], vnew[p, d])
-            a[p, d] = np.where(n == nst, a_prev[p, d], (vnew[p, d] - v[p, d]) / dtn)
+            tc = mat.time_curve_eval(c, prescribed_time_np(b.pm_kind[k], t, dt), *cargs)
+            vn = prescribed_velocity_np(b.pm_kind[k], b.x0[p, d], b.pm_scale[k], tc, x[p, d], v[p, d], dt, dtn)
+            vnew[p, d], a[p, d] = prescribed_step_np(n == nst, vn, v[p, d], a_prev[p, d], dtn)
             fext[p, d] += m[p] * a[p, d] - ftot[p, d]
 
         for w in range(W):
@@ -252,7 +245,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         # the t = 0 balance is the state before any impact: an impulse of the first step is counted from
         # step 1 on, where v^{1/2} after it is in the kinetic energy (wall_e itself keeps the reference's sum)
         wall_now = wall_e if n > 0 else np.zeros_like(wall_e)
-        bal = np.abs(ke + ie_tot + wall_now - e_init - work)
+        bal = energy_balance_np(ke, ie_tot, wall_now, e_init, work)
         err = np.where(act, np.maximum(err, bal), err)
         amag = np.sqrt(np.sum(a * a, axis=1))
         out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
@@ -273,7 +266,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                                                     out.peak_acceleration[p])  # fmt: skip
         out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
 
-        bad = act & (~np.isfinite(bal) | (bal > UNSTABLE_ENERGY * (e_scale + wmax) + b.energy_floor))
+        bad = act & unstable_np(bal, unstable_limit_np(e_scale, wmax, b.energy_floor))
         out.status[:] = np.where(bad, UNSTABLE, out.status)
         gone = act & ~bad & (crushed >= 0)
         out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)
@@ -291,10 +284,10 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         out.t_end[:] = np.where(ok, t, out.t_end)
         last = ok & (n == nst)
         if b.ke_fraction.any():
-            small_f = np.sum(np.abs(forces), axis=0) <= b.ke_fraction * np.sum(out.peak_force, axis=0)
-            small_ke = ke <= b.ke_fraction * (e_scale + wmax)
             opening = (edot_min >= 0.0) & no_ext
-            stop = ok & (b.ke_fraction > 0) & (t >= b.min_time) & small_f & (small_ke | opening) & (n > 0)
+            small = stop_test_np(b.ke_fraction, np.sum(np.abs(forces), axis=0), np.sum(out.peak_force, axis=0), ke,
+                                 e_scale, wmax, opening)  # fmt: skip
+            stop = ok & (b.ke_fraction > 0) & (t >= b.min_time) & small & (n > 0)
             nst = np.where(stop, n, nst)
             last |= stop
         out.final_energy[:, last] = np.stack([ke, ie_tot, work, wall_e])[:, last]
@@ -317,6 +310,52 @@ def spring_knotted(b: Batch) -> np.ndarray:
         if b.material[s] in KNOT_MATERIALS and c >= 0:
             out[s] = bool(np.any(b.knot_check[int(b.curve_off[c]) + 1 : int(b.curve_off[c + 1]) - 1]))
     return out
+
+
+def prescribed_time_np(kind: int, t: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """The time a prescribed motion's curve is read for the step from t (the twin of ``laws.prescribed_time``)."""
+    return t + dt if kind == PM_DISPLACEMENT else t if kind == PM_ACCELERATION else t + 0.5 * dt
+
+
+def prescribed_velocity_np(kind: int, x0: np.ndarray, scale: np.ndarray, tc: np.ndarray, x: np.ndarray,
+                           v: np.ndarray, dt: np.ndarray, dtn: np.ndarray) -> np.ndarray:  # fmt: skip
+    """v^{n+1/2} of a driven dof (the twin of ``laws.prescribed_velocity``)."""
+    if kind == PM_DISPLACEMENT:
+        return (x0 + scale * tc - x) / dt
+    if kind == PM_ACCELERATION:
+        return v + dtn * scale * tc
+    return scale * tc
+
+
+def prescribed_step_np(last: np.ndarray | bool, vn: np.ndarray, vo: np.ndarray, pa: np.ndarray, dtn: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """(v^{n+1/2}, a^n); the last step continues with ``pa`` (the twin of ``laws.prescribed_step``)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(last, vo + dtn * pa, vn), np.where(last, pa, (vn - vo) / dtn)
+
+
+def stop_test_np(kef: np.ndarray, fsum: np.ndarray, psum: np.ndarray, ke: np.ndarray, scale: np.ndarray,
+                 wmax: np.ndarray, opening: np.ndarray) -> np.ndarray:  # fmt: skip
+    """Early termination's force and energy test (the twin of ``laws.stop_test``)."""
+    small_f = fsum <= kef * psum
+    small_ke = ke <= kef * (scale + wmax)
+    return small_f & (small_ke | opening)
+
+
+def energy_balance_np(ke: np.ndarray, ie: np.ndarray, wall: np.ndarray, e_init: np.ndarray, work: np.ndarray
+                      ) -> np.ndarray:  # fmt: skip
+    """|KE + IE + E_wall - E^0 - W_ext| per variant (the twin of ``laws.energy_balance``)."""
+    return np.abs(ke + ie + wall - e_init - work)
+
+
+def unstable_limit_np(scale: np.ndarray, wmax: np.ndarray, floor: np.ndarray) -> np.ndarray:
+    """The largest balance error of a stable run (the twin of ``laws.unstable_limit``)."""
+    return UNSTABLE_ENERGY * (scale + wmax) + floor
+
+
+def unstable_np(bal: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Balance error above the limit or not a number (the twin of ``laws.unstable``)."""
+    return ~np.isfinite(bal) | (bal > limit)
 
 
 def wall_hold_np(dvn: np.ndarray, an: np.ndarray, dtn: np.ndarray) -> np.ndarray:

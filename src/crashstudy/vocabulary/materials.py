@@ -24,9 +24,10 @@ SlotRule = Literal["> 0", ">= 0", "< 0", "below k"]
 CurveRule = Literal["signed", "increasing", "non_decreasing", "compression_part"]
 #: how a monotonic path from 0 to initial_elongation can bend (kernel.preload)
 KinkRule = Literal["none", "curve_knots", "crush_knots", "elastic_limit"]
-#: what bounds the stable step: its k (force/length) or its damping (force*time/length)
+#: what bounds the stable step: its k (force/length) and/or its damping (force*time/length); rate_curves:
+#: the steepest slope of its curves as k and the steepest force change per unit rate between them as c
 StepRule = Literal[
-    "stiffness", "damping", "curve_slope", "curve_damping", "curve_slopes", "curve_slope_or_stiffness", "rate_curve_slopes"
+    "stiffness", "damping", "curve_slope", "curve_damping", "curve_slopes", "curve_slope_or_stiffness", "rate_curves"
 ]
 #: which window of the loading path can pass a knot peak (kernel.laws ``*_window``); None: no knot peaks
 KnotRule = Literal["nonlinear", "crush", "general"] | None
@@ -120,7 +121,7 @@ MATERIALS: tuple[MaterialSpec, ...] = (
         None, True, "none", "curve_damping", (), "F{s} = C(edot)", "materials.curve_eval", reads_rate=True,
     ),
     MaterialSpec(  # curve_a is its first (rate-0) curve: a preload loads along it
-        "rate_elastic", codes.RATE_ELASTIC, "RateElastic", (), (), 0, None, False, "curve_knots", "rate_curve_slopes",
+        "rate_elastic", codes.RATE_ELASTIC, "RateElastic", (), (), 0, None, False, "curve_knots", "rate_curves",
         ("rate_segment",), "F{s} = rate_segment(F{s}, abs(edot), r_k, r_k+1, C_k(e{s}), C_k+1(e{s})) per k",
         "materials.rate_elastic", reads_rate=True, rate_curves="curves", curve_ends=(True, True),
     ),
