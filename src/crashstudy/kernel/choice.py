@@ -299,6 +299,8 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     chunks = -(-n_variants // REF_CHUNK)
     t_ref = reference_seconds(chunks * float(np.max(b.n_steps, initial=0)), S, work)
     t_generic = work / GENERIC_RATE + LOAD
+    if t_ref < min(background_min_seconds(), BACKGROUND_MIN):
+        return None  # short even on the NumPy reference: nothing is looked at, nothing written
     gen_ok = generated.unsupported(b) is None
     if gen_ok and generated.is_compiled(b, histories, vary, record):
         return None  # the fastest kernel is ready: the generic one is not looked at (nor its module imported)
