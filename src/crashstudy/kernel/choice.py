@@ -299,13 +299,14 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     chunks = -(-n_variants // REF_CHUNK)
     t_ref = reference_seconds(chunks * float(np.max(b.n_steps, initial=0)), S, work)
     t_generic = work / GENERIC_RATE + LOAD
-    if t_ref < min(background_min_seconds(), BACKGROUND_MIN):
+    short = min(background_min_seconds(), BACKGROUND_MIN)  # [s] a run shorter than this compiles nothing
+    if t_ref < short:
         return None  # short even on the NumPy reference: nothing is looked at, nothing written
     gen_ok = generated.unsupported(b) is None
     if gen_ok and generated.is_compiled(b, histories, vary, record):
         return None  # the fastest kernel is ready: the generic one is not looked at (nor its module imported)
     have_generic = generic_ready()
-    if (min(t_ref, t_generic) if have_generic else t_ref) < min(background_min_seconds(), BACKGROUND_MIN):
+    if have_generic and t_generic < short:
         return None
     costs: dict[str, float] = {}
     if not have_generic:
