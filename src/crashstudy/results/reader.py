@@ -142,14 +142,9 @@ class Results:
         return self.summary[columns]
 
     def count_failed(self) -> int:
-        """Variants whose status is not ok, counted batch by batch (bounded memory for any size)."""
-        if self.summary_source != PARQUET:
-            return int((self.summary["status"] != "ok").sum())
-        import pyarrow.compute as pc
-
-        with self.open_file(PARQUET) as fh:
-            return sum(int(pc.sum(pc.not_equal(b.column(0).cast("string"), "ok")).as_py() or 0)
-                       for b in _parquet(fh).iter_batches(columns=["status"]))  # fmt: skip
+        """Variants whose status is not ok, counted block by block (:meth:`summary_batches`: bounded memory
+        for any size)."""
+        return sum(int((b["status"] != "ok").sum()) for b in self.summary_batches(["status"]))
 
     def summary_names(self) -> list[str]:
         """The column names of :attr:`summary` (from the Parquet schema, without reading its rows)."""
