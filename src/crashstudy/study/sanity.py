@@ -52,12 +52,31 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     period = first_period(plan.topology, plan.params(0, 1)[:, 0])
     warnings = dt_warnings + (unit_warnings(m, _first_dt_crit(plan), where, period) if m is not None else [])
     warnings += _speed_axis_warnings(plan, where)
+    warnings += _repeat_warnings(plan, sdoc)
     warnings += plan_warnings(plan)
     if plan.study_file == DICT_STUDY:
         problems = [
             Problem(p.file, None, p.field, p.message) if p.file == DICT_STUDY else p for p in problems
         ]
     return problems, warnings
+
+
+def _repeat_warnings(plan: Plan, sdoc: LoadedYaml | None) -> list[str]:
+    """A matrix axis alone in its dimension that lists a value more than once: the variants of the
+    repeats are copies of others (same model, same results), computed and stored again."""
+    out: list[str] = []
+    for ax in plan.axes:
+        if sum(o.dim == ax.dim for o in plan.axes) > 1:
+            continue  # a zip group: a value repeated there may pair with different values of the others
+        vals, counts = np.unique(ax.values, return_counts=True)
+        if counts.max(initial=1) > 1:
+            twice = ", ".join(f"{v:g} ({c} times)" for v, c in zip(vals, counts, strict=True) if c > 1)
+            copies = plan.n_variants // len(ax.values) * int((counts - 1).sum())
+            loc = _axis_loc(sdoc, ax.path)
+            file, line = (sdoc.file, sdoc.line_of(loc)) if sdoc is not None else (plan.study_file, None)
+            out.append(f"{file}:{line}: {'.'.join(str(p) for p in loc)}: lists {twice}: {copies} of the "
+                       f"{plan.n_variants} variants repeat others (same model, same results)")  # fmt: skip
+    return out
 
 
 def _speed_axis_warnings(plan: Plan, where: str) -> list[str]:
@@ -116,7 +135,15 @@ def _axis_changes_model(plan: Plan, ax: Axis) -> bool:
             apply_axis(P, other.ref, np.repeat(rows[other.dim][at[other.dim], col[other.dim]], k))
             col[other.dim] += 1
     P = P.reshape(P.shape[0], S, k)
-    return bool(np.any(P != P[:, :, :1]))
+    return bool(np.any((P != P[:, :, :1])[~_inert_rows(plan)]))
+
+
+def _inert_rows(plan: Plan) -> np.ndarray:
+    """Parameter rows no equation reads: the mass of a node fixed in every direction (it never moves, and
+    the critical step counts it as infinite, arrays.timestep). An axis setting only these changes nothing."""
+    inert = np.zeros(plan.base.shape[0], dtype=bool)
+    inert[plan.topology.blocks["mass"]] = plan.topology.fixed.all(axis=1)
+    return inert
 
 
 def _axis_loc(sdoc: LoadedYaml | None, path: str) -> tuple[str | int, ...]:
@@ -132,6 +159,8 @@ def _axis_problem(plan: Plan, sdoc: LoadedYaml | None, ax: Axis) -> Problem:
     if ax.ref.op == "speed":
         why = ("the model gives no node an initial_velocity, and impact_velocity rescales each node's initial "
                "velocity to this speed keeping its direction; give the moving nodes an initial_velocity")  # fmt: skip
+    elif ax.ref.slots and all(_inert_rows(plan)[list(ax.ref.slots)]):
+        why = "it sets the mass of a node fixed in every direction, which never moves"
     elif ax.ref.op == "scale":
         why = "it scales values that are all zero"
     else:
