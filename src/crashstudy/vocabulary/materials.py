@@ -22,7 +22,7 @@ from crashstudy.vocabulary import codes
 SlotRule = Literal["> 0", ">= 0", "< 0", "below k"]
 #: what the curve checks require of a curve role, besides passing through the origin
 CurveRule = Literal["signed", "increasing", "non_decreasing", "compression_part"]
-#: how a monotonic path from 0 to initial_elongation can bend (kernel.preload)
+#: how a monotonic path from 0 to initial_elongation can bend (arrays.preload)
 KinkRule = Literal["none", "curve_knots", "crush_knots", "elastic_limit"]
 #: what bounds the stable step: its k (force/length) and/or its damping (force*time/length); rate_curves:
 #: the steepest slope of its curves as k and the steepest force change per unit rate between them as c
