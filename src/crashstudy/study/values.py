@@ -68,13 +68,13 @@ def set_in(data: dict[str, Any], path: tuple[str | int, ...], value: Any) -> str
     return None
 
 
-def _check(topo: Topology, base: np.ndarray, ref: PathRef, values: np.ndarray, interval: float) -> ParameterCheck:
+def parameter_check(topo: Topology, base: np.ndarray, ref: PathRef, values: np.ndarray, interval: float) -> ParameterCheck:
     P = np.repeat(base[:, None], len(values), axis=1)
     apply_axis(P, ref, values)
     return check_parameters(topo, P, interval)
 
 
-def _model_message(data: dict[str, Any], path: str, val: float) -> str:
+def model_message(data: dict[str, Any], path: str, val: float) -> str:
     """The model validation's first message for ``val`` at ``path`` ("" if the model stays valid)."""
     trial = copy.deepcopy(data)
     if set_in(trial, dict_path(trial, path), val):
@@ -108,14 +108,14 @@ def check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, 
     uniq, first = np.unique(arr, return_index=True)
     bad = np.zeros(len(uniq), dtype=bool)
     for lo in range(0, len(uniq), CHECK_BLOCK):
-        bad[lo : lo + CHECK_BLOCK] = _check(topo, base, ref, uniq[lo : lo + CHECK_BLOCK], interval).bad
+        bad[lo : lo + CHECK_BLOCK] = parameter_check(topo, base, ref, uniq[lo : lo + CHECK_BLOCK], interval).bad
     if not bad.any():
         return problems
     shown = np.sort(first[bad])[:MAX_REPORTED]  # the first invalid values in file order
-    check = _check(topo, base, ref, arr[shown], interval)
+    check = parameter_check(topo, base, ref, arr[shown], interval)
     for c, k in enumerate(shown):
         val = float(arr[int(k)])
-        msg = (_model_message(data, path, val) if ref.op == "set" else "") or check.reason(c)
+        msg = (model_message(data, path, val) if ref.op == "set" else "") or check.reason(c)
         problems.append(study_problem(doc, where + (int(k),), f"value {val!r} makes the model invalid: {msg}"))
     if bad.sum() > MAX_REPORTED:
         problems.append(study_problem(doc, where, f"{int(bad.sum()) - MAX_REPORTED} more distinct values of "
