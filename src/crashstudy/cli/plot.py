@@ -103,8 +103,8 @@ def _test_curve(args: argparse.Namespace, ds: object, name: str, groups: list) -
     from crashstudy.exchange.testcurve import read_curve
 
     try:
-        return read_curve(Path(args.test), channel=args.channel, quantity=name,
-                          system=str(ds.attrs.get("units", "SI")))  # type: ignore[attr-defined]  # fmt: skip
+        units = str(ds.attrs.get("units", "SI"))  # type: ignore[attr-defined]
+        return read_curve(Path(args.test), channel=args.channel, quantity=name, system=units)
     except ValueError as exc:
         raise InputError([Problem(str(args.test), None, f"--{getattr(exc, 'field', 'test')}".replace("--path", "--test"),
                                   str(exc))]) from None  # fmt: skip

@@ -64,9 +64,9 @@ def read_boundary(r: DeckReader, model: dict[str, Any], rows: Rows,
                    "(displacement), VID 0 and no BIRTH/DEATH times", c, "DOF")  # fmt: skip
             continue
         r.where = (b, c)
+        scale = float(f["SF"] if f["SF"] is not None else 1.0)  # type: ignore[arg-type]
         motion.append({"node": nid_name[n], "quantity": ("velocity", "acceleration", "displacement")[vad],
-                       "direction": "xy"[dof - 1], "curve": r.curve(f["LCID"], "time", "LCID"),
-                       "scale": float(f["SF"] if f["SF"] is not None else 1.0)})  # type: ignore[arg-type]  # fmt: skip
+                       "direction": "xy"[dof - 1], "curve": r.curve(f["LCID"], "time", "LCID"), "scale": scale})  # fmt: skip
     model["prescribed_motion"] = motion
 
 
@@ -76,8 +76,8 @@ def read_walls(r: DeckReader, model: dict[str, Any], by: dict[str, list[Block]],
     for b in by.get("SET_NODE_LIST", []):
         h = r.fields(b, b.cards[0], "SET_NODE_LIST") if b.cards else None
         if h is not None:
-            sets[int(h["SID"] or 0)] = [int(v) for c in b.cards[1:] if (f := r.fields(b, c, "SET_NODE_LIST_IDS"))  # type: ignore[call-overload]
-                                        for v in f.values() if v]  # fmt: skip
+            ids = [v for c in b.cards[1:] if (f := r.fields(b, c, "SET_NODE_LIST_IDS")) for v in f.values() if v]
+            sets[int(h["SID"] or 0)] = [int(v) for v in ids]  # type: ignore[call-overload]
     known = {w[0]: w[1] for w in meta.get("walls", [])}
     walls: list[dict[str, Any]] = []
     for b in by.get("RIGIDWALL_PLANAR", []) + by.get("RIGIDWALL_PLANAR_ID", []):

@@ -157,8 +157,9 @@ def _nodes(r: DeckReader, rows: Rows, meta: dict[str, Any]
             r.fail(b, "NID is blank" if f["NID"] is None else f"node {f['NID']} is defined twice (also at line "
                    f"{seen[f['NID']].line} of {seen[f['NID']].file})", c, "NID")  # fmt: skip
         seen.setdefault(f["NID"], c)
-    use_meta = len(names) == len(found) and sorted(int(f["NID"]) for _, _, f in found) == list(range(1, len(found) + 1))  # type: ignore[call-overload]
-    nid_name = {int(f["NID"]): (names[int(f["NID"]) - 1] if use_meta else f"n{f['NID']}") for _, _, f in found}  # type: ignore[call-overload]
+    nids = [int(f["NID"]) for _, _, f in found]  # type: ignore[call-overload]
+    use_meta = len(names) == len(found) and sorted(nids) == list(range(1, len(found) + 1))
+    nid_name = {n: (names[n - 1] if use_meta else f"n{f['NID']}") for n, (_, _, f) in zip(nids, found, strict=True)}
     xyz = {int(f["NID"]): [float(f[k] or 0.0) for k in ("X", "Y", "Z")] for _, _, f in found}  # type: ignore[call-overload, arg-type]
     held_dirs: dict[int, set[str]] = {n: set() for n in xyz}  # translations held: *NODE TC (1 x, 2 y, 3 z, 4 xy, 5 yz, 6 zx, 7 all), SPCs
     for b, c, f in found:

@@ -57,7 +57,8 @@ class DeckReader:
             if b is not None:
                 self.fail(b, f"{fld} = {tbid}: no *DEFINE_TABLE with this id in the deck", c, fld)
             return []
-        return [{"rate": rate, "curve": self.curve(lcid, "same", fld)} for rate, lcid in self.tables[int(tbid)]]  # type: ignore[call-overload]
+        rows = self.tables[int(tbid)]  # type: ignore[call-overload]
+        return [{"rate": rate, "curve": self.curve(lcid, "same", fld)} for rate, lcid in rows]
 
     def curve(self, lcid: object, role: str, fld: str) -> str:
         """The model curve id of deck curve ``lcid`` read in the sign convention ``role``."""
