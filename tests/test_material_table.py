@@ -55,7 +55,7 @@ def test_every_row_has_laws_twin_branches_and_a_twin_case(row: MaterialSpec) -> 
     for law in row.laws:
         assert hasattr(laws, law), f"{row.name}: law {law} not in kernel/laws.py"
     module, _, name = row.twin.partition(".")
-    twin_module = {"materials": twins, "reference": reference}[module]
+    twin_module = {"material_laws": twins, "reference": reference}[module]
     assert hasattr(twin_module, name.split(" ")[0]), f"{row.name}: twin {row.twin} not found"
     const = _code_name(row)
     generic = inspect.getsource(compiled)
