@@ -7,9 +7,9 @@ without pyplot (no global state, no GUI backend)::
     plot_force_displacement(ds, springs=None, max_variants=50)
     plot_matrix(summary, metric=None, x=None, y=None)
 
-and :func:`plot_command`, the ``crashstudy plot`` subcommand, which writes them as PNG files. The
-matrix figure lives in :mod:`crashstudy.analysis.plot_matrix`, the command in :mod:`crashstudy.cli.plot`
-and the looks (legends, colours, units) in :mod:`crashstudy.analysis.plot_style`; this module offers them all.
+and the ``crashstudy plot`` subcommand (:func:`crashstudy.cli.plot.plot_command`), which writes them as PNG
+files. The matrix figure lives in :mod:`crashstudy.analysis.plot_matrix` (offered here too) and the looks
+(legends, colours, units) in :mod:`crashstudy.analysis.plot_style`.
 
 Conventions shared by the figures:
 
@@ -314,13 +314,13 @@ def crash_node(ds: xr.Dataset) -> str | None:
     return max(masses, key=lambda n: masses[n]) if masses else None
 
 
-_ELSEWHERE = {"plot_matrix": "analysis.plot_matrix", "default_metric": "analysis.plot_matrix", "metric_columns": "analysis.plot_matrix",
-              "plot_command": "cli.plot"}  # fmt: skip
+_ELSEWHERE = {"plot_matrix": "analysis.plot_matrix", "default_metric": "analysis.plot_matrix",
+              "metric_columns": "analysis.plot_matrix"}  # fmt: skip
 
 
 def __getattr__(name: str) -> object:
-    """``plot_matrix``, ``default_metric``, ``metric_columns`` and ``plot_command``, imported when
-    first asked for (their modules import this one)."""
+    """``plot_matrix``, ``default_metric`` and ``metric_columns``, imported when first asked for (their
+    module imports this one)."""
     if name in _ELSEWHERE:
         import importlib
 
