@@ -4,8 +4,9 @@ cli.explore importing each other).
 
 The truth is the import graph read from the source with ``ast``: every ``import`` and ``from ... import``
 of a module, at module level or deferred inside a function (a deferred import is a dependency too, only a
-later one), except those under ``if TYPE_CHECKING:`` (annotations only) and those inside a module's
-``__getattr__`` (PEP 562: a package's lazy re-export of its public API, as ``crashstudy.open_results``).
+later one), except those under ``if TYPE_CHECKING:`` (annotations only) and those inside a package's
+``__getattr__`` (PEP 562: its lazy re-export of its public API, as ``crashstudy.open_results``; a plain
+module's lazy ``__getattr__`` counts, as ``analysis.plot`` offering ``plot_matrix``).
 A package here is ``crashstudy.<name>`` (a subpackage, or a top-level module such as ``crashstudy.errors``).
 
 There are no exceptions: the graph must have no cycle at module level, nor at package level. The five
@@ -61,7 +62,7 @@ def imports_of(name: str, path: Path, known: Iterable[str]) -> set[str]:
             for child in node.orelse:
                 visit(child)
             return
-        if isinstance(node, ast.FunctionDef) and node.name == "__getattr__":
+        if isinstance(node, ast.FunctionDef) and node.name == "__getattr__" and path.name == "__init__.py":
             return
         if isinstance(node, ast.Import):
             found.update(a.name for a in node.names)
