@@ -22,7 +22,7 @@ EXIT_OK, EXIT_FAILED, EXIT_INVALID, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 # Modules of further commands, one per command family. Each has ``register(sub)``, which adds its sub-parsers and
 # returns ``{command name: handler(args) -> exit code}``; it imports nothing heavy at module level (cold start).
-PLUGGED: tuple[str, ...] = ("crashstudy.cli.results_cmd", "crashstudy.cli.exchange", "crashstudy.cli.report", "crashstudy.cli.correlate")
+PLUGGED: tuple[str, ...] = ("crashstudy.cli.exchange", "crashstudy.cli.report", "crashstudy.cli.correlate")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -71,6 +71,9 @@ def _parser() -> argparse.ArgumentParser:
     sm.add_argument("--exceed", nargs=2, metavar=("COLUMN", "LIMIT"),
                     help="print P(COLUMN > LIMIT) over the variants with its exact 95%% interval (Monte Carlo designs)")
 
+    from crashstudy.cli import results_cmd  # plot and compare, in their place in --help
+
+    COMMANDS.update(results_cmd.register(sub))
     from crashstudy.cli.explore import add_parsers, add_search_parsers
 
     add_parsers(sub)
