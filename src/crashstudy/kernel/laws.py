@@ -13,7 +13,7 @@ every function here does its operations in the same order, so both fast kernels 
 to it (no fastmath).
 
 A new material is one law function here, one dispatch line in each fast kernel
-(the force dispatch of ``compiled._run`` and ``gen_springs.pass_b_springs``) and its NumPy twin in materials.py.
+(the force dispatch of ``compiled._run`` and ``gen_springs.pass_b_springs``) and its NumPy twin in arrays/material_laws.py.
 """
 
 from __future__ import annotations

@@ -100,7 +100,7 @@ def remove_stale_plots(out_dir: Path) -> list[Path]:
     folder = out_dir / "plots"
     if not folder.is_dir() or folder.is_symlink():
         return []
-    from crashstudy.analysis.plot import is_crashstudy_plot
+    from crashstudy.results.plot_tag import is_crashstudy_plot
 
     gone = []
     for png in sorted(folder.glob("*.png")):

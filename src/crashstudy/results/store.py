@@ -45,7 +45,6 @@ from crashstudy.results.tables import (
     PARQUET,
     STATUS_MEANINGS,
     SUMMARY,
-    SUMMARY_META,
     decode_texts,  # fmt: skip
     summary_frame,
     text_tables,
@@ -55,6 +54,7 @@ from crashstudy.results.zarr_file import ZARR_FINAL, ZarrFile, exchange
 from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study.plan import Plan
 from crashstudy.study.provenance import HASH_WORDS, text_hash
+from crashstudy.vocabulary.summary import SUMMARY_META
 
 __all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "ResultWriter", "Results",
            "decode_texts", "open_results", "summary_frame", "write_summary"]  # fmt: skip

@@ -22,6 +22,7 @@ from crashstudy import interrupt
 from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch, variant_steps
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
+from crashstudy.kernel.decision import decide
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
 from crashstudy.results import integrity
 from crashstudy.results.curve_ends import past_curve_ends
@@ -202,7 +203,7 @@ class Progress:
 
 
 def _start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, float | None, Any]:
-    """Carry out :func:`crashstudy.kernel.choice.decide` for this run and say what it compiles.
+    """Carry out :func:`crashstudy.kernel.decision.decide` for this run and say what it compiles.
     Returns (whether chunks should stay small, the run's estimated seconds, what to start after it)."""
     topo = plan.topology
     sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
@@ -214,7 +215,7 @@ def _start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, fl
     start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, rec, companion)
     if start is None:
         return False, None, None
-    do = choice.decide(start, choice.background_min_seconds() < float("inf"))
+    do = decide(start, choice.background_min_seconds() < float("inf"))
     say = (lambda text: print(f"note: {text}", file=notes)) if notes is not None else (lambda text: None)
 
     def what(kinds: tuple[str, ...]) -> str:

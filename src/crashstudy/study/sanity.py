@@ -34,7 +34,8 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     Warnings: a fixed ``dt`` above the critical step of some variants (those fail at run time with the
     reason, the others run), and numbers that contradict the model's ``units``
     (:mod:`crashstudy.schema.plausible`)."""
-    from crashstudy.schema.plausible import first_period, unit_warnings
+    from crashstudy.arrays.vibration import first_period
+    from crashstudy.schema.plausible import unit_warnings
 
     sdoc = loads_yaml(plan.study_text, file=plan.study_file) if plan.study_text else None
     mdoc = loads_yaml(plan.model_text, file=plan.model_file)
