@@ -308,7 +308,7 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
     from crashstudy.arrays.compiler import apply_axis
     from crashstudy.arrays.parameter_checks import check_parameters
     from crashstudy.schema.yamlio import loads_yaml
-    from crashstudy.study.plan import _model_message
+    from crashstudy.study.axes import _model_message
     from helpers import model_plan
 
     plan = model_plan(RICH_MODEL)

@@ -68,7 +68,7 @@ def _unknown_column(col: str, columns: list[str]) -> str:
 
 def _variables(ctx: Context, block: str, variables: dict[str, list[float]]) -> list[Problem]:
     """Each variable: a numeric field of the model, low < high, and both bounds give a valid model."""
-    from crashstudy.study.plan import _check_values, _unknown_path
+    from crashstudy.study.axes import _check_values, _unknown_path
 
     problems: list[Problem] = []
     for path, (lo, hi) in variables.items():
@@ -180,12 +180,12 @@ BLOCKS: dict[str, Callable[[Context], list[Problem]] | str] = {
     "name": "schema (an id)",
     "description": "schema (free text)",
     "model": "plan._model_path and the model's own validation",
-    "matrix": "plan._axes: every distinct value of every axis makes a valid model",
-    "zip": "plan._axes: equal lengths, every distinct value makes a valid model",
-    "design": "plan._axes: the rows' values make a valid model (sizes in closed form)",
+    "matrix": "axes._axes: every distinct value of every axis makes a valid model",
+    "zip": "axes._axes: equal lengths, every distinct value makes a valid model",
+    "design": "axes._axes: the rows' values make a valid model (sizes in closed form)",
     "optimize": check_optimize,
     "calibrate": check_calibrate,
-    "set": "plan._apply_set and the model's validation after it",
+    "set": "overrides._apply_set and the model's validation after it",
     "regression": "schema (tolerances); compare names unknown columns",
 }
 

@@ -15,7 +15,8 @@ from typing import Any
 from crashstudy.errors import InputError, Problem
 from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import load_yaml
-from crashstudy.study.plan import Plan, _apply_set, _dict_path, _set_in
+from crashstudy.study.overrides import _apply_set, _dict_path, _set_in
+from crashstudy.study.plan import Plan
 
 
 def variant_data(plan: Plan, study_file: str, n: int) -> dict[str, Any]:
