@@ -26,7 +26,6 @@ KNOWN = {
     ("crashstudy.schema.plausible", "crashstudy.arrays.timestep"),  # schema <-> arrays (the critical step)
     ("crashstudy.schema.study", "crashstudy.study.design"),  # schema <-> study (design method names)
     ("crashstudy.study.blocks", "crashstudy.results.tables"),  # study <-> results (summary column names)
-    ("crashstudy.study.blocks", "crashstudy.study.plan"),  # blocks <-> plan (axis value checks)
     ("crashstudy.results.outdir", "crashstudy.analysis.plot"),  # results <-> analysis (which PNGs are ours)
 }
 
