@@ -179,12 +179,12 @@ BLOCKS: dict[str, Callable[[Context], list[Problem]] | str] = {
     "name": "schema (an id)",
     "description": "schema (free text)",
     "model": "plan._model_path and the model's own validation",
-    "matrix": "plan._axes: every distinct value of every axis makes a valid model",
-    "zip": "plan._axes: equal lengths, every distinct value makes a valid model",
-    "design": "plan._axes: the rows' values make a valid model (sizes in closed form)",
+    "matrix": "axes._axes: every distinct value of every axis makes a valid model",
+    "zip": "axes._axes: equal lengths, every distinct value makes a valid model",
+    "design": "axes._axes: the rows' values make a valid model (sizes in closed form)",
     "optimize": check_optimize,
     "calibrate": check_calibrate,
-    "set": "plan._apply_set and the model's validation after it",
+    "set": "overrides._apply_set and the model's validation after it",
     "regression": "schema (tolerances); compare names unknown columns",
 }
 

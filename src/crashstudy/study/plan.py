@@ -8,9 +8,7 @@ matrix axes first, then one axis per zip group.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
-import difflib
 import functools
 import math
 import os
@@ -21,7 +19,7 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from crashstudy.arrays.compiler import PathRef, Topology, apply_axis, compile_model
+from crashstudy.arrays.compiler import Topology, apply_axis, compile_model
 from crashstudy.arrays.parameter_checks import check_parameters
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES
@@ -30,23 +28,15 @@ from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import LoadedYaml, load_yaml, loads_yaml, not_regular
-from crashstudy.study.values import MAX_REPORTED, check_values, dict_path, set_in, study_problem, unknown_path
+from crashstudy.study.axes import Axis, _axes
+from crashstudy.study.overrides import _apply_set, _set_problem
+from crashstudy.study.values import study_problem
 from crashstudy.study.work import WORK_ENV, WORK_RATE, estimate_work, format_duration, max_work
 
 DEFAULT_SAMPLES = 1000
 MAX_VARIANTS = 100_000_000  # one results.nc; its axis coordinates alone take 0.8 GB each
 MAX_SAMPLE_BYTES = 256 * 2**20  # history samples of one variant (histories and the kernel's 4 energy records):
 # the runner's HISTORY_BUDGET of a chunk, so that one variant always fits a chunk
-
-
-@dataclass(frozen=True)
-class Axis:
-    """One study axis: a model path, its values and the index of the (matrix or zip) dimension."""
-
-    path: str
-    values: np.ndarray
-    dim: int
-    ref: PathRef
 
 
 @dataclass(frozen=True)
@@ -120,90 +110,6 @@ class Plan:
         for ax, vals in zip(self.axes, self.axis_values_at(idx).values(), strict=True):
             apply_axis(P, ax.ref, np.asarray(vals, dtype=np.float64))
         return P
-
-
-def _unknown_set_keys(overrides: dict[str, Any], sdoc: LoadedYaml) -> list[Problem]:
-    """Keys of ``set`` whose first part is no model field: the first :data:`MAX_REPORTED`, then how many
-    more (checked before the model is copied and validated: 499,000 such keys took 21 s to refuse)."""
-    unknown = [k for k in overrides if k.split(".", 1)[0] not in Model.model_fields]
-    fields = list(Model.model_fields)
-    problems = []
-    for key in unknown[:MAX_REPORTED]:
-        close = difflib.get_close_matches(key.split(".", 1)[0], fields, n=3, cutoff=0.6)
-        hint = f"; closest: {', '.join(close)}" if close else f"; expected one of {', '.join(fields)}"
-        problems.append(study_problem(sdoc, ("set", key), f"unknown model field {key.split('.', 1)[0]!r} (set: "
-                                       f"takes model fields or dotted paths into them){hint}"))  # fmt: skip
-    if len(unknown) > MAX_REPORTED:
-        problems.append(study_problem(sdoc, ("set",), f"and {len(unknown) - MAX_REPORTED:,} more keys under set: "
-                                       "that are not model fields"))  # fmt: skip
-    return problems
-
-
-def _apply_set(data: dict[str, Any], overrides: dict[str, Any], sdoc: LoadedYaml) -> dict[str, Any]:
-    problems = _unknown_set_keys(overrides, sdoc)
-    if problems:
-        raise InputError(problems)
-    data = copy.deepcopy(data)
-    for key, value in overrides.items():
-        if key == "time_step" or key.startswith("time_step."):
-            # a different time-step mode replaces the model's (the modes are exclusive)
-            if key != "time_step":
-                value = {key.split(".", 1)[1]: value}
-            data["time_step"] = value
-            continue
-        if isinstance(value, dict) and key in ("output", "termination") and isinstance(data.get(key), dict):
-            data[key] = {**data[key], **value}
-            continue
-        why = set_in(data, dict_path(data, key), value)
-        if why:
-            problems.append(study_problem(sdoc, ("set", key), why))
-    if problems:
-        raise InputError(problems)
-    return data
-
-
-def _set_problem(sdoc: LoadedYaml, overrides: dict[str, Any], p: Problem) -> Problem:
-    """A problem of the model after ``set``: at the study's ``set`` line, or inside a ``metrics`` list that
-    ``set`` gives (its entry's own line and field path: ``set.metrics.0.node``)."""
-    head = p.field.split(".")[0]
-    if head == "metrics" and "metrics" in overrides:
-        path = ("set", *(int(k) if k.isdigit() else k for k in p.field.split(".")))
-        return study_problem(sdoc, path, f"after 'set' the model is invalid: {p.message}")
-    return study_problem(sdoc, ("set",), f"after 'set' the model is invalid: {p.field}: {p.message}")
-
-
-def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], base: np.ndarray,
-          interval: float) -> tuple[list[Axis], list[int], list[Problem]]:  # fmt: skip
-    groups: list[tuple[tuple[str | int, ...], dict[str, Any]]] = [
-        (("matrix", key), {key: vals}) for key, vals in study.matrix.items()
-    ] + [(("zip", g), grp) for g, grp in enumerate(study.zip)]
-    if study.design is not None:  # its rows: one dimension after matrix and zip, its axes varying together
-        from crashstudy.study.design import rows
-
-        d = study.design
-        groups.append((("design", "axes"), rows(
-            d.method, d.n, d.seed, {path: dist.spec() for path, dist in d.axes.items()})))  # fmt: skip
-    axes: list[Axis] = []
-    shape: list[int] = []
-    problems: list[Problem] = []
-    seen: set[str] = set()
-    for dim, (where, grp) in enumerate(groups):
-        lengths = {len(v) for v in grp.values()}
-        if len(lengths) > 1:
-            problems.append(study_problem(doc, where, f"the axes of a zip group need equal lengths, got {sorted(lengths)}"))
-        shape.append(min(lengths))
-        for path, vals in grp.items():
-            loc = where + (path,) if where[0] in ("zip", "design") else where
-            if path in seen:
-                problems.append(study_problem(doc, loc, f"axis {path!r} appears twice"))
-            seen.add(path)
-            ref = topo.paths.get(path)
-            if ref is None:
-                problems.append(study_problem(doc, loc, unknown_path(path, topo)))
-                continue
-            problems.extend(check_values(doc, loc, data, path, ref, vals, topo, base, interval))
-            axes.append(Axis(path, np.asarray(vals, dtype=np.float64), dim, ref))
-    return axes, shape, problems
 
 
 def _interval(m: Model, end: float) -> float:

@@ -15,7 +15,8 @@ from typing import Any
 from crashstudy.errors import InputError, Problem
 from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import load_yaml
-from crashstudy.study.plan import Plan, _apply_set
+from crashstudy.study.overrides import _apply_set
+from crashstudy.study.plan import Plan
 from crashstudy.study.values import dict_path, set_in
 
 
