@@ -11,7 +11,9 @@ what the run wrote:
 - ``results.nc`` must have the size the manifest records (its variants carry their own checksums);
 - a summary table must have the size and the SHA-256 the manifest records, hashed from the very
   handle that is then parsed: an edited ``summary.parquet``, or one copied beside another run's
-  ``results.nc`` and manifest, is refused (exit 2), never used.
+  ``results.nc`` and manifest, is refused (exit 2), never used. It is hashed once per :class:`Results`
+  (a 10^8-variant summary is ~12 GB): later handles of the same unchanged file (device, inode, size,
+  mtime, ctime; the hashed handle is held open) are not hashed again, any other file is.
 
 A folder written before manifests existed (no run id) is read as before: regular files only.
 """
@@ -57,6 +59,7 @@ class Results:
         self.path = final
         self._ds: xr.Dataset | None = None
         self._raw: xr.Dataset | None = None
+        self._pinned: dict[str, tuple[IO[bytes], tuple[int, ...]]] = {}  # hashed files, held open (_vouched)
 
     def open_file(self, name: str) -> IO[bytes]:
         """The folder's file ``name``, open and checked against the manifest (size; SHA-256 where it
@@ -74,13 +77,30 @@ class Results:
             why = f"{name} is not listed in {MANIFEST}: the run that wrote {FINAL} did not write it"
         elif entry.get("size") != size:
             why = f"{name} has {size} bytes, {MANIFEST} records {entry.get('size')}: {NOT_THE_RUNS}"
-        elif "sha256" in entry and integrity.sha256_of(fh) != entry["sha256"]:
+        elif "sha256" in entry and not self._vouched(name, fh, entry["sha256"]):
             why = f"the SHA-256 of {name} is not the one {MANIFEST} records: {NOT_THE_RUNS}"
         if why:
             fh.close()
             raise InputError([Problem(str(self.dir), None, "", f"{integrity.INCONSISTENT} ({why})")])
         fh.seek(0)
         return fh
+
+    def _vouched(self, name: str, fh: IO[bytes], sha256: str) -> bool:
+        """Whether the open file ``fh`` has the SHA-256 ``sha256``, hashed once per Results object: the first
+        handle whose hash matches stays open (its inode cannot be reused while it is) and its identity is
+        kept; a later handle with the same device, inode, size, mtime and ctime is that same file, unchanged
+        (an edit in place moves ctime, which no user can set back; a file renamed over it has another
+        inode). Anything else is hashed again. A file that changes while it is hashed is refused."""
+        stamp = _identity(fh)
+        pinned = self._pinned.get(name)
+        if pinned is not None and pinned[1] == stamp:
+            return True
+        if integrity.sha256_of(fh) != sha256 or _identity(fh) != stamp:
+            return False
+        if pinned is not None:
+            pinned[0].close()
+        self._pinned[name] = (os.fdopen(os.dup(fh.fileno()), "rb"), stamp)
+        return True
 
     @property
     def dataset(self) -> xr.Dataset:
@@ -220,6 +240,9 @@ class Results:
         return summary_frame(self._raw)
 
     def close(self) -> None:
+        for fh, _ in self._pinned.values():
+            fh.close()
+        self._pinned.clear()
         if self._ds is not None:
             self._ds.close()
             if self._raw is not None:
@@ -228,6 +251,12 @@ class Results:
 
     def __repr__(self) -> str:
         return f"Results({str(self.dir)!r})"
+
+
+def _identity(fh: IO[bytes]) -> tuple[int, ...]:
+    """What tells one file's unchanged contents from another's: device, inode, size, mtime, ctime (ns)."""
+    st = os.fstat(fh.fileno())
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
 
 def _parquet(fh: IO[bytes]) -> Any:
