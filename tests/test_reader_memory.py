@@ -97,3 +97,67 @@ def test_a_summary_changed_after_its_hash_is_still_refused(results: dict[int, Pa
         res.summary_rows()
     assert len(hashes) == 2
     res.close()
+
+
+# --- open_results(...).summary and .dataset of a result too large to hold --------------------------------
+
+
+def test_summary_is_whole_up_to_its_limit_and_refused_beyond_with_the_bounded_readers_named(
+        results: dict[int, Path], monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    import pandas as pd
+
+    from crashstudy.cli.main import main
+    from crashstudy.results import reader
+
+    folder = results[1000]
+    res = open_results(folder)
+    res.summary_limit = 1000
+    pd.testing.assert_frame_equal(res.summary, pd.read_parquet(folder / "summary.parquet"))
+    res.summary_limit = 999
+    with pytest.raises(InputError, match=r"1000 rows, more than the 999 .*\.summary_batches\(columns, rows\)"):
+        _ = res.summary
+    res.summary_limit = None
+    assert len(res.summary) == 1000
+    monkeypatch.setattr(reader, "SUMMARY_ROWS_MAX", 999)  # a command that needs the whole table: exit 2
+    capsys.readouterr()
+    assert main(["report", str(folder), "-o", str(folder.parent / "report.html")]) == 2
+    err = capsys.readouterr().err
+    assert "summary.parquet" in err and ".summary_batches" in err and "Traceback" not in err, err
+
+
+def _opened_peak(folder: Path) -> tuple[int, object]:
+    """Traced peak bytes of opening ``folder``'s dataset (the object is kept open for the caller)."""
+    import tracemalloc
+
+    res = open_results(folder)
+    res.summary_rows()  # the manifest hash: not what is measured
+    tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        _ = res.dataset
+        return tracemalloc.get_traced_memory()[1], res
+    finally:
+        tracemalloc.stop()
+
+
+def test_a_large_dataset_opens_without_reading_its_variables_and_reads_what_the_eager_one_reads(
+        results: dict[int, Path], monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    """Beyond summary_limit variants: every variable along ``variant`` is lazy after opening, the traced
+    peak of opening grows < 1 B per variant (N -> 4N; the eager open decodes the texts whole: >= 24 B),
+    and indexed slices equal the eager dataset's (the independent truth: decode_texts of the whole)."""
+    import numpy as np
+
+    from crashstudy.results import reader
+
+    eager = open_results(results[4000]).dataset
+    monkeypatch.setattr(reader, "SUMMARY_ROWS_MAX", 100, raising=False)
+    peaks = {n: _opened_peak(results[n]) for n in (1000, 4000)}
+    assert peaks[4000][0] - peaks[1000][0] < 3000 * 1 + 64 * 1024, {n: p for n, (p, _) in peaks.items()}
+    lazy = peaks[4000][1].dataset  # type: ignore[attr-defined]
+    along = [n for n, v in lazy.variables.items() if "variant" in v.dims]
+    assert "status" in along and "failure_reason" in along and "peak_force" in along
+    assert not [n for n in along if isinstance(lazy[n].variable._data, np.ndarray)]
+    for name in along:
+        for part in (slice(5, 50), slice(3990, None), [0, 17, 3999]):
+            np.testing.assert_array_equal(lazy[name].isel(variant=part).values,
+                                          eager[name].isel(variant=part).values)  # fmt: skip

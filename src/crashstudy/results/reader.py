@@ -40,6 +40,7 @@ from crashstudy.safefs import PlantedEntryError, open_regular
 __all__ = ["Results", "open_results"]
 NOT_THE_RUNS = "it is not the file that run wrote (changed or copied in since)"
 READ_BLOCK = 65_536  # rows of the summary table a block-wise reader holds at once (a few MiB per column)
+SUMMARY_ROWS_MAX = 4_000_000  # rows :attr:`Results.summary` reads whole (~250 B a row in pandas: ~1 GiB)
 
 
 class Results:
@@ -60,6 +61,7 @@ class Results:
         self._ds: xr.Dataset | None = None
         self._raw: xr.Dataset | None = None
         self._pinned: dict[str, tuple[IO[bytes], tuple[int, ...]]] = {}  # hashed files, held open (_vouched)
+        self.summary_limit: int | None = SUMMARY_ROWS_MAX  #: rows :attr:`summary` reads whole (None: any)
 
     def open_file(self, name: str) -> IO[bytes]:
         """The folder's file ``name``, open and checked against the manifest (size; SHA-256 where it
@@ -104,16 +106,21 @@ class Results:
 
     @property
     def dataset(self) -> xr.Dataset:
-        """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``)."""
+        """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``).
+        Beyond :attr:`summary_limit` variants nothing is read on opening: the text variables are decoded
+        where indexed, and ``variant`` is a dimension without an index (its position is its number)."""
         if self._ds is None:
-            if self.final == FINAL:
-                open_regular(self.path, what=FINAL).close()  # still a regular file (checked on open, too)
-                ds = xr.open_dataset(self.path)
-            else:  # Zarr: lazily, without dask (one array region read per access)
-                ds = _open_zarr(self.path)
+            ds = self.raw_dataset
+            big = self.summary_limit is not None and ds.sizes.get("variant", 0) > self.summary_limit
+            if not big:
+                ds.close()
+                if self.final == FINAL:
+                    ds = xr.open_dataset(self.path)
+                else:  # Zarr: lazily, without dask (one array region read per access)
+                    ds = _open_zarr(self.path)
             axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
             self._raw = ds
-            self._ds = decode_texts(ds).set_coords([a for a in axes if a in ds])
+            self._ds = decode_texts(ds, lazy=big).set_coords([a for a in axes if a in ds])
         return self._ds
 
     @property
@@ -223,9 +230,15 @@ class Results:
     @property
     def summary(self) -> pd.DataFrame:
         """One row per variant: the axis values as columns, then status and summary metrics (from
-        ``summary.parquet``, else ``summary.csv``, else the dataset)."""
+        ``summary.parquet``, else ``summary.csv``, else the dataset), whole in memory: up to
+        :attr:`summary_limit` rows (default :data:`SUMMARY_ROWS_MAX`); a larger summary is refused with
+        an error naming the readers that work in bounded memory (:meth:`summary_batches`,
+        :meth:`summary_columns`); set ``summary_limit = None`` to read it whole anyway."""
         source = self.summary_source
         if source == PARQUET:
+            rows = self.summary_rows()
+            if self.summary_limit is not None and rows > self.summary_limit:
+                raise InputError([Problem(str(self.dir / PARQUET), None, "", too_large(rows, self.summary_limit))])
             with self.open_file(PARQUET) as fh:
                 return pd.read_parquet(fh)
         if source == SUMMARY:
@@ -251,6 +264,15 @@ class Results:
 
     def __repr__(self) -> str:
         return f"Results({str(self.dir)!r})"
+
+
+def too_large(rows: int, limit: int) -> str:
+    """Why :attr:`Results.summary` refuses a summary of ``rows`` rows, and what reads it instead."""
+    return (f"the summary has {rows} rows, more than the {limit} that Results.summary reads whole into one "
+            f"pandas DataFrame (~250 bytes a row): read it in bounded memory with "
+            f".summary_batches(columns, rows) (blocks in variant order), .summary_columns([...]) (only the "
+            f"columns you need), .summary_row(variant) or .column_peak(column); or set "
+            f".summary_limit = None to read it whole anyway")
 
 
 def _identity(fh: IO[bytes]) -> tuple[int, ...]:
