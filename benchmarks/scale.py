@@ -1,8 +1,8 @@
 """Issue 19: the 2-spring study at 10^5, 10^6, ... variants, each store, in-process and on a LocalCluster.
 
 The model is ``benchmarks/matrix.py``'s 2-spring chain (two ``nonlinear_elastic`` springs, 1-D) at the short
-end time (0.0086 s, 86 steps), histories none; the study crosses 100 masses of m1 with n / 100 masses
-of m2. Each cell runs ``crashstudy run`` as a subprocess twice into the same folder (a fresh run, then a
+end time (0.0086 s, 86 steps), histories none; the study crosses a masses of m1 with n / a masses
+of m2 (a = 100, from 10^8 variants n / 10^5: a study file holds at most 10^6 values). Each cell runs ``crashstudy run`` as a subprocess twice into the same folder (a fresh run, then a
 re-run that reuses every variant), while psutil polls the resident set size of the command and of every
 process it started (the Dask scheduler and workers of ``--scheduler local``) every 0.1 s. Recorded: wall
 time, time per variant, the peak RSS of each process (the client's and the largest other's), the bytes
@@ -50,7 +50,7 @@ REPORT = RESULTS / "scale.md"
 def write_study(folder: Path, n: int) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.yaml").write_text(TWO_SPRING.replace("END", "0.0086"))
-    a = 100 if n >= 100 else 1
+    a = max(100, n // 100_000) if n >= 100 else 1  # <= 10^5 listed values an axis (a study lists at most 10^6)
     m2 = [round(float(v), 9) for v in np.linspace(1.0, 3.0, n // a)]
     m1 = [round(float(v), 9) for v in np.linspace(0.5, 2.0, a)]
     study = folder / "study.yaml"
