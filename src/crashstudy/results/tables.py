@@ -30,6 +30,7 @@ PARQUET = "summary.parquet"
 CSV_MAX = 100_000  # variants up to which summary.csv is written by default
 SUMMARY_BLOCK = 200_000  # rows of the summary tables made and written at once (a Parquet row group each)
 STATUS_MEANINGS = ("ok", "failed")  # flag_meanings of ``status`` (value = index)
+TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
 TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
                "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
 SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
@@ -270,3 +271,33 @@ def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
     ds = xr.Dataset(data, coords={"variant": res.index, **{d: list(ids) for d, ids in dims.items() if ids}},
                     attrs={"crashstudy_axes": json.dumps([a.path for a in plan.axes])})  # fmt: skip
     return summary_frame(ds)
+
+
+def stored_table(nc: Any, name: str) -> list[str]:
+    """The distinct texts of ``name`` stored in ``nc`` (empty for files without a table)."""
+    if f"{name}_text" not in nc.variables:
+        return []
+    raw = nc.variables[f"{name}_text"]
+    raw.set_auto_chartostring(False)
+    return [bytes(r).rstrip(b"\0").decode("utf-8", "replace") for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]]
+
+
+def read_texts(nc: Any, name: str, lo: int, hi: int) -> np.ndarray:
+    """Texts of ``status``, ``failure_reason`` or ``dt_control`` of variants ``lo`` .. ``hi - 1`` from an
+    open netCDF file, in either storage (index + table, flags, or the character arrays of 0.1)."""
+    import netCDF4
+
+    v = nc.variables[name]
+    if v.dtype == np.dtype("S1") or v.dtype is str:  # crashstudy 0.1: fixed-width characters
+        return np.asarray(netCDF4.chartostring(np.asarray(v[lo:hi])), dtype=object)
+    codes = np.asarray(v[lo:hi]).astype(np.int64)
+    table = np.array(list(STATUS_MEANINGS) if name == "status" else stored_table(nc, name) or [""], dtype=object)
+    return np.where(codes >= 0, table[np.clip(codes, 0, len(table) - 1)], "")
+
+
+def chars(texts: list[str], width: int) -> np.ndarray:
+    """Strings as a (len, width) 'S1' character array, UTF-8, cut to ``width`` bytes."""
+    import netCDF4
+
+    raw = np.array([t.encode("utf-8")[:width] for t in texts], dtype=f"S{width}")
+    return netCDF4.stringtochar(raw) if len(texts) else np.zeros((0, width), dtype="S1")
