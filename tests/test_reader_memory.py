@@ -161,3 +161,35 @@ def test_a_large_dataset_opens_without_reading_its_variables_and_reads_what_the_
         for part in (slice(5, 50), slice(3990, None), [0, 17, 3999]):
             np.testing.assert_array_equal(lazy[name].isel(variant=part).values,
                                           eager[name].isel(variant=part).values)  # fmt: skip
+
+
+# --- the store's template: the variant numbers written in blocks -----------------------------------------
+
+
+@pytest.mark.parametrize("store_kind", ["netcdf", "zarr"])
+def test_creating_a_store_does_not_hold_every_variant_number(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                             store_kind: str) -> None:  # fmt: skip
+    """The traced peak of creating the result store (template: variant numbers, axis values) grows < 2 B
+    per variant from 2e5 to 8e5 variants, blocks of 4096 (np.arange of the whole study: 8 B per variant,
+    800 MB at 10^8; independent truth: the stored numbers are 0 .. N-1)."""
+    import tracemalloc
+
+    import numpy as np
+
+    from crashstudy.results import store
+
+    monkeypatch.setattr(store, "AXIS_BLOCK", 4096)
+    peaks = {}
+    for n in (200_000, 800_000):
+        plan = load_study(write_study(tmp_path / str(n), n))
+        tracemalloc.start()
+        try:
+            tracemalloc.reset_peak()
+            writer = store.ResultWriter(tmp_path / str(n) / "out", plan, store=store_kind, chunk=65536)
+            peaks[n] = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        numbers = writer.nc.variables["variant"][:]
+        np.testing.assert_array_equal(numbers, np.arange(n))
+        writer.abort()
+    assert peaks[800_000] - peaks[200_000] < 600_000 * 2 + 256 * 1024, peaks

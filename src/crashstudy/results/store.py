@@ -178,7 +178,8 @@ class ResultWriter:
         nc.createDimension("axis", topo.dim)
         nc.createDimension("wall", len(topo.wall_ids))
         var = nc.createVariable("variant", "i8", ("variant",))
-        var[:] = np.arange(V)
+        for lo in range(0, V, AXIS_BLOCK):  # in blocks: np.arange of 10^8 variants alone is 800 MB
+            var[lo : min(lo + AXIS_BLOCK, V)] = np.arange(lo, min(lo + AXIS_BLOCK, V))
         var.units, var.long_name = "1", "variant number (row-major over the study axes)"
         tv = nc.createVariable("time", "f8", ("time",))
         tv[:] = p.times
