@@ -70,6 +70,19 @@ def test_a_results_object_hashes_its_summary_once_however_often_it_reads_it(
     assert len(hashes) == 2
 
 
+def test_a_results_object_dropped_without_close_releases_the_file_it_holds(results: dict[int, Path]) -> None:
+    import gc
+    import warnings
+
+    res = open_results(results[1000])
+    assert res.summary_rows() == 1000  # hashed: its handle held open
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        del res
+        gc.collect()
+    assert not [w for w in seen if issubclass(w.category, ResourceWarning)], [str(w.message) for w in seen]
+
+
 def _edited_copy(folder: Path, dest: Path) -> Path:
     """summary.parquet of ``folder`` with one byte of a stored number flipped (same size)."""
     raw = bytearray((folder / "summary.parquet").read_bytes())

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import weakref
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -61,6 +62,7 @@ class Results:
         self._ds: xr.Dataset | None = None
         self._raw: xr.Dataset | None = None
         self._pinned: dict[str, tuple[IO[bytes], tuple[int, ...]]] = {}  # hashed files, held open (_vouched)
+        weakref.finalize(self, _close_pinned, self._pinned)  # closed with the object if close() is never called
         self.summary_limit: int | None = SUMMARY_ROWS_MAX  #: rows :attr:`summary` reads whole (None: any)
 
     def open_file(self, name: str) -> IO[bytes]:
@@ -253,9 +255,7 @@ class Results:
         return summary_frame(self._raw)
 
     def close(self) -> None:
-        for fh, _ in self._pinned.values():
-            fh.close()
-        self._pinned.clear()
+        _close_pinned(self._pinned)
         if self._ds is not None:
             self._ds.close()
             if self._raw is not None:
@@ -273,6 +273,12 @@ def too_large(rows: int, limit: int) -> str:
             f".summary_batches(columns, rows) (blocks in variant order), .summary_columns([...]) (only the "
             f"columns you need), .summary_row(variant) or .column_peak(column); or set "
             f".summary_limit = None to read it whole anyway")
+
+
+def _close_pinned(pinned: dict[str, tuple[IO[bytes], tuple[int, ...]]]) -> None:
+    for fh, _ in pinned.values():
+        fh.close()
+    pinned.clear()
 
 
 def _identity(fh: IO[bytes]) -> tuple[int, ...]:
