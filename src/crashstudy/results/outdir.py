@@ -20,7 +20,8 @@ from pathlib import Path
 
 from crashstudy.errors import InputError, Problem
 from crashstudy.results.integrity import MANIFEST, final_name, partial_name
-from crashstudy.results.store import FINAL, PARQUET, PARTIAL, SUMMARY, remove_store
+from crashstudy.results.placement import remove_store
+from crashstudy.results.store import FINAL, PARQUET, PARTIAL, SUMMARY
 from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL
 from crashstudy.safefs import PlantedEntryError, clear_entry, open_regular
 
