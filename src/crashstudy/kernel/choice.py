@@ -60,6 +60,8 @@ GENERIC_RATE = 3.5e8  # [element-steps/s] generic kernel, 2 threads
 GENERATED_RATE = 1.0e9  # [element-steps/s] generated kernel, 2 threads
 GENERIC_COMPILE = 24.0  # [s] compiling the generic kernel (once per machine)
 GEN_BASE, GEN_GENERAL, GEN_SPRING, GEN_WALL, GEN_RECORD = 2.0, 3.5, 0.4, 1.0, 1.0  # [s] generated_compile_seconds
+GEN_SPRING2 = 0.045  # [s] per spring squared beyond GEN_SMALL: one unrolled function (compile_springs.md)
+GEN_SMALL = 8  # springs up to which the generated compile grows linearly (compile_costs.md)
 LOAD = 0.3  # [s] loading a compiled kernel from the disk cache (once per process)
 BACKGROUND_MIN = 2.0  # [s] of reference time of a run above which missing kernels compile in the background
 KERNELS = ("reference", "generic", "generated")
@@ -109,10 +111,12 @@ def background_min_seconds() -> float:
 def generated_compile_seconds(material: np.ndarray, n_walls: int, record: bool = False) -> float:
     """Expected seconds to compile one model shape's generated kernel: each ``general_nonlinear``
     spring (its loading/unloading/yield law inlined) costs most. Fit to the cold compiles of
-    benchmarks/results/compile_costs.md (1 spring 2.6-5.5 s, helicopter 8.1 s, frontal 10.3 s)."""
+    benchmarks/results/compile_costs.md (1 spring 2.6-5.5 s, helicopter 8.1 s, frontal 10.3 s), and growing with
+    the square of the springs beyond a few dozen (compile_springs.md: 32 springs ~60 s, 64 ~200 s)."""
     general = int(np.sum(np.asarray(material) == GENERAL))
-    return (GEN_BASE + GEN_GENERAL * general + GEN_SPRING * (len(material) - general) + GEN_WALL * n_walls
-            + GEN_RECORD * bool(record))  # fmt: skip
+    S = len(material)
+    return (GEN_BASE + GEN_GENERAL * general + GEN_SPRING * (S - general) + GEN_SPRING2 * max(S - GEN_SMALL, 0) ** 2
+            + GEN_WALL * n_walls + GEN_RECORD * bool(record))  # fmt: skip
 
 
 def reference_seconds(n_steps: float, n_springs: int, element_steps: float) -> float:
