@@ -11,14 +11,16 @@ the estimate, which is fitted to compile_costs.md's models up to 8 springs, test
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+import yaml
 
 from crashstudy.kernel import choice, generated
 from crashstudy.kernel.gen_shape import MAX_GENERATED_SPRINGS
-from helpers import ROOT, model_batch
+from helpers import ROOT, model_batch, run_cli
 
 
 def chain(n: int) -> dict[str, Any]:
@@ -39,6 +41,19 @@ def test_a_model_above_the_cap_gets_the_generic_kernel_even_when_the_generated_o
     assert why is not None and f"{MAX_GENERATED_SPRINGS + 1} springs" in why and str(MAX_GENERATED_SPRINGS) in why
     assert choice.pick(above, (), None, kernel="generated") == "generic"
     assert choice.pick(at, (), None, kernel="generated") == "generated"
+
+
+def test_a_run_that_names_the_generated_kernel_for_a_large_model_says_which_kernel_runs_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    model = tmp_path / "chain.yaml"
+    model.write_text(yaml.safe_dump({**chain(MAX_GENERATED_SPRINGS + 1), "end_time": 2e-3}))
+    monkeypatch.setenv("CRASHSTUDY_KERNEL", "generated")
+    done = run_cli("simulate", str(model), "-o", str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+    assert (f"note: the generic kernel runs this model, not the generated one: the model has "
+            f"{MAX_GENERATED_SPRINGS + 1} springs") in done.stderr  # fmt: skip
+    assert "status ok" in done.stdout + done.stderr
 
 
 def _measured() -> list[tuple[int, float]]:

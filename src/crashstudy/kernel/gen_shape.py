@@ -40,8 +40,8 @@ def unsupported(b: Batch) -> str | None:
     if knots > MAX_KNOTS:
         return f"a curve has {knots} knots (the generated kernel takes at most {MAX_KNOTS})"
     if len(b.spring_i) > MAX_GENERATED_SPRINGS:
-        return (f"the model has {len(b.spring_i)} springs (a generated kernel is compiled for at most "
-                f"{MAX_GENERATED_SPRINGS}: its compile time and memory grow faster than the springs)")  # fmt: skip
+        return (f"the model has {len(b.spring_i)} springs, and a generated kernel is compiled for at most "
+                f"{MAX_GENERATED_SPRINGS} (its compile time and memory grow faster than the springs)")  # fmt: skip
     return None
 
 

@@ -23,6 +23,13 @@ def start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, flo
     from crashstudy.metrics.warmup import CRITERIA
 
     companion = CRITERIA if rec else None  # the crash criteria compile beside the kernel
+    named = kernel if kernel != "compiled" else choice.kernel_override()
+    if named == "generated" and notes is not None:
+        from crashstudy.kernel import generated
+
+        why = generated.unsupported(sample)
+        if why is not None:
+            print(f"note: the generic kernel runs this model, not the generated one: {why}", file=notes)
     start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, rec, companion)
     if start is None:
         return False, None, None
