@@ -73,10 +73,8 @@ def _repeat_warnings(plan: Plan, sdoc: LoadedYaml | None) -> list[str]:
         if counts.max(initial=1) > 1:
             twice = ", ".join(f"{v:g} ({c} times)" for v, c in zip(vals, counts, strict=True) if c > 1)
             copies = plan.n_variants // len(ax.values) * int((counts - 1).sum())
-            loc = _axis_loc(sdoc, ax.path)
-            file, line = (sdoc.file, sdoc.line_of(loc)) if sdoc is not None else (plan.study_file, None)
-            out.append(f"{file}:{line}: {'.'.join(str(p) for p in loc)}: lists {twice}: {copies} of the "
-                       f"{plan.n_variants} variants repeat others (same model, same results)")  # fmt: skip
+            out.append(_at_axis(plan, sdoc, ax.path, f"lists {twice}: {copies} of the {plan.n_variants} variants "
+                                "repeat others (same model, same results)").format())  # fmt: skip
     return out
 
 
@@ -166,10 +164,15 @@ def _axis_problem(plan: Plan, sdoc: LoadedYaml | None, ax: Axis) -> Problem:
         why = "it scales values that are all zero"
     else:
         why = "the field it sets does not reach the model"
-    loc = _axis_loc(sdoc, ax.path)
+    return _at_axis(plan, sdoc, ax.path, f"axis {ax.path!r} changes nothing: its {n} values all give the same "
+                    f"model ({why})")  # fmt: skip
+
+
+def _at_axis(plan: Plan, sdoc: LoadedYaml | None, path: str, message: str) -> Problem:
+    """``message`` placed at axis ``path``: its line in the study file and its field (matrix or zip)."""
+    loc = _axis_loc(sdoc, path)
     file, line = (sdoc.file, sdoc.line_of(loc)) if sdoc is not None else (plan.study_file, None)
-    return Problem(file, line, ".".join(str(p) for p in loc),
-                   f"axis {ax.path!r} changes nothing: its {n} values all give the same model ({why})")  # fmt: skip
+    return Problem(file, line, ".".join(str(p) for p in loc), message)
 
 
 def _first_dt_crit(plan: Plan) -> float:
