@@ -100,6 +100,11 @@ def kernel_override() -> KernelName:
     return cast(KernelName, environment.kernel())
 
 
+def named_kernel(kernel: KernelName) -> KernelName:
+    """The kernel a run asks for: ``kernel`` when it names one, else ``CRASHSTUDY_KERNEL``'s ("compiled": choose)."""
+    return kernel if kernel != "compiled" else kernel_override()
+
+
 def background_min_seconds() -> float:
     """Reference seconds of a run above which missing kernels compile in the background (inf: never).
 
@@ -167,8 +172,7 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
     it, so another is never picked (not even when named: the criteria are never silently missing)."""
     from crashstudy.kernel import generated
 
-    if kernel == "compiled":
-        kernel = kernel_override()
+    kernel = named_kernel(kernel)
     if record and kernel not in (*RECORDING, "compiled"):
         return "reference"
     if kernel == "generated" and generated.unsupported(b) is not None:
@@ -218,7 +222,7 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     what the run compiles beside its kernel when it is missing (the crash criteria)."""
     from crashstudy.kernel import generated
 
-    if kernel != "compiled" or kernel_override() != "compiled":
+    if named_kernel(kernel) != "compiled":
         return None
     S, (N, D, V) = len(b.spring_i), b.x0.shape
     per_variant = float(np.mean(b.n_steps)) if V else 0.0

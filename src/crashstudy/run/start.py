@@ -23,8 +23,7 @@ def start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, flo
     from crashstudy.metrics.warmup import CRITERIA
 
     companion = CRITERIA if rec else None  # the crash criteria compile beside the kernel
-    named = kernel if kernel != "compiled" else choice.kernel_override()
-    if named == "generated" and notes is not None:
+    if choice.named_kernel(kernel) == "generated" and notes is not None:
         from crashstudy.kernel import generated
 
         why = generated.unsupported(sample)
