@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crashstudy.arrays.compiler import apply_axis
 from crashstudy.errors import InputError, Problem
 
 if TYPE_CHECKING:
@@ -63,7 +62,7 @@ def estimate_work(plan: Plan) -> tuple[float, int, float]:
     total, worst, most = 0.0, 0, -1.0
     for lo in range(0, len(idx), WORK_BLOCK):
         at = idx[lo : lo + WORK_BLOCK]
-        batch, _ = build_batch(plan.topology, _params_at(plan, at), plan.interval)
+        batch, _ = build_batch(plan.topology, plan.params_at(at), plan.interval)
         steps = np.asarray(batch.n_steps, dtype=np.float64)
         total += float(steps.sum())
         k = int(np.argmax(steps))
@@ -82,16 +81,6 @@ def _step_shape(plan: Plan) -> tuple[int, ...]:
         return bool(mine) and all(vel.start <= s < vel.stop for ax in mine for s in ax.ref.slots)
 
     return tuple(1 if velocity_only(d) else n for d, n in enumerate(plan.shape))
-
-
-def _params_at(plan: Plan, idx: np.ndarray) -> np.ndarray:
-    """Parameter matrix (n_params, len(idx)) of the variants numbered ``idx``."""
-    P = np.repeat(plan.base[:, None], len(idx), axis=1)
-    if plan.shape:
-        multi = np.unravel_index(idx, plan.shape)
-        for ax in plan.axes:
-            apply_axis(P, ax.ref, np.asarray(ax.values[multi[ax.dim]], dtype=np.float64))
-    return P
 
 
 def format_duration(seconds: float) -> str:
