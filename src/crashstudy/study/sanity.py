@@ -22,6 +22,7 @@ from crashstudy.schema import validate_model_data
 from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import LoadedYaml, loads_yaml
 from crashstudy.study.plan import DICT_STUDY, Axis, Plan, _apply_set
+from crashstudy.study.work import step_dims
 
 MAX_DT_CHECK = 4_000_000  #: variants whose critical step is checked against a fixed dt (the first ones)
 
@@ -215,9 +216,7 @@ def _dt_refused(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
 
 def _step_dims(plan: Plan) -> tuple[tuple[int, ...], tuple[int, ...]]:
     """(the plan's shape, the dimensions holding an axis that sets anything but initial velocities)."""
-    vel = plan.topology.blocks["velocity"]
-    dims = sorted({ax.dim for ax in plan.axes if any(not vel.start <= s < vel.stop for s in ax.ref.slots)})
-    return tuple(plan.shape), tuple(dims)
+    return tuple(plan.shape), step_dims(plan)
 
 
 def _refused_of(plan: Plan, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

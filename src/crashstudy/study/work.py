@@ -71,16 +71,17 @@ def estimate_work(plan: Plan) -> tuple[float, int, float]:
     return total * max(1, plan.topology.n_springs) * V / len(idx), worst, most
 
 
-def _step_shape(plan: Plan) -> tuple[int, ...]:
-    """The study's shape with each dimension whose axes set initial velocities only (parameter block
-    ``velocity``) reduced to one value."""
+def step_dims(plan: Plan) -> tuple[int, ...]:
+    """The study's dimensions holding an axis that sets anything but initial velocities (parameter block
+    ``velocity``): the only ones that change a variant's time steps (the step choice never reads velocities)."""
     vel = plan.topology.blocks["velocity"]
+    return tuple(sorted({ax.dim for ax in plan.axes if any(not vel.start <= s < vel.stop for s in ax.ref.slots)}))
 
-    def velocity_only(dim: int) -> bool:
-        mine = [ax for ax in plan.axes if ax.dim == dim]
-        return bool(mine) and all(vel.start <= s < vel.stop for ax in mine for s in ax.ref.slots)
 
-    return tuple(1 if velocity_only(d) else n for d, n in enumerate(plan.shape))
+def _step_shape(plan: Plan) -> tuple[int, ...]:
+    """The study's shape with each dimension whose axes set initial velocities only reduced to one value."""
+    dims = step_dims(plan)
+    return tuple(n if d in dims else 1 for d, n in enumerate(plan.shape))
 
 
 def format_duration(seconds: float) -> str:
