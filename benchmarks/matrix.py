@@ -14,7 +14,8 @@ time inside the kernel calls (``kernel.entry.run_batch``) summed separately; "ou
 else per variant (expansion, checks, hashing, set-up, writing). ``cold``: fresh numba and kernel caches
 (the compile is in the time); ``warm``: a second run on the caches of a first one (whose background
 compile was waited for). Then, in the same process, the hand loop (``chain_specialised`` for
-``2spring``, ``frontal_specialised`` for ``frontal``; none for the others) integrates the same variants
+``2spring``, ``frontal_specialised`` for ``frontal``, ``helicopter_specialised`` for ``helicopter``,
+``grid_specialised`` for ``grid``) integrates the same variants
 with crashstudy's steps, timing its kernel only (batches are built outside the timing), and its peak
 forces are checked against crashstudy's (``check``: largest relative difference). ratio = crashstudy end
 to end / loop kernel.
@@ -27,6 +28,7 @@ Writes ``benchmarks/results/matrix.md`` (and ``.csv``) with the cells that ran.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import subprocess
@@ -96,13 +98,13 @@ MODEL_SPECS: dict[str, dict[str, Any]] = {
                           "x_scale": ("curves.rail-loading.x_scale", 0.8, 1.3),
                           "stiffness": ("springs.gearbox-flange.material.stiffness", 1.0e6, 4.0e6),
                           "impact_velocity": ("impact_velocity", 10.0, 20.0)}},
-    "helicopter": {"file": MODELS / "helicopter-subfloor.yaml", "end": (0.15, 0.01), "loop": None,
+    "helicopter": {"file": MODELS / "helicopter-subfloor.yaml", "end": (0.15, 0.01), "loop": "helicopter",
                    "mass": ("nodes.troop_compartment.mass", 250.0, 350.0),
                    "kinds": {"masses": ("nodes.transmission.mass", 80.0, 120.0),
                              "scale": ("curves.underfloor-loading.scale", 0.9, 1.1),
                              "x_scale": ("curves.underfloor-loading.x_scale", 0.9, 1.1),
                              "impact_velocity": ("impact_velocity", 5.0, 8.2)}},
-    "grid": {"text": grid_model(), "end": (0.02, 0.002), "loop": None, "mass": ("nodes.n0_24.mass", 0.4, 0.6),
+    "grid": {"text": grid_model(), "end": (0.02, 0.002), "loop": "grid", "mass": ("nodes.n0_24.mass", 0.4, 0.6),
              "kinds": {"masses": ("nodes.n1_24.mass", 0.4, 0.6), "scale": ("curves.crush.scale", 0.8, 1.2),
                        "stiffness": ("springs.h0_1.material.stiffness", 5.0e4, 2.0e5),
                        "impact_velocity": ("impact_velocity", 3.0, 6.0)}},
@@ -190,6 +192,7 @@ def one(cell: dict[str, Any]) -> dict[str, Any]:
     if spec["loop"] is not None:
         ids = plan.topology.spring_ids
         ours = rep.results.summary[[f"peak_force.{s}" for s in ids]].to_numpy().T
+        ours[:, rep.results.summary["status"].to_numpy() != "ok"] = np.nan  # failed variants stop early: not compared
         row.update(hand_loop(spec["loop"], plan, ours, cell["threads"]))
         row["ratio"] = total / row["loop_s"]
         row["cpu_ratio"] = cpu / max(row["loop_cpu_s"], 1e-9)
@@ -225,6 +228,11 @@ def hand_loop(family: str, plan: Any, ours: np.ndarray, threads: int) -> dict[st
             cs.run(shapes, {k: np.ascontiguousarray(v[..., :256]) for k, v in inp.items()}, threads)  # compile
             t0, c0 = time.perf_counter(), time.process_time()
             pf = cs.run(shapes, inp, threads)["peak_force"]
+        elif family in ("helicopter", "grid"):
+            loop = importlib.import_module(f"{family}_specialised")
+            loop.run_specialised(b.take(np.arange(min(8, hi - lo))), threads)  # compile
+            t0, c0 = time.perf_counter(), time.process_time()
+            pf = loop.run_specialised(b, threads).peak_force
         else:
             import frontal_specialised as fs
 
@@ -237,9 +245,9 @@ def hand_loop(family: str, plan: Any, ours: np.ndarray, threads: int) -> dict[st
         ref = ours[:, lo:hi]
         if family != "chain":  # the frontal loop has no knot-peak search: springs whose curve has one apart
             knot = _knot_springs(b)
-            knots = max(knots, float(np.max(np.abs(pf - ref)[knot] / np.maximum(np.abs(ref[knot]), 1e-300), initial=0.0)))
+            knots = max(knots, float(np.nanmax(np.abs(pf - ref)[knot] / np.maximum(np.abs(ref[knot]), 1e-300), initial=0.0)))
             pf, ref = pf[~knot], ref[~knot]
-        worst = max(worst, float(np.max(np.abs(pf - ref) / np.maximum(np.abs(ref), 1e-300))))
+        worst = max(worst, float(np.nanmax(np.abs(pf - ref) / np.maximum(np.abs(ref), 1e-300), initial=0.0)))
     return {"loop_s": spent, "loop_cpu_s": cpu, "check": worst, "check_knot_springs": knots}
 
 
@@ -346,10 +354,10 @@ def write(rows: list[dict[str, Any]], out: Path, info: dict[str, str]) -> None:
                      f"{by_cpu['variants']} variants / {by_cpu['cache']}: {by_cpu['cpu_ratio']:.2f}x "
                      f"({by_cpu['cpu_s']:.2f} CPU s vs {by_cpu['loop_cpu_s']:.2f}).", ""]  # fmt: skip
     head += ["ratio = crashstudy end to end / the hand loop's kernel time (same variants, same steps, same process); "
-             "check = largest relative difference of the loop's peak forces to crashstudy's (frontal: over the springs "
-             "whose loading curve has no knot peak; check_knot_springs: the others, where crashstudy counts a knot "
-             "passed between steps and the loop does not: benchmarks/frontal_check.py). Cells without a loop "
-             "have none (no hand loop for that model family). Only the cells listed ran. cpu_s / kernel_cpu_s / "
+             "check = largest relative difference of the loop's peak forces to crashstudy's (frontal, helicopter, grid: over "
+             "the springs whose loading curve has no knot peak; check_knot_springs: the others, where crashstudy counts a knot "
+             "passed between steps and the loop does not: benchmarks/frontal_check.py); failed variants "
+             "(a 2-D spring crushed to zero) are not compared. Only the cells listed ran. cpu_s / kernel_cpu_s / "
              "loop_cpu_s: process CPU seconds (all threads) of the same spans, without child processes (a cold cell's "
              "compile); cpu_ratio = cpu_s / loop_cpu_s. code: the commit each row ran.", "", ""]  # fmt: skip
     out.with_suffix(".md").write_text("\n".join(head) + md_table(rows, cols) + "\n")
