@@ -236,7 +236,7 @@ def _command_peak(argv: list[str]) -> int:
 
 
 def test_sensitivity_correlation_reads_block_by_block_and_equals_scipy(
-        results: dict[int, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+        results: dict[int, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """``sensitivity --method correlation`` on N = 1000 and 4N variants, blocks of BLOCK rows, the metric ranked
     in buckets of BLOCK rows: the peak grows < 8 B per variant of the 3N more (+ 128 KiB); measured 1.5; before,
     the five columns whole plus SciPy's ranks: 136 B per variant. The numbers equal scipy.stats.spearmanr / pearsonr

@@ -134,7 +134,7 @@ def test_over_time_refuses_an_unknown_item() -> None:
 
 @pytest.mark.parametrize("distinct_max", [1 << 20, 50])  # 50: the sampled axis is ranked whole (SciPy)
 def test_streamed_correlation_equals_scipy_on_the_whole_columns_with_ties(monkeypatch: pytest.MonkeyPatch,
-                                                                          distinct_max: int) -> None:  # fmt: skip
+                                                                          distinct_max: int) -> None:
     """correlation_table over blocks of 997 rows, the metric ranked in buckets of ~300 rows (~20 bucket files):
     Spearman and Pearson equal scipy.stats.spearmanr / pearsonr on the whole columns of the rows that ran
     (second implementation, 1e-12). Two matrix axes (6 and 40 values) and a sampled one (6000 values); the

@@ -125,7 +125,7 @@ def correlation_table(blocks: Blocks, factors: dict[str, str], metric: str) -> p
     spearman = [math.nan] * len(names)
     if n > 2 and varies_y and by_counts:
         sums = _rank_sums(blocks, metric, [columns[k] for k in by_counts], [counts[k] for k in by_counts], n,
-                          np.concatenate(sample))  # fmt: skip
+                          np.concatenate(sample))
         for k, r in zip(by_counts, sums, strict=True):
             spearman[k] = r
     for k, c in enumerate(counts):
@@ -140,7 +140,7 @@ def correlation_table(blocks: Blocks, factors: dict[str, str], metric: str) -> p
             half = Z95 / np.sqrt(n - 3) if n > 3 else math.nan
             lo, hi = np.tanh(np.arctanh(np.clip(r, -0.999999, 0.999999)) + np.array([-half, half]))
             rows.append({"metric": metric, "group": "", "axis": name, "index": index, "value": r,
-                         "confidence": float((hi - lo) / 2), "note": note})  # fmt: skip
+                         "confidence": float((hi - lo) / 2), "note": note})
     return pd.DataFrame(rows)
 
 
@@ -151,7 +151,7 @@ def _ran(block: pd.DataFrame, metric: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _rank_sums(blocks: Blocks, metric: str, columns: list[str], counts: list[_Counts], n: int,
-               sample: np.ndarray) -> list[float]:  # fmt: skip
+               sample: np.ndarray) -> list[float]:
     """Spearman's r of the metric with each of ``columns`` (ranked from ``counts``): the metric split by
     value into buckets on disk (pass 2), each bucket ranked in memory (pass 3)."""
     n_buckets = max(1, math.ceil(n / BUCKET_ROWS))
@@ -165,7 +165,7 @@ def _rank_sums(blocks: Blocks, metric: str, columns: list[str], counts: list[_Co
                 ok, y = _ran(block, metric)
                 y = y[ok]
                 codes = [np.searchsorted(c.values, block[col].to_numpy(dtype=float)[ok]).astype(np.int32)
-                         for col, c in zip(columns, counts, strict=True)]  # fmt: skip
+                         for col, c in zip(columns, counts, strict=True)]
                 bucket = np.searchsorted(cuts, y, side="right")  # equal values: one bucket
                 order = np.argsort(bucket, kind="stable")
                 edges = np.searchsorted(bucket[order], np.arange(len(files) + 1))
