@@ -1,5 +1,6 @@
 """Issue 19, the reading side at scale: the manifest hash once per Results object (without a hole),
-``compare``, ``open_results(...).summary`` and ``.dataset`` in bounded memory. Small N (the large sizes
+``open_results(...).summary`` and ``.dataset``, ``sensitivity --method correlation`` and ``compare`` in
+bounded memory (``compare`` read block by block prints what the whole-table one prints). Small N (the large sizes
 live in benchmarks/scale.py); the row groups are made small so that a few 10^3 variants show the trend."""
 
 from __future__ import annotations
@@ -9,13 +10,20 @@ import shutil
 import sys
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 
+from crashstudy.analysis import compare_inputs
+from crashstudy.analysis.compare import compare
 from crashstudy.errors import InputError
-from crashstudy.results import integrity, tables
+from crashstudy.results import integrity, reader, tables
 from crashstudy.results.reader import open_results
 from crashstudy.run import runner
 from crashstudy.study.plan import load_study
+from helpers import reseal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from scale import write_study  # noqa: E402 - the 2-spring study of the scale benchmark (n / 100 x 100 masses)
@@ -218,8 +226,6 @@ def _command_peak(argv: list[str]) -> int:
     import io
     import tracemalloc
 
-    import pyarrow as pa
-
     from crashstudy.cli.main import main
 
     pool, before = pa.proxy_memory_pool(pa.default_memory_pool()), pa.default_memory_pool()
@@ -241,12 +247,9 @@ def test_sensitivity_correlation_reads_block_by_block_and_equals_scipy(
     in buckets of BLOCK rows: the peak grows < 8 B per variant of the 3N more (+ 128 KiB); measured 1.5; before,
     the five columns whole plus SciPy's ranks: 136 B per variant. The numbers equal scipy.stats.spearmanr / pearsonr
     on the whole columns (1e-12)."""
-    import numpy as np
-    import pandas as pd
     from scipy import stats
 
     from crashstudy.analysis import correlation
-    from crashstudy.results import reader
 
     monkeypatch.setattr(reader, "READ_BLOCK", BLOCK)
     monkeypatch.setattr(correlation, "BUCKET_ROWS", BLOCK, raising=False)
@@ -265,3 +268,104 @@ def test_sensitivity_correlation_reads_block_by_block_and_equals_scipy(
         x, y = whole[axis], whole["peak_force.s2"]
         assert got.loc[(axis, "spearman"), "value"] == pytest.approx(stats.spearmanr(x, y)[0], abs=1e-12)
         assert got.loc[(axis, "pearson"), "value"] == pytest.approx(stats.pearsonr(x, y)[0], abs=1e-12)
+
+# --- compare of large results block by block (analysis/compare_stream.py) ----------------------------------
+
+
+@pytest.fixture(scope="module")
+def moved(results: dict[int, Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Copies of the 1000-variant result with another summary.parquet (resealed): "moved", whose summary moved
+    (a metric by 1e-3, past tolerance, and by 1e-9, within; NaN against numbers in two columns: ties of
+    infinite score; status changes both ways; row groups of 300 rows, so that the two tables' blocks do not
+    line up), its "baseline" (two variants failed), and "reversed" (the original rows in reverse order)."""
+    root = tmp_path_factory.mktemp("compare-stream")
+    original = pd.read_parquet(results[1000] / "summary.parquet")
+    df = original.copy()
+    df.loc[10:60, "peak_force.s2"] *= 1.0 + 1e-3
+    df.loc[100:400, "t_end"] *= 1.0 + 1e-9
+    df.loc[[7, 300, 301, 900], "peak_force.s1"] = np.nan
+    df.loc[[300, 555], "max_crush.s2"] = np.nan
+    status = df["status"].astype(str).to_numpy()
+    reason = df["failure_reason"].astype(object).fillna("").astype(str).to_numpy()
+    status[[5, 250, 251, 999]], reason[[5, 250, 251, 999]] = "failed", "crushed to zero length"
+    df["status"], df["failure_reason"] = pd.Categorical(status), pd.Categorical(reason)
+    baseline = original.copy()
+    baseline.loc[[250, 600], "status"] = "failed"  # failed -> ok in "moved" at 600, failed -> failed at 250
+    return {"1000": results[1000], "4000": results[4000],
+            "moved": _with_summary(results[1000], root / "moved", df, 300),
+            "baseline": _with_summary(results[1000], root / "baseline", baseline, BLOCK),
+            "reversed": _with_summary(results[1000], root / "reversed", original.iloc[::-1], BLOCK)}
+
+
+def _with_summary(folder: Path, dest: Path, df: pd.DataFrame, rows: int) -> Path:
+    """A copy of the result ``folder`` whose summary.parquet is ``df`` (row groups of ``rows``), resealed."""
+    shutil.copytree(folder, dest)
+    pq.write_table(pa.Table.from_pandas(df.reset_index(drop=True), preserve_index=False), dest / "summary.parquet",
+                   row_group_size=rows)
+    reseal(dest)
+    return dest
+
+
+def _everything(new: Path, base: Path) -> tuple[object, str, bytes]:
+    """(the comparison, its report, its JUnit XML) of ``new`` against ``base``."""
+    import xml.etree.ElementTree as ET
+
+    cmp = compare(new, base)
+    return cmp, cmp.report(), ET.tostring(cmp.to_junit().getroot())
+
+
+def test_streamed_compare_prints_and_writes_what_the_whole_table_compare_does(
+    moved: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Independent truth: the whole-table comparison (outer merge on the axis values) of the same two folders.
+    Streamed (WHOLE_ROWS 100, blocks of BLOCK rows against row groups of 300): the same report, JUnit XML,
+    counts, per-metric table and top rows; no per-variant arrays."""
+    whole, w_text, w_xml = _everything(moved["moved"], moved["baseline"])
+    assert not whole.streamed and len(whole.matched) == 1000  # type: ignore[attr-defined]
+    monkeypatch.setattr(compare_inputs, "WHOLE_ROWS", 100)
+    monkeypatch.setattr(reader, "READ_BLOCK", BLOCK)
+    part, p_text, p_xml = _everything(moved["moved"], moved["baseline"])
+    assert part.streamed and part.columns == {} and len(part.matched) == 0  # type: ignore[attr-defined]
+    assert p_text == w_text
+    assert p_xml == w_xml
+    assert "FAILED" in w_text and "status changes (4)" in w_text and "NaN on the other" in w_text
+    for cmp in (whole, part):
+        assert cmp.failed == whole.failed > 51 and cmp.n_matched == 1000  # type: ignore[attr-defined]
+    pd.testing.assert_frame_equal(part.by_metric(), whole.by_metric())  # type: ignore[attr-defined]
+    pd.testing.assert_frame_equal(part.top(100), whole.top(100))  # type: ignore[attr-defined]
+    pd.testing.assert_frame_equal(part.status, whole.status)  # type: ignore[attr-defined]
+    with pytest.raises(ValueError, match="block by block"):
+        _ = part.frame  # type: ignore[attr-defined]
+
+
+def test_another_order_is_matched_whole_up_to_the_limit_and_refused_beyond_it(
+    moved: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A baseline in reverse row order: read whole and matched by axis values (the same report as in order);
+    beyond the Results objects' summary_limit an InputError says why and what to do."""
+    want = _everything(moved["moved"], moved["1000"])[1]
+    monkeypatch.setattr(compare_inputs, "WHOLE_ROWS", 100)
+    cmp, text, _ = _everything(moved["moved"], moved["reversed"])
+    assert not cmp.streamed and text == want.replace(str(moved["1000"]), str(moved["reversed"]))  # type: ignore[attr-defined]
+    new, base = open_results(moved["moved"]), open_results(moved["reversed"])
+    base.summary_limit = 500
+    with pytest.raises(InputError, match=r"same order \(row 0: nodes.m2.mass is 1 in the new summary, 3 in the baseline's\).*"
+                       r"re-run of the baseline's study"):
+        compare(new, base)
+    new.close()
+    base.close()
+
+
+def test_compare_of_a_large_result_does_not_grow_with_the_variants(
+    moved: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A result against itself at 1000 and 4000 variants, streamed (WHOLE_ROWS 100, blocks of BLOCK rows): the
+    peak grows < 16 B per variant of the 3000 more (+ 128 KiB); measured 6. Before: both tables whole and
+    eight arrays per compared column, 2467 B per variant."""
+    monkeypatch.setattr(compare_inputs, "WHOLE_ROWS", 100)
+    monkeypatch.setattr(reader, "READ_BLOCK", BLOCK)
+    peaks = {}
+    for n in ("1000", "4000"):
+        _command_peak(["compare", str(moved[n]), str(moved[n])])  # warm: imports and caches of the first call
+        peaks[n] = _command_peak(["compare", str(moved[n]), str(moved[n])])
+    assert peaks["4000"] - peaks["1000"] < 3000 * 16 + 128 * 1024, peaks
