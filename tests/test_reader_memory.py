@@ -277,7 +277,8 @@ def moved(results: dict[int, Path], tmp_path_factory: pytest.TempPathFactory) ->
     """Copies of the 1000-variant result with another summary.parquet (resealed): "moved", whose summary moved
     (a metric by 1e-3, past tolerance, and by 1e-9, within; NaN against numbers in two columns: ties of
     infinite score; status changes both ways; row groups of 300 rows, so that the two tables' blocks do not
-    line up), its "baseline" (two variants failed), and "reversed" (the original rows in reverse order)."""
+    line up), its "baseline" (two variants failed), "reversed" (the original rows in reverse order) and
+    "subset" (130 of the original rows left out: a damaged folder, said so by either comparison)."""
     root = tmp_path_factory.mktemp("compare-stream")
     original = pd.read_parquet(results[1000] / "summary.parquet")
     df = original.copy()
@@ -294,7 +295,9 @@ def moved(results: dict[int, Path], tmp_path_factory: pytest.TempPathFactory) ->
     return {"1000": results[1000], "4000": results[4000],
             "moved": _with_summary(results[1000], root / "moved", df, 300),
             "baseline": _with_summary(results[1000], root / "baseline", baseline, BLOCK),
-            "reversed": _with_summary(results[1000], root / "reversed", original.iloc[::-1], BLOCK)}
+            "reversed": _with_summary(results[1000], root / "reversed", original.iloc[::-1], BLOCK),
+            "subset": _with_summary(results[1000], root / "subset", original.drop(index=[*range(100, 180),
+                                                                                     *range(900, 950)]), BLOCK)}
 
 
 def _with_summary(folder: Path, dest: Path, df: pd.DataFrame, rows: int) -> Path:
@@ -338,34 +341,62 @@ def test_streamed_compare_prints_and_writes_what_the_whole_table_compare_does(
         _ = part.frame  # type: ignore[attr-defined]
 
 
-def test_another_order_is_matched_whole_up_to_the_limit_and_refused_beyond_it(
-    moved: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+@pytest.mark.parametrize("pair", [("moved", "reversed"), ("moved", "subset"), ("subset", "reversed")])
+def test_another_order_beyond_the_limit_is_matched_in_hash_parts_as_the_whole_merge_matches_it(
+    moved: dict[str, Path], monkeypatch: pytest.MonkeyPatch, pair: tuple[str, str]
 ) -> None:
-    """A baseline in reverse row order: read whole and matched by axis values (the same report as in order);
-    beyond the Results objects' summary_limit an InputError says why and what to do."""
-    want = _everything(moved["moved"], moved["1000"])[1]
+    """Another row order or other variants (a baseline in reverse order; 130 variants absent from a side):
+    up to the Results objects' summary_limit the tables are merged whole; beyond it (limit 500 rows) they
+    are split by a hash of their axis values into parts of ~200 rows, each merged whole. Independent truth:
+    the whole merge of the same folders. The same report and JUnit XML (missing and new variants listed)."""
+    import xml.etree.ElementTree as ET
+
+    from crashstudy.analysis import compare_match
+
+    whole = compare(moved[pair[0]], moved[pair[1]])
+    assert not whole.streamed and (whole.n_missing or whole.n_extra or pair[1] == "reversed")
     monkeypatch.setattr(compare_inputs, "WHOLE_ROWS", 100)
-    cmp, text, _ = _everything(moved["moved"], moved["reversed"])
-    assert not cmp.streamed and text == want.replace(str(moved["1000"]), str(moved["reversed"]))  # type: ignore[attr-defined]
-    new, base = open_results(moved["moved"]), open_results(moved["reversed"])
-    base.summary_limit = 500
-    with pytest.raises(InputError, match=r"same order \(row 0: nodes.m2.mass is 1 in the new summary, 3 in the baseline's\).*"
-                       r"re-run of the baseline's study"):
-        compare(new, base)
+    monkeypatch.setattr(compare_match, "PART_ROWS", 200)
+    monkeypatch.setattr(reader, "READ_BLOCK", BLOCK)
+    parts: list[Path] = []
+    real = compare_match._read
+    monkeypatch.setattr(compare_match, "_read", lambda path, *a: parts.append(path) or real(path, *a))
+    new, base = open_results(moved[pair[0]]), open_results(moved[pair[1]])
+    new.summary_limit = base.summary_limit = 500
+    part = compare(new, base)
+    assert part.streamed and part.columns == {} and len(parts) == 2 * 5  # 5 parts a side
+    assert part.report() == whole.report()
+    assert ET.tostring(part.to_junit().getroot()) == ET.tostring(whole.to_junit().getroot())
+    pd.testing.assert_frame_equal(part.top(100), whole.top(100))
+    pd.testing.assert_frame_equal(part.by_metric(), whole.by_metric())
+    for key in ("status", "missing", "extra"):
+        got, want = getattr(part, key), getattr(whole, key)
+        assert len(got) == len(want)
+        if len(want):
+            pd.testing.assert_frame_equal(got, want, check_dtype=False)
     new.close()
     base.close()
 
 
+@pytest.mark.parametrize("order", ["same", "reversed"])
 def test_compare_of_a_large_result_does_not_grow_with_the_variants(
-    moved: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+    moved: dict[str, Path], monkeypatch: pytest.MonkeyPatch, tmp_path: Path, order: str
 ) -> None:
-    """A result against itself at 1000 and 4000 variants, streamed (WHOLE_ROWS 100, blocks of BLOCK rows): the
-    peak grows < 16 B per variant of the 3000 more (+ 128 KiB); measured 6. Before: both tables whole and
-    eight arrays per compared column, 2467 B per variant."""
+    """A result against itself (same order: read side by side) or against its rows reversed (beyond a
+    summary limit of 500 rows: hash parts of ~256 rows) at 1000 and 4000 variants, blocks of BLOCK rows: the
+    peak grows < 16 B per variant of the 3000 more (+ 128 KiB); measured 6 (same) and 7 (reversed). Before:
+    both tables whole and eight arrays per compared column, 2467 B per variant."""
+    from crashstudy.analysis import compare_match
+
     monkeypatch.setattr(compare_inputs, "WHOLE_ROWS", 100)
+    monkeypatch.setattr(compare_match, "PART_ROWS", BLOCK)
     monkeypatch.setattr(reader, "READ_BLOCK", BLOCK)
+    monkeypatch.setattr(reader, "SUMMARY_ROWS_MAX", 500)
     peaks = {}
     for n in ("1000", "4000"):
-        _command_peak(["compare", str(moved[n]), str(moved[n])])  # warm: imports and caches of the first call
-        peaks[n] = _command_peak(["compare", str(moved[n]), str(moved[n])])
+        base = moved[n]
+        if order == "reversed":
+            base = _with_summary(base, tmp_path / n, pd.read_parquet(base / "summary.parquet").iloc[::-1], BLOCK)
+        _command_peak(["compare", str(moved[n]), str(base)])  # warm: imports and caches of the first call
+        peaks[n] = _command_peak(["compare", str(moved[n]), str(base)])
     assert peaks["4000"] - peaks["1000"] < 3000 * 16 + 128 * 1024, peaks

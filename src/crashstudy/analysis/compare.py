@@ -37,7 +37,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 from pydantic import TypeAdapter
 
@@ -64,8 +63,9 @@ from crashstudy.analysis.compare_inputs import (  # noqa: F401 - re-exported
     load_results,
     study_tolerances,
 )
+from crashstudy.analysis.compare_match import merged
 from crashstudy.analysis.compare_stream import streamed_if_large
-from crashstudy.analysis.compare_values import ColumnStats, _Column, status_rows, top_rows
+from crashstudy.analysis.compare_values import ColumnStats, _Column, top_rows
 from crashstudy.analysis.factors import factors
 from crashstudy.schema.study import Tolerance
 
@@ -117,6 +117,8 @@ class Comparison:
     n_matched: int = 0
     n_status: int = 0  #: status changes (all; ``status`` lists at most STATUS_KEPT of a streamed comparison)
     n_status_failures: int = 0  #: ... of which ok -> failed
+    n_missing: int = 0  #: baseline variants missing (``missing`` lists at most STATUS_KEPT of a streamed comparison)
+    n_extra: int = 0  #: new variants not in the baseline (``extra``: idem)
     streamed: bool = False  #: read block by block: no per-variant arrays (``frame``, ``columns``, ``matched``)
     notes: list[str] = field(default_factory=list)
     damaged: list[str] = field(default_factory=list)  #: a side whose summary lost (or repeats) variants: failures
@@ -164,7 +166,7 @@ class Comparison:
     def failed(self) -> int:
         """Number of findings that fail the check: metric values past tolerance, variants missing
         from the new result, ``ok`` -> ``failed`` status changes and metric columns gone missing."""
-        return (self.failed_values + len(self.missing) + self.status_failures + len(self.missing_columns)
+        return (self.failed_values + self.n_missing + self.status_failures + len(self.missing_columns)
                 + len(self.damaged))  # fmt: skip
 
     def failing_columns(self) -> dict[str, int]:
@@ -218,7 +220,7 @@ class Comparison:
         """One line: FAILED or OK, with what failed."""
         n_cols = len(self.stats)
         if not self.failed:
-            extra = f"; {len(self.extra)} new variants not in the baseline" if len(self.extra) else ""
+            extra = f"; {self.n_extra} new variants not in the baseline" if self.n_extra else ""
             return (f"OK: {self.n_matched} variants x {n_cols} metrics within tolerance of the baseline"
                     f"{extra}")  # fmt: skip
         parts = list(self.damaged)
@@ -227,8 +229,8 @@ class Comparison:
                          f"moved past tolerance")  # fmt: skip
         if self.status_failures:
             parts.append(f"{self.status_failures} variants went from ok to failed")
-        if len(self.missing):
-            parts.append(f"{len(self.missing)} baseline variants missing from the new result")
+        if self.n_missing:
+            parts.append(f"{self.n_missing} baseline variants missing from the new result")
         if self.missing_columns:
             parts.append(f"metric columns missing from the new result: {', '.join(self.missing_columns)}")
         return f"FAILED: {'; '.join(parts)} ({self.n_matched} variants matched)"
@@ -237,13 +239,15 @@ class Comparison:
         """Everything ``crashstudy compare`` prints."""
         lines = [f"comparing {self.new_dir} against baseline {self.baseline_dir}", *("note: " + s for s in self.notes),
                  self.table(n)]  # fmt: skip
-        for title, df, col in (("baseline variants missing from the new result", self.missing, "baseline_variant"),
-                               ("new variants not in the baseline (not a failure)", self.extra, "variant")):  # fmt: skip
-            if len(df):
-                lines.append(f"{title} ({len(df)}):")
+        for title, df, col, count in (
+            ("baseline variants missing from the new result", self.missing, "baseline_variant", self.n_missing),
+            ("new variants not in the baseline (not a failure)", self.extra, "variant", self.n_extra),
+        ):
+            if count:
+                lines.append(f"{title} ({count}):")
                 lines += [f"  variant {int(r[col])}: {self._params(r)}" for _, r in df.head(n).iterrows()]
-                if len(df) > n:
-                    lines.append(f"  ... and {len(df) - n} more")
+                if count > n:
+                    lines.append(f"  ... and {count - n} more")
         if self.n_status:
             lines.append(f"status changes ({self.n_status}):")
             for _, r in self.status.head(n).iterrows():
@@ -339,33 +343,9 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
 def _whole(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]) -> dict[str, Any]:
     """The fields of a comparison of the two summaries read whole, matched by their axis values (an outer
     merge: any order, any subsets)."""
-    N, B = new.summary, base.summary
-    kn, kb = _keys(N, axes), _keys(B, axes)
-    on = [c for c in kn.columns if c != "_row"]
-    m = kn.merge(kb, on=on, how="outer", suffixes=("_new", "_base"), indicator=True)
-    both = m[m["_merge"] == "both"].sort_values("_row_new")
-    rn, rb = both["_row_new"].to_numpy(dtype=int), both["_row_base"].to_numpy(dtype=int)
-    only_b = np.sort(m.loc[m["_merge"] == "right_only", "_row_base"].to_numpy(dtype=int))
-    only_n = np.sort(m.loc[m["_merge"] == "left_only", "_row_new"].to_numpy(dtype=int))
-
-    matched = _axis_frame(N, rn, axes)
-    for ax in axes:  # an axis only the baseline has: its values
-        if ax not in N:
-            matched[ax] = B[ax].to_numpy()[rb]
-    matched["variant"] = N["variant"].to_numpy()[rn].astype(int)
-    matched["baseline_variant"] = B["variant"].to_numpy()[rb].astype(int)
-    missing = _axis_frame(B, only_b, axes).assign(baseline_variant=B["variant"].to_numpy()[only_b].astype(int))
-    extra = _axis_frame(N, only_n, axes).assign(variant=N["variant"].to_numpy()[only_n].astype(int))
-    reason = N["failure_reason"].fillna("").astype(str).to_numpy()[rn]
-    status = status_rows(matched, B["status"].astype(str).to_numpy()[rb], N["status"].astype(str).to_numpy()[rn],
-                         reason)
-    columns, stats = {}, {}
-    for c, (r, a) in tolerances.items():
-        old = pd.to_numeric(B[c], errors="coerce").to_numpy(dtype=np.float64)[rb]
-        nw = pd.to_numeric(N[c], errors="coerce").to_numpy(dtype=np.float64)[rn]
-        columns[c] = _Column(old, nw, r, a)
-        stats[c] = ColumnStats(r, a)
-        stats[c].add(columns[c], matched, 0)
-    return {"matched": matched, "missing": missing, "extra": extra, "status": status, "columns": columns,
-            "stats": stats, "n_matched": len(matched), "n_status": len(status),
+    stats = {c: ColumnStats(*t) for c, t in tolerances.items()}
+    got = merged(new.summary, base.summary, axes, tolerances, stats)
+    status = got["status"]
+    return {**got, "stats": stats, "n_matched": len(got["matched"]), "n_status": len(status),
+            "n_missing": len(got["missing"]), "n_extra": len(got["extra"]),
             "n_status_failures": int((~status["passed"]).sum()) if len(status) else 0}

@@ -7,6 +7,7 @@ import json
 import math
 import os
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -92,7 +93,10 @@ class _Side:
     def damage(self) -> str:
         """Why the summary does not list each variant of results.nc once ("" if it does)."""
         source = self.res.summary_source
-        if self.whole is None and self.rows == self.n_variants:  # numbered 0, 1, ... in order: checked per block
+        if self.whole is not None:
+            return _damage([self.whole["variant"]] if "variant" in self.whole else [], self.n_variants, self.role,
+                           source)
+        if self.rows == self.n_variants:  # numbered 0, 1, ... in order (as a run writes it): checked per block
             blocks, lo = self.res.summary_batches(["variant"]), 0
             try:
                 for b in blocks:
@@ -103,8 +107,11 @@ class _Side:
                 blocks.close()
             if lo == self.rows:
                 return ""
-        variants = self.summary if self.whole is not None else self.res.summary_columns(["variant"])
-        return _damage(variants, self.n_variants, self.role, source)
+        blocks = self.res.summary_batches(["variant"])
+        try:
+            return _damage((b["variant"] for b in blocks), self.n_variants, self.role, source)
+        finally:
+            blocks.close()
 
     @property
     def study_name(self) -> str:
@@ -116,19 +123,23 @@ def _unreadable(res: Results, role: str, exc: Exception) -> InputError:
     return InputError([Problem(str(res.dir), None, "", f"cannot read the {role} results: {exc}")])
 
 
-def _damage(summary: pd.DataFrame, n_variants: int, role: str, source: str = "summary.csv") -> str:
-    """Why ``summary`` does not list each of the ``n_variants`` variants of results.nc once ("" if it does)."""
-    raw = summary["variant"] if "variant" in summary else pd.Series([], dtype=float)
-    numbers = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
-    present = np.unique(numbers[np.isfinite(numbers)])
-    missing = np.setdiff1d(np.arange(n_variants), present)
-    if not len(missing) and len(numbers) == n_variants:
+def _damage(variants: Iterable[pd.Series], n_variants: int, role: str, source: str = "summary.csv") -> str:
+    """Why the ``variant`` column (given in blocks) does not list each of the ``n_variants`` variants of
+    results.nc once ("" if it does); one byte per variant of results.nc."""
+    seen, rows = np.zeros(n_variants, dtype=bool), 0
+    for raw in variants:
+        numbers = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
+        rows += len(numbers)
+        with np.errstate(invalid="ignore"):
+            ours = np.isfinite(numbers) & (numbers >= 0) & (numbers < n_variants) & (numbers == np.floor(numbers))
+        seen[numbers[ours].astype(np.int64)] = True
+    missing = np.flatnonzero(~seen)
+    if not len(missing) and rows == n_variants:
         return ""
     shown = ", ".join(str(int(v)) for v in missing[:10]) + (", ..." if len(missing) > 10 else "")
-    what = f"; missing: variants {shown}" if len(missing) else f"; {len(numbers)} rows (rows repeated or foreign)"
-    return (f"the {role} {source} lists {len(np.intersect1d(present, np.arange(n_variants)))} of the "
+    what = f"; missing: variants {shown}" if len(missing) else f"; {rows} rows (rows repeated or foreign)"
+    return (f"the {role} {source} lists {int(seen.sum())} of the "
             f"{n_variants} variants in its results.nc{what}: the result folder is damaged")
-
 
 
 _XML_BAD = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")

@@ -65,11 +65,15 @@ def junit(comp: Comparison, path: str | os.PathLike[str] | None = None) -> ET.El
         (bad_lines if comp.n_status_failures > len(bad_st) else ok_lines).append(f"... and {more} more status changes")
     case("status", f"{comp.status_failures} variants went from ok to failed" if comp.status_failures else None,
          "\n".join(bad_lines), "\n".join(ok_lines))
+    missing = [f"baseline variant {int(r['baseline_variant'])}: {comp._params(r)}" for _, r in comp.missing.iterrows()]
+    extra = [f"variant {int(r['variant'])}: {comp._params(r)}" for _, r in comp.extra.iterrows()]
+    for lines, count in ((missing, comp.n_missing), (extra, comp.n_extra)):  # a streamed comparison: the first ones
+        if count > len(lines):
+            lines.append(f"... and {count - len(lines)} more")
     case("variants missing from the new result",
-         f"{len(comp.missing)} baseline variants are not in the new result" if len(comp.missing) else None,
-         "\n".join(f"baseline variant {int(r['baseline_variant'])}: {comp._params(r)}" for _, r in comp.missing.iterrows()))  # fmt: skip
-    case("variants only in the new result", None,
-         out="\n".join(f"variant {int(r['variant'])}: {comp._params(r)}" for _, r in comp.extra.iterrows()))  # fmt: skip
+         f"{comp.n_missing} baseline variants are not in the new result" if comp.n_missing else None,
+         "\n".join(missing))
+    case("variants only in the new result", None, out="\n".join(extra))
     if comp.damaged:
         case("complete result folders", f"{len(comp.damaged)} result folders are damaged", "\n".join(comp.damaged))
 

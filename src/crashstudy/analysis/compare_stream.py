@@ -3,8 +3,9 @@ axis values in the same order (a study re-run against its baseline), row i of on
 other, so the two tables are read row group by row group side by side, and only what the report needs
 is kept (:class:`~crashstudy.analysis.compare_values.ColumnStats` per column, the status changes' count
 and first rows): memory bounded by a block, whatever the number of variants. Results in another order
-or with other variants are matched by their axis values over the whole tables (up to the row count
-:attr:`Results.summary <crashstudy.results.reader.Results.summary>` reads whole)."""
+or with other variants are matched by their axis values over the whole tables up to the row count
+:attr:`Results.summary <crashstudy.results.reader.Results.summary>` reads whole, and beyond it in parts
+split by a hash of their keys (:mod:`crashstudy.analysis.compare_match`)."""
 
 from __future__ import annotations
 
@@ -15,8 +16,7 @@ import numpy as np
 import pandas as pd
 
 from crashstudy.analysis.compare_inputs import _round_key, _Side
-from crashstudy.analysis.compare_values import STATUS_KEPT, ColumnStats, _Column, status_rows
-from crashstudy.errors import InputError, Problem
+from crashstudy.analysis.compare_values import STATUS_KEPT, ColumnStats, _Column, empty_lists, status_rows
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -88,36 +88,24 @@ def streamed(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tup
             nw = pd.to_numeric(bn[c], errors="coerce").to_numpy(dtype=np.float64)
             stats[c].add(_Column(old, nw, *tolerances[c]), rows, lo)
         lo += len(bn)
-    empty = pd.DataFrame({ax: pd.Series(dtype=float) for ax in axes})
-    return {
-        "matched": empty.assign(variant=pd.Series(dtype=int), baseline_variant=pd.Series(dtype=int)),
-        "missing": empty.assign(baseline_variant=pd.Series(dtype=int)),
-        "extra": empty.assign(variant=pd.Series(dtype=int)),
-        "status": pd.concat(status, ignore_index=True) if status else status_rows(
-            empty.assign(variant=pd.Series(dtype=int), baseline_variant=pd.Series(dtype=int)),
-            np.array([], dtype=str), np.array([], dtype=str), np.array([], dtype=str)),
-        "columns": {}, "stats": stats, "n_matched": lo, "n_status": n_status, "n_status_failures": n_failures,
-        "streamed": True,
-    }
+    return {**empty_lists(axes), **({"status": pd.concat(status, ignore_index=True)} if status else {}),
+            "stats": stats, "n_matched": lo, "n_status": n_status, "n_status_failures": n_failures}
 
 
 def streamed_if_large(new: _Side, base: _Side, axes: list[str],
                        tolerances: dict[str, tuple[float, float]]) -> dict[str, Any] | None:
-    """The fields of a comparison read block by block when a summary has more than WHOLE_ROWS rows and both
-    list their variants in the same order; None when the tables are to be read whole. Refused (InputError)
-    beyond the rows Results.summary reads whole when they are in another order."""
+    """The fields of a comparison read block by block when a summary has more than WHOLE_ROWS rows: side by
+    side when both list their variants in the same order, else (beyond the rows Results.summary reads
+    whole) split into parts by a hash of their keys (:func:`~crashstudy.analysis.compare_match.partitioned`);
+    None when the tables are to be read whole."""
+    from crashstudy.analysis.compare_match import partitioned
+
     if not (new.large or base.large):
         return None
-    why = same_order(new, base, axes)
-    if not why:
+    if not same_order(new, base, axes):
         return streamed(new, base, axes, tolerances)
     limits = [s.res.summary_limit for s in (new, base)]
     limit = min(x for x in limits if x is not None) if any(x is not None for x in limits) else None
     if limit is None or max(new.rows, base.rows) <= limit:
         return None
-    raise InputError([Problem(str(new.dir), None, "", (
-        f"compare matches variants by their axis values: the new summary ({new.rows} rows) and the baseline's "
-        f"({base.rows}) are larger than the {limit} rows it matches in memory, and they do not list the same "
-        f"axis values in the same order ({why}), which reading them block by block needs. Compare a re-run of "
-        f"the baseline's study file (same axes, same values: same order), or compare parts of the study run "
-        f"separately"))])
+    return partitioned(new, base, axes, tolerances)

@@ -7,6 +7,7 @@ prints does not depend on how the tables were read, and its memory not on the nu
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -54,9 +55,10 @@ class ColumnStats:
     top: pd.DataFrame | None = None  #: the KEPT rows that moved most (score > 0), largest score first
     top_failed: pd.DataFrame | None = None  #: the KEPT failed rows that moved most
 
-    def add(self, c: _Column, rows: pd.DataFrame, start: int) -> None:
+    def add(self, c: _Column, rows: pd.DataFrame, start: int | np.ndarray) -> None:
         """Add the values of ``c``: ``rows`` are their matched rows (axis values, ``variant``,
-        ``baseline_variant``) and ``start`` the position of the first among all matched rows."""
+        ``baseline_variant``) and ``start`` the position of the first among all matched rows (or of each:
+        what orders equal scores)."""
         failed = ~c.passed
         self.compared += len(c.old)
         self.failed += int(failed.sum())
@@ -71,7 +73,8 @@ class ColumnStats:
         self.top_failed = _keep(self.top_failed, c, rows, start, failed)
 
 
-def _keep(kept: pd.DataFrame | None, c: _Column, rows: pd.DataFrame, start: int, mask: np.ndarray) -> pd.DataFrame | None:
+def _keep(kept: pd.DataFrame | None, c: _Column, rows: pd.DataFrame, start: int | np.ndarray,
+          mask: np.ndarray) -> pd.DataFrame | None:
     """``kept`` and the rows of ``mask`` together: the KEPT largest scores (ties: the earlier row first)."""
     idx = np.flatnonzero(mask)
     if len(idx) > KEPT:
@@ -81,7 +84,7 @@ def _keep(kept: pd.DataFrame | None, c: _Column, rows: pd.DataFrame, start: int,
     part = rows.iloc[idx].reset_index(drop=True)
     part["old"], part["new"], part["rel_diff"] = c.old[idx], c.new[idx], c.rel_diff[idx]
     part["tolerance"], part["score"], part["passed"] = c.tolerance[idx], c.score[idx], c.passed[idx]
-    part["_pos"] = start + idx
+    part["_pos"] = start[idx] if isinstance(start, np.ndarray) else start + idx
     both = part if kept is None else pd.concat([kept, part], ignore_index=True)
     both = both.sort_values(["score", "_pos"], ascending=[False, True])
     return both.head(KEPT).reset_index(drop=True)
@@ -113,3 +116,13 @@ def status_rows(rows: pd.DataFrame, old: np.ndarray, new: np.ndarray, reason: np
     out["old"], out["new"], out["failure_reason"] = old[changed], new[changed], reason[changed]
     out["passed"] = ~((out["old"] == "ok") & (out["new"] != "ok"))
     return out
+
+
+def empty_lists(axes: list[str]) -> dict[str, Any]:
+    """The per-variant fields of a comparison that keeps none (read block by block): empty, with their columns."""
+    empty = pd.DataFrame({ax: pd.Series(dtype=float) for ax in axes})
+    matched = empty.assign(variant=pd.Series(dtype=int), baseline_variant=pd.Series(dtype=int))
+    none = np.array([], dtype=str)
+    return {"matched": matched, "missing": empty.assign(baseline_variant=pd.Series(dtype=int)),
+            "extra": empty.assign(variant=pd.Series(dtype=int)), "status": status_rows(matched, none, none, none),
+            "columns": {}, "streamed": True}
