@@ -21,14 +21,15 @@ from crashstudy.analysis.compare_values import STATUS_KEPT, ColumnStats, _Column
 if TYPE_CHECKING:
     from crashstudy.analysis.compare_inputs import _Side
 
-PART_ROWS = 1 << 20  #: rows of a side in one part (on average): what one part's merge holds at once
+PART_ROWS = 1 << 18  #: rows of a side in one part (on average): its merge holds ~700 B a row at once
 
 
 def merged(N: pd.DataFrame, B: pd.DataFrame, axes: list[str], tolerances: dict[str, tuple[float, float]],
-           stats: dict[str, ColumnStats]) -> dict[str, Any]:
+           stats: dict[str, ColumnStats], keep: bool = True) -> dict[str, Any]:
     """Match the rows of ``N`` (new) and ``B`` (baseline) by their axis values, add the matched values to
     ``stats``: matched, missing, extra, status (in the new rows' order, the missing in the baseline's) and
-    the per-variant columns. A ``_row`` column, where present, numbers the rows of the whole table."""
+    the per-variant columns (only if ``keep``: ~2.4 kB a row). A ``_row`` column, where present, numbers the
+    rows of the whole table."""
     kn, kb = _keys(N, axes), _keys(B, axes)
     on = [c for c in kn.columns if c != "_row"]
     m = kn.merge(kb, on=on, how="outer", suffixes=("_new", "_base"), indicator=True)
@@ -53,8 +54,10 @@ def merged(N: pd.DataFrame, B: pd.DataFrame, axes: list[str], tolerances: dict[s
     for c, (r, a) in tolerances.items():
         old = pd.to_numeric(B[c], errors="coerce").to_numpy(dtype=np.float64)[rb]
         nw = pd.to_numeric(N[c], errors="coerce").to_numpy(dtype=np.float64)[rn]
-        columns[c] = _Column(old, nw, r, a)
-        stats[c].add(columns[c], matched, pos)
+        column = _Column(old, nw, r, a)
+        stats[c].add(column, matched, pos)
+        if keep:
+            columns[c] = column
     if "_row" in N:  # where each listed row comes in the whole table's order
         status["_row"], missing["_row"] = pos[old_st != new_st], B["_row"].to_numpy()[only_b]
         extra["_row"] = N["_row"].to_numpy()[only_n]
@@ -77,7 +80,7 @@ def partitioned(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, 
             sides[side.role] = (cols, _split(side, cols, texts, axes, n_parts, Path(tmp)))
         for p in range(n_parts):
             N, B = (_read(Path(tmp) / f"{role}-{p}.bin", *sides[role]) for role in (new.role, base.role))
-            got = merged(N, B, axes, tolerances, stats)
+            got = merged(N, B, axes, tolerances, stats, keep=False)
             counts["matched"] += len(got["matched"])
             counts["failures"] += int((~got["status"]["passed"]).sum()) if len(got["status"]) else 0
             for key in ("status", "missing", "extra"):
@@ -95,28 +98,22 @@ def _split(side: _Side, cols: list[str], texts: list[str], axes: list[str], n_pa
     """Write the rows of ``side`` into the part files ``{role}-{part}.bin`` of ``folder``, each in the table's
     row order: one float64 per column (a text as its code in the returned tables), then the row number."""
     tables: dict[str, dict[str, int]] = {t: {} for t in texts}
-    handles: dict[int, Any] = {}
-    try:
-        for block in side.res.summary_batches(cols):
-            rows = np.empty((len(block), len(cols) + 1))
-            for j, c in enumerate(cols):
-                if c in tables:
-                    values, inverse = np.unique(block[c].astype(object).fillna("").astype(str).to_numpy(),
-                                                return_inverse=True)
-                    rows[:, j] = np.array([tables[c].setdefault(v, len(tables[c])) for v in values])[inverse]
-                else:
-                    rows[:, j] = pd.to_numeric(block[c], errors="coerce").to_numpy(dtype=np.float64)
-            rows[:, -1] = block.index.to_numpy()
-            part = _part_of(block, axes, n_parts)
-            order = np.argsort(part, kind="stable")
-            edges = np.searchsorted(part[order], np.arange(n_parts + 1))
-            for p in np.flatnonzero(np.diff(edges)).tolist():
-                if p not in handles:
-                    handles[p] = open(folder / f"{side.role}-{p}.bin", "wb")  # noqa: SIM115 - closed below
-                handles[p].write(rows[order[edges[p] : edges[p + 1]]].tobytes())
-    finally:
-        for fh in handles.values():
-            fh.close()
+    for block in side.res.summary_batches(cols):
+        rows = np.empty((len(block), len(cols) + 1))
+        for j, c in enumerate(cols):
+            if c in tables:
+                values, inverse = np.unique(block[c].astype(object).fillna("").astype(str).to_numpy(),
+                                            return_inverse=True)
+                rows[:, j] = np.array([tables[c].setdefault(v, len(tables[c])) for v in values])[inverse]
+            else:
+                rows[:, j] = pd.to_numeric(block[c], errors="coerce").to_numpy(dtype=np.float64)
+        rows[:, -1] = block.index.to_numpy()
+        part = _part_of(block, axes, n_parts)
+        order = np.argsort(part, kind="stable")
+        edges = np.searchsorted(part[order], np.arange(n_parts + 1))
+        for p in np.flatnonzero(np.diff(edges)).tolist():  # appended: no file held open (hundreds of parts)
+            with open(folder / f"{side.role}-{p}.bin", "ab") as fh:
+                fh.write(rows[order[edges[p] : edges[p + 1]]].tobytes())
     return tables
 
 
