@@ -130,3 +130,37 @@ def test_over_time_refuses_an_unknown_item() -> None:
                     coords={"spring": ["s"], "time": [0.0, 1.0]}, attrs={"crashstudy_axes": '["a"]'})  # fmt: skip
     with pytest.raises(ValueError, match="no spring 'x'"):
         over_time(ds, "spring_force", "x")
+
+
+@pytest.mark.parametrize("distinct_max", [1 << 20, 50])  # 50: the sampled axis is ranked whole (SciPy)
+def test_streamed_correlation_equals_scipy_on_the_whole_columns_with_ties(monkeypatch: pytest.MonkeyPatch,
+                                                                          distinct_max: int) -> None:
+    """correlation_table over blocks of 997 rows, the metric ranked in buckets of ~300 rows (~20 bucket files):
+    Spearman and Pearson equal scipy.stats.spearmanr / pearsonr on the whole columns of the rows that ran
+    (second implementation, 1e-12). Two matrix axes (6 and 40 values) and a sampled one (6000 values); the
+    metric rounded so that it has many ties (and ties across bucket cut points); failed rows and NaN left out."""
+    from crashstudy.analysis import correlation
+
+    monkeypatch.setattr(correlation, "BUCKET_ROWS", 300)
+    monkeypatch.setattr(correlation, "SAMPLE", 256)
+    monkeypatch.setattr(correlation, "DISTINCT_MAX", distinct_max)
+    rng = np.random.default_rng(3)
+    n = 6000
+    a = np.tile(np.linspace(1.0, 2.0, 6), n // 6)
+    b = np.repeat(np.linspace(-3.0, 5.0, 40), n // 40)
+    c = rng.uniform(0.0, 1.0, n)
+    y = np.round(2.0 * a - 0.3 * b + 0.5 * c + rng.standard_normal(n), 1)  # ~100 distinct values: ties
+    status = np.where(rng.uniform(size=n) < 0.03, "failed", "ok")
+    y[rng.integers(0, n, 20)] = np.nan
+    df = pd.DataFrame({"variant": np.arange(n), "a": a, "b": b, "c": c, "status": status, "y": y})
+    blocks = lambda: (df.iloc[lo : lo + 997] for lo in range(0, n, 997))  # noqa: E731
+    t = correlation.correlation_table(blocks, {"a": "a", "b": "b", "c": "c"}, "y").set_index(["axis", "index"])
+    ok = (status == "ok") & np.isfinite(y)
+    assert len(np.unique(y[ok])) < 200
+    for ax in ("a", "b", "c"):
+        assert t.loc[(ax, "spearman"), "value"] == pytest.approx(stats.spearmanr(df[ax][ok], y[ok])[0], abs=1e-12)
+        assert t.loc[(ax, "pearson"), "value"] == pytest.approx(stats.pearsonr(df[ax][ok], y[ok])[0], abs=1e-12)
+    assert (t["note"] == f"{int((~ok).sum())} failed variant(s) left out").all()
+    const = df.assign(y=1.0)  # a metric that does not vary: no correlation (NaN), as SciPy would warn
+    t = correlation.correlation_table(lambda: iter([const]), {"a": "a"}, "y")
+    assert t["value"].isna().all()

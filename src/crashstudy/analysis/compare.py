@@ -37,7 +37,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 from pydantic import TypeAdapter
 
@@ -64,30 +63,11 @@ from crashstudy.analysis.compare_inputs import (  # noqa: F401 - re-exported
     load_results,
     study_tolerances,
 )
+from crashstudy.analysis.compare_match import merged
+from crashstudy.analysis.compare_stream import streamed_if_large
+from crashstudy.analysis.compare_values import ColumnStats, _Column, top_rows
 from crashstudy.analysis.factors import factors
 from crashstudy.schema.study import Tolerance
-
-
-@dataclass
-class _Column:
-    """Aligned old/new values of one metric column over the matched variants."""
-
-    old: np.ndarray
-    new: np.ndarray
-    rtol: float
-    atol: float
-
-    def __post_init__(self) -> None:
-        old, new = self.old, self.new
-        both_nan = np.isnan(old) & np.isnan(new)
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # rtol 1e308 * old -> inf: passes
-            self.diff = np.where(both_nan, 0.0, new - old)
-            self.abs_diff = np.abs(self.diff)
-            self.rel_diff = np.where(self.diff == 0.0, 0.0, self.diff / np.abs(old))
-            self.tolerance = self.atol + self.rtol * np.abs(np.where(np.isnan(old), 0.0, old))
-            self.passed = both_nan | (self.abs_diff <= self.tolerance)  # False when one side only is NaN
-            score = np.where(self.abs_diff == 0.0, 0.0, self.abs_diff / self.tolerance)
-        self.score = np.where(np.isnan(score), np.inf, score)  # NaN against a number: worst
 
 
 @dataclass
@@ -108,7 +88,15 @@ class Comparison:
         New variants absent from the baseline (axis values, ``variant``): reported, not failures.
     status : pandas.DataFrame
         Matched variants whose ``status`` changed: axis values, ``variant``, ``old``, ``new``,
-        ``failure_reason`` (new) and ``passed`` (False for ``ok`` -> ``failed``).
+        ``failure_reason`` (new) and ``passed`` (False for ``ok`` -> ``failed``); the first
+        :data:`~crashstudy.analysis.compare_values.STATUS_KEPT` of a streamed comparison
+        (``n_status`` counts them all).
+    stats : dict[str, ColumnStats]
+        Per compared metric column: counts, largest differences and the rows that moved most (what
+        the report, the verdict and the JUnit XML are made of).
+    columns : dict[str, _Column]
+        Per compared metric column, the aligned per-variant arrays: only when the tables were read
+        whole (empty for a streamed comparison, like ``matched``; see docs/scale.md).
     missing_columns, extra_columns : list[str]
         Metric columns only in the baseline (failures) or only in the new result (reported).
     notes : list[str]
@@ -125,6 +113,13 @@ class Comparison:
     columns: dict[str, _Column]
     missing_columns: list[str]
     extra_columns: list[str]
+    stats: dict[str, ColumnStats] = field(default_factory=dict)
+    n_matched: int = 0
+    n_status: int = 0  #: status changes (all; ``status`` lists at most STATUS_KEPT of a streamed comparison)
+    n_status_failures: int = 0  #: ... of which ok -> failed
+    n_missing: int = 0  #: baseline variants missing (``missing`` lists at most STATUS_KEPT of a streamed comparison)
+    n_extra: int = 0  #: new variants not in the baseline (``extra``: idem)
+    streamed: bool = False  #: read block by block: no per-variant arrays (``frame``, ``columns``, ``matched``)
     notes: list[str] = field(default_factory=list)
     damaged: list[str] = field(default_factory=list)  #: a side whose summary lost (or repeats) variants: failures
     rtol: float = DEFAULT_RTOL
@@ -142,6 +137,9 @@ class Comparison:
         ``rtol``, ``atol``, ``tolerance`` (atol + rtol |old|), ``score`` (abs_diff / tolerance) and
         ``passed``. Built on first use (a study of 10^6 variants makes a large table).
         """
+        if self.streamed:
+            raise ValueError("this comparison was read block by block (a large result in the same variant order "
+                             "as its baseline): it keeps no per-variant table; see docs/scale.md")
         if self._frame is None:
             parts = []
             for name, c in self.columns.items():
@@ -157,32 +155,30 @@ class Comparison:
     @property
     def failed_values(self) -> int:
         """Metric values (variant x column) that moved past their tolerance."""
-        return int(sum(int((~c.passed).sum()) for c in self.columns.values()))
+        return sum(c.failed for c in self.stats.values())
 
     @property
     def status_failures(self) -> int:
         """Variants that went from ``ok`` to ``failed``."""
-        return int((~self.status["passed"]).sum()) if len(self.status) else 0
+        return self.n_status_failures
 
     @property
     def failed(self) -> int:
         """Number of findings that fail the check: metric values past tolerance, variants missing
         from the new result, ``ok`` -> ``failed`` status changes and metric columns gone missing."""
-        return (self.failed_values + len(self.missing) + self.status_failures + len(self.missing_columns)
+        return (self.failed_values + self.n_missing + self.status_failures + len(self.missing_columns)
                 + len(self.damaged))  # fmt: skip
 
     def failing_columns(self) -> dict[str, int]:
         """Metric column -> number of its values past tolerance (only columns with any)."""
-        counts = {n: int((~c.passed).sum()) for n, c in self.columns.items()}
-        return {n: k for n, k in counts.items() if k}
+        return {n: c.failed for n, c in self.stats.items() if c.failed}
 
     def by_metric(self) -> pd.DataFrame:
         """One row per compared metric column: ``metric``, ``failed`` (values past tolerance),
         ``compared``, ``max_rel_diff`` (largest |rel diff|), ``rtol``, ``atol``, ``worst_score``;
         the worst first."""
-        rows = [{"metric": n, "failed": int((~c.passed).sum()), "compared": len(c.old),
-                 "max_rel_diff": float(np.nanmax(np.abs(c.rel_diff), initial=0.0)), "rtol": c.rtol, "atol": c.atol,
-                 "worst_score": float(c.score.max(initial=0.0))} for n, c in self.columns.items()]  # fmt: skip
+        rows = [{"metric": n, "failed": c.failed, "compared": c.compared, "max_rel_diff": c.max_rel_diff,
+                 "rtol": c.rtol, "atol": c.atol, "worst_score": c.worst_score} for n, c in self.stats.items()]
         df = pd.DataFrame(
             rows, columns=["metric", "failed", "compared", "max_rel_diff", "rtol", "atol", "worst_score"]
         )
@@ -192,28 +188,8 @@ class Comparison:
 
     def top(self, n: int = 20, column: str | None = None, only_failed: bool = False) -> pd.DataFrame:
         """The ``n`` values that moved most relative to their tolerance (largest ``score`` first);
-        unchanged values are left out."""
-        rows = []
-        for name, c in self.columns.items():
-            if column is not None and name != column:
-                continue
-            keep = ~c.passed if only_failed else c.score > 0
-            idx = np.flatnonzero(keep)
-            if len(idx) > n:
-                idx = idx[np.argsort(-c.score[idx], kind="stable")[:n]]
-            for i in idx:
-                rows.append((c.score[i], name, int(i)))
-        rows.sort(key=lambda r: -r[0])
-        rows = rows[:n]
-        out = self.matched.iloc[[i for _, _, i in rows]].reset_index(drop=True)
-        for key in ("metric", "old", "new", "rel_diff", "tolerance", "score", "passed"):
-            out[key] = [self._value(key, name, i) for _, name, i in rows]
-        return out
-
-    def _value(self, key: str, name: str, i: int) -> Any:
-        if key == "metric":
-            return name
-        return getattr(self.columns[name], key)[i]
+        unchanged values are left out. At most :data:`~crashstudy.analysis.compare_values.KEPT` (100)."""
+        return top_rows(self.stats, [*self.axes, "variant", "baseline_variant"], n, column, only_failed)
 
     def table(self, n: int = 20) -> str:
         """Text table of the ``n`` values that moved most (by |new - old| / tolerance)."""
@@ -242,10 +218,10 @@ class Comparison:
 
     def verdict(self) -> str:
         """One line: FAILED or OK, with what failed."""
-        n_cols = len(self.columns)
+        n_cols = len(self.stats)
         if not self.failed:
-            extra = f"; {len(self.extra)} new variants not in the baseline" if len(self.extra) else ""
-            return (f"OK: {len(self.matched)} variants x {n_cols} metrics within tolerance of the baseline"
+            extra = f"; {self.n_extra} new variants not in the baseline" if self.n_extra else ""
+            return (f"OK: {self.n_matched} variants x {n_cols} metrics within tolerance of the baseline"
                     f"{extra}")  # fmt: skip
         parts = list(self.damaged)
         if self.failed_values:
@@ -253,25 +229,27 @@ class Comparison:
                          f"moved past tolerance")  # fmt: skip
         if self.status_failures:
             parts.append(f"{self.status_failures} variants went from ok to failed")
-        if len(self.missing):
-            parts.append(f"{len(self.missing)} baseline variants missing from the new result")
+        if self.n_missing:
+            parts.append(f"{self.n_missing} baseline variants missing from the new result")
         if self.missing_columns:
             parts.append(f"metric columns missing from the new result: {', '.join(self.missing_columns)}")
-        return f"FAILED: {'; '.join(parts)} ({len(self.matched)} variants matched)"
+        return f"FAILED: {'; '.join(parts)} ({self.n_matched} variants matched)"
 
     def report(self, n: int = 20) -> str:
         """Everything ``crashstudy compare`` prints."""
         lines = [f"comparing {self.new_dir} against baseline {self.baseline_dir}", *("note: " + s for s in self.notes),
                  self.table(n)]  # fmt: skip
-        for title, df, col in (("baseline variants missing from the new result", self.missing, "baseline_variant"),
-                               ("new variants not in the baseline (not a failure)", self.extra, "variant")):  # fmt: skip
-            if len(df):
-                lines.append(f"{title} ({len(df)}):")
+        for title, df, col, count in (
+            ("baseline variants missing from the new result", self.missing, "baseline_variant", self.n_missing),
+            ("new variants not in the baseline (not a failure)", self.extra, "variant", self.n_extra),
+        ):
+            if count:
+                lines.append(f"{title} ({count}):")
                 lines += [f"  variant {int(r[col])}: {self._params(r)}" for _, r in df.head(n).iterrows()]
-                if len(df) > n:
-                    lines.append(f"  ... and {len(df) - n} more")
-        if len(self.status):
-            lines.append(f"status changes ({len(self.status)}):")
+                if count > n:
+                    lines.append(f"  ... and {count - n} more")
+        if self.n_status:
+            lines.append(f"status changes ({self.n_status}):")
             for _, r in self.status.head(n).iterrows():
                 why = f" ({r['failure_reason']})" if r["failure_reason"] else ""
                 lines.append(
@@ -289,13 +267,10 @@ class Comparison:
     def _past_tolerance(self, r: Any) -> str:
         """The summary line of one failing metric: how many values failed, and by how much (a value
         that is a number on one side and NaN on the other has no relative difference: counted apart)."""
-        c = self.columns[r.metric]
-        failed = ~c.passed
-        nan = failed & np.isnan(c.rel_diff)
-        rel = np.abs(c.rel_diff[failed & ~nan])
-        parts = [f"largest |rel diff| {rel.max():.3e}"] if len(rel) else []
-        if nan.any():
-            parts.append(f"{int(nan.sum())} a number on one side and NaN on the other")
+        c = self.stats[r.metric]
+        parts = [f"largest |rel diff| {c.failed_rel_max:.3e}"] if c.failed_rel_max is not None else []
+        if c.failed_nan:
+            parts.append(f"{c.failed_nan} a number on one side and NaN on the other")
         return f"  {r.metric}: {r.failed} of {r.compared} variants, {'; '.join(parts)} (rtol={r.rtol:g}, atol={r.atol:g})"
 
     def to_junit(self, path: str | os.PathLike[str] | None = None) -> ET.ElementTree:
@@ -352,49 +327,25 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
         notes.append(f"crashstudy versions differ: new {vn}, baseline {vb}")
 
     named = set(tol)
-    n_cols = _metric_columns(n_side.summary, axes, named)
-    b_cols = _metric_columns(b_side.summary, axes, named)
+    n_cols = _metric_columns(n_side.head(), axes, named)
+    b_cols = _metric_columns(b_side.head(), axes, named)
     _check_keys(tol, set(n_cols) | set(b_cols), n_side.attrs)
-    common = [c for c in n_cols if c in b_cols]
-
-    N, B = n_side.summary, b_side.summary
-    kn, kb = _keys(N, axes), _keys(B, axes)
-    on = [c for c in kn.columns if c != "_row"]
-    m = kn.merge(kb, on=on, how="outer", suffixes=("_new", "_base"), indicator=True)
-    both = m[m["_merge"] == "both"].sort_values("_row_new")
-    rn, rb = both["_row_new"].to_numpy(dtype=int), both["_row_base"].to_numpy(dtype=int)
-    only_b = np.sort(m.loc[m["_merge"] == "right_only", "_row_base"].to_numpy(dtype=int))
-    only_n = np.sort(m.loc[m["_merge"] == "left_only", "_row_new"].to_numpy(dtype=int))
-
-    matched = _axis_frame(N, rn, axes)
-    for ax in axes:  # an axis only the baseline has: its values
-        if ax not in N:
-            matched[ax] = B[ax].to_numpy()[rb]
-    matched["variant"] = N["variant"].to_numpy()[rn].astype(int)
-    matched["baseline_variant"] = B["variant"].to_numpy()[rb].astype(int)
-    missing = _axis_frame(B, only_b, axes).assign(
-        baseline_variant=B["variant"].to_numpy()[only_b].astype(int)
-    )
-    extra = _axis_frame(N, only_n, axes).assign(variant=N["variant"].to_numpy()[only_n].astype(int))
-
-    old_st, new_st = B["status"].astype(str).to_numpy()[rb], N["status"].astype(str).to_numpy()[rn]
-    changed = old_st != new_st
-    status = matched[changed].reset_index(drop=True)
-    status["old"], status["new"] = old_st[changed], new_st[changed]
-    status["failure_reason"] = N["failure_reason"].fillna("").astype(str).to_numpy()[rn][changed]
-    status["passed"] = ~((status["old"] == "ok") & (status["new"] != "ok"))
-
-    columns = {}
-    for c in common:
-        r, a = _tolerance_for(c, tol, rtol, atol)
-        old = pd.to_numeric(B[c], errors="coerce").to_numpy(dtype=np.float64)[rb]
-        nw = pd.to_numeric(N[c], errors="coerce").to_numpy(dtype=np.float64)[rn]
-        columns[c] = _Column(old, nw, r, a)
+    tol_of = {c: _tolerance_for(c, tol, rtol, atol) for c in n_cols if c in b_cols}  # compared columns
+    fields = streamed_if_large(n_side, b_side, axes, tol_of) or _whole(n_side, b_side, axes, tol_of)
     return Comparison(
-        new_dir=n_side.dir, baseline_dir=b_side.dir, axes=axes, matched=matched,
-        missing=missing, extra=extra, status=status,
-        columns=columns, missing_columns=[c for c in b_cols if c not in n_cols],
+        new_dir=n_side.dir, baseline_dir=b_side.dir, axes=axes, missing_columns=[c for c in b_cols if c not in n_cols],
         extra_columns=[c for c in n_cols if c not in b_cols], notes=notes, rtol=rtol, atol=atol,
         damaged=[s.damage for s in (n_side, b_side) if s.damage],
-        study_name=n_side.study_name, factors=factors(n_side.attrs, axes),
-    )  # fmt: skip
+        study_name=n_side.study_name, factors=factors(n_side.attrs, axes), **fields,
+    )
+
+
+def _whole(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]) -> dict[str, Any]:
+    """The fields of a comparison of the two summaries read whole, matched by their axis values (an outer
+    merge: any order, any subsets)."""
+    stats = {c: ColumnStats(*t) for c, t in tolerances.items()}
+    got = merged(new.summary, base.summary, axes, tolerances, stats)
+    status = got["status"]
+    return {**got, "stats": stats, "n_matched": len(got["matched"]), "n_status": len(status),
+            "n_missing": len(got["missing"]), "n_extra": len(got["extra"]),
+            "n_status_failures": int((~status["passed"]).sum()) if len(status) else 0}

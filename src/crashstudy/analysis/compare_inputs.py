@@ -7,6 +7,7 @@ import json
 import math
 import os
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,29 +34,84 @@ JUNIT_SUITE = "crashstudy compare"
 JUNIT_LIST = 10  #: variants listed in a JUnit failure
 
 ResultsLike = Results | str | os.PathLike[str]
+WHOLE_ROWS = 200_000  #: summary rows up to which compare reads both tables whole (and keeps per-variant arrays)
 
 
 @dataclass
 class _Side:
-    """One result folder as the comparison sees it."""
+    """One result folder as the comparison sees it: its summary is read whole only when asked for
+    (:attr:`summary`); a large one is read block by block (:mod:`crashstudy.analysis.compare_stream`)."""
 
     dir: Path
-    summary: pd.DataFrame
+    res: Results
     axes: list[str]
     attrs: dict[str, Any]
-    damage: str = ""  # why the summary does not hold every variant of results.nc ("" when it does)
+    role: str
+    n_variants: int
+    rows: int  # rows of its summary table
+    whole: pd.DataFrame | None = None
 
     @classmethod
     def read(cls, res: ResultsLike, role: str) -> _Side:
         res = res if isinstance(res, Results) else load_results(res, role)
         try:
-            attrs = dict(res.dataset.attrs)
-            summary = res.summary
-            n_variants = int(res.dataset.sizes.get("variant", len(summary)))
+            with res.raw_dataset as raw:  # the attributes and the size only: no variable read
+                attrs, size = dict(raw.attrs), raw.sizes.get("variant")
+            rows = res.summary_rows()
+            n_variants = int(rows if size is None else size)
         except (OSError, ValueError, KeyError) as exc:
-            raise InputError([Problem(str(res.dir), None, "", f"cannot read the {role} results: {exc}")]) from None
+            raise _unreadable(res, role, exc) from None
         axes = list(json.loads(attrs.get("crashstudy_axes", "[]")))
-        return cls(res.dir, summary, axes, attrs, _damage(summary, n_variants, role, res.summary_source))
+        return cls(res.dir, res, axes, attrs, role, n_variants, rows)
+
+    @property
+    def summary(self) -> pd.DataFrame:
+        """The summary table, whole (read on first use)."""
+        if self.whole is None:
+            try:
+                self.whole = self.res.summary
+            except (OSError, ValueError, KeyError) as exc:
+                raise _unreadable(self.res, self.role, exc) from None
+        return self.whole
+
+    @property
+    def large(self) -> bool:
+        """Whether its summary has more than :data:`WHOLE_ROWS` rows (read block by block where it can)."""
+        return self.rows > WHOLE_ROWS
+
+    def head(self) -> pd.DataFrame:
+        """The summary's first rows (its columns and their types), the whole table when it is read whole."""
+        if self.whole is not None or not self.large:
+            return self.summary
+        blocks = self.res.summary_batches(rows=1)
+        try:
+            return next(blocks)
+        finally:
+            blocks.close()
+
+    @property
+    def damage(self) -> str:
+        """Why the summary does not list each variant of results.nc once ("" if it does)."""
+        source = self.res.summary_source
+        if self.whole is not None:
+            return _damage([self.whole["variant"]] if "variant" in self.whole else [], self.n_variants, self.role,
+                           source)
+        if self.rows == self.n_variants:  # numbered 0, 1, ... in order (as a run writes it): checked per block
+            blocks, lo = self.res.summary_batches(["variant"]), 0
+            try:
+                for b in blocks:
+                    if not np.array_equal(b["variant"].to_numpy(), np.arange(lo, lo + len(b))):
+                        break
+                    lo += len(b)
+            finally:
+                blocks.close()
+            if lo == self.rows:
+                return ""
+        blocks = self.res.summary_batches(["variant"])
+        try:
+            return _damage((b["variant"] for b in blocks), self.n_variants, self.role, source)
+        finally:
+            blocks.close()
 
     @property
     def study_name(self) -> str:
@@ -63,19 +119,27 @@ class _Side:
         return title.removeprefix("crashstudy results of ") or self.dir.name
 
 
-def _damage(summary: pd.DataFrame, n_variants: int, role: str, source: str = "summary.csv") -> str:
-    """Why ``summary`` does not list each of the ``n_variants`` variants of results.nc once ("" if it does)."""
-    raw = summary["variant"] if "variant" in summary else pd.Series([], dtype=float)
-    numbers = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
-    present = np.unique(numbers[np.isfinite(numbers)])
-    missing = np.setdiff1d(np.arange(n_variants), present)
-    if not len(missing) and len(numbers) == n_variants:
+def _unreadable(res: Results, role: str, exc: Exception) -> InputError:
+    return InputError([Problem(str(res.dir), None, "", f"cannot read the {role} results: {exc}")])
+
+
+def _damage(variants: Iterable[pd.Series], n_variants: int, role: str, source: str = "summary.csv") -> str:
+    """Why the ``variant`` column (given in blocks) does not list each of the ``n_variants`` variants of
+    results.nc once ("" if it does); one byte per variant of results.nc."""
+    seen, rows = np.zeros(n_variants, dtype=bool), 0
+    for raw in variants:
+        numbers = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
+        rows += len(numbers)
+        with np.errstate(invalid="ignore"):
+            ours = np.isfinite(numbers) & (numbers >= 0) & (numbers < n_variants) & (numbers == np.floor(numbers))
+        seen[numbers[ours].astype(np.int64)] = True
+    missing = np.flatnonzero(~seen)
+    if not len(missing) and rows == n_variants:
         return ""
     shown = ", ".join(str(int(v)) for v in missing[:10]) + (", ..." if len(missing) > 10 else "")
-    what = f"; missing: variants {shown}" if len(missing) else f"; {len(numbers)} rows (rows repeated or foreign)"
-    return (f"the {role} {source} lists {len(np.intersect1d(present, np.arange(n_variants)))} of the "
+    what = f"; missing: variants {shown}" if len(missing) else f"; {rows} rows (rows repeated or foreign)"
+    return (f"the {role} {source} lists {int(seen.sum())} of the "
             f"{n_variants} variants in its results.nc{what}: the result folder is damaged")
-
 
 
 _XML_BAD = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")

@@ -7,8 +7,6 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from crashstudy.analysis.compare_inputs import JUNIT_LIST, JUNIT_SUITE, _xml_text
 from crashstudy.safefs import replacing
 
@@ -32,7 +30,7 @@ def junit(comp: Comparison, path: str | os.PathLike[str] | None = None) -> ET.El
             ET.SubElement(tc, "system-out").text = _xml_text(out)
         cases.append(tc)
 
-    for name in sorted([*comp.columns, *comp.missing_columns, *comp.extra_columns]):
+    for name in sorted([*comp.stats, *comp.missing_columns, *comp.extra_columns]):
         if name in comp.missing_columns:
             case(
                 name,
@@ -42,12 +40,12 @@ def junit(comp: Comparison, path: str | os.PathLike[str] | None = None) -> ET.El
         elif name in comp.extra_columns:
             case(name, out=f"{name} is new: no baseline value to compare with")
         else:
-            c = comp.columns[name]
-            bad = int((~c.passed).sum())
+            c = comp.stats[name]
+            bad = c.failed
             tol = f"rtol={c.rtol:g}, atol={c.atol:g}"
             if not bad:
-                case(name, out=f"{len(c.old)} variants within tolerance ({tol}); largest |rel diff| "
-                               f"{np.nanmax(np.abs(c.rel_diff), initial=0.0):.3e}")  # fmt: skip
+                case(name, out=f"{c.compared} variants within tolerance ({tol}); largest |rel diff| "
+                               f"{c.max_rel_diff:.3e}")
                 continue
             top = comp.top(JUNIT_LIST, column=name, only_failed=True)
             lines = [f"variant {int(r['variant'])} ({comp._params(r)}): old {r['old']:.10g} new {r['new']:.10g} "
@@ -55,19 +53,27 @@ def junit(comp: Comparison, path: str | os.PathLike[str] | None = None) -> ET.El
             if bad > len(top):
                 lines.append(f"... and {bad - len(top)} more")
             worst = top["rel_diff"].iloc[0]
-            case(name, f"{bad} of {len(c.old)} variants moved past tolerance ({tol}); worst rel diff {worst:+.3e}",
+            case(name, f"{bad} of {c.compared} variants moved past tolerance ({tol}); worst rel diff {worst:+.3e}",
                  "\n".join(lines))  # fmt: skip
     st = comp.status
     bad_st = st[~st["passed"]] if len(st) else st
-    case("status", f"{len(bad_st)} variants went from ok to failed" if len(bad_st) else None,
-         "\n".join(f"variant {int(r['variant'])} ({comp._params(r)}): {r['failure_reason']}" for _, r in bad_st.iterrows()),
-         "\n".join(f"variant {int(r['variant'])} ({comp._params(r)}): {r['old']} -> {r['new']}"
-                   for _, r in st[st["passed"]].iterrows()) if len(st) else "")  # fmt: skip
+    more = comp.n_status - len(st)  # a streamed comparison lists the first STATUS_KEPT status changes
+    ok_lines = [f"variant {int(r['variant'])} ({comp._params(r)}): {r['old']} -> {r['new']}"
+                for _, r in st[st["passed"]].iterrows()] if len(st) else []
+    bad_lines = [f"variant {int(r['variant'])} ({comp._params(r)}): {r['failure_reason']}" for _, r in bad_st.iterrows()]
+    if more:
+        (bad_lines if comp.n_status_failures > len(bad_st) else ok_lines).append(f"... and {more} more status changes")
+    case("status", f"{comp.status_failures} variants went from ok to failed" if comp.status_failures else None,
+         "\n".join(bad_lines), "\n".join(ok_lines))
+    missing = [f"baseline variant {int(r['baseline_variant'])}: {comp._params(r)}" for _, r in comp.missing.iterrows()]
+    extra = [f"variant {int(r['variant'])}: {comp._params(r)}" for _, r in comp.extra.iterrows()]
+    for lines, count in ((missing, comp.n_missing), (extra, comp.n_extra)):  # a streamed comparison: the first ones
+        if count > len(lines):
+            lines.append(f"... and {count - len(lines)} more")
     case("variants missing from the new result",
-         f"{len(comp.missing)} baseline variants are not in the new result" if len(comp.missing) else None,
-         "\n".join(f"baseline variant {int(r['baseline_variant'])}: {comp._params(r)}" for _, r in comp.missing.iterrows()))  # fmt: skip
-    case("variants only in the new result", None,
-         out="\n".join(f"variant {int(r['variant'])}: {comp._params(r)}" for _, r in comp.extra.iterrows()))  # fmt: skip
+         f"{comp.n_missing} baseline variants are not in the new result" if comp.n_missing else None,
+         "\n".join(missing))
+    case("variants only in the new result", None, out="\n".join(extra))
     if comp.damaged:
         case("complete result folders", f"{len(comp.damaged)} result folders are damaged", "\n".join(comp.damaged))
 

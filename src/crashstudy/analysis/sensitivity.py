@@ -31,9 +31,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from crashstudy.analysis.correlation import correlation_table
 from crashstudy.study.design import salib_problem, unit_rows
-
-Z95 = 1.959963984540054
 
 
 def _design(attrs: dict[str, Any]) -> dict[str, Any] | None:
@@ -49,8 +48,7 @@ def indices(summary: pd.DataFrame, attrs: dict[str, Any], metric: str, method: s
     """One row per (group, axis, index): columns ``metric, group, axis, index, value, confidence, note``."""
     axes = [str(a) for a in json.loads(attrs.get("crashstudy_axes", "[]"))]
     if method == "correlation":
-        table, names = _factor_columns(summary, attrs, axes)
-        return _correlation(table, names, metric)
+        return correlation_table(lambda: iter([summary]), factor_columns(attrs, axes), metric)
     design = _design(attrs)
     if design is None or design.get("method") != ("saltelli" if method == "sobol" else "morris"):
         need = "saltelli" if method == "sobol" else "morris"
@@ -68,33 +66,12 @@ def indices(summary: pd.DataFrame, attrs: dict[str, Any], metric: str, method: s
     return pd.DataFrame(rows)
 
 
-def _factor_columns(summary: pd.DataFrame, attrs: dict[str, Any], axes: list[str]) -> tuple[pd.DataFrame, list[str]]:
-    """The summary with one column per factor: a zip group's paths move together, so it is one row of the
-    table, named by :func:`crashstudy.analysis.factors.factor_name`, with its first path's values."""
+def factor_columns(attrs: dict[str, Any], axes: list[str]) -> dict[str, str]:
+    """Factor name -> the summary column of its values: a zip group's paths move together, so it is one
+    factor, named by :func:`crashstudy.analysis.factors.factor_name`, with its first path's values."""
     from crashstudy.analysis.factors import factor_name, factors
 
-    groups = factors(attrs, axes)
-    named = {first: factor_name(m) for first, m in groups.items() if len(m) > 1}
-    return summary.assign(**{name: summary[first] for first, name in named.items()}), [named.get(a, a) for a in groups]
-
-
-def _correlation(summary: pd.DataFrame, axes: list[str], metric: str) -> pd.DataFrame:
-    from scipy import stats
-
-    ok = (summary["status"] == "ok") & np.isfinite(summary[metric].to_numpy(dtype=float))
-    n, dropped = int(ok.sum()), int((~ok).sum())
-    note = f"{dropped} failed variant(s) left out" if dropped else ""
-    y = summary.loc[ok, metric].to_numpy(dtype=float)
-    rows = []
-    for a in axes:
-        x = summary.loc[ok, a].to_numpy(dtype=float)
-        for name, fn in (("spearman", stats.spearmanr), ("pearson", stats.pearsonr)):
-            r = float(fn(x, y)[0]) if n > 2 and np.ptp(x) > 0 and np.ptp(y) > 0 else float("nan")
-            half = Z95 / np.sqrt(n - 3) if n > 3 else float("nan")
-            lo, hi = np.tanh(np.arctanh(np.clip(r, -0.999999, 0.999999)) + np.array([-half, half]))
-            rows.append({"metric": metric, "group": "", "axis": a, "index": name, "value": r,
-                         "confidence": float((hi - lo) / 2), "note": note})  # fmt: skip
-    return pd.DataFrame(rows)
+    return {(factor_name(m) if len(m) > 1 else first): first for first, m in factors(attrs, axes).items()}
 
 
 def _salib(part: pd.DataFrame, design: dict[str, Any], axes: list[str], metric: str, method: str,

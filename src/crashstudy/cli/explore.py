@@ -39,7 +39,8 @@ def add_parsers(sub: Any) -> None:
 
 
 def sensitivity(args: argparse.Namespace) -> int:
-    from crashstudy.analysis.sensitivity import indices
+    from crashstudy.analysis.correlation import correlation_table
+    from crashstudy.analysis.sensitivity import factor_columns, indices
     from crashstudy.cli.columns import match_column as _match_column
     from crashstudy.results.store import open_results
 
@@ -51,9 +52,13 @@ def sensitivity(args: argparse.Namespace) -> int:
         metric = _match_column(args.dir, args.metric, names)
         axes = [a for a in json.loads(attrs.get("crashstudy_axes", "[]")) if a in names]
         # only the columns the indices use (a 10^8-variant summary is ~25 GB whole, these ~8 B each per variant)
-        df = res.summary_columns(list(dict.fromkeys(["variant", "status", *axes, metric])))
+        columns = list(dict.fromkeys(["variant", "status", *axes, metric]))
         try:
-            table = indices(df, attrs, metric, args.method)
+            if args.method == "correlation":  # block by block: bounded memory (analysis/correlation.py)
+                factors = factor_columns(attrs, [str(a) for a in json.loads(attrs.get("crashstudy_axes", "[]"))])
+                table = correlation_table(lambda: res.summary_batches(columns), factors, metric)
+            else:  # SALib's estimators need their columns whole
+                table = indices(res.summary_columns(columns), attrs, metric, args.method)
         except ValueError as exc:
             raise InputError([Problem(args.dir, None, "--method", str(exc))]) from None
         if args.history:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 import os
 import weakref
-from collections.abc import Iterator
+from collections.abc import Generator
 from pathlib import Path
 from typing import IO, Any
 
@@ -191,7 +191,7 @@ class Results:
         with self.open_file(PARQUET) as fh:
             return int(_parquet(fh).metadata.num_rows)
 
-    def summary_batches(self, columns: list[str] | None = None, rows: int | None = None) -> Iterator[pd.DataFrame]:
+    def summary_batches(self, columns: list[str] | None = None, rows: int | None = None) -> Generator[pd.DataFrame, None, None]:
         """:attr:`summary` (only ``columns``, in their order; default all) in blocks of at most ``rows``
         rows (default :data:`READ_BLOCK`), in variant order: what reads a summary of any size in memory
         bounded by the block (a Parquet row group at a time; text columns come as categoricals or strings
