@@ -31,6 +31,7 @@ from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
 from crashstudy.run.progress import Progress
 from crashstudy.run.reuse import _ranges, _reuse_finished
 from crashstudy.run.start import start_kernels
+from crashstudy.run.write_behind import WriteBehind
 from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study.plan import Plan, load_study, plan_from_model
 from crashstudy.study.provenance import variant_hashes
@@ -238,6 +239,7 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
     reused = 0
     n_failed = 0
     bar = Progress(plan.n_variants, progress)
+    behind = WriteBehind(writer.write)
     try:
         small, bar.estimate, later = start_kernels(plan, kernel, notes)
         if not resume and final.exists():
@@ -254,11 +256,13 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
         if scheduler and store == "zarr":  # the workers write their regions of the store (results/regions.py)
             compute, tasks = region_tasks(writer, run_chunk, plan, ranges, kernel)
         for res in backend.imap_unordered(compute, tasks):
-            writer.write(res)
+            behind.put(res)  # written on the writer thread while the next chunk computes
             n_failed += res.n_failed
             bar.update(res.size)
-            interrupt.check()  # a signal's stop request: after a whole chunk is written
+            interrupt.check()  # a signal's stop request: after a whole chunk is handed over (and then written)
+        behind.close()
     except BaseException:
+        behind.stop()  # the write under way ends first: the partial file stays whole for --resume
         writer.abort()
         backend.close()
         bar.close()
