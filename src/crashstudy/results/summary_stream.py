@@ -1,0 +1,141 @@
+"""``summary.parquet`` made from the chunks as they are written, not read back from the finished store.
+
+:func:`crashstudy.results.tables.write_summary` makes the table at the end of a run by reading every
+summary variable of the finished store again (at 10^6 variants ~1 CPU s of the run, after the last
+chunk). :class:`SummaryStream` makes the same table during the run: :class:`~crashstudy.results.store.ResultWriter`
+hands it each chunk's stored arrays and text codes (on the writer thread, behind the kernel); it keeps the
+rows of the row group being filled (``SUMMARY_BLOCK`` rows at most) and writes each whole row group
+through the same :func:`~crashstudy.results.tables.summary_columns`, over a dataset that holds what the
+store holds for those variants. The file is the one ``write_summary`` would write, byte for byte
+(tests/test_summary_stream.py), or it is not used:
+
+- only a fresh run whose chunks arrive in variant order from 0 (the in-process runner) streams; a resumed
+  run, reused variants, a chunk out of order (process pools, Dask) or ``summary.csv`` wanted: the finished
+  store is read as before;
+- a row group's texts are coded against the text tables as they are when it is written; when a table
+  at the end (sorted, :meth:`ResultWriter._sort_tables`) is not the one every row group used (a text that
+  first appeared later), or a text would not be stored whole, the stream is dropped and the table is made
+  from the store.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from crashstudy.metrics.record import NOTE_TEXT
+from crashstudy.results import tables as T
+from crashstudy.safefs import open_new
+from crashstudy.vocabulary.summary import SUMMARY_META
+
+STREAM = T.PARQUET + ".stream.partial"  # the table being made (renamed to summary.parquet when the run ends)
+
+
+class SummaryStream:
+    """The summary table of a run written as its chunks arrive (see the module docstring)."""
+
+    def __init__(self, folder: Path, nc: Any, plan: Any) -> None:
+        from crashstudy.metrics.record import METRIC_META
+
+        self.plan, self.n = plan, plan.n_variants
+        self.path = folder / STREAM
+        self.axes = [a.path for a in plan.axes]
+        topo = plan.topology
+        self.ids = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
+        # the summary variables the store holds, with the attributes summary_columns reads (asked items)
+        self.names: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {}
+        for name, dims in [*((n, d) for n, (d, _, _) in SUMMARY_META.items()), *((n, ("node",)) for n in METRIC_META)]:
+            if name in nc.variables:
+                var = nc.variables[name]
+                self.names[name] = (dims, {k: str(var.getncattr(k)) for k in ("nodes", "springs") if k in var.ncattrs()})
+        self.texts = [n for n in T.text_tables(topo) if n in nc.variables]
+        self.next = 0  # the first variant not yet handed over
+        self.rows: list[dict[str, np.ndarray]] = []  # the chunks of the row group being filled
+        self.used: list[dict[str, list[str]]] = []  # the text tables each written row group was coded with
+        self.fh: Any = None
+        self.writer: Any = None
+        self.live = self.n > 0
+
+    def add(self, lo: int, hi: int, data: dict[str, np.ndarray], codes: dict[str, np.ndarray],
+            tables: dict[str, dict[str, int]]) -> None:  # fmt: skip
+        """Variants ``lo`` .. ``hi - 1``: their stored arrays ``data``, their text codes into the writer's
+        ``tables`` (text -> code, in the order the texts first came)."""
+        if not self.live:
+            return
+        if lo != self.next:
+            self.drop()
+            return
+        self.next = hi
+        keep = {n: data[n] for n in (*self.names, "status") if n in data}
+        self.rows.append({**keep, **{f"code:{n}": codes[n] for n in self.texts}})
+        block = T.SUMMARY_BLOCK
+        while self.live and (sum(len(r["status"]) for r in self.rows) >= block or (self.next == self.n and self.rows)):
+            self._write_group(min(block, sum(len(r["status"]) for r in self.rows)), tables)
+
+    def _write_group(self, size: int, tables: dict[str, dict[str, int]]) -> None:
+        """Write the first ``size`` rows held as one row group, coded against the sorted ``tables``."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+        import xarray as xr
+
+        cols = {k: np.concatenate([r[k] for r in self.rows]) for k in self.rows[0]}
+        head, tail = {k: v[:size] for k, v in cols.items()}, {k: v[size:] for k, v in cols.items()}
+        self.rows = [tail] if len(tail["status"]) else []
+        lo = self.next - size - sum(len(r["status"]) for r in self.rows)
+        sorted_tables = {n: sorted(tables[n]) for n in self.texts}
+        if any(len(t.encode("utf-8")) > T.TEXT_LEN or "\0" in t for ts in sorted_tables.values() for t in ts):
+            self.drop()  # stored cut or padded: the store's table is not these texts
+            return
+        data: dict[str, Any] = {}
+        for name, (dims, attrs) in self.names.items():
+            data[name] = (("variant", *dims), head[name], attrs)
+        data["status"] = ("variant", head["status"])
+        for n, table in sorted_tables.items():  # the store's codes once its tables are sorted
+            old = tables[n]
+            new_code = np.empty(len(old), dtype=np.int32)
+            for k, text in enumerate(table):
+                new_code[old[text]] = k
+            data[n] = ("variant", new_code[head[f"code:{n}"]])
+            data[f"{n}_text"] = (f"{n}_kind", np.array(table, dtype=str))
+        data["variant"] = ("variant", np.arange(lo, lo + size, dtype=np.int64))
+        for path, values in self.plan.axis_values(lo, lo + size).items():
+            data[path] = ("variant", values)
+        coords = {d: np.array(ids, dtype=str) for d, ids in self.ids.items() if ids}
+        ds = xr.Dataset(data, coords=coords, attrs={"crashstudy_axes": json.dumps(self.axes)})
+        table = pa.table(T.summary_columns(ds, 0, size))
+        if self.writer is None:
+            self.fh = open_new(self.path, mode="wb")
+            texts = [n for n in ("status", *T.TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
+            self.writer = pq.ParquetWriter(self.fh, table.schema, use_dictionary=texts)
+        self.writer.write_table(table)
+        self.used.append(sorted_tables)
+
+    def result(self, tables: dict[str, dict[str, int]]) -> Path | None:
+        """The finished table (its temporary path) if it is the one the store's final ``tables`` give,
+        else None (dropped: the caller makes it from the store)."""
+        final = {n: sorted(tables[n]) for n in self.texts}
+        if not (self.live and self.next == self.n and not self.rows and self.writer is not None
+                and all(u == final for u in self.used)):  # fmt: skip
+            self.drop()
+            return None
+        self.writer.close()
+        self.fh.close()
+        self.live = False
+        return self.path
+
+    def drop(self) -> None:
+        """Stop streaming and remove what was written."""
+        self.live, self.rows = False, []
+        if self.writer is not None:
+            with contextlib.suppress(Exception):
+                self.writer.close()
+            self.writer = None
+        if self.fh is not None:
+            self.fh.close()
+            self.fh = None
+        with contextlib.suppress(FileNotFoundError):
+            self.path.unlink()
