@@ -23,7 +23,7 @@ from __future__ import annotations
 import contextlib
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -80,7 +80,6 @@ class SummaryStream:
         """Write the first ``size`` rows held as one row group, coded against the sorted ``tables``."""
         import pyarrow as pa
         import pyarrow.parquet as pq
-        import xarray as xr
 
         cols = {k: np.concatenate([r[k] for r in self.rows]) for k in self.rows[0]}
         head, tail = {k: v[:size] for k, v in cols.items()}, {k: v[size:] for k, v in cols.items()}
@@ -90,23 +89,25 @@ class SummaryStream:
         if any(len(t.encode("utf-8")) > T.TEXT_LEN or "\0" in t for ts in sorted_tables.values() for t in ts):
             self.drop()  # stored cut or padded: the store's table is not these texts
             return
-        data: dict[str, Any] = {}
-        for name, (dims, attrs) in self.names.items():
-            data[name] = (("variant", *dims), head[name], attrs)
-        data["status"] = ("variant", head["status"])
+        data: dict[str, _Var] = {}
+        for name, (_, attrs) in self.names.items():
+            data[name] = _Var(head[name], attrs)
+        data["status"] = _Var(head["status"])
         for n, table in sorted_tables.items():  # the store's codes once its tables are sorted
             old = tables[n]
             new_code = np.empty(len(old), dtype=np.int32)
             for k, text in enumerate(table):
                 new_code[old[text]] = k
-            data[n] = ("variant", new_code[head[f"code:{n}"]])
-            data[f"{n}_text"] = (f"{n}_kind", np.array(table, dtype=str))
-        data["variant"] = ("variant", np.arange(lo, lo + size, dtype=np.int64))
+            data[n] = _Var(new_code[head[f"code:{n}"]])
+            data[f"{n}_text"] = _Var(np.array(table, dtype=str))
+        data["variant"] = _Var(np.arange(lo, lo + size, dtype=np.int64))
         for path, values in self.plan.axis_values(lo, lo + size).items():
-            data[path] = ("variant", values)
-        coords = {d: np.array(ids, dtype=str) for d, ids in self.ids.items() if ids}
-        ds = xr.Dataset(data, coords=coords, attrs={"crashstudy_axes": json.dumps(self.axes)})
-        table = pa.table(T.summary_columns(ds, 0, size))
+            data[path] = _Var(values)
+        for d, ids in self.ids.items():
+            if ids:
+                data[d] = _Var(np.array(ids, dtype=str))
+        ds = _Rows(data, {"crashstudy_axes": json.dumps(self.axes)}, size)
+        table = pa.table(T.summary_columns(cast(Any, ds), 0, size))  # read as a store opened by xarray
         if self.writer is None:
             self.fh = open_new(self.path, mode="wb")
             texts = [n for n in ("status", *T.TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
@@ -139,3 +140,29 @@ class SummaryStream:
             self.fh = None
         with contextlib.suppress(FileNotFoundError):
             self.path.unlink()
+
+
+class _Var:
+    """A variable of :class:`_Rows`: its values and attributes."""
+
+    def __init__(self, values: np.ndarray, attrs: dict[str, str] | None = None) -> None:
+        self.values, self.attrs = values, attrs or {}
+
+
+class _Rows:
+    """The rows of one row group as :func:`~crashstudy.results.tables.summary_columns` reads a store opened
+    with xarray (the variables it asks for; ``isel`` is the whole group): no xarray Dataset, whose
+    construction imports Dask when it is installed (1 CPU s of imports under load)."""
+
+    def __init__(self, variables: dict[str, _Var], attrs: dict[str, str], size: int) -> None:
+        self.variables, self.attrs, self.sizes = variables, attrs, {"variant": size}
+
+    def isel(self, variant: slice) -> _Rows:
+        assert variant.start in (0, None) and variant.stop in (self.sizes["variant"], None), variant
+        return self
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.variables
+
+    def __getitem__(self, name: str) -> _Var:
+        return self.variables[name]
