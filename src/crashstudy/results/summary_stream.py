@@ -54,8 +54,9 @@ class SummaryStream:
                 self.names[name] = (dims, {k: str(var.getncattr(k)) for k in ("nodes", "springs") if k in var.ncattrs()})
         self.texts = [n for n in T.text_tables(topo) if n in nc.variables]
         self.next = 0  # the first variant not yet handed over
-        self.rows: list[dict[str, np.ndarray]] = []  # the chunks of the row group being filled
-        self.used: list[dict[str, list[str]]] = []  # the text tables each written row group was coded with
+        self.rows: list[Any] = []  # the summary rows (pyarrow Tables) of the row group being filled
+        self.held = 0  # rows in them
+        self.used: list[dict[str, list[str]]] = []  # the text tables each chunk's rows were coded with
         self.fh: Any = None
         self.writer: Any = None
         self.live = self.n > 0
@@ -70,56 +71,68 @@ class SummaryStream:
             self.drop()
             return
         self.next = hi
-        keep = {n: data[n] for n in (*self.names, "status") if n in data}
-        self.rows.append({**keep, **{f"code:{n}": codes[n] for n in self.texts}})
+        table = self._rows(lo, hi, data, codes, tables)
+        if table is None:
+            return
+        self.rows.append(table)
+        self.held += hi - lo
         block = T.SUMMARY_BLOCK
-        while self.live and (sum(len(r["status"]) for r in self.rows) >= block or (self.next == self.n and self.rows)):
-            self._write_group(min(block, sum(len(r["status"]) for r in self.rows)), tables)
+        while self.live and (self.held >= block or (self.next == self.n and self.held)):
+            self._write_group(min(block, self.held))
 
-    def _write_group(self, size: int, tables: dict[str, dict[str, int]]) -> None:
-        """Write the first ``size`` rows held as one row group, coded against the sorted ``tables``."""
+    def _rows(self, lo: int, hi: int, data: dict[str, np.ndarray], codes: dict[str, np.ndarray],
+              tables: dict[str, dict[str, int]]) -> Any:  # fmt: skip
+        """The summary rows of variants ``lo`` .. ``hi - 1`` (a pyarrow Table), their texts coded against
+        the sorted ``tables`` (recorded in ``used``); None if the stream is dropped."""
         import pyarrow as pa
-        import pyarrow.parquet as pq
 
-        cols = {k: np.concatenate([r[k] for r in self.rows]) for k in self.rows[0]}
-        head, tail = {k: v[:size] for k, v in cols.items()}, {k: v[size:] for k, v in cols.items()}
-        self.rows = [tail] if len(tail["status"]) else []
-        lo = self.next - size - sum(len(r["status"]) for r in self.rows)
+        size = hi - lo
         sorted_tables = {n: sorted(tables[n]) for n in self.texts}
         if any(len(t.encode("utf-8")) > T.TEXT_LEN or "\0" in t for ts in sorted_tables.values() for t in ts):
             self.drop()  # stored cut or padded: the store's table is not these texts
-            return
-        data: dict[str, _Var] = {}
+            return None
+        rows: dict[str, _Var] = {}
         for name, (_, attrs) in self.names.items():
-            data[name] = _Var(head[name], attrs)
-        data["status"] = _Var(head["status"])
+            rows[name] = _Var(data[name], attrs)
+        rows["status"] = _Var(data["status"])
         for n, table in sorted_tables.items():  # the store's codes once its tables are sorted
             old = tables[n]
             new_code = np.empty(len(old), dtype=np.int32)
             for k, text in enumerate(table):
                 new_code[old[text]] = k
-            data[n] = _Var(new_code[head[f"code:{n}"]])
-            data[f"{n}_text"] = _Var(np.array(table, dtype=str))
-        data["variant"] = _Var(np.arange(lo, lo + size, dtype=np.int64))
-        for path, values in self.plan.axis_values(lo, lo + size).items():
-            data[path] = _Var(values)
+            rows[n] = _Var(new_code[codes[n]])
+            rows[f"{n}_text"] = _Var(np.array(table, dtype=str))
+        rows["variant"] = _Var(np.arange(lo, hi, dtype=np.int64))
+        for path, values in self.plan.axis_values(lo, hi).items():
+            rows[path] = _Var(values)
         for d, ids in self.ids.items():
             if ids:
-                data[d] = _Var(np.array(ids, dtype=str))
-        ds = _Rows(data, {"crashstudy_axes": json.dumps(self.axes)}, size)
-        table = pa.table(T.summary_columns(cast(Any, ds), 0, size))  # read as a store opened by xarray
-        if self.writer is None:
-            self.fh = open_new(self.path, mode="wb")
-            texts = [n for n in ("status", *T.TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
-            self.writer = pq.ParquetWriter(self.fh, table.schema, use_dictionary=texts)
-        self.writer.write_table(table)
+                rows[d] = _Var(np.array(ids, dtype=str))
+        ds = _Rows(rows, {"crashstudy_axes": json.dumps(self.axes)}, size)
         self.used.append(sorted_tables)
+        return pa.table(T.summary_columns(cast(Any, ds), 0, size))  # read as a store opened by xarray
+
+    def _write_group(self, size: int) -> None:
+        """Write the first ``size`` rows held as one row group (contiguous columns, as write_summary's)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        held = pa.concat_tables(self.rows)
+        table = held.slice(0, size)  # chunked as the chunks came: the same row group (tests: same bytes)
+        self.rows = [held.slice(size)] if self.held > size else []
+        self.held -= size
+        if self.writer is None:
+            fh = open_new(self.path, mode="wb")
+            self.fh = fh
+            texts = [n for n in ("status", *T.TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
+            self.writer = pq.ParquetWriter(fh, table.schema, use_dictionary=texts)
+        self.writer.write_table(table)
 
     def result(self, tables: dict[str, dict[str, int]]) -> Path | None:
         """The finished table (its temporary path) if it is the one the store's final ``tables`` give,
         else None (dropped: the caller makes it from the store)."""
         final = {n: sorted(tables[n]) for n in self.texts}
-        if not (self.live and self.next == self.n and not self.rows and self.writer is not None
+        if not (self.live and self.next == self.n and not self.held and self.writer is not None
                 and all(u == final for u in self.used)):  # fmt: skip
             self.drop()
             return None
@@ -130,7 +143,7 @@ class SummaryStream:
 
     def drop(self) -> None:
         """Stop streaming and remove what was written."""
-        self.live, self.rows = False, []
+        self.live, self.rows, self.held = False, [], 0
         if self.writer is not None:
             with contextlib.suppress(Exception):
                 self.writer.close()
