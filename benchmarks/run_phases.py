@@ -41,6 +41,9 @@ import crashstudy.study.sanity as SA  # noqa: E402
 from crashstudy.cli import main as M  # noqa: E402
 
 ACC: dict[str, list[float]] = {}  # label: [thread CPU, wall, calls] (exclusive of the phases inside it)
+FIRST: list[float] = []  # process CPU and wall from the end of the imports to the first kernel call
+KERNEL = "chunk: kernel (run_ordered)"
+IMPORT_C = IMPORT_W = 0.0
 LOCAL = threading.local()  # each thread's stack of open phases (the writer thread has its own)
 
 
@@ -48,6 +51,8 @@ def wrap(owner: Any, name: str, label: str) -> None:
     real = getattr(owner, name)
 
     def timed(*a: Any, **k: Any) -> Any:
+        if label == KERNEL and not FIRST:  # the time before the first kernel call (after the imports)
+            FIRST.extend([_cpu() - T0C - IMPORT_C, time.perf_counter() - T0W - IMPORT_W])
         stack = LOCAL.__dict__.setdefault("stack", [])
         c0, w0 = time.thread_time(), time.perf_counter()
         stack.append([0.0, 0.0])  # CPU and wall of the phases opened inside this one
@@ -97,6 +102,8 @@ def main() -> int:
     out = ["| phase | cpu_s (its thread) | wall_s | calls |", "|---|---|---|---|"]
     out += [f"| {a} | {c:.3f} | {w:.3f} | {int(n)} |" for a, c, w, n in rows]
     out.append(f"| **total in process** | **{total_c:.3f}** | **{total_w:.3f}** | |")
+    if FIRST:
+        out.append(f"| before the first kernel call (after the imports) | {FIRST[0]:.3f} (process) | {FIRST[1]:.3f} | |")
     print("\n".join(out) + f"\n\nload average at end: {os.getloadavg()[0]:.2f}", file=sys.stderr)
     return rc
 

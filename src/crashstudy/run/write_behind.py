@@ -28,7 +28,7 @@ class WriteBehind:
         self._write = write
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="crashstudy-writer") if (
             THREADED if threaded is None else threaded) else None  # fmt: skip
-        self._last: Future[None] | None = None
+        self._last: Future[Any] | None = None
 
     def put(self, result: Any) -> None:
         """Write ``result`` once the previous write has ended (raising that write's error, if any)."""
@@ -37,6 +37,20 @@ class WriteBehind:
             self._write(result)
         else:
             self._last = self._pool.submit(self._write, result)
+
+    def call(self, fn: Callable[[], Any]) -> Future[Any]:
+        """Run ``fn()`` on the writer thread after the write under way (e.g. create the result store
+        while the kernels start); later writes come after it. Its result or error: the returned future."""
+        self.wait()
+        done: Future[Any] = Future()
+        if self._pool is None:
+            try:
+                done.set_result(fn())
+            except BaseException as exc:  # the caller's result() raises it, as from the thread
+                done.set_exception(exc)
+            return done
+        self._last = done = self._pool.submit(fn)
+        return done
 
     def wait(self) -> None:
         """Wait for the write under way; its error is raised here."""
