@@ -262,12 +262,15 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
         tasks: Iterator[tuple[Any, ...]] = ((plan, lo, hi, kernel) for lo, hi in ranges)
         if scheduler and store == "zarr":  # the workers write their regions of the store (results/regions.py)
             compute, tasks = region_tasks(made.result(), run_chunk, plan, ranges, kernel)
+        written = 0  # variants of the chunk being written: shown once its write has ended
         for res in backend.imap_unordered(compute, tasks):
-            behind.put(res)  # written on the writer thread while the next chunk computes
+            behind.put(res)  # written on the writer thread while the next chunk computes (the previous one ended)
+            bar.update(written)  # the line counts written variants only (a kill after it finds them in the file)
+            written = res.size
             n_failed += res.n_failed
-            bar.update(res.size)
             interrupt.check()  # a signal's stop request: after a whole chunk is handed over (and then written)
         behind.close()
+        bar.update(written)
     except BaseException:
         behind.stop()  # the write under way ends first: the partial file stays whole for --resume
         if made.done() and made.exception() is None:
