@@ -212,7 +212,7 @@ class ResultWriter:
             v.units, v.long_name = units[HISTORY_META[name][0]], HISTORY_META[name][1]
         for name in self._summary_names():
             self._summary_variable(nc, name, cv)
-        for name in result_names(topo):  # the crash criteria (crashstudy.metrics.record)
+        for name in result_names(topo) if topo.metrics else ():  # the crash criteria (none: no numba import here)
             kind, long = METRIC_META[name]
             v = nc.createVariable(name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes])
             v.units, v.long_name, v.standard = units[kind], long, standard(name)
