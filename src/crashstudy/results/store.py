@@ -360,9 +360,11 @@ class ResultWriter:
 
     def abort(self) -> None:
         """Close the partial file (kept for ``--resume``)."""
-        self._no_stream()
-        if self.nc.isopen():
-            self.nc.close()
+        try:
+            self._no_stream()
+        finally:  # the store is closed whatever the summary's file did (a full disk)
+            if self.nc.isopen():
+                self.nc.close()
 
     def finish(self) -> Path:
         """Mark the partial file complete, write the summary tables under temporary names, then rename

@@ -149,9 +149,10 @@ class SummaryStream:
                 self.writer.close()
             self.writer = None
         if self.fh is not None:
-            self.fh.close()
+            with contextlib.suppress(OSError):  # a full disk: the file is removed below anyway
+                self.fh.close()
             self.fh = None
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             self.path.unlink()
 
 
