@@ -19,6 +19,16 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 THREADED = True  # False: every write in the caller's thread (tests compare the two)
+_POOL: list[ThreadPoolExecutor] = []  # the one writer thread of the process, started at the first run
+
+
+def _writer_thread() -> ThreadPoolExecutor:
+    """The process's writer thread: one for the process's life, never one per run (an HDF5 library
+    that keeps state per thread saw that state end with each run's thread: a crash in a later run's
+    garbage collection, tests/test_faults.py's disk-full resume, in process)."""
+    if not _POOL:
+        _POOL.append(ThreadPoolExecutor(1, thread_name_prefix="crashstudy-writer"))
+    return _POOL[0]
 
 
 class WriteBehind:
@@ -26,8 +36,7 @@ class WriteBehind:
 
     def __init__(self, write: Callable[[Any], None], threaded: bool | None = None) -> None:
         self._write = write
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="crashstudy-writer") if (
-            THREADED if threaded is None else threaded) else None  # fmt: skip
+        self._pool = _writer_thread() if (THREADED if threaded is None else threaded) else None
         self._last: Future[Any] | None = None
 
     def put(self, result: Any) -> None:
@@ -59,19 +68,17 @@ class WriteBehind:
             last.result()
 
     def close(self) -> None:
-        """Wait for the last write (raising its error) and end the thread."""
+        """Wait for the last write (raising its error); nothing is handed over after it."""
         try:
             self.wait()
         finally:
             self.stop()
 
     def stop(self) -> None:
-        """End the thread after the write under way, whatever it raised (the run is failing already:
+        """Wait for the write under way, whatever it raised (the run is failing already:
         its own error is the one to report; the partial file stays consistent for ``--resume``)."""
         last, self._last = self._last, None
         if last is not None:
             with contextlib.suppress(BaseException):  # the caller's error is the one raised
                 last.result()
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
+        self._pool = None  # the thread stays for the next run
