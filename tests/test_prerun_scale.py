@@ -115,13 +115,14 @@ def test_work_estimate_counts_each_step_setting_once_and_exactly(tmp_path: Any, 
     truth = float(every.sum())
     assert len(np.unique(every)) > 50
     built: list[int] = []
-    real = batch_mod.build_batch
+    real = batch_mod.variant_steps  # the step choice alone: estimate_work builds no whole batch
 
     def counted(topo: Any, P: np.ndarray, interval: float) -> Any:
         built.append(P.shape[1])
         return real(topo, P, interval)
 
-    monkeypatch.setattr(batch_mod, "build_batch", counted)
+    monkeypatch.setattr(batch_mod, "variant_steps", counted)
+    monkeypatch.setattr(batch_mod, "build_batch", lambda *a: pytest.fail("a whole batch built to count steps"))
     work, worst, steps = estimate_work(plan)
     assert work == pytest.approx(truth * plan.topology.n_springs, rel=1e-12)
     assert sum(built) == 300

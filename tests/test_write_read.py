@@ -251,6 +251,7 @@ ALLOWED = {
     # a Zarr folder replacing a folder: staged, then swapped in one step (or, without renameat2, moved aside)
     ("results/placement.py", "replace"): 3,
     ("results/tables.py", "ParquetWriter"): 1,  # into a handle from safefs.open_new
+    ("results/summary_stream.py", "ParquetWriter"): 1,  # into a handle from safefs.open_new, open across the chunks
     ("results/tables.py", "CSVWriter"): 1,  # into a handle from safefs.open_new
     ("results/tables.py", "replace"): 1,  # the staged summaries renamed into place
     ("results/integrity.py", "Dataset"): 1,  # results.nc, after safefs.open_regular checked it

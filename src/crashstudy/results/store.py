@@ -35,6 +35,7 @@ from crashstudy.results.integrity import FINAL, PARTIAL
 from crashstudy.results.placement import partial_opens, remove_store, swap_store
 from crashstudy.results.reader import Results, open_raw, open_results  # the one reader, re-exported
 from crashstudy.results.regions import Receipt, codes_in, record, stored_arrays, text_values
+from crashstudy.results.summary_stream import SummaryStream
 from crashstudy.results.tables import (
     CSV_MAX,
     HISTORY_META,
@@ -125,6 +126,8 @@ class ResultWriter:
         else:
             self.nc = self._create()
         self.tables = {name: {t: k for k, t in enumerate(stored_table(self.nc, name))} for name in text_tables(plan.topology)}
+        # summary.parquet made as the chunks come (a fresh run's), else from the finished store
+        self.stream = SummaryStream(self.dir, self.nc, plan) if not (resume or self.csv) else None
 
     def _verify_resumed(self) -> None:
         """Forget the done variants whose data no longer match their checksum: they are computed again.
@@ -209,7 +212,7 @@ class ResultWriter:
             v.units, v.long_name = units[HISTORY_META[name][0]], HISTORY_META[name][1]
         for name in self._summary_names():
             self._summary_variable(nc, name, cv)
-        for name in result_names(topo):  # the crash criteria (crashstudy.metrics.record)
+        for name in result_names(topo) if topo.metrics else ():  # the crash criteria (none: no numba import here)
             kind, long = METRIC_META[name]
             v = nc.createVariable(name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes])
             v.units, v.long_name, v.standard = units[kind], long, standard(name)
@@ -254,6 +257,7 @@ class ResultWriter:
         """Write one chunk's variants (``res.index`` must be a contiguous range), or record the region a
         worker wrote (a :class:`~crashstudy.results.regions.Receipt`, :func:`~crashstudy.results.regions.record`)."""
         if isinstance(res, Receipt):
+            self._no_stream()
             record(self, res)
             return
         lo, hi = int(res.index[0]), int(res.index[-1]) + 1
@@ -264,11 +268,20 @@ class ResultWriter:
         assert sorted(data) == names, (sorted(data), names)
         for name in names:
             nc.variables[name][lo:hi] = data[name]
-        for name, texts in text_values(res).items():
-            nc.variables[name][lo:hi] = self._codes(name, texts)
+        codes = {}
+        for name, texts in text_values(res).items():  # each table grown, then its codes written (file layout)
+            codes[name] = nc.variables[name][lo:hi] = self._codes(name, texts)
         nc.variables["done"][lo:hi] = 1
         nc.variables[integrity.CHECKSUM][lo:hi] = integrity.variant_sums(data, names)
         nc.sync()
+        if self.stream is not None:
+            self.stream.add(lo, hi, data, codes, self.tables)
+
+    def _no_stream(self) -> None:
+        """Make summary.parquet from the finished store (variants not written here in order from 0)."""
+        if self.stream is not None:
+            self.stream.drop()
+            self.stream = None
 
     def _summary_variable(self, nc: netCDF4.Dataset, name: str, cv: int) -> None:
         """Create summary variable ``name`` (SUMMARY_META), chunked by ``cv`` variants."""
@@ -295,6 +308,7 @@ class ResultWriter:
         were kept."""
         if not len(new_idx):
             return 0
+        self._no_stream()
         names = [n for n, v in self.nc.variables.items()
                  if v.dimensions[:1] == ("variant",) and n != "variant" and n not in self.plan_axes
                  and n in old.variables]  # fmt: skip
@@ -337,28 +351,36 @@ class ResultWriter:
             new_id[order] = np.arange(len(texts), dtype=np.int32)
             var = self.nc.variables[name]
             for lo in range(0, self.plan.n_variants, block):
-                codes = np.asarray(var[lo : lo + block].filled(-1) if np.ma.isMaskedArray(var[lo : lo + block])
-                                   else var[lo : lo + block])  # fmt: skip
-                var[lo : lo + block] = np.where(codes >= 0, new_id[np.clip(codes, 0, None)], -1)
+                hi = min(lo + block, self.plan.n_variants)  # Zarr: a slice past the end fails on its last chunk
+                got = var[lo:hi]
+                codes = np.asarray(got.filled(-1) if np.ma.isMaskedArray(got) else got)
+                var[lo:hi] = np.where(codes >= 0, new_id[np.clip(codes, 0, None)], -1)
             self.nc.variables[f"{name}_text"][: len(texts)] = chars([texts[k] for k in order], TEXT_LEN)
             self.tables[name] = {texts[k]: i for i, k in enumerate(order)}
 
     def abort(self) -> None:
         """Close the partial file (kept for ``--resume``)."""
-        if self.nc.isopen():
-            self.nc.close()
+        try:
+            self._no_stream()
+        finally:  # the store is closed whatever the summary's file did (a full disk)
+            if self.nc.isopen():
+                self.nc.close()
 
     def finish(self) -> Path:
         """Mark the partial file complete, write the summary tables under temporary names, then rename
         ``results.nc`` first, the tables next (or remove an old ``summary.csv``) and ``manifest.json``
         last (see :mod:`crashstudy.results.integrity` for why this order)."""
         self._sort_tables()
+        streamed = self.stream.result(self.tables) if self.stream is not None else None
         run_id = integrity.run_id(self.nc)
         self.nc.setncatts({"complete": np.int8(1), "run_id": run_id})
         self.nc.close()
         final = self.dir / self.final_name
-        with open_raw(self.path) as ds:  # no index of every variant
-            tables = write_summary(ds, self.dir, self.csv, rename=False)
+        if streamed is not None:
+            tables = {PARQUET: streamed}
+        else:
+            with open_raw(self.path) as ds:  # no index of every variant
+                tables = write_summary(ds, self.dir, self.csv, rename=False)
         zarr = self.final_name == ZARR_FINAL
         if not (self.path.is_dir() and not self.path.is_symlink() if zarr else is_regular(self.path)):
             raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
