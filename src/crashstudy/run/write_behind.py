@@ -9,6 +9,12 @@ over only after the previous write ended): peak memory does not grow. Only the w
 the result files until :meth:`WriteBehind.close`; what it writes is what a write in the main thread
 would write, bit for bit (tests/test_write_behind.py). An error of a write is raised in the main thread
 at the next hand-over or at :meth:`close`.
+
+Off by default (:data:`THREADED` False: each write in the runner's thread, the same files): measured at
+load 7-8 on the 2-core machine the threaded 10^6 x 86-step run was not faster (wall 12.7 / 13.4 s against
+11.6 / 12.5 s in the main thread; benchmarks/results/short_variants.md), and a crash of the HDF5 library
+with a writer thread per run (a later run's garbage collection, in process) was avoided by one thread per
+process without being understood. A quiet measurement decides whether it is switched on.
 """
 
 from __future__ import annotations
@@ -18,7 +24,7 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
-THREADED = True  # False: every write in the caller's thread (tests compare the two)
+THREADED = False  # True: writes on the writer thread (off until a quiet 2-core measurement shows a gain: see below)
 _POOL: list[ThreadPoolExecutor] = []  # the one writer thread of the process, started at the first run
 
 
