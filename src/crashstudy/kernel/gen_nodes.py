@@ -148,7 +148,7 @@ def node(g: Layout, i2: str, n: int) -> None:
         g.emit(f"{i2}fs = {chain}")
         g.emit(f"{i2}a = (fs + {fext}) * {g.R[f'im{n}_{d}']}")
         g.emit(f"{i2}vo_{d} = {g.R[f'v{n}_{d}']}")
-        g.emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * a")
+        g.emit(f"{i2}vn_{d} = half_step(vo_{d}, a, h * dtw)")
         for k, (p, dd, kind, c) in enumerate(g.pm):  # prescribed motion of this dof, in order
             if (p, dd) != (n, d):
                 continue
@@ -185,9 +185,8 @@ def node(g: Layout, i2: str, n: int) -> None:
             g.emit(f"{i2}{g.R[f'wa{n}_{d}']} = a_{d}")
     for d in range(g.D):
         x, v = g.R[f"x{n}_{d}"], g.R[f"v{n}_{d}"]
-        g.emit(f"{i2}ke = ke + 0.5 * {g.R[f'm{n}']} * vo_{d} * vn_{d}")
-        g.emit(f"{i2}{x} = {x} + (dtw * af) * vn_{d}")
-        g.emit(f"{i2}{v} = vn_{d} * af + vo_{d} * (1.0 - af)")
+        g.emit(f"{i2}ke = kinetic(ke, {g.R[f'm{n}']}, vo_{d}, vn_{d})")
+        g.emit(f"{i2}{x}, {v} = advance({x}, vo_{d}, vn_{d}, dtw, af)")
     if g.movable[n]:
         a2 = _lsum([f"a_{d} * a_{d}" for d in range(g.D)])
         g.emit(f"{i2}{g.R[f'pa{n}']} = peak({g.R[f'pa{n}']}, {a2} * af)")
@@ -198,19 +197,16 @@ def wall(g: Layout, i2: str, n: int, wl: int) -> None:
     nr = [g.R[f"wn{wl}_{d}"] for d in range(g.D)]
     pt = [g.R[f"wp{wl}_{d}"] for d in range(g.D)]
     xw = [g.R[f"x{n}_{d}"] for d in range(g.D)]
-    g.emit(f"{i2}wv = {_lsum([f'vn_{d} * {nr[d]}' for d in range(g.D)])}")
-    g.emit(f"{i2}gap = {_lsum([f'({xw[d]} - {pt[d]}) * {nr[d]}' for d in range(g.D)])}")
-    g.emit(f"{i2}dist = {_lsum([f'(({xw[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]}' for d in range(g.D)])}")
+    g.emit(f"{i2}wv, gap, dist = 0.0, 0.0, 0.0")
+    for d in range(g.D):
+        g.emit(f"{i2}wv, gap, dist = wall_plane(wv, gap, dist, vn_{d}, {xw[d]}, {pt[d]}, {nr[d]}, dtw)")
     g.emit(f"{i2}dvn = wall_jump(wv, gap, dist, dtw, {g.R[f'wk{wl}']})")
     g.emit(f"{i2}c = wall_hold(dvn, {_lsum([f'a_{d} * {nr[d]}' for d in range(g.D)])}, h * dtw)")
     g.emit(f"{i2}we = 0.0")
     for d in range(g.D):
         jp = g.R[f"jp{wl}_{n}_{d}"]
-        g.emit(f"{i2}jmp = dvn * {nr[d]} * {float(g.free[n][d])!r}")
-        g.emit(f"{i2}vn_{d} = vn_{d} + jmp")
-        g.emit(f"{i2}a_{d} = a_{d} + c * {nr[d]} * {float(g.free[n][d])!r}")
-        g.emit(f"{i2}we = we + vo_{d} * (jmp + {jp})")
-        g.emit(f"{i2}{jp} = jmp")
-    g.emit(f"{i2}we{wl}_{n} = -0.5 * {g.R[f'm{n}']} * we")
+        free = float(g.free[n][d])
+        g.emit(f"{i2}vn_{d}, a_{d}, we, {jp} = wall_dof(dvn, c, {nr[d]}, {free!r}, vn_{d}, a_{d}, vo_{d}, {jp}, we)")
+    g.emit(f"{i2}we{wl}_{n} = wall_work({g.R[f'm{n}']}, we)")
     g.emit(f"{i2}wf{wl} = wf{wl} + wall_force({g.R[f'm{n}']}, c)")
     g.emit(f"{i2}{g.R[f'wi{wl}']} = {g.R[f'wi{wl}']} + wall_impulse({g.R[f'm{n}']}, dvn, c, h * dtw) * af")

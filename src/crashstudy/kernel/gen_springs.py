@@ -33,19 +33,15 @@ def geometry(g: Layout, ind: str, springs: list[int], pass_a: bool) -> None:
             xj = g.R[f"xs{j}_{d}"] if g.static[j] else g.R[f"x{j}_{d}"]
             xi = g.R[f"xs{i}_{d}"] if g.static[i] else g.R[f"x{i}_{d}"]
             g.emit(f"{ind}u{d} = {xj} - {xi}")
-        g.emit(f"{ind}ln = np.sqrt({_lsum([f'u{d} * u{d}' for d in range(g.D)])})")
-        g.emit(f"{ind}turn = {_lsum([f'u{d} * ' + g.R[f'ap{s}_{d}'] for d in range(g.D)])}")
-        for d in range(g.D):
-            g.emit(f"{ind}{g.R[f'ap{s}_{d}']} = u{d}")
-        g.emit(f"{ind}gone = collapsed(ln, {g.R[f'l0{s}']}, turn)")
+        ap = [g.R[f"ap{s}_{d}"] for d in range(2)]
+        g.emit(f"{ind}ax{s}_0, ax{s}_1, ln, gone = axis_2d(u0, u1, {ap[0]}, {ap[1]}, {g.R[f'l0{s}']})")
+        for d in range(2):
+            g.emit(f"{ind}{ap[d]} = u{d}")
         if not pass_a:  # the first collapsed spring in spring order (pass A's ones come first: see below)
             intact = f" and {g.R[f'br{s}']} == 0.0" if s in g.fragile else ""  # a broken spring may collapse
             g.emit(f"{ind}{g.R['crushed']} = {float(s)!r} if (gone and {g.R['crushed']} < 0.0{intact}) else {g.R['crushed']}")
         else:
             g.emit(f"{ind}gone{s} = gone")
-        g.emit(f"{ind}dn = 1.0 if gone else ln")
-        for d in range(g.D):
-            g.emit(f"{ind}ax{s}_{d} = u{d} / dn")
         g.emit(f"{ind}e{s} = elongation_2d(ln, {g.R[f'l0{s}']})")
         if s in g.pre:
             g.emit(f"{ind}e{s} = {g.R[f'e0{s}']} + e{s}")
@@ -252,10 +248,9 @@ def pass_b_springs(g: Layout, i2: str) -> None:
             step = f"{half} if (n1 and {g.R[f'e0{s}']} != 0.0) else {step}"
         g.emit(f"{i2}{ie} = {step}")
         g.emit(f"{i2}ie_tot = ie_tot + {ie}")
-        g.emit(f"{i2}{g.R[f'pf{s}']} = peak({g.R[f'pf{s}']}, abs(F{s}) * af)")
         em, ai = (f"em{s}", f"ai{s}") if s in g.fragile else (f"e{s}", "af")  # extremes while intact
-        g.emit(f"{i2}{g.R[f'mc{s}']} = peak({g.R[f'mc{s}']}, -{em} * {ai})")
-        g.emit(f"{i2}{g.R[f'me{s}']} = peak({g.R[f'me{s}']}, {em} * {ai})")
+        ext = f"{g.R[f'pf{s}']}, {g.R[f'mc{s}']}, {g.R[f'me{s}']}"
+        g.emit(f"{i2}{ext} = spring_extremes({ext}, F{s}, af, {em}, {ai})")
         g.emit(f"{i2}{g.R[f'fp{s}']} = F{s}")
         g.emit(f"{i2}{g.R[f'ep{s}']} = e{s}")
         if g.hist and g.D > 1:
