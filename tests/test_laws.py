@@ -336,3 +336,21 @@ def test_wall_geometry_and_energy_laws_equal_their_twins() -> None:
         assert step_laws.wall_dof(dvn, c, nr[0], 0.0, v[0], a, vo, jp, we)[:2] == (v[0], a)
         assert step_laws.wall_dof(dvn, c, nr[0], 1.0, v[0], a, 0.0, jp, we)[2] == we
         assert step_laws.wall_work(abs(m), we) == wall_work_np(*arr(abs(m), we))[0] == -0.5 * abs(m) * we
+
+
+def test_ramp_laws_are_the_ramp_sum(curves: tuple[Any, dict[str, int]]) -> None:
+    """``ramp_start`` / ``ramp_knot`` (the curve ramp sum of ``laws.curve_at``, the generic kernel's block
+    ramp and the emitted ramp) against the closed form y0 + s0 (e - x0) + sum ds_k max(0, e - x_k), bit
+    for bit, and against the curve's own linear interpolation inside its points (1e-12 relative)."""
+    b, idx = curves
+    cx, cy, cds, cs0, off = _args(b)
+    rng = np.random.default_rng(RNG_SEED + 14)
+    for _ in range(200):
+        y, ds, e, xk = rng.normal(0.0, 1.0, 4)
+        assert laws.ramp_knot(y, ds, e, xk) == y + ds * max(0.0, e - xk)
+        assert laws.ramp_start(y, ds, e, xk) == y + ds * (e - xk)
+    for name in ("load", "crush", "stiff"):
+        pts = CURVES[name]
+        for e in rng.uniform(min(pts["x"]), max(pts["x"]), 50):
+            got = laws.curve_at(idx[name], e, 0, cx, cy, cds, cs0, off)
+            assert abs(got - np.interp(e, pts["x"], pts["y"])) <= 1e-12 * max(map(abs, pts["y"])), (name, e)

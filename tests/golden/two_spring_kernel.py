@@ -2,7 +2,7 @@
 import numba as nb
 import numpy as np
 from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, INVALID, OK, UNSTABLE
-from crashstudy.kernel.laws import axis_2d, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, time_window, elastoplastic_law, broken_at
+from crashstudy.kernel.laws import axis_2d, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, ramp_knot, ramp_start, time_window, elastoplastic_law, broken_at
 from crashstudy.kernel.step_laws import advance, energy_balance, energy_first_half, energy_increment, ext_power, half_step, kinetic, spring_extremes, stop_test, unstable, unstable_limit, wall_dof, wall_force, wall_hold, wall_impulse, wall_jump, wall_penalty, wall_plane, wall_work, work_increment
 
 _SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 16, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
@@ -145,7 +145,7 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
                 dtw = Z[0 + w]
                 d1 = Z[2640 + w] - Z[2904 + w]
                 e0 = elongation_1d(1.0, d1, 0.0)
-                F0 = nonlinear_force((((k_cy0_0 + k_s0_0 * (e0 - k_cx0)) + k_ds1 * peak(0.0, e0 - k_cx1)) + k_ds2 * peak(0.0, e0 - k_cx2)))
+                F0 = nonlinear_force(ramp_knot(ramp_knot(ramp_start(k_cy0_0, k_s0_0, e0, k_cx0), k_ds1, e0, k_cx1), k_ds2, e0, k_cx2))
                 d1 = Z[2640 + w] - Z[2904 + w]
                 d2 = Z[4224 + w] - Z[4488 + w]
                 e1 = elongation_1d(1.0, d2, d1)

@@ -302,9 +302,9 @@ def layout(shape: dict[str, Any]) -> Layout:
 
     def ramp(c: int, arg: str) -> str:
         a0, b0 = off[c], off[c + 1]
-        out = f"({co(f'cy0_{c}')} + {co(f's0_{c}')} * ({arg} - {co(f'cx{a0}')}))"
+        out = f"ramp_start({co(f'cy0_{c}')}, {co(f's0_{c}')}, {arg}, {co(f'cx{a0}')})"
         for k in range(a0 + 1, b0 - 1):
-            out = f"({out} + {co(f'ds{k}')} * peak(0.0, {arg} - {co(f'cx{k}')}))"
+            out = f"ramp_knot({out}, {co(f'ds{k}')}, {arg}, {co(f'cx{k}')})"
         return out
 
     L: list[str] = []

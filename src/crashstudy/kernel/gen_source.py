@@ -16,7 +16,7 @@ from crashstudy.vocabulary.materials import spec
 # the laws a generated module calls (crashstudy.kernel.laws, crashstudy.kernel.step_laws)
 LAWS = ("axis_2d", "crush_knot_force", "crush_law", "crush_window", "damper_force", "elongation_1d", "elongation_2d",
         "end_rate", "general_law", "general_reverse_call", "general_window", "knot_accel", "knot_crossing",
-        "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window", "peak", "time_window",
+        "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window", "peak", "ramp_knot", "ramp_start", "time_window",
         "elastoplastic_law", "broken_at")  # fmt: skip
 STEP_LAWS = ("advance", "energy_balance", "energy_first_half", "energy_increment", "ext_power", "half_step", "kinetic",
              "spring_extremes", "stop_test", "unstable", "unstable_limit", "wall_dof", "wall_force", "wall_hold",

@@ -24,6 +24,8 @@ from crashstudy.kernel.laws import (
     knot_step,
     nonlinear_window,
     peak,
+    ramp_knot,
+    ramp_start,
 )
 from crashstudy.kernel.step_laws import energy_first_half, energy_increment, spring_extremes
 from crashstudy.vocabulary.codes import CRUSH, GENERAL
@@ -34,14 +36,14 @@ _jit = nb.njit(cache=True, nogil=True)
 
 @_inl
 def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - compiled
-    """out = curve c at arg, over the block (ramp sum; see batch.py)."""
+    """out = curve c at arg, over the block (the ramp sum of ``laws.ramp_start`` / ``ramp_knot``)."""
     a0 = off[c]
     b0 = off[c + 1]
     for w in range(B):
-        out[w] = cy_b[a0, w] + s0_b[c, w] * (arg[w] - cx_b[a0, w])
+        out[w] = ramp_start(cy_b[a0, w], s0_b[c, w], arg[w], cx_b[a0, w])
     for k in range(a0 + 1, b0 - 1):
         for w in range(B):
-            out[w] = out[w] + ds_b[k, w] * max(0.0, arg[w] - cx_b[k, w])
+            out[w] = ramp_knot(out[w], ds_b[k, w], arg[w], cx_b[k, w])
 
 
 @_inl

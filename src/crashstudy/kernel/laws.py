@@ -287,13 +287,25 @@ def axis_2d(u0, u1, p0, p1, l0):  # pragma: no cover - compiled
 
 
 @_jit
+def ramp_start(y0, s0, e, x0):  # pragma: no cover - compiled
+    """A curve's ramp sum begins with its first segment's line through (x0, y0) of slope s0 (batch.py)."""
+    return y0 + s0 * (e - x0)
+
+
+@_jit
+def ramp_knot(y, ds, e, xk):  # pragma: no cover - compiled
+    """One interior knot of the ramp sum: its slope change ``ds`` times the ramp max(0, e - xk)."""
+    return y + ds * peak(0.0, e - xk)
+
+
+@_jit
 def curve_at(c, e, v, cx, cy, cds, cs0, off):  # pragma: no cover - compiled
     """Curve ``c`` of variant column ``v`` at elongation ``e`` (ramp sum, linear extrapolation)."""
     a = off[c]
     b = off[c + 1]
-    y = cy[a, v] + cs0[c, v] * (e - cx[a, v])
+    y = ramp_start(cy[a, v], cs0[c, v], e, cx[a, v])
     for k in range(a + 1, b - 1):
-        y = y + cds[k, v] * max(0.0, e - cx[k, v])
+        y = ramp_knot(y, cds[k, v], e, cx[k, v])
     return y
 
 

@@ -12,7 +12,7 @@ Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0`
 3. ``v^{n+1/2} = v^{n-1/2} + dt a^n`` (half a step at ``n = 0``), then prescribed motion and
    rigid walls (a node that would cross a wall gets the normal velocity that lands it exactly on
    the plane, and none into it afterwards: a perfectly plastic stonewall impact). The part of that
-   jump the node's own forces pushed into the wall (``laws.wall_hold``) is the wall's contact force
+   jump the node's own forces pushed into the wall (``step_laws.wall_hold``) is the wall's contact force
    and joins the node's acceleration (a held node has a = 0); the rest is the impact impulse. A
    penalty wall (``wall_stiffness`` > 0) has no jump: its force ``k pen`` of ``x^n`` joins the nodal
    forces in step 2 and its stored energy ``k pen^2 / 2`` the wall energy;
