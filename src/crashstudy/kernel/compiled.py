@@ -16,6 +16,7 @@ import numba as nb
 import numpy as np
 
 from crashstudy.kernel import generic_block as gb
+from crashstudy.kernel import generic_force as gf
 from crashstudy.kernel import generic_nodes as gn
 from crashstudy.kernel import generic_outputs as go
 from crashstudy.kernel import generic_springs as gs
@@ -33,15 +34,6 @@ from crashstudy.kernel.driver import (
 )
 from crashstudy.kernel.generic_block import BREAKABLE, PRELOADED
 from crashstudy.kernel.output import KernelOutput
-from crashstudy.vocabulary.codes import (
-    CRUSH,
-    DAMPER,
-    ELASTOPLASTIC,
-    LINEAR,
-    NONLINEAR,
-    NONLINEAR_DAMPER,
-    RATE_ELASTIC,
-)
 from crashstudy.vocabulary.materials import DAMPER_MATERIALS, RATE_MATERIALS
 
 if TYPE_CHECKING:
@@ -49,71 +41,6 @@ if TYPE_CHECKING:
 
 BLOCK = 256
 __all__ = ["BLOCK", "get_threads", "run_compiled", "set_threads"]
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _force(s, kind, lo, B, T, P, K):  # pragma: no cover - compiled
-    """Spring s's force over the block (F_tmp) and its new state: the material dispatch (one branch per
-    material of :mod:`crashstudy.vocabulary.materials`, each the law of :mod:`crashstudy.kernel.laws`)."""
-    off, cx_b, cy_b, ds_b, s0_b, kp_b, yt_b, yc_b = T.curve_off, K.cx_b, K.cy_b, K.ds_b, K.s0_b, K.kp_b, K.yt_b, K.yc_b
-    e_tmp, ed_tmp, F_tmp, state, g_arg, g_argt, g_argc = K.e_tmp, K.ed_tmp, K.F_tmp, K.state, K.g_arg, K.g_argt, K.g_argc
-    g_L, g_Ut, g_Uc, g_rev = K.g_L, K.g_Ut, K.g_Uc, K.g_rev
-    if kind == LINEAR:
-        for w in range(B):
-            F_tmp[w] = lw.linear_force(kp_b[s, w], e_tmp[w])
-    elif kind == DAMPER:
-        for w in range(B):
-            F_tmp[w] = lw.damper_force(kp_b[s, w], ed_tmp[w])
-    elif kind == NONLINEAR:
-        gs.ramp(T.curve_a[s], e_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
-        for w in range(B):
-            F_tmp[w] = lw.nonlinear_force(F_tmp[w])
-    elif kind == CRUSH:
-        gs.ramp(T.curve_a[s], e_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
-        for w in range(B):
-            F_tmp[w], state[s, 0, w], state[s, 1, w] = lw.crush_law(
-                e_tmp[w], state[s, 0, w], state[s, 1, w], F_tmp[w], kp_b[s, w])
-    elif kind == ELASTOPLASTIC:
-        for w in range(B):
-            F_tmp[w], state[s, 0, w], state[s, 1, w] = lw.elastoplastic_law(
-                e_tmp[w], state[s, 0, w], state[s, 1, w], kp_b[s, w], P.ktan[s, lo + w], P.fy[s, lo + w])
-    elif kind == NONLINEAR_DAMPER:
-        gs.ramp(T.curve_a[s], ed_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
-    elif kind == RATE_ELASTIC:  # its first curve, then each neighbouring pair folded in by the rate
-        r_a, r_z = T.rate_off[s], T.rate_off[s + 1]
-        gs.ramp(T.rate_curve[r_a], e_tmp, F_tmp, off, cx_b, cy_b, ds_b, s0_b, B)
-        for k in range(r_a, r_z - 1):
-            gs.ramp(T.rate_curve[k], e_tmp, g_L, off, cx_b, cy_b, ds_b, s0_b, B)
-            gs.ramp(T.rate_curve[k + 1], e_tmp, g_Ut, off, cx_b, cy_b, ds_b, s0_b, B)
-            for w in range(B):
-                F_tmp[w] = lw.rate_segment(
-                    F_tmp[w], abs(ed_tmp[w]), P.rate_at[k, lo + w], P.rate_at[k + 1, lo + w], g_L[w], g_Ut[w])
-    else:  # GENERAL: rules 1-4 of docs/format.md, branch-free over the block; reversals (rare) per lane
-        ca = T.curve_a[s]
-        cb = T.curve_b[s]
-        for w in range(B):
-            g_arg[w] = e_tmp[w] - state[s, 5, w]
-            g_argt[w] = e_tmp[w] - state[s, 1, w]
-            g_argc[w] = e_tmp[w] - state[s, 3, w]
-        gs.ramp(ca, g_arg, g_L, off, cx_b, cy_b, ds_b, s0_b, B)
-        gs.ramp(cb, g_argt, g_Ut, off, cx_b, cy_b, ds_b, s0_b, B)
-        gs.ramp(cb, g_argc, g_Uc, off, cx_b, cy_b, ds_b, s0_b, B)
-        nrev = 0
-        for w in range(B):
-            (F_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w], state[s, 4, w],
-             state[s, 6, w], state[s, 7, w], rev) = lw.general_law(
-                e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w], state[s, 4, w],
-                state[s, 6, w], state[s, 7, w], g_L[w], g_Ut[w], g_Uc[w], yt_b[s, w], yc_b[s, w])
-            g_rev[w] = rev
-            nrev += rev
-        if nrev > 0:
-            for w in range(B):
-                if g_rev[w]:
-                    (F_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w], state[s, 4, w],
-                     state[s, 5, w], state[s, 6, w], state[s, 7, w]) = lw.general_reverse(
-                        e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 2, w], state[s, 3, w],
-                        state[s, 4, w], state[s, 6, w], state[s, 7, w], yt_b[s, w], yc_b[s, w], ca, cb,
-                        lo + w, P.cx, P.cy, P.cds, P.cs0, P.cs1, off)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -134,10 +61,22 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
         lo = starts[bi]
         B = starts[bi + 1] - lo
         K, nmax = gb.block_arrays(lo, B, has_state, any_knot, T, P, Out)
-        x, v, vnew, f, acc, act, actf, nst, st_ok = K.x, K.v, K.vnew, K.f, K.acc, K.act, K.actf, K.nst, K.st_ok
-        ke, ie_tot, work, wall_e, wmax, wforce, bal = K.ke, K.ie_tot, K.work, K.wall_e, K.wmax, K.wforce, K.bal
-        e_init, dt_b, crushed, m_b, options = K.e_init, K.dt_b, K.crushed, K.m_b, K.options
-        wp, wn, wk, jp, imp = P.wall_point, P.wall_normal, P.wall_stiffness, K.jump_prev, Out.wall_impulse
+        # the block's arrays as locals, once per block: the inlined stages take only the arrays they use
+        m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b = K.m_b, K.im_b, K.x0_b, K.sg_b, K.l0_b, K.kp_b, K.cx_b
+        cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg = K.cy_b, K.ds_b, K.ky_b, K.s0_b, K.yt_b, K.yc_b, K.g_arg
+        g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev = K.g_argt, K.g_argc, K.g_L, K.g_Ut, K.g_Uc, K.g_rev
+        dt_b, x, v, vnew, f, fext, fext_prev, acc = K.dt_b, K.x, K.v, K.vnew, K.f, K.fext, K.fext_prev, K.acc
+        acc_prev, k_sh, k_c, k_x, k_y, k_any = K.acc_prev, K.k_sh, K.k_c, K.k_x, K.k_y, K.k_any
+        k_hit, k_th, k_dfax, jump_prev, pm_acc = K.k_hit, K.k_th, K.k_dfax, K.jump_prev, K.pm_acc
+        axis_prev, state, forces, elong, f_prev = K.axis_prev, K.state, K.forces, K.elong, K.f_prev
+        e_prev, ie, pf, mc, pacc, pwall, e_tmp = K.e_prev, K.ie, K.pf, K.mc, K.pacc, K.pwall, K.e_tmp
+        ed_tmp, F_tmp, ax_tmp, edot_min, crushed = K.ed_tmp, K.F_tmp, K.ax_tmp, K.edot_min, K.crushed
+        work, wall_e, wmax, ke0, ke, ie_tot, err = K.work, K.wall_e, K.wmax, K.ke0, K.ke, K.ie_tot, K.err
+        bal, wforce, act, actf, nst = K.bal, K.wforce, K.act, K.actf, K.nst
+        next_rec, st_ok, me, broken, options, ftmp = K.next_rec, K.st_ok, K.me, K.broken, K.options, K.ftmp
+        e_init = K.e_init
+        wp, wn, wk, jp, imp = P.wall_point, P.wall_normal, P.wall_stiffness, jump_prev, Out.wall_impulse
+        sft = Out.spring_fail_time
         pen_e = np.zeros((W, N, B))  # stored energy of each node at each penalty wall
         for n in range(nmax + 1):
             nact = 0
@@ -153,12 +92,12 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             rec_now = False
             if any_hist:
                 for w in range(B):
-                    rec_now = rec_now or (act[w] and n == K.next_rec[w])
+                    rec_now = rec_now or (act[w] and n == next_rec[w])
             fused = fused_1d and n > 0 and not rec_now
             h = 1.0 if n > 0 else 0.5
             f[:] = 0.0
             crushed[:] = -1
-            K.edot_min[:] = np.inf
+            edot_min[:] = np.inf
             ie_tot[:] = 0.0
             any_hit = False
             for s in range(S):  # springs: elongation, force, failure, knots, scatter and summaries
@@ -166,57 +105,62 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                 j = sj[s]
                 kind = material[s]
                 kn = knotted[s] and n > 0
-                gs.geometry(s, i, j, D, B, kind in RATE_MATERIALS or has_term, pm_disp, K)
+                gs.geometry(s, i, j, D, B, kind in RATE_MATERIALS or has_term, pm_disp, x, x0_b, v, acc, dt_b, sg_b,
+                            l0_b, axis_prev, broken, crushed, e_tmp, ed_tmp, ax_tmp)
                 if options[PRELOADED, s]:  # e = e0 + ... (initial_elongation)
                     for w in range(B):
-                        K.e_tmp[w] = e0[s, lo + w] + K.e_tmp[w]
-                nhit = gs.knots_passed(s, kind, B, off, T.curve_a[s], T.knot_check, K) if kn else 0
-                _force(s, kind, lo, B, T, P, K)
+                        e_tmp[w] = e0[s, lo + w] + e_tmp[w]
+                nhit = gs.knots_passed(s, kind, B, off, T.curve_a[s], T.knot_check, cx_b, ky_b, e_tmp, e_prev, state,
+                                       k_c, k_x, k_y, k_sh) if kn else 0
+                gf.force(s, kind, lo, B, T, P, cx_b, cy_b, ds_b, s0_b, kp_b, yt_b, yc_b, e_tmp, ed_tmp, F_tmp, state, g_arg,
+                       g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev)
                 fr = options[BREAKABLE, s]
                 if fr:
-                    gs.failure(s, n, lo, B, P.fail_t, P.fail_c, Out.spring_fail_time, K)
+                    gs.failure(s, n, lo, B, P.fail_t, P.fail_c, sft, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp)
                 if kn:
-                    K.k_any[s] = nhit > 0
+                    k_any[s] = nhit > 0
                 if nhit > 0:  # rare: peak-force candidate and the deceleration data (see reference)
                     any_hit = True
-                    gs.knot_peaks(s, B, D, K)
+                    gs.knot_peaks(s, B, D, k_c, k_x, k_y, k_sh, e_prev, e_tmp, f_prev, F_tmp, ax_tmp, broken, actf, k_hit,
+                                  k_th, k_dfax, pf)
                 # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
                 fh = options[PRELOADED, s] and kind not in DAMPER_MATERIALS
-                gs.scatter(s, i, j, n, fh, fr, lo, D, B, e0, rate0, K)
+                gs.scatter(s, i, j, n, fh, fr, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, f, ie, ie_tot,
+                           pf, mc, me, forces, elong, f_prev, e_prev)
                 if has_term:
                     for w in range(B):
-                        K.edot_min[w] = lw.least(K.edot_min[w], K.ed_tmp[w])
+                        edot_min[w] = lw.least(edot_min[w], ed_tmp[w])
 
             if any_hit:  # a^{n-1}, for the accelerations at this step's knot crossings
-                K.acc_prev[:] = acc
+                acc_prev[:] = acc
             if W > 0:  # penalty walls' forces (kernel.wall_contact)
                 wc.penalty(lo, B, W, N, D, T.wall_nodes, wn, wp, wk, x, f, wforce, wall_e, pen_e, act)
             if fused:  # external forces, accelerations, velocities
-                gn.fused_update(h, B, N, movable, K)
+                gn.fused_update(h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke, pacc)
             else:
-                gn.accelerate(n, h, lo, B, N, D, not no_ext, has_gravity, T, P, K)
+                gn.accelerate(n, h, lo, B, N, D, not no_ext, has_gravity, T, P, m_b, im_b, f, fext, v, vnew, acc, dt_b)
             if NP > 0:
-                gn.prescribed(n, h, lo, B, T, P, K)
+                gn.prescribed(n, h, lo, B, T, P, x0_b, m_b, x, v, vnew, acc, pm_acc, f, fext, nst, dt_b)
             if W > 0:  # rigid walls (kernel.wall_contact)
                 wc.rigid(lo, B, W, N, D, h, T.wall_nodes, wn, wp, wk, T.free, x, v, vnew, acc, m_b, dt_b, jp, wall_e,
                          wforce, imp, act, actf)
             if not fused:  # (fused: kinetic energy summed above; no external work)
-                gn.energies(n, lo, B, N, D, not no_ext, P.v0, K)
+                gn.energies(n, lo, B, N, D, not no_ext, P.v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work)
             nbad = 0
             for w in range(B):
                 wmax[w] = max(wmax[w], abs(work[w]))
                 b_ = sl.energy_balance(ke[w], ie_tot[w], wall_e[w] if n > 0 else 0.0, e_init[0, w], work[w])
                 bal[w] = b_  # t = 0: before impacts
-                K.err[w] = lw.peak(K.err[w], b_ * actf[w])
+                err[w] = lw.peak(err[w], b_ * actf[w])
                 nbad += act[w] & sl.unstable(b_, sl.unstable_limit(e_init[1, w], wmax[w], P.energy_floor[lo + w]))
             anybad = nbad > 0
             if not fused:
-                gn.peak_accelerations(B, N, D, movable, K)
+                gn.peak_accelerations(B, N, D, movable, acc, actf, pacc)
             if any_hit:
-                gn.knot_accelerations(B, D, si, sj, movable, K)
+                gn.knot_accelerations(B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_prev, acc, im_b, actf, pacc)
             for wl in range(W):
                 for w in range(B):
-                    K.pwall[wl, w] = lw.peak(K.pwall[wl, w], wforce[wl, w] * actf[w])
+                    pwall[wl, w] = lw.peak(pwall[wl, w], wforce[wl, w] * actf[w])
             if D > 1:
                 for w in range(B):
                     anybad = anybad or (act[w] and crushed[w] >= 0)
@@ -227,13 +171,13 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if H.step_nodes.shape[0] > 0:  # crash criteria: a^n of the recorded nodes added to their block's row
                 go.record_steps(n, lo, B, act, acc, P.rec_block, H.step_nodes, H.steps)
             if has_term and n > 0:
-                n_end = gn.stop_tests(n, lo, B, S, no_ext, P, K, n_end)
+                n_end = gn.stop_tests(n, lo, B, S, no_ext, P, act, dt_b, forces, pf, edot_min, ke, wmax, nst, e_init, n_end)
             if n == n_end:
                 go.final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, Out.final_energy)
             if not fused:
-                gn.advance_nodes(B, N, D, K)
+                gn.advance_nodes(B, N, D, x, v, vnew, dt_b, actf)
             if not no_ext:
-                K.fext_prev[:] = K.fext
+                fext_prev[:] = fext
         go.results(lo, B, Out, K)
 
 

@@ -27,12 +27,10 @@ _inl = nb.njit(cache=True, nogil=True, inline="always")
 
 
 @_inl
-def fused_update(h, B, N, movable, K):  # pragma: no cover - compiled
+def fused_update(h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke, pacc):  # pragma: no cover - compiled
     """1-D without walls, prescribed motion or external forces: a = f/m, v^{n+1/2}, kinetic energy, peak |a|
     and x^{n+1} in one pass (the arithmetic of the general path; x and v advance before the failure check,
     which changes nothing a failed variant reports)."""
-    f, im_b, m_b, x, v, vnew, acc, dt_b = K.f, K.im_b, K.m_b, K.x, K.v, K.vnew, K.acc, K.dt_b
-    actf, ke, pacc = K.actf, K.ke, K.pacc
     for w in range(B):
         ke[w] = 0.0
     for n_ in range(N):
@@ -51,10 +49,9 @@ def fused_update(h, B, N, movable, K):  # pragma: no cover - compiled
 
 
 @_inl
-def accelerate(n, h, lo, B, N, D, ext, has_gravity, T, P, K):  # pragma: no cover - compiled
+def accelerate(n, h, lo, B, N, D, ext, has_gravity, T, P, m_b, im_b, f, fext, v, vnew, acc, dt_b):  # pragma: no cover - compiled
     """External forces (gravity, then the loads in order, scaled by their time curves), a^n = (f + f_ext)/m
     and v^{n+1/2}."""
-    m_b, im_b, f, fext, v, vnew, acc, dt_b = K.m_b, K.im_b, K.f, K.fext, K.v, K.vnew, K.acc, K.dt_b
     if ext:
         for n_ in range(N):
             for d in range(D):
@@ -84,10 +81,8 @@ def accelerate(n, h, lo, B, N, D, ext, has_gravity, T, P, K):  # pragma: no cove
 
 
 @_inl
-def prescribed(n, h, lo, B, T, P, K):  # pragma: no cover - compiled
+def prescribed(n, h, lo, B, T, P, x0_b, m_b, x, v, vnew, acc, pm_acc, f, fext, nst, dt_b):  # pragma: no cover - compiled
     """Prescribed motion of its dofs: v^{n+1/2} and a^n from the curve; f_ext takes the force it needs."""
-    x0_b, m_b, x, v, vnew, acc, pm_acc, f, fext = K.x0_b, K.m_b, K.x, K.v, K.vnew, K.acc, K.pm_acc, K.f, K.fext
-    nst, dt_b = K.nst, K.dt_b
     for k in range(T.pm_node.shape[0]):
         p = T.pm_node[k]
         d = T.pm_dir[k]
@@ -106,11 +101,9 @@ def prescribed(n, h, lo, B, T, P, K):  # pragma: no cover - compiled
 
 
 @_inl
-def energies(n, lo, B, N, D, ext, v0, K):  # pragma: no cover - compiled
+def energies(n, lo, B, N, D, ext, v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work):  # pragma: no cover - compiled
     """Kinetic energy at t^n and the external work (trapezoid; over the first half step f^0 acts on the
     mean velocity (v0 + v^{1/2}) / 2)."""
-    m_b, v, vnew, fext, fext_prev, dt_b, actf = K.m_b, K.v, K.vnew, K.fext, K.fext_prev, K.dt_b, K.actf
-    ke, ke0, bal, work = K.ke, K.ke0, K.bal, K.work
     if n == 0:
         for w in range(B):
             ke[w] = ke0[w]
@@ -133,9 +126,8 @@ def energies(n, lo, B, N, D, ext, v0, K):  # pragma: no cover - compiled
 
 
 @_inl
-def peak_accelerations(B, N, D, movable, K):  # pragma: no cover - compiled
+def peak_accelerations(B, N, D, movable, acc, actf, pacc):  # pragma: no cover - compiled
     """Peak |a| of the movable nodes: the square is tracked (sqrt is monotonic, the peak is the same)."""
-    acc, actf, pacc = K.acc, K.actf, K.pacc
     for n_ in range(N):
         if not movable[n_]:
             continue
@@ -147,10 +139,8 @@ def peak_accelerations(B, N, D, movable, K):  # pragma: no cover - compiled
 
 
 @_inl
-def knot_accelerations(B, D, si, sj, movable, K):  # pragma: no cover - compiled
+def knot_accelerations(B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_prev, acc, im_b, actf, pacc):  # pragma: no cover - compiled
     """|a| at the knot crossings of this step (see the reference)."""
-    k_any, k_hit, k_th, k_dfax, acc_prev, acc = K.k_any, K.k_hit, K.k_th, K.k_dfax, K.acc_prev, K.acc
-    im_b, actf, pacc = K.im_b, K.actf, K.pacc
     for s in range(si.shape[0]):
         if not k_any[s]:
             continue
@@ -168,10 +158,9 @@ def knot_accelerations(B, D, si, sj, movable, K):  # pragma: no cover - compiled
 
 
 @_inl
-def stop_tests(n, lo, B, S, opening_ok, P, K, n_end):  # pragma: no cover - compiled
+def stop_tests(n, lo, B, S, opening_ok, P, act, dt_b, forces, pf, edot_min, ke, wmax, nst, e_init, n_end):  # pragma: no cover - compiled
     """Early termination (docs/format.md) of the running lanes; returns the step at which the first ends."""
-    act, dt_b, forces, pf, edot_min, ke, wmax, nst = K.act, K.dt_b, K.forces, K.pf, K.edot_min, K.ke, K.wmax, K.nst
-    e_scale = K.e_init[1]
+    e_scale = e_init[1]
     for w in range(B):
         q = lo + w
         t = n * dt_b[w]
@@ -190,9 +179,8 @@ def stop_tests(n, lo, B, S, opening_ok, P, K, n_end):  # pragma: no cover - comp
 
 
 @_inl
-def advance_nodes(B, N, D, K):  # pragma: no cover - compiled
+def advance_nodes(B, N, D, x, v, vnew, dt_b, actf):  # pragma: no cover - compiled
     """x^{n+1} and v^{n+1/2} kept; a stopped variant keeps x and v (vnew is finite for it)."""
-    x, v, vnew, dt_b, actf = K.x, K.v, K.vnew, K.dt_b, K.actf
     for n_ in range(N):
         for d in range(D):
             for w in range(B):

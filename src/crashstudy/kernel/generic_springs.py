@@ -1,8 +1,9 @@
 """The generic kernel's spring stage over a block, one spring at a time: geometry, curve ramps, the knot
 search, failure, and the scatter of the spring's force to its nodes with its summaries.
 
-Every function is numba-inlined into :func:`crashstudy.kernel.compiled._run` (``inline="always"``: no call,
-no incref of the many array arguments per spring and step); every per-lane formula is a law of
+Every function is numba-inlined into :func:`crashstudy.kernel.compiled._run` (``inline="always"``: no call)
+and takes only the arrays it uses, never the :data:`generic_block.Block` record (passed per spring and
+step, the record cost +33% compile time and +40% run time); every per-lane formula is a law of
 :mod:`crashstudy.kernel.laws` / :mod:`crashstudy.kernel.step_laws`.
 """
 
@@ -47,12 +48,11 @@ def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - com
 
 
 @_inl
-def geometry(s, i, j, D, B, rates, pm_disp, K):  # pragma: no cover - compiled
+def geometry(s, i, j, D, B, rates, pm_disp, x, x0_b, v, acc, dt_b, sg_b, l0_b, axis_prev, broken, crushed, e_tmp,
+             ed_tmp, ax_tmp):  # pragma: no cover - compiled
     """Spring s's elongation ``e_tmp``, axis ``ax_tmp`` and (``rates``, always in 2-D) elongation rate
     ``ed_tmp`` from v^{n-1/2} + dt/2 a^{n-1}; in 2-D the previous direction and the first collapsed spring
     (models are 1-D or 2-D: schema ``Vector``)."""
-    x, x0_b, v, acc, dt_b, sg_b, l0_b = K.x, K.x0_b, K.v, K.acc, K.dt_b, K.sg_b, K.l0_b
-    axis_prev, broken, crushed, e_tmp, ed_tmp, ax_tmp = K.axis_prev, K.broken, K.crushed, K.e_tmp, K.ed_tmp, K.ax_tmp
     if D == 1:
         for w in range(B):
             sg = sg_b[s, w]
@@ -82,10 +82,10 @@ def geometry(s, i, j, D, B, rates, pm_disp, K):  # pragma: no cover - compiled
 
 
 @_inl
-def knots_passed(s, kind, B, off, ca, knot_check, K):  # pragma: no cover - compiled
+def knots_passed(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y,
+                 k_sh):  # pragma: no cover - compiled
     """How many lanes passed over a flagged knot of spring s's curve since the previous step (a cheap test
     without stores; the state is still the one before the step); if any, :func:`knot_search` (rare)."""
-    cx_b, e_tmp, e_prev, state = K.cx_b, K.e_tmp, K.e_prev, K.state
     nhit = 0
     for k in range(off[ca] + 1, off[ca + 1] - 1):
         if not knot_check[k]:
@@ -104,8 +104,7 @@ def knots_passed(s, kind, B, off, ca, knot_check, K):  # pragma: no cover - comp
                 lo_, hi_, _ = nonlinear_window(e_prev[s, w], e_tmp[w])
                 nhit += knot_inside(cx_b[k, w], lo_, hi_)
     if nhit > 0:
-        nhit = knot_search(s, kind, B, off, ca, knot_check, cx_b, K.ky_b, e_tmp, e_prev, state, K.k_c, K.k_x,
-                           K.k_y, K.k_sh)
+        nhit = knot_search(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y, k_sh)
     return nhit
 
 
@@ -142,11 +141,10 @@ def knot_search(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, stat
 
 
 @_inl
-def knot_peaks(s, B, D, K):  # pragma: no cover - compiled
+def knot_peaks(s, B, D, k_c, k_x, k_y, k_sh, e_prev, e_tmp, f_prev, F_tmp, ax_tmp, broken, actf, k_hit, k_th, k_dfax,
+               pf):  # pragma: no cover - compiled
     """After a knot crossing (rare): the peak-force candidate, and the crossing fraction and force jump
     x axis for the deceleration at the crossing (see the reference)."""
-    k_c, k_x, k_y, k_sh, e_prev, e_tmp, f_prev, F_tmp = K.k_c, K.k_x, K.k_y, K.k_sh, K.e_prev, K.e_tmp, K.f_prev, K.F_tmp
-    ax_tmp, broken, actf, k_hit, k_th, k_dfax, pf = K.ax_tmp, K.broken, K.actf, K.k_hit, K.k_th, K.k_dfax, K.pf
     for w in range(B):
         kcw = k_c[w]
         th, dF = knot_crossing(kcw, k_x[w], k_y[w], e_prev[s, w], e_tmp[w], k_sh[w], f_prev[s, w], F_tmp[w])
@@ -159,10 +157,10 @@ def knot_peaks(s, B, D, K):  # pragma: no cover - compiled
 
 
 @_inl
-def failure(s, n, lo, B, fail_t, fail_c, spring_fail_time, K):  # pragma: no cover - compiled
+def failure(s, n, lo, B, fail_t, fail_c, spring_fail_time, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken,
+            ftmp):  # pragma: no cover - compiled
     """A breakable spring: past a failure elongation it breaks (force 0 from this step on); ftmp[0] / ftmp[1]
     are the elongation and activity its extremes take (the failure elongation, 0 once broken)."""
-    dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp = K.dt_b, K.e_tmp, K.e_prev, K.F_tmp, K.act, K.actf, K.broken, K.ftmp
     for w in range(B):
         q = lo + w
         was = broken[s, w]
@@ -178,13 +176,12 @@ def failure(s, n, lo, B, fail_t, fail_c, spring_fail_time, K):  # pragma: no cov
 
 
 @_inl
-def scatter(s, i, j, n, fh, fr, lo, D, B, e0, rate0, K):  # pragma: no cover - compiled
+def scatter(s, i, j, n, fh, fr, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, f, ie, ie_tot, pf, mc, me,
+            forces, elong, f_prev, e_prev):  # pragma: no cover - compiled
     """Spring s's force on its nodes (f[i] += F ax, f[j] -= F ax) and its summaries: absorbed energy
     (``fh``: a preloaded spring's first step, F^0 acting for the first half step,
     :func:`step_laws.energy_first_half`), peak force and extremes (``fr``: a breakable spring's extremes up
     to its break, ``ftmp``)."""
-    dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, f, ie = K.dt_b, K.F_tmp, K.e_tmp, K.ax_tmp, K.actf, K.ftmp, K.f, K.ie
-    ie_tot, pf, mc, me, forces, elong, f_prev, e_prev = K.ie_tot, K.pf, K.mc, K.me, K.forces, K.elong, K.f_prev, K.e_prev
     for d in range(D):
         for w in range(B):
             fa = F_tmp[w] * ax_tmp[d, w]
