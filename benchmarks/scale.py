@@ -1,8 +1,8 @@
 """Issue 19: the 2-spring study at 10^5, 10^6, ... variants, each store, in-process and on a LocalCluster.
 
 The model is ``benchmarks/matrix.py``'s 2-spring chain (two ``nonlinear_elastic`` springs, 1-D) at the short
-end time (0.0086 s, 86 steps), histories none; the study crosses 100 masses of m1 with n / 100 masses
-of m2. Each cell runs ``crashstudy run`` as a subprocess twice into the same folder (a fresh run, then a
+end time (0.0086 s, 86 steps), histories none; the study crosses a masses of m1 with n / a masses
+of m2 (a = 100, from 10^8 variants n / 10^5: a study file holds at most 10^6 values). Each cell runs ``crashstudy run`` as a subprocess twice into the same folder (a fresh run, then a
 re-run that reuses every variant), while psutil polls the resident set size of the command and of every
 process it started (the Dask scheduler and workers of ``--scheduler local``) every 0.1 s. Recorded: wall
 time, time per variant, the peak RSS of each process (the client's and the largest other's), the bytes
@@ -21,7 +21,7 @@ Usage::
     python benchmarks/scale.py --sizes 1e5 --dask     # also --scheduler local with each of --dask-stores
 
 Options: ``--sizes`` (comma list), ``--stores`` (netcdf,zarr; ``none``: no in-process cell), ``--dask``,
-``--dask-stores`` (default zarr), ``--work DIR``, ``--report FILE`` (default benchmarks/results/scale.md;
+``--dask-stores`` (default zarr), ``--runs`` (fresh,re-run), ``--work DIR``, ``--report FILE`` (default benchmarks/results/scale.md;
 ``-`` prints only), ``--append TITLE`` (add the table to the report as a section ``TITLE``).
 """
 
@@ -50,7 +50,7 @@ REPORT = RESULTS / "scale.md"
 def write_study(folder: Path, n: int) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.yaml").write_text(TWO_SPRING.replace("END", "0.0086"))
-    a = 100 if n >= 100 else 1
+    a = max(100, n // 100_000) if n >= 100 else 1  # <= 10^5 listed values an axis (a study lists at most 10^6)
     m2 = [round(float(v), 9) for v in np.linspace(1.0, 3.0, n // a)]
     m1 = [round(float(v), 9) for v in np.linspace(0.5, 2.0, a)]
     study = folder / "study.yaml"
@@ -128,14 +128,16 @@ def folder_bytes(path: Path) -> int:
     return sum(f.stat().st_size for f in path.rglob("*") if f.is_file() and not f.is_symlink())
 
 
-def cell(work: Path, n: int, store: str, dask: bool) -> list[dict[str, Any]]:
+def cell(
+    work: Path, n: int, store: str, dask: bool, runs: tuple[str, ...] = ("fresh", "re-run")
+) -> list[dict[str, Any]]:
     study = write_study(work / f"n{n}", n)
     out = work / f"n{n}" / f"out-{store}{'-dask' if dask else ''}"
     cli = [sys.executable, __file__, "--as-client"] if dask else [sys.executable, "-m", "crashstudy.cli"]
     cmd = cli + ["run", str(study), "-o", str(out), "--progress", "off",
                  "--store", store] + (["--scheduler", "local"] if dask else [])  # fmt: skip
     rows = []
-    for kind in ("fresh", "re-run"):
+    for kind in runs:
         r = watch(cmd + (["--force"] if kind == "fresh" else []), study.parent)
         if r["exit"] != 0:
             print(r["stderr"], file=sys.stderr)
@@ -161,10 +163,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--dask", action="store_true", help="also run --scheduler local with each of --dask-stores")
     ap.add_argument("--dask-stores", default="zarr")
     ap.add_argument("--append", default="", metavar="TITLE", help="add the table to the report as a section TITLE")
+    ap.add_argument("--runs", default="fresh,re-run", help="which runs of each cell (fresh, re-run)")
     ap.add_argument("--work", type=Path, default=None)
     ap.add_argument("--report", default=str(REPORT))
     args = ap.parse_args(argv)
     start = load()
+    runs = tuple(args.runs.split(","))
     work = args.work or Path(tempfile.mkdtemp(prefix="crashstudy-scale-"))
     warm = write_study(work / "warm", 100)  # compile (or load) the kernel once, outside the figures
     subprocess.run([sys.executable, "-m", "crashstudy.cli", "run", str(warm), "-o", str(warm.parent / "out"),
@@ -173,10 +177,10 @@ def main(argv: list[str] | None = None) -> int:
     for size in (int(float(s)) for s in args.sizes.split(",")):
         for store in args.stores.split(","):
             if store != "none":
-                rows += cell(work, size, store, False)
+                rows += cell(work, size, store, False, runs)
         if args.dask:
             for store in args.dask_stores.split(","):
-                rows += cell(work, size, store, True)
+                rows += cell(work, size, store, True, runs)
     head = f"\n## {args.append}\n\n" if args.append else "# Scale: the 2-spring study (issue 19)\n\n"
     text = (head + machine_md(machine(start)) + "\n\n"
             + "Command: `python benchmarks/scale.py " + " ".join(argv or sys.argv[1:]) + "`; each cell runs "

@@ -71,3 +71,40 @@ def warm_other_core() -> None:
     for case in WARM_RECORD_CASES:
         batch, plan, record = record_case(case)
         run_batch(batch, plan.topology.histories, plan.n_out, "generated", record=record)
+
+
+# The slowest tests of a parallel run on empty caches (``--durations``, 2 cores), slowest first: started
+# first, they run while the many short tests fill the other core, instead of one of them starting last and
+# leaving a core idle at the end. The twin cases come before tests/test_metrics.py's block-record twins,
+# which run the same generated kernel shapes (twins.RECORD_CASES) and then load them from the cache that
+# the twin case on the other worker has just written, instead of compiling them at the same time.
+SLOW_FIRST = (
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[v2-spring-features-and-rate-elastic-2d]",
+    "test_scale.py::test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[v2-spring-features-and-rate-elastic-1d]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[1d-every-material-both-ways]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[full-twin-1d-all-materials-scaled-curves]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[knots-every-curve-material-2d]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[scaled-knots-every-curve-material]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[knots-every-curve-material-1d]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[full-twin-2d-mixed-prescribed]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[early-termination]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[2d-crushed-to-zero]",
+    "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference",  # the other cases
+    "test_generated.py::test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change",
+    "test_iso18571.py::test_scores_match_the_installed_package",
+    "test_stress.py::test_instability_forced_by_hand_fails_that_variant_only",
+    "test_metrics.py::test_block_record_is_bitwise_the_references_on_the_fast_kernels",
+)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """In a parallel run, the tests of :data:`SLOW_FIRST` first, in its order (the first entry a test's
+    id contains); the others keep their order. Every worker collects, so every worker sorts alike."""
+    if not getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
+        return
+
+    def rank(item: pytest.Item) -> int:
+        return next((k for k, slow in enumerate(SLOW_FIRST) if slow in item.nodeid), len(SLOW_FIRST))
+
+    items.sort(key=rank)  # stable: the order of the rest is kept

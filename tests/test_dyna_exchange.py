@@ -388,7 +388,8 @@ def test_define_table_for_rate_curves_written_and_read_back(tmp_path: Path) -> N
 
     from crashstudy.exchange.dyna_deck import read_deck
     from crashstudy.exchange.dyna_export import _Deck
-    from crashstudy.exchange.dyna_import import _read_curves, _Reader
+    from crashstudy.exchange.dyna_import import _read_curves
+    from crashstudy.exchange.dyna_reader import DeckReader
 
     m = copy.deepcopy(MATERIAL_MODELS["nonlinear_elastic"])
     m["curves"]["fast"] = _curve([-0.1, 0.0, 0.1], [-3000.0, 0.0, 2500.0])
@@ -405,7 +406,7 @@ def test_define_table_for_rate_curves_written_and_read_back(tmp_path: Path) -> N
     by: dict[str, list[Any]] = {}
     for b in read_deck(str(deck)).blocks:
         by.setdefault(b.keyword, []).append(b)
-    r = _Reader({})
+    r = DeckReader({})
     _read_curves(r, by)
     assert r.is_table(tbid) and not r.is_table(table["LCID"][0])
     rows = r.table_curves(tbid, "LCD")

@@ -16,6 +16,7 @@ import pytest
 from crashstudy.arrays.batch import build_batch
 from crashstudy.arrays.compiler import apply_axis
 from crashstudy.kernel import choice
+from crashstudy.kernel.decision import StartPlan, decide
 from crashstudy.kernel.output import KernelOutput
 from crashstudy.kernel.reference import STOP_EVERY, run_reference
 from crashstudy.run.runner import Progress, run_kernel
@@ -120,7 +121,7 @@ def test_compile_estimates_match_the_measured_cold_compiles() -> None:
 
 
 def test_decisions_are_never_slower_than_compiling_the_generic_kernel_first() -> None:
-    """The cases of :func:`choice.decide`, with the frontal 10^4-variant study's estimates (reference
+    """The cases of :func:`crashstudy.kernel.decision.decide`, with the frontal 10^4-variant study's estimates (reference
     76 s, generic 1.7 s, generated 0.8 s; compile 24 s generic, 11 s generated): compiling the
     generated kernel first and running it (11.8 s) beats the reference and the generic kernel first
     (25.7 s); with the crash criteria missing too, they compile beside it; a shape the generated kernel
@@ -129,24 +130,24 @@ def test_decisions_are_never_slower_than_compiling_the_generic_kernel_first() ->
     generated kernel beside it; with the generic kernel compiled, the generated one is compiled during
     the run only when the run is twice its compile time, else after."""
     both = {"generic": 24.0, "generated": 11.0}
-    d = choice.decide(choice.StartPlan(dict(both), 76.0, 1.7, 0.8, "frontal"), background=True)
+    d = decide(StartPlan(dict(both), 76.0, 1.7, 0.8, "frontal"), background=True)
     assert d.foreground == ("generated",) and not d.now and not d.after and not d.small_chunks
     assert d.estimate == pytest.approx(11.8)
-    d = choice.decide(choice.StartPlan(dict(both), 76.0, 1.7, 0.8, "frontal", criteria=7.0), background=False)
+    d = decide(StartPlan(dict(both), 76.0, 1.7, 0.8, "frontal", criteria=7.0), background=False)
     assert d.foreground == ("generated", "criteria") and d.estimate == pytest.approx(11.8)
-    d = choice.decide(choice.StartPlan({"generic": 24.0}, 76.0, 1.7, 1.7, "unsupported"), background=True)
+    d = decide(StartPlan({"generic": 24.0}, 76.0, 1.7, 1.7, "unsupported"), background=True)
     assert d.foreground == ("generic",) and d.estimate == pytest.approx(25.7)
     big = {"generic": 24.0, "generated": 60.0}  # a shape whose generated kernel takes longer to compile
-    d = choice.decide(choice.StartPlan(dict(big), 200.0, 130.0, 100.0, "big"), background=True)
+    d = decide(StartPlan(dict(big), 200.0, 130.0, 100.0, "big"), background=True)
     assert d.foreground == ("generic",) and d.now == ("generated",) and d.estimate == pytest.approx(154.0)
-    d = choice.decide(choice.StartPlan(dict(both), 10.0, 0.5, 0.3, "short"), background=True)
+    d = decide(StartPlan(dict(both), 10.0, 0.5, 0.3, "short"), background=True)
     assert d.now == ("generated",) and d.small_chunks and not d.foreground and d.estimate == 10.0
-    assert choice.decide(choice.StartPlan(dict(both), 10.0, 0.5, 0.3, "short"), background=False).now == ()
+    assert decide(StartPlan(dict(both), 10.0, 0.5, 0.3, "short"), background=False).now == ()
     gen = {"generated": 10.0}
-    assert choice.decide(choice.StartPlan(dict(gen), 300.0, 30.0, 10.0, "long"), background=True).now == ("generated",)
-    assert choice.decide(choice.StartPlan(dict(gen), 300.0, 15.0, 5.0, "mid"), background=True).after == ("generated",)
-    assert choice.decide(choice.StartPlan(dict(gen), 300.0, 30.0, 10.0, "long"), False).foreground == ("generated",)
-    assert choice.decide(choice.StartPlan(dict(gen), 300.0, 15.0, 8.0, "mid"), False).foreground == ()
+    assert decide(StartPlan(dict(gen), 300.0, 30.0, 10.0, "long"), background=True).now == ("generated",)
+    assert decide(StartPlan(dict(gen), 300.0, 15.0, 5.0, "mid"), background=True).after == ("generated",)
+    assert decide(StartPlan(dict(gen), 300.0, 30.0, 10.0, "long"), False).foreground == ("generated",)
+    assert decide(StartPlan(dict(gen), 300.0, 15.0, 8.0, "mid"), False).foreground == ()
 
 
 def test_background_compile_makes_the_generated_kernel_ready_and_its_numbers_are_the_references(

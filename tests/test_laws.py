@@ -1,4 +1,4 @@
-"""Each compiled law of ``kernel/laws.py`` against its NumPy twin (``kernel/materials.py``,
+"""Each compiled law of ``kernel/laws.py`` against its NumPy twin (``arrays/material_laws.py``,
 ``kernel/reference.py``) on random inputs, bit for bit: a law bug shows here as that law's failure,
 not only as "a kernel differs" in tests/test_kernel_twins.py.
 
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from conftest import model_batch
+from crashstudy.arrays import material_laws as twin
 from crashstudy.kernel import laws, step_laws
-from crashstudy.kernel import materials as twin
 from crashstudy.kernel.reference_knots import knot_peak_np
 from crashstudy.kernel.step_twins import (
     advance_np,

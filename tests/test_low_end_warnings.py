@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from crashstudy.schema.plausible import first_period, peak_g_warnings
+from crashstudy.arrays.vibration import first_period
+from crashstudy.schema.plausible import peak_g_warnings
 from helpers import run_main
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -49,13 +49,13 @@ def test_schema_union_is_the_table() -> None:
 
 @pytest.mark.parametrize("row", MATERIALS, ids=lambda m: m.name)
 def test_every_row_has_laws_twin_branches_and_a_twin_case(row: MaterialSpec) -> None:
+    from crashstudy.arrays import material_laws as twins
     from crashstudy.kernel import gen_springs, generic_force, laws, reference
-    from crashstudy.kernel import materials as twins
 
     for law in row.laws:
         assert hasattr(laws, law), f"{row.name}: law {law} not in kernel/laws.py"
     module, _, name = row.twin.partition(".")
-    twin_module = {"materials": twins, "reference": reference}[module]
+    twin_module = {"material_laws": twins, "reference": reference}[module]
     assert hasattr(twin_module, name.split(" ")[0]), f"{row.name}: twin {row.twin} not found"
     const = _code_name(row)
     generic = inspect.getsource(generic_force)

@@ -2,7 +2,7 @@
 
 The oracle below is a small pure-Python, scalar, event-by-event implementation of docs/format.md
 (``general_nonlinear`` rules 1-4, ``crush``, ``nonlinear_elastic``), written from that text and not
-from :mod:`crashstudy.kernel.materials`. Each test drives one 1-D spring through a prescribed
+from :mod:`crashstudy.arrays.material_laws`. Each test drives one 1-D spring through a prescribed
 elongation history: node ``a`` fixed at x = 0, node ``b`` at x = 1 whose displacement follows a
 piecewise-linear time curve ``path``. The output interval equals the time step, so every step the
 kernel takes is sampled and the oracle sees exactly the elongations the kernel saw (it is evaluated

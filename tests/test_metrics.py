@@ -395,14 +395,20 @@ def _step_record(tmp_path: Path, k: list[int]):
     return batch, run_reference(batch, (), plan.n_out, record=(sled,))
 
 
+@pytest.fixture(scope="module")
+def every_step(tmp_path_factory: pytest.TempPathFactory):
+    """:func:`_step_record` with k = 1 (every step), run once for the tests that compare against it."""
+    return _step_record(tmp_path_factory.mktemp("every"), [1, 1, 1])
+
+
 @pytest.mark.parametrize("k", [[5, 5, 5], [1, 3, 5], [7, 1, 9]])
-def test_block_record_of_the_reference_is_the_mean_of_the_every_step_record(k: list[int], tmp_path: Path) -> None:
+def test_block_record_of_the_reference_is_the_mean_of_the_every_step_record(k: list[int], tmp_path: Path, every_step) -> None:
     """Row r of variant v is the mean of a^n over steps r k - h .. r k + h (h = (k - 1) / 2) that ran:
     the first row holds steps 0 .. h, the last the steps up to the end. Truth: the every-step record
     (k = 1) averaged by hand; 1e-12 of the largest |a| (summation order)."""
     from crashstudy.kernel.output import block_means, block_rows
 
-    batch, every = _step_record(tmp_path, [1, 1, 1])
+    batch, every = every_step
     _, blocks = _step_record(tmp_path, k)
     assert every.step_acceleration is not None and blocks.step_acceleration is not None
     last = np.rint(every.t_end / batch.dt).astype(np.int64)
@@ -419,10 +425,10 @@ def test_block_record_of_the_reference_is_the_mean_of_the_every_step_record(k: l
         assert np.all(means[int(rows[v]) :, :, :, v] == 0.0)
 
 
-def test_block_record_with_k_1_is_the_every_step_record_bit_for_bit(tmp_path: Path) -> None:
+def test_block_record_with_k_1_is_the_every_step_record_bit_for_bit(every_step) -> None:
     from crashstudy.kernel.output import block_means
 
-    batch, every = _step_record(tmp_path, [1, 1, 1])
+    batch, every = every_step
     assert every.step_acceleration is not None
     assert every.step_acceleration.shape[0] == int(batch.n_steps.max()) + 1
     last = np.rint(every.t_end / batch.dt).astype(np.int64)

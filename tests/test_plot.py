@@ -13,13 +13,13 @@ import yaml
 import crashstudy
 import crashstudy.results.store
 from crashstudy.analysis.plot import (
-    plot_command,
     plot_force_displacement,
     plot_history,
     plot_matrix,
     select_variants,
 )
 from crashstudy.cli import main as cli_module
+from crashstudy.cli.plot import plot_command
 from crashstudy.errors import InputError
 
 # Two masses on two linear springs in 1-D, dropped onto a fixed ground node.

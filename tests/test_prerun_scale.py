@@ -95,3 +95,34 @@ def test_ranges_of_a_fresh_run_cover_every_variant_once_in_order(n: int, size: i
     todo[0] = False  # the general path, for comparison
     assert _ranges(todo, size) == [(lo, hi) for lo, hi in [(1, min(1 + size, n))] + [
         (lo, min(lo + size, n)) for lo in range(1 + size, n, size)] if lo < hi]  # fmt: skip
+
+
+def test_work_estimate_counts_each_step_setting_once_and_exactly(tmp_path: Any, monkeypatch: Any) -> None:
+    """90,000 variants (300 masses x 300 impact velocities): the step count depends on the mass only, so the
+    estimate builds the 300 mass settings and weights each by the 300 velocities: equal (1e-12) to a count
+    over every variant (before: a sample of 65,536 variants, scaled, and a full batch built for each)."""
+    import crashstudy.arrays.batch as batch_mod
+    from crashstudy.arrays.batch import build_batch
+    from crashstudy.study.work import estimate_work
+
+    (tmp_path / "m.yaml").write_text(MODEL.replace("end_time: 0.05", "end_time: 2.0").replace(
+        "histories: none}", "histories: none, interval: 2.0}\ntime_step: {safety_factor: 0.5}"))  # steps vary with the mass
+    masses = [float(v) for v in np.linspace(1.0, 4.0, 300)]
+    plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"),
+                       "matrix": {"nodes.body.mass": masses, "impact_velocity": [float(v) for v in np.linspace(0.5, 3.0, 300)]}})  # fmt: skip
+    every = np.concatenate([build_batch(plan.topology, plan.params(lo, min(lo + 30000, plan.n_variants)), plan.interval)[0]
+                            .n_steps for lo in range(0, plan.n_variants, 30000)])  # fmt: skip
+    truth = float(every.sum())
+    assert len(np.unique(every)) > 50
+    built: list[int] = []
+    real = batch_mod.build_batch
+
+    def counted(topo: Any, P: np.ndarray, interval: float) -> Any:
+        built.append(P.shape[1])
+        return real(topo, P, interval)
+
+    monkeypatch.setattr(batch_mod, "build_batch", counted)
+    work, worst, steps = estimate_work(plan)
+    assert work == pytest.approx(truth * plan.topology.n_springs, rel=1e-12)
+    assert sum(built) == 300
+    assert steps == every.max() and every[worst] == every.max()

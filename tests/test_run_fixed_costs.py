@@ -132,3 +132,35 @@ def test_a_chunk_is_built_in_step_order_never_copied_and_its_numbers_are_unchang
     assert not taken
     for name in ("status", "peak_force", "max_crush", "absorbed_energy", "peak_acceleration", "energy_error"):
         np.testing.assert_array_equal(getattr(after.out, name), getattr(before, name), err_msg=name)
+
+
+def test_a_chunk_with_repeated_variants_is_made_from_variant_numbers_in_step_order(tmp_path: Any) -> None:
+    """``runner._step_order`` takes the variant numbers of a chunk's distinct variants and makes their
+    parameters in step order from those numbers (``Plan.params_at``; gathering the columns of the unsorted
+    matrix cost 16x as much): equal to the brute-force sort of the unsorted parameters; and a chunk with
+    repeated variants (a mass given twice) equals each variant run alone, bitwise, on the NumPy reference."""
+    from crashstudy.arrays.batch import build_batch, variant_steps
+    from crashstudy.kernel import entry
+    from crashstudy.run.runner import _step_order, run_chunk
+    from crashstudy.study.plan import load_study
+    from helpers import assert_bitwise
+
+    text = DT_MODEL.replace("time_step: {dt: 0.004}", "time_step: {safety_factor: 0.5}")
+    (tmp_path / "m.yaml").write_text(text.replace("{histories: none}", "{histories: none, interval: 0.05}"))
+    masses = [2.0, 0.05, 1.0, 0.2, 2.0, 0.5, 0.05]
+    plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"),
+                       "matrix": {"impact_velocity": [1.0, 2.0], "nodes.body.mass": masses}})  # fmt: skip
+    n = plan.n_variants
+    cols = np.array([1, 2, 3, 4, 6, 8, 10])
+    inverse = np.arange(len(cols))
+    P, inv = _step_order(plan, cols, inverse)
+    unsorted = plan.params(0, n)[:, cols]
+    order = np.argsort(variant_steps(plan.topology, unsorted, plan.interval).n_steps, kind="stable")
+    np.testing.assert_array_equal(P, unsorted[:, order])
+    np.testing.assert_array_equal(P[:, inv], unsorted)
+    assert not plan.variants_distinct
+    got = run_chunk(plan, 0, n, "reference")
+    for k in range(n):
+        alone, _ = entry.run_ordered(build_batch(plan.topology, plan.params(k, k + 1), plan.interval)[0], (),
+                                     plan.n_out, np.arange(1), "reference")  # fmt: skip
+        assert_bitwise(alone, entry.spread_columns(got.out, np.array([k]), (), plan.n_out))

@@ -308,7 +308,7 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
     from crashstudy.arrays.compiler import apply_axis
     from crashstudy.arrays.parameter_checks import check_parameters
     from crashstudy.schema.yamlio import loads_yaml
-    from crashstudy.study.plan import _model_message
+    from crashstudy.study.values import model_message
     from helpers import model_plan
 
     plan = model_plan(RICH_MODEL)
@@ -327,7 +327,7 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
         apply_axis(P, ref, np.asarray(probes))
         check = check_parameters(topo, P, plan.interval)
         for c, val in enumerate(probes):
-            schema_says = _model_message(data, path, val)
+            schema_says = model_message(data, path, val)
             assert bool(schema_says) == bool(check.bad[c]), (path, val, schema_says, check.reason(c))
             compared += 1
             invalid += bool(schema_says)

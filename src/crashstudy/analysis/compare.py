@@ -65,7 +65,6 @@ from crashstudy.analysis.compare_inputs import (  # noqa: F401 - re-exported
     study_tolerances,
 )
 from crashstudy.analysis.factors import factors
-from crashstudy.safefs import replacing
 from crashstudy.schema.study import Tolerance
 
 
@@ -300,79 +299,11 @@ class Comparison:
         return f"  {r.metric}: {r.failed} of {r.compared} variants, {'; '.join(parts)} (rtol={r.rtol:g}, atol={r.atol:g})"
 
     def to_junit(self, path: str | os.PathLike[str] | None = None) -> ET.ElementTree:
-        """JUnit XML: one ``<testsuite name="crashstudy compare">``, one ``<testcase>`` per metric column
-        (a ``<failure>`` lists the variants past tolerance, the worst first) and one each for
-        ``status``, missing variants and new variants. Written to ``path`` when given."""
-        cls = f"crashstudy.compare.{self.study_name}" if self.study_name else "crashstudy.compare"
-        cases: list[ET.Element] = []
+        """JUnit XML of this comparison (:func:`crashstudy.analysis.compare_junit.junit`), written to ``path``
+        when given."""
+        from crashstudy.analysis.compare_junit import junit
 
-        def case(name: str, failure: str | None = None, body: str = "", out: str = "") -> None:
-            tc = ET.Element("testcase", name=_xml_text(name), classname=_xml_text(cls), time="0")
-            if failure is not None:
-                f = ET.SubElement(tc, "failure", message=_xml_text(failure), type="regression")
-                f.text = _xml_text(body)
-            if out:
-                ET.SubElement(tc, "system-out").text = _xml_text(out)
-            cases.append(tc)
-
-        for name in sorted([*self.columns, *self.missing_columns, *self.extra_columns]):
-            if name in self.missing_columns:
-                case(
-                    name,
-                    "metric column missing from the new result",
-                    f"the baseline has {name}; the new result has not",
-                )
-            elif name in self.extra_columns:
-                case(name, out=f"{name} is new: no baseline value to compare with")
-            else:
-                c = self.columns[name]
-                bad = int((~c.passed).sum())
-                tol = f"rtol={c.rtol:g}, atol={c.atol:g}"
-                if not bad:
-                    case(name, out=f"{len(c.old)} variants within tolerance ({tol}); largest |rel diff| "
-                                   f"{np.nanmax(np.abs(c.rel_diff), initial=0.0):.3e}")  # fmt: skip
-                    continue
-                top = self.top(JUNIT_LIST, column=name, only_failed=True)
-                lines = [f"variant {int(r['variant'])} ({self._params(r)}): old {r['old']:.10g} new {r['new']:.10g} "
-                         f"(rel diff {r['rel_diff']:+.3e}, tolerance {r['tolerance']:.3g})" for _, r in top.iterrows()]  # fmt: skip
-                if bad > len(top):
-                    lines.append(f"... and {bad - len(top)} more")
-                worst = top["rel_diff"].iloc[0]
-                case(name, f"{bad} of {len(c.old)} variants moved past tolerance ({tol}); worst rel diff {worst:+.3e}",
-                     "\n".join(lines))  # fmt: skip
-        st = self.status
-        bad_st = st[~st["passed"]] if len(st) else st
-        case("status", f"{len(bad_st)} variants went from ok to failed" if len(bad_st) else None,
-             "\n".join(f"variant {int(r['variant'])} ({self._params(r)}): {r['failure_reason']}" for _, r in bad_st.iterrows()),
-             "\n".join(f"variant {int(r['variant'])} ({self._params(r)}): {r['old']} -> {r['new']}"
-                       for _, r in st[st["passed"]].iterrows()) if len(st) else "")  # fmt: skip
-        case("variants missing from the new result",
-             f"{len(self.missing)} baseline variants are not in the new result" if len(self.missing) else None,
-             "\n".join(f"baseline variant {int(r['baseline_variant'])}: {self._params(r)}" for _, r in self.missing.iterrows()))  # fmt: skip
-        case("variants only in the new result", None,
-             out="\n".join(f"variant {int(r['variant'])}: {self._params(r)}" for _, r in self.extra.iterrows()))  # fmt: skip
-        if self.damaged:
-            case("complete result folders", f"{len(self.damaged)} result folders are damaged", "\n".join(self.damaged))
-
-        failures = sum(1 for tc in cases if tc.find("failure") is not None)
-        root = ET.Element(
-            "testsuites", name=JUNIT_SUITE, tests=str(len(cases)), failures=str(failures), errors="0"
-        )
-        suite = ET.SubElement(root, "testsuite", name=JUNIT_SUITE, tests=str(len(cases)), failures=str(failures),
-                              errors="0", skipped="0", time="0")  # fmt: skip
-        props = ET.SubElement(suite, "properties")
-        for k, v in (("new", str(self.new_dir)), ("baseline", str(self.baseline_dir)),
-                     ("default_rtol", f"{self.rtol:g}"), ("default_atol", f"{self.atol:g}")):  # fmt: skip
-            ET.SubElement(props, "property", name=k, value=_xml_text(v))
-        suite.extend(cases)
-        tree = ET.ElementTree(root)
-        ET.indent(tree)
-        if path is not None:
-            p = Path(path)
-            p.parent.mkdir(parents=True, exist_ok=True)
-            with replacing(p, mode="wb") as fh:  # the one writer: a link at p is replaced, never followed
-                tree.write(fh, encoding="utf-8", xml_declaration=True)
-        return tree
+        return junit(self, path)
 
 
 def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, atol: float | None = None,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 import pandas as pd
@@ -11,12 +12,17 @@ from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from crashstudy.analysis.plot import Aggregate, _fail
 from crashstudy.analysis.plot_style import CMAP, axis_label, display_scale, finish, fitting_legend, unit_text
+from crashstudy.errors import InputError, Problem
 
 ANNOTATE_MAX = 144  # heat maps with at most this many cells have their values written in
 LINES_MAX = 8  # matrix line plot: one line per other-axis combination up to this many, else a band
 NOT_METRICS = ("variant", "status", "failure_reason", "dt_control")
+Aggregate = Literal["max", "mean", "min"]
+
+
+def _fail(where: str, message: str) -> InputError:
+    return InputError([Problem(where, None, "", message)])
 
 
 def _axis_columns(summary: pd.DataFrame) -> list[str]:

@@ -19,15 +19,12 @@ from datetime import datetime, timezone
 from typing import Any
 
 import numpy as np
-import pandas as pd
 import yaml
 
 from crashstudy.analysis import report_figures as rf
-from crashstudy.analysis.plot import crash_node, free_nodes, study_axes, study_name
+from crashstudy.analysis.plot import free_nodes, study_axes, study_name
 from crashstudy.analysis.plot_style import axis_units, unit_text
 from crashstudy.analysis.report_limits import (
-    LIMITS,
-    NO_LIMIT,
     Check,
     constraint_checks,
     criteria_columns,
@@ -35,92 +32,30 @@ from crashstudy.analysis.report_limits import (
     passes_all,
     user_checks,
 )
-from crashstudy.analysis.report_page import Figures, esc, html_table, interactive_table, page, table_data
-from crashstudy.errors import InputError, Problem
+from crashstudy.analysis.report_page import (
+    Figures,
+    column_unit,
+    esc,
+    html_table,
+    interactive_table,
+    page,
+    shown_unit,
+    table_data,
+)
+from crashstudy.analysis.report_responses import criteria_section, history_section
+from crashstudy.analysis.report_variants import (
+    SAMPLE_SEED,
+    baseline,
+    default_responses,
+    fail,
+    parse_variants,
+    sample,
+)
 
 SCATTER_MAX = 2000  # ok variants drawn in the parallel coordinates and anthill plots; more: a random sample
 TABLE_MAX = 10_000  # rows of the summary table; more: a sample (every failed and chosen variant kept)
 FAILURES_SHOWN = 200  # failed variants listed one by one
-RESPONSES_MAX = 6  # default responses (parallel coordinates, anthill plots)
-CHOSEN_MAX = 12  # variants whose histories are drawn
-HISTORY_PLOTS = 3  # history figures (one per metric node)
-SAMPLE_SEED = 0
 TEXT_COLUMNS = ("status", "failure_reason", "dt_control", "criteria_note")
-
-
-def _fail(where: str, field: str, message: str) -> InputError:
-    return InputError([Problem(where, None, field, message)])
-
-
-def _unit(ds: Any, column: str) -> str:
-    base = column.split(".", 1)[0]
-    if column in ds.variables:
-        return str(ds[column].attrs.get("units", ""))
-    return str(ds[base].attrs.get("units", "")) if base in ds.variables else ""
-
-
-def _shown_unit(unit: str) -> str:
-    return "-" if unit == "1" else unit
-
-
-def default_responses(summary: pd.DataFrame, ds: Any) -> list[str]:
-    """The crash node's peak deceleration in g, then the criteria (not their times), at most RESPONSES_MAX."""
-    out = []
-    node = crash_node(ds)
-    if node and f"peak_deceleration_g.{node}" in summary:
-        out.append(f"peak_deceleration_g.{node}")
-    out += [c for c in criteria_columns(summary) if c.split(".", 1)[0] not in ("peak_g", "delta_v")]
-    if len(out) < 2:
-        out += [c for c in summary.columns if c.startswith("peak_force.") and summary[c].notna().any()][:2]
-    return list(dict.fromkeys(out))[:RESPONSES_MAX]
-
-
-def parse_variants(text: str, n: int, named: dict[str, int | None], where: str) -> list[int]:
-    """``--variants``: comma-separated variant numbers, ranges ``A-B`` and the names in ``named``."""
-    out: list[int] = []
-    for part in (p.strip() for p in text.split(",")):
-        if not part:
-            continue
-        if part in named:
-            if named[part] is not None:
-                out.append(int(named[part]))  # type: ignore[arg-type]
-            continue
-        lo, dash, hi = part.partition("-")
-        try:
-            a, b = int(lo), int(hi) if dash else int(lo)
-        except ValueError:
-            raise _fail(where, "--variants", f"{part!r} is not a variant number, a range A-B or one of "
-                        f"{', '.join(named)}") from None  # fmt: skip
-        if not (0 <= a <= b < n):
-            raise _fail(where, "--variants", f"{part!r}: variants are numbered 0 to {n - 1}")
-        out.extend(range(a, b + 1))
-    out = list(dict.fromkeys(out))
-    if len(out) > CHOSEN_MAX:
-        raise _fail(where, "--variants", f"{len(out)} variants chosen; at most {CHOSEN_MAX} histories are drawn")
-    return out
-
-
-def _baseline(summary: pd.DataFrame, axes: list[str], ok: np.ndarray) -> int | None:
-    """The ok variant nearest the middle of every axis range (axes scaled to [0, 1])."""
-    if not ok.any():
-        return None
-    if not axes:
-        return int(summary["variant"].to_numpy()[np.argmax(ok)])
-    x = summary[axes].to_numpy(dtype=float)
-    span = np.nanmax(x, axis=0) - np.nanmin(x, axis=0)
-    z = (x - np.nanmin(x, axis=0)) / np.where(span > 0, span, 1.0)
-    d = np.where(ok, ((z - 0.5) ** 2).sum(axis=1), np.inf)
-    return int(summary["variant"].to_numpy()[int(np.argmin(d))])
-
-
-def _sample(index: np.ndarray, limit: int, keep: Sequence[int] = ()) -> np.ndarray:
-    if len(index) <= limit:
-        return index
-    rng = np.random.default_rng(SAMPLE_SEED)
-    kept = np.intersect1d(index, np.asarray(keep, dtype=int))
-    rest = np.setdiff1d(index, kept)
-    pick = rng.choice(rest, size=max(0, limit - len(kept)), replace=False)
-    return np.sort(np.concatenate([kept, pick]))
 
 
 class Report:
@@ -140,7 +75,7 @@ class Report:
         if responses:
             unknown = [r for r in responses if r not in cols]
             if unknown:
-                raise _fail(self.where, "--responses", f"no summary column {', '.join(map(repr, unknown))}; "
+                raise fail(self.where, "--responses", f"no summary column {', '.join(map(repr, unknown))}; "
                             "columns: see `crashstudy summary DIR --variant 0`")  # fmt: skip
             self.responses = list(responses)
         else:
@@ -166,7 +101,7 @@ class Report:
 
     def _named(self) -> dict[str, int | None]:
         variant = self.summary["variant"].to_numpy()
-        named: dict[str, int | None] = {"worst": None, "best": None, "baseline": _baseline(self.summary, self.axes, self.ok)}
+        named: dict[str, int | None] = {"worst": None, "best": None, "baseline": baseline(self.summary, self.axes, self.ok)}
         if self.key is not None:
             v = np.where(self.ok, self.summary[self.key].to_numpy(dtype=float), np.nan)
             if np.isfinite(v).any():
@@ -196,7 +131,7 @@ class Report:
             axrows = []
             for ax in self.axes:
                 v = s[ax].to_numpy(dtype=float)
-                axrows.append((ax, _shown_unit(self.units[ax]), f"{np.nanmin(v):.6g}", f"{np.nanmax(v):.6g}",
+                axrows.append((ax, shown_unit(self.units[ax]), f"{np.nanmin(v):.6g}", f"{np.nanmax(v):.6g}",
                                len(np.unique(v[np.isfinite(v)]))))  # fmt: skip
             out += "<h3>Axes</h3>" + html_table(["axis", "unit", "min", "max", "distinct values"], axrows, (0, 1))
         manifest = self.res.manifest or {}
@@ -213,7 +148,7 @@ class Report:
 
     def failures_section(self) -> str:
         s = self.summary[~self.ok]
-        head = ["variant", *[f"{a} [{_shown_unit(self.units[a])}]" if self.units[a] else a for a in self.axes],
+        head = ["variant", *[f"{a} [{shown_unit(self.units[a])}]" if self.units[a] else a for a in self.axes],
                 "failure reason"]
         rows = [[int(r["variant"]), *[f"{r[a]:.6g}" for a in self.axes], r.get("failure_reason", "")]
                 for _, r in s.head(FAILURES_SHOWN).iterrows()]  # fmt: skip
@@ -232,11 +167,11 @@ class Report:
         cols = [c for c in cols if c in s and not c.split(".", 1)[0].endswith(("_t1", "_t2"))]
         index = np.arange(len(s))
         keep = [int(i) for i in np.nonzero(~self.ok)[0]] + [int(np.nonzero(s["variant"].to_numpy() == v)[0][0]) for v in self.chosen]
-        shown = _sample(index, TABLE_MAX, keep)
+        shown = sample(index, TABLE_MAX, keep)
         note = (f"every variant ({len(s)})" if len(shown) == len(s) else
                 f"a sample of {len(shown)} of {len(s)} variants (every failed and chosen variant, the rest at random "
                 f"with seed {SAMPLE_SEED}; above {TABLE_MAX} variants the table is sampled: summary.parquet has all)")  # fmt: skip
-        meta = [(c, "" if c in ("variant",) else _shown_unit(self.units.get(c) or _unit(self.ds, c)), c in TEXT_COLUMNS)
+        meta = [(c, "" if c in ("variant",) else shown_unit(self.units.get(c) or column_unit(self.ds, c)), c in TEXT_COLUMNS)
                 for c in cols]  # fmt: skip
         sub = s.iloc[shown][cols]
         rows = [[None if isinstance(v, float) and not np.isfinite(v) else v for v in r]
@@ -247,7 +182,7 @@ class Report:
 
     def _scatter_index(self) -> np.ndarray:
         ok = np.nonzero(self.ok)[0]
-        shown = _sample(ok, SCATTER_MAX)
+        shown = sample(ok, SCATTER_MAX)
         if len(shown) < len(ok):
             self.notes.append(f"scatter figures: a random sample of {len(shown)} of {len(ok)} ok variants "
                               f"(seed {SAMPLE_SEED}; above {SCATTER_MAX} they are sampled)")  # fmt: skip
@@ -260,7 +195,7 @@ class Report:
         s = self.summary.iloc[idx]
         passed = passes_all(s, self.checks) if self.checks else None
         cols = [(a, self.units[a], s[a].to_numpy(dtype=float)) for a in self.axes]
-        cols += [(r, _unit(self.ds, r), s[r].to_numpy(dtype=float)) for r in self.responses]
+        cols += [(r, column_unit(self.ds, r), s[r].to_numpy(dtype=float)) for r in self.responses]
         cb = (self.key, s[self.key].to_numpy(dtype=float)) if self.key else None
         sampled = f" (sample of {len(idx)} of {int(self.ok.sum())} ok variants)" if len(idx) < self.ok.sum() else ""
         out = ""
@@ -268,7 +203,7 @@ class Report:
             npass = int(passes_all(self.summary[self.ok], self.checks).sum())
             out += (f"<p>Pass (green) = every check holds; fail (red) = at least one does not. {npass} of "
                     f"{int(self.ok.sum())} ok variants pass.</p><ul>"
-                    + "".join(f"<li>{esc(c.text)}{esc(unit_text(_unit(self.ds, c.column)))} &mdash; "
+                    + "".join(f"<li>{esc(c.text)}{esc(unit_text(column_unit(self.ds, c.column)))} &mdash; "
                               f"{esc(c.source)}</li>" for c in self.checks) + "</ul>")  # fmt: skip
         else:
             out += "<p class=\"note\">No limits or constraints apply to these responses: lines coloured by " \
@@ -282,81 +217,10 @@ class Report:
             for r in self.responses:
                 own = [c for c in self.checks if c.column == r]
                 colour = passes_all(s, own) if own else passed
-                fig = rf.anthill(cols[: len(self.axes)], (r, _unit(self.ds, r), s[r].to_numpy(dtype=float)), colour,
+                fig = rf.anthill(cols[: len(self.axes)], (r, column_unit(self.ds, r), s[r].to_numpy(dtype=float)), colour,
                                  self.checks, f"{r}{sampled}")  # fmt: skip
                 rows = (len(self.axes) + 2) // 3
                 out += self.figures.div(fig, 300 * rows + 80)
-        return out
-
-    def criteria_section(self) -> str:
-        rows, panels = [], []
-        s = self.summary
-        variant = s["variant"].to_numpy()
-        for c in self.criteria:
-            name, _, node = c.partition(".")
-            if name.endswith(("_t1", "_t2")):
-                continue
-            v = np.where(self.ok, s[c].to_numpy(dtype=float), np.nan)
-            if not np.isfinite(v).any():
-                continue
-            unit = _unit(self.ds, c)
-            lim = LIMITS.get(name)
-            over = int(np.nansum(v > lim.value)) if lim else 0
-            std = str(self.ds[name].attrs.get("standard", "")) if name in self.ds.variables else ""
-            rows.append((name, node, _shown_unit(unit), f"{np.nanmin(v):.4g}", f"{np.nanmedian(v):.4g}",
-                         f"{np.nanmax(v):.4g}", int(variant[np.nanargmax(v)]),
-                         f"{lim.value:g}" if lim else "-", f"{over} of {int(np.isfinite(v).sum())}" if lim else "-",
-                         lim.source if lim else NO_LIMIT.get(name, "-"), std))  # fmt: skip
-            panels.append((c, unit, v, lim.value if lim else None))
-        if not rows:
-            return ""
-        head = ["criterion", "node", "unit", "min", "median", "max", "max in variant", "usual limit",
-                "variants above", "limit from", "computed per"]  # fmt: skip
-        out = html_table(head, rows, text_cols=(0, 1, 2, 9, 10))
-        cols = min(len(panels), 3)
-        out += self.figures.div(rf.criteria_histograms(panels, "criteria over the ok variants (red: usual limit)"),
-                                280 * ((len(panels) + cols - 1) // cols) + 80)  # fmt: skip
-        return out
-
-    def history_section(self) -> str:
-        from crashstudy.analysis.plot import history_values
-
-        ds = self.ds
-        plots: list[tuple[str, str]] = []
-        if "filtered_acceleration" in ds.data_vars:
-            fa = ds["filtered_acceleration"]
-            first = fa.isel(variant=0)
-            plots = [("filtered_acceleration", str(n)) for n in ds["node"].values
-                     if np.isfinite(first.sel(node=n).values).any()]  # fmt: skip
-        if not plots and "acceleration" in ds.data_vars:
-            plots = [("acceleration", crash_node(ds) or free_nodes(ds)[0])]
-        if not plots and "spring_force" in ds.data_vars:
-            plots = [("spring_force", str(ds["spring"].values[0]))]
-        if not plots or not self.chosen:
-            return ""
-        pos = {int(v): i for i, v in enumerate(self.summary["variant"].to_numpy())}
-        t = np.asarray(ds["time"].values, dtype=float) * 1e3
-        label_of = {v: k for k, v in self.named.items() if v is not None}
-        corr = getattr(self, "correlation", None)
-        labels = []
-        for v in self.chosen:
-            lab = f"variant {v}" + (f" ({label_of[v]})" if v in label_of else "")
-            lab += ", " + ", ".join(f"{a.rsplit('.', 1)[-1]} {self.summary[a].iloc[pos[v]]:.4g}" for a in self.axes)
-            if corr is not None and v in corr.index:
-                lab += f", R {corr.loc[v, 'R']:.3f} ({corr.loc[v, 'grade']})"
-            if self.summary["status"].iloc[pos[v]] != "ok":
-                lab += " FAILED"
-            labels.append(lab)
-        chosen = ds.isel(variant=[pos[v] for v in self.chosen])
-        test = (self.test[0] * 1e3, self.test[1]) if self.test is not None else None
-        out = (f'<p class="note">Variants {", ".join(map(str, self.chosen))} (--variants to choose; worst/best by '
-               f"{esc(self.key)}){'; dashed black: the --test curve' if test is not None else ''}.</p>")
-        for quantity, item in plots[:HISTORY_PLOTS]:
-            values, name, unit = history_values(chosen, quantity, item)
-            curves = [(lab, t, values[k]) for k, lab in enumerate(labels)]
-            fig = rf.histories(curves, "time [ms]", rf.label(f"{name} {item}", _shown_unit(unit)),
-                               f"{name} of {item}: chosen variants", test)  # fmt: skip
-            out += self.figures.div(fig, 460)
         return out
 
     def html(self, plotly_js: str) -> str:
@@ -368,11 +232,11 @@ class Report:
         sections.append(("table", "Summary table", self.table_section()))
         if self.responses:
             sections.append(("design", "Design space: parallel coordinates and anthill plots", self.design_section()))
-        crit = self.criteria_section()
+        crit = criteria_section(self)
         if crit:
             sections.append(("criteria", "Crash criteria against their usual limits", crit))
         self.correlation = report_extra.read_correlation(self.res, self.where)
-        hist = self.history_section()
+        hist = history_section(self)
         if hist:
             sections.append(("histories", "Histories of chosen variants", hist))
         sections += report_extra.sections(self)

@@ -179,3 +179,16 @@ def page(title: str, subtitle: str, sections: Sequence[tuple[str, str, str]], pl
             f"<style>{CSS}</style><script>{plotly_js}</script></head><body>"
             f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header><nav>{nav}</nav><main>{body}</main>"
             f"{table_js}<script>{FIGURES_JS}</script></body></html>\n")  # fmt: skip
+
+
+def column_unit(ds: Any, column: str) -> str:
+    """The unit of a summary column: its own, else its variable's (``peak_force`` for ``peak_force.s1``)."""
+    base = column.split(".", 1)[0]
+    if column in ds.variables:
+        return str(ds[column].attrs.get("units", ""))
+    return str(ds[base].attrs.get("units", "")) if base in ds.variables else ""
+
+
+def shown_unit(unit: str) -> str:
+    """A unit as a table shows it: "-" for dimensionless."""
+    return "-" if unit == "1" else unit

@@ -21,8 +21,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from crashstudy.arrays.compiler import Topology
+from crashstudy.arrays.preload import preload
 from crashstudy.arrays.timestep import MAX_STEPS, StepChoice, choose_steps, spring_stiffness_bound
-from crashstudy.kernel.preload import preload
 from crashstudy.vocabulary.materials import KNOT_MATERIALS
 
 
@@ -85,7 +85,7 @@ class Batch:
     e0: np.ndarray  # (S, V) initial elongation [length]
     fail_t: np.ndarray  # (S, V) tension failure elongation [length] (+inf: never)
     fail_c: np.ndarray  # (S, V) compression failure elongation [length] (-inf: never)
-    state0: np.ndarray  # (S, NSTATE, V) material state at t = 0 (kernel.preload), (0, NSTATE, V) if no preload
+    state0: np.ndarray  # (S, NSTATE, V) material state at t = 0 (arrays.preload), (0, NSTATE, V) if no preload
     ie0: np.ndarray  # (S, V) [energy] energy stored in each spring at t = 0 (IE0)
     rate0: np.ndarray  # (S, V) [length/time] elongation rate at t = 0 (a preload's first half step)
     # a curve's shape and its per-variant factors (curve_shapes): cx = bx xs, cy = by ys, slopes = shape's slopes ys/xs

@@ -14,7 +14,6 @@ from crashstudy.analysis.factors import factors
 from crashstudy.analysis.plot import (
     ITEM_DIM,
     ITEMS_PER_FIGURE,
-    PLOT_TAG,
     _fail,
     _items,
     _need_histories,
@@ -29,6 +28,7 @@ from crashstudy.analysis.plot import (
 from crashstudy.analysis.plot_matrix import default_metric, metric_columns, plot_matrix
 from crashstudy.analysis.plot_style import axis_units
 from crashstudy.errors import InputError, Problem
+from crashstudy.results.plot_tag import PLOT_TAG
 from crashstudy.safefs import replacing
 
 
@@ -103,8 +103,8 @@ def _test_curve(args: argparse.Namespace, ds: object, name: str, groups: list) -
     from crashstudy.exchange.testcurve import read_curve
 
     try:
-        return read_curve(Path(args.test), channel=args.channel, quantity=name,
-                          system=str(ds.attrs.get("units", "SI")))  # type: ignore[attr-defined]  # fmt: skip
+        units = str(ds.attrs.get("units", "SI"))  # type: ignore[attr-defined]
+        return read_curve(Path(args.test), channel=args.channel, quantity=name, system=units)
     except ValueError as exc:
         raise InputError([Problem(str(args.test), None, f"--{getattr(exc, 'field', 'test')}".replace("--path", "--test"),
                                   str(exc))]) from None  # fmt: skip

@@ -45,7 +45,7 @@ def _problem(where: str, field: str, message: str) -> Any:
 def output_path(args: argparse.Namespace) -> Path:
     """Where the report goes, after the output policy: never over an existing file without ``--force``,
     never over one of a result folder's own files, never into another result folder without ``--force``."""
-    from crashstudy.cli.main import _result_folder_of
+    from crashstudy.cli.results_cmd import result_folder_of
 
     out = Path(args.output) if args.output else Path(args.dir) / "report.html"
     if out.name in RESULT_FILES:
@@ -54,7 +54,7 @@ def output_path(args: argparse.Namespace) -> Path:
         raise _problem(str(out), "-o", "this is a folder; name the .html file to write")
     if os.path.lexists(out) and not args.force:
         raise _problem(str(out), "-o", "the file exists; use --force to replace it or choose another -o")
-    owner = _result_folder_of(out.parent) if out.parent != Path(args.dir) else None
+    owner = result_folder_of(out.parent) if out.parent != Path(args.dir) else None
     if owner is not None and not args.force and owner.resolve() != Path(args.dir).resolve():
         raise _problem(str(out), "-o", f"this folder belongs to the results in {owner}, not to {args.dir}; "
                        "choose another -o or use --force")  # fmt: skip

@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from crashstudy.errors import InputError, Problem
-from crashstudy.exchange.dyna_cards import FieldError, read_card
+from crashstudy.errors import InputError
+from crashstudy.exchange.dyna_boundary import read_boundary, read_controls, read_walls
 from crashstudy.exchange.dyna_deck import Block, Card, read_deck
-from crashstudy.exchange.dyna_materials import ALIASES, KEYWORDS, MATERIALS, WHY_NOT, crush_curve_in
+from crashstudy.exchange.dyna_materials import ALIASES, KEYWORDS, MATERIALS, WHY_NOT
+from crashstudy.exchange.dyna_reader import DeckReader, Rows
 from crashstudy.units import UNIT_SYSTEMS
 
 SIMPLE = {"CONTROL_TERMINATION", "CONTROL_TIMESTEP", "NODE", "ELEMENT_MASS", "ELEMENT_DISCRETE", "INITIAL_VELOCITY_NODE",
@@ -28,7 +28,7 @@ OTHER = {"KEYWORD", "TITLE", "PART", "SECTION_DISCRETE", "DEFINE_CURVE", "DEFINE
          "LOAD_BODY_X", "LOAD_BODY_Y", "LOAD_BODY_Z", "RIGIDWALL_PLANAR", "RIGIDWALL_PLANAR_ID", "SET_NODE_LIST",
          "DATABASE_NODOUT", "DATABASE_DEFORC", "DATABASE_GLSTAT"}  # fmt: skip
 TC_CODES = {0: "", 1: "x", 2: "y", 3: "z", 4: "xy", 5: "yz", 6: "zx", 7: "xyz"}  #: *NODE TC: translations held
-NEVER_TIME = 1.0e28  #: BIRTH/DEATH at or beyond this: "always" (LS-DYNA's default DEATH)
+
 
 
 def _material_keyword(name: str) -> tuple[str, bool]:
@@ -40,72 +40,6 @@ def _material_keyword(name: str) -> tuple[str, bool]:
 
 def supported(name: str) -> bool:
     return name in SIMPLE or name in OTHER or bool(_material_keyword(name)[0])
-
-
-@dataclass
-class _Reader:
-    """State of one import: the deck's entities by number, and the problems found so far."""
-
-    meta: dict[str, Any]
-    problems: list[Problem] = field(default_factory=list)
-    curves_raw: dict[int, tuple[Block, list[float], list[float]]] = field(default_factory=dict)
-    tables: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
-    curves: dict[str, dict[str, list[float]]] = field(default_factory=dict)
-    made: dict[tuple[int, str], str] = field(default_factory=dict)
-    where: tuple[Block, Card | None] | None = None
-    exact: dict[float, float] = field(default_factory=dict)  # values export rounded -> their exact values
-
-    def fields(self, b: Block, c: Card, layout: str) -> dict[str, object] | None:
-        try:
-            return read_card(c.text, layout, self.exact)
-        except FieldError as exc:
-            self.problems.append(b.problem(str(exc), c))
-            return None
-
-    def fail(self, b: Block, msg: str, c: Card | None = None, fld: str = "") -> None:
-        self.problems.append(b.problem(msg, c, fld))
-
-    # --- the Curves protocol of dyna_materials ---------------------------------------------------
-    def lcid(self, curve: str, role: str) -> int:  # pragma: no cover - export side only
-        raise NotImplementedError
-
-    def is_table(self, lcid: object) -> bool:
-        return isinstance(lcid, int) and lcid in self.tables and lcid not in self.curves_raw
-
-    def table(self, rows: list[dict[str, Any]]) -> int:  # pragma: no cover - export side only
-        raise NotImplementedError
-
-    def table_curves(self, tbid: object, fld: str) -> list[dict[str, Any]]:
-        """``[{rate, curve}, ...]`` of the ``*DEFINE_TABLE`` ``tbid`` (each curve read as force vs elongation)."""
-        if not self.is_table(tbid):
-            b, c = self.where or (None, None)
-            if b is not None:
-                self.fail(b, f"{fld} = {tbid}: no *DEFINE_TABLE with this id in the deck", c, fld)
-            return []
-        return [{"rate": rate, "curve": self.curve(lcid, "same", fld)} for rate, lcid in self.tables[int(tbid)]]  # type: ignore[call-overload]
-
-    def curve(self, lcid: object, role: str, fld: str) -> str:
-        """The model curve id of deck curve ``lcid`` read in the sign convention ``role``."""
-        b, c = self.where or (None, None)
-        if not isinstance(lcid, int) or lcid not in self.curves_raw:
-            if b is not None:
-                self.fail(b, f"{fld} = {lcid}: no *DEFINE_CURVE with this id in the deck", c, fld)
-            return "missing"
-        key = (lcid, role)
-        if key in self.made:
-            return self.made[key]
-        _, xs, ys = self.curves_raw[lcid]
-        info = self.meta.get("curves", {}).get(str(lcid))
-        if info and info[1] == role and (info[2] or info[3]):
-            xs, ys = xs[info[2] : len(xs) - info[3]], ys[info[2] : len(ys) - info[3]]
-        if role == "crush":
-            xs, ys = crush_curve_in(xs, ys)
-        name = info[0] if info and info[1] == role else f"curve-{lcid}" + ("" if role in ("same", "time") else f"-{role}")
-        while name in self.curves and name not in self.made.values():
-            name += "-2"
-        self.curves[name] = {"x": xs, "y": ys}
-        self.made[key] = name
-        return name
 
 
 def import_deck(path: str, skip_unsupported: bool = False) -> tuple[dict[str, Any], list[str]]:
@@ -122,7 +56,7 @@ def import_deck(path: str, skip_unsupported: bool = False) -> tuple[dict[str, An
             raise InputError([b.problem("keyword not supported by crashstudy import (it has no model equivalent); "
                                         "remove it or pass --skip-unsupported to skip it") for b in other])  # fmt: skip
         notes.append("skipped unsupported keywords:\n  " + "\n  ".join(listed))
-    r = _Reader(meta, exact={float(w): float(x) for w, x in meta.get("exact", [])})
+    r = DeckReader(meta, exact={float(w): float(x) for w, x in meta.get("exact", [])})
     by: dict[str, list[Block]] = {}
     for b in deck.blocks:
         if supported(b.keyword):
@@ -136,9 +70,9 @@ def import_deck(path: str, skip_unsupported: bool = False) -> tuple[dict[str, An
     model["curves"] = r.curves
     model["nodes"] = nodes
     model["springs"] = _springs(r, by, rows, nid_name, meta)
-    _boundary(r, model, rows, by, nid_name, dim)
-    _walls(r, model, by, nid_name, dim, meta)
-    _controls(r, model, by, rows, meta, path)
+    read_boundary(r, model, rows, by, nid_name, dim)
+    read_walls(r, model, by, nid_name, dim, meta)
+    read_controls(r, model, by, rows, meta, path)
     if r.problems:
         raise InputError(sorted(r.problems, key=lambda p: (p.file, p.line or 0)))
     return {k: v for k, v in model.items() if v not in ({}, [], None) or k in ("nodes",)}, notes
@@ -181,7 +115,7 @@ def _title(model: dict[str, Any], by: dict[str, list[Block]], meta: dict[str, An
     model["units"] = units or "SI"
 
 
-def _read_curves(r: _Reader, by: dict[str, list[Block]]) -> None:
+def _read_curves(r: DeckReader, by: dict[str, list[Block]]) -> None:
     for b in by.get("DEFINE_CURVE", []) + by.get("DEFINE_CURVE_TITLE", []):
         cards = b.cards[1:] if b.keyword.endswith("_TITLE") else b.cards
         if not cards:
@@ -213,7 +147,7 @@ def _read_curves(r: _Reader, by: dict[str, list[Block]]) -> None:
         r.tables[int(h["TBID"])] = [(float(f["VALUE"] or 0.0), int(f["LCID"] or 0)) for f in rows]  # type: ignore[arg-type, call-overload]
 
 
-def _nodes(r: _Reader, rows: dict[str, list[tuple[Block, Card, dict[str, object]]]], meta: dict[str, Any]
+def _nodes(r: DeckReader, rows: Rows, meta: dict[str, Any]
            ) -> tuple[dict[str, dict[str, Any]], dict[int, str], int]:  # fmt: skip
     names = meta.get("nodes") or []
     found = [(b, c, f) for b, c, f in rows["NODE"] if f["NID"] is not None]
@@ -223,8 +157,9 @@ def _nodes(r: _Reader, rows: dict[str, list[tuple[Block, Card, dict[str, object]
             r.fail(b, "NID is blank" if f["NID"] is None else f"node {f['NID']} is defined twice (also at line "
                    f"{seen[f['NID']].line} of {seen[f['NID']].file})", c, "NID")  # fmt: skip
         seen.setdefault(f["NID"], c)
-    use_meta = len(names) == len(found) and sorted(int(f["NID"]) for _, _, f in found) == list(range(1, len(found) + 1))  # type: ignore[call-overload]
-    nid_name = {int(f["NID"]): (names[int(f["NID"]) - 1] if use_meta else f"n{f['NID']}") for _, _, f in found}  # type: ignore[call-overload]
+    nids = [int(f["NID"]) for _, _, f in found]  # type: ignore[call-overload]
+    use_meta = len(names) == len(found) and sorted(nids) == list(range(1, len(found) + 1))
+    nid_name = {n: (names[n - 1] if use_meta else f"n{f['NID']}") for n, (_, _, f) in zip(nids, found, strict=True)}
     xyz = {int(f["NID"]): [float(f[k] or 0.0) for k in ("X", "Y", "Z")] for _, _, f in found}  # type: ignore[call-overload, arg-type]
     held_dirs: dict[int, set[str]] = {n: set() for n in xyz}  # translations held: *NODE TC (1 x, 2 y, 3 z, 4 xy, 5 yz, 6 zx, 7 all), SPCs
     for b, c, f in found:
@@ -262,7 +197,7 @@ def _nodes(r: _Reader, rows: dict[str, list[tuple[Block, Card, dict[str, object]
     return nodes, nid_name, dim
 
 
-def _springs(r: _Reader, by: dict[str, list[Block]], rows: dict[str, list[tuple[Block, Card, dict[str, object]]]],
+def _springs(r: DeckReader, by: dict[str, list[Block]], rows: Rows,
              nid_name: dict[int, str], meta: dict[str, Any]) -> dict[str, dict[str, Any]]:  # fmt: skip
     parts: dict[int, tuple[str, dict[str, object]]] = {}
     for b in by.get("PART", []):
@@ -337,131 +272,3 @@ def _springs(r: _Reader, by: dict[str, list[Block]], rows: dict[str, list[tuple[
             spring["initial_elongation"] = float(f["OFFSET"])  # type: ignore[arg-type]
         springs[sid] = spring
     return springs
-
-
-def _boundary(r: _Reader, model: dict[str, Any], rows: dict[str, list[tuple[Block, Card, dict[str, object]]]],
-              by: dict[str, list[Block]], nid_name: dict[int, str], dim: int) -> None:  # fmt: skip
-    iv = {}
-    for b, c, f in rows["INITIAL_VELOCITY_NODE"]:
-        n = int(f["NID"] or 0)  # type: ignore[call-overload]
-        if n not in nid_name:
-            r.fail(b, f"NID {n}: no such node", c, "NID")
-            continue
-        iv[nid_name[n]] = [float(f[k] or 0.0) for k in ("VX", "VY")][:dim]  # type: ignore[arg-type]
-    model["initial_velocity"] = iv
-    loads: dict[tuple[int, int], list[float]] = {}
-    for b, c, f in rows["LOAD_NODE_POINT"]:
-        n, dof, lc = int(f["NID"] or 0), int(f["DOF"] or 0), int(f["LCID"] or 0)  # type: ignore[call-overload]
-        if n not in nid_name or dof not in (1, 2)[:dim] or f["CID"] or lc == 0:
-            r.fail(b, f"expected a node, DOF 1{' or 2' if dim == 2 else ''}, a load curve and CID 0; got NID {n}, "
-                   f"DOF {dof}, LCID {lc}", c, "DOF")  # fmt: skip
-            continue
-        loads.setdefault((n, lc), [0.0] * dim)[dof - 1] += float(f["SF"] if f["SF"] is not None else 1.0)  # type: ignore[arg-type]
-    model["loads"] = []
-    for (n, lc), force in loads.items():
-        info = r.meta.get("curves", {}).get(str(lc))
-        r.where = (by["LOAD_NODE_POINT"][0], None)
-        ld: dict[str, Any] = {"node": nid_name[n], "force": force}
-        if not (info and info[1] == "constant"):
-            ld["curve"] = r.curve(lc, "time", "LCID")
-        model["loads"].append(ld)
-    gravity = [0.0] * dim
-    for k, axis in enumerate("XYZ"):
-        for b in by.get(f"LOAD_BODY_{axis}", []):
-            body = r.fields(b, b.cards[0], "LOAD_BODY") if b.cards else None
-            if body is None:
-                continue
-            f = body
-            lc = int(f["LCID"] or 0)  # type: ignore[call-overload]
-            ys = r.curves_raw.get(lc, (b, [], []))[2]
-            if k >= dim or not ys or min(ys) != max(ys) or any(f[x] for x in ("LCIDDR", "CID")):
-                r.fail(b, "a body load must be constant in time (gravity) along a direction the model uses", b.cards[0])
-                continue
-            gravity[k] = -float(f["SF"] if f["SF"] is not None else 1.0) * ys[0]  # type: ignore[arg-type]
-    if any(gravity):
-        model["gravity"] = gravity
-    motion = []
-    for b, c, f in rows["BOUNDARY_PRESCRIBED_MOTION_NODE"]:
-        n, dof, vad = int(f["NID"] or 0), int(f["DOF"] or 0), int(f["VAD"] or 0)  # type: ignore[call-overload]
-        limits = [float(f[k]) for k in ("BIRTH", "DEATH") if f[k] is not None]  # type: ignore[arg-type]
-        if n not in nid_name or dof not in (1, 2)[:dim] or vad not in (0, 1, 2) or f["VID"] or \
-                any(0.0 < abs(v) < NEVER_TIME for v in limits):  # fmt: skip
-            r.fail(b, f"expected a node, DOF 1{' or 2' if dim == 2 else ''}, VAD 0 (velocity), 1 (acceleration) or 2 "
-                   "(displacement), VID 0 and no BIRTH/DEATH times", c, "DOF")  # fmt: skip
-            continue
-        r.where = (b, c)
-        motion.append({"node": nid_name[n], "quantity": ("velocity", "acceleration", "displacement")[vad],
-                       "direction": "xy"[dof - 1], "curve": r.curve(f["LCID"], "time", "LCID"),
-                       "scale": float(f["SF"] if f["SF"] is not None else 1.0)})  # type: ignore[arg-type]  # fmt: skip
-    model["prescribed_motion"] = motion
-
-
-def _walls(r: _Reader, model: dict[str, Any], by: dict[str, list[Block]], nid_name: dict[int, str], dim: int,
-           meta: dict[str, Any]) -> None:  # fmt: skip
-    sets: dict[int, list[int]] = {}
-    for b in by.get("SET_NODE_LIST", []):
-        h = r.fields(b, b.cards[0], "SET_NODE_LIST") if b.cards else None
-        if h is not None:
-            sets[int(h["SID"] or 0)] = [int(v) for c in b.cards[1:] if (f := r.fields(b, c, "SET_NODE_LIST_IDS"))  # type: ignore[call-overload]
-                                        for v in f.values() if v]  # fmt: skip
-    known = {w[0]: w[1] for w in meta.get("walls", [])}
-    walls: list[dict[str, Any]] = []
-    for b in by.get("RIGIDWALL_PLANAR", []) + by.get("RIGIDWALL_PLANAR_ID", []):
-        cards = b.cards
-        wid = f"wall-{len(walls) + 1}"
-        if b.keyword.endswith("_ID") and cards:
-            h = r.fields(b, cards[0], "RIGIDWALL_ID")
-            wid = str(h["TITLE"]).strip() if h and h["TITLE"] else f"wall-{h['ID'] if h else len(walls) + 1}"
-            cards = cards[1:]
-        if len(cards) != 2:
-            r.fail(b, f"expected two cards (NSID ... RWKSF, then XT ... WVEL), found {len(cards)}")
-            continue
-        f1, f2 = r.fields(b, cards[0], "RIGIDWALL_PLANAR"), r.fields(b, cards[1], "RIGIDWALL_PLANAR_2")
-        if f1 is None or f2 is None:
-            continue
-        odd = [k for k in ("NSIDEX", "BOXID", "OFFSET", "RWKSF") if f1[k]] + [k for k in ("FRIC", "WVEL") if f2[k]]
-        odd += [k for k in ("BIRTH", "DEATH") if f1[k] and abs(float(f1[k])) < NEVER_TIME]  # type: ignore[arg-type]
-        tail = [float(f2[k] or 0.0) for k in ("XT", "YT", "ZT")]  # type: ignore[arg-type]
-        normal = [float(f2[k] or 0.0) - t for k, t in zip(("XH", "YH", "ZH"), tail, strict=True)]  # type: ignore[arg-type]
-        if odd or tail[2] != 0.0 or normal[2] != 0.0 or (dim == 1 and (tail[1] or normal[1])):
-            r.fail(b, "crashstudy walls are stonewalls in the model's plane: NSIDEX, BOXID, OFFSET, RWKSF, FRIC, "
-                   "WVEL, BIRTH and DEATH blank or 0, z components 0" + (f" (found {', '.join(odd)})" if odd else ""),
-                   cards[0])  # fmt: skip
-            continue
-        exact = known.get(wid)
-        if exact is not None and len(exact) == dim and all(abs(a - b2) <= 1e-9 * max(1.0, abs(b2))
-                                                           for a, b2 in zip(normal, exact, strict=False)):  # fmt: skip
-            normal = list(exact)
-        wall: dict[str, Any] = {"id": wid, "point": tail[:dim], "normal": normal[:dim]}
-        nsid = int(f1["NSID"] or 0)  # type: ignore[call-overload]
-        if nsid:
-            if nsid not in sets or any(n not in nid_name for n in sets[nsid]):
-                r.fail(b, f"NSID {nsid}: no *SET_NODE_LIST of deck nodes with this id", cards[0], "NSID")
-                continue
-            wall["nodes"] = [nid_name[n] for n in sets[nsid]]
-        walls.append(wall)
-    model["rigid_walls"] = walls
-
-
-def _controls(r: _Reader, model: dict[str, Any], by: dict[str, list[Block]],
-              rows: dict[str, list[tuple[Block, Card, dict[str, object]]]], meta: dict[str, Any], path: str) -> None:  # fmt: skip
-    ends = [f["ENDTIM"] for _, _, f in rows["CONTROL_TERMINATION"] if f["ENDTIM"]]
-    if not ends:
-        r.problems.append(Problem(path, None, "*CONTROL_TERMINATION", "no ENDTIM: the deck must give the end time"))
-    else:
-        model["end_time"] = float(ends[-1])  # type: ignore[arg-type]
-    if "time_step" in meta:
-        model["time_step"] = meta["time_step"]
-    else:
-        ts = [f for _, _, f in rows["CONTROL_TIMESTEP"] if f["TSSFAC"]]
-        if ts and 0.0 < float(ts[-1]["TSSFAC"]) <= 1.0:  # type: ignore[arg-type]
-            model["time_step"] = {"safety_factor": float(ts[-1]["TSSFAC"])}  # type: ignore[arg-type]
-    if "output" in meta:
-        model["output"] = meta["output"]
-    else:
-        dts = [f["DT"] for b in by.get("DATABASE_NODOUT", []) if b.cards and (f := r.fields(b, b.cards[0], "DATABASE"))]
-        if dts and dts[0]:
-            model["output"] = {"interval": float(dts[0])}  # type: ignore[arg-type]
-    for key in ("termination", "metrics", "accuracy_check"):
-        if meta.get(key) not in (None, [], False):
-            model[key] = meta[key]

@@ -39,7 +39,6 @@ import sys
 import tempfile
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, cast
 
@@ -48,6 +47,7 @@ import numpy as np
 from crashstudy import environment
 from crashstudy.kernel import compile_lock
 from crashstudy.kernel.cache import cache_dir, compiled_or_cached, why_not_private
+from crashstudy.kernel.decision import StartPlan
 from crashstudy.vocabulary.codes import GENERAL, KernelName
 
 if TYPE_CHECKING:
@@ -60,6 +60,8 @@ GENERIC_RATE = 3.5e8  # [element-steps/s] generic kernel, 2 threads
 GENERATED_RATE = 1.0e9  # [element-steps/s] generated kernel, 2 threads
 GENERIC_COMPILE = 24.0  # [s] compiling the generic kernel (once per machine)
 GEN_BASE, GEN_GENERAL, GEN_SPRING, GEN_WALL, GEN_RECORD = 2.0, 3.5, 0.4, 1.0, 1.0  # [s] generated_compile_seconds
+GEN_SPRING2 = 0.045  # [s] per spring squared beyond GEN_SMALL: one unrolled function (compile_springs.md)
+GEN_SMALL = 8  # springs up to which the generated compile grows linearly (compile_costs.md)
 LOAD = 0.3  # [s] loading a compiled kernel from the disk cache (once per process)
 BACKGROUND_MIN = 2.0  # [s] of reference time of a run above which missing kernels compile in the background
 KERNELS = ("reference", "generic", "generated")
@@ -98,6 +100,11 @@ def kernel_override() -> KernelName:
     return cast(KernelName, environment.kernel())
 
 
+def named_kernel(kernel: KernelName) -> KernelName:
+    """The kernel a run asks for: ``kernel`` when it names one, else ``CRASHSTUDY_KERNEL``'s ("compiled": choose)."""
+    return kernel if kernel != "compiled" else kernel_override()
+
+
 def background_min_seconds() -> float:
     """Reference seconds of a run above which missing kernels compile in the background (inf: never).
 
@@ -109,10 +116,12 @@ def background_min_seconds() -> float:
 def generated_compile_seconds(material: np.ndarray, n_walls: int, record: bool = False) -> float:
     """Expected seconds to compile one model shape's generated kernel: each ``general_nonlinear``
     spring (its loading/unloading/yield law inlined) costs most. Fit to the cold compiles of
-    benchmarks/results/compile_costs.md (1 spring 2.6-5.5 s, helicopter 8.1 s, frontal 10.3 s)."""
+    benchmarks/results/compile_costs.md (1 spring 2.6-5.5 s, helicopter 8.1 s, frontal 10.3 s), and growing with
+    the square of the springs beyond a few dozen (compile_springs.md: 32 springs ~60 s, 64 ~200 s)."""
     general = int(np.sum(np.asarray(material) == GENERAL))
-    return (GEN_BASE + GEN_GENERAL * general + GEN_SPRING * (len(material) - general) + GEN_WALL * n_walls
-            + GEN_RECORD * bool(record))  # fmt: skip
+    S = len(material)
+    return (GEN_BASE + GEN_GENERAL * general + GEN_SPRING * (S - general) + GEN_SPRING2 * max(S - GEN_SMALL, 0) ** 2
+            + GEN_WALL * n_walls + GEN_RECORD * bool(record))  # fmt: skip
 
 
 def reference_seconds(n_steps: float, n_springs: int, element_steps: float) -> float:
@@ -163,8 +172,7 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
     it, so another is never picked (not even when named: the criteria are never silently missing)."""
     from crashstudy.kernel import generated
 
-    if kernel == "compiled":
-        kernel = kernel_override()
+    kernel = named_kernel(kernel)
     if record and kernel not in (*RECORDING, "compiled"):
         return "reference"
     if kernel == "generated" and generated.unsupported(b) is not None:
@@ -205,83 +213,6 @@ def note_loaded(kernel: KernelName) -> None:
     _LOADED.add(kernel)
 
 
-@dataclass
-class StartPlan:
-    """What a run is missing and what each choice would cost [s] (from a sample of its variants)."""
-
-    costs: dict[str, float]  # compile seconds of each missing kernel ("generic", "generated")
-    reference_seconds: float  # the whole run on the NumPy reference
-    generic_seconds: float  # ... on the generic kernel (compile not included)
-    fast_seconds: float  # ... on the fastest kernel once everything is compiled
-    shape: str  # the model shape in words
-    criteria: float = 0.0  # compile seconds of the companion (crash criteria) when the run needs it and it is missing
-    companion: str = "criteria"  # its name in the decision (Companion.name)
-
-    @property
-    def compile(self) -> tuple[str, ...]:
-        """The missing kernels, cheapest first."""
-        return tuple(sorted(self.costs, key=lambda k: self.costs[k]))
-
-    @property
-    def seconds(self) -> float:
-        return sum(self.costs.values())
-
-
-@dataclass
-class Decision:
-    """How a run gets its kernels: compile some first (in a child process, Ctrl-C stops it), some in the
-    background while it runs, some in the background once it has finished (for the next run)."""
-
-    estimate: float  # expected seconds of the run
-    foreground: tuple[str, ...] = ()
-    now: tuple[str, ...] = ()
-    after: tuple[str, ...] = ()
-    small_chunks: bool = False  # run the reference in chunks of REF_CHUNK so a finished compile is taken soon
-
-
-def decide(p: StartPlan, background: bool) -> Decision:
-    """The fastest way through the run that is never slower than compiling the generic kernel first
-    and running it, the way every run went before kernel choice (up to the estimates' error).
-
-    - Nothing compiled, and the reference would take longer than compiling a kernel and running it:
-      compile the kernel for which that is quicker first (this shape's generated one, unless the shape
-      is large or the generated kernel cannot run it), the crash criteria beside it. When that is the
-      generic kernel, this shape's generated one follows in the background, during the run when the
-      run is long enough for it to pay back twice, else after it.
-    - Nothing compiled, a shorter run: start on the reference and compile the quicker kernel in the
-      background (on the other core), switching to it when it is ready.
-    - The generic kernel compiled, this shape's generated one not: run on the generic kernel and compile
-      the generated one in the background, during the run when it pays back twice, else after it.
-    Without background compiles, only the foreground compiles that pay remain."""
-    gen_cost = p.costs.get("generated")
-    beside = (p.companion,) if p.criteria else ()
-    if "generic" in p.costs:
-        ways = {"generic": p.costs["generic"] + p.generic_seconds}
-        if gen_cost is not None:
-            ways["generated"] = gen_cost + p.fast_seconds
-        first = min(ways, key=lambda k: ways[k])
-        alone = ways[first] + max(0.0, p.criteria - p.costs[first])  # the criteria compile beside the kernel
-        if p.reference_seconds > alone and first == "generated":
-            return Decision(alone, foreground=("generated", *beside))
-        if p.reference_seconds > alone:
-            rest: tuple[str, ...] = ("generated",) if background and gen_cost is not None else ()
-            during = gen_cost is not None and p.generic_seconds > 2 * gen_cost
-            return Decision(alone, foreground=("generic", *beside), now=rest if during else (),
-                            after=() if during else rest)  # fmt: skip
-        if background:
-            quick = "generated" if gen_cost is not None else "generic"
-            return Decision(min(p.reference_seconds, p.costs[quick] + p.fast_seconds), now=(quick,), small_chunks=True)
-        return Decision(p.reference_seconds)
-    t_now = min(p.reference_seconds, p.generic_seconds)
-    if gen_cost is None:
-        return Decision(t_now)
-    if background:
-        return Decision(t_now, now=("generated",)) if t_now > 2 * gen_cost else Decision(t_now, after=("generated",))
-    if gen_cost + p.fast_seconds < t_now:
-        return Decision(gen_cost + p.fast_seconds, foreground=("generated", *beside))
-    return Decision(t_now)
-
-
 def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, n_variants: int,
                kernel: KernelName = "compiled", record: tuple[int, ...] = (),
                companion: Companion | None = None) -> StartPlan | None:  # fmt: skip
@@ -291,7 +222,7 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     what the run compiles beside its kernel when it is missing (the crash criteria)."""
     from crashstudy.kernel import generated
 
-    if kernel != "compiled" or kernel_override() != "compiled":
+    if named_kernel(kernel) != "compiled":
         return None
     S, (N, D, V) = len(b.spring_i), b.x0.shape
     per_variant = float(np.mean(b.n_steps)) if V else 0.0

@@ -29,6 +29,10 @@ ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB 
 
 
 MAX_KNOTS = 150  # knots of one curve above which the emitted sums nest too deep for Python's parser
+# springs above which a model gets no generated kernel: its one unrolled function compiles in time and memory
+# growing faster than linearly (benchmarks/results/compile_springs.md: 32 springs ~60 CPU s, 64 ~200 s and
+# 0.55 GB; a 1179-spring grid passed 11 GB before it was stopped); the generic kernel runs such models
+MAX_GENERATED_SPRINGS = 64
 
 
 def unsupported(b: Batch) -> str | None:
@@ -36,6 +40,9 @@ def unsupported(b: Batch) -> str | None:
     knots = int(np.max(np.diff(b.curve_off), initial=0))
     if knots > MAX_KNOTS:
         return f"a curve has {knots} knots (the generated kernel takes at most {MAX_KNOTS})"
+    if len(b.spring_i) > MAX_GENERATED_SPRINGS:
+        return (f"the model has {len(b.spring_i)} springs, and a generated kernel is compiled for at most "
+                f"{MAX_GENERATED_SPRINGS} (its compile time and memory grow faster than the springs)")  # fmt: skip
     return None
 
 

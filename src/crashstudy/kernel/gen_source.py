@@ -221,7 +221,7 @@ def lanes(g: Layout, ind: str) -> None:
     for s in g.fragile:  # failure elongations (+-inf: never)
         g.emit(f"{i2}{g.R[f'ft{s}']} = fail_t[{s}, q]")
         g.emit(f"{i2}{g.R[f'fc{s}']} = fail_c[{s}, q]")
-    for s in g.pre:  # initial_elongation: e0, the rate at t = 0, IE0 and the material state (kernel.preload)
+    for s in g.pre:  # initial_elongation: e0, the rate at t = 0, IE0 and the material state (arrays.preload)
         g.emit(f"{i2}{g.R[f'e0{s}']} = elong0[{s}, q]")
         g.emit(f"{i2}{g.R[f'r0{s}']} = rate0[{s}, q]")
         g.emit(f"{i2}{g.R[f'ie{s}']} = ie0[{s}, q]")

@@ -9,12 +9,12 @@ emit calls to them on their local scalars. Each law but two (``_inl`` below) is 
 a hand-written formula without numba typing and lowering it again at each of ~40 call sites
 (``error_model="numpy"``: no division-by-zero branch, so the generated kernel's loops stay as fast
 as with the laws inlined; benchmarks/results/compile_inline.md). The NumPy reference
-(:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.kernel.materials`) is the independent twin:
+(:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.arrays.material_laws`) is the independent twin:
 every function here does its operations in the same order, so both fast kernels stay bitwise equal
 to it (no fastmath).
 
 A new material is one law function here, one dispatch line in each fast kernel
-(the force dispatch of ``compiled._run`` and ``gen_springs.pass_b_springs``) and its NumPy twin in materials.py.
+(the force dispatch of ``compiled._run`` and ``gen_springs.pass_b_springs``) and its NumPy twin in arrays/material_laws.py.
 """
 
 from __future__ import annotations

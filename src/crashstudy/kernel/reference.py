@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crashstudy.kernel import materials as mat
+from crashstudy.arrays import material_laws as mat
 from crashstudy.kernel.reference_knots import knot_crossing_np, spring_knotted
 from crashstudy.kernel.step_twins import (
     energy_balance_np,
@@ -90,7 +90,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     x = b.x0.copy()
     v = b.v0.copy()
     m = b.mass
-    state = b.state0.copy() if len(b.state0) else np.zeros((S, mat.NSTATE, V))  # preloaded springs: kernel.preload
+    state = b.state0.copy() if len(b.state0) else np.zeros((S, mat.NSTATE, V))  # preloaded springs: arrays.preload
     f_prev = np.zeros((S, V))
     e_prev = np.zeros((S, V))
     fext_prev = np.zeros((N, D, V))

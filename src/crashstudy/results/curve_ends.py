@@ -26,8 +26,6 @@ from crashstudy.vocabulary.codes import GENERAL
 from crashstudy.vocabulary.materials import MATERIALS
 
 PAST_FIRST, PAST_LAST = 1.0, 2.0  # codes, added: 3 = both ends
-MEANING = ("0: within the curve's x range; 1: compressed past its first point; 2: stretched past its last "
-           "point; 3: both (the force there is extrapolated along the end segment)")  # fmt: skip
 ENDS_OF = {m.code: m.curve_ends for m in MATERIALS if any(m.curve_ends)}  # (first end, last end) checked
 
 

@@ -20,7 +20,8 @@ from pathlib import Path
 
 from crashstudy.errors import InputError, Problem
 from crashstudy.results.integrity import MANIFEST, final_name, partial_name
-from crashstudy.results.store import FINAL, PARQUET, PARTIAL, SUMMARY, remove_store
+from crashstudy.results.placement import remove_store
+from crashstudy.results.store import FINAL, PARQUET, PARTIAL, SUMMARY
 from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL
 from crashstudy.safefs import PlantedEntryError, clear_entry, open_regular
 
@@ -100,7 +101,7 @@ def remove_stale_plots(out_dir: Path) -> list[Path]:
     folder = out_dir / "plots"
     if not folder.is_dir() or folder.is_symlink():
         return []
-    from crashstudy.analysis.plot import is_crashstudy_plot
+    from crashstudy.results.plot_tag import is_crashstudy_plot
 
     gone = []
     for png in sorted(folder.glob("*.png")):

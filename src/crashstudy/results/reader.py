@@ -11,7 +11,9 @@ what the run wrote:
 - ``results.nc`` must have the size the manifest records (its variants carry their own checksums);
 - a summary table must have the size and the SHA-256 the manifest records, hashed from the very
   handle that is then parsed: an edited ``summary.parquet``, or one copied beside another run's
-  ``results.nc`` and manifest, is refused (exit 2), never used.
+  ``results.nc`` and manifest, is refused (exit 2), never used. It is hashed once per :class:`Results`
+  (a 10^8-variant summary is ~12 GB): later handles of the same unchanged file (device, inode, size,
+  mtime, ctime; the hashed handle is held open) are not hashed again, any other file is.
 
 A folder written before manifests existed (no run id) is read as before: regular files only.
 """
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import weakref
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -38,6 +41,7 @@ from crashstudy.safefs import PlantedEntryError, open_regular
 __all__ = ["Results", "open_results"]
 NOT_THE_RUNS = "it is not the file that run wrote (changed or copied in since)"
 READ_BLOCK = 65_536  # rows of the summary table a block-wise reader holds at once (a few MiB per column)
+SUMMARY_ROWS_MAX = 4_000_000  # rows :attr:`Results.summary` reads whole (~250 B a row in pandas: ~1 GiB)
 
 
 class Results:
@@ -57,6 +61,9 @@ class Results:
         self.path = final
         self._ds: xr.Dataset | None = None
         self._raw: xr.Dataset | None = None
+        self._pinned: dict[str, tuple[IO[bytes], tuple[int, ...]]] = {}  # hashed files, held open (_vouched)
+        weakref.finalize(self, _close_pinned, self._pinned)  # closed with the object if close() is never called
+        self.summary_limit: int | None = SUMMARY_ROWS_MAX  #: rows :attr:`summary` reads whole (None: any)
 
     def open_file(self, name: str) -> IO[bytes]:
         """The folder's file ``name``, open and checked against the manifest (size; SHA-256 where it
@@ -74,7 +81,7 @@ class Results:
             why = f"{name} is not listed in {MANIFEST}: the run that wrote {FINAL} did not write it"
         elif entry.get("size") != size:
             why = f"{name} has {size} bytes, {MANIFEST} records {entry.get('size')}: {NOT_THE_RUNS}"
-        elif "sha256" in entry and integrity.sha256_of(fh) != entry["sha256"]:
+        elif "sha256" in entry and not self._vouched(name, fh, entry["sha256"]):
             why = f"the SHA-256 of {name} is not the one {MANIFEST} records: {NOT_THE_RUNS}"
         if why:
             fh.close()
@@ -82,18 +89,40 @@ class Results:
         fh.seek(0)
         return fh
 
+    def _vouched(self, name: str, fh: IO[bytes], sha256: str) -> bool:
+        """Whether the open file ``fh`` has the SHA-256 ``sha256``, hashed once per Results object: the first
+        handle whose hash matches stays open (its inode cannot be reused while it is) and its identity is
+        kept; a later handle with the same device, inode, size, mtime and ctime is that same file, unchanged
+        (an edit in place moves ctime, which no user can set back; a file renamed over it has another
+        inode). Anything else is hashed again. A file that changes while it is hashed is refused."""
+        stamp = _identity(fh)
+        pinned = self._pinned.get(name)
+        if pinned is not None and pinned[1] == stamp:
+            return True
+        if integrity.sha256_of(fh) != sha256 or _identity(fh) != stamp:
+            return False
+        if pinned is not None:
+            pinned[0].close()
+        self._pinned[name] = (os.fdopen(os.dup(fh.fileno()), "rb"), stamp)
+        return True
+
     @property
     def dataset(self) -> xr.Dataset:
-        """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``)."""
+        """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``).
+        Beyond :attr:`summary_limit` variants nothing is read on opening: the text variables are decoded
+        where indexed, and ``variant`` is a dimension without an index (its position is its number)."""
         if self._ds is None:
-            if self.final == FINAL:
-                open_regular(self.path, what=FINAL).close()  # still a regular file (checked on open, too)
-                ds = xr.open_dataset(self.path)
-            else:  # Zarr: lazily, without dask (one array region read per access)
-                ds = _open_zarr(self.path)
+            ds = self.raw_dataset
+            big = self.summary_limit is not None and ds.sizes.get("variant", 0) > self.summary_limit
+            if not big:
+                ds.close()
+                if self.final == FINAL:
+                    ds = xr.open_dataset(self.path)
+                else:  # Zarr: lazily, without dask (one array region read per access)
+                    ds = _open_zarr(self.path)
             axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
             self._raw = ds
-            self._ds = decode_texts(ds).set_coords([a for a in axes if a in ds])
+            self._ds = decode_texts(ds, lazy=big).set_coords([a for a in axes if a in ds])
         return self._ds
 
     @property
@@ -203,9 +232,15 @@ class Results:
     @property
     def summary(self) -> pd.DataFrame:
         """One row per variant: the axis values as columns, then status and summary metrics (from
-        ``summary.parquet``, else ``summary.csv``, else the dataset)."""
+        ``summary.parquet``, else ``summary.csv``, else the dataset), whole in memory: up to
+        :attr:`summary_limit` rows (default :data:`SUMMARY_ROWS_MAX`); a larger summary is refused with
+        an error naming the readers that work in bounded memory (:meth:`summary_batches`,
+        :meth:`summary_columns`); set ``summary_limit = None`` to read it whole anyway."""
         source = self.summary_source
         if source == PARQUET:
+            rows = self.summary_rows()
+            if self.summary_limit is not None and rows > self.summary_limit:
+                raise InputError([Problem(str(self.dir / PARQUET), None, "", too_large(rows, self.summary_limit))])
             with self.open_file(PARQUET) as fh:
                 return pd.read_parquet(fh)
         if source == SUMMARY:
@@ -220,6 +255,7 @@ class Results:
         return summary_frame(self._raw)
 
     def close(self) -> None:
+        _close_pinned(self._pinned)
         if self._ds is not None:
             self._ds.close()
             if self._raw is not None:
@@ -228,6 +264,27 @@ class Results:
 
     def __repr__(self) -> str:
         return f"Results({str(self.dir)!r})"
+
+
+def too_large(rows: int, limit: int) -> str:
+    """Why :attr:`Results.summary` refuses a summary of ``rows`` rows, and what reads it instead."""
+    return (f"the summary has {rows} rows, more than the {limit} that Results.summary reads whole into one "
+            f"pandas DataFrame (~250 bytes a row): read it in bounded memory with "
+            f".summary_batches(columns, rows) (blocks in variant order), .summary_columns([...]) (only the "
+            f"columns you need), .summary_row(variant) or .column_peak(column); or set "
+            f".summary_limit = None to read it whole anyway")
+
+
+def _close_pinned(pinned: dict[str, tuple[IO[bytes], tuple[int, ...]]]) -> None:
+    for fh, _ in pinned.values():
+        fh.close()
+    pinned.clear()
+
+
+def _identity(fh: IO[bytes]) -> tuple[int, ...]:
+    """What tells one file's unchanged contents from another's: device, inode, size, mtime, ctime (ns)."""
+    st = os.fstat(fh.fileno())
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
 
 
 def _parquet(fh: IO[bytes]) -> Any:

@@ -1,5 +1,4 @@
-"""Result files: ``results.nc`` written chunk by chunk, ``summary.parquet`` / ``summary.csv``, and
-reading them back.
+"""Result files: ``results.nc`` written chunk by chunk, ``summary.parquet`` / ``summary.csv``.
 
 The netCDF file is built as ``results.nc.partial`` (netCDF4, variants written as they finish, a
 ``done`` flag and a checksum per variant flushed with them) and renamed to ``results.nc``
@@ -9,12 +8,8 @@ only when every variant is in it: an interrupted run never leaves a file that lo
 ``results.nc`` (marked ``complete``), the tables and last ``manifest.json`` are renamed into place;
 :class:`Results` refuses a folder whose files are not one finished run's (:mod:`crashstudy.results.integrity`).
 
-Texts that repeat across variants are stored compactly (docs/format.md, "Results"): ``status`` is a CF flag
-variable (``int8``, ``flag_values`` 0 1, ``flag_meanings`` "ok failed"); ``failure_reason`` and
-``dt_control`` are ``int32`` indices into a table of their distinct texts (``failure_reason_text``,
-``dt_control_text``, named by the index variable's ``texts`` attribute); ``input_hash`` is two
-``uint64`` words. :attr:`Results.dataset` and :attr:`Results.summary` give them back as texts
-(categorical in the summary). Files of crashstudy 0.1 (texts as character arrays) are read too.
+Texts that repeat across variants are stored compactly (:mod:`crashstudy.results.tables`, docs/format.md
+"Results"); :attr:`Results.dataset` and :attr:`Results.summary` give them back as texts.
 """
 
 from __future__ import annotations
@@ -37,6 +32,7 @@ from crashstudy.results import integrity
 from crashstudy.results.attributes import axis_unit, model_facts, plan_fingerprint, units_of
 from crashstudy.results.curve_ends import curve_springs
 from crashstudy.results.integrity import FINAL, PARTIAL
+from crashstudy.results.placement import partial_opens, remove_store, swap_store
 from crashstudy.results.reader import Results, open_raw, open_results  # the one reader, re-exported
 from crashstudy.results.regions import Receipt, codes_in, record, stored_arrays, text_values
 from crashstudy.results.tables import (
@@ -45,30 +41,27 @@ from crashstudy.results.tables import (
     PARQUET,
     STATUS_MEANINGS,
     SUMMARY,
-    SUMMARY_META,
+    TEXT_LEN,
+    chars,
     decode_texts,  # fmt: skip
+    read_texts,
+    stored_table,
     summary_frame,
     text_tables,
     write_summary,
 )
-from crashstudy.results.zarr_file import ZARR_FINAL, ZarrFile, exchange
+from crashstudy.results.zarr_file import ZARR_FINAL, ZarrFile
 from crashstudy.safefs import PlantedEntryError, clear_entry, create_new, is_regular
 from crashstudy.study.plan import Plan
 from crashstudy.study.provenance import HASH_WORDS, text_hash
+from crashstudy.vocabulary.summary import SUMMARY_META
 
 __all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "ResultWriter", "Results",
            "decode_texts", "open_results", "summary_frame", "write_summary"]  # fmt: skip
 
 ID_LEN = 64  # longest id (the schema allows 64 characters)
-TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
 AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
 REUSE_BLOCK = 65536  # variants copied at once from an earlier result
-
-
-def _chars(texts: list[str], width: int) -> np.ndarray:
-    """Strings as a (len, width) 'S1' character array, UTF-8, cut to ``width`` bytes."""
-    raw = np.array([t.encode("utf-8")[:width] for t in texts], dtype=f"S{width}")
-    return netCDF4.stringtochar(raw) if len(texts) else np.zeros((0, width), dtype="S1")
 
 
 @dataclass
@@ -116,7 +109,7 @@ class ResultWriter:
             raise InputError([Problem(plan.study_file or plan.model_file, None, "",
                                       f"{self.path} is a symbolic link, not a partial result of crashstudy; "
                                       "refusing to write through it (remove it, or use --force)")])  # fmt: skip
-        if resume and self.path.exists() and not _readable(self.path):
+        if resume and self.path.exists() and not partial_opens(self.path):
             # cut off before its first chunk was flushed (SIGKILL, full disk): nothing in it can be used
             print(f"note: {self.path} could not be read (cut off while being written); starting it again",
                   file=sys.stderr)  # fmt: skip
@@ -131,7 +124,7 @@ class ResultWriter:
             self._verify_resumed()
         else:
             self.nc = self._create()
-        self.tables = {name: {t: k for k, t in enumerate(_table(self.nc, name))} for name in text_tables(plan.topology)}
+        self.tables = {name: {t: k for k, t in enumerate(stored_table(self.nc, name))} for name in text_tables(plan.topology)}
 
     def _verify_resumed(self) -> None:
         """Forget the done variants whose data no longer match their checksum: they are computed again.
@@ -185,7 +178,8 @@ class ResultWriter:
         nc.createDimension("axis", topo.dim)
         nc.createDimension("wall", len(topo.wall_ids))
         var = nc.createVariable("variant", "i8", ("variant",))
-        var[:] = np.arange(V)
+        for lo in range(0, V, AXIS_BLOCK):  # in blocks: np.arange of 10^8 variants alone is 800 MB
+            var[lo : min(lo + AXIS_BLOCK, V)] = np.arange(lo, min(lo + AXIS_BLOCK, V))
         var.units, var.long_name = "1", "variant number (row-major over the study axes)"
         tv = nc.createVariable("time", "f8", ("time",))
         tv[:] = p.times
@@ -199,7 +193,7 @@ class ResultWriter:
             v._Encoding = "utf-8"
             v.units, v.long_name = "", f"{dim} id" if dim != "axis" else "coordinate axis"
             if ids:
-                v[:] = _chars(list(ids), ID_LEN)
+                v[:] = chars(list(ids), ID_LEN)
         for ax in p.axes:
             v = nc.createVariable(ax.path, "f8", ("variant",), zlib=False)
             v.long_name = f"study axis {ax.path}"
@@ -292,7 +286,7 @@ class ResultWriter:
         start = len(table)
         codes, new = codes_in(table, texts)
         if new:
-            self.nc.variables[f"{name}_text"][start : start + len(new)] = _chars(new, TEXT_LEN)
+            self.nc.variables[f"{name}_text"][start : start + len(new)] = chars(new, TEXT_LEN)
         return codes
 
     def reuse(self, old: netCDF4.Dataset, new_idx: np.ndarray, old_idx: np.ndarray) -> int:
@@ -346,7 +340,7 @@ class ResultWriter:
                 codes = np.asarray(var[lo : lo + block].filled(-1) if np.ma.isMaskedArray(var[lo : lo + block])
                                    else var[lo : lo + block])  # fmt: skip
                 var[lo : lo + block] = np.where(codes >= 0, new_id[np.clip(codes, 0, None)], -1)
-            self.nc.variables[f"{name}_text"][: len(texts)] = _chars([texts[k] for k in order], TEXT_LEN)
+            self.nc.variables[f"{name}_text"][: len(texts)] = chars([texts[k] for k in order], TEXT_LEN)
             self.tables[name] = {texts[k]: i for i, k in enumerate(order)}
 
     def abort(self) -> None:
@@ -381,68 +375,7 @@ class ResultWriter:
         return final
 
 
-def swap_store(new: Path, final: Path) -> None:
-    """Put the finished Zarr store ``new`` at ``final``, replacing an older one there: ``new`` is renamed
-    to ``final.replacing``, swapped with the old store in one step (:func:`exchange`) and the old store
-    removed after, so a kill at any moment leaves a whole store at ``final`` (the old, until the swap).
-    Where no swap exists (not Linux, some network file systems) the old store is moved aside first."""
-    staged = final.with_name(final.name + ".replacing")
-    aside = final.with_name(final.name + ".replaced")
-    remove_store(staged)  # left by a run killed here
-    remove_store(aside)
-    if os.path.lexists(final):
-        os.replace(new, staged)
-        if exchange(staged, final):
-            remove_store(staged)  # now the old store
-            return
-        os.replace(final, aside)
-        new = staged
-    os.replace(new, final)
-    remove_store(aside)
-
-
 def _ranges_of(mask: np.ndarray) -> list[tuple[int, int]]:
     """The contiguous runs of True in ``mask`` as (lo, hi) pairs."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
-
-
-def remove_store(path: Path) -> None:
-    """Remove a result store at ``path``: a link or file is unlinked (never followed), a folder removed."""
-    if os.path.isdir(path) and not os.path.islink(path):
-        import shutil
-
-        shutil.rmtree(path)
-    else:
-        clear_entry(path)
-
-
-def _readable(path: Path) -> bool:
-    """Whether a partial result store opens and carries its fingerprint and done flags."""
-    try:
-        with integrity.open_store(path, "r") as nc:
-            nc.getncattr("plan_fingerprint")
-            nc.variables["done"][:]
-        return True
-    except (OSError, RuntimeError, AttributeError, KeyError, IndexError):
-        return False
-
-
-def _table(nc: netCDF4.Dataset, name: str) -> list[str]:
-    """The distinct texts of ``name`` stored in ``nc`` (empty for files without a table)."""
-    if f"{name}_text" not in nc.variables:
-        return []
-    raw = nc.variables[f"{name}_text"]
-    raw.set_auto_chartostring(False)
-    return [bytes(r).rstrip(b"\0").decode("utf-8", "replace") for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]]
-
-
-def read_texts(nc: netCDF4.Dataset, name: str, lo: int, hi: int) -> np.ndarray:
-    """Texts of ``status``, ``failure_reason`` or ``dt_control`` of variants ``lo`` .. ``hi - 1`` from an
-    open netCDF file, in either storage (index + table, flags, or the character arrays of 0.1)."""
-    v = nc.variables[name]
-    if v.dtype == np.dtype("S1") or v.dtype is str:  # crashstudy 0.1: fixed-width characters
-        return np.asarray(netCDF4.chartostring(np.asarray(v[lo:hi])), dtype=object)
-    codes = np.asarray(v[lo:hi]).astype(np.int64)
-    table = np.array(list(STATUS_MEANINGS) if name == "status" else _table(nc, name) or [""], dtype=object)
-    return np.where(codes >= 0, table[np.clip(codes, 0, len(table) - 1)], "")

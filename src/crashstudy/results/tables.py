@@ -17,40 +17,22 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import xarray as xr
+from xarray.backends import BackendArray
+from xarray.core import indexing
 
 from crashstudy.metrics.record import METRIC_META, NOTE_LONG, NOTE_TEXT, asked_nodes
-from crashstudy.results.curve_ends import MEANING
 from crashstudy.safefs import clear_entry, open_new
 from crashstudy.units import UNIT_SYSTEMS
+from crashstudy.vocabulary.summary import SUMMARY_META
 
 SUMMARY = "summary.csv"
 PARQUET = "summary.parquet"
 CSV_MAX = 100_000  # variants up to which summary.csv is written by default
 SUMMARY_BLOCK = 200_000  # rows of the summary tables made and written at once (a Parquet row group each)
 STATUS_MEANINGS = ("ok", "failed")  # flag_meanings of ``status`` (value = index)
+TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
 TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
                "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
-SUMMARY_META = {  # name: (dims after variant, unit kind, long name)
-    "peak_force": (("spring",), "force", "largest |spring force| over every time step"),
-    "max_crush": (("spring",), "length", "largest shortening of the spring, max(-elongation)"),
-    "max_elongation": (("spring",), "length", "largest stretch of the spring, max(elongation)"),
-    "failure_time": (("spring",), "time", "time the spring broke at a failure elongation (NaN while intact)"),
-    "absorbed_energy": (("spring",), "energy", "work done on the spring up to the end, plus its energy at t = 0"),
-    "peak_deceleration": (("node",), "acceleration", "largest acceleration magnitude over every time step"),
-    "peak_deceleration_g": (("node",), "g", "peak_deceleration in standard gravities"),
-    "peak_wall_force": (("wall",), "force", "largest rigid wall contact force: the reaction to the forces pushing "
-                        "the held nodes into the wall (impacts are wall_impulse)"),
-    "wall_impulse": (("wall",), "impulse", "impact impulse of the rigid wall: the momentum its impacts removed"),
-    "energy_error": ((), "1", "max |KE + IE + E_wall - KE0 - IE0 - W_ext| / max(KE0 + |IE0| + |W_ext|, tiny), IE "
-                     "including IE0 (energy stored at t = 0)"),
-    "dt": ((), "time", "time step used"),
-    "dt_crit": ((), "time", "critical time step bound (nodal, whole assembly)"),
-    "t_end": ((), "time", "last time computed (early termination may end a run before end_time)"),
-    "final_kinetic_energy": ((), "energy", "kinetic energy at the end"),
-    "final_internal_energy": ((), "energy", "internal energy at the end"),
-    "error_estimate": ((), "1", "estimated relative error of the peaks (accuracy_check: re-run at dt/2)"),
-    "past_curve_end": (("spring",), "1", "whether the spring went past an end of its material curve: " + MEANING),
-}
 HISTORY_META = {  # name: (unit kind, long name)
     "position": ("length", "node position"),
     "displacement": ("length", "node displacement from the initial position"),
@@ -76,25 +58,55 @@ def _categorical(ds: xr.Dataset, sub: xr.Dataset, name: str) -> Any:
     """``sub[name]`` as texts: categorical when stored as codes, plain strings for files of 0.1."""
     arr = sub[name].values
     if arr.dtype.kind in "iuf":  # codes (xarray turns the -1 fill of an unwritten variant into NaN)
-        arr = np.where(np.isfinite(arr), arr, -1).astype(np.int64)
-        if name == "status":
-            cats = list(STATUS_MEANINGS)
-        else:
-            raw = ds[f"{name}_text"].values
-            cats = [str(t) for t in raw] if len(raw) else [""]
-        codes = np.where((arr >= 0) & (arr < len(cats)), arr, -1)
+        cats = _table(ds, name)
+        codes = _codes(arr, len(cats))
         if len(set(cats)) < len(cats):  # a table never repeats a text; guard a hand-edited file
             return np.asarray(cats, dtype=object)[np.clip(codes, 0, None)]
         return pd.Categorical.from_codes(codes, categories=cats)
     return arr.astype(str)
 
 
-def decode_texts(ds: xr.Dataset) -> xr.Dataset:
-    """``ds`` with ``status``, ``failure_reason`` and ``dt_control`` as texts (the tables dropped)."""
+def _table(ds: xr.Dataset, name: str) -> list[str]:
+    """The texts the codes of variable ``name`` index."""
+    if name == "status":
+        return list(STATUS_MEANINGS)
+    raw = ds[f"{name}_text"].values
+    return [str(t) for t in raw] if len(raw) else [""]
+
+
+def _codes(arr: np.ndarray, n: int) -> np.ndarray:
+    """Stored codes as int64 indices into a table of ``n`` texts; -1 where none (unwritten, out of range)."""
+    arr = np.where(np.isfinite(arr), arr, -1).astype(np.int64)
+    return np.where((arr >= 0) & (arr < n), arr, -1)
+
+
+class _Texts(BackendArray):
+    """A text variable stored as codes, decoded only where it is indexed (what :func:`decode_texts` gives,
+    'nan' where no text, without reading the whole variable)."""
+
+    def __init__(self, codes: xr.Variable, cats: list[str]) -> None:
+        self.codes, self.table = codes, np.asarray([*cats, "nan"], dtype=str)
+        self.shape, self.dtype = codes.shape, self.table.dtype
+
+    def __getitem__(self, key: Any) -> np.ndarray:
+        return indexing.explicit_indexing_adapter(key, self.shape, indexing.IndexingSupport.BASIC, self._read)
+
+    def _read(self, key: tuple[Any, ...]) -> np.ndarray:
+        codes = _codes(np.asarray(self.codes[key].values), len(self.table) - 1)
+        return self.table[codes]  # -1: the last entry, 'nan'
+
+
+def decode_texts(ds: xr.Dataset, lazy: bool = False) -> xr.Dataset:
+    """``ds`` with ``status``, ``failure_reason`` and ``dt_control`` as texts (the tables dropped);
+    ``lazy``: decoded only where indexed (nothing read now)."""
     out = ds
     for name in ("status", *TEXT_TABLES, NOTE_TEXT):
         if name in ds and ds[name].dtype.kind in "iuf":
-            texts = np.asarray(_categorical(ds, ds, name), dtype=str)
+            texts: Any
+            if lazy:  # decoded where indexed: a 10^8-variant result decoded whole would be GBs of texts
+                texts = indexing.LazilyIndexedArray(_Texts(ds[name].variable, _table(ds, name)))
+            else:
+                texts = np.asarray(_categorical(ds, ds, name), dtype=str)
             long = ds[name].attrs.get("long_name", "").split(": index into")[0]
             out = out.assign({name: (ds[name].dims, texts, {"units": "", "long_name": long})})
     return out.drop_vars([f"{n}_text" for n in (*TEXT_TABLES, NOTE_TEXT) if f"{n}_text" in out])
@@ -238,3 +250,33 @@ def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
     ds = xr.Dataset(data, coords={"variant": res.index, **{d: list(ids) for d, ids in dims.items() if ids}},
                     attrs={"crashstudy_axes": json.dumps([a.path for a in plan.axes])})  # fmt: skip
     return summary_frame(ds)
+
+
+def stored_table(nc: Any, name: str) -> list[str]:
+    """The distinct texts of ``name`` stored in ``nc`` (empty for files without a table)."""
+    if f"{name}_text" not in nc.variables:
+        return []
+    raw = nc.variables[f"{name}_text"]
+    raw.set_auto_chartostring(False)
+    return [bytes(r).rstrip(b"\0").decode("utf-8", "replace") for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]]
+
+
+def read_texts(nc: Any, name: str, lo: int, hi: int) -> np.ndarray:
+    """Texts of ``status``, ``failure_reason`` or ``dt_control`` of variants ``lo`` .. ``hi - 1`` from an
+    open netCDF file, in either storage (index + table, flags, or the character arrays of 0.1)."""
+    import netCDF4
+
+    v = nc.variables[name]
+    if v.dtype == np.dtype("S1") or v.dtype is str:  # crashstudy 0.1: fixed-width characters
+        return np.asarray(netCDF4.chartostring(np.asarray(v[lo:hi])), dtype=object)
+    codes = np.asarray(v[lo:hi]).astype(np.int64)
+    table = np.array(list(STATUS_MEANINGS) if name == "status" else stored_table(nc, name) or [""], dtype=object)
+    return np.where(codes >= 0, table[np.clip(codes, 0, len(table) - 1)], "")
+
+
+def chars(texts: list[str], width: int) -> np.ndarray:
+    """Strings as a (len, width) 'S1' character array, UTF-8, cut to ``width`` bytes."""
+    import netCDF4
+
+    raw = np.array([t.encode("utf-8")[:width] for t in texts], dtype=f"S{width}")
+    return netCDF4.stringtochar(raw) if len(texts) else np.zeros((0, width), dtype="S1")

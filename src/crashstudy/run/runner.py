@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -29,6 +28,9 @@ from crashstudy.results.outdir import prepare_output, remove_derived, remove_sta
 from crashstudy.results.regions import region_tasks
 from crashstudy.results.store import FINAL, ChunkResult, Results, ResultWriter
 from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
+from crashstudy.run.progress import Progress
+from crashstudy.run.reuse import _ranges, _reuse_finished
+from crashstudy.run.start import start_kernels
 from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study.plan import Plan, load_study, plan_from_model
 from crashstudy.study.provenance import variant_hashes
@@ -82,20 +84,18 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
     blocks hold variants that finish together.
     """
     topo = plan.topology
-    P = plan.params(lo, hi)
     V = hi - lo
     # a variant's parameters are a function of its axis values: dedupe on those (few columns)
     axes = plan.axis_values(lo, hi)
     if axes and not plan.variants_distinct:
         _, first, inverse = np.unique(np.stack(list(axes.values()), axis=1), axis=0, return_index=True,
                                       return_inverse=True)  # fmt: skip
-        uniq = P[:, first]
+        cols = lo + first
     elif axes:  # every variant differs from every other: nothing to dedupe
-        uniq, inverse = P, np.arange(V)
+        cols, inverse = np.arange(lo, hi), np.arange(V)
     else:
-        uniq, inverse = P[:, :1], np.zeros(V, dtype=np.int64)
-    inverse = inverse.reshape(-1)
-    uniq, inverse = _step_order(plan, np.ascontiguousarray(uniq), inverse)
+        cols, inverse = np.array([lo]), np.zeros(V, dtype=np.int64)
+    uniq, inverse = _step_order(plan, cols, inverse.reshape(-1))
     batch, steps = build_batch(topo, uniq, plan.interval)
     repeat = plan.n_variants / max(V, 1) if repeat is None else repeat
     recorder = None
@@ -107,7 +107,7 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
                                        topo.accuracy_check, interrupt.check, recorder)  # fmt: skip
     dt, dt_crit = steps.dt[inverse], steps.dt_crit[inverse]
     control = _control_texts(topo, steps.control_node[inverse], steps.control_spring[inverse])
-    user_dt = P[topo.blocks["time_step"].start]
+    user_dt = uniq[topo.blocks["time_step"].start][inverse]
     reasons = np.full(V, "", dtype=object)
     for k in np.flatnonzero(full.status):  # texts only for the failed variants
         reasons[k] = _reason(full, int(k), topo.spring_ids, user_dt[k], dt_crit[k], control[k])
@@ -116,11 +116,14 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
                        estimate, full.criteria, ends)  # fmt: skip
 
 
-def _step_order(plan: Plan, uniq: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The columns of ``uniq`` in ascending step count (and ``inverse`` pointing at them), so that the batch
-    is built in the order the kernel runs it (``entry.run_ordered`` sorts an unsorted batch with a copy of
-    every array: 1 s of 10^6 variants' 4.7 s set-up under load). Only the step choice is computed for
-    it; a fixed ``dt`` (equal counts unless ``end_time`` varies) is left as it is."""
+def _step_order(plan: Plan, cols: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters of the variants numbered ``cols`` in ascending step count (and ``inverse`` pointing
+    at them), so that the batch is built in the order the kernel runs it (``entry.run_ordered`` sorts an
+    unsorted batch with a copy of every array: 1 s of 10^6 variants' 4.7 s set-up under load). Only the
+    step choice is computed for it; a fixed ``dt`` (equal counts unless ``end_time`` varies) is left as
+    it is. The sorted parameters are made anew from the sorted variant numbers (``Plan.params_at``: a
+    few rows written per axis), not gathered column by column from the unsorted ones (16x the time)."""
+    uniq = plan.params_at(cols)
     if plan.topology.time_step_mode == "dt" or uniq.shape[1] < 2:
         return uniq, inverse
     n = variant_steps(plan.topology, uniq, plan.interval).n_steps
@@ -129,7 +132,7 @@ def _step_order(plan: Plan, uniq: np.ndarray, inverse: np.ndarray) -> tuple[np.n
     order = np.argsort(n, kind="stable")
     pos = np.empty_like(order)
     pos[order] = np.arange(len(order))
-    return np.ascontiguousarray(uniq[:, order]), pos[inverse]
+    return plan.params_at(cols[order]), pos[inverse]
 
 
 def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarray:
@@ -158,89 +161,6 @@ def _reason(out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float,
     return ""
 
 
-class Progress:
-    """One status line (variants done, variants/s, ETA) on a terminal; a line per update when
-    forced on into a file or pipe; silent otherwise. Before the first chunk ends the ETA is the
-    run's ``estimate`` [s] (when known), never "inf"."""
-
-    def __init__(self, total: int, enabled: bool | None = None, stream: Any = None, estimate: float | None = None
-                 ) -> None:  # fmt: skip
-        self.stream = stream or sys.stderr
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.enabled = self.tty if enabled is None else enabled
-        self.total, self.done, self.t0, self.last = total, 0, time.perf_counter(), 0.0
-        self.first, self.estimate = 0, estimate
-
-    def start(self, done: int) -> None:
-        """``done`` variants were finished before this run (resume, reuse); show the line."""
-        self.done = self.first = done
-        self.last = -1.0
-        self.update(0)
-
-    def update(self, n: int) -> None:
-        self.done += n
-        now = time.perf_counter()
-        if not self.enabled or (now - self.last < 0.2 and self.done < self.total):
-            return
-        self.last = now
-        new = self.done - self.first
-        if new > 0:
-            rate = new / max(now - self.t0, 1e-9)
-            text = f"{rate:,.0f} variants/s  ETA {(self.total - self.done) / rate:,.0f} s"
-        elif self.estimate is not None:
-            text = f"starting  ETA ~{max(self.estimate - (now - self.t0), 0.0):,.0f} s"
-        else:
-            text = "starting"
-        line = f"  {self.done}/{self.total} variants  {text}"
-        self.stream.write(f"\r{line}   " if self.tty else line + "\n")
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.enabled and self.tty:
-            self.stream.write("\n")
-            self.stream.flush()
-
-
-def _start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, float | None, Any]:
-    """Carry out :func:`crashstudy.kernel.choice.decide` for this run and say what it compiles.
-    Returns (whether chunks should stay small, the run's estimated seconds, what to start after it)."""
-    topo = plan.topology
-    sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
-    vary = plan.varying_curves
-    rec = topo.metric_nodes  # metrics: the kernels record these nodes at every step (their own generated kernel)
-    from crashstudy.metrics.warmup import CRITERIA
-
-    companion = CRITERIA if rec else None  # the crash criteria compile beside the kernel
-    start = choice.plan_start(sample, topo.histories, vary, plan.n_variants, kernel, rec, companion)
-    if start is None:
-        return False, None, None
-    do = choice.decide(start, choice.background_min_seconds() < float("inf"))
-    say = (lambda text: print(f"note: {text}", file=notes)) if notes is not None else (lambda text: None)
-
-    def what(kinds: tuple[str, ...]) -> str:
-        kernels = [k for k in kinds if k != start.companion]
-        names = " and ".join(f"the {k} kernel" for k in kernels)
-        beside = f" ({CRITERIA.label} beside it)" if start.companion in kinds else ""
-        seconds = max([sum(start.costs[k] for k in kernels)] + [start.criteria] * (start.companion in kinds))
-        return f"{names} for this model shape ({start.shape}; first run on this machine){beside}, ~{seconds:.0f} s"
-
-    if do.foreground:
-        say(f"compiling {what(do.foreground)}; Ctrl-C stops")
-        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec, say, companion)
-    if do.now and choice.start_background(do.now, sample, topo.histories, vary, rec) is not None:
-        say(f"compiling {what(do.now)} in the background"
-            + (f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
-               "when it is ready" if do.small_chunks else ""))  # fmt: skip
-    elif do.small_chunks:
-        return False, start.reference_seconds, None
-
-    def later() -> None:
-        if choice.start_background(do.after, sample, topo.histories, vary, rec) is not None:
-            say(f"compiling {what(do.after)} in the background for the next run")
-
-    return do.small_chunks, do.estimate, later if do.after else None
-
-
 @dataclass
 class RunReport:
     """What a run did: where the results are and how many variants failed."""
@@ -251,66 +171,6 @@ class RunReport:
     n_computed: int
     seconds: float
     n_reused: int = 0
-
-
-def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
-    """Contiguous ranges of the variants still to do, each at most ``size`` long."""
-    out: list[tuple[int, int]] = []
-    if todo.all():  # a fresh run: no index array of every variant (np.nonzero + diff took 4 s at 10^7 under load)
-        return [(lo, min(lo + size, len(todo))) for lo in range(0, len(todo), size)]
-    idx = np.nonzero(todo)[0]
-    if not len(idx):
-        return out
-    breaks = np.nonzero(np.diff(idx) != 1)[0] + 1
-    for run in np.split(idx, breaks):
-        for lo in range(int(run[0]), int(run[-1]) + 1, size):
-            out.append((lo, min(lo + size, int(run[-1]) + 1)))
-    return out
-
-
-def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) -> int:
-    """Copy the variants of an earlier result of this study whose input hash is unchanged.
-
-    Block by block of the new study: a variant is first looked up at its own number in the earlier
-    file (a re-run of an unchanged or extended study: no whole-study array is built); only the
-    variants not found there are looked up in a sorted index of the earlier hashes, built when first
-    needed (a study whose variants moved: 24 bytes per earlier variant)."""
-    from crashstudy.study.provenance import topology_signature
-
-    with integrity.open_store(final) as old:
-        if "input_hash" not in old.variables or integrity.finished_problem(old):
-            return 0  # a file without hashes, or not a finished result (a partial renamed by hand)
-        hv = old.variables["input_hash"]
-        if hv.dtype != np.uint64 or hv.ndim != 2:  # crashstudy 0.1 hashed differently: nothing matches
-            return 0
-        n_old = hv.shape[0]
-        if not n_old:
-            return 0
-        sig = topology_signature(plan)
-        index: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        kept = 0
-        for lo in range(0, plan.n_variants, size):
-            hi = min(plan.n_variants, lo + size)
-            h = variant_hashes(plan, lo, hi, sig)
-            cand = np.full(hi - lo, -1, dtype=np.int64)
-            top = min(hi, n_old)
-            if top > lo:  # the same variant number in the earlier file
-                same = np.all(np.asarray(hv[lo:top]) == h[: top - lo], axis=1)
-                cand[: top - lo][same] = np.arange(lo, top)[same]
-            rest = np.flatnonzero(cand < 0)
-            if len(rest):
-                if index is None:
-                    words = np.asarray(hv[:])
-                    order = np.argsort(words[:, 0], kind="stable")
-                    index = (order, words[order, 0], words[order, 1])
-                    del words
-                order, keys, seconds = index
-                pos = np.minimum(np.searchsorted(keys, h[rest, 0]), len(keys) - 1)
-                hit = (keys[pos] == h[rest, 0]) & (seconds[pos] == h[rest, 1])
-                cand[rest[hit]] = order[pos[hit]]
-            new_idx = lo + np.flatnonzero(cand >= 0)
-            kept += writer.reuse(old, new_idx.astype(np.int64), cand[cand >= 0])  # checksums verified
-        return kept
 
 
 def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
@@ -379,7 +239,7 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
     n_failed = 0
     bar = Progress(plan.n_variants, progress)
     try:
-        small, bar.estimate, later = _start_kernels(plan, kernel, notes)
+        small, bar.estimate, later = start_kernels(plan, kernel, notes)
         if not resume and final.exists():
             reused = _reuse_finished(writer, plan, final, chunk or MAX_CHUNK)
         todo = ~writer.done()

@@ -22,6 +22,17 @@ class Tolerance(Strict):
 Pair = Annotated[list[Finite], Field(min_length=2, max_length=2)]
 
 
+def why_invalid(name: str, p: list[float]) -> str | None:
+    """What is wrong with the parameters of a distribution (None when they are valid)."""
+    if name == "uniform" and not p[0] < p[1]:
+        return f"uniform: [low, high] needs low < high, got {p}"
+    if name in ("normal", "lognormal", "truncnormal") and not p[1] > 0:
+        return f"{name}: the standard deviation (second number) must be > 0, got {p[1]}"
+    if name == "truncnormal" and not p[2] < p[3]:
+        return f"truncnormal: [mean, sd, low, high] needs low < high, got {p}"
+    return None
+
+
 class Distribution(Strict):
     """One axis of a sampled design: exactly one distribution with its parameters."""
 
@@ -36,8 +47,6 @@ class Distribution(Strict):
 
     @model_validator(mode="after")
     def _one(self) -> Distribution:
-        from crashstudy.study.design import why_invalid
-
         given = [(k, list(v)) for k, v in self.model_dump().items() if v is not None]
         if len(given) != 1:
             raise ValueError("give exactly one of uniform, normal, lognormal, truncnormal")

@@ -25,6 +25,7 @@ from crashstudy.arrays.compiler import Topology
 from crashstudy.errors import Problem
 from crashstudy.schema.study import CONSTRAINT, Study
 from crashstudy.schema.yamlio import LoadedYaml
+from crashstudy.study.values import check_values, unknown_path
 
 NODE_QUANTITIES = ("acceleration", "velocity", "displacement")
 
@@ -49,7 +50,7 @@ def summary_column_names(topo: Topology) -> list[str]:
     """The numeric columns of a run's summary table (``summary.parquet``): what ``minimize`` and
     ``constraints`` may name. Axis columns are the variables themselves and are not offered."""
     from crashstudy.metrics.record import asked_nodes, result_names
-    from crashstudy.results.tables import SUMMARY_META
+    from crashstudy.vocabulary.summary import SUMMARY_META
 
     items = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
     cols: list[str] = []
@@ -68,18 +69,16 @@ def _unknown_column(col: str, columns: list[str]) -> str:
 
 def _variables(ctx: Context, block: str, variables: dict[str, list[float]]) -> list[Problem]:
     """Each variable: a numeric field of the model, low < high, and both bounds give a valid model."""
-    from crashstudy.study.plan import _check_values, _unknown_path
-
     problems: list[Problem] = []
     for path, (lo, hi) in variables.items():
         at = (block, "variables", path)
         ref = ctx.topo.paths.get(path)
         if ref is None:
-            problems.append(ctx.problem(at, _unknown_path(path, ctx.topo)))
+            problems.append(ctx.problem(at, unknown_path(path, ctx.topo)))
         elif not lo < hi:
             problems.append(ctx.problem(at, f"bounds [low, high] need low < high, got [{lo!r}, {hi!r}]"))
         else:
-            problems += _check_values(ctx.doc, at, ctx.data, path, ref, [lo, hi], ctx.topo, ctx.base, ctx.interval)
+            problems += check_values(ctx.doc, at, ctx.data, path, ref, [lo, hi], ctx.topo, ctx.base, ctx.interval)
     return problems
 
 
@@ -180,12 +179,12 @@ BLOCKS: dict[str, Callable[[Context], list[Problem]] | str] = {
     "name": "schema (an id)",
     "description": "schema (free text)",
     "model": "plan._model_path and the model's own validation",
-    "matrix": "plan._axes: every distinct value of every axis makes a valid model",
-    "zip": "plan._axes: equal lengths, every distinct value makes a valid model",
-    "design": "plan._axes: the rows' values make a valid model (sizes in closed form)",
+    "matrix": "axes._axes: every distinct value of every axis makes a valid model",
+    "zip": "axes._axes: equal lengths, every distinct value makes a valid model",
+    "design": "axes._axes: the rows' values make a valid model (sizes in closed form)",
     "optimize": check_optimize,
     "calibrate": check_calibrate,
-    "set": "plan._apply_set and the model's validation after it",
+    "set": "overrides._apply_set and the model's validation after it",
     "regression": "schema (tolerances); compare names unknown columns",
 }
 

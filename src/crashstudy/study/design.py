@@ -133,13 +133,3 @@ def to_distribution(name: str, p: list[float], u: np.ndarray) -> np.ndarray:
         return np.asarray(stats.truncnorm.ppf(u, a, b, loc=p[0], scale=p[1]))
     raise ValueError(f"unknown distribution {name!r}")
 
-
-def why_invalid(name: str, p: list[float]) -> str | None:
-    """What is wrong with the parameters of a distribution (None when they are valid)."""
-    if name == "uniform" and not p[0] < p[1]:
-        return f"uniform: [low, high] needs low < high, got {p}"
-    if name in ("normal", "lognormal", "truncnormal") and not p[1] > 0:
-        return f"{name}: the standard deviation (second number) must be > 0, got {p[1]}"
-    if name == "truncnormal" and not p[2] < p[3]:
-        return f"truncnormal: [mean, sd, low, high] needs low < high, got {p}"
-    return None

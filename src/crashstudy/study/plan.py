@@ -8,9 +8,7 @@ matrix axes first, then one axis per zip group.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
-import difflib
 import functools
 import math
 import os
@@ -21,8 +19,8 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from crashstudy.arrays.compiler import PathRef, Topology, apply_axis, compile_model
-from crashstudy.arrays.parameter_checks import ParameterCheck, check_parameters
+from crashstudy.arrays.compiler import Topology, apply_axis, compile_model
+from crashstudy.arrays.parameter_checks import check_parameters
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES
 from crashstudy.schema import LoadedModel, file_kind, parse_model, refuse_foreign, validate_model_data
@@ -30,24 +28,15 @@ from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import LoadedYaml, load_yaml, loads_yaml, not_regular
+from crashstudy.study.axes import Axis, _axes
+from crashstudy.study.overrides import _apply_set, _set_problem
+from crashstudy.study.values import study_problem
 from crashstudy.study.work import WORK_ENV, WORK_RATE, estimate_work, format_duration, max_work
 
 DEFAULT_SAMPLES = 1000
 MAX_VARIANTS = 100_000_000  # one results.nc; its axis coordinates alone take 0.8 GB each
 MAX_SAMPLE_BYTES = 256 * 2**20  # history samples of one variant (histories and the kernel's 4 energy records):
 # the runner's HISTORY_BUDGET of a chunk, so that one variant always fits a chunk
-CHECK_BLOCK = 4096  # distinct axis values checked at once
-MAX_REPORTED = 5  # invalid values listed per axis
-
-
-@dataclass(frozen=True)
-class Axis:
-    """One study axis: a model path, its values and the index of the (matrix or zip) dimension."""
-
-    path: str
-    values: np.ndarray
-    dim: int
-    ref: PathRef
 
 
 @dataclass(frozen=True)
@@ -123,198 +112,6 @@ class Plan:
         return P
 
 
-def _study_problem(doc: LoadedYaml, path: tuple[str | int, ...], msg: str) -> Problem:
-    return Problem(doc.file, doc.line_of(path), ".".join(str(p) for p in path), msg)
-
-
-def _dict_path(data: Any, dotted: str) -> tuple[str | int, ...]:
-    out: list[str | int] = []
-    cur = data
-    for part in dotted.split("."):
-        key: str | int = int(part) if isinstance(cur, list) and part.isdigit() else part
-        out.append(key)
-        try:
-            cur = cur[key]  # type: ignore[index]
-        except (KeyError, IndexError, TypeError):
-            cur = None
-    return tuple(out)
-
-
-def _kind(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true or false"
-    if isinstance(value, (int, float)):
-        return "a number"
-    return "text" if isinstance(value, str) else "null" if value is None else type(value).__name__
-
-
-def _set_in(data: dict[str, Any], path: tuple[str | int, ...], value: Any) -> str | None:
-    """Set ``value`` at ``path``; a path that runs into a scalar or past a list's end is refused: the reason."""
-    cur: Any = data
-    for depth, part in enumerate(path):
-        here = ".".join(str(p) for p in path[:depth])
-        if isinstance(cur, list):
-            if not isinstance(part, int):
-                return f"{here} is a list: expected an item number after it, got {part!r}"
-            if part >= len(cur):
-                return f"{here} has {len(cur)} item{'s' if len(cur) != 1 else ''} (0 .. {len(cur) - 1}): no item {part}"
-        elif not isinstance(cur, dict):
-            return (f"{here} is {_kind(cur)}, not a mapping or a list: {'.'.join(str(p) for p in path)} "
-                    "cannot be set")  # fmt: skip
-        if depth == len(path) - 1:
-            cur[part] = value  # type: ignore[index]
-        else:
-            cur = cur[part] if isinstance(cur, list) else cur.setdefault(part, {})  # type: ignore[index]
-    return None
-
-
-def _unknown_set_keys(overrides: dict[str, Any], sdoc: LoadedYaml) -> list[Problem]:
-    """Keys of ``set`` whose first part is no model field: the first :data:`MAX_REPORTED`, then how many
-    more (checked before the model is copied and validated: 499,000 such keys took 21 s to refuse)."""
-    unknown = [k for k in overrides if k.split(".", 1)[0] not in Model.model_fields]
-    fields = list(Model.model_fields)
-    problems = []
-    for key in unknown[:MAX_REPORTED]:
-        close = difflib.get_close_matches(key.split(".", 1)[0], fields, n=3, cutoff=0.6)
-        hint = f"; closest: {', '.join(close)}" if close else f"; expected one of {', '.join(fields)}"
-        problems.append(_study_problem(sdoc, ("set", key), f"unknown model field {key.split('.', 1)[0]!r} (set: "
-                                       f"takes model fields or dotted paths into them){hint}"))  # fmt: skip
-    if len(unknown) > MAX_REPORTED:
-        problems.append(_study_problem(sdoc, ("set",), f"and {len(unknown) - MAX_REPORTED:,} more keys under set: "
-                                       "that are not model fields"))  # fmt: skip
-    return problems
-
-
-def _apply_set(data: dict[str, Any], overrides: dict[str, Any], sdoc: LoadedYaml) -> dict[str, Any]:
-    problems = _unknown_set_keys(overrides, sdoc)
-    if problems:
-        raise InputError(problems)
-    data = copy.deepcopy(data)
-    for key, value in overrides.items():
-        if key == "time_step" or key.startswith("time_step."):
-            # a different time-step mode replaces the model's (the modes are exclusive)
-            if key != "time_step":
-                value = {key.split(".", 1)[1]: value}
-            data["time_step"] = value
-            continue
-        if isinstance(value, dict) and key in ("output", "termination") and isinstance(data.get(key), dict):
-            data[key] = {**data[key], **value}
-            continue
-        why = _set_in(data, _dict_path(data, key), value)
-        if why:
-            problems.append(_study_problem(sdoc, ("set", key), why))
-    if problems:
-        raise InputError(problems)
-    return data
-
-
-def _set_problem(sdoc: LoadedYaml, overrides: dict[str, Any], p: Problem) -> Problem:
-    """A problem of the model after ``set``: at the study's ``set`` line, or inside a ``metrics`` list that
-    ``set`` gives (its entry's own line and field path: ``set.metrics.0.node``)."""
-    head = p.field.split(".")[0]
-    if head == "metrics" and "metrics" in overrides:
-        path = ("set", *(int(k) if k.isdigit() else k for k in p.field.split(".")))
-        return _study_problem(sdoc, path, f"after 'set' the model is invalid: {p.message}")
-    return _study_problem(sdoc, ("set",), f"after 'set' the model is invalid: {p.field}: {p.message}")
-
-
-def _check(topo: Topology, base: np.ndarray, ref: PathRef, values: np.ndarray, interval: float) -> ParameterCheck:
-    P = np.repeat(base[:, None], len(values), axis=1)
-    apply_axis(P, ref, values)
-    return check_parameters(topo, P, interval)
-
-
-def _model_message(data: dict[str, Any], path: str, val: float) -> str:
-    """The model validation's first message for ``val`` at ``path`` ("" if the model stays valid)."""
-    trial = copy.deepcopy(data)
-    if _set_in(trial, _dict_path(trial, path), val):
-        return ""
-    _, found = validate_model_data(trial)
-    msgs = [e["msg"] for e in found.errors()] if isinstance(found, ValidationError) else [m for _, m in found]
-    return msgs[0] if msgs else ""
-
-
-def _check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, Any], path: str, ref: PathRef,
-                  values: list[float] | np.ndarray, topo: Topology, base: np.ndarray, interval: float
-                  ) -> list[Problem]:  # fmt: skip
-    """Each distinct value of an axis must make a valid model, the rest of the model as written.
-
-    Every distinct value is checked, vectorised, on the parameter vector (:func:`check_parameters`:
-    the schema's rules, finite values, a step count that fits); the message of an invalid value is
-    the model validation's own where it has one. At most :data:`MAX_REPORTED` values per axis are listed.
-    """
-    problems: list[Problem] = []
-    arr = np.asarray(values, dtype=np.float64)  # a design's rows stay an array (a list took ~50 bytes a value)
-    if ref.op in ("scale", "speed"):
-        wrong = np.nonzero(~(arr > 0) if ref.op == "scale" else ~(arr >= 0))[0]
-        what = "a scale factor > 0" if ref.op == "scale" else "a speed >= 0"
-        for k in wrong[:MAX_REPORTED]:
-            problems.append(_study_problem(doc, where + (int(k),), f"expected {what}, got {float(arr[k])!r}"))
-        if len(wrong) > MAX_REPORTED:
-            problems.append(_study_problem(doc, where, f"and {len(wrong) - MAX_REPORTED:,} more values that are not "
-                                           f"{what}"))  # fmt: skip
-        if problems:
-            return problems
-    uniq, first = np.unique(arr, return_index=True)
-    bad = np.zeros(len(uniq), dtype=bool)
-    for lo in range(0, len(uniq), CHECK_BLOCK):
-        bad[lo : lo + CHECK_BLOCK] = _check(topo, base, ref, uniq[lo : lo + CHECK_BLOCK], interval).bad
-    if not bad.any():
-        return problems
-    shown = np.sort(first[bad])[:MAX_REPORTED]  # the first invalid values in file order
-    check = _check(topo, base, ref, arr[shown], interval)
-    for c, k in enumerate(shown):
-        val = float(arr[int(k)])
-        msg = (_model_message(data, path, val) if ref.op == "set" else "") or check.reason(c)
-        problems.append(_study_problem(doc, where + (int(k),), f"value {val!r} makes the model invalid: {msg}"))
-    if bad.sum() > MAX_REPORTED:
-        problems.append(_study_problem(doc, where, f"{int(bad.sum()) - MAX_REPORTED} more distinct values of "
-                                       f"{path!r} make the model invalid"))  # fmt: skip
-    return problems
-
-
-def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], base: np.ndarray,
-          interval: float) -> tuple[list[Axis], list[int], list[Problem]]:  # fmt: skip
-    groups: list[tuple[tuple[str | int, ...], dict[str, Any]]] = [
-        (("matrix", key), {key: vals}) for key, vals in study.matrix.items()
-    ] + [(("zip", g), grp) for g, grp in enumerate(study.zip)]
-    if study.design is not None:  # its rows: one dimension after matrix and zip, its axes varying together
-        from crashstudy.study.design import rows
-
-        d = study.design
-        groups.append((("design", "axes"), rows(
-            d.method, d.n, d.seed, {path: dist.spec() for path, dist in d.axes.items()})))  # fmt: skip
-    axes: list[Axis] = []
-    shape: list[int] = []
-    problems: list[Problem] = []
-    seen: set[str] = set()
-    for dim, (where, grp) in enumerate(groups):
-        lengths = {len(v) for v in grp.values()}
-        if len(lengths) > 1:
-            problems.append(_study_problem(doc, where, f"the axes of a zip group need equal lengths, got {sorted(lengths)}"))
-        shape.append(min(lengths))
-        for path, vals in grp.items():
-            loc = where + (path,) if where[0] in ("zip", "design") else where
-            if path in seen:
-                problems.append(_study_problem(doc, loc, f"axis {path!r} appears twice"))
-            seen.add(path)
-            ref = topo.paths.get(path)
-            if ref is None:
-                problems.append(_study_problem(doc, loc, _unknown_path(path, topo)))
-                continue
-            problems.extend(_check_values(doc, loc, data, path, ref, vals, topo, base, interval))
-            axes.append(Axis(path, np.asarray(vals, dtype=np.float64), dim, ref))
-    return axes, shape, problems
-
-
-def _unknown_path(path: str, topo: Topology) -> str:
-    if path.startswith("output."):
-        return f"{path!r} cannot vary across variants (all variants share one time axis); put it in 'set'"
-    close = difflib.get_close_matches(path, list(topo.paths), n=3, cutoff=0.5)
-    hint = f"; closest valid paths: {', '.join(close)}" if close else ""
-    return f"unknown axis {path!r}: not a numeric field of the model{hint}"
-
-
 def _interval(m: Model, end: float) -> float:
     """History sampling interval: the model's, or about DEFAULT_SAMPLES samples up to ``end``."""
     return m.output.interval or end / DEFAULT_SAMPLES
@@ -337,13 +134,13 @@ def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis],
     if n_out * 8 * width > MAX_SAMPLE_BYTES:
         keys = [k for k in (sdoc.data.get("set") or {} if sdoc else {}) if k.split(".")[0] == "output"]
         doc, at = (sdoc, ("set", keys[0])) if sdoc and keys else (mdoc, ("output", "interval"))
-        raise InputError([_study_problem(doc, at, f"{n_out:.3g} history samples (end_time {end:g} / output.interval "
+        raise InputError([study_problem(doc, at, f"{n_out:.3g} history samples (end_time {end:g} / output.interval "
                                          f"{interval:g}) of {width} values take {n_out * 8 * width / 2**20:.3g} MiB per "
                                          f"variant, at most {MAX_SAMPLE_BYTES / 2**20:g} MiB: use a longer interval")])  # fmt: skip
     if sdoc is None:  # a lone model: what only its numbers can break (a step count that overflows)
         check = check_parameters(topo, base[:, None], interval)
         if check.bad[0]:
-            raise InputError([_study_problem(mdoc, ("end_time",), check.reason(0))])
+            raise InputError([study_problem(mdoc, ("end_time",), check.reason(0))])
     plan = Plan(
         name=name or m.name, topology=topo, base=base, axes=tuple(axes), shape=tuple(shape), interval=interval,
         n_out=n_out, model_text=mdoc.text, study_text=sdoc.text if sdoc else "", model_file=mdoc.file,
@@ -356,7 +153,7 @@ def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis],
         doc, loc = (sdoc, _axis_where(sdoc, "end_time")) if sdoc and on_axis else (mdoc, ("end_time",))
         P = plan.params(worst, worst + 1)[:, 0]
         b = topo.blocks
-        raise InputError([_study_problem(doc, loc, (
+        raise InputError([study_problem(doc, loc, (
             f"the run would take about {work:.3g} element-steps (springs x time steps, summed over the "
             f"{plan.n_variants:,} variant{'s' if plan.n_variants != 1 else ''}), about "
             f"{format_duration(work / WORK_RATE)} at {WORK_RATE:.0e} a second; the longest variant ({worst}) takes "
@@ -377,21 +174,21 @@ def _axis_where(sdoc: LoadedYaml, path: str) -> tuple[str | int, ...]:
 def _model_path(sdoc: LoadedYaml, base_dir: Path, name: str) -> Path:
     """The study's model file, or an :class:`InputError` at its ``model:`` line saying why it cannot be used."""
     if "\0" in name:
-        raise InputError([_study_problem(sdoc, ("model",), "the model path contains a NUL character (\\0); "
+        raise InputError([study_problem(sdoc, ("model",), "the model path contains a NUL character (\\0); "
                                          "expected the path of a YAML file")])  # fmt: skip
     try:
         path = (base_dir / name).resolve() if not os.path.isabs(name) else Path(name)
         mode = path.stat().st_mode
     except FileNotFoundError:
-        raise InputError([_study_problem(sdoc, ("model",), f"model file not found: {base_dir / name}")]) from None
+        raise InputError([study_problem(sdoc, ("model",), f"model file not found: {base_dir / name}")]) from None
     except (OSError, RuntimeError, ValueError) as exc:  # a symbolic-link loop, a path too long, ...
         why = "a loop of symbolic links" if "loop" in str(exc).lower() or getattr(exc, "errno", 0) == 40 else (
             getattr(exc, "strerror", None) or str(exc))  # fmt: skip
-        raise InputError([_study_problem(sdoc, ("model",), f"cannot use the model path {base_dir / name}: {why} "
+        raise InputError([study_problem(sdoc, ("model",), f"cannot use the model path {base_dir / name}: {why} "
                                          "(symbolic links are followed to a file)")]) from None  # fmt: skip
     why = not_regular(mode)  # a directory, or a FIFO or device (reading one would wait or never end)
     if why:
-        raise InputError([_study_problem(sdoc, ("model",), f"model path {path}: {why}")])
+        raise InputError([study_problem(sdoc, ("model",), f"model path {path}: {why}")])
     return path
 
 
@@ -454,12 +251,12 @@ def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
         raise InputError(problems)
 
     if math.prod(shape) > MAX_VARIANTS:
-        raise InputError([_study_problem(sdoc, ("matrix",), f"{math.prod(shape):,} variants: at most "
+        raise InputError([study_problem(sdoc, ("matrix",), f"{math.prod(shape):,} variants: at most "
                                          f"{MAX_VARIANTS:,} fit in one result file; split the study")])  # fmt: skip
     regression = {k: v.model_dump() for k, v in study.regression.items()}
     plan = _plan(m, mdoc, sdoc, axes, shape, study.name, regression, (topo, base))
     check = check_parameters(topo, base[:, None], plan.interval)
     if not axes and check.bad[0]:  # with axes, each of their values was checked with the rest of the model
-        raise InputError([_study_problem(sdoc, ("model",), f"the model (after 'set') is invalid: {check.reason(0)}")])
+        raise InputError([study_problem(sdoc, ("model",), f"the model (after 'set') is invalid: {check.reason(0)}")])
     return plan
 

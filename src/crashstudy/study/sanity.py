@@ -22,6 +22,7 @@ from crashstudy.schema import validate_model_data
 from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import LoadedYaml, loads_yaml
 from crashstudy.study.plan import DICT_STUDY, Axis, Plan, _apply_set
+from crashstudy.study.work import step_dims
 
 MAX_DT_CHECK = 4_000_000  #: variants whose critical step is checked against a fixed dt (the first ones)
 
@@ -34,7 +35,8 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     Warnings: a fixed ``dt`` above the critical step of some variants (those fail at run time with the
     reason, the others run), and numbers that contradict the model's ``units``
     (:mod:`crashstudy.schema.plausible`)."""
-    from crashstudy.schema.plausible import first_period, unit_warnings
+    from crashstudy.arrays.vibration import first_period
+    from crashstudy.schema.plausible import unit_warnings
 
     sdoc = loads_yaml(plan.study_text, file=plan.study_file) if plan.study_text else None
     mdoc = loads_yaml(plan.model_text, file=plan.model_file)
@@ -52,12 +54,29 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     period = first_period(plan.topology, plan.params(0, 1)[:, 0])
     warnings = dt_warnings + (unit_warnings(m, _first_dt_crit(plan), where, period) if m is not None else [])
     warnings += _speed_axis_warnings(plan, where)
+    warnings += _repeat_warnings(plan, sdoc)
     warnings += plan_warnings(plan)
     if plan.study_file == DICT_STUDY:
         problems = [
             Problem(p.file, None, p.field, p.message) if p.file == DICT_STUDY else p for p in problems
         ]
     return problems, warnings
+
+
+def _repeat_warnings(plan: Plan, sdoc: LoadedYaml | None) -> list[str]:
+    """A matrix axis alone in its dimension that lists a value more than once: the variants of the
+    repeats are copies of others (same model, same results), computed and stored again."""
+    out: list[str] = []
+    for ax in plan.axes:
+        if sum(o.dim == ax.dim for o in plan.axes) > 1:
+            continue  # a zip group: a value repeated there may pair with different values of the others
+        vals, counts = np.unique(ax.values, return_counts=True)
+        if counts.max(initial=1) > 1:
+            twice = ", ".join(f"{v:g} ({c} times)" for v, c in zip(vals, counts, strict=True) if c > 1)
+            copies = plan.n_variants // len(ax.values) * int((counts - 1).sum())
+            out.append(_at_axis(plan, sdoc, ax.path, f"lists {twice}: {copies} of the {plan.n_variants} variants "
+                                "repeat others (same model, same results)").format())  # fmt: skip
+    return out
 
 
 def _speed_axis_warnings(plan: Plan, where: str) -> list[str]:
@@ -116,7 +135,15 @@ def _axis_changes_model(plan: Plan, ax: Axis) -> bool:
             apply_axis(P, other.ref, np.repeat(rows[other.dim][at[other.dim], col[other.dim]], k))
             col[other.dim] += 1
     P = P.reshape(P.shape[0], S, k)
-    return bool(np.any(P != P[:, :, :1]))
+    return bool(np.any((P != P[:, :, :1])[~_inert_rows(plan)]))
+
+
+def _inert_rows(plan: Plan) -> np.ndarray:
+    """Parameter rows no equation reads: the mass of a node fixed in every direction (it never moves, and
+    the critical step counts it as infinite, arrays.timestep). An axis setting only these changes nothing."""
+    inert = np.zeros(plan.base.shape[0], dtype=bool)
+    inert[plan.topology.blocks["mass"]] = plan.topology.fixed.all(axis=1)
+    return inert
 
 
 def _axis_loc(sdoc: LoadedYaml | None, path: str) -> tuple[str | int, ...]:
@@ -132,14 +159,21 @@ def _axis_problem(plan: Plan, sdoc: LoadedYaml | None, ax: Axis) -> Problem:
     if ax.ref.op == "speed":
         why = ("the model gives no node an initial_velocity, and impact_velocity rescales each node's initial "
                "velocity to this speed keeping its direction; give the moving nodes an initial_velocity")  # fmt: skip
+    elif ax.ref.slots and all(_inert_rows(plan)[list(ax.ref.slots)]):
+        why = "it sets the mass of a node fixed in every direction, which never moves"
     elif ax.ref.op == "scale":
         why = "it scales values that are all zero"
     else:
         why = "the field it sets does not reach the model"
-    loc = _axis_loc(sdoc, ax.path)
+    return _at_axis(plan, sdoc, ax.path, f"axis {ax.path!r} changes nothing: its {n} values all give the same "
+                    f"model ({why})")  # fmt: skip
+
+
+def _at_axis(plan: Plan, sdoc: LoadedYaml | None, path: str, message: str) -> Problem:
+    """``message`` placed at axis ``path``: its line in the study file and its field (matrix or zip)."""
+    loc = _axis_loc(sdoc, path)
     file, line = (sdoc.file, sdoc.line_of(loc)) if sdoc is not None else (plan.study_file, None)
-    return Problem(file, line, ".".join(str(p) for p in loc),
-                   f"axis {ax.path!r} changes nothing: its {n} values all give the same model ({why})")  # fmt: skip
+    return Problem(file, line, ".".join(str(p) for p in loc), message)
 
 
 def _first_dt_crit(plan: Plan) -> float:
@@ -182,9 +216,7 @@ def _dt_refused(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
 
 def _step_dims(plan: Plan) -> tuple[tuple[int, ...], tuple[int, ...]]:
     """(the plan's shape, the dimensions holding an axis that sets anything but initial velocities)."""
-    vel = plan.topology.blocks["velocity"]
-    dims = sorted({ax.dim for ax in plan.axes if any(not vel.start <= s < vel.stop for s in ax.ref.slots)})
-    return tuple(plan.shape), tuple(dims)
+    return tuple(plan.shape), step_dims(plan)
 
 
 def _refused_of(plan: Plan, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -15,7 +15,9 @@ from typing import Any
 from crashstudy.errors import InputError, Problem
 from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import load_yaml
-from crashstudy.study.plan import Plan, _apply_set, _dict_path, _set_in
+from crashstudy.study.overrides import _apply_set
+from crashstudy.study.plan import Plan
+from crashstudy.study.values import dict_path, set_in
 
 
 def variant_data(plan: Plan, study_file: str, n: int) -> dict[str, Any]:
@@ -30,7 +32,7 @@ def variant_data(plan: Plan, study_file: str, n: int) -> dict[str, Any]:
     P = plan.params(n, n + 1)[:, 0]
     for path, ref in topo.paths.items():
         if ref.op == "set" and len(ref.slots) == 1 and P[ref.slots[0]] != plan.base[ref.slots[0]]:
-            _set_in(data, _dict_path(data, path), float(P[ref.slots[0]]))
+            set_in(data, dict_path(data, path), float(P[ref.slots[0]]))
     fac = topo.blocks["cfac"].start
     for c, cid in enumerate(topo.curve_ids):
         for key, slot in (("y", fac + 2 * c), ("x", fac + 2 * c + 1)):

@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crashstudy.arrays.compiler import apply_axis
 from crashstudy.errors import InputError, Problem
 
 if TYPE_CHECKING:
@@ -40,22 +39,30 @@ def max_work() -> float:
 
 def estimate_work(plan: Plan) -> tuple[float, int, float]:
     """Element-steps of a run (springs x time steps, summed over variants), the variant with the most
-    steps and its steps. Counted exactly for up to :data:`WORK_BLOCK` variants (and :data:`WORK_ENTRIES`
-    parameters x variants), else on that many variants drawn evenly at random (always with the first and
-    the last) and scaled: counting all of 10^6 variants cost 0.3 us each, a third of the bookkeeping."""
+    steps and its steps. A dimension of the study whose axes change initial velocities only
+    (``impact_velocity``) changes no variant's step count (the step choice reads masses, stiffnesses,
+    curves, walls and times, never velocities): the steps are counted with it at its first value and
+    weighted by its length. Of the rest, up to :data:`WORK_BLOCK` variants (and :data:`WORK_ENTRIES`
+    parameters x variants) are counted exactly, more on that many drawn evenly at random (always with the
+    first and the last) and scaled: counting all of 10^6 variants cost 0.3 us each, a third of the
+    bookkeeping."""
     from crashstudy.arrays.batch import build_batch
 
     V = plan.n_variants
+    shape = _step_shape(plan)
+    Vs = math.prod(shape) if shape else 1
     per = max(1, min(WORK_BLOCK, WORK_ENTRIES // max(1, len(plan.base))))
-    if V <= per:
-        idx = np.arange(V, dtype=np.int64)
+    if Vs <= per:
+        idx = np.arange(Vs, dtype=np.int64)
     else:
         rng = np.random.default_rng(0)
-        idx = np.unique(np.concatenate([[0, V - 1], rng.integers(0, V, per - 2)]))
+        idx = np.unique(np.concatenate([[0, Vs - 1], rng.integers(0, Vs, per - 2)]))
+    if shape != plan.shape:  # variant numbers of the study (the velocity-only dimensions at their first value)
+        idx = np.ravel_multi_index(np.unravel_index(idx, shape), plan.shape).astype(np.int64)
     total, worst, most = 0.0, 0, -1.0
     for lo in range(0, len(idx), WORK_BLOCK):
         at = idx[lo : lo + WORK_BLOCK]
-        batch, _ = build_batch(plan.topology, _params_at(plan, at), plan.interval)
+        batch, _ = build_batch(plan.topology, plan.params_at(at), plan.interval)
         steps = np.asarray(batch.n_steps, dtype=np.float64)
         total += float(steps.sum())
         k = int(np.argmax(steps))
@@ -64,14 +71,17 @@ def estimate_work(plan: Plan) -> tuple[float, int, float]:
     return total * max(1, plan.topology.n_springs) * V / len(idx), worst, most
 
 
-def _params_at(plan: Plan, idx: np.ndarray) -> np.ndarray:
-    """Parameter matrix (n_params, len(idx)) of the variants numbered ``idx``."""
-    P = np.repeat(plan.base[:, None], len(idx), axis=1)
-    if plan.shape:
-        multi = np.unravel_index(idx, plan.shape)
-        for ax in plan.axes:
-            apply_axis(P, ax.ref, np.asarray(ax.values[multi[ax.dim]], dtype=np.float64))
-    return P
+def step_dims(plan: Plan) -> tuple[int, ...]:
+    """The study's dimensions holding an axis that sets anything but initial velocities (parameter block
+    ``velocity``): the only ones that change a variant's time steps (the step choice never reads velocities)."""
+    vel = plan.topology.blocks["velocity"]
+    return tuple(sorted({ax.dim for ax in plan.axes if any(not vel.start <= s < vel.stop for s in ax.ref.slots)}))
+
+
+def _step_shape(plan: Plan) -> tuple[int, ...]:
+    """The study's shape with each dimension whose axes set initial velocities only reduced to one value."""
+    dims = step_dims(plan)
+    return tuple(n if d in dims else 1 for d, n in enumerate(plan.shape))
 
 
 def format_duration(seconds: float) -> str:

@@ -5,7 +5,7 @@ A spring with ``initial_elongation: e0`` starts as if it had been loaded monoton
 kinks only at a curve's knots, where a ``crush`` curve crosses zero (``min(0, L)``) and at the
 elastic limit ``+-FY / K`` of an ``elastoplastic`` spring. :func:`preload` therefore walks each
 spring through those kinks in order, applying the material law (the NumPy laws of
-:mod:`crashstudy.kernel.materials`) at each, which leaves the law's state exactly where a monotonic
+:mod:`crashstudy.arrays.material_laws`) at each, which leaves the law's state exactly where a monotonic
 loading would (a ``general_nonlinear`` spring yields if its loading curve reaches a yield force
 anywhere on the path), and integrates the stored energy ``IE0`` exactly by the trapezoidal rule.
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from crashstudy.kernel import materials as mat
+from crashstudy.arrays import material_laws as mat
 from crashstudy.vocabulary.codes import CRUSH, ELASTOPLASTIC, GENERAL, LINEAR, NONLINEAR, RATE_ELASTIC
 from crashstudy.vocabulary.materials import spec
 
