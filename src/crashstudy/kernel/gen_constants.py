@@ -11,6 +11,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
+    from crashstudy.kernel.gen_rows import Coef
 
 
 def _constant_curves(b: Batch, vary: frozenset[int] | None) -> list[int]:
@@ -43,8 +44,8 @@ def _factor_curves(b: Batch, vary: frozenset[int] | None, const: list[int]) -> l
     return out
 
 
-def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
-    """(coefficient name, Batch array, row) of every register coefficient the springs read, in the order
+def _const_layout(shape: dict[str, Any]) -> list[tuple[Coef, str, int]]:
+    """(coefficient, Batch array, row) of every register coefficient the springs read, in the order
     of the kernel's ``cst`` argument: the constant curves' coefficients and the factor curves' shapes
     (arrays ``bcy``, ``bs0``, ``bds``, ``bx``: see :func:`_constants`)."""
     off, S = shape["off"], shape["S"]
@@ -52,20 +53,20 @@ def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
     tcurves = {c for _, c in shape["loads"] if c >= 0} | {c for _, _, _, c in shape["pm"]}
     used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0} | tcurves
     used |= {c for cs in shape.get("rc", ()) for c in cs}
-    out = []
+    out: list[tuple[Coef, str, int]] = []
     for c in shape["const"] + sorted(fac):
         if c not in used:
             continue
         cx, cy, cds, cs0 = ("bx", "by", "bds", "bs0") if c in fac else ("cx", "cy", "cds", "cs0")
         if c in tcurves:
-            out.append((f"cx{off[c + 1] - 1}", cx, off[c + 1] - 1))
-        out += [(f"cy0_{c}", cy, off[c]), (f"s0_{c}", cs0, c)]
+            out.append((("cx", off[c + 1] - 1), cx, off[c + 1] - 1))
+        out += [(("cy0", c), cy, off[c]), (("s0", c), cs0, c)]
         for k in range(off[c], off[c + 1] - 1):
-            out.append((f"cx{k}", cx, k))
+            out.append((("cx", k), cx, k))
             if k > off[c]:
-                out.append((f"ds{k}", cds, k))
+                out.append((("ds", k), cds, k))
             if k in shape["kcheck"] and c not in fac:  # a factor curve's knot forces: per-variant rows
-                out.append((f"kyv{k}", "knot_y", k))
+                out.append((("kyv", k), "knot_y", k))
     return out
 
 

@@ -55,34 +55,34 @@ def records(g: Layout, i3: str) -> None:
                 if g.static[n]:
                     pos, dsp, vel, acc = f"x0[{n}, {d}, q]", "0.0", "0.0", "0.0"
                 else:
-                    pos = g.R[f"xh{n}_{d}"]
-                    dsp = f"{g.R[f'xh{n}_{d}']} - {g.R[f'x0{n}_{d}']}"
+                    pos = g.R["xh", n, d]
+                    dsp = f"{g.R['xh', n, d]} - {g.R['x0', n, d]}"
                     # v^{n+1/2} is the lane's v row now (it ran: vn * 1.0 + vo * 0.0)
-                    vel = f"(0.5 * ({g.R[f'vh{n}_{d}']} + {g.R[f'v{n}_{d}']}) if n > 0 else {g.R[f'vh{n}_{d}']})"
-                    chain = _chain(g, n, d, lambda s: g.R[f"fp{s}"], lambda s, d: g.R[f"axh{s}_{d}"])
-                    fext = f"{g.R[f'm{n}']} * {g.R[f'g{d}']}" if g.grav else "0.0"
-                    fext = g.R[f"fx{n}_{d}"] if n in g.loaded else fext  # this step's external force
-                    acc = f"({chain} + {fext}) * {g.R[f'im{n}_{d}']}"
+                    vel = f"(0.5 * ({g.R['vh', n, d]} + {g.R['v', n, d]}) if n > 0 else {g.R['vh', n, d]})"
+                    chain = _chain(g, n, d, lambda s: g.R["fp", s], lambda s, d: g.R["axh", s, d])
+                    fext = f"{g.R['m', n]} * {g.R['g', d]}" if g.grav else "0.0"
+                    fext = g.R["fx", n, d] if n in g.loaded else fext  # this step's external force
+                    acc = f"({chain} + {fext}) * {g.R['im', n, d]}"
                     for k, (p, dd, _, _) in enumerate(g.pm):  # a prescribed dof: its kinematic acceleration
                         if (p, dd) == (n, d):
-                            acc = g.R[f"pma{k}"]
-                    acc = g.R[f"wa{n}_{d}"] if f"wa{n}_{d}" in g.R.at else acc  # a wall node: with the contact force
+                            acc = g.R["pma", k]
+                    acc = g.R["wa", n, d] if ("wa", n, d) in g.R else acc  # a wall node: with the contact force
                 for name, arr, val in (("position", "h_pos", pos), ("displacement", "h_disp", dsp),
                                        ("velocity", "h_vel", vel), ("acceleration", "h_acc", acc)):  # fmt: skip
                     if name in g.hist:
                         g.emit(f"{i5}{arr}[r, {n}, {d}, q] = {val}")
         for s in range(g.S):
             if "spring_force" in g.hist:
-                g.emit(f"{i5}h_force[r, {s}, q] = {g.R[f'fp{s}']}")
+                g.emit(f"{i5}h_force[r, {s}, q] = {g.R['fp', s]}")
             if "spring_elongation" in g.hist:
-                g.emit(f"{i5}h_elong[r, {s}, q] = {g.R[f'ep{s}']}")
+                g.emit(f"{i5}h_elong[r, {s}, q] = {g.R['ep', s]}")
         if "kinetic_energy" in g.hist:
             g.emit(f"{i5}h_energy[r, 0, q] = {g.R['ken']}")
             g.emit(f"{i5}h_energy[r, 1, q] = {g.R['ien']}")
             g.emit(f"{i5}h_energy[r, 2, q] = {g.R['work'] if g.ext else '0.0'}")
             g.emit(f"{i5}h_energy[r, 3, q] = {(g.R['wall_e'] + ' if n > 0 else 0.0') if g.W else '0.0'}")
         for wl in range(g.W if "wall_force" in g.hist else 0):
-            g.emit(f"{i5}h_wall[r, {wl}, q] = {g.R[f'wf{wl}']}")
+            g.emit(f"{i5}h_wall[r, {wl}, q] = {g.R['wf', wl]}")
         g.emit(f"{i3}        if fn + 1.0 <= {g.R['lim']}:")
         g.emit(f"{i3}            next_min = min(next_min, next_rec[w])")
 

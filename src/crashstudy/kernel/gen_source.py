@@ -91,8 +91,8 @@ def source(shape: dict[str, Any]) -> str:
         g.emit(f"{i3}    for w in range(B):")
         for n in g.live:
             for d in range(g.D):
-                g.emit(f"{i3}        {g.R[f'xh{n}_{d}']} = {g.R[f'x{n}_{d}']}")
-                g.emit(f"{i3}        {g.R[f'vh{n}_{d}']} = {g.R[f'v{n}_{d}']}")
+                g.emit(f"{i3}        {g.R['xh', n, d]} = {g.R['x', n, d]}")
+                g.emit(f"{i3}        {g.R['vh', n, d]} = {g.R['v', n, d]}")
     pass_b(g, i3)
     if g.knotted:
         pass_k(g, i3)
@@ -108,7 +108,7 @@ def source(shape: dict[str, Any]) -> str:
         g.emit(f"{i3}            rr = (n + (rk - 1) // 2) // rk")
         for m, n in enumerate(g.record):
             for d in range(g.D):
-                g.emit(f"{i3}        h_steps[rr, {m}, {d}, vi[w]] += {g.R[f'am{n}_{d}']}")
+                g.emit(f"{i3}        h_steps[rr, {m}, {d}, vi[w]] += {g.R['am', n, d]}")
     if g.hist:
         records(g, i3)
     ends(g, i3)
@@ -123,7 +123,7 @@ def source(shape: dict[str, Any]) -> str:
         '    """The smallest step limit of a running lane above ``after`` (-1 if none)."""',
         "    out = np.inf",
         "    for w in range(B):",
-        f"        lim = Z[{g.R.at['lim'] * ROW} + w]",
+        f"        lim = Z[{g.R.row('lim') * ROW} + w]",
         "        if lim > after and lim < out:",
         "            out = lim",
         "    return out if out < np.inf else -1.0",
@@ -151,82 +151,83 @@ def lanes(g: Layout, ind: str) -> None:
     for n in range(g.N if g.D > 1 else 0):
         if g.static[n]:
             for d in range(g.D):
-                g.emit(f"{i2}{g.R[f'xs{n}_{d}']} = x0[{n}, {d}, q]")
+                g.emit(f"{i2}{g.R['xs', n, d]} = x0[{n}, {d}, q]")
     g.emit(f"{i2}{g.R['dt']} = dt[q]")
     g.emit(f"{i2}{g.R['efl']} = e_floor[q]")
     for d in range(g.D if g.grav else 0):
-        g.emit(f"{i2}{g.R[f'g{d}']} = gravity[{d}, q]")
+        g.emit(f"{i2}{g.R['g', d]} = gravity[{d}, q]")
     for k in range(len(g.loads)):
         for d in range(g.D):
-            g.emit(f"{i2}{g.R[f'lf{k}_{d}']} = load_force[{k}, {d}, q]")
+            g.emit(f"{i2}{g.R['lf', k, d]} = load_force[{k}, {d}, q]")
     for k in range(len(g.pm)):
-        g.emit(f"{i2}{g.R[f'pms{k}']} = pm_scale[{k}, q]")
+        g.emit(f"{i2}{g.R['pms', k]} = pm_scale[{k}, q]")
     if g.pm:
         g.emit(f"{i2}{g.R['nst']} = float(n_steps[q])")
     fac = g.fac
     for c in g.tcurves:
         if c not in g.const and c not in fac:
-            g.emit(f"{i2}{g.R[f'cx{g.off[c + 1] - 1}']} = cx[{g.off[c + 1] - 1}, q]")
+            g.emit(f"{i2}{g.R['cx', g.off[c + 1] - 1]} = cx[{g.off[c + 1] - 1}, q]")
     for wl in range(g.W):
         for d in range(g.D):
-            g.emit(f"{i2}{g.R[f'wn{wl}_{d}']} = wall_normal[{wl}, {d}, q]")
-            g.emit(f"{i2}{g.R[f'wp{wl}_{d}']} = wall_point[{wl}, {d}, q]")
-        g.emit(f"{i2}{g.R[f'wk{wl}']} = wall_k[{wl}, q]")
+            g.emit(f"{i2}{g.R['wn', wl, d]} = wall_normal[{wl}, {d}, q]")
+            g.emit(f"{i2}{g.R['wp', wl, d]} = wall_point[{wl}, {d}, q]")
+        g.emit(f"{i2}{g.R['wk', wl]} = wall_k[{wl}, q]")
     for n in g.live:
-        g.emit(f"{i2}{g.R[f'm{n}']} = mass[{n}, q]")
+        g.emit(f"{i2}{g.R['m', n]} = mass[{n}, q]")
         for d in range(g.D):
-            g.emit(f"{i2}{g.R[f'x{n}_{d}']} = x0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R[f'x0{n}_{d}']} = x0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R[f'v{n}_{d}']} = v0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R[f'im{n}_{d}']} = inv_mass[{n}, {d}, q]")
+            g.emit(f"{i2}{g.R['x', n, d]} = x0[{n}, {d}, q]")
+            g.emit(f"{i2}{g.R['x0', n, d]} = x0[{n}, {d}, q]")
+            g.emit(f"{i2}{g.R['v', n, d]} = v0[{n}, {d}, q]")
+            g.emit(f"{i2}{g.R['im', n, d]} = inv_mass[{n}, {d}, q]")
             if g.ext:
-                g.emit(f"{i2}{g.R[f'v0{n}_{d}']} = v0[{n}, {d}, q]")
+                g.emit(f"{i2}{g.R['v0', n, d]} = v0[{n}, {d}, q]")
     for c in g.curves:
         if c in g.const:
             continue
         if c in fac:  # force scale, abscissa scale, slope factor; the knot forces (they flag peaks)
-            for i, f in enumerate(("fy", "fx", "ff")):
-                g.emit(f"{i2}{g.R[f'{f}{c}']} = cfac[{i}, {c}, q]")
+            g.emit(f"{i2}{g.R['cfy', c]} = cfac[0, {c}, q]")
+            g.emit(f"{i2}{g.R['cfx', c]} = cfac[1, {c}, q]")
+            g.emit(f"{i2}{g.R['cff', c]} = cfac[2, {c}, q]")
             for k in range(g.off[c], g.off[c + 1] - 1):
                 if k in g.kcheck:
-                    g.emit(f"{i2}{g.R[f'kyv{k}']} = knot_y[{k}, q]")
+                    g.emit(f"{i2}{g.R['kyv', k]} = knot_y[{k}, q]")
             continue
         a0 = g.off[c]
-        g.emit(f"{i2}{g.R[f'cy0_{c}']} = cy[{a0}, q]")
-        g.emit(f"{i2}{g.R[f's0_{c}']} = cs0[{c}, q]")
+        g.emit(f"{i2}{g.R['cy0', c]} = cy[{a0}, q]")
+        g.emit(f"{i2}{g.R['s0', c]} = cs0[{c}, q]")
         for k in range(a0, g.off[c + 1] - 1):
-            g.emit(f"{i2}{g.R[f'cx{k}']} = cx[{k}, q]")
+            g.emit(f"{i2}{g.R['cx', k]} = cx[{k}, q]")
             if k > a0:
-                g.emit(f"{i2}{g.R[f'ds{k}']} = cds[{k}, q]")
+                g.emit(f"{i2}{g.R['ds', k]} = cds[{k}, q]")
             if k in g.kcheck:
-                g.emit(f"{i2}{g.R[f'kyv{k}']} = knot_y[{k}, q]")
+                g.emit(f"{i2}{g.R['kyv', k]} = knot_y[{k}, q]")
     for s in range(g.S):
-        g.emit(f"{i2}{g.R[f'kp{s}']} = kpar[{s}, q]")
+        g.emit(f"{i2}{g.R['kp', s]} = kpar[{s}, q]")
         if g.D == 1:
-            g.emit(f"{i2}{g.R[f'sg{s}']} = sign[{s}, q]")
+            g.emit(f"{i2}{g.R['sg', s]} = sign[{s}, q]")
         else:
-            g.emit(f"{i2}{g.R[f'l0{s}']} = length0[{s}, q]")
+            g.emit(f"{i2}{g.R['l0', s]} = length0[{s}, q]")
             for d in range(g.D):
-                g.emit(f"{i2}{g.R[f'ap{s}_{d}']} = x0[{g.sj[s]}, {d}, q] - x0[{g.si[s]}, {d}, q]")
+                g.emit(f"{i2}{g.R['ap', s, d]} = x0[{g.sj[s]}, {d}, q] - x0[{g.si[s]}, {d}, q]")
     for s in g.general:
-        g.emit(f"{i2}{g.R[f'yt{s}']} = yield_t[{s}, q]")
-        g.emit(f"{i2}{g.R[f'yc{s}']} = yield_c[{s}, q]")
+        g.emit(f"{i2}{g.R['yt', s]} = yield_t[{s}, q]")
+        g.emit(f"{i2}{g.R['yc', s]} = yield_c[{s}, q]")
     for s in range(g.S):
         if g.mat[s] == ELASTOPLASTIC:
-            g.emit(f"{i2}{g.R[f'kt{s}']} = ktan[{s}, q]")
-            g.emit(f"{i2}{g.R[f'fy{s}']} = fyld[{s}, q]")
+            g.emit(f"{i2}{g.R['kt', s]} = ktan[{s}, q]")
+            g.emit(f"{i2}{g.R['fy', s]} = fyld[{s}, q]")
     for s in range(g.S):  # rate_elastic: the rates of its curves
         for k in range(len(g.rc[s])):
-            g.emit(f"{i2}{g.R[f'rt{s}_{k}']} = rate_at[{g.ro[s] + k}, q]")
+            g.emit(f"{i2}{g.R['rt', s, k]} = rate_at[{g.ro[s] + k}, q]")
     for s in g.fragile:  # failure elongations (+-inf: never)
-        g.emit(f"{i2}{g.R[f'ft{s}']} = fail_t[{s}, q]")
-        g.emit(f"{i2}{g.R[f'fc{s}']} = fail_c[{s}, q]")
+        g.emit(f"{i2}{g.R['ft', s]} = fail_t[{s}, q]")
+        g.emit(f"{i2}{g.R['fc', s]} = fail_c[{s}, q]")
     for s in g.pre:  # initial_elongation: e0, the rate at t = 0, IE0 and the material state (arrays.preload)
-        g.emit(f"{i2}{g.R[f'e0{s}']} = elong0[{s}, q]")
-        g.emit(f"{i2}{g.R[f'r0{s}']} = rate0[{s}, q]")
-        g.emit(f"{i2}{g.R[f'ie{s}']} = ie0[{s}, q]")
+        g.emit(f"{i2}{g.R['e0', s]} = elong0[{s}, q]")
+        g.emit(f"{i2}{g.R['r0', s]} = rate0[{s}, q]")
+        g.emit(f"{i2}{g.R['ie', s]} = ie0[{s}, q]")
         for k in range(spec(g.mat[s]).state_rows):  # the material table's state rows
-            g.emit(f"{i2}{g.R[f'st{s}_{k}']} = state0[{s}, {k}, q]")
+            g.emit(f"{i2}{g.R['st', s, k]} = state0[{s}, {k}, q]")
     g.emit(f"{i2}ke0 = 0.0")
     for n in range(g.N):  # every node, as the reference sums
         for d in range(g.D):
