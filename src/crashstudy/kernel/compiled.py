@@ -34,6 +34,7 @@ from crashstudy.kernel.driver import (
 )
 from crashstudy.kernel.generic_block import BREAKABLE, PRELOADED
 from crashstudy.kernel.output import KernelOutput
+from crashstudy.vocabulary.codes import GENERAL
 from crashstudy.vocabulary.materials import DAMPER_MATERIALS, RATE_MATERIALS
 
 if TYPE_CHECKING:
@@ -49,7 +50,13 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
     H histories, Out summaries): the step loop over a block's arrays ``K`` (:data:`generic_block.Block`);
     its stages are :mod:`crashstudy.kernel.generic_springs`, :mod:`crashstudy.kernel.generic_nodes` and
     :mod:`crashstudy.kernel.wall_contact`."""
+    # the records' arrays as locals, once per call: the inlined stages take arrays, never a record
     si, sj, material, off, e0, rate0 = T.spring_i, T.spring_j, T.material, T.curve_off, P.e0, P.rate0
+    curve_a, curve_b, knot_check, rate_off, rate_curve = T.curve_a, T.curve_b, T.knot_check, T.rate_off, T.rate_curve
+    load_node, load_curve, pm_node, pm_dir, pm_curve, pm_kind = T.load_node, T.load_curve, T.pm_node, T.pm_dir, T.pm_curve, T.pm_kind
+    ktan, fy, rate_at, cx, cy, cds, cs0, cs1 = P.ktan, P.fy, P.rate_at, P.cx, P.cy, P.cds, P.cs0, P.cs1
+    gravity, load_force, pm_scale, fail_t, fail_c = P.gravity, P.load_force, P.pm_scale, P.fail_t, P.fail_c
+    ke_fraction, min_time, v0 = P.ke_fraction, P.min_time, P.v0
     N, D, _ = P.x0.shape
     S = si.shape[0]
     W = T.wall_nodes.shape[0]
@@ -96,8 +103,10 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             fused = fused_1d and n > 0 and not rec_now
             h = 1.0 if n > 0 else 0.5
             f[:] = 0.0
-            crushed[:] = -1
-            edot_min[:] = np.inf
+            if D > 1:
+                crushed[:] = -1
+            if has_term:
+                edot_min[:] = np.inf
             ie_tot[:] = 0.0
             any_hit = False
             for s in range(S):  # springs: elongation, force, failure, knots, scatter and summaries
@@ -110,13 +119,17 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                 if options[PRELOADED, s]:  # e = e0 + ... (initial_elongation)
                     for w in range(B):
                         e_tmp[w] = e0[s, lo + w] + e_tmp[w]
-                nhit = gs.knots_passed(s, kind, B, off, T.curve_a[s], T.knot_check, cx_b, ky_b, e_tmp, e_prev, state,
+                nhit = gs.knots_passed(s, kind, B, off, curve_a[s], knot_check, cx_b, ky_b, e_tmp, e_prev, state,
                                        k_c, k_x, k_y, k_sh) if kn else 0
-                gf.force(s, kind, lo, B, T, P, cx_b, cy_b, ds_b, s0_b, kp_b, yt_b, yc_b, e_tmp, ed_tmp, F_tmp, state, g_arg,
-                       g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev)
+                if kind == GENERAL:  # the material dispatch (kernel.generic_force)
+                    gf.general(s, lo, B, curve_a[s], curve_b[s], off, cx, cy, cds, cs0, cs1, cx_b, cy_b, ds_b, s0_b, yt_b,
+                               yc_b, e_tmp, F_tmp, state, g_arg, g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev)
+                else:
+                    gf.force(s, kind, lo, B, curve_a[s], off, rate_off, rate_curve, ktan, fy, rate_at, cx_b, cy_b, ds_b,
+                             s0_b, kp_b, e_tmp, ed_tmp, F_tmp, state, g_L, g_Ut)
                 fr = options[BREAKABLE, s]
                 if fr:
-                    gs.failure(s, n, lo, B, P.fail_t, P.fail_c, sft, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp)
+                    gs.failure(s, n, lo, B, fail_t, fail_c, sft, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp)
                 if kn:
                     k_any[s] = nhit > 0
                 if nhit > 0:  # rare: peak-force candidate and the deceleration data (see reference)
@@ -138,14 +151,16 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if fused:  # external forces, accelerations, velocities
                 gn.fused_update(h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke, pacc)
             else:
-                gn.accelerate(n, h, lo, B, N, D, not no_ext, has_gravity, T, P, m_b, im_b, f, fext, v, vnew, acc, dt_b)
+                gn.accelerate(n, h, lo, B, N, D, not no_ext, has_gravity, load_node, load_curve, gravity, load_force, cx,
+                              cy, cds, cs0, off, m_b, im_b, f, fext, v, vnew, acc, dt_b)
             if NP > 0:
-                gn.prescribed(n, h, lo, B, T, P, x0_b, m_b, x, v, vnew, acc, pm_acc, f, fext, nst, dt_b)
+                gn.prescribed(n, h, lo, B, pm_node, pm_dir, pm_curve, pm_kind, pm_scale, cx, cy, cds, cs0, off, x0_b, m_b, x,
+                              v, vnew, acc, pm_acc, f, fext, nst, dt_b)
             if W > 0:  # rigid walls (kernel.wall_contact)
                 wc.rigid(lo, B, W, N, D, h, T.wall_nodes, wn, wp, wk, T.free, x, v, vnew, acc, m_b, dt_b, jp, wall_e,
                          wforce, imp, act, actf)
             if not fused:  # (fused: kinetic energy summed above; no external work)
-                gn.energies(n, lo, B, N, D, not no_ext, P.v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work)
+                gn.energies(n, lo, B, N, D, not no_ext, v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work)
             nbad = 0
             for w in range(B):
                 wmax[w] = max(wmax[w], abs(work[w]))
@@ -171,7 +186,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if H.step_nodes.shape[0] > 0:  # crash criteria: a^n of the recorded nodes added to their block's row
                 go.record_steps(n, lo, B, act, acc, P.rec_block, H.step_nodes, H.steps)
             if has_term and n > 0:
-                n_end = gn.stop_tests(n, lo, B, S, no_ext, P, act, dt_b, forces, pf, edot_min, ke, wmax, nst, e_init, n_end)
+                n_end = gn.stop_tests(n, lo, B, S, no_ext, ke_fraction, min_time, act, dt_b, forces, pf, edot_min, ke, wmax,
+                                     nst, e_init, n_end)
             if n == n_end:
                 go.final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, Out.final_energy)
             if not fused:

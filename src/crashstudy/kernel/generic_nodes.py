@@ -49,22 +49,24 @@ def fused_update(h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke
 
 
 @_inl
-def accelerate(n, h, lo, B, N, D, ext, has_gravity, T, P, m_b, im_b, f, fext, v, vnew, acc, dt_b):  # pragma: no cover - compiled
+def accelerate(n, h, lo, B, N, D, ext, has_gravity, load_node, load_curve, gravity, load_force, cx, cy, cds, cs0, off, m_b,
+               im_b, f, fext, v, vnew, acc, dt_b):  # pragma: no cover - compiled
     """External forces (gravity, then the loads in order, scaled by their time curves), a^n = (f + f_ext)/m
-    and v^{n+1/2}."""
+    and v^{n+1/2}. Every stage here takes the arrays of the topology and input records, not the records
+    (an inlined stage binds its arguments: a record costs an incref per array)."""
     if ext:
         for n_ in range(N):
             for d in range(D):
                 for w in range(B):
-                    fext[n_, d, w] = m_b[n_, w] * P.gravity[d, lo + w] if has_gravity else 0.0
-        for k in range(T.load_node.shape[0]):
-            c = T.load_curve[k]
-            p = T.load_node[k]
+                    fext[n_, d, w] = m_b[n_, w] * gravity[d, lo + w] if has_gravity else 0.0
+        for k in range(load_node.shape[0]):
+            c = load_curve[k]
+            p = load_node[k]
             for w in range(B):
                 q = lo + w
-                scale = time_curve_at(c, n * dt_b[w], q, P.cx, P.cy, P.cds, P.cs0, T.curve_off) if c >= 0 else 1.0
+                scale = time_curve_at(c, n * dt_b[w], q, cx, cy, cds, cs0, off) if c >= 0 else 1.0
                 for d in range(D):
-                    fext[p, d, w] += P.load_force[k, d, q] * scale
+                    fext[p, d, w] += load_force[k, d, q] * scale
         for n_ in range(N):
             for d in range(D):
                 for w in range(B):
@@ -81,19 +83,20 @@ def accelerate(n, h, lo, B, N, D, ext, has_gravity, T, P, m_b, im_b, f, fext, v,
 
 
 @_inl
-def prescribed(n, h, lo, B, T, P, x0_b, m_b, x, v, vnew, acc, pm_acc, f, fext, nst, dt_b):  # pragma: no cover - compiled
+def prescribed(n, h, lo, B, pm_node, pm_dir, pm_curve, pm_kind, pm_scale, cx, cy, cds, cs0, off, x0_b, m_b, x, v, vnew, acc,
+               pm_acc, f, fext, nst, dt_b):  # pragma: no cover - compiled
     """Prescribed motion of its dofs: v^{n+1/2} and a^n from the curve; f_ext takes the force it needs."""
-    for k in range(T.pm_node.shape[0]):
-        p = T.pm_node[k]
-        d = T.pm_dir[k]
-        c = T.pm_curve[k]
-        kind = T.pm_kind[k]
+    for k in range(pm_node.shape[0]):
+        p = pm_node[k]
+        d = pm_dir[k]
+        c = pm_curve[k]
+        kind = pm_kind[k]
         for w in range(B):
             q = lo + w
             t = n * dt_b[w]
             dtn = h * dt_b[w]
-            tc = time_curve_at(c, prescribed_time(kind, t, dt_b[w]), q, P.cx, P.cy, P.cds, P.cs0, T.curve_off)
-            vn = prescribed_velocity(kind, x0_b[p, d, w], P.pm_scale[k, q], tc, x[p, d, w], v[p, d, w], dt_b[w], dtn)
+            tc = time_curve_at(c, prescribed_time(kind, t, dt_b[w]), q, cx, cy, cds, cs0, off)
+            vn = prescribed_velocity(kind, x0_b[p, d, w], pm_scale[k, q], tc, x[p, d, w], v[p, d, w], dt_b[w], dtn)
             vnew[p, d, w], pm_acc[k, w] = prescribed_step(n == nst[w], vn, v[p, d, w], pm_acc[k, w], dtn)
             acc[p, d, w] = pm_acc[k, w]
             ftot = f[p, d, w] + fext[p, d, w]
@@ -158,13 +161,14 @@ def knot_accelerations(B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_pr
 
 
 @_inl
-def stop_tests(n, lo, B, S, opening_ok, P, act, dt_b, forces, pf, edot_min, ke, wmax, nst, e_init, n_end):  # pragma: no cover - compiled
+def stop_tests(n, lo, B, S, opening_ok, ke_fraction, min_time, act, dt_b, forces, pf, edot_min, ke, wmax, nst, e_init,
+               n_end):  # pragma: no cover - compiled
     """Early termination (docs/format.md) of the running lanes; returns the step at which the first ends."""
     e_scale = e_init[1]
     for w in range(B):
         q = lo + w
         t = n * dt_b[w]
-        if not act[w] or P.ke_fraction[q] <= 0.0 or t < P.min_time[q]:
+        if not act[w] or ke_fraction[q] <= 0.0 or t < min_time[q]:
             continue
         fsum = 0.0
         psum = 0.0
@@ -172,7 +176,7 @@ def stop_tests(n, lo, B, S, opening_ok, P, act, dt_b, forces, pf, edot_min, ke, 
             fsum += abs(forces[s, w])
             psum += pf[s, w]
         opening = edot_min[w] >= 0.0 and opening_ok
-        if stop_test(P.ke_fraction[q], fsum, psum, ke[w], e_scale[w], wmax[w], opening):
+        if stop_test(ke_fraction[q], fsum, psum, ke[w], e_scale[w], wmax[w], opening):
             nst[w] = n
             n_end = n
     return n_end

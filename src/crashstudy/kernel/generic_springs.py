@@ -179,28 +179,64 @@ def failure(s, n, lo, B, fail_t, fail_c, spring_fail_time, dt_b, e_tmp, e_prev, 
 def scatter(s, i, j, n, fh, fr, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, f, ie, ie_tot, pf, mc, me,
             forces, elong, f_prev, e_prev):  # pragma: no cover - compiled
     """Spring s's force on its nodes (f[i] += F ax, f[j] -= F ax) and its summaries: absorbed energy
-    (``fh``: a preloaded spring's first step, F^0 acting for the first half step,
-    :func:`step_laws.energy_first_half`), peak force and extremes (``fr``: a breakable spring's extremes up
-    to its break, ``ftmp``)."""
+    (:func:`step_laws.energy_increment`; ``fh``: a preloaded spring's first step, F^0 acting for the first
+    half step, :func:`step_laws.energy_first_half`), peak force and extremes (:func:`step_laws.spring_extremes`;
+    ``fr``: a breakable spring's extremes up to its break, ``ftmp``). One loop per case, the case chosen
+    outside the lane loop, as the laws' callers had it before the split."""
+    if fr or (n == 1 and fh):  # a breakable spring, or a preloaded spring's first step
+        _forces_on_nodes(i, j, D, B, F_tmp, ax_tmp, f)
+        for w in range(B):
+            F = F_tmp[w]
+            e = e_tmp[w]
+            af = actf[w]
+            if n == 1 and fh and e0[s, lo + w] != 0.0:
+                ie[s, w] = energy_first_half(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], dt_b[w], rate0[s, lo + w], af)
+            elif n > 0:
+                ie[s, w] = energy_increment(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], af)
+            ie_tot[w] += ie[s, w]
+            em = ftmp[0, w] if fr else e  # extremes while intact
+            ai = ftmp[1, w] if fr else af
+            pf[s, w], mc[s, w], me[s, w] = spring_extremes(pf[s, w], mc[s, w], me[s, w], F, af, em, ai)
+            forces[s, w] = F
+            elong[s, w] = e
+            f_prev[s, w] = F
+            e_prev[s, w] = e
+    elif D == 1 and n > 0:  # one pass: scatter and summaries
+        for w in range(B):
+            F = F_tmp[w]
+            e = e_tmp[w]
+            af = actf[w]
+            fa = F * ax_tmp[0, w]
+            f[i, 0, w] += fa
+            f[j, 0, w] -= fa
+            ie[s, w] = energy_increment(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], af)
+            ie_tot[w] += ie[s, w]
+            pf[s, w], mc[s, w], me[s, w] = spring_extremes(pf[s, w], mc[s, w], me[s, w], F, af, e, af)
+            forces[s, w] = F
+            elong[s, w] = e
+            f_prev[s, w] = F
+            e_prev[s, w] = e
+    else:
+        _forces_on_nodes(i, j, D, B, F_tmp, ax_tmp, f)
+        for w in range(B):
+            F = F_tmp[w]
+            e = e_tmp[w]
+            af = actf[w]
+            if n > 0:
+                ie[s, w] = energy_increment(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], af)
+            ie_tot[w] += ie[s, w]
+            pf[s, w], mc[s, w], me[s, w] = spring_extremes(pf[s, w], mc[s, w], me[s, w], F, af, e, af)
+            forces[s, w] = F
+            elong[s, w] = e
+            f_prev[s, w] = F
+            e_prev[s, w] = e
+
+
+@_inl
+def _forces_on_nodes(i, j, D, B, F_tmp, ax_tmp, f):  # pragma: no cover - compiled
+    """f[i] += F ax, f[j] -= F ax over the block."""
     for d in range(D):
         for w in range(B):
             fa = F_tmp[w] * ax_tmp[d, w]
             f[i, d, w] += fa
             f[j, d, w] -= fa
-    first_half = n == 1 and fh
-    for w in range(B):
-        F = F_tmp[w]
-        e = e_tmp[w]
-        af = actf[w]
-        if first_half and e0[s, lo + w] != 0.0:
-            ie[s, w] = energy_first_half(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], dt_b[w], rate0[s, lo + w], af)
-        elif n > 0:
-            ie[s, w] = energy_increment(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], af)
-        ie_tot[w] += ie[s, w]
-        em = ftmp[0, w] if fr else e  # extremes while intact
-        ai = ftmp[1, w] if fr else af
-        pf[s, w], mc[s, w], me[s, w] = spring_extremes(pf[s, w], mc[s, w], me[s, w], F, af, em, ai)
-        forces[s, w] = F
-        elong[s, w] = e
-        f_prev[s, w] = F
-        e_prev[s, w] = e
