@@ -52,16 +52,19 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
     :mod:`crashstudy.kernel.wall_contact`."""
     # the records' arrays as locals, once per call: the inlined stages take arrays, never a record
     si, sj, material, off, e0, rate0 = T.spring_i, T.spring_j, T.material, T.curve_off, P.e0, P.rate0
-    curve_a, curve_b, knot_check, rate_off, rate_curve = T.curve_a, T.curve_b, T.knot_check, T.rate_off, T.rate_curve
-    load_node, load_curve, pm_node, pm_dir, pm_curve, pm_kind = T.load_node, T.load_curve, T.pm_node, T.pm_dir, T.pm_curve, T.pm_kind
-    ktan, fy, rate_at, cx, cy, cds, cs0, cs1 = P.ktan, P.fy, P.rate_at, P.cx, P.cy, P.cds, P.cs0, P.cs1
-    gravity, load_force, pm_scale, fail_t, fail_c = P.gravity, P.load_force, P.pm_scale, P.fail_t, P.fail_c
-    ke_fraction, min_time, v0 = P.ke_fraction, P.min_time, P.v0
+    curve_a, curve_b, knot_check, rate_off = T.curve_a, T.curve_b, T.knot_check, T.rate_off
+    rate_curve, load_node, load_curve, pm_node = T.rate_curve, T.load_node, T.load_curve, T.pm_node
+    pm_dir, pm_curve, pm_kind, ktan, fy, rate_at = T.pm_dir, T.pm_curve, T.pm_kind, P.ktan, P.fy, P.rate_at
+    cx, cy, cds, cs0, cs1, gravity, load_force = P.cx, P.cy, P.cds, P.cs0, P.cs1, P.gravity, P.load_force
+    pm_scale, fail_t, fail_c, v0 = P.pm_scale, P.fail_t, P.fail_c, P.v0
+    ke_fraction, min_time, e_floor, rec_block = P.ke_fraction, P.min_time, P.energy_floor, P.rec_block
+    wall_nodes, free, step_nodes, steps = T.wall_nodes, T.free, H.step_nodes, H.steps
     N, D, _ = P.x0.shape
     S = si.shape[0]
-    W = T.wall_nodes.shape[0]
+    W = wall_nodes.shape[0]
     NP = T.pm_node.shape[0]
-    has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp = gb.flags(T, P, H)
+    flags = gb.flags(T, P, H)
+    has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp = flags
     # 1-D models without walls, prescribed motion or external forces take a fused node update
     fused_1d = D == 1 and W == 0 and NP == 0 and no_ext
     for bi in range(b_lo, b_hi):
@@ -147,7 +150,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if any_hit:  # a^{n-1}, for the accelerations at this step's knot crossings
                 acc_prev[:] = acc
             if W > 0:  # penalty walls' forces (kernel.wall_contact)
-                wc.penalty(lo, B, W, N, D, T.wall_nodes, wn, wp, wk, x, f, wforce, wall_e, pen_e, act)
+                wc.penalty(lo, B, W, N, D, wall_nodes, wn, wp, wk, x, f, wforce, wall_e, pen_e, act)
             if fused:  # external forces, accelerations, velocities
                 gn.fused_update(h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke, pacc)
             else:
@@ -157,7 +160,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                 gn.prescribed(n, h, lo, B, pm_node, pm_dir, pm_curve, pm_kind, pm_scale, cx, cy, cds, cs0, off, x0_b, m_b, x,
                               v, vnew, acc, pm_acc, f, fext, nst, dt_b)
             if W > 0:  # rigid walls (kernel.wall_contact)
-                wc.rigid(lo, B, W, N, D, h, T.wall_nodes, wn, wp, wk, T.free, x, v, vnew, acc, m_b, dt_b, jp, wall_e,
+                wc.rigid(lo, B, W, N, D, h, wall_nodes, wn, wp, wk, free, x, v, vnew, acc, m_b, dt_b, jp, wall_e,
                          wforce, imp, act, actf)
             if not fused:  # (fused: kinetic energy summed above; no external work)
                 gn.energies(n, lo, B, N, D, not no_ext, v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work)
@@ -167,7 +170,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                 b_ = sl.energy_balance(ke[w], ie_tot[w], wall_e[w] if n > 0 else 0.0, e_init[0, w], work[w])
                 bal[w] = b_  # t = 0: before impacts
                 err[w] = lw.peak(err[w], b_ * actf[w])
-                nbad += act[w] & sl.unstable(b_, sl.unstable_limit(e_init[1, w], wmax[w], P.energy_floor[lo + w]))
+                nbad += act[w] & sl.unstable(b_, sl.unstable_limit(e_init[1, w], wmax[w], e_floor[lo + w]))
             anybad = nbad > 0
             if not fused:
                 gn.peak_accelerations(B, N, D, movable, acc, actf, pacc)
@@ -180,11 +183,11 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                 for w in range(B):
                     anybad = anybad or (act[w] and crushed[w] >= 0)
             if anybad:  # rare: lanes that fail at this step stop
-                gb.fail_lanes(n, lo, B, D, P.energy_floor, Out, K)
+                gb.fail_lanes(n, lo, B, D, e_floor, Out, K)
             if rec_now:
                 go.record(n, lo, B, n_out, P.out_every, H, K)
-            if H.step_nodes.shape[0] > 0:  # crash criteria: a^n of the recorded nodes added to their block's row
-                go.record_steps(n, lo, B, act, acc, P.rec_block, H.step_nodes, H.steps)
+            if step_nodes.shape[0] > 0:  # crash criteria: a^n of the recorded nodes added to their block's row
+                go.record_steps(n, lo, B, act, acc, rec_block, step_nodes, steps)
             if has_term and n > 0:
                 n_end = gn.stop_tests(n, lo, B, S, no_ext, ke_fraction, min_time, act, dt_b, forces, pf, edot_min, ke, wmax,
                                      nst, e_init, n_end)
