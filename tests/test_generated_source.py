@@ -43,16 +43,23 @@ def test_generated_source_of_the_two_spring_model_is_the_golden_file() -> None:
 
 # an elastoplastic spring 0 beside curve 0 scaled per variant (a factor curve): their rows were both named
 # "fy0" (the spring's yield force, the curve's force factor), so the curve's row was never loaded
+EP = {"type": "elastoplastic", "stiffness": 4.0e4, "tangent_stiffness": 1.0e4, "yield_force": 2.0e3}
 EP_BESIDE_FACTOR_CURVE = {
     "name": "ep-beside-factor-curve",
     "curves": {"k0": {"x": [-0.3, -0.01, 0.0], "y": [-3000.0, -1500.0, 0.0]}},
-    "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 10.0},
-              "c": {"position": [2.0], "mass": 5.0}},
-    "springs": {"ep": {"nodes": ["a", "b"], "material": {"type": "elastoplastic", "stiffness": 4.0e4,
-                                                         "tangent_stiffness": 1.0e4, "yield_force": 2.0e3}},
-                "cr": {"nodes": ["b", "c"], "material": {"type": "crush", "loading": "k0", "unloading_stiffness": 2.0e5}}},
-    "initial_velocity": {"c": [-3.0]}, "end_time": 0.05, "output": {"interval": 1.0e-3},
-}  # fmt: skip
+    "nodes": {
+        "a": {"position": [0.0], "fixed": True},
+        "b": {"position": [1.0], "mass": 10.0},
+        "c": {"position": [2.0], "mass": 5.0},
+    },
+    "springs": {
+        "ep": {"nodes": ["a", "b"], "material": EP},
+        "cr": {"nodes": ["b", "c"], "material": {"type": "crush", "loading": "k0", "unloading_stiffness": 2.0e5}},
+    },
+    "initial_velocity": {"c": [-3.0]},
+    "end_time": 0.05,
+    "output": {"interval": 1.0e-3},
+}
 
 
 def _rows_read_never_written(src: str) -> set[int]:

@@ -84,6 +84,9 @@ class Rows:
     def add(self, name: Three, i: int, j: int, k: int, /) -> None: ...
 
     def add(self, name: str, *idx: int) -> None:
+        self._add(name, idx)
+
+    def _add(self, name: str, idx: tuple[int, ...]) -> None:
         key: str | tuple[str | int, ...] = (name, *idx) if idx else name
         assert key not in self._at, f"row {key} handed out twice"
         self._at[key] = self.n
@@ -99,7 +102,7 @@ class Rows:
     def each(self, names: tuple[str, ...], *idx: int) -> None:
         """:meth:`add` of each name in order, with the same indices."""
         for name in names:
-            self.add(name, *idx)  # type: ignore[call-overload]
+            self._add(name, idx)
 
     def row(self, key: Key) -> int:
         return self._at[key]
