@@ -6,8 +6,11 @@ regenerate the file (``python tests/test_generated_source.py``), so that the dif
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
+
+import pytest
 
 GOLDEN = Path(__file__).parent / "golden" / "two_spring_kernel.py"
 TWO_SPRINGS = {  # a bumper on a crush curve against a wall, the body behind it on a linear rail
@@ -36,6 +39,66 @@ def test_generated_source_of_the_two_spring_model_is_the_golden_file() -> None:
     assert got == GOLDEN.read_text(), (
         "the generated source changed: bump GEN_VERSION and regenerate with python tests/test_generated_source.py")
     assert "# generated" not in got and "def run_blocks(" in got
+
+
+# an elastoplastic spring 0 beside curve 0 scaled per variant (a factor curve): their rows were both named
+# "fy0" (the spring's yield force, the curve's force factor), so the curve's row was never loaded
+EP = {"type": "elastoplastic", "stiffness": 4.0e4, "tangent_stiffness": 1.0e4, "yield_force": 2.0e3}
+EP_BESIDE_FACTOR_CURVE = {
+    "name": "ep-beside-factor-curve",
+    "curves": {"k0": {"x": [-0.3, -0.01, 0.0], "y": [-3000.0, -1500.0, 0.0]}},
+    "nodes": {
+        "a": {"position": [0.0], "fixed": True},
+        "b": {"position": [1.0], "mass": 10.0},
+        "c": {"position": [2.0], "mass": 5.0},
+    },
+    "springs": {
+        "ep": {"nodes": ["a", "b"], "material": EP},
+        "cr": {"nodes": ["b", "c"], "material": {"type": "crush", "loading": "k0", "unloading_stiffness": 2.0e5}},
+    },
+    "initial_velocity": {"c": [-3.0]},
+    "end_time": 0.05,
+    "output": {"interval": 1.0e-3},
+}
+
+
+def _rows_read_never_written(src: str) -> set[int]:
+    """Work-array rows (``Z[k + w]``) the source reads but no statement assigns (the block's rows are
+    loaded, then updated, by assignments)."""
+    reads = {int(k) for k in re.findall(r"Z\[(\d+) \+ w\]", src)}
+    writes: set[int] = set()
+    for line in src.splitlines():
+        target = re.match(r"\s*([^=]*?[^=!<>])=(?!=)", line)  # the targets of an assignment
+        if target:
+            writes |= {int(k) for k in re.findall(r"Z\[(\d+) \+ w\]", target.group(1))}
+    return reads - writes
+
+
+def _twin_shapes() -> list[str]:
+    from twins import CASES
+
+    return ["ep-beside-factor-curve", *CASES]
+
+
+@pytest.mark.parametrize("case", _twin_shapes())
+def test_every_work_array_row_the_generated_kernel_reads_is_assigned(case: str) -> None:
+    """Each row of a generated kernel (kernel/gen_rows.py) is a name handed out once: a row read but never
+    assigned is a number the kernel takes from nowhere (the work array is not cleared between blocks)."""
+    from conftest import model_batch
+    from crashstudy.kernel.gen_shape import _shape
+    from crashstudy.kernel.gen_source import source
+    from crashstudy.vocabulary.codes import HISTORY_ORDER
+    from twins import record_case
+
+    if case == "ep-beside-factor-curve":
+        batch, plan = model_batch(EP_BESIDE_FACTOR_CURVE, {"curves.k0.scale": [0.8, 1.0, 1.2]})
+        record: tuple[int, ...] = ()
+    else:
+        batch, plan, record = record_case(case)
+    for histories in ((), tuple(HISTORY_ORDER)):
+        shape = _shape(batch, histories, plan.varying_curves, record=record)
+        assert case != "ep-beside-factor-curve" or shape["fac"] == [0]
+        assert _rows_read_never_written(source(shape)) == set(), f"{case}, histories {histories}"
 
 
 if __name__ == "__main__":  # regenerate the golden file

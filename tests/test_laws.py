@@ -16,18 +16,26 @@ import pytest
 
 from conftest import model_batch
 from crashstudy.arrays import material_laws as twin
-from crashstudy.kernel import laws
-from crashstudy.kernel.reference import (
+from crashstudy.kernel import laws, step_laws
+from crashstudy.kernel.reference_knots import knot_peak_np
+from crashstudy.kernel.step_twins import (
+    advance_np,
+    axis_2d_np,
     energy_balance_np,
-    knot_peak_np,
+    half_step_np,
+    kinetic_np,
     prescribed_step_np,
     prescribed_time_np,
     prescribed_velocity_np,
+    spring_extremes_np,
     stop_test_np,
     unstable_limit_np,
     unstable_np,
+    wall_dof_np,
     wall_hold_np,
     wall_penalty_np,
+    wall_plane_np,
+    wall_work_np,
 )
 
 RNG_SEED = 20261126
@@ -177,10 +185,10 @@ def test_small_laws_equal_their_twins() -> None:
         assert laws.knot_peak(abs(a), bb, bb + abs(c), d, e) == knot_peak_np(np.array([abs(a)]), np.array([bb]),
                                                                              np.array([bb + abs(c)]), np.array([d]),
                                                                              np.array([e]))[0]  # fmt: skip
-        assert laws.wall_hold(a, bb, abs(c) + 0.1) == wall_hold_np(np.array([a]), np.array([bb]),
+        assert step_laws.wall_hold(a, bb, abs(c) + 0.1) == wall_hold_np(np.array([a]), np.array([bb]),
                                                                    np.array([abs(c) + 0.1]))[0]  # fmt: skip
         fp, energy = wall_penalty_np(np.array([abs(a)]), np.array([bb]))
-        assert laws.wall_penalty(abs(a), bb) == (fp[0], energy[0])
+        assert step_laws.wall_penalty(abs(a), bb) == (fp[0], energy[0])
 
 
 def test_energy_balance_and_instability_laws_equal_their_twins() -> None:
@@ -191,13 +199,13 @@ def test_energy_balance_and_instability_laws_equal_their_twins() -> None:
     for _ in range(200):
         ke, ie, wall, e0, work = rng.normal(0.0, 1.0e3, 5)
         scale, wmax, floor = np.abs(rng.normal(0.0, 1.0e3, 3))
-        bal = laws.energy_balance(ke, ie, wall, e0, work)
+        bal = step_laws.energy_balance(ke, ie, wall, e0, work)
         assert bal == energy_balance_np(*(np.array([x]) for x in (ke, ie, wall, e0, work)))[0]
-        limit = laws.unstable_limit(scale, wmax, floor)
+        limit = step_laws.unstable_limit(scale, wmax, floor)
         assert limit == unstable_limit_np(np.array([scale]), np.array([wmax]), np.array([floor]))[0]
         for b in (bal, limit, np.nextafter(limit, np.inf), 0.0, np.inf, np.nan):
-            assert laws.unstable(b, limit) == unstable_np(np.array([b]), np.array([limit]))[0], (b, limit)
-    assert laws.unstable(np.nan, 1.0) and laws.unstable(2.0, 1.0) and not laws.unstable(1.0, 1.0)
+            assert step_laws.unstable(b, limit) == unstable_np(np.array([b]), np.array([limit]))[0], (b, limit)
+    assert step_laws.unstable(np.nan, 1.0) and step_laws.unstable(2.0, 1.0) and not step_laws.unstable(1.0, 1.0)
 
 
 def test_prescribed_motion_laws_equal_their_twins() -> None:
@@ -213,16 +221,16 @@ def test_prescribed_motion_laws_equal_their_twins() -> None:
         x0, scale, tc, x, vo, pa = rng.normal(0.0, 1.0, 6)
         dtn = 0.5 * dt if rng.random() < 0.2 else dt
         for kind in PM_CODES.values():
-            assert laws.prescribed_time(kind, t, dt) == prescribed_time_np(kind, *arr(t, dt))[0]
-            vn = laws.prescribed_velocity(kind, x0, scale, tc, x, vo, dt, dtn)
+            assert step_laws.prescribed_time(kind, t, dt) == prescribed_time_np(kind, *arr(t, dt))[0]
+            vn = step_laws.prescribed_velocity(kind, x0, scale, tc, x, vo, dt, dtn)
             assert vn == prescribed_velocity_np(kind, *arr(x0, scale, tc, x, vo, dt, dtn))[0]
             for last in (False, True):
-                got = laws.prescribed_step(last, vn, vo, pa, dtn)
+                got = step_laws.prescribed_step(last, vn, vo, pa, dtn)
                 want = prescribed_step_np(np.array([last]), *arr(vn, vo, pa, dtn))
                 assert got == (want[0][0], want[1][0])
-        landed = x + dt * laws.prescribed_velocity(PM_CODES["displacement"], x0, scale, tc, x, vo, dt, dtn)
+        landed = x + dt * step_laws.prescribed_velocity(PM_CODES["displacement"], x0, scale, tc, x, vo, dt, dtn)
         assert abs(landed - (x0 + scale * tc)) <= 1e-12 * (1.0 + abs(x0 + scale * tc) + abs(x) / dt * dt)
-        assert laws.prescribed_velocity(PM_CODES["velocity"], x0, scale, tc, x, vo, dt, dtn) == scale * tc
+        assert step_laws.prescribed_velocity(PM_CODES["velocity"], x0, scale, tc, x, vo, dt, dtn) == scale * tc
 
 
 def test_stop_test_law_equals_its_twin() -> None:
@@ -235,7 +243,114 @@ def test_stop_test_law_equals_its_twin() -> None:
         if rng.random() < 0.25:
             fsum, ke = kef * psum, kef * (scale + wmax)
         for opening in (False, True):
-            got = laws.stop_test(kef, fsum, psum, ke, scale, wmax, opening)
+            got = step_laws.stop_test(kef, fsum, psum, ke, scale, wmax, opening)
             want = stop_test_np(*(np.array([x]) for x in (kef, fsum, psum, ke, scale, wmax, opening)))[0]
             assert got == want, (kef, fsum, psum, ke, scale, wmax, opening)
-    assert laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, True) and not laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, False)
+    assert step_laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, True) and not step_laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, False)
+
+
+def test_node_update_laws_equal_their_twins_and_integrate_constant_acceleration_exactly() -> None:
+    """``half_step``, ``advance`` and ``kinetic`` (the central-difference update both fast kernels call)
+    against their NumPy twins bit for bit on random inputs, running (af 1) and stopped (af 0: x and v
+    kept exactly); and the closed form: under a constant acceleration a from rest, n steps of dt land on
+    x = a (n dt)^2 / 2 (central difference is exact for a quadratic path) to 1e-12 relative."""
+    rng = np.random.default_rng(RNG_SEED + 10)
+    arr = lambda *xs: tuple(np.array([x]) for x in xs)  # noqa: E731
+    for _ in range(300):
+        x, vo, a, m = rng.normal(0.0, 1.0, 4)
+        dt = abs(rng.normal(0.0, 1e-3)) + 1e-7
+        dtn = 0.5 * dt if rng.random() < 0.2 else dt
+        vn = step_laws.half_step(vo, a, dtn)
+        assert vn == half_step_np(*arr(vo, a, dtn))[0]
+        for af in (1.0, 0.0):
+            got = step_laws.advance(x, vo, vn, dt, af)
+            want = advance_np(*arr(x, vo, vn, dt, af))
+            assert got == (want[0][0], want[1][0])
+        assert step_laws.advance(x, vo, vn, dt, 0.0) == (x, vo)
+        assert step_laws.kinetic(a, abs(m), vo, vn) == kinetic_np(*arr(a, abs(m), vo, vn))[0]
+    acc, dt, n = 3.0, 1.0e-3, 500
+    x, v = 0.0, 0.0
+    for k in range(n):
+        vn = step_laws.half_step(v, acc, dt if k > 0 else 0.5 * dt)
+        x, v = step_laws.advance(x, v, vn, dt, 1.0)
+    assert abs(x - 0.5 * acc * (n * dt) ** 2) <= 1e-12 * 0.5 * acc * (n * dt) ** 2
+
+
+def test_spring_extremes_law_equals_its_twin() -> None:
+    """``spring_extremes`` (peak force, crush, elongation of every spring in both fast kernels) against
+    its twin bit for bit, with running and stopped lanes and a breakable spring's extremes (em, ai), and
+    the running maximum's closed form."""
+    rng = np.random.default_rng(RNG_SEED + 11)
+    for _ in range(300):
+        pf, mc, me = np.abs(rng.normal(0.0, 1.0, 3))
+        F, em = rng.normal(0.0, 1.0, 2)
+        for af, ai in ((1.0, 1.0), (0.0, 0.0), (1.0, 0.0)):
+            got = step_laws.spring_extremes(pf, mc, me, F, af, em, ai)
+            want = spring_extremes_np(*(np.array([x]) for x in (pf, mc, me, F, af, em, ai)))
+            assert got == tuple(w[0] for w in want)
+            assert got == (max(pf, abs(F) * af), max(mc, -em * ai), max(me, em * ai))
+
+
+def test_axis_2d_law_equals_its_twin_and_is_a_unit_vector() -> None:
+    """``axis_2d`` (the 2-D spring direction both fast kernels call) against its twin bit for bit on
+    random vectors, turned ones (previous direction reversed: collapsed) and ones of nearly zero length;
+    the closed form: a spring that did not collapse has |axis| = 1 within 2 ulp and length = hypot(u)."""
+    rng = np.random.default_rng(RNG_SEED + 12)
+    for _ in range(300):
+        u0, u1, p0, p1 = rng.normal(0.0, 1.0, 4)
+        l0 = abs(rng.normal(1.0, 0.3))
+        for scale, pp in ((1.0, (p0, p1)), (1.0e-12, (u0, u1)), (1.0, (-u0, -u1))):
+            got = laws.axis_2d(u0 * scale, u1 * scale, pp[0], pp[1], l0)
+            want = axis_2d_np(*(np.array([v]) for v in (u0 * scale, u1 * scale, pp[0], pp[1], l0)))
+            assert got == tuple(w[0] for w in want)
+            ax0, ax1, ln, gone = got
+            assert abs(ln - np.hypot(u0 * scale, u1 * scale)) <= 4e-16 * ln
+            if not gone:
+                assert abs(np.hypot(ax0, ax1) - 1.0) <= 4.5e-16
+    assert laws.axis_2d(1.0, 0.0, -1.0, 0.0, 1.0)[3] and laws.axis_2d(1e-13, 0.0, 1.0, 0.0, 1.0)[3]
+
+
+def test_wall_geometry_and_energy_laws_equal_their_twins() -> None:
+    """``wall_plane``, ``wall_dof`` and ``wall_work`` (a rigid wall's geometry and energy in both fast
+    kernels) against their twins bit for bit on random 2-D nodes and walls; closed forms: the sums over
+    the dofs are the dot products with the normal (1e-15), a jump along the normal of a node from rest at
+    v^{n-1/2} = 0 does no wall work, and a fixed dof (free 0) keeps its velocity and acceleration."""
+    rng = np.random.default_rng(RNG_SEED + 13)
+    arr = lambda *xs: tuple(np.array([x]) for x in xs)  # noqa: E731
+    for _ in range(200):
+        v, x, p, nr = rng.normal(0.0, 1.0, (4, 2))
+        nr = nr / np.hypot(*nr)
+        dt = abs(rng.normal(0.0, 1e-3)) + 1e-6
+        vn = gap = dist = 0.0
+        for d in range(2):
+            got = step_laws.wall_plane(vn, gap, dist, v[d], x[d], p[d], nr[d], dt)
+            want = wall_plane_np(*arr(vn, gap, dist, v[d], x[d], p[d], nr[d], dt))
+            assert got == tuple(w[0] for w in want)
+            vn, gap, dist = got
+        assert abs(vn - v @ nr) <= 1e-15 * (1.0 + abs(v) @ abs(nr))
+        assert abs(gap - (x - p) @ nr) <= 1e-15 * (1.0 + abs(x - p) @ abs(nr))
+        dvn, c, a, vo, jp, we, m = rng.normal(0.0, 1.0, 7)
+        for free in (1.0, 0.0):
+            got = step_laws.wall_dof(dvn, c, nr[0], free, v[0], a, vo, jp, we)
+            assert got == tuple(w[0] for w in wall_dof_np(*arr(dvn, c, nr[0], free, v[0], a, vo, jp, we)))
+        assert step_laws.wall_dof(dvn, c, nr[0], 0.0, v[0], a, vo, jp, we)[:2] == (v[0], a)
+        assert step_laws.wall_dof(dvn, c, nr[0], 1.0, v[0], a, 0.0, jp, we)[2] == we
+        assert step_laws.wall_work(abs(m), we) == wall_work_np(*arr(abs(m), we))[0] == -0.5 * abs(m) * we
+
+
+def test_ramp_laws_are_the_ramp_sum(curves: tuple[Any, dict[str, int]]) -> None:
+    """``ramp_start`` / ``ramp_knot`` (the curve ramp sum of ``laws.curve_at``, the generic kernel's block
+    ramp and the emitted ramp) against the closed form y0 + s0 (e - x0) + sum ds_k max(0, e - x_k), bit
+    for bit, and against the curve's own linear interpolation inside its points (1e-12 relative)."""
+    b, idx = curves
+    cx, cy, cds, cs0, off = _args(b)
+    rng = np.random.default_rng(RNG_SEED + 14)
+    for _ in range(200):
+        y, ds, e, xk = rng.normal(0.0, 1.0, 4)
+        assert laws.ramp_knot(y, ds, e, xk) == y + ds * max(0.0, e - xk)
+        assert laws.ramp_start(y, ds, e, xk) == y + ds * (e - xk)
+    for name in ("load", "crush", "stiff"):
+        pts = CURVES[name]
+        for e in rng.uniform(min(pts["x"]), max(pts["x"]), 50):
+            got = laws.curve_at(idx[name], e, 0, cx, cy, cds, cs0, off)
+            assert abs(got - np.interp(e, pts["x"], pts["y"])) <= 1e-12 * max(map(abs, pts["y"])), (name, e)

@@ -2,7 +2,7 @@
 
 Every row needs: its schema class (and that class in the ``Material`` union), its laws in
 ``kernel/laws.py``, its NumPy twin, a hand-written branch in both compiled dispatches (the generic
-kernel's force branch in ``kernel/compiled.py`` and the generator's ``gen_springs``), a branch in the
+kernel's force branch in ``kernel/generic_force.py`` and the generator's ``gen_springs``), a branch in the
 reference's force, and a case in the bitwise twin suite (tests/twins.py CASES, run by tests/test_kernel_twins.py). A material added
 to the table but missing one of those fails here, by name, before any kernel runs.
 """
@@ -50,7 +50,7 @@ def test_schema_union_is_the_table() -> None:
 @pytest.mark.parametrize("row", MATERIALS, ids=lambda m: m.name)
 def test_every_row_has_laws_twin_branches_and_a_twin_case(row: MaterialSpec) -> None:
     from crashstudy.arrays import material_laws as twins
-    from crashstudy.kernel import compiled, gen_springs, laws, reference
+    from crashstudy.kernel import compiled, gen_springs, generic_force, laws, reference
 
     for law in row.laws:
         assert hasattr(laws, law), f"{row.name}: law {law} not in kernel/laws.py"
@@ -58,9 +58,9 @@ def test_every_row_has_laws_twin_branches_and_a_twin_case(row: MaterialSpec) -> 
     twin_module = {"material_laws": twins, "reference": reference}[module]
     assert hasattr(twin_module, name.split(" ")[0]), f"{row.name}: twin {row.twin} not found"
     const = _code_name(row)
-    generic = inspect.getsource(compiled)
-    assert f"kind == {const}" in generic or (const == "GENERAL" and "else:  # GENERAL" in generic), (
-        f"{row.name}: no branch in the generic kernel's force dispatch (compiled._run)")
+    generic = inspect.getsource(generic_force) + inspect.getsource(compiled)
+    assert f"kind == {const}" in generic, (
+        f"{row.name}: no branch in the generic kernel's force dispatch (generic_force.force, compiled._run)")
     emitted = inspect.getsource(gen_springs.pass_b_springs)
     assert f"k == codes.{const}" in emitted or (const == "GENERAL" and "mat[s] == codes.GENERAL" in emitted), (
         f"{row.name}: no branch in the generator's dispatch (gen_springs.pass_b_springs)")

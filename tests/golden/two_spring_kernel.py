@@ -2,9 +2,10 @@
 import numba as nb
 import numpy as np
 from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, INVALID, OK, UNSTABLE
-from crashstudy.kernel.laws import collapsed, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, energy_increment, ext_power, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, time_window, wall_force, wall_hold, wall_impulse, wall_jump, wall_penalty, work_increment, elastoplastic_law, energy_first_half, broken_at, energy_balance, unstable_limit, unstable, stop_test
+from crashstudy.kernel.laws import axis_2d, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, ramp_knot, ramp_start, time_window, elastoplastic_law, broken_at
+from crashstudy.kernel.step_laws import advance, energy_balance, energy_first_half, energy_increment, ext_power, half_step, kinetic, spring_extremes, stop_test, unstable, unstable_limit, wall_dof, wall_force, wall_hold, wall_impulse, wall_jump, wall_penalty, wall_plane, wall_work, work_increment
 
-_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 15, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
+_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 16, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
 
 
 @nb.njit(nogil=True, error_model="numpy", cache=True)
@@ -144,7 +145,7 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
                 dtw = Z[0 + w]
                 d1 = Z[2640 + w] - Z[2904 + w]
                 e0 = elongation_1d(1.0, d1, 0.0)
-                F0 = nonlinear_force((((k_cy0_0 + k_s0_0 * (e0 - k_cx0)) + k_ds1 * peak(0.0, e0 - k_cx1)) + k_ds2 * peak(0.0, e0 - k_cx2)))
+                F0 = nonlinear_force(ramp_knot(ramp_knot(ramp_start(k_cy0_0, k_s0_0, e0, k_cx0), k_ds1, e0, k_cx1), k_ds2, e0, k_cx2))
                 d1 = Z[2640 + w] - Z[2904 + w]
                 d2 = Z[4224 + w] - Z[4488 + w]
                 e1 = elongation_1d(1.0, d2, d1)
@@ -152,36 +153,30 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
                 ie_tot = 0.0
                 Z[6072 + w] = energy_increment(Z[6072 + w], F0, Z[5544 + w], e0, Z[5808 + w], afw)
                 ie_tot = ie_tot + Z[6072 + w]
-                Z[6336 + w] = peak(Z[6336 + w], abs(F0) * af)
-                Z[6600 + w] = peak(Z[6600 + w], -e0 * af)
-                Z[6864 + w] = peak(Z[6864 + w], e0 * af)
+                Z[6336 + w], Z[6600 + w], Z[6864 + w] = spring_extremes(Z[6336 + w], Z[6600 + w], Z[6864 + w], F0, af, e0, af)
                 Z[5544 + w] = F0
                 Z[5808 + w] = e0
                 Z[8184 + w] = energy_increment(Z[8184 + w], F1, Z[7656 + w], e1, Z[7920 + w], afw)
                 ie_tot = ie_tot + Z[8184 + w]
-                Z[8448 + w] = peak(Z[8448 + w], abs(F1) * af)
-                Z[8712 + w] = peak(Z[8712 + w], -e1 * af)
-                Z[8976 + w] = peak(Z[8976 + w], e1 * af)
+                Z[8448 + w], Z[8712 + w], Z[8976 + w] = spring_extremes(Z[8448 + w], Z[8712 + w], Z[8976 + w], F1, af, e1, af)
                 Z[7656 + w] = F1
                 Z[7920 + w] = e1
                 ke = 0.0
                 fs = ((0.0 - F0) + F1)
                 a = (fs + 0.0) * Z[3432 + w]
                 vo_0 = Z[3168 + w]
-                vn_0 = vo_0 + (h * dtw) * a
+                vn_0 = half_step(vo_0, a, h * dtw)
                 a_0 = a
-                ke = ke + 0.5 * Z[2112 + w] * vo_0 * vn_0
-                Z[2640 + w] = Z[2640 + w] + (dtw * af) * vn_0
-                Z[3168 + w] = vn_0 * af + vo_0 * (1.0 - af)
+                ke = kinetic(ke, Z[2112 + w], vo_0, vn_0)
+                Z[2640 + w], Z[3168 + w] = advance(Z[2640 + w], vo_0, vn_0, dtw, af)
                 Z[2376 + w] = peak(Z[2376 + w], (0.0 + a_0 * a_0) * af)
                 fs = (0.0 - F1)
                 a = (fs + 0.0) * Z[5016 + w]
                 vo_0 = Z[4752 + w]
-                vn_0 = vo_0 + (h * dtw) * a
+                vn_0 = half_step(vo_0, a, h * dtw)
                 a_0 = a
-                ke = ke + 0.5 * Z[3696 + w] * vo_0 * vn_0
-                Z[4224 + w] = Z[4224 + w] + (dtw * af) * vn_0
-                Z[4752 + w] = vn_0 * af + vo_0 * (1.0 - af)
+                ke = kinetic(ke, Z[3696 + w], vo_0, vn_0)
+                Z[4224 + w], Z[4752 + w] = advance(Z[4224 + w], vo_0, vn_0, dtw, af)
                 Z[3960 + w] = peak(Z[3960 + w], (0.0 + a_0 * a_0) * af)
                 ke = ke if wt > 0.0 else Z[792 + w]
                 bal = energy_balance(ke, ie_tot, 0.0, Z[792 + w], 0.0)

@@ -48,9 +48,9 @@ def pass_b(g: Layout, ind: str) -> None:
             for n in g.walls[wl]:
                 if not g.static[n]:
                     g.emit(f"{i2}wall_e = wall_e + we{wl}_{n} if af > 0.0 else wall_e")
-            g.emit(f"{i2}{g.R[f'pw{wl}']} = peak({g.R[f'pw{wl}']}, wf{wl} * af)")
+            g.emit(f"{i2}{g.R['pw', wl]} = peak({g.R['pw', wl]}, wf{wl} * af)")
             if "wall_force" in g.hist:
-                g.emit(f"{i2}{g.R[f'wf{wl}']} = wf{wl}")
+                g.emit(f"{i2}{g.R['wf', wl]} = wf{wl}")
         g.emit(f"{i2}{g.R['wall_e']} = wall_e")
     g.emit(f"{i2}ke = ke if wt > 0.0 else {g.R['ke0']}")
     wall = "(wall_e if n > 0 else 0.0)" if g.W else "0.0"  # t = 0: before any impact
@@ -75,9 +75,9 @@ def pass_b(g: Layout, ind: str) -> None:
     if g.term:  # early termination (docs/format.md): decided for running lanes after the failure check
         g.emit(f"{i2}edmin = np.inf")
         for s in range(g.S):
-            g.emit(f"{i2}edmin = least(edmin, {g.R[f'ed{s}'] if g.mat[s] == GENERAL else edot(g, s)})")
+            g.emit(f"{i2}edmin = least(edmin, {g.R['ed', s] if g.mat[s] == GENERAL else edot(g, s)})")
         g.emit(f"{i2}fsum = {_lsum([f'abs(F{s})' for s in range(g.S)])}")
-        g.emit(f"{i2}psum = {_lsum([g.R[f'pf{s}'] for s in range(g.S)])}")
+        g.emit(f"{i2}psum = {_lsum([g.R['pf', s] for s in range(g.S)])}")
         g.emit(f"{i2}kef = {g.R['kef']}")
         g.emit(f"{i2}opening = " + ("False" if g.ext else "edmin >= 0.0"))
         test = f"stop_test(kef, fsum, psum, ke, {g.R[g.ES]}, {g.R['wmax'] if g.ext else '0.0'}, opening)"
@@ -97,7 +97,7 @@ def _chain(g: Layout, n: int, d: int, force: Any, axis: Any) -> str:
             if g.D > 1:
                 out = f"({out} {op} {term} * {axis(s, d)})"
             elif g.sign[s] == 0:
-                out = f"({out} {op} {term} * {g.R[f'sg{s}']})"
+                out = f"({out} {op} {term} * {g.R['sg', s]})"
             else:  # a - b == a + (-b): the sign folds into the operator exactly
                 out = f"({out} {op if g.sign[s] == 1 else ('-' if op == '+' else '+')} {term})"
     return out
@@ -113,15 +113,15 @@ def emit_results(g: Layout, ind: str) -> None:
     g.emit(f"{ind}elif n_fail[w] > 0:")
     g.emit(f"{ind}    t_end[q] = (n_fail[w] - 1) * {g.R['dt']}")
     for s in range(g.S):
-        g.emit(f"{ind}absorbed[{s}, q] = {g.R[f'ie{s}']}")
-        g.emit(f"{ind}peak_force[{s}, q] = {g.R[f'pf{s}']}")
-        g.emit(f"{ind}max_crush[{s}, q] = {g.R[f'mc{s}']}")
-        g.emit(f"{ind}max_elongation[{s}, q] = {g.R[f'me{s}']}")
+        g.emit(f"{ind}absorbed[{s}, q] = {g.R['ie', s]}")
+        g.emit(f"{ind}peak_force[{s}, q] = {g.R['pf', s]}")
+        g.emit(f"{ind}max_crush[{s}, q] = {g.R['mc', s]}")
+        g.emit(f"{ind}max_elongation[{s}, q] = {g.R['me', s]}")
     for n in range(g.N):
-        g.emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if g.static[n] or not g.movable[n] else f"np.sqrt({g.R[f'pa{n}']})"))
+        g.emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if g.static[n] or not g.movable[n] else f"np.sqrt({g.R['pa', n]})"))
     for wl in range(g.W):
-        g.emit(f"{ind}peak_wall[{wl}, q] = {g.R[f'pw{wl}']}")
-        g.emit(f"{ind}w_impulse[{wl}, q] = {g.R[f'wi{wl}']}")
+        g.emit(f"{ind}peak_wall[{wl}, q] = {g.R['pw', wl]}")
+        g.emit(f"{ind}w_impulse[{wl}, q] = {g.R['wi', wl]}")
 
 
 def node(g: Layout, i2: str, n: int) -> None:
@@ -129,88 +129,84 @@ def node(g: Layout, i2: str, n: int) -> None:
     work, walls, kinetic energy, x^{n+1} and peak |a|."""
     held = [wl for wl in range(g.W) if n in g.walls[wl]]
     for wl in held:  # penalty walls: force k pen of x^n, stored energy (0 for a rigid wall)
-        gap = _lsum([f"({g.R[f'x{n}_{d}']} - {g.R[f'wp{wl}_{d}']}) * {g.R[f'wn{wl}_{d}']}" for d in range(g.D)])
-        g.emit(f"{i2}fp{wl}, ep = wall_penalty({g.R[f'wk{wl}']}, {gap})")
+        gap = _lsum([f"({g.R['x', n, d]} - {g.R['wp', wl, d]}) * {g.R['wn', wl, d]}" for d in range(g.D)])
+        g.emit(f"{i2}fp{wl}, ep = wall_penalty({g.R['wk', wl]}, {gap})")
         g.emit(f"{i2}wf{wl} = wf{wl} + fp{wl}")
-        g.emit(f"{i2}pe{wl}_{n} = ep - {g.R[f'pen{wl}_{n}']}")
-        g.emit(f"{i2}{g.R[f'pen{wl}_{n}']} = ep")
+        g.emit(f"{i2}pe{wl}_{n} = ep - {g.R['pen', wl, n]}")
+        g.emit(f"{i2}{g.R['pen', wl, n]} = ep")
     for d in range(g.D):
         chain = _chain(g, n, d, lambda s: f"F{s}", lambda s, d: f"ax{s}_{d}")
         for wl in held:
-            chain = f"({chain} + fp{wl} * {g.R[f'wn{wl}_{d}']})"
-        fext = f"{g.R[f'm{n}']} * {g.R[f'g{d}']}" if g.grav else "0.0"
+            chain = f"({chain} + fp{wl} * {g.R['wn', wl, d]})"
+        fext = f"{g.R['m', n]} * {g.R['g', d]}" if g.grav else "0.0"
         if n in g.loaded:  # gravity, then the loads on this node in load order
             for k, (p, _) in enumerate(g.loads):
                 if p == n:
-                    fext = f"({fext} + {g.R[f'lf{k}_{d}']} * sc{k})"
+                    fext = f"({fext} + {g.R['lf', k, d]} * sc{k})"
             g.emit(f"{i2}fx_{d} = {fext}")
             fext = f"fx_{d}"
         g.emit(f"{i2}fs = {chain}")
-        g.emit(f"{i2}a = (fs + {fext}) * {g.R[f'im{n}_{d}']}")
-        g.emit(f"{i2}vo_{d} = {g.R[f'v{n}_{d}']}")
-        g.emit(f"{i2}vn_{d} = vo_{d} + (h * dtw) * a")
+        g.emit(f"{i2}a = (fs + {fext}) * {g.R['im', n, d]}")
+        g.emit(f"{i2}vo_{d} = {g.R['v', n, d]}")
+        g.emit(f"{i2}vn_{d} = half_step(vo_{d}, a, h * dtw)")
         for k, (p, dd, kind, c) in enumerate(g.pm):  # prescribed motion of this dof, in order
             if (p, dd) != (n, d):
                 continue
-            sc = g.R[f"pms{k}"]
+            sc = g.R["pms", k]
             kn = PM_NAMES[kind]
             time_curve(g, i2, "tc", c, f"prescribed_time({kn}, fn * dtw, dtw)")
-            x0, x = g.R[f"x0{n}_{d}"], g.R[f"x{n}_{d}"]
+            x0, x = g.R["x0", n, d], g.R["x", n, d]
             g.emit(f"{i2}vn_{d} = prescribed_velocity({kn}, {x0}, {sc}, tc, {x}, vo_{d}, dtw, h * dtw)")
-            pa = g.R[f"pma{k}"]
+            pa = g.R["pma", k]
             g.emit(f"{i2}vn_{d}, a = prescribed_step(fn == {g.R['nst']}, vn_{d}, vo_{d}, {pa}, h * dtw)")
             g.emit(f"{i2}{pa} = a")
-            g.emit(f"{i2}fx_{d} = fx_{d} + ({g.R[f'm{n}']} * a - (fs + fx_{d}))")
+            g.emit(f"{i2}fx_{d} = fx_{d} + ({g.R['m', n]} * a - (fs + fx_{d}))")
         g.emit(f"{i2}a_{d} = a")
         if n in g.record:  # kept for the per-step record (crash criteria), written after the failure check
-            g.emit(f"{i2}{g.R[f'am{n}_{d}']} = a")
+            g.emit(f"{i2}{g.R['am', n, d]} = a")
         if n in g.loaded:  # external work: trapezoid with the previous step's force (R fx)
-            g.emit(f"{i2}vb = 0.5 * ({g.R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
-            g.emit(f"{i2}bal = ext_power(bal, fx_{d}, vo_{d}, {g.R[f'fx{n}_{d}']}, vb)")
-            g.emit(f"{i2}{g.R[f'fx{n}_{d}']} = fx_{d}")
+            g.emit(f"{i2}vb = 0.5 * ({g.R['v0', n, d]} + vo_{d}) if n1 else vo_{d}")
+            g.emit(f"{i2}bal = ext_power(bal, fx_{d}, vo_{d}, {g.R['fx', n, d]}, vb)")
+            g.emit(f"{i2}{g.R['fx', n, d]} = fx_{d}")
         elif g.grav:  # external work of gravity: trapezoid, f_ext^0 over the first half step
-            g.emit(f"{i2}vb = 0.5 * ({g.R[f'v0{n}_{d}']} + vo_{d}) if n1 else vo_{d}")
+            g.emit(f"{i2}vb = 0.5 * ({g.R['v0', n, d]} + vo_{d}) if n1 else vo_{d}")
             g.emit(f"{i2}bal = ext_power(bal, ({fext}), vo_{d}, ({fext}) * wt, vb)")
         if n in g.keep_a:  # a^{n-1}: dampers' velocity estimate, knot crossings (R ao)
-            g.emit(f"{i2}{g.R[f'ao{n}_{d}']} = {g.R[f'a{n}_{d}']}")
-            g.emit(f"{i2}{g.R[f'a{n}_{d}']} = a")
+            g.emit(f"{i2}{g.R['ao', n, d]} = {g.R['a', n, d]}")
+            g.emit(f"{i2}{g.R['a', n, d]} = a")
     for wl in held:  # rigid walls, in wall order
         wall(g, i2, n, wl)
     for d in range(g.D if held else 0):  # a^n with the walls' contact forces (held: 0)
         if n in g.keep_a:
-            g.emit(f"{i2}{g.R[f'a{n}_{d}']} = a_{d}")
+            g.emit(f"{i2}{g.R['a', n, d]} = a_{d}")
         if n in g.record:
-            g.emit(f"{i2}{g.R[f'am{n}_{d}']} = a_{d}")
+            g.emit(f"{i2}{g.R['am', n, d]} = a_{d}")
         if "acceleration" in g.hist:
-            g.emit(f"{i2}{g.R[f'wa{n}_{d}']} = a_{d}")
+            g.emit(f"{i2}{g.R['wa', n, d]} = a_{d}")
     for d in range(g.D):
-        x, v = g.R[f"x{n}_{d}"], g.R[f"v{n}_{d}"]
-        g.emit(f"{i2}ke = ke + 0.5 * {g.R[f'm{n}']} * vo_{d} * vn_{d}")
-        g.emit(f"{i2}{x} = {x} + (dtw * af) * vn_{d}")
-        g.emit(f"{i2}{v} = vn_{d} * af + vo_{d} * (1.0 - af)")
+        x, v = g.R["x", n, d], g.R["v", n, d]
+        g.emit(f"{i2}ke = kinetic(ke, {g.R['m', n]}, vo_{d}, vn_{d})")
+        g.emit(f"{i2}{x}, {v} = advance({x}, vo_{d}, vn_{d}, dtw, af)")
     if g.movable[n]:
         a2 = _lsum([f"a_{d} * a_{d}" for d in range(g.D)])
-        g.emit(f"{i2}{g.R[f'pa{n}']} = peak({g.R[f'pa{n}']}, {a2} * af)")
+        g.emit(f"{i2}{g.R['pa', n]} = peak({g.R['pa', n]}, {a2} * af)")
 
 
 def wall(g: Layout, i2: str, n: int, wl: int) -> None:
     """Rigid wall wl on node n: land on the plane, no velocity into it."""
-    nr = [g.R[f"wn{wl}_{d}"] for d in range(g.D)]
-    pt = [g.R[f"wp{wl}_{d}"] for d in range(g.D)]
-    xw = [g.R[f"x{n}_{d}"] for d in range(g.D)]
-    g.emit(f"{i2}wv = {_lsum([f'vn_{d} * {nr[d]}' for d in range(g.D)])}")
-    g.emit(f"{i2}gap = {_lsum([f'({xw[d]} - {pt[d]}) * {nr[d]}' for d in range(g.D)])}")
-    g.emit(f"{i2}dist = {_lsum([f'(({xw[d]} + dtw * vn_{d}) - {pt[d]}) * {nr[d]}' for d in range(g.D)])}")
-    g.emit(f"{i2}dvn = wall_jump(wv, gap, dist, dtw, {g.R[f'wk{wl}']})")
+    nr = [g.R["wn", wl, d] for d in range(g.D)]
+    pt = [g.R["wp", wl, d] for d in range(g.D)]
+    xw = [g.R["x", n, d] for d in range(g.D)]
+    g.emit(f"{i2}wv, gap, dist = 0.0, 0.0, 0.0")
+    for d in range(g.D):
+        g.emit(f"{i2}wv, gap, dist = wall_plane(wv, gap, dist, vn_{d}, {xw[d]}, {pt[d]}, {nr[d]}, dtw)")
+    g.emit(f"{i2}dvn = wall_jump(wv, gap, dist, dtw, {g.R['wk', wl]})")
     g.emit(f"{i2}c = wall_hold(dvn, {_lsum([f'a_{d} * {nr[d]}' for d in range(g.D)])}, h * dtw)")
     g.emit(f"{i2}we = 0.0")
     for d in range(g.D):
-        jp = g.R[f"jp{wl}_{n}_{d}"]
-        g.emit(f"{i2}jmp = dvn * {nr[d]} * {float(g.free[n][d])!r}")
-        g.emit(f"{i2}vn_{d} = vn_{d} + jmp")
-        g.emit(f"{i2}a_{d} = a_{d} + c * {nr[d]} * {float(g.free[n][d])!r}")
-        g.emit(f"{i2}we = we + vo_{d} * (jmp + {jp})")
-        g.emit(f"{i2}{jp} = jmp")
-    g.emit(f"{i2}we{wl}_{n} = -0.5 * {g.R[f'm{n}']} * we")
-    g.emit(f"{i2}wf{wl} = wf{wl} + wall_force({g.R[f'm{n}']}, c)")
-    g.emit(f"{i2}{g.R[f'wi{wl}']} = {g.R[f'wi{wl}']} + wall_impulse({g.R[f'm{n}']}, dvn, c, h * dtw) * af")
+        jp = g.R["jp", wl, n, d]
+        free = float(g.free[n][d])
+        g.emit(f"{i2}vn_{d}, a_{d}, we, {jp} = wall_dof(dvn, c, {nr[d]}, {free!r}, vn_{d}, a_{d}, vo_{d}, {jp}, we)")
+    g.emit(f"{i2}we{wl}_{n} = wall_work({g.R['m', n]}, we)")
+    g.emit(f"{i2}wf{wl} = wf{wl} + wall_force({g.R['m', n]}, c)")
+    g.emit(f"{i2}{g.R['wi', wl]} = {g.R['wi', wl]} + wall_impulse({g.R['m', n]}, dvn, c, h * dtw) * af")

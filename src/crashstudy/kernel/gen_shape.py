@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from crashstudy import environment
+from crashstudy.kernel.gen_constants import _const_layout, _constant_curves, _factor_curves
+from crashstudy.kernel.gen_rows import Coef, CoefName, Rows, Scalar, coef_name
 from crashstudy.vocabulary.codes import (
     ELASTOPLASTIC,
     ENERGIES,
@@ -22,7 +24,7 @@ from crashstudy.vocabulary.materials import KNOT_MATERIALS, RATE_MATERIALS, spec
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-GEN_VERSION = 15  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 16  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = environment.gen_block()  # variants per block (CRASHSTUDY_GEN_BLOCK)
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 
@@ -47,77 +49,6 @@ def unsupported(b: Batch) -> str | None:
 
 # ---------------------------------------------------------------------------------------------
 # shape of a model: what the source depends on
-
-
-def _constant_curves(b: Batch, vary: frozenset[int] | None) -> list[int]:
-    """Curves whose coefficients are the same in every variant of ``b`` and, when ``vary`` (the curves a
-    study changes, :attr:`crashstudy.study.plan.Plan.varying_curves`) is given, not among those: their
-    numbers stay in registers."""
-    out = []
-    for c in range(len(b.curve_off) - 1):
-        a0, b0 = b.curve_off[c], b.curve_off[c + 1]
-        if vary is not None and (c in vary or -1 - c in vary):
-            continue
-        rows = [b.cx[a0:b0], b.cy[a0:b0], b.cds[a0:b0], b.knot_y[a0:b0], b.cs0[c : c + 1]]
-        if all(np.all(r == r[:, :1]) for r in rows):
-            out.append(c)
-    return out
-
-
-def _factor_curves(b: Batch, vary: frozenset[int] | None, const: list[int]) -> list[int]:
-    """Curves with a constant shape (the points as written, the same in every variant) whose variants
-    differ by their factors only (``curves.<id>.scale``, ``x_scale``: Batch.cfac): the shape stays in
-    registers and a lane carries its three factors (an effective coefficient is shape x factor, the
-    product arrays.batch.build_batch takes)."""
-    out = []
-    for c in range(len(b.curve_off) - 1):
-        a0, b0 = b.curve_off[c], b.curve_off[c + 1]
-        if c in const or (vary is not None and c in vary):
-            continue
-        if all(np.all(r == r[:, :1]) for r in (b.bx[a0:b0], b.by[a0:b0])):
-            out.append(c)
-    return out
-
-
-def _const_layout(shape: dict[str, Any]) -> list[tuple[str, str, int]]:
-    """(coefficient name, Batch array, row) of every register coefficient the springs read, in the order
-    of the kernel's ``cst`` argument: the constant curves' coefficients and the factor curves' shapes
-    (arrays ``bcy``, ``bs0``, ``bds``, ``bx``: see :func:`_constants`)."""
-    off, S = shape["off"], shape["S"]
-    fac = set(shape.get("fac", ()))
-    tcurves = {c for _, c in shape["loads"] if c >= 0} | {c for _, _, _, c in shape["pm"]}
-    used = {c for s in range(S) for c in (shape["ca"][s], shape["cb"][s]) if c >= 0} | tcurves
-    used |= {c for cs in shape.get("rc", ()) for c in cs}
-    out = []
-    for c in shape["const"] + sorted(fac):
-        if c not in used:
-            continue
-        cx, cy, cds, cs0 = ("bx", "by", "bds", "bs0") if c in fac else ("cx", "cy", "cds", "cs0")
-        if c in tcurves:
-            out.append((f"cx{off[c + 1] - 1}", cx, off[c + 1] - 1))
-        out += [(f"cy0_{c}", cy, off[c]), (f"s0_{c}", cs0, c)]
-        for k in range(off[c], off[c + 1] - 1):
-            out.append((f"cx{k}", cx, k))
-            if k > off[c]:
-                out.append((f"ds{k}", cds, k))
-            if k in shape["kcheck"] and c not in fac:  # a factor curve's knot forces: per-variant rows
-                out.append((f"kyv{k}", "knot_y", k))
-    return out
-
-
-def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
-    """The ``cst`` argument: the constant curves' coefficients (the same in every variant) and the
-    factor curves' shape coefficients (from the points as written, as arrays.batch.build_batch)."""
-    off = b.curve_off
-    with np.errstate(all="ignore"):
-        slope = [np.diff(b.by[off[c] : off[c + 1], :1], axis=0) / np.diff(b.bx[off[c] : off[c + 1], :1], axis=0)
-                 for c in range(len(off) - 1)]  # fmt: skip
-    bds = np.zeros((len(b.bx), 1))
-    for c, sl in enumerate(slope):
-        bds[off[c] + 1 : off[c + 1] - 1] = np.diff(sl, axis=0)
-    arrays = {"bx": b.bx, "by": b.by, "bds": bds, "bs0": np.array([sl[0] for sl in slope]).reshape(-1, 1)}
-    return np.array([(arrays[arr] if arr in arrays else getattr(b, arr))[row, 0]
-                     for _, arr, row in _const_layout(shape)] + [0.0])  # fmt: skip
 
 
 def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None,
@@ -148,23 +79,6 @@ def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = N
         **({"record": [int(n) for n in record]} if record else {}),
         **({"rc": rc} if any(rc) else {}),  # rate_elastic: each spring's curves (a key only when there are some)
     }  # fmt: skip
-
-
-class _Rows:
-    """Row numbers of the block work array, handed out by name."""
-
-    def __init__(self) -> None:
-        self.n = 0
-        self.at: dict[str, int] = {}
-
-    def add(self, name: str) -> int:
-        self.at[name] = self.n
-        self.n += 1
-        return self.at[name]
-
-    def __getitem__(self, name: str) -> str:
-        """The work-array element of row ``name`` for lane ``w``, as source text."""
-        return f"Z[{self.at[name] * ROW} + w]"
 
 
 def _lsum(terms: list[str]) -> str:
@@ -205,20 +119,20 @@ class Layout:
     general: list[int]  # general_nonlinear springs
     fragile: list[int]  # springs that can break
     pre: list[int]  # preloaded springs
-    E0: str  # the row of the energy at t = 0
-    ES: str  # the row of the energy scale
+    E0: Scalar  # the row of the energy at t = 0
+    ES: Scalar  # the row of the energy scale
     kcheck: set[int]  # knots that can hold a peak of |force|
     knots: dict[int, list[int]]  # those knots per spring following that curve
     knotted: list[int]
     keep_a: set[int]  # nodes whose a^{n-1} is kept
-    R: _Rows
+    R: Rows
     live: list[int]  # nodes that are not static
     rc: list[list[int]]  # rate_elastic: each spring's curves, in rate order
     ro: list[int]  # where they start in Batch.rate_at
     curves: list[int]  # every curve the source evaluates
-    cname: dict[str, str]  # coefficient -> local constant
+    cname: dict[Coef, str]  # coefficient -> local constant
     record: list[int]  # nodes whose a^n is kept at every step
-    co: Callable[[str], str]
+    co: Callable[[CoefName, int], str]
     ramp: Callable[[int, str], str]
     L: list[str]
     emit: Callable[[str], None]
@@ -240,31 +154,32 @@ def layout(shape: dict[str, Any]) -> Layout:
     dampers = any(mat[s] in RATE_MATERIALS for s in range(S))
     fragile = shape["fragile"]  # springs that can break (failure): thresholds and a broken flag
     pre = shape["pre"]  # preloaded springs (initial_elongation): e0, the rate at t = 0, KE0 + IE0
-    E0 = "ein" if pre else "ke0"  # the row of the energy at t = 0
-    ES = "esc" if pre else "ke0"  # the row of the energy scale KE0 + |IE0| (the error's and the stop tests' scale)
+    E0: Scalar = "ein" if pre else "ke0"  # the row of the energy at t = 0
+    ES: Scalar = "esc" if pre else "ke0"  # the row of the energy scale KE0 + |IE0| (the error's and the stop tests' scale)
     kcheck = set(shape["kcheck"])
     # knots that can hold a peak of |force| (Batch.knot_check), per spring following that curve
     knots = {s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
              for s in range(S) if mat[s] in KNOT_MATERIALS and ca[s] >= 0}  # fmt: skip
     knotted = [s for s in range(S) if knots.get(s)]
     keep_a = {n for n in range(N) if not static[n] and (dampers or term or (movable[n] and any(
-        n in (si[s], sj[s]) for s in knotted)))}  # fmt: skip  (a^{n-1} kept: dampers, knot crossings)
-    R = _Rows()
-    for name in ("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl") + (("kef", "tmin", "stop") if term else ()) + (
-            ("ein", "esc") if pre else ()):  # fmt: skip
-        R.add(name)
+        n in (si[s], sj[s]) for s in knotted)))}  # a^{n-1} kept: dampers, knot crossings  # fmt: skip
+    R = Rows(ROW)
+    R.each(("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl"))
+    if term:
+        R.each(("kef", "tmin", "stop"))
+    if pre:
+        R.each(("ein", "esc"))
     if ext:
-        for name in ("work", "wmax"):
-            R.add(name)
+        R.each(("work", "wmax"))
     if grav:
         for d in range(D):
-            R.add(f"g{d}")
+            R.add("g", d)
     for k in range(len(loads)):
         for d in range(D):
-            R.add(f"lf{k}_{d}")
+            R.add("lf", k, d)
     for k in range(len(pm)):
-        R.add(f"pms{k}")
-        R.add(f"pma{k}")
+        R.add("pms", k)
+        R.add("pma", k)
     if pm:
         R.add("nst")
     if D > 1:
@@ -272,116 +187,120 @@ def layout(shape: dict[str, Any]) -> Layout:
     if W:
         R.add("wall_e")
     for wl in range(W):
-        R.add(f"pw{wl}")
-        R.add(f"wi{wl}")
-        R.add(f"wk{wl}")
+        R.add("pw", wl)
+        R.add("wi", wl)
+        R.add("wk", wl)
         if "wall_force" in hist:
-            R.add(f"wf{wl}")
+            R.add("wf", wl)
         for d in range(D):
-            R.add(f"wn{wl}_{d}")
-            R.add(f"wp{wl}_{d}")
+            R.add("wn", wl, d)
+            R.add("wp", wl, d)
         for n in walls[wl]:
             for d in range(D if not static[n] else 0):
-                R.add(f"jp{wl}_{n}_{d}")
+                R.add("jp", wl, n, d)
             if not static[n]:
-                R.add(f"pen{wl}_{n}")
+                R.add("pen", wl, n)
     live = [n for n in range(N) if not static[n]]
     for n in range(N if D > 1 else 0):
         if static[n]:
             for d in range(D):
-                R.add(f"xs{n}_{d}")
+                R.add("xs", n, d)
     for n in live:
-        for f in ("m", "pa"):
-            R.add(f"{f}{n}")
+        R.each(("m", "pa"), n)
         for d in range(D):
-            for f in ("x", "x0", "v", "im") + (("a", "ao") if n in keep_a else ()) + (("v0",) if ext else ()) + (
-                    ("fx",) if n in loaded else ()):  # fmt: skip
-                R.add(f"{f}{n}_{d}")
+            R.each(("x", "x0", "v", "im"), n, d)
+            if n in keep_a:
+                R.each(("a", "ao"), n, d)
+            if ext:
+                R.add("v0", n, d)
+            if n in loaded:
+                R.add("fx", n, d)
     rc = shape.get("rc", [[] for _ in range(S)])  # rate_elastic: each spring's curves, in rate order
     ro = [sum(len(cs) for cs in rc[:s]) for s in range(S)]  # and where they start in Batch.rate_at
     curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0} | set(tcurves) | {c for cs in rc for c in cs})
-    cname = {nm: f"k_{nm}" for nm, _, _ in _const_layout(shape)}  # coefficient -> local constant
+    cname = {key: f"k_{coef_name(key)}" for key, _, _ in _const_layout(shape)}  # coefficient -> local constant
     fac = shape.get("fac", [])
-    cmul: dict[str, str] = {}  # a factor curve's coefficient -> the row of its lane's factor
+    cmul: dict[Coef, str] = {}  # a factor curve's coefficient -> the row of its lane's factor
     for c in curves:
         if c in const:
             continue
         if c in fac:  # the shape in registers, the lane's factors ys, xs, ys / xs in rows
-            for f in ("fy", "fx", "ff"):
-                R.add(f"{f}{c}")
-            cmul[f"cy0_{c}"], cmul[f"s0_{c}"] = R[f"fy{c}"], R[f"ff{c}"]
+            R.each(("cfy", "cfx", "cff"), c)
+            cmul["cy0", c], cmul["s0", c] = R["cfy", c], R["cff", c]
             for k in range(off[c], off[c + 1]):
-                cmul[f"cx{k}"], cmul[f"ds{k}"] = R[f"fx{c}"], R[f"ff{c}"]
+                cmul["cx", k], cmul["ds", k] = R["cfx", c], R["cff", c]
                 if k in kcheck and k < off[c + 1] - 1:
-                    R.add(f"kyv{k}")
+                    R.add("kyv", k)
             continue
-        R.add(f"cy0_{c}")
-        R.add(f"s0_{c}")
+        R.add("cy0", c)
+        R.add("s0", c)
         for k in range(off[c], off[c + 1] - 1):
-            R.add(f"cx{k}")
+            R.add("cx", k)
             if k > off[c]:
-                R.add(f"ds{k}")
+                R.add("ds", k)
             if k in kcheck:
-                R.add(f"kyv{k}")
+                R.add("kyv", k)
         if c in tcurves:
-            R.add(f"cx{off[c + 1] - 1}")
+            R.add("cx", off[c + 1] - 1)
     for s in range(S):
-        for f in ("kp", "fp", "ep", "ie", "pf", "mc", "me") + (("sg",) if D == 1 else ("l0",)) + (
-                ("kh", "kth") if s in knotted else ()):  # fmt: skip
-            R.add(f"{f}{s}")
+        R.each(("kp", "fp", "ep", "ie", "pf", "mc", "me"), s)
+        R.add("sg" if D == 1 else "l0", s)
+        if s in knotted:
+            R.each(("kh", "kth"), s)
         for d in range(D if s in knotted else 0):
-            R.add(f"kdf{s}_{d}")
+            R.add("kdf", s, d)
         for d in range(D if D > 1 else 0):
-            R.add(f"ap{s}_{d}")  # previous direction (un-normalised)
+            R.add("ap", s, d)  # previous direction (un-normalised)
         for k in range(0 if s in general else spec(mat[s]).state_rows):  # general_nonlinear's follow its rows below
-            R.add(f"st{s}_{k}")
+            R.add("st", s, k)
         if mat[s] == ELASTOPLASTIC:
-            R.add(f"kt{s}")
-            R.add(f"fy{s}")
+            R.each(("kt", "fy"), s)
         for k in range(len(rc[s])):
-            R.add(f"rt{s}_{k}")
+            R.add("rt", s, k)
         if s in pre:
-            R.add(f"e0{s}")
-            R.add(f"r0{s}")
+            R.add("e0", s)
+            R.add("r0", s)
         if s in fragile:
-            for f in ("ft", "fc", "br"):
-                R.add(f"{f}{s}")
+            R.each(("ft", "fc", "br"), s)
     for s in general:
-        for f in ("yt", "yc", "F", "E", "rev") + (("gkc", "gkx", "gky", "gksh") if s in knotted else ()) + (
-                ("ed",) if term else ()):  # fmt: skip
-            R.add(f"{f}{s}")
+        R.each(("yt", "yc", "F", "E", "rev"), s)
+        if s in knotted:
+            R.each(("gkc", "gkx", "gky", "gksh"), s)
+        if term:
+            R.add("ed", s)
         for d in range(D if D > 1 else 0):
-            R.add(f"ax{s}_{d}")
+            R.add("ax", s, d)
         for k in range(spec(GENERAL).state_rows):
-            R.add(f"st{s}_{k}")
+            R.add("st", s, k)
     record = shape.get("record", [])  # a^n of these nodes at every step (crash criteria)
     for n in record:
         for d in range(D):
-            R.add(f"am{n}_{d}")
+            R.add("am", n, d)
     if "acceleration" in hist:  # a^n of a wall node with the walls' contact forces
         for n in sorted({n for wn in walls for n in wn} - {n for n in range(N) if static[n]}):
             for d in range(D):
-                R.add(f"wa{n}_{d}")
+                R.add("wa", n, d)
     if hist:
         for n in live:
             for d in range(D):
-                R.add(f"xh{n}_{d}")
-                R.add(f"vh{n}_{d}")
+                R.add("xh", n, d)
+                R.add("vh", n, d)
         for s in range(S):
             for d in range(D if D > 1 else 0):
-                R.add(f"axh{s}_{d}")
+                R.add("axh", s, d)
 
-    def co(name: str) -> str:
-        """A curve coefficient as source: a register, a register times the lane's factor, or a row."""
-        if name in cname:
-            return f"({cname[name]} * {cmul[name]})" if name in cmul else cname[name]
-        return R[name]
+    def co(name: CoefName, i: int) -> str:
+        """Curve coefficient ``name`` of curve or knot ``i`` as source: a register, a register times the
+        lane's factor, or a row."""
+        if (name, i) in cname:
+            return f"({cname[name, i]} * {cmul[name, i]})" if (name, i) in cmul else cname[name, i]
+        return R[name, i]
 
     def ramp(c: int, arg: str) -> str:
         a0, b0 = off[c], off[c + 1]
-        out = f"({co(f'cy0_{c}')} + {co(f's0_{c}')} * ({arg} - {co(f'cx{a0}')}))"
+        out = f"ramp_start({co('cy0', c)}, {co('s0', c)}, {arg}, {co('cx', a0)})"
         for k in range(a0 + 1, b0 - 1):
-            out = f"({out} + {co(f'ds{k}')} * peak(0.0, {arg} - {co(f'cx{k}')}))"
+            out = f"ramp_knot({out}, {co('ds', k)}, {arg}, {co('cx', k)})"
         return out
 
     L: list[str] = []

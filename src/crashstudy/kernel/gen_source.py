@@ -6,19 +6,22 @@ from __future__ import annotations
 
 from typing import Any
 
-from crashstudy.kernel.gen_nodes import _chain, emit_results, pass_b
+from crashstudy.kernel.gen_nodes import emit_results, pass_b
+from crashstudy.kernel.gen_records import ends, failures, records
 from crashstudy.kernel.gen_shape import ROW, Layout, _lsum, layout
 from crashstudy.kernel.gen_springs import pass_a, pass_k
 from crashstudy.vocabulary.codes import ELASTOPLASTIC
 from crashstudy.vocabulary.materials import spec
 
-# the laws a generated module calls (crashstudy.kernel.laws)
-LAWS = ("collapsed", "crush_knot_force", "crush_law", "crush_window", "damper_force", "elongation_1d", "elongation_2d",
-        "end_rate", "energy_increment", "ext_power", "general_law", "general_reverse_call", "general_window",
-        "knot_accel", "knot_crossing", "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window",
-        "peak", "time_window", "wall_force", "wall_hold", "wall_impulse", "wall_jump", "wall_penalty", "work_increment",
-        "elastoplastic_law", "energy_first_half", "broken_at", "energy_balance", "unstable_limit", "unstable", "stop_test")
-PM_LAWS = ("prescribed_time", "prescribed_velocity", "prescribed_step")  # imported by a kernel with prescribed motion  # fmt: skip
+# the laws a generated module calls (crashstudy.kernel.laws, crashstudy.kernel.step_laws)
+LAWS = ("axis_2d", "crush_knot_force", "crush_law", "crush_window", "damper_force", "elongation_1d", "elongation_2d",
+        "end_rate", "general_law", "general_reverse_call", "general_window", "knot_accel", "knot_crossing",
+        "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window", "peak", "ramp_knot", "ramp_start", "time_window",
+        "elastoplastic_law", "broken_at")  # fmt: skip
+STEP_LAWS = ("advance", "energy_balance", "energy_first_half", "energy_increment", "ext_power", "half_step", "kinetic",
+             "spring_extremes", "stop_test", "unstable", "unstable_limit", "wall_dof", "wall_force", "wall_hold",
+             "wall_impulse", "wall_jump", "wall_penalty", "wall_plane", "wall_work", "work_increment")  # fmt: skip
+PM_LAWS = ("prescribed_time", "prescribed_velocity", "prescribed_step")  # imported by a kernel with prescribed motion
 # local name in the generated kernel -> (record, field) of crashstudy.kernel.driver
 RECORD_NAMES = [(n, "P", f) for n, f in (
     ("mass", "mass"), ("inv_mass", "inv_mass"), ("x0", "x0"), ("v0", "v0"), ("sign", "sign"), ("length0", "length0"),
@@ -34,7 +37,7 @@ RECORD_NAMES = [(n, "P", f) for n, f in (
     ("h_elong", "elong"), ("h_energy", "energy"), ("h_wall", "wall"))] + [(n, "O", n) for n in (
     "status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed", "peak_acc", "peak_wall",
     "energy_error", "final_energy", "max_elongation", "spring_fail_time")] + [
-    ("w_impulse", "O", "wall_impulse")]  # fmt: skip  (not "wall_impulse": that name is the law)
+    ("w_impulse", "O", "wall_impulse")]  # not "wall_impulse": that name is the law  # fmt: skip
 
 
 def source(shape: dict[str, Any]) -> str:
@@ -46,7 +49,8 @@ def source(shape: dict[str, Any]) -> str:
         "import numpy as np",
         "from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, INVALID, OK, UNSTABLE"
         + (", PM_ACCELERATION, PM_DISPLACEMENT, PM_VELOCITY" if g.pm else ""),
-        f"from crashstudy.kernel.laws import {', '.join(LAWS + (('rate_segment',) if any(g.rc) else ()) + (PM_LAWS if g.pm else ()))}",
+        f"from crashstudy.kernel.laws import {', '.join(LAWS + (('rate_segment',) if any(g.rc) else ()))}",
+        f"from crashstudy.kernel.step_laws import {', '.join(STEP_LAWS + (PM_LAWS if g.pm else ()))}",
         "",
         f"_SHAPE = {shape!r}",
         "",
@@ -87,8 +91,8 @@ def source(shape: dict[str, Any]) -> str:
         g.emit(f"{i3}    for w in range(B):")
         for n in g.live:
             for d in range(g.D):
-                g.emit(f"{i3}        {g.R[f'xh{n}_{d}']} = {g.R[f'x{n}_{d}']}")
-                g.emit(f"{i3}        {g.R[f'vh{n}_{d}']} = {g.R[f'v{n}_{d}']}")
+                g.emit(f"{i3}        {g.R['xh', n, d]} = {g.R['x', n, d]}")
+                g.emit(f"{i3}        {g.R['vh', n, d]} = {g.R['v', n, d]}")
     pass_b(g, i3)
     if g.knotted:
         pass_k(g, i3)
@@ -104,7 +108,7 @@ def source(shape: dict[str, Any]) -> str:
         g.emit(f"{i3}            rr = (n + (rk - 1) // 2) // rk")
         for m, n in enumerate(g.record):
             for d in range(g.D):
-                g.emit(f"{i3}        h_steps[rr, {m}, {d}, vi[w]] += {g.R[f'am{n}_{d}']}")
+                g.emit(f"{i3}        h_steps[rr, {m}, {d}, vi[w]] += {g.R['am', n, d]}")
     if g.hist:
         records(g, i3)
     ends(g, i3)
@@ -119,7 +123,7 @@ def source(shape: dict[str, Any]) -> str:
         '    """The smallest step limit of a running lane above ``after`` (-1 if none)."""',
         "    out = np.inf",
         "    for w in range(B):",
-        f"        lim = Z[{g.R.at['lim'] * ROW} + w]",
+        f"        lim = Z[{g.R.row('lim') * ROW} + w]",
         "        if lim > after and lim < out:",
         "            out = lim",
         "    return out if out < np.inf else -1.0",
@@ -147,82 +151,83 @@ def lanes(g: Layout, ind: str) -> None:
     for n in range(g.N if g.D > 1 else 0):
         if g.static[n]:
             for d in range(g.D):
-                g.emit(f"{i2}{g.R[f'xs{n}_{d}']} = x0[{n}, {d}, q]")
+                g.emit(f"{i2}{g.R['xs', n, d]} = x0[{n}, {d}, q]")
     g.emit(f"{i2}{g.R['dt']} = dt[q]")
     g.emit(f"{i2}{g.R['efl']} = e_floor[q]")
     for d in range(g.D if g.grav else 0):
-        g.emit(f"{i2}{g.R[f'g{d}']} = gravity[{d}, q]")
+        g.emit(f"{i2}{g.R['g', d]} = gravity[{d}, q]")
     for k in range(len(g.loads)):
         for d in range(g.D):
-            g.emit(f"{i2}{g.R[f'lf{k}_{d}']} = load_force[{k}, {d}, q]")
+            g.emit(f"{i2}{g.R['lf', k, d]} = load_force[{k}, {d}, q]")
     for k in range(len(g.pm)):
-        g.emit(f"{i2}{g.R[f'pms{k}']} = pm_scale[{k}, q]")
+        g.emit(f"{i2}{g.R['pms', k]} = pm_scale[{k}, q]")
     if g.pm:
         g.emit(f"{i2}{g.R['nst']} = float(n_steps[q])")
     fac = g.fac
     for c in g.tcurves:
         if c not in g.const and c not in fac:
-            g.emit(f"{i2}{g.R[f'cx{g.off[c + 1] - 1}']} = cx[{g.off[c + 1] - 1}, q]")
+            g.emit(f"{i2}{g.R['cx', g.off[c + 1] - 1]} = cx[{g.off[c + 1] - 1}, q]")
     for wl in range(g.W):
         for d in range(g.D):
-            g.emit(f"{i2}{g.R[f'wn{wl}_{d}']} = wall_normal[{wl}, {d}, q]")
-            g.emit(f"{i2}{g.R[f'wp{wl}_{d}']} = wall_point[{wl}, {d}, q]")
-        g.emit(f"{i2}{g.R[f'wk{wl}']} = wall_k[{wl}, q]")
+            g.emit(f"{i2}{g.R['wn', wl, d]} = wall_normal[{wl}, {d}, q]")
+            g.emit(f"{i2}{g.R['wp', wl, d]} = wall_point[{wl}, {d}, q]")
+        g.emit(f"{i2}{g.R['wk', wl]} = wall_k[{wl}, q]")
     for n in g.live:
-        g.emit(f"{i2}{g.R[f'm{n}']} = mass[{n}, q]")
+        g.emit(f"{i2}{g.R['m', n]} = mass[{n}, q]")
         for d in range(g.D):
-            g.emit(f"{i2}{g.R[f'x{n}_{d}']} = x0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R[f'x0{n}_{d}']} = x0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R[f'v{n}_{d}']} = v0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R[f'im{n}_{d}']} = inv_mass[{n}, {d}, q]")
+            g.emit(f"{i2}{g.R['x', n, d]} = x0[{n}, {d}, q]")
+            g.emit(f"{i2}{g.R['x0', n, d]} = x0[{n}, {d}, q]")
+            g.emit(f"{i2}{g.R['v', n, d]} = v0[{n}, {d}, q]")
+            g.emit(f"{i2}{g.R['im', n, d]} = inv_mass[{n}, {d}, q]")
             if g.ext:
-                g.emit(f"{i2}{g.R[f'v0{n}_{d}']} = v0[{n}, {d}, q]")
+                g.emit(f"{i2}{g.R['v0', n, d]} = v0[{n}, {d}, q]")
     for c in g.curves:
         if c in g.const:
             continue
         if c in fac:  # force scale, abscissa scale, slope factor; the knot forces (they flag peaks)
-            for i, f in enumerate(("fy", "fx", "ff")):
-                g.emit(f"{i2}{g.R[f'{f}{c}']} = cfac[{i}, {c}, q]")
+            g.emit(f"{i2}{g.R['cfy', c]} = cfac[0, {c}, q]")
+            g.emit(f"{i2}{g.R['cfx', c]} = cfac[1, {c}, q]")
+            g.emit(f"{i2}{g.R['cff', c]} = cfac[2, {c}, q]")
             for k in range(g.off[c], g.off[c + 1] - 1):
                 if k in g.kcheck:
-                    g.emit(f"{i2}{g.R[f'kyv{k}']} = knot_y[{k}, q]")
+                    g.emit(f"{i2}{g.R['kyv', k]} = knot_y[{k}, q]")
             continue
         a0 = g.off[c]
-        g.emit(f"{i2}{g.R[f'cy0_{c}']} = cy[{a0}, q]")
-        g.emit(f"{i2}{g.R[f's0_{c}']} = cs0[{c}, q]")
+        g.emit(f"{i2}{g.R['cy0', c]} = cy[{a0}, q]")
+        g.emit(f"{i2}{g.R['s0', c]} = cs0[{c}, q]")
         for k in range(a0, g.off[c + 1] - 1):
-            g.emit(f"{i2}{g.R[f'cx{k}']} = cx[{k}, q]")
+            g.emit(f"{i2}{g.R['cx', k]} = cx[{k}, q]")
             if k > a0:
-                g.emit(f"{i2}{g.R[f'ds{k}']} = cds[{k}, q]")
+                g.emit(f"{i2}{g.R['ds', k]} = cds[{k}, q]")
             if k in g.kcheck:
-                g.emit(f"{i2}{g.R[f'kyv{k}']} = knot_y[{k}, q]")
+                g.emit(f"{i2}{g.R['kyv', k]} = knot_y[{k}, q]")
     for s in range(g.S):
-        g.emit(f"{i2}{g.R[f'kp{s}']} = kpar[{s}, q]")
+        g.emit(f"{i2}{g.R['kp', s]} = kpar[{s}, q]")
         if g.D == 1:
-            g.emit(f"{i2}{g.R[f'sg{s}']} = sign[{s}, q]")
+            g.emit(f"{i2}{g.R['sg', s]} = sign[{s}, q]")
         else:
-            g.emit(f"{i2}{g.R[f'l0{s}']} = length0[{s}, q]")
+            g.emit(f"{i2}{g.R['l0', s]} = length0[{s}, q]")
             for d in range(g.D):
-                g.emit(f"{i2}{g.R[f'ap{s}_{d}']} = x0[{g.sj[s]}, {d}, q] - x0[{g.si[s]}, {d}, q]")
+                g.emit(f"{i2}{g.R['ap', s, d]} = x0[{g.sj[s]}, {d}, q] - x0[{g.si[s]}, {d}, q]")
     for s in g.general:
-        g.emit(f"{i2}{g.R[f'yt{s}']} = yield_t[{s}, q]")
-        g.emit(f"{i2}{g.R[f'yc{s}']} = yield_c[{s}, q]")
+        g.emit(f"{i2}{g.R['yt', s]} = yield_t[{s}, q]")
+        g.emit(f"{i2}{g.R['yc', s]} = yield_c[{s}, q]")
     for s in range(g.S):
         if g.mat[s] == ELASTOPLASTIC:
-            g.emit(f"{i2}{g.R[f'kt{s}']} = ktan[{s}, q]")
-            g.emit(f"{i2}{g.R[f'fy{s}']} = fyld[{s}, q]")
+            g.emit(f"{i2}{g.R['kt', s]} = ktan[{s}, q]")
+            g.emit(f"{i2}{g.R['fy', s]} = fyld[{s}, q]")
     for s in range(g.S):  # rate_elastic: the rates of its curves
         for k in range(len(g.rc[s])):
-            g.emit(f"{i2}{g.R[f'rt{s}_{k}']} = rate_at[{g.ro[s] + k}, q]")
+            g.emit(f"{i2}{g.R['rt', s, k]} = rate_at[{g.ro[s] + k}, q]")
     for s in g.fragile:  # failure elongations (+-inf: never)
-        g.emit(f"{i2}{g.R[f'ft{s}']} = fail_t[{s}, q]")
-        g.emit(f"{i2}{g.R[f'fc{s}']} = fail_c[{s}, q]")
+        g.emit(f"{i2}{g.R['ft', s]} = fail_t[{s}, q]")
+        g.emit(f"{i2}{g.R['fc', s]} = fail_c[{s}, q]")
     for s in g.pre:  # initial_elongation: e0, the rate at t = 0, IE0 and the material state (arrays.preload)
-        g.emit(f"{i2}{g.R[f'e0{s}']} = elong0[{s}, q]")
-        g.emit(f"{i2}{g.R[f'r0{s}']} = rate0[{s}, q]")
-        g.emit(f"{i2}{g.R[f'ie{s}']} = ie0[{s}, q]")
+        g.emit(f"{i2}{g.R['e0', s]} = elong0[{s}, q]")
+        g.emit(f"{i2}{g.R['r0', s]} = rate0[{s}, q]")
+        g.emit(f"{i2}{g.R['ie', s]} = ie0[{s}, q]")
         for k in range(spec(g.mat[s]).state_rows):  # the material table's state rows
-            g.emit(f"{i2}{g.R[f'st{s}_{k}']} = state0[{s}, {k}, q]")
+            g.emit(f"{i2}{g.R['st', s, k]} = state0[{s}, {k}, q]")
     g.emit(f"{i2}ke0 = 0.0")
     for n in range(g.N):  # every node, as the reference sums
         for d in range(g.D):
@@ -242,130 +247,3 @@ def lanes(g: Layout, ind: str) -> None:
     g.emit(f"{i2}else:")
     g.emit(f"{i2}    {g.R['lim']} = float(n_steps[q])")
     g.emit(f"{i2}    nmax = max(nmax, n_steps[q])")
-
-
-def failures(g: Layout, i3: str) -> None:
-    """The lanes whose energy balance broke (or, in 2-D, whose spring collapsed) stop here (rare)."""
-    g.emit(f"{i3}if nbad > 0:")
-    g.emit(f"{i3}    for w in range(B):")
-    g.emit(f"{i3}        if not fn <= {g.R['lim']}:")
-    g.emit(f"{i3}            continue")
-    wall_now = f"({g.R['wall_e']} if n > 0 else 0.0)" if g.W else "0.0"  # t = 0: before any impact
-    work = g.R["work"] if g.ext else "0.0"
-    bal = f"energy_balance({g.R['ken']}, {g.R['ien']}, {wall_now}, {g.R[g.E0]}, {work})"
-    g.emit(f"{i3}        if unstable({bal}, {g.R['thr']}):")
-    g.emit(f"{i3}            status[vi[w]] = UNSTABLE")
-    if g.D > 1:
-        g.emit(f"{i3}        elif {g.R['crushed']} >= 0.0:")
-        g.emit(f"{i3}            status[vi[w]] = CRUSHED_TO_ZERO")
-        g.emit(f"{i3}            fail_item[vi[w]] = int({g.R['crushed']})")
-    g.emit(f"{i3}        else:")
-    g.emit(f"{i3}            continue")
-    g.emit(f"{i3}        fail_time[vi[w]] = n * {g.R['dt']}")
-    g.emit(f"{i3}        n_fail[w] = n")
-    g.emit(f"{i3}        {g.R['lim']} = -1.0")
-    g.emit(f"{i3}    alive = -1")
-    g.emit(f"{i3}    for w in range(B):")
-    g.emit(f"{i3}        alive = max(alive, int({g.R['lim']}))")
-    g.emit(f"{i3}    n_end = _next_end(Z, B, fn - 1.0)")
-    g.emit(f"{i3}    ended = True")
-
-
-def records(g: Layout, i3: str) -> None:
-    """The histories of the lanes that sample at this step."""
-    if g.hist:
-        g.emit(f"{i3}if rec:")
-        g.emit(f"{i3}    next_min = nmax + 1")
-        g.emit(f"{i3}    for w in range(B):")
-        g.emit(f"{i3}        q = vi[w]")
-        g.emit(f"{i3}        if fn > {g.R['lim']}:")
-        g.emit(f"{i3}            continue")
-        g.emit(f"{i3}        if n == next_rec[w]:")
-        g.emit(f"{i3}            r = n // out_every[q]")
-        g.emit(f"{i3}            next_rec[w] = n + out_every[q]")
-        g.emit(f"{i3}            if r < n_out:")
-        i5 = i3 + "                "
-        for n in range(g.N):
-            for d in range(g.D):
-                if g.static[n]:
-                    pos, dsp, vel, acc = f"x0[{n}, {d}, q]", "0.0", "0.0", "0.0"
-                else:
-                    pos = g.R[f"xh{n}_{d}"]
-                    dsp = f"{g.R[f'xh{n}_{d}']} - {g.R[f'x0{n}_{d}']}"
-                    # v^{n+1/2} is the lane's v row now (it ran: vn * 1.0 + vo * 0.0)
-                    vel = f"(0.5 * ({g.R[f'vh{n}_{d}']} + {g.R[f'v{n}_{d}']}) if n > 0 else {g.R[f'vh{n}_{d}']})"
-                    chain = _chain(g, n, d, lambda s: g.R[f"fp{s}"], lambda s, d: g.R[f"axh{s}_{d}"])
-                    fext = f"{g.R[f'm{n}']} * {g.R[f'g{d}']}" if g.grav else "0.0"
-                    fext = g.R[f"fx{n}_{d}"] if n in g.loaded else fext  # this step's external force
-                    acc = f"({chain} + {fext}) * {g.R[f'im{n}_{d}']}"
-                    for k, (p, dd, _, _) in enumerate(g.pm):  # a prescribed dof: its kinematic acceleration
-                        if (p, dd) == (n, d):
-                            acc = g.R[f"pma{k}"]
-                    acc = g.R[f"wa{n}_{d}"] if f"wa{n}_{d}" in g.R.at else acc  # a wall node: with the contact force
-                for name, arr, val in (("position", "h_pos", pos), ("displacement", "h_disp", dsp),
-                                       ("velocity", "h_vel", vel), ("acceleration", "h_acc", acc)):  # fmt: skip
-                    if name in g.hist:
-                        g.emit(f"{i5}{arr}[r, {n}, {d}, q] = {val}")
-        for s in range(g.S):
-            if "spring_force" in g.hist:
-                g.emit(f"{i5}h_force[r, {s}, q] = {g.R[f'fp{s}']}")
-            if "spring_elongation" in g.hist:
-                g.emit(f"{i5}h_elong[r, {s}, q] = {g.R[f'ep{s}']}")
-        if "kinetic_energy" in g.hist:
-            g.emit(f"{i5}h_energy[r, 0, q] = {g.R['ken']}")
-            g.emit(f"{i5}h_energy[r, 1, q] = {g.R['ien']}")
-            g.emit(f"{i5}h_energy[r, 2, q] = {g.R['work'] if g.ext else '0.0'}")
-            g.emit(f"{i5}h_energy[r, 3, q] = {(g.R['wall_e'] + ' if n > 0 else 0.0') if g.W else '0.0'}")
-        for wl in range(g.W if "wall_force" in g.hist else 0):
-            g.emit(f"{i5}h_wall[r, {wl}, q] = {g.R[f'wf{wl}']}")
-        g.emit(f"{i3}        if fn + 1.0 <= {g.R['lim']}:")
-        g.emit(f"{i3}            next_min = min(next_min, next_rec[w])")
-
-
-def ends(g: Layout, i3: str) -> None:
-    """Termination, final energies, and lane compaction: lanes whose variant ended leave the block once
-    they are an eighth of it (their results are written, the running lanes move down)."""
-    if g.term:  # lanes that met the termination test (and did not fail) end at this step
-        g.emit(f"{i3}if nstop > 0:")
-        g.emit(f"{i3}    for w in range(B):")
-        g.emit(f"{i3}        if {g.R['stop']} > 0.0 and fn <= {g.R['lim']}:")
-        g.emit(f"{i3}            {g.R['lim']} = fn")
-        g.emit(f"{i3}            n_end = fn")
-        g.emit(f"{i3}    alive = -1")
-        g.emit(f"{i3}    for w in range(B):")
-        g.emit(f"{i3}        alive = max(alive, int({g.R['lim']}))")
-    g.emit(f"{i3}if fn == n_end:")
-    g.emit(f"{i3}    for w in range(B):")
-    g.emit(f"{i3}        if fn == {g.R['lim']}:")
-    g.emit(f"{i3}            final_energy[0, vi[w]] = {g.R['ken']}")
-    g.emit(f"{i3}            final_energy[1, vi[w]] = {g.R['ien']}")
-    g.emit(f"{i3}            final_energy[2, vi[w]] = {g.R['work'] if g.ext else '0.0'}")
-    g.emit(f"{i3}            final_energy[3, vi[w]] = {g.R['wall_e'] if g.W else '0.0'}")
-    g.emit(f"{i3}    n_end = _next_end(Z, B, fn)")
-    g.emit(f"{i3}    ended = True")
-    # lanes whose variant ended leave the block once they are an eighth of it: their results are
-    # written now and the running lanes move down, so later steps run over fewer lanes
-    g.emit(f"{i3}if ended:")
-    g.emit(f"{i3}    ended = False")
-    g.emit(f"{i3}    gone = 0")
-    g.emit(f"{i3}    for w in range(B):")
-    g.emit(f"{i3}        gone += 1 if fn + 1.0 > {g.R['lim']} else 0")
-    g.emit(f"{i3}    if gone >= max(8, B // 8) and gone < B:")
-    g.emit(f"{i3}        k = 0")
-    g.emit(f"{i3}        for w in range(B):")
-    g.emit(f"{i3}            if fn + 1.0 > {g.R['lim']}:")
-    emit_results(g, i3 + "                ")
-    g.emit(f"{i3}                continue")
-    g.emit(f"{i3}            if k != w:")
-    g.emit(f"{i3}                for r in range(NROWS):")
-    g.emit(f"{i3}                    Z[r * ROW + k] = Z[r * ROW + w]")
-    g.emit(f"{i3}                vi[k] = vi[w]")
-    g.emit(f"{i3}                next_rec[k] = next_rec[w]")
-    g.emit(f"{i3}                n_fail[k] = n_fail[w]")
-    g.emit(f"{i3}            k += 1")
-    g.emit(f"{i3}        B = k")
-    g.emit(f"{i3}        n_end = _next_end(Z, B, fn)")
-    if g.hist:
-        g.emit(f"{i3}        next_min = nmax + 1")
-        g.emit(f"{i3}        for w in range(B):")
-        g.emit(f"{i3}            next_min = min(next_min, next_rec[w])")

@@ -39,16 +39,8 @@ from typing import TYPE_CHECKING, Any
 
 from crashstudy.kernel.cache import cache_dir, checked_dir, why_not_private
 from crashstudy.kernel.driver import block_starts, finish, outputs, records, run_blocks
-from crashstudy.kernel.gen_shape import (
-    BLOCK,
-    GEN_VERSION,
-    MAX_KNOTS,
-    ROW,
-    _constant_curves,
-    _constants,
-    _shape,
-    unsupported,
-)
+from crashstudy.kernel.gen_constants import _constant_curves, _constants
+from crashstudy.kernel.gen_shape import BLOCK, GEN_VERSION, MAX_KNOTS, ROW, _shape, unsupported
 from crashstudy.kernel.gen_source import source
 from crashstudy.kernel.output import KernelOutput
 

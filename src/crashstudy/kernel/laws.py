@@ -1,4 +1,5 @@
-"""Every per-variant law of the fast kernels, written once: small pure compiled scalar functions.
+"""The spring laws of the fast kernels (forces, state, knots, geometry, curves), written once: small pure
+compiled scalar functions (the other per-step laws: :mod:`crashstudy.kernel.step_laws`).
 
 Numbers in, a number or a tuple of numbers out (curve tables are read from arrays, column ``v``).
 The generic kernel (:mod:`crashstudy.kernel.compiled`) calls them per lane on its block arrays,
@@ -8,7 +9,7 @@ emit calls to them on their local scalars. Each law but two (``_inl`` below) is 
 a hand-written formula without numba typing and lowering it again at each of ~40 call sites
 (``error_model="numpy"``: no division-by-zero branch, so the generated kernel's loops stay as fast
 as with the laws inlined; benchmarks/results/compile_inline.md). The NumPy reference
-(:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.kernel.materials`) is the independent twin:
+(:mod:`crashstudy.kernel.reference`, :mod:`crashstudy.arrays.material_laws`) is the independent twin:
 every function here does its operations in the same order, so both fast kernels stay bitwise equal
 to it (no fastmath).
 
@@ -22,11 +23,8 @@ import numba as nb
 import numpy as np
 
 from crashstudy.vocabulary.codes import (
-    PM_ACCELERATION,
-    PM_DISPLACEMENT,
     TIME_EPS,
     TINY_LENGTH,
-    UNSTABLE_ENERGY,
 )
 
 _jit = nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -215,7 +213,7 @@ def knot_peak(cand, e_lo, e_hi, xk, yk):  # pragma: no cover - compiled
 
     ``(e_lo, e_hi)`` the part of the path between two steps on which the spring follows its curve,
     in the curve's own abscissa; ``yk`` the knot force (``Batch.knot_y``: 0 where the knot is not a
-    local maximum of |curve|). The NumPy twin is :func:`crashstudy.kernel.reference.knot_peak_np`.
+    local maximum of |curve|). The NumPy twin is :func:`crashstudy.kernel.reference_knots.knot_peak_np`.
     """
     ak = abs(yk)
     return ak if ((xk > e_lo) & (xk < e_hi) & (ak > cand)) else cand
@@ -275,126 +273,29 @@ def elongation_2d(ln, l0):  # pragma: no cover - compiled
     return ln - l0
 
 
-# ---- energies, walls, time curves ------------------------------------------------------------
+@_jit
+def axis_2d(u0, u1, p0, p1, l0):  # pragma: no cover - compiled
+    """A 2-D spring's unit direction ``(ax0, ax1)``, length and collapse flag from its end-to-end vector
+    ``u`` and its previous one ``p`` (a collapsed spring keeps ``u`` as its axis: no division by ~0)."""
+    ln = np.sqrt((0.0 + u0 * u0) + u1 * u1)
+    gone = collapsed(ln, l0, (0.0 + u0 * p0) + u1 * p1)
+    dn = 1.0 if gone else ln
+    return u0 / dn, u1 / dn, ln, gone
+
+
+# ---- curves ----------------------------------------------------------------------------------
 
 
 @_jit
-def energy_increment(ie, F, fp, e, ep, af):  # pragma: no cover - compiled
-    """Work done on a spring (trapezoid), ``af`` 1.0 while the variant runs (0.0 adds an exact 0)."""
-    return ie + (0.5 * (F + fp) * (e - ep)) * af
+def ramp_start(y0, s0, e, x0):  # pragma: no cover - compiled
+    """A curve's ramp sum begins with its first segment's line through (x0, y0) of slope s0 (batch.py)."""
+    return y0 + s0 * (e - x0)
 
 
 @_jit
-def energy_first_half(ie, F, fp, e, ep, dt, rate0, af):  # pragma: no cover - compiled
-    """The first step of a preloaded spring: F^0 acts on the mean of the rates at 0 and 1/2 for dt/2."""
-    return ie + ((0.5 * F + 0.25 * fp) * (e - ep) + 0.25 * dt * fp * rate0) * af
-
-
-@_jit
-def ext_power(bal, fx, v, fxp, vb):  # pragma: no cover - compiled
-    """External power of one dof (trapezoid with the previous step's force ``fxp``), added to ``bal``."""
-    return bal + 0.5 * (fx * v + fxp * vb)
-
-
-@_jit
-def work_increment(work, bal, dt, af):  # pragma: no cover - compiled
-    return work + (bal * dt) * af
-
-
-@_jit
-def prescribed_time(kind, t, dt):  # pragma: no cover - compiled
-    """When the step from ``t`` reads a prescribed motion's curve: a displacement at the step's end
-    ``t + dt``, an acceleration at ``t``, a velocity at the half step ``t + dt/2`` (docs/solver.md)."""
-    if kind == PM_DISPLACEMENT:
-        return t + dt
-    if kind == PM_ACCELERATION:
-        return t
-    return t + 0.5 * dt
-
-
-@_jit
-def prescribed_velocity(kind, x0, scale, tc, x, vo, dt, dtn):  # pragma: no cover - compiled
-    """``v^{n+1/2}`` of a driven dof from its curve's value ``tc`` (times ``scale``): the velocity that
-    lands it on ``x0 + scale tc``, the velocity ``vo`` plus ``dtn`` times the acceleration, or the velocity."""
-    if kind == PM_DISPLACEMENT:
-        return ((x0 + scale * tc) - x) / dt
-    if kind == PM_ACCELERATION:
-        return vo + dtn * scale * tc
-    return scale * tc
-
-
-@_jit
-def prescribed_step(last, vn, vo, pa, dtn):  # pragma: no cover - compiled
-    """(``v^{n+1/2}``, ``a^n``) of a driven dof; the last step (whose update would read the curve past
-    end_time) continues with the previous acceleration ``pa``."""
-    if last:
-        return vo + dtn * pa, pa
-    return vn, (vn - vo) / dtn
-
-
-@_jit
-def stop_test(kef, fsum, psum, ke, scale, wmax, opening):  # pragma: no cover - compiled
-    """Early termination (docs/format.md, ``termination``): the sum of |spring force| has fallen to
-    ``kef`` (kinetic_energy_fraction) of the sum of the peaks, and the kinetic energy to ``kef`` of the
-    energy scale (KE0 + |IE0| + max |W_ext|) or every spring is opening (``opening``)."""
-    return (fsum <= kef * psum) & ((ke <= kef * (scale + wmax)) | opening)
-
-
-@_jit
-def energy_balance(ke, ie, wall, e_init, work):  # pragma: no cover - compiled
-    """The energy balance error of one variant, ``|KE + IE + E_wall - E^0 - W_ext|`` (docs/solver.md)."""
-    return abs((((ke + ie) + wall) - e_init) - work)
-
-
-@_jit
-def unstable_limit(scale, wmax, floor):  # pragma: no cover - compiled
-    """The largest energy balance error of a stable run: ``UNSTABLE_ENERGY`` times the energy scale
-    (KE0 + |IE0|) plus the largest |external work| so far, plus the variant's round-off floor."""
-    return UNSTABLE_ENERGY * (scale + wmax) + floor
-
-
-@_jit
-def unstable(bal, limit):  # pragma: no cover - compiled
-    """The run is unstable: its energy balance error is above the limit, or not a number."""
-    return not (bal <= limit)
-
-
-@_jit
-def wall_jump(vn, gap, dist, dt, k):  # pragma: no cover - compiled
-    """Normal velocity change that lands a node crossing a rigid wall (``k`` = 0) exactly on the plane."""
-    return (-gap / dt - vn) if ((dist < 0.0) & (vn < 0.0) & (k == 0.0)) else 0.0
-
-
-@_jit
-def wall_penalty(k, gap):  # pragma: no cover - compiled
-    """Penalty wall of contact stiffness ``k`` (0: rigid, an exact 0): (force k pen along the normal,
-    stored energy k pen^2 / 2) for the penetration ``pen = max(0, -gap)``."""
-    pen = -gap if -gap > 0.0 else 0.0
-    fp = k * pen
-    return fp, 0.5 * fp * pen
-
-
-@_jit
-def wall_hold(dvn, an, dtn):  # pragma: no cover - compiled
-    """The normal acceleration a rigid wall cancels in this step (per unit mass, >= 0): the part of its
-    velocity jump ``dvn`` that the node's own forces (normal acceleration ``an``) pushed into the wall
-    over the velocity update ``dtn``; the rest of the jump is the impact (docs/solver.md, "Rigid walls")."""
-    h = -an if -an > 0.0 else 0.0
-    c = dvn / dtn
-    return c if c < h else h
-
-
-@_jit
-def wall_impulse(m, dvn, c, dtn):  # pragma: no cover - compiled
-    """Impact impulse of one node in one step: the momentum its jump removes beyond the held part ``c dtn``."""
-    d = dvn - c * dtn
-    return m * (d if d > 0.0 else 0.0)
-
-
-@_jit
-def wall_force(m, c):  # pragma: no cover - compiled
-    """Contact force of a held node: the reaction ``m c`` to the forces pushing it into the wall."""
-    return m * c
+def ramp_knot(y, ds, e, xk):  # pragma: no cover - compiled
+    """One interior knot of the ramp sum: its slope change ``ds`` times the ramp max(0, e - xk)."""
+    return y + ds * peak(0.0, e - xk)
 
 
 @_jit
@@ -402,9 +303,9 @@ def curve_at(c, e, v, cx, cy, cds, cs0, off):  # pragma: no cover - compiled
     """Curve ``c`` of variant column ``v`` at elongation ``e`` (ramp sum, linear extrapolation)."""
     a = off[c]
     b = off[c + 1]
-    y = cy[a, v] + cs0[c, v] * (e - cx[a, v])
+    y = ramp_start(cy[a, v], cs0[c, v], e, cx[a, v])
     for k in range(a + 1, b - 1):
-        y = y + cds[k, v] * max(0.0, e - cx[k, v])
+        y = ramp_knot(y, cds[k, v], e, cx[k, v])
     return y
 
 

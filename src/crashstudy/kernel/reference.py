@@ -12,7 +12,7 @@ Per step ``n`` (time ``t = n dt``; ``v`` holds ``v^{n-1/2}``, ``v0`` at ``n = 0`
 3. ``v^{n+1/2} = v^{n-1/2} + dt a^n`` (half a step at ``n = 0``), then prescribed motion and
    rigid walls (a node that would cross a wall gets the normal velocity that lands it exactly on
    the plane, and none into it afterwards: a perfectly plastic stonewall impact). The part of that
-   jump the node's own forces pushed into the wall (``laws.wall_hold``) is the wall's contact force
+   jump the node's own forces pushed into the wall (``step_laws.wall_hold``) is the wall's contact force
    and joins the node's acceleration (a held node has a = 0); the rest is the impact impulse. A
    penalty wall (``wall_stiffness`` > 0) has no jump: its force ``k pen`` of ``x^n`` joins the nodal
    forces in step 2 and its stored energy ``k pen^2 / 2`` the wall energy;
@@ -32,6 +32,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from crashstudy.arrays import material_laws as mat
+from crashstudy.kernel.reference_knots import knot_crossing_np, spring_knotted
+from crashstudy.kernel.step_twins import (
+    energy_balance_np,
+    half_step_np,
+    prescribed_step_np,
+    prescribed_time_np,
+    prescribed_velocity_np,
+    stop_test_np,
+    unstable_limit_np,
+    unstable_np,
+    wall_hold_np,
+    wall_penalty_np,
+)
 from crashstudy.vocabulary.codes import (
     CRUSH,
     DAMPER,
@@ -40,13 +53,12 @@ from crashstudy.vocabulary.codes import (
     LINEAR,
     NONLINEAR,
     NONLINEAR_DAMPER,
-    PM_ACCELERATION,
     PM_DISPLACEMENT,
     RATE_ELASTIC,
     TINY_LENGTH,
     UNSTABLE_ENERGY,
 )
-from crashstudy.vocabulary.materials import DAMPER_MATERIALS, KNOT_MATERIALS
+from crashstudy.vocabulary.materials import DAMPER_MATERIALS
 
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
@@ -173,7 +185,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                 ie[s] += np.where(act, step_ie, 0.0)
             out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], np.abs(F)), out.peak_force[s])
             if st_before is not None:  # knots passed over since the previous step (docs/solver.md, "Peaks")
-                cand, th, dF = _knot_crossing(b, s, e, e_prev[s], F, f_prev[s], st_before)
+                cand, th, dF = knot_crossing_np(b, s, e, e_prev[s], F, f_prev[s], st_before)
                 cand = np.where(broken[s], 0.0, cand)  # a spring that breaks in this step: the step's ends only
                 out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], cand), out.peak_force[s])
                 knot_hit[s], knot_th[s], knot_dfax[s] = cand > 0.0, th, dF * axis
@@ -203,7 +215,7 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                 pen_e[w, k] = ep
         ftot = f + fext
         a = ftot * b.inv_mass
-        vnew = v + dtn * a
+        vnew = half_step_np(v, a, dtn)
 
         for k in range(len(b.pm_node)):
             p, d, c = b.pm_node[k], b.pm_dir[k], b.pm_curve[k]
@@ -300,122 +312,6 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     out.absorbed_energy[:] = ie
     out.energy_error[:] = err / np.maximum(e_scale + wmax, 1e-300)
     return out
-
-
-def spring_knotted(b: Batch) -> np.ndarray:
-    """(S,) bool: the spring follows a curve (by elongation) with a knot flagged in ``b.knot_check``."""
-    out = np.zeros(len(b.spring_i), dtype=bool)
-    for s in range(len(b.spring_i)):
-        c = int(b.curve_a[s])
-        if b.material[s] in KNOT_MATERIALS and c >= 0:
-            out[s] = bool(np.any(b.knot_check[int(b.curve_off[c]) + 1 : int(b.curve_off[c + 1]) - 1]))
-    return out
-
-
-def prescribed_time_np(kind: int, t: np.ndarray, dt: np.ndarray) -> np.ndarray:
-    """The time a prescribed motion's curve is read for the step from t (the twin of ``laws.prescribed_time``)."""
-    return t + dt if kind == PM_DISPLACEMENT else t if kind == PM_ACCELERATION else t + 0.5 * dt
-
-
-def prescribed_velocity_np(kind: int, x0: np.ndarray, scale: np.ndarray, tc: np.ndarray, x: np.ndarray,
-                           v: np.ndarray, dt: np.ndarray, dtn: np.ndarray) -> np.ndarray:  # fmt: skip
-    """v^{n+1/2} of a driven dof (the twin of ``laws.prescribed_velocity``)."""
-    if kind == PM_DISPLACEMENT:
-        return (x0 + scale * tc - x) / dt
-    if kind == PM_ACCELERATION:
-        return v + dtn * scale * tc
-    return scale * tc
-
-
-def prescribed_step_np(last: np.ndarray | bool, vn: np.ndarray, vo: np.ndarray, pa: np.ndarray, dtn: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """(v^{n+1/2}, a^n); the last step continues with ``pa`` (the twin of ``laws.prescribed_step``)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(last, vo + dtn * pa, vn), np.where(last, pa, (vn - vo) / dtn)
-
-
-def stop_test_np(kef: np.ndarray, fsum: np.ndarray, psum: np.ndarray, ke: np.ndarray, scale: np.ndarray,
-                 wmax: np.ndarray, opening: np.ndarray) -> np.ndarray:  # fmt: skip
-    """Early termination's force and energy test (the twin of ``laws.stop_test``)."""
-    small_f = fsum <= kef * psum
-    small_ke = ke <= kef * (scale + wmax)
-    return small_f & (small_ke | opening)
-
-
-def energy_balance_np(ke: np.ndarray, ie: np.ndarray, wall: np.ndarray, e_init: np.ndarray, work: np.ndarray
-                      ) -> np.ndarray:  # fmt: skip
-    """|KE + IE + E_wall - E^0 - W_ext| per variant (the twin of ``laws.energy_balance``)."""
-    return np.abs(ke + ie + wall - e_init - work)
-
-
-def unstable_limit_np(scale: np.ndarray, wmax: np.ndarray, floor: np.ndarray) -> np.ndarray:
-    """The largest balance error of a stable run (the twin of ``laws.unstable_limit``)."""
-    return UNSTABLE_ENERGY * (scale + wmax) + floor
-
-
-def unstable_np(bal: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """Balance error above the limit or not a number (the twin of ``laws.unstable``)."""
-    return ~np.isfinite(bal) | (bal > limit)
-
-
-def wall_hold_np(dvn: np.ndarray, an: np.ndarray, dtn: np.ndarray) -> np.ndarray:
-    """NumPy twin of :func:`crashstudy.kernel.laws.wall_hold`."""
-    h = np.where(-an > 0.0, -an, 0.0)
-    c = dvn / dtn
-    return np.where(c < h, c, h)
-
-
-def wall_penalty_np(k: np.ndarray, gap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """NumPy twin of :func:`crashstudy.kernel.laws.wall_penalty`."""
-    pen = np.where(-gap > 0.0, -gap, 0.0)
-    fp = k * pen
-    return fp, 0.5 * fp * pen
-
-
-def knot_peak_np(cand: np.ndarray, e_lo: np.ndarray, e_hi: np.ndarray, xk: np.ndarray, yk: np.ndarray) -> np.ndarray:
-    """NumPy twin of :func:`crashstudy.kernel.laws.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
-    ak = np.abs(yk)
-    return np.where((xk > e_lo) & (xk < e_hi) & (ak > cand), ak, cand)
-
-
-def _knot_crossing(b: Batch, s: int, e: np.ndarray, ep: np.ndarray, F: np.ndarray, Fp: np.ndarray,
-                   st: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """Knots of spring ``s``'s curve passed over on its elastic (loading) path from ``ep`` to ``e``.
-
-    ``st`` is the material state before this step. The path segment ``(lo, hi)`` in the curve's abscissa:
-    ``nonlinear_elastic`` (min, max) of (ep, e); ``crush`` (e, e_min before the step) (empty unless the
-    spring crushes further); ``general_nonlinear`` never yielded (min, max) of (ep, e), last yielded in
-    tension (e_t*, e), in compression (e, e_c*), all minus the loading curve's shift (a reversal this
-    step gives an empty segment: skipped). Returns (candidate |force| (0 if none), crossing fraction
-    ``theta`` of the largest knot, its force minus ``(1 - theta) Fp + theta F`` (0 if none)).
-    """
-    kind = b.material[s]
-    c = int(b.curve_a[s])
-    if kind == CRUSH:
-        lo, hi, sh = e, st[0], 0.0
-    elif kind == GENERAL:
-        mode, et, ec, sh = st[0], st[1], st[3], st[5]
-        lo = np.where(mode > 0, et, np.where(mode < 0, e, np.minimum(ep, e))) - sh
-        hi = np.where(mode > 0, e, np.where(mode < 0, ec, np.maximum(ep, e))) - sh
-    else:
-        lo, hi, sh = np.minimum(ep, e), np.maximum(ep, e), 0.0
-    ea = e - sh
-    epa = ep - sh
-    cand = np.zeros_like(e)
-    xb = epa
-    yb = np.zeros_like(e)
-    for k in range(int(b.curve_off[c]) + 1, int(b.curve_off[c + 1]) - 1):
-        if not b.knot_check[k]:
-            continue
-        yk = np.minimum(0.0, b.knot_y[k]) if kind == CRUSH else b.knot_y[k]
-        c1 = knot_peak_np(cand, lo, hi, b.cx[k], yk)
-        xb = np.where(c1 > cand, b.cx[k], xb)
-        yb = np.where(c1 > cand, yk, yb)
-        cand = c1
-    hit = cand > 0.0
-    th = (xb - epa) / np.where(hit, ea - epa, 1.0)
-    dF = np.where(hit, yb - ((1.0 - th) * Fp + th * F), 0.0)
-    return cand, th, dF
 
 
 def _force(b: Batch, s: int, e: np.ndarray, edot: np.ndarray, st: np.ndarray, cargs: tuple) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numba as nb
 
-from crashstudy.kernel import laws as lw
+from crashstudy.kernel import step_laws as sl
 
 _jit = nb.njit(cache=True, nogil=True)
 
@@ -38,7 +38,7 @@ def penalty(
             if wall_nodes[wl, n_] == 0.0:
                 continue
             for w in range(B):
-                fp, ep = lw.wall_penalty(
+                fp, ep = sl.wall_penalty(
                     wall_k[wl, lo + w], gap_of(x, wall_point, wall_normal, wl, n_, w, lo + w, D)
                 )
                 q = lo + w
@@ -65,23 +65,19 @@ def rigid(lo, B, W, N, D, h, wall_nodes, wall_normal, wall_point, wall_k, free, 
                 gap = 0.0
                 dist = 0.0
                 for d in range(D):
-                    nr = wall_normal[wl, d, q]
-                    vn += vnew[n_, d, w] * nr
-                    gap += (x[n_, d, w] - wall_point[wl, d, q]) * nr
-                    dist += (x[n_, d, w] + dt_b[w] * vnew[n_, d, w] - wall_point[wl, d, q]) * nr
-                dvn = lw.wall_jump(vn, gap, dist, dt_b[w], wall_k[wl, q])
+                    vn, gap, dist = sl.wall_plane(vn, gap, dist, vnew[n_, d, w], x[n_, d, w], wall_point[wl, d, q],
+                                                  wall_normal[wl, d, q], dt_b[w])
+                dvn = sl.wall_jump(vn, gap, dist, dt_b[w], wall_k[wl, q])
                 an = 0.0
                 for d in range(D):
                     an += acc[n_, d, w] * wall_normal[wl, d, q]
-                c = lw.wall_hold(dvn, an, h * dt_b[w])
+                c = sl.wall_hold(dvn, an, h * dt_b[w])
                 we = 0.0
                 for d in range(D):
-                    jmp = dvn * wall_normal[wl, d, q] * free[n_, d]
-                    vnew[n_, d, w] = vnew[n_, d, w] + jmp
-                    acc[n_, d, w] = acc[n_, d, w] + c * wall_normal[wl, d, q] * free[n_, d]
-                    we += v[n_, d, w] * (jmp + jump_prev[wl, n_, d, w])
-                    jump_prev[wl, n_, d, w] = jmp
+                    vnew[n_, d, w], acc[n_, d, w], we, jump_prev[wl, n_, d, w] = sl.wall_dof(
+                        dvn, c, wall_normal[wl, d, q], free[n_, d], vnew[n_, d, w], acc[n_, d, w], v[n_, d, w],
+                        jump_prev[wl, n_, d, w], we)
                 if act[w]:
-                    wall_e[w] += -0.5 * m_b[n_, w] * we
-                wforce[wl, w] += lw.wall_force(m_b[n_, w], c)
-                wall_impulse[wl, q] += lw.wall_impulse(m_b[n_, w], dvn, c, h * dt_b[w]) * actf[w]
+                    wall_e[w] += sl.wall_work(m_b[n_, w], we)
+                wforce[wl, w] += sl.wall_force(m_b[n_, w], c)
+                wall_impulse[wl, q] += sl.wall_impulse(m_b[n_, w], dvn, c, h * dt_b[w]) * actf[w]

@@ -1,0 +1,136 @@
+"""Emitters of a generated kernel's lane records at the end of a step: the lanes that fail, the histories
+of the lanes that sample, the lanes that end (termination, final energies) and the compaction of the
+block when an eighth of its lanes have ended.
+"""
+
+from __future__ import annotations
+
+from crashstudy.kernel.gen_nodes import _chain, emit_results
+from crashstudy.kernel.gen_shape import Layout
+
+
+def failures(g: Layout, i3: str) -> None:
+    """The lanes whose energy balance broke (or, in 2-D, whose spring collapsed) stop here (rare)."""
+    g.emit(f"{i3}if nbad > 0:")
+    g.emit(f"{i3}    for w in range(B):")
+    g.emit(f"{i3}        if not fn <= {g.R['lim']}:")
+    g.emit(f"{i3}            continue")
+    wall_now = f"({g.R['wall_e']} if n > 0 else 0.0)" if g.W else "0.0"  # t = 0: before any impact
+    work = g.R["work"] if g.ext else "0.0"
+    bal = f"energy_balance({g.R['ken']}, {g.R['ien']}, {wall_now}, {g.R[g.E0]}, {work})"
+    g.emit(f"{i3}        if unstable({bal}, {g.R['thr']}):")
+    g.emit(f"{i3}            status[vi[w]] = UNSTABLE")
+    if g.D > 1:
+        g.emit(f"{i3}        elif {g.R['crushed']} >= 0.0:")
+        g.emit(f"{i3}            status[vi[w]] = CRUSHED_TO_ZERO")
+        g.emit(f"{i3}            fail_item[vi[w]] = int({g.R['crushed']})")
+    g.emit(f"{i3}        else:")
+    g.emit(f"{i3}            continue")
+    g.emit(f"{i3}        fail_time[vi[w]] = n * {g.R['dt']}")
+    g.emit(f"{i3}        n_fail[w] = n")
+    g.emit(f"{i3}        {g.R['lim']} = -1.0")
+    g.emit(f"{i3}    alive = -1")
+    g.emit(f"{i3}    for w in range(B):")
+    g.emit(f"{i3}        alive = max(alive, int({g.R['lim']}))")
+    g.emit(f"{i3}    n_end = _next_end(Z, B, fn - 1.0)")
+    g.emit(f"{i3}    ended = True")
+
+
+def records(g: Layout, i3: str) -> None:
+    """The histories of the lanes that sample at this step."""
+    if g.hist:
+        g.emit(f"{i3}if rec:")
+        g.emit(f"{i3}    next_min = nmax + 1")
+        g.emit(f"{i3}    for w in range(B):")
+        g.emit(f"{i3}        q = vi[w]")
+        g.emit(f"{i3}        if fn > {g.R['lim']}:")
+        g.emit(f"{i3}            continue")
+        g.emit(f"{i3}        if n == next_rec[w]:")
+        g.emit(f"{i3}            r = n // out_every[q]")
+        g.emit(f"{i3}            next_rec[w] = n + out_every[q]")
+        g.emit(f"{i3}            if r < n_out:")
+        i5 = i3 + "                "
+        for n in range(g.N):
+            for d in range(g.D):
+                if g.static[n]:
+                    pos, dsp, vel, acc = f"x0[{n}, {d}, q]", "0.0", "0.0", "0.0"
+                else:
+                    pos = g.R["xh", n, d]
+                    dsp = f"{g.R['xh', n, d]} - {g.R['x0', n, d]}"
+                    # v^{n+1/2} is the lane's v row now (it ran: vn * 1.0 + vo * 0.0)
+                    vel = f"(0.5 * ({g.R['vh', n, d]} + {g.R['v', n, d]}) if n > 0 else {g.R['vh', n, d]})"
+                    chain = _chain(g, n, d, lambda s: g.R["fp", s], lambda s, d: g.R["axh", s, d])
+                    fext = f"{g.R['m', n]} * {g.R['g', d]}" if g.grav else "0.0"
+                    fext = g.R["fx", n, d] if n in g.loaded else fext  # this step's external force
+                    acc = f"({chain} + {fext}) * {g.R['im', n, d]}"
+                    for k, (p, dd, _, _) in enumerate(g.pm):  # a prescribed dof: its kinematic acceleration
+                        if (p, dd) == (n, d):
+                            acc = g.R["pma", k]
+                    acc = g.R["wa", n, d] if ("wa", n, d) in g.R else acc  # a wall node: with the contact force
+                for name, arr, val in (("position", "h_pos", pos), ("displacement", "h_disp", dsp),
+                                       ("velocity", "h_vel", vel), ("acceleration", "h_acc", acc)):  # fmt: skip
+                    if name in g.hist:
+                        g.emit(f"{i5}{arr}[r, {n}, {d}, q] = {val}")
+        for s in range(g.S):
+            if "spring_force" in g.hist:
+                g.emit(f"{i5}h_force[r, {s}, q] = {g.R['fp', s]}")
+            if "spring_elongation" in g.hist:
+                g.emit(f"{i5}h_elong[r, {s}, q] = {g.R['ep', s]}")
+        if "kinetic_energy" in g.hist:
+            g.emit(f"{i5}h_energy[r, 0, q] = {g.R['ken']}")
+            g.emit(f"{i5}h_energy[r, 1, q] = {g.R['ien']}")
+            g.emit(f"{i5}h_energy[r, 2, q] = {g.R['work'] if g.ext else '0.0'}")
+            g.emit(f"{i5}h_energy[r, 3, q] = {(g.R['wall_e'] + ' if n > 0 else 0.0') if g.W else '0.0'}")
+        for wl in range(g.W if "wall_force" in g.hist else 0):
+            g.emit(f"{i5}h_wall[r, {wl}, q] = {g.R['wf', wl]}")
+        g.emit(f"{i3}        if fn + 1.0 <= {g.R['lim']}:")
+        g.emit(f"{i3}            next_min = min(next_min, next_rec[w])")
+
+
+def ends(g: Layout, i3: str) -> None:
+    """Termination, final energies, and lane compaction: lanes whose variant ended leave the block once
+    they are an eighth of it (their results are written, the running lanes move down)."""
+    if g.term:  # lanes that met the termination test (and did not fail) end at this step
+        g.emit(f"{i3}if nstop > 0:")
+        g.emit(f"{i3}    for w in range(B):")
+        g.emit(f"{i3}        if {g.R['stop']} > 0.0 and fn <= {g.R['lim']}:")
+        g.emit(f"{i3}            {g.R['lim']} = fn")
+        g.emit(f"{i3}            n_end = fn")
+        g.emit(f"{i3}    alive = -1")
+        g.emit(f"{i3}    for w in range(B):")
+        g.emit(f"{i3}        alive = max(alive, int({g.R['lim']}))")
+    g.emit(f"{i3}if fn == n_end:")
+    g.emit(f"{i3}    for w in range(B):")
+    g.emit(f"{i3}        if fn == {g.R['lim']}:")
+    g.emit(f"{i3}            final_energy[0, vi[w]] = {g.R['ken']}")
+    g.emit(f"{i3}            final_energy[1, vi[w]] = {g.R['ien']}")
+    g.emit(f"{i3}            final_energy[2, vi[w]] = {g.R['work'] if g.ext else '0.0'}")
+    g.emit(f"{i3}            final_energy[3, vi[w]] = {g.R['wall_e'] if g.W else '0.0'}")
+    g.emit(f"{i3}    n_end = _next_end(Z, B, fn)")
+    g.emit(f"{i3}    ended = True")
+    # lanes whose variant ended leave the block once they are an eighth of it: their results are
+    # written now and the running lanes move down, so later steps run over fewer lanes
+    g.emit(f"{i3}if ended:")
+    g.emit(f"{i3}    ended = False")
+    g.emit(f"{i3}    gone = 0")
+    g.emit(f"{i3}    for w in range(B):")
+    g.emit(f"{i3}        gone += 1 if fn + 1.0 > {g.R['lim']} else 0")
+    g.emit(f"{i3}    if gone >= max(8, B // 8) and gone < B:")
+    g.emit(f"{i3}        k = 0")
+    g.emit(f"{i3}        for w in range(B):")
+    g.emit(f"{i3}            if fn + 1.0 > {g.R['lim']}:")
+    emit_results(g, i3 + "                ")
+    g.emit(f"{i3}                continue")
+    g.emit(f"{i3}            if k != w:")
+    g.emit(f"{i3}                for r in range(NROWS):")
+    g.emit(f"{i3}                    Z[r * ROW + k] = Z[r * ROW + w]")
+    g.emit(f"{i3}                vi[k] = vi[w]")
+    g.emit(f"{i3}                next_rec[k] = next_rec[w]")
+    g.emit(f"{i3}                n_fail[k] = n_fail[w]")
+    g.emit(f"{i3}            k += 1")
+    g.emit(f"{i3}        B = k")
+    g.emit(f"{i3}        n_end = _next_end(Z, B, fn)")
+    if g.hist:
+        g.emit(f"{i3}        next_min = nmax + 1")
+        g.emit(f"{i3}        for w in range(B):")
+        g.emit(f"{i3}            next_min = min(next_min, next_rec[w])")
