@@ -264,6 +264,10 @@ ALLOWED = {
     ("kernel/compile_lock.py", "open-for-writing"): 1,  # ditto (the compile lock and what its holder compiles)
     ("exchange/testcurve.py", "read_csv"): 1,  # a CSV test curve from bytes read by safefs.open_regular
     ("analysis/report_extra.py", "read_csv"): 1,  # sensitivity/correlation/history.csv from safefs.open_regular bytes
+    # scratch files of a large compare / correlation (hash parts, rank buckets) in a fresh private
+    # tempfile.TemporaryDirectory (mode 0700, unpredictable name, removed when the command ends): not results
+    ("analysis/compare_match.py", "open-for-writing"): 1,
+    ("analysis/correlation.py", "open-for-writing"): 1,
     ("results/reader.py", "open_dataset"): 3,  # the reader itself: results.nc, results.zarr, the raw store
     ("results/reader.py", "read_parquet"): 2,  # the reader itself, from a manifest-checked handle
     ("results/reader.py", "read_csv"): 1,  # the reader itself, from a manifest-checked handle
