@@ -60,15 +60,30 @@ def _env(tree: Path, cache: Path) -> dict[str, str]:
 
 def cold_compile(tree: Path, cache: Path) -> dict[str, float]:
     """Seconds of the first generic and generated calls in a fresh process with empty caches."""
-    out = subprocess.run([sys.executable, "-c", COLD, str(tree)], env=_env(tree, cache), check=True,
-                         capture_output=True, text=True).stdout  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-c", COLD, str(tree)],
+        env=_env(tree, cache),
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
     return {k: float(v) for k, v in json.loads(out.strip().splitlines()[-1]).items()}
 
 
 def throughput(tree: Path, cache: Path, args: argparse.Namespace) -> list[dict[str, Any]]:
     with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, str(tree / "benchmarks" / "throughput.py"), "--out", out, "--repeats", str(args.repeats),
-               "--sizes", *map(str, args.sizes), "--threads", *map(str, args.threads)]  # fmt: skip
+        cmd = [
+            sys.executable,
+            str(tree / "benchmarks" / "throughput.py"),
+            "--out",
+            out,
+            "--repeats",
+            str(args.repeats),
+            "--sizes",
+            *map(str, args.sizes),
+            "--threads",
+            *map(str, args.threads),
+        ]
         subprocess.run(cmd, env=_env(tree, cache), check=True, capture_output=True, text=True)
         with open(Path(out) / "throughput.csv") as f:
             return [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
@@ -101,27 +116,47 @@ def main(argv: list[str] | None = None) -> int:
                     d = tput.setdefault(key, {})
                     for k in ("generic_es_per_s", "generated_es_per_s", "specialised_es_per_s"):
                         d.setdefault(f"{name}_{k}", []).append(float(r[k]))
-                print(f"round {rnd} {name}: throughput done ({time.perf_counter() - t_start:.0f} s)", flush=True)
+                print(
+                    f"round {rnd} {name}: throughput done ({time.perf_counter() - t_start:.0f} s)", flush=True
+                )
     rows: list[dict[str, Any]] = []
     for kern in ("generic", "generated"):
         b, a = median(cold["before"][kern]), median(cold["after"][kern])
-        rows.append({"what": f"cold compile {kern} [s]", "threads": "", "before": b, "after": a, "after/before": a / b})
+        rows.append(
+            {
+                "what": f"cold compile {kern} [s]",
+                "threads": "",
+                "before": b,
+                "after": a,
+                "after/before": a / b,
+            }
+        )
     for (case, th), d in tput.items():
         for kern in ("generic", "generated", "specialised"):
             b = median(d[f"before_{kern}_es_per_s"])
             a = median(d[f"after_{kern}_es_per_s"])
-            rows.append({"what": f"{case} {kern} [element-steps/s]", "threads": th, "before": b, "after": a,
-                         "after/before": a / b})  # fmt: skip
+            rows.append(
+                {
+                    "what": f"{case} {kern} [element-steps/s]",
+                    "threads": th,
+                    "before": b,
+                    "after": a,
+                    "after/before": a / b,
+                }
+            )
     args.out.mkdir(parents=True, exist_ok=True)
     info = machine(start_load)
     write_csv(args.out / "before_after.csv", rows, info)
-    text = ("# Before / after: cold compile and throughput (frontal-9mass)\n\n" + machine_md(info)
-            + f"- before: {trees['before']}\n- after: {trees['after']}\n"
-            + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n"
-            + "Cold compile: first call in a fresh process with empty numba and kernel caches (4 variants). "
-            "Throughput: each checkout's benchmarks/throughput.py (median of its repeats; `specialised` is the "
-            "hand-written loop, unchanged, a gauge of machine load). `after/before` > 1: after is slower to "
-            "compile / faster to run.\n\n" + md_table(rows))  # fmt: skip
+    text = (
+        "# Before / after: cold compile and throughput (frontal-9mass)\n\n"
+        + machine_md(info)
+        + f"- before: {trees['before']}\n- after: {trees['after']}\n"
+        + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n"
+        + "Cold compile: first call in a fresh process with empty numba and kernel caches (4 variants). "
+        "Throughput: each checkout's benchmarks/throughput.py (median of its repeats; `specialised` is the "
+        "hand-written loop, unchanged, a gauge of machine load). `after/before` > 1: after is slower to "
+        "compile / faster to run.\n\n" + md_table(rows)
+    )
     (args.out / "before_after.md").write_text(text)
     print(text)
     return 0

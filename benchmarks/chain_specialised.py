@@ -47,20 +47,24 @@ def _ramp_src(e: str, x: np.ndarray, y: np.ndarray) -> str:
 
 def _source(curves: list[tuple[np.ndarray, np.ndarray]]) -> str:
     S = len(curves)
-    L = ["def block(lo, hi, im, v0, ys, ixs, dt, n_steps, pf, mc, ie, pa):",
-         "    B = hi - lo",
-         f"    Z = np.zeros({8 * S * ROW})"]  # fmt: skip
+    L = [
+        "def block(lo, hi, im, v0, ys, ixs, dt, n_steps, pf, mc, ie, pa):",
+        "    B = hi - lo",
+        f"    Z = np.zeros({8 * S * ROW})",
+    ]
     # rows: u (S), v (S), fp (S), ep (S), pf (S), mc (S), ie (S), pa (S), a (S) [per node s+1], ...
     U, Vr, FP, EP, PF, MC, IE, PA = (k * S for k in range(8))
     L += ["    nmax = 0", "    for w in range(B):", "        nmax = max(nmax, n_steps[lo + w])"]
     L += [f"        Z[{Vr + s} * ROW + w] = v0[{s}, lo + w]" for s in range(S)]
-    L += ["    for n in range(nmax + 1):",
-          "        h0 = 1.0 if n > 0 else 0.5",
-          "        wt = 1.0 if n > 0 else 0.0",
-          "        for w in range(B):",
-          "            k = lo + w",
-          "            mk = 1.0 if n <= n_steps[k] else 0.0",
-          "            h = dt[k]"]  # fmt: skip
+    L += [
+        "    for n in range(nmax + 1):",
+        "        h0 = 1.0 if n > 0 else 0.5",
+        "        wt = 1.0 if n > 0 else 0.0",
+        "        for w in range(B):",
+        "            k = lo + w",
+        "            mk = 1.0 if n <= n_steps[k] else 0.0",
+        "            h = dt[k]",
+    ]
     for s, (x, y) in enumerate(curves):
         prev = f"Z[{U + s - 1} * ROW + w]" if s > 0 else "0.0"
         L.append(f"            e{s} = Z[{U + s} * ROW + w] - {prev}")
@@ -69,18 +73,24 @@ def _source(curves: list[tuple[np.ndarray, np.ndarray]]) -> str:
         fwd = f"f{s + 1}" if s + 1 < S else "0.0"
         L.append(f"            a{s} = ({fwd} - f{s}) * im[{s}, k]")
     for s in range(S):
-        L += [f"            Z[{IE + s} * ROW + w] += (mk * wt) * (0.5 * (f{s} + Z[{FP + s} * ROW + w]) * (e{s} - Z[{EP + s} * ROW + w]))",
-              f"            Z[{PF + s} * ROW + w] = big(Z[{PF + s} * ROW + w], mk * abs(f{s}))",
-              f"            Z[{MC + s} * ROW + w] = big(Z[{MC + s} * ROW + w], -(mk * e{s}))",
-              f"            Z[{PA + s} * ROW + w] = big(Z[{PA + s} * ROW + w], mk * abs(a{s}))",
-              f"            Z[{Vr + s} * ROW + w] += mk * ((h0 * h) * a{s})",
-              f"            Z[{U + s} * ROW + w] += mk * (h * Z[{Vr + s} * ROW + w])",
-              f"            Z[{FP + s} * ROW + w] = f{s}",
-              f"            Z[{EP + s} * ROW + w] = e{s}"]  # fmt: skip
+        L += [
+            f"            Z[{IE + s} * ROW + w] += (mk * wt) * (0.5 * (f{s} + Z[{FP + s} * ROW + w]) * (e{s} - Z[{EP + s} * ROW + w]))",
+            f"            Z[{PF + s} * ROW + w] = big(Z[{PF + s} * ROW + w], mk * abs(f{s}))",
+            f"            Z[{MC + s} * ROW + w] = big(Z[{MC + s} * ROW + w], -(mk * e{s}))",
+            f"            Z[{PA + s} * ROW + w] = big(Z[{PA + s} * ROW + w], mk * abs(a{s}))",
+            f"            Z[{Vr + s} * ROW + w] += mk * ((h0 * h) * a{s})",
+            f"            Z[{U + s} * ROW + w] += mk * (h * Z[{Vr + s} * ROW + w])",
+            f"            Z[{FP + s} * ROW + w] = f{s}",
+            f"            Z[{EP + s} * ROW + w] = e{s}",
+        ]
     L += ["    for w in range(B):"]
     for s in range(S):
-        L += [f"        pf[{s}, lo + w] = Z[{PF + s} * ROW + w]", f"        mc[{s}, lo + w] = Z[{MC + s} * ROW + w]",
-              f"        ie[{s}, lo + w] = Z[{IE + s} * ROW + w]", f"        pa[{s}, lo + w] = Z[{PA + s} * ROW + w]"]  # fmt: skip
+        L += [
+            f"        pf[{s}, lo + w] = Z[{PF + s} * ROW + w]",
+            f"        mc[{s}, lo + w] = Z[{MC + s} * ROW + w]",
+            f"        ie[{s}, lo + w] = Z[{IE + s} * ROW + w]",
+            f"        pa[{s}, lo + w] = Z[{PA + s} * ROW + w]",
+        ]
     return "\n".join(L) + "\n"
 
 
@@ -97,12 +107,19 @@ def inputs(b: Any) -> dict[str, np.ndarray]:
     """The per-variant inputs of a crashstudy batch of a chain model: inverse masses and initial velocities
     of nodes 1..S, each spring's curve factors (Batch.cfac), the steps."""
     S = len(b.spring_i)
-    assert np.array_equal(b.spring_i, np.arange(S)) and np.array_equal(b.spring_j, np.arange(1, S + 1)), "not a chain"
+    assert np.array_equal(b.spring_i, np.arange(S)) and np.array_equal(b.spring_j, np.arange(1, S + 1)), (
+        "not a chain"
+    )
     assert np.all(b.sign == 1.0), "springs drawn left to right"
     ca = b.curve_a
-    return {"im": np.ascontiguousarray(1.0 / b.mass[1:]), "v0": np.ascontiguousarray(b.v0[1:, 0]),
-            "ys": np.ascontiguousarray(b.cfac[0, ca]), "ixs": np.ascontiguousarray(1.0 / b.cfac[1, ca]),
-            "dt": b.dt, "n_steps": b.n_steps.astype(np.int64)}  # fmt: skip
+    return {
+        "im": np.ascontiguousarray(1.0 / b.mass[1:]),
+        "v0": np.ascontiguousarray(b.v0[1:, 0]),
+        "ys": np.ascontiguousarray(b.cfac[0, ca]),
+        "ixs": np.ascontiguousarray(1.0 / b.cfac[1, ca]),
+        "dt": b.dt,
+        "n_steps": b.n_steps.astype(np.int64),
+    }
 
 
 def shapes(b: Any) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -116,15 +133,26 @@ def shapes(b: Any) -> list[tuple[np.ndarray, np.ndarray]]:
     return out
 
 
-def run(curves: list[tuple[np.ndarray, np.ndarray]], inp: dict[str, np.ndarray], threads: int = 2
-        ) -> dict[str, np.ndarray]:  # fmt: skip
+def run(
+    curves: list[tuple[np.ndarray, np.ndarray]], inp: dict[str, np.ndarray], threads: int = 2
+) -> dict[str, np.ndarray]:
     """Integrate every variant of ``inp`` (see :func:`inputs`); summaries with springs / nodes on axis 0."""
     fn = _compiled(curves)
     S, V = inp["ys"].shape
     out = {k: np.zeros((S, V)) for k in ("peak_force", "max_crush", "absorbed_energy", "peak_acceleration")}
     starts = list(range(0, V, BLOCK)) + [V]
-    args = (inp["im"], inp["v0"], inp["ys"], inp["ixs"], inp["dt"], inp["n_steps"], out["peak_force"],
-            out["max_crush"], out["absorbed_energy"], out["peak_acceleration"])  # fmt: skip
+    args = (
+        inp["im"],
+        inp["v0"],
+        inp["ys"],
+        inp["ixs"],
+        inp["dt"],
+        inp["n_steps"],
+        out["peak_force"],
+        out["max_crush"],
+        out["absorbed_energy"],
+        out["peak_acceleration"],
+    )
     cuts = np.linspace(0, len(starts) - 1, min(len(starts) - 1, 8 * threads) + 1).astype(int)
 
     def part(k: int) -> None:

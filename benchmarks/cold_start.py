@@ -75,8 +75,12 @@ def run_case(name: str, cmd: list[str], tmp: Path) -> list[dict[str, Any]]:
     rows = []
     for mode in ("choice", "generic"):
         home = tmp / f"{name}-{mode}"
-        env = dict(os.environ, HOME=str(home / "home"), NUMBA_CACHE_DIR=str(home / "numba"),
-                   CRASHSTUDY_KERNEL_CACHE=str(home / "kernels"))  # fmt: skip
+        env = dict(
+            os.environ,
+            HOME=str(home / "home"),
+            NUMBA_CACHE_DIR=str(home / "numba"),
+            CRASHSTUDY_KERNEL_CACHE=str(home / "kernels"),
+        )
         env.pop("CRASHSTUDY_BACKGROUND_COMPILE", None)
         env.pop("CRASHSTUDY_KERNEL", None)
         if mode == "generic":
@@ -89,8 +93,17 @@ def run_case(name: str, cmd: list[str], tmp: Path) -> list[dict[str, Any]]:
             p = subprocess.run(argv, env=env, capture_output=True, text=True)
             wall = time.perf_counter() - t0
             note = next((ln for ln in p.stderr.splitlines() if ln.startswith("note:")), "")
-            rows.append({"case": name, "run": label, "wall_s": wall, "exit": p.returncode,
-                         "waited_for_background_s": waited, "load": load(), "note": note[:160]})  # fmt: skip
+            rows.append(
+                {
+                    "case": name,
+                    "run": label,
+                    "wall_s": wall,
+                    "exit": p.returncode,
+                    "waited_for_background_s": waited,
+                    "load": load(),
+                    "note": note[:160],
+                }
+            )
             print(f"{name} {label}: {wall:.2f} s exit {p.returncode} {note[:100]}", flush=True)
             if p.returncode not in (0, 1):
                 print(p.stderr[-2000:], file=sys.stderr)
@@ -112,9 +125,14 @@ def main(argv: list[str] | None = None) -> int:
             rows += run_case(name, all_cases[name], Path(tmp))
     info = machine(start_load)
     write_csv(args.out / "cold_start.csv", rows, info)
-    text = ("# Cold start (empty caches) and repeat\n\n" + machine_md(info)
-            + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n" + __doc__.split("\n\n", 1)[1] + "\n"
-            + md_table(rows, ["case", "run", "wall_s", "exit", "waited_for_background_s", "load", "note"]))  # fmt: skip
+    text = (
+        "# Cold start (empty caches) and repeat\n\n"
+        + machine_md(info)
+        + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n"
+        + __doc__.split("\n\n", 1)[1]
+        + "\n"
+        + md_table(rows, ["case", "run", "wall_s", "exit", "waited_for_background_s", "load", "note"])
+    )
     (args.out / "cold_start.md").write_text(text)
     print(f"wrote {args.out / 'cold_start.md'}")
     return 0

@@ -86,8 +86,13 @@ def write_csv(path: Path, rows: list[dict[str, Any]], info: dict[str, str]) -> N
     """Rows as CSV; every row also carries the machine record ``info`` (cores, CPU model, load at start
     and end), so the file stands on its own."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    keep = ("os.cpu_count()", "CPU model (lscpu)", "load average at start (1/5/15 min)",
-            "load average at end (1/5/15 min)", "crashstudy code measured")  # fmt: skip
+    keep = (
+        "os.cpu_count()",
+        "CPU model (lscpu)",
+        "load average at start (1/5/15 min)",
+        "load average at end (1/5/15 min)",
+        "crashstudy code measured",
+    )
     rows = [{**r, **{f"machine: {k}": info[k] for k in keep if k in info}} for r in rows]
     keys: list[str] = []
     for r in rows:

@@ -27,8 +27,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import MODELS, RESULTS, load, machine, machine_md, md_table, write_csv  # noqa: E402
 
-DEFAULT_MODELS = ("linear-spring", "nonlinear-elastic", "general-nonlinear-tension", "helicopter-subfloor",
-                  "helicopter-seat", "frontal-9mass", "frontal-occupant")  # fmt: skip
+DEFAULT_MODELS = (
+    "linear-spring",
+    "nonlinear-elastic",
+    "general-nonlinear-tension",
+    "helicopter-subfloor",
+    "helicopter-seat",
+    "frontal-9mass",
+    "frontal-occupant",
+)
 
 
 def shape(model: Path) -> dict[str, Any]:
@@ -36,8 +43,12 @@ def shape(model: Path) -> dict[str, Any]:
     from crashstudy.schema import load_model
 
     topo, _ = compile_model(load_model(str(model)).model)
-    return {"springs": len(topo.spring_ids), "dim": topo.dim, "walls": len(topo.wall_nodes),
-            "metrics": bool(topo.metrics)}  # fmt: skip
+    return {
+        "springs": len(topo.spring_ids),
+        "dim": topo.dim,
+        "walls": len(topo.wall_nodes),
+        "metrics": bool(topo.metrics),
+    }
 
 
 def timed(cmd: list[str], env: dict[str, str]) -> float:
@@ -52,16 +63,30 @@ def measure(model: Path, kernel: str, tmp: Path) -> dict[str, Any]:
     home = tmp / f"{model.stem}-{kernel}"
     home.mkdir()
     study = home / "study.yaml"
-    study.write_text(f"name: one\nmodel: {model}\nmatrix:\n  impact_velocity: [1.0]\n"
-                     "set: {output: {histories: none}}\n")  # fmt: skip
-    env = dict(os.environ, HOME=str(home / "home"), NUMBA_CACHE_DIR=str(home / "numba"),
-               CRASHSTUDY_KERNEL_CACHE=str(home / "kernels"), CRASHSTUDY_KERNEL=kernel,
-               CRASHSTUDY_BACKGROUND_COMPILE="0")  # fmt: skip
+    study.write_text(
+        f"name: one\nmodel: {model}\nmatrix:\n  impact_velocity: [1.0]\n"
+        "set: {output: {histories: none}}\n"
+    )
+    env = dict(
+        os.environ,
+        HOME=str(home / "home"),
+        NUMBA_CACHE_DIR=str(home / "numba"),
+        CRASHSTUDY_KERNEL_CACHE=str(home / "kernels"),
+        CRASHSTUDY_KERNEL=kernel,
+        CRASHSTUDY_BACKGROUND_COMPILE="0",
+    )
     cmd = [sys.executable, "-m", "crashstudy.cli", "run", str(study), "-o", str(home / "out"), "--force"]
     cold = timed(cmd, env)
     warm = timed(cmd, env)
-    row = {"model": model.stem, "kernel": kernel, **shape(model), "cold_s": cold, "warm_s": warm,
-           "compile_s": cold - warm, "load": load()}  # fmt: skip
+    row = {
+        "model": model.stem,
+        "kernel": kernel,
+        **shape(model),
+        "cold_s": cold,
+        "warm_s": warm,
+        "compile_s": cold - warm,
+        "load": load(),
+    }
     print(row, flush=True)
     return row
 
@@ -81,8 +106,14 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(measure(MODELS / f"{name}.yaml", kernel, Path(t)))
     info = machine(start)
     write_csv(RESULTS / "compile_costs.csv", rows, info)
-    text = ("# Cold compile time per kernel and model shape\n\n" + machine_md(info) + "\n"
-            + __doc__.split("\n\n", 1)[1] + "\n" + md_table(rows))  # fmt: skip
+    text = (
+        "# Cold compile time per kernel and model shape\n\n"
+        + machine_md(info)
+        + "\n"
+        + __doc__.split("\n\n", 1)[1]
+        + "\n"
+        + md_table(rows)
+    )
     (RESULTS / "compile_costs.md").write_text(text)
     print(text)
     return 0

@@ -36,10 +36,20 @@ def chain(n: int) -> dict:
     springs = {}
     for i in range(1, n + 1):
         nodes[f"n{i}"] = {"position": [0.01 * i], "mass": 1.0}
-        springs[f"s{i}"] = {"nodes": [f"n{i - 1}", f"n{i}"], "material": {"type": "nonlinear_elastic", "curve": "c"}}
-    return {"name": f"chain{n}", "units": "SI", "curves": {"c": {"x": [-1.0, -0.01, 0.0, 0.01, 1.0],
-            "y": [-2e4, -1e4, 0.0, 1e4, 2e4]}}, "nodes": nodes, "springs": springs,
-            "initial_velocity": {f"n{n}": [-1.0]}, "end_time": 0.01, "output": {"histories": "none"}}  # fmt: skip
+        springs[f"s{i}"] = {
+            "nodes": [f"n{i - 1}", f"n{i}"],
+            "material": {"type": "nonlinear_elastic", "curve": "c"},
+        }
+    return {
+        "name": f"chain{n}",
+        "units": "SI",
+        "curves": {"c": {"x": [-1.0, -0.01, 0.0, 0.01, 1.0], "y": [-2e4, -1e4, 0.0, 1e4, 2e4]}},
+        "nodes": nodes,
+        "springs": springs,
+        "initial_velocity": {f"n{n}": [-1.0]},
+        "end_time": 0.01,
+        "output": {"histories": "none"},
+    }
 
 
 def measure(n: int, kernel: str, work: Path) -> tuple[float, float]:
@@ -49,11 +59,29 @@ def measure(n: int, kernel: str, work: Path) -> tuple[float, float]:
         (d / sub).mkdir(mode=0o700)
     model = d / "chain.yaml"
     model.write_text(yaml.safe_dump(chain(n)))
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(d / "numba"), CRASHSTUDY_KERNEL_CACHE=str(d / "kernels"),
-               HOME=str(d / "home"), CRASHSTUDY_KERNEL=kernel, CRASHSTUDY_BACKGROUND_COMPILE="0")  # fmt: skip
+    env = dict(
+        os.environ,
+        NUMBA_CACHE_DIR=str(d / "numba"),
+        CRASHSTUDY_KERNEL_CACHE=str(d / "kernels"),
+        HOME=str(d / "home"),
+        CRASHSTUDY_KERNEL=kernel,
+        CRASHSTUDY_BACKGROUND_COMPILE="0",
+    )
     timing = d / "time.txt"
-    cmd = ["/usr/bin/time", "-o", str(timing), "-f", "%U %S %M", sys.executable, "-m", "crashstudy.cli",
-           "simulate", str(model), "-o", str(d / "out")]  # fmt: skip
+    cmd = [
+        "/usr/bin/time",
+        "-o",
+        str(timing),
+        "-f",
+        "%U %S %M",
+        sys.executable,
+        "-m",
+        "crashstudy.cli",
+        "simulate",
+        str(model),
+        "-o",
+        str(d / "out"),
+    ]
     subprocess.run(cmd, env=env, check=True, capture_output=True)
     user, system, rss = timing.read_text().split()[-3:]
     return float(user) + float(system), float(rss) / 1024
@@ -70,15 +98,24 @@ def main(argv: list[str] | None = None) -> int:
             la = os.getloadavg()
             gen_cpu, gen_rss = measure(n, "generated", Path(tmp))
             ref_cpu, ref_rss = measure(n, "reference", Path(tmp))
-            rows.append(f"| {n} | {gen_cpu:.1f} | {ref_cpu:.1f} | {gen_cpu - ref_cpu:.1f} | "
-                        f"{(gen_cpu - ref_cpu) / n:.2f} | {gen_rss:.0f} | {ref_rss:.0f} | "
-                        f"{la[0]:.1f} / {la[1]:.1f} |")  # fmt: skip
+            rows.append(
+                f"| {n} | {gen_cpu:.1f} | {ref_cpu:.1f} | {gen_cpu - ref_cpu:.1f} | "
+                f"{(gen_cpu - ref_cpu) / n:.2f} | {gen_rss:.0f} | {ref_rss:.0f} | "
+                f"{la[0]:.1f} / {la[1]:.1f} |"
+            )
             print(rows[-1], flush=True)
-    text = ["# Cold compile of a generated kernel against its springs", "", machine_md(machine(start)),
-            __doc__.strip(), "",
-            "| springs | generated CPU s | reference CPU s | compile CPU s | compile CPU s per spring | "
-            "generated peak RSS MiB | reference peak RSS MiB | load 1 / 5 min |",
-            "|---|---|---|---|---|---|---|---|", *rows, ""]  # fmt: skip
+    text = [
+        "# Cold compile of a generated kernel against its springs",
+        "",
+        machine_md(machine(start)),
+        __doc__.strip(),
+        "",
+        "| springs | generated CPU s | reference CPU s | compile CPU s | compile CPU s per spring | "
+        "generated peak RSS MiB | reference peak RSS MiB | load 1 / 5 min |",
+        "|---|---|---|---|---|---|---|---|",
+        *rows,
+        "",
+    ]
     REPORT.write_text("\n".join(text))
     return 0
 

@@ -116,31 +116,56 @@ def main(argv: list[str] | None = None) -> int:
             timed(lambda d=data: criteria.compute(*d, 180, criteria.CRITERIA, G)) for _ in range(args.repeats)
         ]
         row = {
-            "variants": args.variants, "steps": args.steps, "D": nd, "criteria": "all", "cfc": 180,
-            "warm_median_s": median(ts), "warm_min_s": min(ts), "warm_max_s": max(ts),
+            "variants": args.variants,
+            "steps": args.steps,
+            "D": nd,
+            "criteria": "all",
+            "cfc": 180,
+            "warm_median_s": median(ts),
+            "warm_min_s": min(ts),
+            "warm_max_s": max(ts),
             "warm_cpu_median_s": cpu_median(len(ts)),
             "warm_cpu_us_per_variant": 1e6 * cpu_median(len(ts)) / args.variants,
             "fresh_process_import_s": cold["import_s"],
             "fresh_process_first_call_s (compile + run)": cold["first_call_s"],
             "fresh_process_second_call_s": cold["second_call_s"],
             "compile_s (first - second)": cold["first_call_s"] - cold["second_call_s"],
-        }  # fmt: skip
+        }
         rows.append(row)
         print(json.dumps(row), flush=True)
         if nd == 1:
             # a frontal study with an occupant: the occupant's head/chest criteria and the cabin's
-            sets = {"occupant: peak_g hic15 clip3ms clip3ms_cumulative": ["peak_g", "hic15", "clip3ms",
-                    "clip3ms_cumulative"], "cabin: peak_g olc delta_v": ["peak_g", "olc", "delta_v"]}  # fmt: skip
+            sets = {
+                "occupant: peak_g hic15 clip3ms clip3ms_cumulative": [
+                    "peak_g",
+                    "hic15",
+                    "clip3ms",
+                    "clip3ms_cumulative",
+                ],
+                "cabin: peak_g olc delta_v": ["peak_g", "olc", "delta_v"],
+            }
             for label, names in sets.items():
                 ts1 = [timed(lambda d=data, n=names: criteria.compute(*d, 180, n, G)) for _ in range(3)]
-                r = {"variants": args.variants, "steps": args.steps, "D": 1, "criteria": label,
-                     "warm_median_s": median(ts1), "warm_cpu_median_s": cpu_median(3)}  # fmt: skip
+                r = {
+                    "variants": args.variants,
+                    "steps": args.steps,
+                    "D": 1,
+                    "criteria": label,
+                    "warm_median_s": median(ts1),
+                    "warm_cpu_median_s": cpu_median(3),
+                }
                 rows.append(r)
                 print(json.dumps(r), flush=True)
             for name in criteria.CRITERIA:
                 ts1 = [timed(lambda d=data, n=name: criteria.compute(*d, 180, [n], G)) for _ in range(3)]
-                r = {"variants": args.variants, "steps": args.steps, "D": 1, "criteria": name,
-                     "warm_median_s": median(ts1), "warm_cpu_median_s": cpu_median(3)}  # fmt: skip
+                r = {
+                    "variants": args.variants,
+                    "steps": args.steps,
+                    "D": 1,
+                    "criteria": name,
+                    "warm_median_s": median(ts1),
+                    "warm_cpu_median_s": cpu_median(3),
+                }
                 rows.append(r)
                 print(json.dumps(r), flush=True)
         del data

@@ -26,10 +26,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "studies" / "models"
 STUDIES = {
-    "frontal-occupant": ("matrix:\n  curves.crash-box-loading.scale: [0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.8]\n"
-                         "  impact_velocity: [13.889, 15.556, 17.778]\n"),
+    "frontal-occupant": (
+        "matrix:\n  curves.crash-box-loading.scale: [0.6, 0.8, 1.0, 1.2, 1.4, 1.6, 1.8]\n"
+        "  impact_velocity: [13.889, 15.556, 17.778]\n"
+    ),
     "helicopter-seat": "matrix:\n  impact_velocity: [6.0, 7.0, 8.2]\n",  # 9 m/s and up: the seat bottoms
-}  # fmt: skip
+}
 
 
 def criteria(model: str, tol: float | None, every_step: bool, tmp: Path) -> dict[str, np.ndarray]:
@@ -71,9 +73,14 @@ def compare(model: str, tmp: Path) -> list[tuple[str, float, float, float]]:
     for name, truth in conv.items():
         scale = np.max(np.abs(truth)) if name.split(".")[0].endswith(("_t1", "_t2")) else np.abs(truth)
         scale = np.where(scale > 0, scale, 1.0)
-        rows.append((name, float(np.max(np.abs(dflt[name] - truth) / scale)),
-                     float(np.max(np.abs(every[name] - truth) / scale)),
-                     float(np.max(np.abs(dflt[name] - every[name]) / scale))))  # fmt: skip
+        rows.append(
+            (
+                name,
+                float(np.max(np.abs(dflt[name] - truth) / scale)),
+                float(np.max(np.abs(every[name] - truth) / scale)),
+                float(np.max(np.abs(dflt[name] - every[name]) / scale)),
+            )
+        )
     return rows
 
 
@@ -86,8 +93,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     metrics.RECORD_RATE, metrics.RECORD_PER_CFC = args.rate, args.per_cfc
     print(f"record rate >= max({args.rate:g} Hz, {args.per_cfc:g} x CFC)\n")
-    print("| model | criterion | default vs converged | every step vs converged | default vs every step |\n"
-          "|---|---|---|---|---|")
+    print(
+        "| model | criterion | default vs converged | every step vs converged | default vs every step |\n"
+        "|---|---|---|---|---|"
+    )
     with tempfile.TemporaryDirectory() as t:
         for model in STUDIES:
             for name, e_d, e_e, e_k in compare(model, Path(t)):

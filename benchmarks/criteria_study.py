@@ -41,8 +41,10 @@ MODEL = MODELS / "frontal-occupant.yaml"
 def study_text(model: str, n_box: int, n_speed: int) -> str:
     boxes = ", ".join(f"{x:.6g}" for x in np.linspace(0.6, 1.8, n_box))
     speeds = ", ".join(f"{x:.6g}" for x in np.linspace(13.889, 17.778, n_speed))
-    return (f"name: criteria-study\nmodel: {model}\nmatrix:\n  curves.crash-box-loading.scale: [{boxes}]\n"
-            f"  impact_velocity: [{speeds}]\nset:\n  output: {{histories: none}}\n")  # fmt: skip
+    return (
+        f"name: criteria-study\nmodel: {model}\nmatrix:\n  curves.crash-box-loading.scale: [{boxes}]\n"
+        f"  impact_velocity: [{speeds}]\nset:\n  output: {{histories: none}}\n"
+    )
 
 
 def without_metrics(text: str) -> str:
@@ -59,8 +61,12 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--size", type=int, nargs=2, default=(100, 100), help="crash-box scales x speeds")
-    ap.add_argument("--kernel", default="generated", help="CRASHSTUDY_KERNEL for the runs (default generated)")
-    ap.add_argument("--rate", type=float, default=metrics.RECORD_RATE, help="try another record rate rule [Hz]")
+    ap.add_argument(
+        "--kernel", default="generated", help="CRASHSTUDY_KERNEL for the runs (default generated)"
+    )
+    ap.add_argument(
+        "--rate", type=float, default=metrics.RECORD_RATE, help="try another record rate rule [Hz]"
+    )
     ap.add_argument("--per-cfc", type=float, default=metrics.RECORD_PER_CFC)
     args = ap.parse_args(argv)
     os.environ["CRASHSTUDY_KERNEL"] = args.kernel
@@ -82,8 +88,11 @@ def main(argv: list[str] | None = None) -> int:
         text = MODEL.read_text()
         (tmp / "with.yaml").write_text(text)
         (tmp / "without.yaml").write_text(without_metrics(text))
-        forms = {"no metrics": ("without.yaml", rate), "metrics": ("with.yaml", rate),
-                 "metrics, every step": ("with.yaml", (np.inf, np.inf))}  # fmt: skip
+        forms = {
+            "no metrics": ("without.yaml", rate),
+            "metrics": ("with.yaml", rate),
+            "metrics, every step": ("with.yaml", (np.inf, np.inf)),
+        }
         for name, (model, _) in forms.items():
             (tmp / f"{name}.yaml").write_text(study_text(model, *args.size))
         times: dict[str, list[tuple[float, float, float]]] = {n: [] for n in forms}
@@ -97,22 +106,35 @@ def main(argv: list[str] | None = None) -> int:
                 assert code == 0, name
                 if rep:
                     times[name].append((wall, cpu, spent[0]))
-                print(f"{name}: wall {wall:.2f} s, cpu {cpu:.2f} s, criteria {spent[0]:.2f} s", file=sys.stderr)
+                print(
+                    f"{name}: wall {wall:.2f} s, cpu {cpu:.2f} s, criteria {spent[0]:.2f} s", file=sys.stderr
+                )
         metrics.RECORD_RATE, metrics.RECORD_PER_CFC = rate
     rows = []
     base_wall = median([x[0] for x in times["no metrics"]])
     base_cpu = median([x[1] for x in times["no metrics"]])
     for name, xs in times.items():
         wall, cpu, crit = (median([x[i] for x in xs]) for i in range(3))
-        rows.append({"study": name, "wall [s]": wall, "CPU [s]": cpu, "in criteria_of [s]": crit,
-                     "criteria share of wall, (t - t_none) / t": (wall - base_wall) / wall if wall else 0.0,
-                     "criteria share of CPU": (cpu - base_cpu) / cpu if cpu else 0.0,
-                     "criteria_of / wall": crit / wall})  # fmt: skip
+        rows.append(
+            {
+                "study": name,
+                "wall [s]": wall,
+                "CPU [s]": cpu,
+                "in criteria_of [s]": crit,
+                "criteria share of wall, (t - t_none) / t": (wall - base_wall) / wall if wall else 0.0,
+                "criteria share of CPU": (cpu - base_cpu) / cpu if cpu else 0.0,
+                "criteria_of / wall": crit / wall,
+            }
+        )
     V = args.size[0] * args.size[1]
-    md = (f"# Crash criteria in a study: frontal-occupant, {V} variants\n\n"
-          f"`python benchmarks/criteria_study.py` (median of {args.repeats}, warm, the three studies interleaved;"
-          f" histories none; kernel {args.kernel}; record rate >= max({rate[0]:g} Hz, {rate[1]:g} x CFC)).\n\n"
-          + md_table(rows) + "\n" + machine_md(machine(start)))  # fmt: skip
+    md = (
+        f"# Crash criteria in a study: frontal-occupant, {V} variants\n\n"
+        f"`python benchmarks/criteria_study.py` (median of {args.repeats}, warm, the three studies interleaved;"
+        f" histories none; kernel {args.kernel}; record rate >= max({rate[0]:g} Hz, {rate[1]:g} x CFC)).\n\n"
+        + md_table(rows)
+        + "\n"
+        + machine_md(machine(start))
+    )
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "criteria_study.md").write_text(md)
     print(md)

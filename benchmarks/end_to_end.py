@@ -64,15 +64,22 @@ def grid(n_variants: int) -> dict[str, list[float]]:
         a = c
         b = max(1, n_variants // (a * c))
     axes = {}
-    for path, (lo, hi), n in (("nodes.engine.mass", ENGINE, a), ("nodes.survival_room.mass", ROOM, b),
-                              ("impact_velocity", SPEED, c)):  # fmt: skip
+    for path, (lo, hi), n in (
+        ("nodes.engine.mass", ENGINE, a),
+        ("nodes.survival_room.mass", ROOM, b),
+        ("impact_velocity", SPEED, c),
+    ):
         axes[path] = [float(x) for x in np.linspace(lo, hi, n)] if n > 1 else [float(0.5 * (lo + hi))]
     return axes
 
 
 def study(n_variants: int, tol: float) -> dict[str, Any]:
-    return {"name": f"frontal-{n_variants}", "model": str(FRONTAL), "matrix": grid(n_variants),
-            "set": {"output": {"histories": "none"}, "time_step": {"tolerance": tol}}}  # fmt: skip
+    return {
+        "name": f"frontal-{n_variants}",
+        "model": str(FRONTAL),
+        "matrix": grid(n_variants),
+        "set": {"output": {"histories": "none"}, "time_step": {"tolerance": tol}},
+    }
 
 
 def base_model() -> dict[str, Any]:
@@ -123,8 +130,15 @@ def calibrate(target: float) -> tuple[float, float, list[dict[str, Any]]]:
             rel_err(run_cs(variant_model(*p), {"tolerance": tol}, 1, 0)["values"], r)
             for p, r in zip(pts, refs, strict=True)
         ]
-        rows.append({"solver": "crashstudy tolerance", "setting": tol, "max_peak_error": max(errs),
-                     "median_peak_error": float(np.median(errs)), "mean_time_s": float("nan")})  # fmt: skip
+        rows.append(
+            {
+                "solver": "crashstudy tolerance",
+                "setting": tol,
+                "max_peak_error": max(errs),
+                "median_peak_error": float(np.median(errs)),
+                "mean_time_s": float("nan"),
+            }
+        )
     ok = [r["setting"] for r in rows if r["max_peak_error"] <= target]
     chosen_tol = max(ok) if ok else TOLERANCES[-1]
     scipy_ok = []
@@ -135,8 +149,15 @@ def calibrate(target: float) -> tuple[float, float, list[dict[str, Any]]]:
             sol = scipy_models.solve(variant_model(*p), "DOP853", rtol, rtol * 1e-3)
             times.append(time.perf_counter() - t0)
             errs.append(rel_err(sm_values(sol), r))
-        rows.append({"solver": "scipy DOP853 + events", "setting": rtol, "max_peak_error": max(errs),
-                     "median_peak_error": float(np.median(errs)), "mean_time_s": float(np.mean(times))})  # fmt: skip
+        rows.append(
+            {
+                "solver": "scipy DOP853 + events",
+                "setting": rtol,
+                "max_peak_error": max(errs),
+                "median_peak_error": float(np.median(errs)),
+                "mean_time_s": float(np.mean(times)),
+            }
+        )
         if max(errs) <= target:
             scipy_ok.append(rtol)
     # the loosest rtol that reaches the target (cost grows as rtol shrinks; picking by measured time
@@ -246,15 +267,31 @@ def profile_child(study_file: str, out: str) -> None:
     runner.run_plan(plan, out, force=True, progress=False)
     t_run = time.perf_counter() - t0
     k = acc["kernel"]
-    print(json.dumps({"import crashstudy (cli, runner, results, study)": t_import, "import numba kernel module": t_numba,
-                      "load_study (validate, expand)": t_load, "build_batch (all chunks)": acc["build_batch"],
-                      "first kernel call (incl. numba cache load)": k[0] if k else 0.0,
-                      "median later kernel call": float(np.median(k[1:])) if len(k) > 1 else 0.0,
-                      "kernel (all chunks)": float(sum(k)), "kernel calls": len(k),
-                      "rest of run_chunk (unique, reorder, reasons)": acc["run_chunk"] - acc["build_batch"] - sum(k),
-                      "ResultWriter.write (all chunks)": acc["write"], "ResultWriter.finish (netCDF, summary.csv)": acc["finish"],
-                      "run_plan other (open results, backend)": t_run - acc["run_chunk"] - acc["write"] - acc["finish"],
-                      "run_plan total": t_run, "process total (after interpreter start)": time.perf_counter() - t_start}))  # fmt: skip
+    print(
+        json.dumps(
+            {
+                "import crashstudy (cli, runner, results, study)": t_import,
+                "import numba kernel module": t_numba,
+                "load_study (validate, expand)": t_load,
+                "build_batch (all chunks)": acc["build_batch"],
+                "first kernel call (incl. numba cache load)": k[0] if k else 0.0,
+                "median later kernel call": float(np.median(k[1:])) if len(k) > 1 else 0.0,
+                "kernel (all chunks)": float(sum(k)),
+                "kernel calls": len(k),
+                "rest of run_chunk (unique, reorder, reasons)": acc["run_chunk"]
+                - acc["build_batch"]
+                - sum(k),
+                "ResultWriter.write (all chunks)": acc["write"],
+                "ResultWriter.finish (netCDF, summary.csv)": acc["finish"],
+                "run_plan other (open results, backend)": t_run
+                - acc["run_chunk"]
+                - acc["write"]
+                - acc["finish"],
+                "run_plan total": t_run,
+                "process total (after interpreter start)": time.perf_counter() - t_start,
+            }
+        )
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -313,8 +350,10 @@ def main(argv: list[str] | None = None) -> int:
         env = dict(os.environ, CRASHSTUDY_KERNEL="generated")
         first = run_cli(small, tmpd / "out-small-1", env)["wall_s"]
         again = run_cli(small, tmpd / "out-small-2", env)["wall_s"]
-        print(f"first run of the model shape (compiles the generated kernel): {first:.1f} s; again: {again:.1f} s",
-              flush=True)  # fmt: skip
+        print(
+            f"first run of the model shape (compiles the generated kernel): {first:.1f} s; again: {again:.1f} s",
+            flush=True,
+        )
         t_py = []
         for _ in range(3):
             t0 = time.perf_counter()
@@ -326,43 +365,74 @@ def main(argv: list[str] | None = None) -> int:
             load0 = load()
             r = run_cli(f, tmpd / f"out-{V}")
             size_mb = sum(p.stat().st_size for p in (tmpd / f"out-{V}").rglob("*") if p.is_file()) / 2**20
-            row = {"variants": V, "tolerance": tol, "wall_s": r["wall_s"], "peak_rss_MiB": r["peak_rss_MiB"],
-                   "result_files_MiB": size_mb, "scipy_rtol": rtol, "scipy_s_per_variant": sp_mean,
-                   "scipy_loop_s (mean x N)": sp_mean * V, "speedup_vs_scipy": sp_mean * V / r["wall_s"],
-                   "load_before": load0, "load_after": load(), "cli_says": r["stdout"].splitlines()[-1]}  # fmt: skip
+            row = {
+                "variants": V,
+                "tolerance": tol,
+                "wall_s": r["wall_s"],
+                "peak_rss_MiB": r["peak_rss_MiB"],
+                "result_files_MiB": size_mb,
+                "scipy_rtol": rtol,
+                "scipy_s_per_variant": sp_mean,
+                "scipy_loop_s (mean x N)": sp_mean * V,
+                "speedup_vs_scipy": sp_mean * V / r["wall_s"],
+                "load_before": load0,
+                "load_after": load(),
+                "cli_says": r["stdout"].splitlines()[-1],
+            }
             if V == 100_000:
                 spec = specialised_time(V, tol, threads)
                 row["specialised_kernel_s"] = spec[0]
                 row["element_steps"] = spec[1]
                 row["cli_over_specialised"] = r["wall_s"] / spec[0]
             if V == args.profile_size:
-                out = subprocess.run([sys.executable, str(HERE / "end_to_end.py"), "--profile-child", str(f),
-                                      str(tmpd / "out-profile")], capture_output=True, text=True, check=True)  # fmt: skip
+                out = subprocess.run(
+                    [
+                        sys.executable,
+                        str(HERE / "end_to_end.py"),
+                        "--profile-child",
+                        str(f),
+                        str(tmpd / "out-profile"),
+                    ],
+                    capture_output=True,
+                    text=True,
+                    check=True,
+                )
                 prof = json.loads(out.stdout.strip().splitlines()[-1])
                 prof["python -c pass (interpreter start, median of 3)"] = float(np.median(t_py))
             rows.append(row)
-            print(f"V={V}: {r['wall_s']:.1f} s, {r['peak_rss_MiB']:.0f} MiB, x{row['speedup_vs_scipy']:.0f} vs scipy "
-                  f"(load {row['load_after']})", flush=True)  # fmt: skip
+            print(
+                f"V={V}: {r['wall_s']:.1f} s, {r['peak_rss_MiB']:.0f} MiB, x{row['speedup_vs_scipy']:.0f} vs scipy "
+                f"(load {row['load_after']})",
+                flush=True,
+            )
 
     info = machine(start_load)
     write_csv(args.out / f"{args.name}.csv", rows, info)
-    text = ["# End to end: `crashstudy run`, summary only, frontal-9mass\n\n", machine_md(info),
-            f"- threads (crashstudy default = os.cpu_count()): {threads}\n",
-            f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n", __doc__.split("\n\n", 1)[1], "\n",
-            f"## Calibration (target peak error {args.target:g})\n\nChosen: tolerance {tol:g}, scipy DOP853 rtol {rtol:g}.\n\n",
-            md_table(calib) if calib else "(given on the command line)\n",
-            f"\n## Compilation\n\nThe runs below use the generated kernel of the model shape from a cache filled "
-            f"by a first run of an 8-variant study: that first run took {first:.1f} s (compiling the generated "
-            f"kernel on a cold cache), the same study again {again:.1f} s (cache load).\n",
-            f"\nscipy time per variant at rtol {rtol:g}: mean {sp_mean:.4g} s, median {sp_median:.4g} s "
-            f"({args.scipy_sample} random variants of the study).\n\n## Runs\n\n",
-            md_table([{k: v for k, v in r.items() if k != "cli_says"} for r in rows]) if rows else "", "\n",
-            "".join(f"- {r['variants']}: `{r['cli_says']}`\n" for r in rows),
-            f"\n## Where the time goes ({args.profile_size}-variant study, fresh process, in-process timers)\n\n",
-            md_table([{"stage": k, "seconds": v} for k, v in prof.items()]) if prof else "(not run)\n"]  # fmt: skip
+    text = [
+        "# End to end: `crashstudy run`, summary only, frontal-9mass\n\n",
+        machine_md(info),
+        f"- threads (crashstudy default = os.cpu_count()): {threads}\n",
+        f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n",
+        __doc__.split("\n\n", 1)[1],
+        "\n",
+        f"## Calibration (target peak error {args.target:g})\n\nChosen: tolerance {tol:g}, scipy DOP853 rtol {rtol:g}.\n\n",
+        md_table(calib) if calib else "(given on the command line)\n",
+        f"\n## Compilation\n\nThe runs below use the generated kernel of the model shape from a cache filled "
+        f"by a first run of an 8-variant study: that first run took {first:.1f} s (compiling the generated "
+        f"kernel on a cold cache), the same study again {again:.1f} s (cache load).\n",
+        f"\nscipy time per variant at rtol {rtol:g}: mean {sp_mean:.4g} s, median {sp_median:.4g} s "
+        f"({args.scipy_sample} random variants of the study).\n\n## Runs\n\n",
+        md_table([{k: v for k, v in r.items() if k != "cli_says"} for r in rows]) if rows else "",
+        "\n",
+        "".join(f"- {r['variants']}: `{r['cli_says']}`\n" for r in rows),
+        f"\n## Where the time goes ({args.profile_size}-variant study, fresh process, in-process timers)\n\n",
+        md_table([{"stage": k, "seconds": v} for k, v in prof.items()]) if prof else "(not run)\n",
+    ]
     if spec:
-        text.append(f"\nHand-specialised loop on the same 10^5 variants ({spec[1]:.3g} element-steps, {threads} threads): "
-                    f"{spec[0]:.3g} s (median of 3).\n")  # fmt: skip
+        text.append(
+            f"\nHand-specialised loop on the same 10^5 variants ({spec[1]:.3g} element-steps, {threads} threads): "
+            f"{spec[0]:.3g} s (median of 3).\n"
+        )
     (args.out / f"{args.name}.md").write_text("".join(text))
     print(f"wrote {args.out / (args.name + '.md')} ({time.perf_counter() - t_start:.0f} s)")
     return 0

@@ -28,8 +28,10 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         st = Path(tmp) / "study.yaml"
-        st.write_text(f"name: fc\nmodel: {FRONTAL}\nmatrix:\n  nodes.engine.mass: {np.linspace(120.0, 210.0, 8).round(6).tolist()}\n"
-                      f"  nodes.bumper.mass: {np.linspace(10.0, 30.0, 4).round(6).tolist()}\n")  # fmt: skip
+        st.write_text(
+            f"name: fc\nmodel: {FRONTAL}\nmatrix:\n  nodes.engine.mass: {np.linspace(120.0, 210.0, 8).round(6).tolist()}\n"
+            f"  nodes.bumper.mass: {np.linspace(10.0, 30.0, 4).round(6).tolist()}\n"
+        )
         plan = load_study(st)
     b, _ = build_batch(plan.topology, plan.params(0, plan.n_variants), plan.interval)
     ours = run_batch(b, (), 1, "reference").peak_force
@@ -37,19 +39,29 @@ def main() -> int:
     loop = fs.run_specialised(b, (), 1).peak_force
     b2, _ = build_batch(plan.topology, plan.params(0, plan.n_variants), plan.interval)
     b2.mass[:] = b2.mass * (1 + 1e-15)
-    b2.inv_mass[:] = np.where(b2.inv_mass > 0, 1.0 / np.where(b2.mass[:, None, :] > 0, b2.mass[:, None, :], 1.0), 0.0)
+    b2.inv_mass[:] = np.where(
+        b2.inv_mass > 0, 1.0 / np.where(b2.mass[:, None, :] > 0, b2.mass[:, None, :], 1.0), 0.0
+    )
     pert = run_batch(b2, (), 1, "reference").peak_force
-    knots = {int(b.curve_a[s]) for s in range(len(b.spring_i)) if b.curve_a[s] >= 0 and np.any(
-        b.knot_check[b.curve_off[b.curve_a[s]] : b.curve_off[b.curve_a[s] + 1]])}  # fmt: skip
-    print("| spring | loop vs crashstudy | crashstudy vs itself, masses x (1 + 1e-15) | its loading curve has a knot peak "
-          "(peak_force counts knots passed between steps) |\n|---|---|---|---|")  # fmt: skip
+    knots = {
+        int(b.curve_a[s])
+        for s in range(len(b.spring_i))
+        if b.curve_a[s] >= 0
+        and np.any(b.knot_check[b.curve_off[b.curve_a[s]] : b.curve_off[b.curve_a[s] + 1]])
+    }
+    print(
+        "| spring | loop vs crashstudy | crashstudy vs itself, masses x (1 + 1e-15) | its loading curve has a knot peak "
+        "(peak_force counts knots passed between steps) |\n|---|---|---|---|"
+    )
     for s, sid in enumerate(plan.topology.spring_ids):
         rel = np.max(np.abs(loop[s] - ours[s]) / np.abs(ours[s]))
         relp = np.max(np.abs(pert[s] - ours[s]) / np.abs(ours[s]))
         print(f"| {sid} | {rel:.2e} | {relp:.2e} | {'yes' if int(b.curve_a[s]) in knots else 'no'} |")
     s = plan.topology.spring_ids.index("rear-rail")
-    print(f"\nrear-rail: crashstudy's peak is {np.unique(ours[s])} in every variant (the knot at x = -0.01 m); the loop's "
-          f"{loop[s].min():.9e} .. {loop[s].max():.9e} (the largest force at a step)")  # fmt: skip
+    print(
+        f"\nrear-rail: crashstudy's peak is {np.unique(ours[s])} in every variant (the knot at x = -0.01 m); the loop's "
+        f"{loop[s].min():.9e} .. {loop[s].max():.9e} (the largest force at a step)"
+    )
     return 0
 
 

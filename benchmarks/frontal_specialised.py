@@ -41,10 +41,27 @@ ROW = BLOCK + 8  # row stride of the work array: 33 cache lines, not a power of 
 # would all fall into the same two L1 sets and alias 4 KiB apart)
 N_NODES, N_SPRINGS = 9, 8
 SPRING_NODES = ((0, 1), (1, 5), (5, 7), (7, 8), (1, 2), (2, 3), (3, 4), (3, 6))
-SPRING_IDS = ("crash-box", "front-rail", "rear-rail", "occupant-cell", "radiator-support", "engine-stackup",
-              "engine-mount", "gearbox-flange")  # fmt: skip
-NODE_IDS = ("barrier", "bumper", "radiator", "engine", "engine_mount", "front_wheel", "transmission",
-            "aft_frame", "survival_room")  # fmt: skip
+SPRING_IDS = (
+    "crash-box",
+    "front-rail",
+    "rear-rail",
+    "occupant-cell",
+    "radiator-support",
+    "engine-stackup",
+    "engine-mount",
+    "gearbox-flange",
+)
+NODE_IDS = (
+    "barrier",
+    "bumper",
+    "radiator",
+    "engine",
+    "engine_mount",
+    "front_wheel",
+    "transmission",
+    "aft_frame",
+    "survival_room",
+)
 
 
 def _ramp(x: list[float], y: list[float]) -> tuple[float, ...]:
@@ -79,8 +96,10 @@ def _model_constants() -> dict[str, Any]:
         xs, ys = c[name]["x"], c[name]["y"]
         assert np.all(np.diff(ys) > 0), name
         out[name + "-inverse"] = _ramp(ys, xs)
-    out["ku"] = tuple(float(sp[s]["material"]["unloading_stiffness"]) for s in
-                      ("crash-box", "front-rail", "rear-rail", "radiator-support", "engine-stackup"))  # fmt: skip
+    out["ku"] = tuple(
+        float(sp[s]["material"]["unloading_stiffness"])
+        for s in ("crash-box", "front-rail", "rear-rail", "radiator-support", "engine-stackup")
+    )
     cell, mount = sp["occupant-cell"]["material"], sp["engine-mount"]["material"]
     out["cell-yield"] = (float(cell["tension_yield"]), float(cell["compression_yield"]))
     out["mount-yield"] = (float(mount["tension_yield"]), float(mount["compression_yield"]))
@@ -90,8 +109,13 @@ def _model_constants() -> dict[str, Any]:
 
 K = _model_constants()
 # module-level constants: numba freezes them into the compiled code
-C_BOX, C_RAIL, C_REAR, C_RAD, C_ENG = (K["crash-box-loading"], K["rail-loading"], K["rear-rail-loading"],
-                                      K["radiator-support-loading"], K["engine-stackup-loading"])  # fmt: skip
+C_BOX, C_RAIL, C_REAR, C_RAD, C_ENG = (
+    K["crash-box-loading"],
+    K["rail-loading"],
+    K["rear-rail-loading"],
+    K["radiator-support-loading"],
+    K["engine-stackup-loading"],
+)
 C_CELL, C_CELL_INV, C_CELL_U = K["cell-loading"], K["cell-loading-inverse"], K["cell-unloading"]
 C_MOUNT, C_MOUNT_INV, C_MOUNT_U = K["mount-loading"], K["mount-loading-inverse"], K["mount-unloading"]
 KU_BOX, KU_RAIL, KU_REAR, KU_RAD, KU_ENG = K["ku"]
@@ -118,7 +142,11 @@ R_PA = 82  # per node: peak a^2
 R_CS = 91  # crush state (e_min, F*): 2 rows per spring index
 R_GS = 107  # general_nonlinear state: 8 rows per slot (slot 0: occupant-cell, slot 1: engine-mount)
 R_FH, R_EH, R_UH, R_AH, R_VH, R_KEH, R_IEH = 123, 131, 139, 148, 157, 166, 167  # recorded values
-R_YS, R_IX, R_KF = 168, 173, 178  # per variant: the crush springs' curve scale and 1 / x_scale, the flange's k
+R_YS, R_IX, R_KF = (
+    168,
+    173,
+    178,
+)  # per variant: the crush springs' curve scale and 1 / x_scale, the flange's k
 N_ROWS = 179
 CRUSH_SPRINGS = (0, 1, 2, 4, 5)  # crash-box, front-rail, rear-rail, radiator-support, engine-stackup
 
@@ -269,47 +297,212 @@ def _step(Z, B, n, rec):  # pragma: no cover - compiled
         e6 = Z[(R_U + 4) * ROW + w] - Z[(R_U + 3) * ROW + w]
         e7 = Z[(R_U + 6) * ROW + w] - Z[(R_U + 3) * ROW + w]
         F0, Z[(R_CS + 0) * ROW + w], Z[(R_CS + 1) * ROW + w] = _crush(
-            e0, Z[(R_CS + 0) * ROW + w], Z[(R_CS + 1) * ROW + w], _ramp4, C_BOX, KU_BOX, Z[(R_YS + 0) * ROW + w], Z[(R_IX + 0) * ROW + w]
+            e0,
+            Z[(R_CS + 0) * ROW + w],
+            Z[(R_CS + 1) * ROW + w],
+            _ramp4,
+            C_BOX,
+            KU_BOX,
+            Z[(R_YS + 0) * ROW + w],
+            Z[(R_IX + 0) * ROW + w],
         )
         F1, Z[(R_CS + 2) * ROW + w], Z[(R_CS + 3) * ROW + w] = _crush(
-            e1, Z[(R_CS + 2) * ROW + w], Z[(R_CS + 3) * ROW + w], _ramp4, C_RAIL, KU_RAIL, Z[(R_YS + 1) * ROW + w], Z[(R_IX + 1) * ROW + w]
+            e1,
+            Z[(R_CS + 2) * ROW + w],
+            Z[(R_CS + 3) * ROW + w],
+            _ramp4,
+            C_RAIL,
+            KU_RAIL,
+            Z[(R_YS + 1) * ROW + w],
+            Z[(R_IX + 1) * ROW + w],
         )
         F2, Z[(R_CS + 4) * ROW + w], Z[(R_CS + 5) * ROW + w] = _crush(
-            e2, Z[(R_CS + 4) * ROW + w], Z[(R_CS + 5) * ROW + w], _ramp3, C_REAR, KU_REAR, Z[(R_YS + 2) * ROW + w], Z[(R_IX + 2) * ROW + w]
+            e2,
+            Z[(R_CS + 4) * ROW + w],
+            Z[(R_CS + 5) * ROW + w],
+            _ramp3,
+            C_REAR,
+            KU_REAR,
+            Z[(R_YS + 2) * ROW + w],
+            Z[(R_IX + 2) * ROW + w],
         )
         F4, Z[(R_CS + 8) * ROW + w], Z[(R_CS + 9) * ROW + w] = _crush(
-            e4, Z[(R_CS + 8) * ROW + w], Z[(R_CS + 9) * ROW + w], _ramp3, C_RAD, KU_RAD, Z[(R_YS + 3) * ROW + w], Z[(R_IX + 3) * ROW + w]
+            e4,
+            Z[(R_CS + 8) * ROW + w],
+            Z[(R_CS + 9) * ROW + w],
+            _ramp3,
+            C_RAD,
+            KU_RAD,
+            Z[(R_YS + 3) * ROW + w],
+            Z[(R_IX + 3) * ROW + w],
         )
         F5, Z[(R_CS + 10) * ROW + w], Z[(R_CS + 11) * ROW + w] = _crush(
-            e5, Z[(R_CS + 10) * ROW + w], Z[(R_CS + 11) * ROW + w], _ramp3, C_ENG, KU_ENG, Z[(R_YS + 4) * ROW + w], Z[(R_IX + 4) * ROW + w]
+            e5,
+            Z[(R_CS + 10) * ROW + w],
+            Z[(R_CS + 11) * ROW + w],
+            _ramp3,
+            C_ENG,
+            KU_ENG,
+            Z[(R_YS + 4) * ROW + w],
+            Z[(R_IX + 4) * ROW + w],
         )
         g = R_GS
-        (F3, Z[(g) * ROW + w], Z[(g + 1) * ROW + w], Z[(g + 2) * ROW + w], Z[(g + 3) * ROW + w], Z[(g + 4) * ROW + w], Z[(g + 5) * ROW + w], Z[(g + 6) * ROW + w],
-         Z[(g + 7) * ROW + w]) = _general(e3, Z[(g) * ROW + w], Z[(g + 1) * ROW + w], Z[(g + 2) * ROW + w], Z[(g + 3) * ROW + w], Z[(g + 4) * ROW + w],
-                                 Z[(g + 5) * ROW + w], Z[(g + 6) * ROW + w], Z[(g + 7) * ROW + w], _ramp4, C_CELL, _ramp4, C_CELL_INV, C_CELL_U,
-                                 KU_CELL, YT_CELL, YC_CELL)  # fmt: skip
+        (
+            F3,
+            Z[(g) * ROW + w],
+            Z[(g + 1) * ROW + w],
+            Z[(g + 2) * ROW + w],
+            Z[(g + 3) * ROW + w],
+            Z[(g + 4) * ROW + w],
+            Z[(g + 5) * ROW + w],
+            Z[(g + 6) * ROW + w],
+            Z[(g + 7) * ROW + w],
+        ) = _general(
+            e3,
+            Z[(g) * ROW + w],
+            Z[(g + 1) * ROW + w],
+            Z[(g + 2) * ROW + w],
+            Z[(g + 3) * ROW + w],
+            Z[(g + 4) * ROW + w],
+            Z[(g + 5) * ROW + w],
+            Z[(g + 6) * ROW + w],
+            Z[(g + 7) * ROW + w],
+            _ramp4,
+            C_CELL,
+            _ramp4,
+            C_CELL_INV,
+            C_CELL_U,
+            KU_CELL,
+            YT_CELL,
+            YC_CELL,
+        )
         g = R_GS + 8
-        (F6, Z[(g) * ROW + w], Z[(g + 1) * ROW + w], Z[(g + 2) * ROW + w], Z[(g + 3) * ROW + w], Z[(g + 4) * ROW + w], Z[(g + 5) * ROW + w], Z[(g + 6) * ROW + w],
-         Z[(g + 7) * ROW + w]) = _general(e6, Z[(g) * ROW + w], Z[(g + 1) * ROW + w], Z[(g + 2) * ROW + w], Z[(g + 3) * ROW + w], Z[(g + 4) * ROW + w],
-                                 Z[(g + 5) * ROW + w], Z[(g + 6) * ROW + w], Z[(g + 7) * ROW + w], _ramp5, C_MOUNT, _ramp5, C_MOUNT_INV, C_MOUNT_U,
-                                 KU_MOUNT, YT_MOUNT, YC_MOUNT)  # fmt: skip
+        (
+            F6,
+            Z[(g) * ROW + w],
+            Z[(g + 1) * ROW + w],
+            Z[(g + 2) * ROW + w],
+            Z[(g + 3) * ROW + w],
+            Z[(g + 4) * ROW + w],
+            Z[(g + 5) * ROW + w],
+            Z[(g + 6) * ROW + w],
+            Z[(g + 7) * ROW + w],
+        ) = _general(
+            e6,
+            Z[(g) * ROW + w],
+            Z[(g + 1) * ROW + w],
+            Z[(g + 2) * ROW + w],
+            Z[(g + 3) * ROW + w],
+            Z[(g + 4) * ROW + w],
+            Z[(g + 5) * ROW + w],
+            Z[(g + 6) * ROW + w],
+            Z[(g + 7) * ROW + w],
+            _ramp5,
+            C_MOUNT,
+            _ramp5,
+            C_MOUNT_INV,
+            C_MOUNT_U,
+            KU_MOUNT,
+            YT_MOUNT,
+            YC_MOUNT,
+        )
         F7 = Z[R_KF * ROW + w] * e7
         # summaries in spring order (the generic kernel's order of operations)
-        ie0, Z[(R_PF + 0) * ROW + w], Z[(R_MC + 0) * ROW + w] = _summary(F0, e0, Z[(R_IE + 0) * ROW + w], Z[(R_FP + 0) * ROW + w], Z[(R_EP + 0) * ROW + w], Z[(R_PF + 0) * ROW + w], Z[(R_MC + 0) * ROW + w], af, wt)  # fmt: skip
+        ie0, Z[(R_PF + 0) * ROW + w], Z[(R_MC + 0) * ROW + w] = _summary(
+            F0,
+            e0,
+            Z[(R_IE + 0) * ROW + w],
+            Z[(R_FP + 0) * ROW + w],
+            Z[(R_EP + 0) * ROW + w],
+            Z[(R_PF + 0) * ROW + w],
+            Z[(R_MC + 0) * ROW + w],
+            af,
+            wt,
+        )
         Z[(R_IE + 0) * ROW + w], Z[(R_FP + 0) * ROW + w], Z[(R_EP + 0) * ROW + w] = ie0, F0, e0
-        ie1, Z[(R_PF + 1) * ROW + w], Z[(R_MC + 1) * ROW + w] = _summary(F1, e1, Z[(R_IE + 1) * ROW + w], Z[(R_FP + 1) * ROW + w], Z[(R_EP + 1) * ROW + w], Z[(R_PF + 1) * ROW + w], Z[(R_MC + 1) * ROW + w], af, wt)  # fmt: skip
+        ie1, Z[(R_PF + 1) * ROW + w], Z[(R_MC + 1) * ROW + w] = _summary(
+            F1,
+            e1,
+            Z[(R_IE + 1) * ROW + w],
+            Z[(R_FP + 1) * ROW + w],
+            Z[(R_EP + 1) * ROW + w],
+            Z[(R_PF + 1) * ROW + w],
+            Z[(R_MC + 1) * ROW + w],
+            af,
+            wt,
+        )
         Z[(R_IE + 1) * ROW + w], Z[(R_FP + 1) * ROW + w], Z[(R_EP + 1) * ROW + w] = ie1, F1, e1
-        ie2, Z[(R_PF + 2) * ROW + w], Z[(R_MC + 2) * ROW + w] = _summary(F2, e2, Z[(R_IE + 2) * ROW + w], Z[(R_FP + 2) * ROW + w], Z[(R_EP + 2) * ROW + w], Z[(R_PF + 2) * ROW + w], Z[(R_MC + 2) * ROW + w], af, wt)  # fmt: skip
+        ie2, Z[(R_PF + 2) * ROW + w], Z[(R_MC + 2) * ROW + w] = _summary(
+            F2,
+            e2,
+            Z[(R_IE + 2) * ROW + w],
+            Z[(R_FP + 2) * ROW + w],
+            Z[(R_EP + 2) * ROW + w],
+            Z[(R_PF + 2) * ROW + w],
+            Z[(R_MC + 2) * ROW + w],
+            af,
+            wt,
+        )
         Z[(R_IE + 2) * ROW + w], Z[(R_FP + 2) * ROW + w], Z[(R_EP + 2) * ROW + w] = ie2, F2, e2
-        ie3, Z[(R_PF + 3) * ROW + w], Z[(R_MC + 3) * ROW + w] = _summary(F3, e3, Z[(R_IE + 3) * ROW + w], Z[(R_FP + 3) * ROW + w], Z[(R_EP + 3) * ROW + w], Z[(R_PF + 3) * ROW + w], Z[(R_MC + 3) * ROW + w], af, wt)  # fmt: skip
+        ie3, Z[(R_PF + 3) * ROW + w], Z[(R_MC + 3) * ROW + w] = _summary(
+            F3,
+            e3,
+            Z[(R_IE + 3) * ROW + w],
+            Z[(R_FP + 3) * ROW + w],
+            Z[(R_EP + 3) * ROW + w],
+            Z[(R_PF + 3) * ROW + w],
+            Z[(R_MC + 3) * ROW + w],
+            af,
+            wt,
+        )
         Z[(R_IE + 3) * ROW + w], Z[(R_FP + 3) * ROW + w], Z[(R_EP + 3) * ROW + w] = ie3, F3, e3
-        ie4, Z[(R_PF + 4) * ROW + w], Z[(R_MC + 4) * ROW + w] = _summary(F4, e4, Z[(R_IE + 4) * ROW + w], Z[(R_FP + 4) * ROW + w], Z[(R_EP + 4) * ROW + w], Z[(R_PF + 4) * ROW + w], Z[(R_MC + 4) * ROW + w], af, wt)  # fmt: skip
+        ie4, Z[(R_PF + 4) * ROW + w], Z[(R_MC + 4) * ROW + w] = _summary(
+            F4,
+            e4,
+            Z[(R_IE + 4) * ROW + w],
+            Z[(R_FP + 4) * ROW + w],
+            Z[(R_EP + 4) * ROW + w],
+            Z[(R_PF + 4) * ROW + w],
+            Z[(R_MC + 4) * ROW + w],
+            af,
+            wt,
+        )
         Z[(R_IE + 4) * ROW + w], Z[(R_FP + 4) * ROW + w], Z[(R_EP + 4) * ROW + w] = ie4, F4, e4
-        ie5, Z[(R_PF + 5) * ROW + w], Z[(R_MC + 5) * ROW + w] = _summary(F5, e5, Z[(R_IE + 5) * ROW + w], Z[(R_FP + 5) * ROW + w], Z[(R_EP + 5) * ROW + w], Z[(R_PF + 5) * ROW + w], Z[(R_MC + 5) * ROW + w], af, wt)  # fmt: skip
+        ie5, Z[(R_PF + 5) * ROW + w], Z[(R_MC + 5) * ROW + w] = _summary(
+            F5,
+            e5,
+            Z[(R_IE + 5) * ROW + w],
+            Z[(R_FP + 5) * ROW + w],
+            Z[(R_EP + 5) * ROW + w],
+            Z[(R_PF + 5) * ROW + w],
+            Z[(R_MC + 5) * ROW + w],
+            af,
+            wt,
+        )
         Z[(R_IE + 5) * ROW + w], Z[(R_FP + 5) * ROW + w], Z[(R_EP + 5) * ROW + w] = ie5, F5, e5
-        ie6, Z[(R_PF + 6) * ROW + w], Z[(R_MC + 6) * ROW + w] = _summary(F6, e6, Z[(R_IE + 6) * ROW + w], Z[(R_FP + 6) * ROW + w], Z[(R_EP + 6) * ROW + w], Z[(R_PF + 6) * ROW + w], Z[(R_MC + 6) * ROW + w], af, wt)  # fmt: skip
+        ie6, Z[(R_PF + 6) * ROW + w], Z[(R_MC + 6) * ROW + w] = _summary(
+            F6,
+            e6,
+            Z[(R_IE + 6) * ROW + w],
+            Z[(R_FP + 6) * ROW + w],
+            Z[(R_EP + 6) * ROW + w],
+            Z[(R_PF + 6) * ROW + w],
+            Z[(R_MC + 6) * ROW + w],
+            af,
+            wt,
+        )
         Z[(R_IE + 6) * ROW + w], Z[(R_FP + 6) * ROW + w], Z[(R_EP + 6) * ROW + w] = ie6, F6, e6
-        ie7, Z[(R_PF + 7) * ROW + w], Z[(R_MC + 7) * ROW + w] = _summary(F7, e7, Z[(R_IE + 7) * ROW + w], Z[(R_FP + 7) * ROW + w], Z[(R_EP + 7) * ROW + w], Z[(R_PF + 7) * ROW + w], Z[(R_MC + 7) * ROW + w], af, wt)  # fmt: skip
+        ie7, Z[(R_PF + 7) * ROW + w], Z[(R_MC + 7) * ROW + w] = _summary(
+            F7,
+            e7,
+            Z[(R_IE + 7) * ROW + w],
+            Z[(R_FP + 7) * ROW + w],
+            Z[(R_EP + 7) * ROW + w],
+            Z[(R_PF + 7) * ROW + w],
+            Z[(R_MC + 7) * ROW + w],
+            af,
+            wt,
+        )
         Z[(R_IE + 7) * ROW + w], Z[(R_FP + 7) * ROW + w], Z[(R_EP + 7) * ROW + w] = ie7, F7, e7
         ie_tot = (((((((0.0 + ie0) + ie1) + ie2) + ie3) + ie4) + ie5) + ie6) + ie7
         if rec:
@@ -331,14 +524,94 @@ def _step(Z, B, n, rec):  # pragma: no cover - compiled
         f7 = (0.0 - F2) + F3
         f8 = 0.0 - F3
         dtw = Z[(R_DT) * ROW + w]
-        a1, vo1, vn1, k1, Z[(R_PA + 1) * ROW + w], Z[(R_U + 1) * ROW + w], Z[(R_V + 1) * ROW + w] = _node(f1, Z[(R_IM + 1) * ROW + w], Z[(R_M + 1) * ROW + w], Z[(R_V + 1) * ROW + w], Z[(R_U + 1) * ROW + w], Z[(R_PA + 1) * ROW + w], h, dtw, af)  # fmt: skip
-        a2, vo2, vn2, k2, Z[(R_PA + 2) * ROW + w], Z[(R_U + 2) * ROW + w], Z[(R_V + 2) * ROW + w] = _node(f2, Z[(R_IM + 2) * ROW + w], Z[(R_M + 2) * ROW + w], Z[(R_V + 2) * ROW + w], Z[(R_U + 2) * ROW + w], Z[(R_PA + 2) * ROW + w], h, dtw, af)  # fmt: skip
-        a3, vo3, vn3, k3, Z[(R_PA + 3) * ROW + w], Z[(R_U + 3) * ROW + w], Z[(R_V + 3) * ROW + w] = _node(f3, Z[(R_IM + 3) * ROW + w], Z[(R_M + 3) * ROW + w], Z[(R_V + 3) * ROW + w], Z[(R_U + 3) * ROW + w], Z[(R_PA + 3) * ROW + w], h, dtw, af)  # fmt: skip
-        a4, vo4, vn4, k4, Z[(R_PA + 4) * ROW + w], Z[(R_U + 4) * ROW + w], Z[(R_V + 4) * ROW + w] = _node(f4, Z[(R_IM + 4) * ROW + w], Z[(R_M + 4) * ROW + w], Z[(R_V + 4) * ROW + w], Z[(R_U + 4) * ROW + w], Z[(R_PA + 4) * ROW + w], h, dtw, af)  # fmt: skip
-        a5, vo5, vn5, k5, Z[(R_PA + 5) * ROW + w], Z[(R_U + 5) * ROW + w], Z[(R_V + 5) * ROW + w] = _node(f5, Z[(R_IM + 5) * ROW + w], Z[(R_M + 5) * ROW + w], Z[(R_V + 5) * ROW + w], Z[(R_U + 5) * ROW + w], Z[(R_PA + 5) * ROW + w], h, dtw, af)  # fmt: skip
-        a6, vo6, vn6, k6, Z[(R_PA + 6) * ROW + w], Z[(R_U + 6) * ROW + w], Z[(R_V + 6) * ROW + w] = _node(f6, Z[(R_IM + 6) * ROW + w], Z[(R_M + 6) * ROW + w], Z[(R_V + 6) * ROW + w], Z[(R_U + 6) * ROW + w], Z[(R_PA + 6) * ROW + w], h, dtw, af)  # fmt: skip
-        a7, vo7, vn7, k7, Z[(R_PA + 7) * ROW + w], Z[(R_U + 7) * ROW + w], Z[(R_V + 7) * ROW + w] = _node(f7, Z[(R_IM + 7) * ROW + w], Z[(R_M + 7) * ROW + w], Z[(R_V + 7) * ROW + w], Z[(R_U + 7) * ROW + w], Z[(R_PA + 7) * ROW + w], h, dtw, af)  # fmt: skip
-        a8, vo8, vn8, k8, Z[(R_PA + 8) * ROW + w], Z[(R_U + 8) * ROW + w], Z[(R_V + 8) * ROW + w] = _node(f8, Z[(R_IM + 8) * ROW + w], Z[(R_M + 8) * ROW + w], Z[(R_V + 8) * ROW + w], Z[(R_U + 8) * ROW + w], Z[(R_PA + 8) * ROW + w], h, dtw, af)  # fmt: skip
+        a1, vo1, vn1, k1, Z[(R_PA + 1) * ROW + w], Z[(R_U + 1) * ROW + w], Z[(R_V + 1) * ROW + w] = _node(
+            f1,
+            Z[(R_IM + 1) * ROW + w],
+            Z[(R_M + 1) * ROW + w],
+            Z[(R_V + 1) * ROW + w],
+            Z[(R_U + 1) * ROW + w],
+            Z[(R_PA + 1) * ROW + w],
+            h,
+            dtw,
+            af,
+        )
+        a2, vo2, vn2, k2, Z[(R_PA + 2) * ROW + w], Z[(R_U + 2) * ROW + w], Z[(R_V + 2) * ROW + w] = _node(
+            f2,
+            Z[(R_IM + 2) * ROW + w],
+            Z[(R_M + 2) * ROW + w],
+            Z[(R_V + 2) * ROW + w],
+            Z[(R_U + 2) * ROW + w],
+            Z[(R_PA + 2) * ROW + w],
+            h,
+            dtw,
+            af,
+        )
+        a3, vo3, vn3, k3, Z[(R_PA + 3) * ROW + w], Z[(R_U + 3) * ROW + w], Z[(R_V + 3) * ROW + w] = _node(
+            f3,
+            Z[(R_IM + 3) * ROW + w],
+            Z[(R_M + 3) * ROW + w],
+            Z[(R_V + 3) * ROW + w],
+            Z[(R_U + 3) * ROW + w],
+            Z[(R_PA + 3) * ROW + w],
+            h,
+            dtw,
+            af,
+        )
+        a4, vo4, vn4, k4, Z[(R_PA + 4) * ROW + w], Z[(R_U + 4) * ROW + w], Z[(R_V + 4) * ROW + w] = _node(
+            f4,
+            Z[(R_IM + 4) * ROW + w],
+            Z[(R_M + 4) * ROW + w],
+            Z[(R_V + 4) * ROW + w],
+            Z[(R_U + 4) * ROW + w],
+            Z[(R_PA + 4) * ROW + w],
+            h,
+            dtw,
+            af,
+        )
+        a5, vo5, vn5, k5, Z[(R_PA + 5) * ROW + w], Z[(R_U + 5) * ROW + w], Z[(R_V + 5) * ROW + w] = _node(
+            f5,
+            Z[(R_IM + 5) * ROW + w],
+            Z[(R_M + 5) * ROW + w],
+            Z[(R_V + 5) * ROW + w],
+            Z[(R_U + 5) * ROW + w],
+            Z[(R_PA + 5) * ROW + w],
+            h,
+            dtw,
+            af,
+        )
+        a6, vo6, vn6, k6, Z[(R_PA + 6) * ROW + w], Z[(R_U + 6) * ROW + w], Z[(R_V + 6) * ROW + w] = _node(
+            f6,
+            Z[(R_IM + 6) * ROW + w],
+            Z[(R_M + 6) * ROW + w],
+            Z[(R_V + 6) * ROW + w],
+            Z[(R_U + 6) * ROW + w],
+            Z[(R_PA + 6) * ROW + w],
+            h,
+            dtw,
+            af,
+        )
+        a7, vo7, vn7, k7, Z[(R_PA + 7) * ROW + w], Z[(R_U + 7) * ROW + w], Z[(R_V + 7) * ROW + w] = _node(
+            f7,
+            Z[(R_IM + 7) * ROW + w],
+            Z[(R_M + 7) * ROW + w],
+            Z[(R_V + 7) * ROW + w],
+            Z[(R_U + 7) * ROW + w],
+            Z[(R_PA + 7) * ROW + w],
+            h,
+            dtw,
+            af,
+        )
+        a8, vo8, vn8, k8, Z[(R_PA + 8) * ROW + w], Z[(R_U + 8) * ROW + w], Z[(R_V + 8) * ROW + w] = _node(
+            f8,
+            Z[(R_IM + 8) * ROW + w],
+            Z[(R_M + 8) * ROW + w],
+            Z[(R_V + 8) * ROW + w],
+            Z[(R_U + 8) * ROW + w],
+            Z[(R_PA + 8) * ROW + w],
+            h,
+            dtw,
+            af,
+        )
         ke = (((((((0.0 + k1) + k2) + k3) + k4) + k5) + k6) + k7) + k8
         if rec:
             Z[(R_AH + 1) * ROW + w] = a1
@@ -369,9 +642,37 @@ def _step(Z, B, n, rec):  # pragma: no cover - compiled
 
 
 @nb.njit(nogil=True, error_model="numpy", cache=True)
-def _run_blocks(b_lo, b_hi, starts, record, mass, inv_mass, x0, v0, dt, n_steps, out_every, n_out, ys, ixs, kf,
-                h_pos, h_disp, h_vel, h_acc, h_force, h_elong, h_energy,
-                peak_force, max_crush, absorbed, peak_acc, energy_error, final_energy, t_end):  # pragma: no cover  # fmt: skip
+def _run_blocks(
+    b_lo,
+    b_hi,
+    starts,
+    record,
+    mass,
+    inv_mass,
+    x0,
+    v0,
+    dt,
+    n_steps,
+    out_every,
+    n_out,
+    ys,
+    ixs,
+    kf,
+    h_pos,
+    h_disp,
+    h_vel,
+    h_acc,
+    h_force,
+    h_elong,
+    h_energy,
+    peak_force,
+    max_crush,
+    absorbed,
+    peak_acc,
+    energy_error,
+    final_energy,
+    t_end,
+):  # pragma: no cover
     N = 9
     S = 8
     for bi in range(b_lo, b_hi):
@@ -471,12 +772,35 @@ def run_specialised(b: Any, histories: tuple[str, ...], n_out: int, block: int =
     others = [c for c in range(b.cfac.shape[1]) if c not in set(curves.tolist())]
     assert np.all(b.cfac[:2, others] == 1.0), "the loop scales the crush springs' curves only"
     ys, ixs = np.ascontiguousarray(b.cfac[0, curves]), np.ascontiguousarray(1.0 / b.cfac[1, curves])
-    args = (starts, record, b.mass, b.inv_mass, b.x0, b.v0, b.dt, b.n_steps, b.out_every, n_out, ys, ixs,
-            np.ascontiguousarray(b.kpar[7]),
-            buf("position", 4), buf("displacement", 4), buf("velocity", 4), buf("acceleration", 4),
-            buf("spring_force", 3), buf("spring_elongation", 3), h_energy,
-            out.peak_force, out.max_crush, out.absorbed_energy, out.peak_acceleration, out.energy_error,
-            out.final_energy, out.t_end)  # fmt: skip
+    args = (
+        starts,
+        record,
+        b.mass,
+        b.inv_mass,
+        b.x0,
+        b.v0,
+        b.dt,
+        b.n_steps,
+        b.out_every,
+        n_out,
+        ys,
+        ixs,
+        np.ascontiguousarray(b.kpar[7]),
+        buf("position", 4),
+        buf("displacement", 4),
+        buf("velocity", 4),
+        buf("acceleration", 4),
+        buf("spring_force", 3),
+        buf("spring_elongation", 3),
+        h_energy,
+        out.peak_force,
+        out.max_crush,
+        out.absorbed_energy,
+        out.peak_acceleration,
+        out.energy_error,
+        out.final_energy,
+        out.t_end,
+    )
     nblocks = len(starts) - 1
     threads = min(_THREADS[0], nblocks)
     if threads <= 1:

@@ -53,16 +53,29 @@ for line in sys.stdin:
 
 def _env(root: str, cache: str) -> dict[str, str]:
     env = dict(os.environ)
-    env.update(PYTHONPATH=root + "/src", NUMBA_CACHE_DIR=cache + "/numba", CRASHSTUDY_KERNEL_CACHE=cache + "/kernels",
-               NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    env.update(
+        PYTHONPATH=root + "/src",
+        NUMBA_CACHE_DIR=cache + "/numba",
+        CRASHSTUDY_KERNEL_CACHE=cache + "/kernels",
+        NUMBA_NUM_THREADS="1",
+        OMP_NUM_THREADS="1",
+    )
     for sub in ("numba", "kernels"):
         os.makedirs(f"{cache}/{sub}", mode=0o700, exist_ok=True)
     return env
 
 
 def runs(trees: list[str], caches: list[str], repeats: int, end_time: str) -> dict[str, object]:
-    procs = [subprocess.Popen([sys.executable, "-c", WORKER, t, "run", str(end_time)], env=_env(t, c), text=True,
-                              stdin=subprocess.PIPE, stdout=subprocess.PIPE) for t, c in zip(trees, caches, strict=True)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", WORKER, t, "run", str(end_time)],
+            env=_env(t, c),
+            text=True,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+        )
+        for t, c in zip(trees, caches, strict=True)
+    ]
     for p in procs:
         assert p.stdout is not None and p.stdout.readline().strip() == "ready"
     times: list[list[float]] = [[], []]
@@ -77,8 +90,14 @@ def runs(trees: list[str], caches: list[str], repeats: int, end_time: str) -> di
         p.stdin.close()
         p.wait()
     med = [sorted(t)[len(t) // 2] for t in times]
-    return {"figure": "run_cpu_s_per_call (frontal, 256 variants, 1 thread)", "base": med[0], "branch": med[1],
-            "ratio": med[1] / med[0], "base_all": times[0], "branch_all": times[1]}
+    return {
+        "figure": "run_cpu_s_per_call (frontal, 256 variants, 1 thread)",
+        "base": med[0],
+        "branch": med[1],
+        "ratio": med[1] / med[0],
+        "base_all": times[0],
+        "branch_all": times[1],
+    }
 
 
 def compiles(trees: list[str], repeats: int, cache_root: str) -> dict[str, object]:
@@ -86,13 +105,24 @@ def compiles(trees: list[str], repeats: int, cache_root: str) -> dict[str, objec
     for _ in range(repeats):
         for k, t in enumerate(trees):
             cache = tempfile.mkdtemp(prefix=f"cold{k}_", dir=cache_root)
-            out = subprocess.run([sys.executable, "-c", WORKER, t, "compile"], env=_env(t, cache), text=True,
-                                 capture_output=True, check=True).stdout
+            out = subprocess.run(
+                [sys.executable, "-c", WORKER, t, "compile"],
+                env=_env(t, cache),
+                text=True,
+                capture_output=True,
+                check=True,
+            ).stdout
             cpu[k].append(json.loads(out.strip().splitlines()[-1])["compile_cpu_s"])
             shutil.rmtree(cache, ignore_errors=True)
     med = [sorted(c)[len(c) // 2] for c in cpu]
-    return {"figure": "generic cold compile CPU s", "base": med[0], "branch": med[1], "ratio": med[1] / med[0],
-            "base_all": cpu[0], "branch_all": cpu[1]}
+    return {
+        "figure": "generic cold compile CPU s",
+        "base": med[0],
+        "branch": med[1],
+        "ratio": med[1] / med[0],
+        "base_all": cpu[0],
+        "branch_all": cpu[1],
+    }
 
 
 def main() -> None:

@@ -33,7 +33,9 @@ def _pos(x):  # pragma: no cover - compiled
 
 
 @nb.njit(nogil=True, error_model="numpy")
-def _run_range(lo, hi, nx, ny, hid, vid, cx, cy, inv_mass, x0, v0, l0, k, ys, ixs, dt, n_steps, pf):  # pragma: no cover  # noqa: E501
+def _run_range(
+    lo, hi, nx, ny, hid, vid, cx, cy, inv_mass, x0, v0, l0, k, ys, ixs, dt, n_steps, pf
+):  # pragma: no cover  # noqa: E501
     N = nx * ny
     s0 = (cy[1] - cy[0]) / (cx[1] - cx[0])
     s1 = (cy[2] - cy[1]) / (cx[2] - cx[1])
@@ -115,9 +117,24 @@ def run_specialised(b: Any, threads: int = 2) -> SimpleNamespace:
     assert z - a == 3 and np.all(b.bx[a:z] == b.bx[a:z, :1]), "the crush curve: three points, one shape"
     assert np.all(b.free[:nx] == 0.0) and np.all(b.free[nx:] == 1.0) and len(b.wall_nodes) == 0
     pf = np.zeros((len(b.spring_i), V))
-    args = (nx, ny, hid, vid, b.bx[a:z, 0].copy(), b.by[a:z, 0].copy(), b.inv_mass, b.x0, b.v0, b.length0, b.kpar,
-            np.ascontiguousarray(b.cfac[0, c]), np.ascontiguousarray(1.0 / b.cfac[1, c]), b.dt,
-            b.n_steps.astype(np.int64), pf)
+    args = (
+        nx,
+        ny,
+        hid,
+        vid,
+        b.bx[a:z, 0].copy(),
+        b.by[a:z, 0].copy(),
+        b.inv_mass,
+        b.x0,
+        b.v0,
+        b.length0,
+        b.kpar,
+        np.ascontiguousarray(b.cfac[0, c]),
+        np.ascontiguousarray(1.0 / b.cfac[1, c]),
+        b.dt,
+        b.n_steps.astype(np.int64),
+        pf,
+    )
     cuts = np.linspace(0, V, min(V, 8 * threads) + 1).astype(np.int64)
     with ThreadPoolExecutor(max(1, threads)) as pool:
         list(pool.map(lambda q: _run_range(cuts[q], cuts[q + 1], *args), range(len(cuts) - 1)))

@@ -48,10 +48,14 @@ def _ramp_source(name: str, x: list[float], y: list[float]) -> str:
 
 def _curves() -> dict[str, Any]:
     m = load_yaml(str(MODEL)).data
-    assert tuple(m["nodes"]) == NODE_IDS and tuple(m["springs"]) == SPRING_IDS, "helicopter-subfloor.yaml changed"
+    assert tuple(m["nodes"]) == NODE_IDS and tuple(m["springs"]) == SPRING_IDS, (
+        "helicopter-subfloor.yaml changed"
+    )
     ns: dict[str, Any] = {}
     for k, cid in enumerate(CURVE_IDS):
-        exec(compile(_ramp_source(f"c{k}", m["curves"][cid]["x"], m["curves"][cid]["y"]), "<heli>", "exec"), ns)  # noqa: S102 - our own source
+        exec(
+            compile(_ramp_source(f"c{k}", m["curves"][cid]["x"], m["curves"][cid]["y"]), "<heli>", "exec"), ns
+        )  # noqa: S102 - our own source
     return {f"c{k}": nb.njit(inline="always", error_model="numpy")(ns[f"c{k}"]) for k in range(4)}
 
 
@@ -60,7 +64,9 @@ c0, c1, c2, c3 = _C["c0"], _C["c1"], _C["c2"], _C["c3"]
 
 
 @nb.njit(nogil=True, error_model="numpy", cache=False)
-def _run_range(lo, hi, m1, m2, v0, g, x0, l0, ys, ixs, yt, yc, dt, n_steps, cx, cy, cds, cs0, cs1, off, ca, cb, pf):  # pragma: no cover  # noqa: E501
+def _run_range(
+    lo, hi, m1, m2, v0, g, x0, l0, ys, ixs, yt, yc, dt, n_steps, cx, cy, cds, cs0, cs1, off, ca, cb, pf
+):  # pragma: no cover  # noqa: E501
     for v in range(lo, hi):
         im1, im2 = 1.0 / m1[v], 1.0 / m2[v]
         gx, gy = g[0, v], g[1, v]
@@ -85,22 +91,84 @@ def _run_range(lo, hi, m1, m2, v0, g, x0, l0, ys, ixs, yt, yc, dt, n_steps, cx, 
             La = np.sqrt(dx * dx + dy * dy)
             ea = La - L0a
             Fa, ma, eta, fta, eca, fca, yla, ylca, rev = general_law(
-                ea, ma, eta, fta, eca, fca, yla, ylca, ysa * c0((ea - sha) * ixa), ysau * c1((ea - eta) * ixau),
-                ysau * c1((ea - eca) * ixau), yta, yca)
+                ea,
+                ma,
+                eta,
+                fta,
+                eca,
+                fca,
+                yla,
+                ylca,
+                ysa * c0((ea - sha) * ixa),
+                ysau * c1((ea - eta) * ixau),
+                ysau * c1((ea - eca) * ixau),
+                yta,
+                yca,
+            )
             if rev:
                 Fa, ma, eta, fta, eca, fca, sha, yla, ylca = general_reverse_call(
-                    ea, ma, eta, fta, eca, fca, yla, ylca, yta, yca, ca[0], cb[0], v, cx, cy, cds, cs0, cs1, off)
+                    ea,
+                    ma,
+                    eta,
+                    fta,
+                    eca,
+                    fca,
+                    yla,
+                    ylca,
+                    yta,
+                    yca,
+                    ca[0],
+                    cb[0],
+                    v,
+                    cx,
+                    cy,
+                    cds,
+                    cs0,
+                    cs1,
+                    off,
+                )
             nax, nay = dx / La, dy / La
             # cabin: transmission -> troop compartment
             dx, dy = (X2x + u2x) - (X1x + u1x), (X2y + u2y) - (X1y + u1y)
             Lb = np.sqrt(dx * dx + dy * dy)
             eb = Lb - L0b
             Fb, mb, etb, ftb, ecb, fcb, ylb, ylcb, rev = general_law(
-                eb, mb, etb, ftb, ecb, fcb, ylb, ylcb, ysb * c2((eb - shb) * ixb), ysbu * c3((eb - etb) * ixbu),
-                ysbu * c3((eb - ecb) * ixbu), ytb, ycb)
+                eb,
+                mb,
+                etb,
+                ftb,
+                ecb,
+                fcb,
+                ylb,
+                ylcb,
+                ysb * c2((eb - shb) * ixb),
+                ysbu * c3((eb - etb) * ixbu),
+                ysbu * c3((eb - ecb) * ixbu),
+                ytb,
+                ycb,
+            )
             if rev:
                 Fb, mb, etb, ftb, ecb, fcb, shb, ylb, ylcb = general_reverse_call(
-                    eb, mb, etb, ftb, ecb, fcb, ylb, ylcb, ytb, ycb, ca[1], cb[1], v, cx, cy, cds, cs0, cs1, off)
+                    eb,
+                    mb,
+                    etb,
+                    ftb,
+                    ecb,
+                    fcb,
+                    ylb,
+                    ylcb,
+                    ytb,
+                    ycb,
+                    ca[1],
+                    cb[1],
+                    v,
+                    cx,
+                    cy,
+                    cds,
+                    cs0,
+                    cs1,
+                    off,
+                )
             nbx, nby = dx / Lb, dy / Lb
             pfa = max(pfa, abs(Fa))
             pfb = max(pfb, abs(Fb))
@@ -132,8 +200,29 @@ def run_specialised(b: Any, threads: int = 2) -> SimpleNamespace:
     ys = np.ascontiguousarray(b.cfac[0, curves])
     ixs = np.ascontiguousarray(1.0 / b.cfac[1, curves])
     pf = np.zeros((2, V))
-    args = (b.mass[1], b.mass[2], b.v0, b.gravity, b.x0, b.length0, ys, ixs, b.yield_t, b.yield_c, b.dt,
-            b.n_steps.astype(np.int64), b.cx, b.cy, b.cds, b.cs0, b.cs1, b.curve_off, b.curve_a, b.curve_b, pf)
+    args = (
+        b.mass[1],
+        b.mass[2],
+        b.v0,
+        b.gravity,
+        b.x0,
+        b.length0,
+        ys,
+        ixs,
+        b.yield_t,
+        b.yield_c,
+        b.dt,
+        b.n_steps.astype(np.int64),
+        b.cx,
+        b.cy,
+        b.cds,
+        b.cs0,
+        b.cs1,
+        b.curve_off,
+        b.curve_a,
+        b.curve_b,
+        pf,
+    )
     cuts = np.linspace(0, V, min(V, 8 * threads) + 1).astype(np.int64)
     with ThreadPoolExecutor(max(1, threads)) as pool:
         list(pool.map(lambda k: _run_range(cuts[k], cuts[k + 1], *args), range(len(cuts) - 1)))

@@ -46,9 +46,17 @@ def main() -> None:
     out = rate(test, models)
     wall, cpu = time.perf_counter() - w0, time.process_time() - c0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # MiB (Linux: KiB)
-    row = {"variants": a.variants, "samples": a.samples, "wall_s": round(wall, 2), "cpu_s": round(cpu, 2),
-           "peak_rss_mib": round(peak, 1), "input_mib": round(models.nbytes / 2**20, 1),
-           "median_R": float(np.median(out["R"])), "load_after": load(), **machine(start)}  # fmt: skip
+    row = {
+        "variants": a.variants,
+        "samples": a.samples,
+        "wall_s": round(wall, 2),
+        "cpu_s": round(cpu, 2),
+        "peak_rss_mib": round(peak, 1),
+        "input_mib": round(models.nbytes / 2**20, 1),
+        "median_R": float(np.median(out["R"])),
+        "load_after": load(),
+        **machine(start),
+    }
     print(json.dumps(row, indent=1))
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "iso18571_rate.json").write_text(json.dumps(row, indent=1) + "\n")

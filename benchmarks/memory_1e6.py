@@ -75,8 +75,20 @@ def tree_rss(proc: psutil.Process) -> int:
 
 
 def run(study: Path, out: Path, jobs: int, interval: float = 0.1) -> dict[str, Any]:
-    cmd = [sys.executable, "-m", "crashstudy.cli", "run", str(study), "-o", str(out), "--jobs", str(jobs),
-           "--progress", "off", "--force"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "crashstudy.cli",
+        "run",
+        str(study),
+        "-o",
+        str(out),
+        "--jobs",
+        str(jobs),
+        "--progress",
+        "off",
+        "--force",
+    ]
     t0 = time.perf_counter()
     proc = psutil.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     peak, peak_at, samples, n_procs = 0, 0.0, 0, 1
@@ -96,9 +108,17 @@ def run(study: Path, out: Path, jobs: int, interval: float = 0.1) -> dict[str, A
         time.sleep(interval)
     wall = time.perf_counter() - t0
     stdout, stderr = proc.communicate()
-    return {"exit": proc.returncode, "wall": wall, "peak_rss": peak, "peak_at": peak_at, "samples": samples,
-            "procs": n_procs, "stdout": stdout.strip(), "stderr": stderr.strip()[-2000:],
-            "timeline": timeline}  # fmt: skip
+    return {
+        "exit": proc.returncode,
+        "wall": wall,
+        "peak_rss": peak,
+        "peak_at": peak_at,
+        "samples": samples,
+        "procs": n_procs,
+        "stdout": stdout.strip(),
+        "stderr": stderr.strip()[-2000:],
+        "timeline": timeline,
+    }
 
 
 def machine() -> list[str]:
@@ -111,10 +131,18 @@ def machine() -> list[str]:
     except OSError:
         pass
     try:
-        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                                text=True, timeout=10).stdout.strip()  # fmt: skip
-        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "src"], capture_output=True,
-                               text=True, timeout=10).stdout.strip()  # fmt: skip
+        commit = subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(ROOT), "status", "--porcelain", "src"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         commit, dirty = "?", ""
     import netCDF4

@@ -63,13 +63,17 @@ def _values(lo: float, hi: float, n: int) -> str:
 
 def matrix_study(model: Path, sizes: tuple[int, int, int], name: str = "prerun") -> str:
     a, b, c = sizes
-    return (f"name: {name}\nmodel: {model}\nmatrix:\n  nodes.m2.mass: {_values(80.0, 120.0, a)}\n"
-            f"  curves.outer.scale: {_values(0.7, 1.6, b)}\n  impact_velocity: {_values(3.0, 8.0, c)}\n")
+    return (
+        f"name: {name}\nmodel: {model}\nmatrix:\n  nodes.m2.mass: {_values(80.0, 120.0, a)}\n"
+        f"  curves.outer.scale: {_values(0.7, 1.6, b)}\n  impact_velocity: {_values(3.0, 8.0, c)}\n"
+    )
 
 
 def design_study(model: Path, method: str, n: int, matrix: list[int]) -> str:
-    text = (f"name: design\nmodel: {model}\ndesign:\n  method: {method}\n  n: {n}\n  axes:\n"
-            "    nodes.m1.mass: {uniform: [15.0, 25.0]}\n    curves.inner.scale: {uniform: [0.8, 1.2]}\n")
+    text = (
+        f"name: design\nmodel: {model}\ndesign:\n  method: {method}\n  n: {n}\n  axes:\n"
+        "    nodes.m1.mass: {uniform: [15.0, 25.0]}\n    curves.inner.scale: {uniform: [0.8, 1.2]}\n"
+    )
     if matrix:
         text += "matrix:\n"
         paths = ["impact_velocity", "nodes.m2.mass"]
@@ -122,16 +126,25 @@ def prerun_one(study: Path) -> dict[str, Any]:
         except _FirstKernelCall:
             pass
     end = marks.get("kernel", time.perf_counter())
-    return {"variants": plan.n_variants, "imports_s": imports, "load_study_s": marks["load_study"] - t0,
-            "check_plan_s": marks["check_plan"] - marks["load_study"], "run_plan_s": end - marks["check_plan"],
-            "total_s": end - t0, "total_cpu_s": marks.get("kernel_cpu", time.process_time()) - c0,
-            "reached_kernel": "kernel" in marks}  # fmt: skip
+    return {
+        "variants": plan.n_variants,
+        "imports_s": imports,
+        "load_study_s": marks["load_study"] - t0,
+        "check_plan_s": marks["check_plan"] - marks["load_study"],
+        "run_plan_s": end - marks["check_plan"],
+        "total_s": end - t0,
+        "total_cpu_s": marks.get("kernel_cpu", time.process_time()) - c0,
+        "reached_kernel": "kernel" in marks,
+    }
 
 
 def _peak(cmd: list[str]) -> tuple[int, float, int]:
     """(exit code, wall seconds, peak RSS MiB) of a command."""
     t0 = time.perf_counter()
-    def cap() -> None:  # a command that materialises the variants fails here instead of filling a shared machine
+
+    def cap() -> (
+        None
+    ):  # a command that materialises the variants fails here instead of filling a shared machine
         import resource
 
         resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP, MEMORY_CAP))
@@ -142,8 +155,13 @@ def _peak(cmd: list[str]) -> tuple[int, float, int]:
 
 
 def memory_cases(work: Path, model: Path) -> list[dict[str, Any]]:
-    cases = [("lhs", 10_000, [100]), ("lhs", 10_000, [1000]), ("lhs", 10_000, [100, 100]),
-             ("lhs", 1_000_000, [100]), ("saltelli", 1_000_000, [])]  # fmt: skip
+    cases = [
+        ("lhs", 10_000, [100]),
+        ("lhs", 10_000, [1000]),
+        ("lhs", 10_000, [100, 100]),
+        ("lhs", 1_000_000, [100]),
+        ("saltelli", 1_000_000, []),
+    ]
     rows = []
     for method, n, matrix in cases:
         path = work / f"design-{method}-{n}-{'x'.join(map(str, matrix)) or '1'}.yaml"
@@ -153,10 +171,17 @@ def memory_cases(work: Path, model: Path) -> list[dict[str, Any]]:
             from crashstudy.study.design import n_rows
 
             rows_n = n_rows(method, n, 2)
-            rows.append({"command": command[0] + (" --dry-run" if len(command) > 2 else ""),
-                         "design": f"{method} n={n:,} ({rows_n:,} rows)", "matrix": " x ".join(map(str, matrix)) or "-",
-                         "variants": f"{rows_n * int(np.prod(matrix)):.0e}", "exit": code,
-                         "seconds": round(secs, 1), "peak_rss_mib": rss})  # fmt: skip
+            rows.append(
+                {
+                    "command": command[0] + (" --dry-run" if len(command) > 2 else ""),
+                    "design": f"{method} n={n:,} ({rows_n:,} rows)",
+                    "matrix": " x ".join(map(str, matrix)) or "-",
+                    "variants": f"{rows_n * int(np.prod(matrix)):.0e}",
+                    "exit": code,
+                    "seconds": round(secs, 1),
+                    "peak_rss_mib": rss,
+                }
+            )
             print(rows[-1], flush=True)
     return rows
 
@@ -181,14 +206,23 @@ def main() -> None:
         if args.prerun or both:
             warm = work / "warm.yaml"
             warm.write_text(matrix_study(model, (4, 4, 4), "warm"))
-            subprocess.run([sys.executable, "-m", "crashstudy.cli", "run", str(warm), "-o", str(work / "w")],
-                           check=True, capture_output=True)  # fmt: skip
+            subprocess.run(
+                [sys.executable, "-m", "crashstudy.cli", "run", str(warm), "-o", str(work / "w")],
+                check=True,
+                capture_output=True,
+            )
             rows = []
             for sizes in ((100, 100, 100), (1000, 100, 100)):
                 path = work / f"m{np.prod(sizes)}.yaml"
                 path.write_text(matrix_study(model, sizes))
-                out = subprocess.run([sys.executable, __file__, "--one", str(path)], capture_output=True, text=True)
-                r = json.loads(out.stdout.strip().splitlines()[-1]) if out.returncode == 0 else {"error": out.stderr[-300:]}
+                out = subprocess.run(
+                    [sys.executable, __file__, "--one", str(path)], capture_output=True, text=True
+                )
+                r = (
+                    json.loads(out.stdout.strip().splitlines()[-1])
+                    if out.returncode == 0
+                    else {"error": out.stderr[-300:]}
+                )
                 if "total_s" in r:
                     r["us_per_variant"] = round(r["total_s"] / r["variants"] * 1e6, 3)
                     r = {k: round(v, 3) if isinstance(v, float) else v for k, v in r.items()}
@@ -196,9 +230,13 @@ def main() -> None:
                 print(rows[-1], flush=True)
             sections.append("## Time before the first kernel call (warm caches)\n\n" + md_table(rows))
         if args.memory or both:
-            sections.append("## Peak memory of validate and run --dry-run\n\n" + md_table(memory_cases(work, model)))
-    text = ("# Pre-run cost and memory of big studies\n\n`python benchmarks/prerun_scale.py` (see its docstring)."
-            "\n\n" + "\n\n".join(sections) + "\n\n" + machine_md(machine(start)) + "\n")
+            sections.append(
+                "## Peak memory of validate and run --dry-run\n\n" + md_table(memory_cases(work, model))
+            )
+    text = (
+        "# Pre-run cost and memory of big studies\n\n`python benchmarks/prerun_scale.py` (see its docstring)."
+        "\n\n" + "\n\n".join(sections) + "\n\n" + machine_md(machine(start)) + "\n"
+    )
     if args.report != "-":
         Path(args.report).write_text(text)
     print(text)

@@ -69,18 +69,27 @@ def timed(cmd: list[str], env: dict[str, str]) -> dict[str, Any]:
         return float(m.group(1)) if m else float("nan")
 
     said = [ln for ln in (p.stdout.strip().splitlines() or [""]) if ln.strip()]
-    return {"exit": p.returncode, "wall": wall, "cpu": field("User time (seconds)") + field("System time (seconds)"),
-            "rss": field("Maximum resident set size (kbytes)") * 1024, "said": (said[-1] if said else "")[:160],
-            "stderr": p.stderr[:400] if p.returncode not in (0, 1) else ""}
+    return {
+        "exit": p.returncode,
+        "wall": wall,
+        "cpu": field("User time (seconds)") + field("System time (seconds)"),
+        "rss": field("Maximum resident set size (kbytes)") * 1024,
+        "said": (said[-1] if said else "")[:160],
+        "stderr": p.stderr[:400] if p.returncode not in (0, 1) else "",
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("dirs", nargs="+", type=Path)
-    ap.add_argument("--src", type=Path, help="source tree whose crashstudy runs the readers (default: installed)")
+    ap.add_argument(
+        "--src", type=Path, help="source tree whose crashstudy runs the readers (default: installed)"
+    )
     ap.add_argument("--label", default="", help="a name of the code measured (e.g. a commit)")
     ap.add_argument("--only", default="", help="comma list of readers to run (default all)")
-    ap.add_argument("--append", default="", metavar="TITLE", help="add the table to the report as a section TITLE")
+    ap.add_argument(
+        "--append", default="", metavar="TITLE", help="add the table to the report as a section TITLE"
+    )
     args = ap.parse_args(argv)
     env = dict(os.environ)
     if args.src:
@@ -92,9 +101,19 @@ def main(argv: list[str] | None = None) -> int:
             if args.only and name not in args.only.split(","):
                 continue
             r = timed(cmd, env)
-            rows.append({"variants": size, "reader": name, "code": args.label or "-", "peak RSS [MiB]": round(r["rss"] / 2**20),
-                         "CPU [s]": round(r["cpu"], 1), "wall [s]": round(r["wall"], 1), "exit": r["exit"],
-                         "prints (last line)": r["said"].replace("|", "/"), "load": load()})
+            rows.append(
+                {
+                    "variants": size,
+                    "reader": name,
+                    "code": args.label or "-",
+                    "peak RSS [MiB]": round(r["rss"] / 2**20),
+                    "CPU [s]": round(r["cpu"], 1),
+                    "wall [s]": round(r["wall"], 1),
+                    "exit": r["exit"],
+                    "prints (last line)": r["said"].replace("|", "/"),
+                    "load": load(),
+                }
+            )
             print(rows[-1], r["stderr"], flush=True)
     table = md_table(rows)
     print(table)

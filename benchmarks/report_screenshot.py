@@ -24,7 +24,9 @@ def main() -> None:
         page, seen = open_report(browser, html, width=1100, height=760)
         assert not seen["errors"] and not seen["requests"], seen
         top = page.evaluate("document.getElementById('design').getBoundingClientRect().top + window.scrollY")
-        page.screenshot(path=str(png), full_page=True, clip={"x": 0, "y": top - 8, "width": 1100, "height": 760})
+        page.screenshot(
+            path=str(png), full_page=True, clip={"x": 0, "y": top - 8, "width": 1100, "height": 760}
+        )
         browser.close()
     print(f"wrote {png}")
 

@@ -43,23 +43,51 @@ def main() -> None:
         study = args.work / f"study-{n}.yaml"
         study.write_text(study_yaml(2, n, model))
         out = args.work / f"res-{n}"
-        subprocess.run([sys.executable, "-m", "crashstudy.cli", "run", str(study), "-o", str(out), "--force",
-                        "--progress", "off"], check=True, capture_output=True)  # fmt: skip
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "crashstudy.cli",
+                "run",
+                str(study),
+                "-o",
+                str(out),
+                "--force",
+                "--progress",
+                "off",
+            ],
+            check=True,
+            capture_output=True,
+        )
         html = args.work / f"report-{n}.html"
         html.unlink(missing_ok=True)
         cpu0, t0 = child_cpu(), time.perf_counter()
-        subprocess.run([sys.executable, "-m", "crashstudy.cli", "report", str(out), "-o", str(html)], check=True,
-                       capture_output=True)  # fmt: skip
+        subprocess.run(
+            [sys.executable, "-m", "crashstudy.cli", "report", str(out), "-o", str(html)],
+            check=True,
+            capture_output=True,
+        )
         wall, cpu = time.perf_counter() - t0, child_cpu() - cpu0
-        rows.append({"variants": n, "html_MiB": round(html.stat().st_size / 2**20, 2), "report_wall_s": round(wall, 1),
-                     "report_cpu_s": round(cpu, 1), "load_avg_1min": os.getloadavg()[0]})  # fmt: skip
+        rows.append(
+            {
+                "variants": n,
+                "html_MiB": round(html.stat().st_size / 2**20, 2),
+                "report_wall_s": round(wall, 1),
+                "report_cpu_s": round(cpu, 1),
+                "load_avg_1min": os.getloadavg()[0],
+            }
+        )
         print(rows[-1], flush=True)
     info = machine(start)
     write_csv(RESULTS / "report_size.csv", rows, info)
     (RESULTS / "report_size.md").write_text(
         "# crashstudy report: file size and time\n\n2-spring chain (benchmarks/small_models.py), histories none; "
         "the report samples the scatter figures above 2000 ok variants and the table above 10^4 variants.\n\n"
-        + md_table(rows) + "\n\n" + machine_md(info) + "\n")  # fmt: skip
+        + md_table(rows)
+        + "\n\n"
+        + machine_md(info)
+        + "\n"
+    )
 
 
 if __name__ == "__main__":

@@ -41,16 +41,29 @@ def export(commit: str, into: Path) -> Path:
 
 
 def run(src: Path, study: Path, out: Path, env: dict[str, str]) -> dict[str, Any]:
-    cmd = ["/usr/bin/time", "-v", sys.executable, "-m", "crashstudy.cli", "run", str(study), "-o", str(out),
-           "--progress", "off"]  # fmt: skip
+    cmd = [
+        "/usr/bin/time",
+        "-v",
+        sys.executable,
+        "-m",
+        "crashstudy.cli",
+        "run",
+        str(study),
+        "-o",
+        str(out),
+        "--progress",
+        "off",
+    ]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, env=dict(env, PYTHONPATH=str(src)), capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if p.returncode != 0:
         raise RuntimeError(p.stderr[-3000:])
     m = re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr)
-    sizes = {f"{n}_MB": (out / n).stat().st_size / 1e6 if (out / n).exists() else float("nan")
-             for n in ("results.nc", "summary.csv", "summary.parquet")}  # fmt: skip
+    sizes = {
+        f"{n}_MB": (out / n).stat().st_size / 1e6 if (out / n).exists() else float("nan")
+        for n in ("results.nc", "summary.csv", "summary.parquet")
+    }
     return {"wall_s": wall, "peak_rss_MiB": int(m.group(1)) / 1024 if m else float("nan"), **sizes}
 
 
@@ -64,7 +77,10 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="results-size-") as tmp:
         d = Path(tmp)
-        trees = {f"before ({args.before})": export(args.before, d / "before"), "after (working tree)": ROOT / "src"}
+        trees = {
+            f"before ({args.before})": export(args.before, d / "before"),
+            "after (working tree)": ROOT / "src",
+        }
         model = d / "model.yaml"
         model.write_text(model_yaml(2, 0.075))
         (d / "warm.yaml").write_text(study_yaml(2, 1000, model))
@@ -75,13 +91,26 @@ def main(argv: list[str] | None = None) -> int:
                 study = d / f"s{n}.yaml"
                 study.write_text(study_yaml(2, n, model))
                 r = run(src, study, d / f"out-{label[:5]}-{n}", env)
-                rows.append({"version": label, "variants": n, **r, "us_per_variant": 1e6 * r["wall_s"] / n,
-                             "load": load()})  # fmt: skip
+                rows.append(
+                    {
+                        "version": label,
+                        "variants": n,
+                        **r,
+                        "us_per_variant": 1e6 * r["wall_s"] / n,
+                        "load": load(),
+                    }
+                )
                 print(rows[-1], flush=True)
     info = machine(start_load)
     write_csv(args.out / "results_size.csv", rows, info)
-    text = ("# Result files before and after (2-spring model, histories none)\n\n" + machine_md(info) + "\n"
-            + __doc__.split("\n\n", 1)[1] + "\n" + md_table(rows))  # fmt: skip
+    text = (
+        "# Result files before and after (2-spring model, histories none)\n\n"
+        + machine_md(info)
+        + "\n"
+        + __doc__.split("\n\n", 1)[1]
+        + "\n"
+        + md_table(rows)
+    )
     (args.out / "results_size.md").write_text(text)
     print(f"wrote {args.out / 'results_size.md'}")
     return 0

@@ -71,17 +71,26 @@ def wrap(owner: Any, name: str, label: str) -> None:
 
 
 PHASES = [
-    (P, "load_study", "load / validate / expand / work estimate"), (SA, "check_plan", "pre-run checks (check_plan)"),
-    (S.ResultWriter, "__init__", "create the result store"), (R, "start_kernels", "kernel start (choice, loading)"),
-    (R, "run_chunk", "chunk: rest of run_chunk"), (R, "_step_order", "chunk: params_at (step order)"),
-    (R, "build_batch", "chunk: build_batch"), (E, "run_ordered", "chunk: kernel (run_ordered)"),
-    (R, "variant_hashes", "chunk: variant_hashes"), (R, "past_curve_ends", "chunk: past_curve_ends"),
-    (S.ResultWriter, "write", "write a chunk (store + summary rows)"), (S.ResultWriter, "finish", "finish: renames"),
-    (S.ResultWriter, "_sort_tables", "finish: sort text tables"), (I, "run_id", "finish: run id"),
-    (S, "write_summary", "finish: summary read back from the store"), (I, "write_manifest", "finish: manifest"),
-    (R, "Results", "open the results"), (M, "_after_run", "checks after the run (warnings)"),
+    (P, "load_study", "load / validate / expand / work estimate"),
+    (SA, "check_plan", "pre-run checks (check_plan)"),
+    (S.ResultWriter, "__init__", "create the result store"),
+    (R, "start_kernels", "kernel start (choice, loading)"),
+    (R, "run_chunk", "chunk: rest of run_chunk"),
+    (R, "_step_order", "chunk: params_at (step order)"),
+    (R, "build_batch", "chunk: build_batch"),
+    (E, "run_ordered", "chunk: kernel (run_ordered)"),
+    (R, "variant_hashes", "chunk: variant_hashes"),
+    (R, "past_curve_ends", "chunk: past_curve_ends"),
+    (S.ResultWriter, "write", "write a chunk (store + summary rows)"),
+    (S.ResultWriter, "finish", "finish: renames"),
+    (S.ResultWriter, "_sort_tables", "finish: sort text tables"),
+    (I, "run_id", "finish: run id"),
+    (S, "write_summary", "finish: summary read back from the store"),
+    (I, "write_manifest", "finish: manifest"),
+    (R, "Results", "open the results"),
+    (M, "_after_run", "checks after the run (warnings)"),
     (R, "run_plan", "run_plan (rest)"),
-]  # fmt: skip
+]
 for owner, name, label in PHASES:
     if hasattr(owner, name):
         wrap(owner, name, label)
@@ -103,7 +112,9 @@ def main() -> int:
     out += [f"| {a} | {c:.3f} | {w:.3f} | {int(n)} |" for a, c, w, n in rows]
     out.append(f"| **total in process** | **{total_c:.3f}** | **{total_w:.3f}** | |")
     if FIRST:
-        out.append(f"| before the first kernel call (after the imports) | {FIRST[0]:.3f} (process) | {FIRST[1]:.3f} | |")
+        out.append(
+            f"| before the first kernel call (after the imports) | {FIRST[0]:.3f} (process) | {FIRST[1]:.3f} | |"
+        )
     print("\n".join(out) + f"\n\nload average at end: {os.getloadavg()[0]:.2f}", file=sys.stderr)
     return rc
 

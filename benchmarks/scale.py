@@ -50,11 +50,15 @@ REPORT = RESULTS / "scale.md"
 def write_study(folder: Path, n: int) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.yaml").write_text(TWO_SPRING.replace("END", "0.0086"))
-    a = max(100, n // 100_000) if n >= 100 else 1  # <= 10^5 listed values an axis (a study lists at most 10^6)
+    a = (
+        max(100, n // 100_000) if n >= 100 else 1
+    )  # <= 10^5 listed values an axis (a study lists at most 10^6)
     m2 = [round(float(v), 9) for v in np.linspace(1.0, 3.0, n // a)]
     m1 = [round(float(v), 9) for v in np.linspace(0.5, 2.0, a)]
     study = folder / "study.yaml"
-    study.write_text(f"name: scale-{n}\nmodel: model.yaml\nmatrix:\n  nodes.m2.mass: {m2}\n  nodes.m1.mass: {m1}\n")
+    study.write_text(
+        f"name: scale-{n}\nmodel: model.yaml\nmatrix:\n  nodes.m2.mass: {m2}\n  nodes.m1.mass: {m1}\n"
+    )
     return study
 
 
@@ -77,8 +81,14 @@ def watch(cmd: list[str], cwd: Path, interval: float = 0.1) -> dict[str, Any]:
     wall = time.perf_counter() - t0
     out, err = proc.communicate()
     client = peaks.pop(proc.pid, 0)
-    return {"exit": proc.returncode, "wall": wall, "client": client, "others": sorted(peaks.values(), reverse=True),
-            "stdout": out.strip(), "stderr": err.strip()[-1500:]}  # fmt: skip
+    return {
+        "exit": proc.returncode,
+        "wall": wall,
+        "client": client,
+        "others": sorted(peaks.values(), reverse=True),
+        "stdout": out.strip(),
+        "stderr": err.strip()[-1500:],
+    }
 
 
 RECEIVED = "client received: "
@@ -121,7 +131,7 @@ def received(stderr: str) -> dict[str, int]:
     import json
 
     lines = [ln for ln in stderr.splitlines() if ln.startswith(RECEIVED)]
-    return json.loads(lines[-1][len(RECEIVED):]) if lines else {}
+    return json.loads(lines[-1][len(RECEIVED) :]) if lines else {}
 
 
 def folder_bytes(path: Path) -> int:
@@ -134,8 +144,11 @@ def cell(
     study = write_study(work / f"n{n}", n)
     out = work / f"n{n}" / f"out-{store}{'-dask' if dask else ''}"
     cli = [sys.executable, __file__, "--as-client"] if dask else [sys.executable, "-m", "crashstudy.cli"]
-    cmd = cli + ["run", str(study), "-o", str(out), "--progress", "off",
-                 "--store", store] + (["--scheduler", "local"] if dask else [])  # fmt: skip
+    cmd = (
+        cli
+        + ["run", str(study), "-o", str(out), "--progress", "off", "--store", store]
+        + (["--scheduler", "local"] if dask else [])
+    )
     rows = []
     for kind in runs:
         r = watch(cmd + (["--force"] if kind == "fresh" else []), study.parent)
@@ -143,15 +156,28 @@ def cell(
             print(r["stderr"], file=sys.stderr)
         others = r["others"]
         got = received(r["stderr"])
-        rows.append({"variants": n, "store": store, "where": "LocalCluster(2)" if dask else "in-process", "run": kind,
-                     "wall [s]": round(r["wall"], 1), "per variant [us]": round(1e6 * r["wall"] / n, 2),
-                     "client peak RSS [MiB]": round(r["client"] / 2**20),
-                     "other processes' peak RSS [MiB]": ", ".join(str(round(o / 2**20)) for o in others[:3]) or "-",
-                     "bytes written [MB]": round(folder_bytes(out) / 1e6, 1),
-                     "client received [MB]": round(got["bytes"] / 1e6, 3) if got else "-",
-                     "per result [kB] (largest)": (f"{got['bytes'] / max(got['results'], 1) / 1e3:.1f} "
-                                                   f"({got['largest'] / 1e3:.1f})") if got.get("results") else "-",
-                     "load": load(), "exit": r["exit"]})  # fmt: skip
+        rows.append(
+            {
+                "variants": n,
+                "store": store,
+                "where": "LocalCluster(2)" if dask else "in-process",
+                "run": kind,
+                "wall [s]": round(r["wall"], 1),
+                "per variant [us]": round(1e6 * r["wall"] / n, 2),
+                "client peak RSS [MiB]": round(r["client"] / 2**20),
+                "other processes' peak RSS [MiB]": ", ".join(str(round(o / 2**20)) for o in others[:3])
+                or "-",
+                "bytes written [MB]": round(folder_bytes(out) / 1e6, 1),
+                "client received [MB]": round(got["bytes"] / 1e6, 3) if got else "-",
+                "per result [kB] (largest)": (
+                    f"{got['bytes'] / max(got['results'], 1) / 1e3:.1f} ({got['largest'] / 1e3:.1f})"
+                )
+                if got.get("results")
+                else "-",
+                "load": load(),
+                "exit": r["exit"],
+            }
+        )
         print(rows[-1], flush=True)
     return rows
 
@@ -160,9 +186,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="1e5,1e6")
     ap.add_argument("--stores", default="netcdf,zarr")
-    ap.add_argument("--dask", action="store_true", help="also run --scheduler local with each of --dask-stores")
+    ap.add_argument(
+        "--dask", action="store_true", help="also run --scheduler local with each of --dask-stores"
+    )
     ap.add_argument("--dask-stores", default="zarr")
-    ap.add_argument("--append", default="", metavar="TITLE", help="add the table to the report as a section TITLE")
+    ap.add_argument(
+        "--append", default="", metavar="TITLE", help="add the table to the report as a section TITLE"
+    )
     ap.add_argument("--runs", default="fresh,re-run", help="which runs of each cell (fresh, re-run)")
     ap.add_argument("--work", type=Path, default=None)
     ap.add_argument("--report", default=str(REPORT))
@@ -171,8 +201,23 @@ def main(argv: list[str] | None = None) -> int:
     runs = tuple(args.runs.split(","))
     work = args.work or Path(tempfile.mkdtemp(prefix="crashstudy-scale-"))
     warm = write_study(work / "warm", 100)  # compile (or load) the kernel once, outside the figures
-    subprocess.run([sys.executable, "-m", "crashstudy.cli", "run", str(warm), "-o", str(warm.parent / "out"),
-                    "--progress", "off", "--force"], cwd=warm.parent, capture_output=True, check=False)  # fmt: skip
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "crashstudy.cli",
+            "run",
+            str(warm),
+            "-o",
+            str(warm.parent / "out"),
+            "--progress",
+            "off",
+            "--force",
+        ],
+        cwd=warm.parent,
+        capture_output=True,
+        check=False,
+    )
     rows: list[dict[str, Any]] = []
     for size in (int(float(s)) for s in args.sizes.split(",")):
         for store in args.stores.split(","):
@@ -182,11 +227,18 @@ def main(argv: list[str] | None = None) -> int:
             for store in args.dask_stores.split(","):
                 rows += cell(work, size, store, True, runs)
     head = f"\n## {args.append}\n\n" if args.append else "# Scale: the 2-spring study (issue 19)\n\n"
-    text = (head + machine_md(machine(start)) + "\n\n"
-            + "Command: `python benchmarks/scale.py " + " ".join(argv or sys.argv[1:]) + "`; each cell runs "
-            "`crashstudy run` fresh (`--force`) and then again (every variant reused); `load` is the 1-min load "
-            "average after the run (the machine is shared: wall times are not comparable between rows).\n\n"
-            + md_table(rows) + "\n")  # fmt: skip
+    text = (
+        head
+        + machine_md(machine(start))
+        + "\n\n"
+        + "Command: `python benchmarks/scale.py "
+        + " ".join(argv or sys.argv[1:])
+        + "`; each cell runs "
+        "`crashstudy run` fresh (`--force`) and then again (every variant reused); `load` is the 1-min load "
+        "average after the run (the machine is shared: wall times are not comparable between rows).\n\n"
+        + md_table(rows)
+        + "\n"
+    )
     if args.report == "-":
         print(text)
     else:

@@ -172,9 +172,17 @@ def compile_model(m: dict[str, Any]) -> Model:
         elif t == "crush":
             springs.append(Spring(t, i, j, k=float(mat["unloading_stiffness"]), L=curves[mat["loading"]]))
         elif t == "general_nonlinear":
-            springs.append(Spring(t, i, j, L=curves[mat["loading"]], U=curves[mat["unloading"]],
-                                  yt=float(mat.get("tension_yield", math.inf)),
-                                  yc=float(mat.get("compression_yield", -math.inf))))  # fmt: skip
+            springs.append(
+                Spring(
+                    t,
+                    i,
+                    j,
+                    L=curves[mat["loading"]],
+                    U=curves[mat["unloading"]],
+                    yt=float(mat.get("tension_yield", math.inf)),
+                    yc=float(mat.get("compression_yield", -math.inf)),
+                )
+            )
         else:
             raise NotImplementedError(t)
     ni = np.array([s.i for s in springs])
@@ -184,11 +192,31 @@ def compile_model(m: dict[str, Any]) -> Model:
     inc = np.zeros((N, S))
     inc[ni, np.arange(S)] += 1.0
     inc[nj, np.arange(S)] -= 1.0
-    loads = [(index[ld["node"]], np.asarray(ld["force"], float), curves[ld["curve"]] if ld.get("curve") else None)
-             for ld in (m.get("loads") or [])]  # fmt: skip
-    return Model(D, x0, mass, free, inv_mass, v0, gravity, springs, ni, nj, d0, np.sqrt((d0 * d0).sum(-1)),
-                 np.sign(d0[:, 0]) if D == 1 else np.ones(S), inc, loads, float(m["end_time"]), node_ids,
-                 spring_ids, [k for k, s in enumerate(springs) if s.kind in ("crush", "general_nonlinear")])  # fmt: skip
+    loads = [
+        (index[ld["node"]], np.asarray(ld["force"], float), curves[ld["curve"]] if ld.get("curve") else None)
+        for ld in (m.get("loads") or [])
+    ]
+    return Model(
+        D,
+        x0,
+        mass,
+        free,
+        inv_mass,
+        v0,
+        gravity,
+        springs,
+        ni,
+        nj,
+        d0,
+        np.sqrt((d0 * d0).sum(-1)),
+        np.sign(d0[:, 0]) if D == 1 else np.ones(S),
+        inc,
+        loads,
+        float(m["end_time"]),
+        node_ids,
+        spring_ids,
+        [k for k, s in enumerate(springs) if s.kind in ("crush", "general_nonlinear")],
+    )
 
 
 def kinematics(mdl: Model, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -399,8 +427,12 @@ class Solution:
         u = y[:nd].reshape(N, D, -1)
         v = y[nd : 2 * nd].reshape(N, D, -1)
         e, edot, n = kinematics(mdl, u, v)
-        F = np.array([force(sp, seg.branches.get(s), e[s], edot[s]) * np.ones(t.size)
-                      for s, sp in enumerate(mdl.springs)])  # fmt: skip
+        F = np.array(
+            [
+                force(sp, seg.branches.get(s), e[s], edot[s]) * np.ones(t.size)
+                for s, sp in enumerate(mdl.springs)
+            ]
+        )
         acc = (np.einsum("ns,sdt->ndt", mdl.incidence, F[:, None, :] * n) + ext_force(mdl, t)) * mdl.inv_mass[
             ..., None
         ]
@@ -433,16 +465,25 @@ class Solution:
             vals_out = []
             for c, (val, seg, a, b) in enumerate(items):
                 if b > a and val > 0:
-                    res = minimize_scalar(lambda t, c=c, seg=seg, row=row: -self._eval(seg, np.array([t]))[row][c, 0],
-                                          bounds=(a, b), method="bounded", options={"xatol": 1e-14 * max(b, 1e-300)})  # fmt: skip
+                    res = minimize_scalar(
+                        lambda t, c=c, seg=seg, row=row: -self._eval(seg, np.array([t]))[row][c, 0],
+                        bounds=(a, b),
+                        method="bounded",
+                        options={"xatol": 1e-14 * max(b, 1e-300)},
+                    )
                     val = max(val, -float(res.fun))
                 vals_out.append(val)
             out[q] = np.array(vals_out)
         return out
 
 
-def solve(m: dict[str, Any] | Model, method: str = "DOP853", rtol: float = 1e-6, atol: float = 1e-9,
-          max_segments: int = 100_000) -> Solution:  # fmt: skip
+def solve(
+    m: dict[str, Any] | Model,
+    method: str = "DOP853",
+    rtol: float = 1e-6,
+    atol: float = 1e-9,
+    max_segments: int = 100_000,
+) -> Solution:
     """Integrate one variant (see the module docstring); ``atol`` in the model's units."""
     mdl = m if isinstance(m, Model) else compile_model(m)
     nd = mdl.nd
@@ -466,8 +507,9 @@ def solve(m: dict[str, Any] | Model, method: str = "DOP853", rtol: float = 1e-6,
         while t < b:
             rhs = make_rhs(mdl, branches)
             evs = events_for(mdl, branches)
-            sol = solve_ivp(rhs, (t, b), y, method=method, rtol=rtol, atol=atol, dense_output=True,
-                            events=evs or None)  # fmt: skip
+            sol = solve_ivp(
+                rhs, (t, b), y, method=method, rtol=rtol, atol=atol, dense_output=True, events=evs or None
+            )
             if not sol.success and sol.status != 1:
                 raise RuntimeError(sol.message)
             nfev += sol.nfev

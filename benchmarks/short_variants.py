@@ -39,7 +39,9 @@ CHUNK = 65536
 def _plan(folder: Path, size: int, safety: bool) -> Any:
     from crashstudy.study.plan import load_study
 
-    text = MODEL_SPECS["2spring"]["text"].replace("END", str(MODEL_SPECS["2spring"]["end"][int(size >= 10**6)]))
+    text = MODEL_SPECS["2spring"]["text"].replace(
+        "END", str(MODEL_SPECS["2spring"]["end"][int(size >= 10**6)])
+    )
     if safety:
         text = text.replace("time_step: {dt: 1.0e-4}", "time_step: {safety_factor: 0.085}")
     model = folder / f"m-{size}-{safety}.yaml"
@@ -62,8 +64,13 @@ def kernel_rate(plan: Any, n: int, repeats: int = 3) -> dict[str, Any]:
         run_generated(b, (), 1, vary)
         best = min(best, time.process_time() - c0)
     es = float(np.sum(b.n_steps)) * len(b.spring_i)
-    return {"variants": n, "steps": int(b.n_steps.max()), "kernel_cpu_s": best, "element_steps_per_cpu_s": es / best,
-            "us_per_variant": 1e6 * best / n}  # fmt: skip
+    return {
+        "variants": n,
+        "steps": int(b.n_steps.max()),
+        "kernel_cpu_s": best,
+        "element_steps_per_cpu_s": es / best,
+        "us_per_variant": 1e6 * best / n,
+    }
 
 
 def chunk_split(plan: Any, chunks: int = 3) -> dict[str, Any]:
@@ -90,8 +97,11 @@ def chunk_split(plan: Any, chunks: int = 3) -> dict[str, Any]:
     finally:
         entry.run_batch = real  # type: ignore[assignment]
     n = chunks * CHUNK
-    return {"chunk_us_per_variant": 1e6 * total / n, "kernel_entry_us": 1e6 * spent[0] / n,
-            "rest_us": 1e6 * (total - spent[0]) / n}  # fmt: skip
+    return {
+        "chunk_us_per_variant": 1e6 * total / n,
+        "kernel_entry_us": 1e6 * spent[0] / n,
+        "rest_us": 1e6 * (total - spent[0]) / n,
+    }
 
 
 def main() -> int:
@@ -109,12 +119,16 @@ def main() -> int:
         ks, kl = kernel_rate(short, CHUNK), kernel_rate(long_, 1000)
         rows = [{"case": "kernel, 86 steps (short)", **ks}, {"case": "kernel, 8695 steps (long)", **kl}]
         ratio = ks["element_steps_per_cpu_s"] / kl["element_steps_per_cpu_s"]
-        split = [{"model": "fixed dt (matrix.py 2spring)", **chunk_split(short)},
-                 {"model": "safety_factor 0.085", **chunk_split(_plan(folder, 10**6, True))}]  # fmt: skip
-    text = (f"# Short variants against long ones (benchmarks/short_variants.py)\n\n{machine_md(machine(start))}\n\n"
-            f"## Inside the generated kernel ({args.threads} thread(s), CPU s, best of 3)\n\n{md_table(rows)}\n\n"
-            f"**short / long element-steps per CPU second: {ratio:.2f}** (issue 25 goal: >= 0.30).\n\n"
-            f"## A 65,536-variant chunk (run.runner.run_chunk), CPU us per variant\n\n{md_table(split)}\n")  # fmt: skip
+        split = [
+            {"model": "fixed dt (matrix.py 2spring)", **chunk_split(short)},
+            {"model": "safety_factor 0.085", **chunk_split(_plan(folder, 10**6, True))},
+        ]
+    text = (
+        f"# Short variants against long ones (benchmarks/short_variants.py)\n\n{machine_md(machine(start))}\n\n"
+        f"## Inside the generated kernel ({args.threads} thread(s), CPU s, best of 3)\n\n{md_table(rows)}\n\n"
+        f"**short / long element-steps per CPU second: {ratio:.2f}** (issue 25 goal: >= 0.30).\n\n"
+        f"## A 65,536-variant chunk (run.runner.run_chunk), CPU us per variant\n\n{md_table(split)}\n"
+    )
     args.out.write_text(text)
     print(text)
     return 0

@@ -99,8 +99,11 @@ def sample(plan: Any, V: int, seed: int = 1) -> np.ndarray:
     topo = plan.topology
     P = np.repeat(plan.base[:, None], V, axis=1)
     rng = np.random.default_rng(seed)
-    for path, lo, hi in (("nodes.engine.mass", 120.0, 210.0), ("curves.rail-loading.scale", 0.7, 1.6),
-                         ("impact_velocity", 10.0, 20.0)):  # fmt: skip
+    for path, lo, hi in (
+        ("nodes.engine.mass", 120.0, 210.0),
+        ("curves.rail-loading.scale", 0.7, 1.6),
+        ("impact_velocity", 10.0, 20.0),
+    ):
         if path in topo.paths:
             apply_axis(P, topo.paths[path], rng.uniform(lo, hi, V))
     return P
@@ -156,8 +159,9 @@ def kernel_case(name: str, model: dict[str, Any], V: int, histories: tuple[str, 
     batch, _ = build_batch(plan.topology, P, plan.interval)
     small, _ = build_batch(plan.topology, np.ascontiguousarray(P[:, :8]), plan.interval)
     hist = plan.topology.histories if histories is None else histories
-    case = Case(name, lambda: run_kernel(batch, hist, plan.n_out),
-                lambda: run_kernel(small, hist, plan.n_out))  # fmt: skip
+    case = Case(
+        name, lambda: run_kernel(batch, hist, plan.n_out), lambda: run_kernel(small, hist, plan.n_out)
+    )
     case.batch = batch  # type: ignore[attr-defined]
     case.plan = plan  # type: ignore[attr-defined]
     return case
@@ -242,9 +246,11 @@ def gain(base: Case, skip: Case, per_elem: bool = True) -> str:
 
 
 def cmp_histories(V: int, repeats: int, log: list[str]) -> list[Row]:
-    cases = [kernel_case("histories: all", frontal("all"), V),
-             kernel_case("histories: [spring_force]", frontal(["spring_force"]), V),
-             kernel_case("histories: none", frontal("none"), V)]  # fmt: skip
+    cases = [
+        kernel_case("histories: all", frontal("all"), V),
+        kernel_case("histories: [spring_force]", frontal(["spring_force"]), V),
+        kernel_case("histories: none", frontal("none"), V),
+    ]
     before, after = measure(cases, repeats)
     for c in cases:
         finish_kernel_case(c)
@@ -257,10 +263,15 @@ def cmp_histories(V: int, repeats: int, log: list[str]) -> list[Row]:
     rows = []
     for c in cases[1:]:
         d = rel_diff(c.result, base.result, base.plan, 0.0)  # type: ignore[attr-defined]
-        rows.append(Row(f"histories ({V} variants): {c.name.split(': ')[1]} instead of all",
-                        f"{fmt_case(base)}; arrays {mem[base.name] / 2**20:.0f} MiB",
-                        f"{fmt_case(c)}; arrays {mem[c.name] / 2**20:.1f} MiB", gain(base, c),
-                        f"peaks vs `all`: {d.text(V)}"))  # fmt: skip
+        rows.append(
+            Row(
+                f"histories ({V} variants): {c.name.split(': ')[1]} instead of all",
+                f"{fmt_case(base)}; arrays {mem[base.name] / 2**20:.0f} MiB",
+                f"{fmt_case(c)}; arrays {mem[c.name] / 2**20:.1f} MiB",
+                gain(base, c),
+                f"peaks vs `all`: {d.text(V)}",
+            )
+        )
     return rows
 
 
@@ -294,8 +305,11 @@ def cmp_geometry(V: int, repeats: int, log: list[str], factor: float = 2.0) -> l
     """
     orig = frontal("none")
     base = stretched(orig, factor)
-    cases = [kernel_case("2-D, y fixed", to_2d(base, True), V), kernel_case("2-D, y free", to_2d(base, False), V),
-             kernel_case("1-D", base, V)]  # fmt: skip
+    cases = [
+        kernel_case("2-D, y fixed", to_2d(base, True), V),
+        kernel_case("2-D, y free", to_2d(base, False), V),
+        kernel_case("1-D", base, V),
+    ]
     same_dt = all(np.array_equal(c.batch.dt, cases[2].batch.dt) for c in cases)  # type: ignore[attr-defined]
     before, after = measure(cases, repeats)
     for c in cases:
@@ -305,16 +319,27 @@ def cmp_geometry(V: int, repeats: int, log: list[str], factor: float = 2.0) -> l
     d_drawn = rel_diff(drawn.run(), one.result, one.plan, 1e-9)  # type: ignore[attr-defined]
     left = float(np.min(1.0 - cases[0].result.max_crush / cases[0].batch.length0))  # type: ignore[attr-defined]
     PLOTTED.append(("2. geometry", cases))
-    log.append(f"2. 1-D vs 2-D along x, model drawn {factor:g}x longer, {V} variants (same dt in every case: "
-               f"{same_dt}), load {before} -> {after}")  # fmt: skip
-    log.append(f"   1-D drawn {factor:g}x vs as in the file: peaks {d_drawn.text(V)}; shortest spring "
-               f"in 2-D keeps {left:.0%} of its length")  # fmt: skip
+    log.append(
+        f"2. 1-D vs 2-D along x, model drawn {factor:g}x longer, {V} variants (same dt in every case: "
+        f"{same_dt}), load {before} -> {after}"
+    )
+    log.append(
+        f"   1-D drawn {factor:g}x vs as in the file: peaks {d_drawn.text(V)}; shortest spring "
+        f"in 2-D keeps {left:.0%} of its length"
+    )
     rows = []
     for c in cases[:2]:
         d = rel_diff(c.result, one.result, one.plan, 1e-9)  # type: ignore[attr-defined]
         log.append(f"   {fmt_case(c)} {c.note}; peaks vs 1-D {d.text(V)}")
-        rows.append(Row(f"geometry: 1-D instead of {c.name} ({V} variants)", fmt_case(c), fmt_case(one), gain(c, one),
-                        f"peaks (force, accel., crush) vs 1-D: {d.text(V)}"))  # fmt: skip
+        rows.append(
+            Row(
+                f"geometry: 1-D instead of {c.name} ({V} variants)",
+                fmt_case(c),
+                fmt_case(one),
+                gain(c, one),
+                f"peaks (force, accel., crush) vs 1-D: {d.text(V)}",
+            )
+        )
     log.append(f"   {fmt_case(one)} {one.note}")
     return rows
 
@@ -325,8 +350,11 @@ def cmp_wall_load(V: int, repeats: int, log: list[str]) -> list[Row]:
     wall["rigid_walls"] = [{"id": "far", "point": [-100.0], "normal": [1.0]}]  # 100 m behind the barrier
     load = copy.deepcopy(base)
     load["loads"] = [{"node": "survival_room", "force": [0.0]}]
-    cases = [kernel_case("wall never reached", wall, V), kernel_case("zero load", load, V),
-             kernel_case("neither (fused 1-D update)", base, V)]  # fmt: skip
+    cases = [
+        kernel_case("wall never reached", wall, V),
+        kernel_case("zero load", load, V),
+        kernel_case("neither (fused 1-D update)", base, V),
+    ]
     before, after = measure(cases, repeats)
     for c in cases:
         finish_kernel_case(c)
@@ -340,8 +368,15 @@ def cmp_wall_load(V: int, repeats: int, log: list[str]) -> list[Row]:
         if c.name.startswith("wall"):
             extra = f"; peak wall force {float(np.max(c.result.peak_wall_force)):.1g}"
         log.append(f"   {fmt_case(c)} {c.note}; peaks vs neither {d.text(V)}{extra}")
-        rows.append(Row(f"no {c.name.split(' ')[0]} loop, fused 1-D update ({V} variants)", fmt_case(c), fmt_case(ref),
-                        gain(c, ref), f"peaks vs neither: {d.text(V)}{extra}"))  # fmt: skip
+        rows.append(
+            Row(
+                f"no {c.name.split(' ')[0]} loop, fused 1-D update ({V} variants)",
+                fmt_case(c),
+                fmt_case(ref),
+                gain(c, ref),
+                f"peaks vs neither: {d.text(V)}{extra}",
+            )
+        )
     log.append(f"   {fmt_case(ref)} {ref.note}")
     return rows
 
@@ -380,8 +415,10 @@ def with_material(d: dict[str, Any], kind: str) -> dict[str, Any]:
 
 def cmp_material(V: int, repeats: int, log: list[str]) -> list[Row]:
     base = frontal("none")
-    cases = [kernel_case(f"all {k}", with_material(base, k), V)
-             for k in ("general_nonlinear", "crush", "nonlinear_elastic")]  # fmt: skip
+    cases = [
+        kernel_case(f"all {k}", with_material(base, k), V)
+        for k in ("general_nonlinear", "crush", "nonlinear_elastic")
+    ]
     before, after = measure(cases, repeats)
     for c in cases:
         finish_kernel_case(c)
@@ -399,7 +436,7 @@ def cmp_material(V: int, repeats: int, log: list[str]) -> list[Row]:
             fmt_case(ne),
             gain(c, ne),
             "different physics: cost only",
-        )  # fmt: skip
+        )
         for c in cases[:2]
     ]
 
@@ -426,21 +463,37 @@ def cmp_termination(V: int, repeats: int, log: list[str]) -> list[Row]:
         d = rel_diff(cut.result, full.result, full.plan, 1e-12)  # type: ignore[attr-defined]
         te = cut.result.t_end
         stopped = float(np.mean(te < 0.3 - 1e-9))
-        log.append(f"   {fmt_case(cut)} {cut.note}; {stopped:.0%} of the variants stopped early, t_end "
-                   f"min/median/max {te.min():.4f}/{np.median(te):.4f}/{te.max():.4f} s; peaks {d.text(V)}")  # fmt: skip
-        steps = (f"variant-steps {full.elem_steps / 8:.3g} -> {cut.elem_steps / 8:.3g} ({full.elem_steps / cut.elem_steps:.2f}x; "
-                 f"{stopped:.0%} stopped early, t_end median {np.median(te):.3f} s)")  # fmt: skip
-        rows.append(Row(f"early termination, {cut.name} ({V} variants, end_time 0.3 s)", fmt_case(full), fmt_case(cut),
-                        f"wall {full.wall_med / cut.wall_med:.2f}x, CPU {full.cpu_med / cut.cpu_med:.2f}x; {steps}",
-                        f"peaks vs no termination: {d.text(V)}"))  # fmt: skip
+        log.append(
+            f"   {fmt_case(cut)} {cut.note}; {stopped:.0%} of the variants stopped early, t_end "
+            f"min/median/max {te.min():.4f}/{np.median(te):.4f}/{te.max():.4f} s; peaks {d.text(V)}"
+        )
+        steps = (
+            f"variant-steps {full.elem_steps / 8:.3g} -> {cut.elem_steps / 8:.3g} ({full.elem_steps / cut.elem_steps:.2f}x; "
+            f"{stopped:.0%} stopped early, t_end median {np.median(te):.3f} s)"
+        )
+        rows.append(
+            Row(
+                f"early termination, {cut.name} ({V} variants, end_time 0.3 s)",
+                fmt_case(full),
+                fmt_case(cut),
+                f"wall {full.wall_med / cut.wall_med:.2f}x, CPU {full.cpu_med / cut.cpu_med:.2f}x; {steps}",
+                f"peaks vs no termination: {d.text(V)}",
+            )
+        )
     return rows
 
 
 def study_plan(folder: Path, name: str, scales: list[float]) -> Any:
-    text = {"name": name, "model": MODEL.name, "set": {"output": {"histories": "none"}},
-            "matrix": {"nodes.engine.mass": [120.0 + 10 * k for k in range(10)],
-                       "impact_velocity": [10.0 + 10.0 * k / 9 for k in range(10)],
-                       "curves.rail-loading.scale": scales}}  # fmt: skip
+    text = {
+        "name": name,
+        "model": MODEL.name,
+        "set": {"output": {"histories": "none"}},
+        "matrix": {
+            "nodes.engine.mass": [120.0 + 10 * k for k in range(10)],
+            "impact_velocity": [10.0 + 10.0 * k / 9 for k in range(10)],
+            "curves.rail-loading.scale": scales,
+        },
+    }
     path = folder / f"{name}.yaml"
     path.write_text(yaml.safe_dump(text, sort_keys=False))
     return load_study(path)
@@ -465,15 +518,22 @@ def cmp_dedup(n_unique_axis: int, repeats: int, log: list[str]) -> list[Row]:
     ref_out = run_chunk(ref, 0, ref.n_variants).out
     # variant k of the duplicated study is variant k // n_unique_axis of the 100-variant one
     idx = np.arange(n) // n_unique_axis
-    exact = all(np.array_equal(getattr(once.result.out, a), getattr(ref_out, a)[..., idx])
-                for a in (*PEAKS, "absorbed_energy", "t_end", "energy_error"))  # fmt: skip
+    exact = all(
+        np.array_equal(getattr(once.result.out, a), getattr(ref_out, a)[..., idx])
+        for a in (*PEAKS, "absorbed_energy", "t_end", "energy_error")
+    )
     log.append(f"6. run_chunk dedup, {n} variants, load {before} -> {after}")
     for c in cases:
         log.append(f"   {c.name}: CPU {c.cpu_med:.3g} s, wall {c.wall_med:.3g} s")
-    return [Row(f"identical variants computed once (run_chunk, {n} variants, 100 unique)",
-                f"{full.name}: CPU {full.cpu_med:.3g} s, wall {full.wall_med:.3g} s",
-                f"{once.name}: CPU {once.cpu_med:.3g} s, wall {once.wall_med:.3g} s", gain(full, once, False),
-                f"each variant equals its unique twin run alone: {'exact' if exact else 'DIFFERS'}")]  # fmt: skip
+    return [
+        Row(
+            f"identical variants computed once (run_chunk, {n} variants, 100 unique)",
+            f"{full.name}: CPU {full.cpu_med:.3g} s, wall {full.wall_med:.3g} s",
+            f"{once.name}: CPU {once.cpu_med:.3g} s, wall {once.wall_med:.3g} s",
+            gain(full, once, False),
+            f"each variant equals its unique twin run alone: {'exact' if exact else 'DIFFERS'}",
+        )
+    ]
 
 
 def run_process(args: list[str], env: dict[str, str]) -> tuple[float, float]:
@@ -502,7 +562,9 @@ def cmp_cache(cold_repeats: int, repeats: int, log: list[str]) -> list[Row]:
             else:
                 env["NUMBA_CACHE_DIR"] = str(Path(tmp) / "cache0")
             warm.append(run_process([*exe, str(Path(tmp) / f"out{r}b")], env))  # second call: cache reused
-            imp.append(run_process([sys.executable, "-c", "import crashstudy.run.runner, crashstudy.cli.main"], env))
+            imp.append(
+                run_process([sys.executable, "-c", "import crashstudy.run.runner, crashstudy.cli.main"], env)
+            )
     after = loadavg()
 
     def med(xs: list[tuple[float, float]], k: int) -> float:
@@ -515,14 +577,20 @@ def cmp_cache(cold_repeats: int, repeats: int, log: list[str]) -> list[Row]:
     log.append(
         f"   second call ({len(warm)} runs): wall {[round(x[0], 2) for x in warm]}, CPU {[round(x[1], 2) for x in warm]}"
     )
-    log.append(f"   python -c 'import crashstudy.run.runner, crashstudy.cli.main' ({len(imp)} runs): wall median "
-               f"{med(imp, 0):.2f} s, CPU {med(imp, 1):.2f} s")  # fmt: skip
-    return [Row(f"numba cache: second `crashstudy simulate` of {SMALL_MODEL.name} (separate processes)",
-                f"first call, empty NUMBA_CACHE_DIR: process wall {med(cold, 0):.1f} s, CPU {med(cold, 1):.1f} s",
-                f"second call, cache reused: process wall {med(warm, 0):.2f} s, CPU {med(warm, 1):.2f} s "
-                f"(imports alone: wall {med(imp, 0):.2f} s)",
-                f"wall {med(cold, 0) / med(warm, 0):.1f}x, CPU {med(cold, 1) / med(warm, 1):.1f}x",
-                "both runs exit 0")]  # fmt: skip
+    log.append(
+        f"   python -c 'import crashstudy.run.runner, crashstudy.cli.main' ({len(imp)} runs): wall median "
+        f"{med(imp, 0):.2f} s, CPU {med(imp, 1):.2f} s"
+    )
+    return [
+        Row(
+            f"numba cache: second `crashstudy simulate` of {SMALL_MODEL.name} (separate processes)",
+            f"first call, empty NUMBA_CACHE_DIR: process wall {med(cold, 0):.1f} s, CPU {med(cold, 1):.1f} s",
+            f"second call, cache reused: process wall {med(warm, 0):.2f} s, CPU {med(warm, 1):.2f} s "
+            f"(imports alone: wall {med(imp, 0):.2f} s)",
+            f"wall {med(cold, 0) / med(warm, 0):.1f}x, CPU {med(cold, 1) / med(warm, 1):.1f}x",
+            "both runs exit 0",
+        )
+    ]
 
 
 # ---------------------------------------------------------------------------------------------- report
@@ -557,10 +625,13 @@ def machine(note: str = "") -> list[str]:
         source = str(pkg)
     if note:
         source += f" ({note})"
-    return [f"- crashstudy source: {source}",f"- CPU: {model}, {os.cpu_count()} cores (lscpu); shared with other users' runs",
-            f"- Python {platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}, "
-            f"{platform.system()} {platform.release()}",
-            f"- date {_dt.datetime.now().isoformat(timespec='seconds')}"]  # fmt: skip
+    return [
+        f"- crashstudy source: {source}",
+        f"- CPU: {model}, {os.cpu_count()} cores (lscpu); shared with other users' runs",
+        f"- Python {platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}, "
+        f"{platform.system()} {platform.release()}",
+        f"- date {_dt.datetime.now().isoformat(timespec='seconds')}",
+    ]
 
 
 NOTES = [
@@ -575,20 +646,38 @@ NOTES = [
 ]
 
 
-def write_report(rows: list[Row], log: list[str], args: argparse.Namespace, seconds: float, load0: str,
-                 load1: str, png: str | None) -> str:  # fmt: skip
-    lines = ["# Skipping what a scene does not need: measured gains", "",
-             "Written by `python benchmarks/skipping.py` "
-             f"(`--variants {args.variants} --repeats {args.repeats} --cold-repeats {args.cold_repeats}`). "
-             "Each comparison toggles one feature on the same physics; its cases run side by side in one process, "
-             f"interleaved, after a warm-up; medians of {args.repeats} repeats (first-call processes: "
-             f"{args.cold_repeats}). CPU time is `time.process_time()` with the kernel on one thread "
-             "(`set_threads(1)`); one element-step = one spring advanced one step for one variant, counted "
-             "from the steps actually computed (`t_end / dt`). Gain = baseline / with-skip (per element-step "
-             "where the element-steps are the same; total time where the skip removes steps or variants).",
-             "", "## Machine", "", *machine(args.source_note), f"- load average (1/5/15 min) at start {load0}, at end {load1}",
-             f"- total run time {seconds:.0f} s", "",
-             "## Table", "", "| feature | baseline | with skip | gain | error check |", "|---|---|---|---|---|"]  # fmt: skip
+def write_report(
+    rows: list[Row],
+    log: list[str],
+    args: argparse.Namespace,
+    seconds: float,
+    load0: str,
+    load1: str,
+    png: str | None,
+) -> str:
+    lines = [
+        "# Skipping what a scene does not need: measured gains",
+        "",
+        "Written by `python benchmarks/skipping.py` "
+        f"(`--variants {args.variants} --repeats {args.repeats} --cold-repeats {args.cold_repeats}`). "
+        "Each comparison toggles one feature on the same physics; its cases run side by side in one process, "
+        f"interleaved, after a warm-up; medians of {args.repeats} repeats (first-call processes: "
+        f"{args.cold_repeats}). CPU time is `time.process_time()` with the kernel on one thread "
+        "(`set_threads(1)`); one element-step = one spring advanced one step for one variant, counted "
+        "from the steps actually computed (`t_end / dt`). Gain = baseline / with-skip (per element-step "
+        "where the element-steps are the same; total time where the skip removes steps or variants).",
+        "",
+        "## Machine",
+        "",
+        *machine(args.source_note),
+        f"- load average (1/5/15 min) at start {load0}, at end {load1}",
+        f"- total run time {seconds:.0f} s",
+        "",
+        "## Table",
+        "",
+        "| feature | baseline | with skip | gain | error check |",
+        "|---|---|---|---|---|",
+    ]
     for r in rows:
         lines.append(f"| {r.feature} | {r.baseline} | {r.skip} | {r.gain} | {r.check} |")
     lines += ["", *NOTES]

@@ -35,9 +35,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import RESULTS, load, machine, machine_md, md_table, median, write_csv  # noqa: E402
 
-CURVES = {"c1": ([-0.2, -0.05, 0.0, 0.05], [-4.0e5, -6.0e4, 0.0, 6.0e4]),
-          "c2": ([-0.2, -0.05, 0.0, 0.05], [-2.0e5, -3.0e4, 0.0, 3.0e4]),
-          "c3": ([-0.2, -0.05, 0.0, 0.05], [-1.0e5, -1.5e4, 0.0, 1.5e4])}  # fmt: skip
+CURVES = {
+    "c1": ([-0.2, -0.05, 0.0, 0.05], [-4.0e5, -6.0e4, 0.0, 6.0e4]),
+    "c2": ([-0.2, -0.05, 0.0, 0.05], [-2.0e5, -3.0e4, 0.0, 3.0e4]),
+    "c3": ([-0.2, -0.05, 0.0, 0.05], [-1.0e5, -1.5e4, 0.0, 1.5e4]),
+}
 
 
 def model_yaml(n_springs: int, end_time: float) -> str:
@@ -77,10 +79,14 @@ def study_yaml(n_springs: int, n_variants: int, model: Path) -> str:
 
 
 CASES = {  # name: (springs, variants, end_time [s])
-    "1spring-1e5": (1, 10**5, 0.075), "2spring-1e5": (2, 10**5, 0.075), "3spring-1e5": (3, 10**5, 0.075),
-    "1spring-1e6": (1, 10**6, 0.075), "2spring-1e6": (2, 10**6, 0.075), "3spring-1e6": (3, 10**6, 0.075),
+    "1spring-1e5": (1, 10**5, 0.075),
+    "2spring-1e5": (2, 10**5, 0.075),
+    "3spring-1e5": (3, 10**5, 0.075),
+    "1spring-1e6": (1, 10**6, 0.075),
+    "2spring-1e6": (2, 10**6, 0.075),
+    "3spring-1e6": (3, 10**6, 0.075),
     "2spring-1e5-long": (2, 10**5, 6.8),
-}  # fmt: skip
+}
 
 
 def one(case: str, folder: Path) -> dict[str, Any]:
@@ -109,11 +115,18 @@ def one(case: str, folder: Path) -> dict[str, Any]:
     plan = load_study(study)
     rep = runner.run_plan(plan, folder / f"out-{case}", force=True, progress=False)
     total = time.perf_counter() - t0
-    row = {"case": case, "variants": plan.n_variants, "element_steps": spent["steps"], "total_s": total,
-           "kernel_s": spent["kernel"], "other_s": total - spent["kernel"],
-           "other_us_per_variant": 1e6 * (total - spent["kernel"]) / plan.n_variants,
-           "total_us_per_variant": 1e6 * total / plan.n_variants, "failed": rep.n_failed,
-           "peak_rss_MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}  # fmt: skip
+    row = {
+        "case": case,
+        "variants": plan.n_variants,
+        "element_steps": spent["steps"],
+        "total_s": total,
+        "kernel_s": spent["kernel"],
+        "other_s": total - spent["kernel"],
+        "other_us_per_variant": 1e6 * (total - spent["kernel"]) / plan.n_variants,
+        "total_us_per_variant": 1e6 * total / plan.n_variants,
+        "failed": rep.n_failed,
+        "peak_rss_MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
     if case.endswith("long"):
         row.update(specialised(plan, rep.results.summary))
     return row
@@ -126,8 +139,14 @@ def specialised(plan: Any, summary: Any) -> dict[str, Any]:
 
     batch, _ = build_batch(plan.topology, plan.params(0, plan.n_variants), plan.interval)
     m = batch.mass
-    args = (np.ascontiguousarray(m[1]), np.ascontiguousarray(m[2]), np.ascontiguousarray(batch.v0[1, 0]),
-            np.ascontiguousarray(batch.v0[2, 0]), batch.dt, batch.n_steps)  # fmt: skip
+    args = (
+        np.ascontiguousarray(m[1]),
+        np.ascontiguousarray(m[2]),
+        np.ascontiguousarray(batch.v0[1, 0]),
+        np.ascontiguousarray(batch.v0[2, 0]),
+        batch.dt,
+        batch.n_steps,
+    )
     run_specialised(*(a[:256] for a in args))  # compile / load
     t0 = time.perf_counter()
     out = run_specialised(*args)
@@ -156,26 +175,50 @@ def main(argv: list[str] | None = None) -> int:
         env.pop("CRASHSTUDY_KERNEL", None)
         for case in args.cases:
             cmd = [sys.executable, __file__, "--one", case, "--folder", tmp]
-            first = json.loads(subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout)
+            first = json.loads(
+                subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
+            )
             from crashstudy.kernel.choice import compiling
 
             while compiling():
                 time.sleep(1.0)  # the first run's background compile
-            runs = [json.loads(subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout)
-                    for _ in range(args.repeats)]  # fmt: skip
-            row = {k: (median([r[k] for r in runs]) if isinstance(v, float) else v) for k, v in runs[0].items()}
+            runs = [
+                json.loads(subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout)
+                for _ in range(args.repeats)
+            ]
+            row = {
+                k: (median([r[k] for r in runs]) if isinstance(v, float) else v) for k, v in runs[0].items()
+            }
             row["first_run_total_s"] = first["total_s"]
             row["load"] = load()
             rows.append(row)
             print(json.dumps(row), flush=True)
     info = machine(start_load)
     write_csv(args.out / "small_models.csv", rows, info)
-    cols = ["case", "variants", "element_steps", "total_s", "kernel_s", "other_s", "other_us_per_variant",
-            "total_us_per_variant", "peak_rss_MiB", "first_run_total_s", "specialised_s",
-            "peak_force_max_rel_diff_vs_specialised", "failed", "load"]  # fmt: skip
-    text = ("# Small models, many variants (second run, warm caches)\n\n" + machine_md(info)
-            + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n" + __doc__.split("\n\n", 1)[1] + "\n"
-            + md_table(rows, cols))  # fmt: skip
+    cols = [
+        "case",
+        "variants",
+        "element_steps",
+        "total_s",
+        "kernel_s",
+        "other_s",
+        "other_us_per_variant",
+        "total_us_per_variant",
+        "peak_rss_MiB",
+        "first_run_total_s",
+        "specialised_s",
+        "peak_force_max_rel_diff_vs_specialised",
+        "failed",
+        "load",
+    ]
+    text = (
+        "# Small models, many variants (second run, warm caches)\n\n"
+        + machine_md(info)
+        + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n"
+        + __doc__.split("\n\n", 1)[1]
+        + "\n"
+        + md_table(rows, cols)
+    )
     (args.out / "small_models.md").write_text(text)
     print(f"wrote {args.out / 'small_models.md'}")
     return 0

@@ -50,13 +50,27 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="startup-") as tmp:
         base_env = dict(os.environ)
-        for what, cmd in (("python -c pass", [sys.executable, "-c", "pass"]),
-                          ("python -c 'import crashstudy.run.runner'", [sys.executable, "-c", "import crashstudy.run.runner"]),
-                          ("python -c 'import crashstudy.kernel.compiled' (numba)",
-                           [sys.executable, "-c", "import crashstudy.kernel.compiled"])):  # fmt: skip
+        for what, cmd in (
+            ("python -c pass", [sys.executable, "-c", "pass"]),
+            (
+                "python -c 'import crashstudy.run.runner'",
+                [sys.executable, "-c", "import crashstudy.run.runner"],
+            ),
+            (
+                "python -c 'import crashstudy.kernel.compiled' (numba)",
+                [sys.executable, "-c", "import crashstudy.kernel.compiled"],
+            ),
+        ):
             walls = [timed(cmd, base_env)[0] for _ in range(3)]
-            rows.append({"run": what, "repeat": "median of 3", "wall_s": median(walls), "peak_rss_MiB": float("nan"),
-                         "load": load()})  # fmt: skip
+            rows.append(
+                {
+                    "run": what,
+                    "repeat": "median of 3",
+                    "wall_s": median(walls),
+                    "peak_rss_MiB": float("nan"),
+                    "load": load(),
+                }
+            )
         for r in range(args.repeats):
             cache = Path(tmp) / f"numba-cache-{r}"
             cache.mkdir()
@@ -69,19 +83,32 @@ def main(argv: list[str] | None = None) -> int:
                     [sys.executable, "-m", "crashstudy.cli", "simulate", str(args.model), "-o", str(out)], env
                 )
                 n_files = sum(1 for _ in cache.rglob("*.nbc"))
-                rows.append({"run": label, "repeat": r, "wall_s": wall, "peak_rss_MiB": rss, "cache_files": n_files,
-                             "load": load()})  # fmt: skip
+                rows.append(
+                    {
+                        "run": label,
+                        "repeat": r,
+                        "wall_s": wall,
+                        "peak_rss_MiB": rss,
+                        "cache_files": n_files,
+                        "load": load(),
+                    }
+                )
                 print(f"repeat {r} {label}: {wall:.2f} s, {rss:.0f} MiB (load {load()})", flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
     info = machine(start_load)
     write_csv(args.out / "startup.csv", rows, info)
     first = [r["wall_s"] for r in rows if str(r["run"]).startswith("first")]
     second = [r["wall_s"] for r in rows if str(r["run"]).startswith("second")]
-    text = ("# First vs second `crashstudy simulate` (numba cache)\n\n" + machine_md(info)
-            + f"- model: {args.model.relative_to(MODELS.parents[1]) if args.model.is_relative_to(MODELS.parents[1]) else args.model}\n"
-            + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n" + __doc__.split("\n\n", 1)[1] + "\n"
-            + f"Median first: {median(first):.2f} s, median second: {median(second):.2f} s "
-            f"(x{median(first) / median(second):.1f}).\n\n" + md_table(rows))  # fmt: skip
+    text = (
+        "# First vs second `crashstudy simulate` (numba cache)\n\n"
+        + machine_md(info)
+        + f"- model: {args.model.relative_to(MODELS.parents[1]) if args.model.is_relative_to(MODELS.parents[1]) else args.model}\n"
+        + f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n"
+        + __doc__.split("\n\n", 1)[1]
+        + "\n"
+        + f"Median first: {median(first):.2f} s, median second: {median(second):.2f} s "
+        f"(x{median(first) / median(second):.1f}).\n\n" + md_table(rows)
+    )
     (args.out / "startup.md").write_text(text)
     print(f"wrote {args.out / 'startup.md'}")
     return 0

@@ -76,7 +76,9 @@ def grid(end_time: float) -> str:
     pairs += [((i, j), (i, j + 1)) for j in range(NY - 1) for i in range(NX)]
     pairs += [((i, j), (i + 1, j + 1)) for j in range(NY - 1) for i in range(NX - 1)]
     for k, ((i, j), (p, q)) in enumerate(pairs):
-        lines.append(f"  s{k}: {{nodes: [n{i}_{j}, n{p}_{q}], material: {{type: linear_elastic, stiffness: 2.0e4}}}}")
+        lines.append(
+            f"  s{k}: {{nodes: [n{i}_{j}, n{p}_{q}], material: {{type: linear_elastic, stiffness: 2.0e4}}}}"
+        )
     lines.append("initial_velocity: {" + ", ".join(f"n{i}_{NY - 1}: [0.0, -2.0]" for i in range(NX)) + "}")
     lines += [f"end_time: {end_time}", "output: {histories: none}"]
     return "\n".join(lines) + "\n"
@@ -85,8 +87,12 @@ def grid(end_time: float) -> str:
 def fresh_env(root: Path) -> dict[str, str]:
     for d in ("home", "numba", "kernels"):
         (root / d).mkdir(parents=True, mode=0o700)
-    env = dict(os.environ, HOME=str(root / "home"), NUMBA_CACHE_DIR=str(root / "numba"),
-               CRASHSTUDY_KERNEL_CACHE=str(root / "kernels"))  # fmt: skip
+    env = dict(
+        os.environ,
+        HOME=str(root / "home"),
+        NUMBA_CACHE_DIR=str(root / "numba"),
+        CRASHSTUDY_KERNEL_CACHE=str(root / "kernels"),
+    )
     env.pop("CRASHSTUDY_KERNEL", None)
     env["CRASHSTUDY_BACKGROUND_COMPILE"] = "0"  # the simulate leaves no compile of the grid's own generated
     return env  # kernel (~470 s) running after it, to eat the next case's cores (the same decision otherwise)
@@ -94,8 +100,13 @@ def fresh_env(root: Path) -> dict[str, str]:
 
 def simulate(model: Path, root: Path, env: dict[str, str]) -> tuple[float, str]:
     t0 = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(model), "-o", str(root / "out")],
-                          capture_output=True, text=True, env=env, timeout=1800)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, "-m", "crashstudy.cli", "simulate", str(model), "-o", str(root / "out")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=1800,
+    )
     seconds = time.perf_counter() - t0
     if done.returncode != 0:
         raise SystemExit(done.stderr)
@@ -107,8 +118,12 @@ def hold_lock(other: Path, kernels: str, env: dict[str, str], root: Path) -> sub
     """Start a background compile of ``kernels`` for the other model; return once it holds the lock."""
     from crashstudy.kernel.compile_lock import read_holder
 
-    proc = subprocess.Popen([sys.executable, "-c", HOLD, str(other), kernels], stdout=subprocess.PIPE, text=True,
-                            env=dict(env, CRASHSTUDY_BACKGROUND_COMPILE="1"))  # fmt: skip
+    proc = subprocess.Popen(
+        [sys.executable, "-c", HOLD, str(other), kernels],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=dict(env, CRASHSTUDY_BACKGROUND_COMPILE="1"),
+    )
     lock = root / "kernels" / "compile.lock"
     for _ in range(600):
         holder = read_holder(lock) if lock.exists() else None
@@ -127,25 +142,41 @@ def main() -> None:
         other.write_text(OTHER)
         model = base / "grid.yaml"
         model.write_text(grid(10.0))  # dt 1.8e-4 s: ~55,000 steps
-        for case, kernels in (("alone", ""), ("other compiles generic", "generic,generated"),
-                              ("other compiles its generated kernel", "generated")):  # fmt: skip
+        for case, kernels in (
+            ("alone", ""),
+            ("other compiles generic", "generic,generated"),
+            ("other compiles its generated kernel", "generated"),
+        ):
             root = base / case.replace(" ", "-")
             env = fresh_env(root)
             holder = hold_lock(other, kernels, env, root) if kernels else None
             seconds, notes = simulate(model, root, env)
             if holder is not None:
                 holder.wait(timeout=600)
-            rows.append({"case": case, "simulate wall [s]": seconds, "load (1 min) after": os.getloadavg()[0],
-                         "what it said": notes})  # fmt: skip
+            rows.append(
+                {
+                    "case": case,
+                    "simulate wall [s]": seconds,
+                    "load (1 min) after": os.getloadavg()[0],
+                    "what it said": notes,
+                }
+            )
             print(rows[-1], flush=True)
     alone = rows[0]["simulate wall [s]"]
     for r in rows:
         r["ratio to alone"] = r["simulate wall [s]"] / alone
     info = machine(start)
-    text = ("# Stranded run: simulate of a 400-mass, 1179-spring grid (~56,000 steps) on empty caches while "
-            "another process compiles\n\n" + (__doc__ or "").split("\n\n", 1)[1] + "\n" + md_table(
-                rows, ["case", "simulate wall [s]", "ratio to alone", "load (1 min) after", "what it said"])
-            + "\n" + machine_md(info))  # fmt: skip
+    text = (
+        "# Stranded run: simulate of a 400-mass, 1179-spring grid (~56,000 steps) on empty caches while "
+        "another process compiles\n\n"
+        + (__doc__ or "").split("\n\n", 1)[1]
+        + "\n"
+        + md_table(
+            rows, ["case", "simulate wall [s]", "ratio to alone", "load (1 min) after", "what it said"]
+        )
+        + "\n"
+        + machine_md(info)
+    )
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "stranded.md").write_text(text)
     print(text)

@@ -90,9 +90,16 @@ def outcome(res: ChunkResult, k: int, wrong: str | None = None) -> str:
 
 
 def add(case: str, out: str, err: float | None, steps: int | str, wall: float, check: str) -> None:
-    ROWS.append({"case": case, "outcome": out, "energy_error": "-" if err is None else f"{err:.1e}",
-                 "steps": f"{steps:,}" if isinstance(steps, (int, np.integer)) else str(steps),
-                 "wall": f"{wall:.2f}", "check": check})  # fmt: skip
+    ROWS.append(
+        {
+            "case": case,
+            "outcome": out,
+            "energy_error": "-" if err is None else f"{err:.1e}",
+            "steps": f"{steps:,}" if isinstance(steps, (int, np.integer)) else str(steps),
+            "wall": f"{wall:.2f}",
+            "check": check,
+        }
+    )
     print(
         f"  {case}: {out} | {ROWS[-1]['energy_error']} | {ROWS[-1]['steps']} | {wall:.2f} s | {check}",
         flush=True,
@@ -115,8 +122,14 @@ def chains(quick: bool) -> None:
                 p1, p2 = res.out.peak_force.max(axis=0)
                 ok = p2 <= 1.5 * p1 and w_dt < 2.0
                 name = f"chain {n} {'unequal' if unequal else 'equal'} {'fixed-end' if fixed else 'free'}, sf 1.0"
-                add(name, outcome(res, 1, None if ok else f"peak 2N/N {p2 / p1:.3g}"), float(res.out.energy_error.max()),
-                    int(steps_of(res).sum()), wall, f"omega_max dt {w_dt:.3f}; peak force 2N/N steps {p2 / p1:.3f}")  # fmt: skip
+                add(
+                    name,
+                    outcome(res, 1, None if ok else f"peak 2N/N {p2 / p1:.3g}"),
+                    float(res.out.energy_error.max()),
+                    int(steps_of(res).sum()),
+                    wall,
+                    f"omega_max dt {w_dt:.3f}; peak force 2N/N steps {p2 / p1:.3f}",
+                )
 
 
 def ratios(quick: bool) -> None:
@@ -133,10 +146,14 @@ def ratios(quick: bool) -> None:
         exact = cases.ratio_closed_form(kr, mr, t)[:, 0]
         got = res.out.histories["displacement"][:, 1, 0, 0]
         rel = float(np.max(np.abs(got - exact)) / np.max(np.abs(exact)))
-        add(f"k ratio {kr:.0e}, m ratio {mr:.0e}, sf 1.0 (quarter slow period)",
-            outcome(res, 0, None if rel < 1e-6 else f"heavy-mass error {rel:.2g}"), float(res.out.energy_error[0]),
-            int(steps_of(res)[0]), wall,
-            f"dt_crit from node {node} / spring {spring}; heavy mass vs closed form: {rel:.1e} of amplitude")  # fmt: skip
+        add(
+            f"k ratio {kr:.0e}, m ratio {mr:.0e}, sf 1.0 (quarter slow period)",
+            outcome(res, 0, None if rel < 1e-6 else f"heavy-mass error {rel:.2g}"),
+            float(res.out.energy_error[0]),
+            int(steps_of(res)[0]),
+            wall,
+            f"dt_crit from node {node} / spring {spring}; heavy mass vs closed form: {rel:.1e} of amplitude",
+        )
 
 
 def frontal() -> None:
@@ -150,9 +167,15 @@ def frontal() -> None:
             ref = crush
         kind = "default tolerance 1e-3" if ts is None else "sf 1.0"
         for k, v in enumerate(speeds):
-            add(f"frontal-9mass (1-D) {v:g} m/s, {kind}", outcome(res, k), float(res.out.energy_error[k]),
-                int(steps_of(res)[k]), wall / len(speeds),
-                f"max crush {crush[k]:.3f} m" + (f"; vs default step {crush[k] / ref[k] - 1:+.1e}" if ts else ""))  # fmt: skip
+            add(
+                f"frontal-9mass (1-D) {v:g} m/s, {kind}",
+                outcome(res, k),
+                float(res.out.energy_error[k]),
+                int(steps_of(res)[k]),
+                wall / len(speeds),
+                f"max crush {crush[k]:.3f} m"
+                + (f"; vs default step {crush[k] / ref[k] - 1:+.1e}" if ts else ""),
+            )
 
 
 def helicopter() -> None:
@@ -169,11 +192,18 @@ def helicopter() -> None:
         for k, v in enumerate(cases.SPEEDS):
             wrong = None
             if low[k] <= 0:
-                wrong = (f"transmission passes the ground node (y down to {low[k]:.2f} m); underfloor crushed through "
-                         "zero length between two steps, not detected [bug]")  # fmt: skip
-            add(f"helicopter-subfloor (2-D) {v:g} m/s, {kind}", outcome(res, k, wrong), float(res.out.energy_error[k]),
-                int(steps_of(res)[k]), wall / len(cases.SPEEDS),
-                f"underfloor max crush {res.out.max_crush[0, k]:.3f} of 0.3 m; transmission lowest y {low[k]:.3f} m")  # fmt: skip
+                wrong = (
+                    f"transmission passes the ground node (y down to {low[k]:.2f} m); underfloor crushed through "
+                    "zero length between two steps, not detected [bug]"
+                )
+            add(
+                f"helicopter-subfloor (2-D) {v:g} m/s, {kind}",
+                outcome(res, k, wrong),
+                float(res.out.energy_error[k]),
+                int(steps_of(res)[k]),
+                wall / len(cases.SPEEDS),
+                f"underfloor max crush {res.out.max_crush[0, k]:.3f} of 0.3 m; transmission lowest y {low[k]:.3f} m",
+            )
 
 
 def softening() -> None:
@@ -190,8 +220,14 @@ def softening() -> None:
             )
             if snapped != snapped_exact:
                 note += "; snaps through where the exact shell does not (accuracy of the critical step)"
-            add(f"snap-through curve (slope -4 N/m) {v:g} m/s, {kind}", outcome(res, k), float(res.out.energy_error[k]),
-                int(steps_of(res)[k]), wall / len(cases.SNAP_SPEEDS), note)  # fmt: skip
+            add(
+                f"snap-through curve (slope -4 N/m) {v:g} m/s, {kind}",
+                outcome(res, k),
+                float(res.out.energy_error[k]),
+                int(steps_of(res)[k]),
+                wall / len(cases.SNAP_SPEEDS),
+                note,
+            )
 
 
 def long_runs(quick: bool) -> None:
@@ -200,9 +236,14 @@ def long_runs(quick: bool) -> None:
         model = cases.conservative(n_steps)
         res, _, wall = run(model, "end_time", [model["end_time"]])
         e = res.out.final_energy[:, 0]
-        add(f"conservative 2-mass chain, sf 1.0, {n_steps:.0e} steps", outcome(res, 0, None if res.out.energy_error[0] < 1e-6 else "drift"),
-            float(res.out.energy_error[0]), int(steps_of(res)[0]), wall,
-            f"(KE + IE) / KE0 - 1 at the end {(e[0] + e[1]) / 4.5 - 1:+.1e}")  # fmt: skip
+        add(
+            f"conservative 2-mass chain, sf 1.0, {n_steps:.0e} steps",
+            outcome(res, 0, None if res.out.energy_error[0] < 1e-6 else "drift"),
+            float(res.out.energy_error[0]),
+            int(steps_of(res)[0]),
+            wall,
+            f"(KE + IE) / KE0 - 1 at the end {(e[0] + e[1]) / 4.5 - 1:+.1e}",
+        )
     # the same springs and masses, nothing fixed, net momentum: positions drift far from x0 (1e5 m over 10^7
     # steps), so the elongation (x_j - x0_j) - (x_i - x0_i) loses digits to cancellation
     n_steps = 10**5 if quick else 10**7
@@ -212,9 +253,14 @@ def long_runs(quick: bool) -> None:
     model = cases.at_step(model, n_steps)
     res, _, wall = run(model, "end_time", [model["end_time"]])
     drift = 0.5 * res.out.t_end[0]
-    add(f"free 3-mass chain drifting (net momentum 2 kg m/s), sf 1.0, {n_steps:.0e} steps", outcome(res, 0),
-        float(res.out.energy_error[0]), int(steps_of(res)[0]), wall,
-        f"drifts {drift:.2g} m: elongations (x_j - x0_j) - (x_i - x0_i) lose digits to cancellation")  # fmt: skip
+    add(
+        f"free 3-mass chain drifting (net momentum 2 kg m/s), sf 1.0, {n_steps:.0e} steps",
+        outcome(res, 0),
+        float(res.out.energy_error[0]),
+        int(steps_of(res)[0]),
+        wall,
+        f"drifts {drift:.2g} m: elongations (x_j - x0_j) - (x_i - x0_i) lose digits to cancellation",
+    )
 
 
 def fixed_dt(tmp: Path) -> None:
@@ -227,8 +273,14 @@ def fixed_dt(tmp: Path) -> None:
     res = runner.run_chunk(plan, 0, plan.n_variants)
     wall = time.perf_counter() - t0
     for k, mb in enumerate(masses):
-        add(f"fixed dt 1 ms, end mass {mb:g} kg", outcome(res, k), None if res.out.status[k] else float(res.out.energy_error[k]),
-            int(steps_of(res)[k]), wall / len(masses), f"dt_crit {res.dt_crit[k]:.3g} s")  # fmt: skip
+        add(
+            f"fixed dt 1 ms, end mass {mb:g} kg",
+            outcome(res, k),
+            None if res.out.status[k] else float(res.out.energy_error[k]),
+            int(steps_of(res)[k]),
+            wall / len(masses),
+            f"dt_crit {res.dt_crit[k]:.3g} s",
+        )
 
 
 @contextlib.contextmanager
@@ -257,25 +309,40 @@ def forced() -> None:
     with forced_dt("b", -3.0, factor=3.0):
         res, _, wall = run(model, "impact_velocity", speeds)
     same = all(output_differences(res.out, clean.out, k, k) == [] for k in (0, 1, 3))
-    add("conservative chain, 3 m/s variant at dt = 3 x dt_crit by hand (batch of 4)", outcome(res, 2), None,
-        int(steps_of(res)[2]), wall, f"other 3 variants bitwise equal to an unforced run: {same}")  # fmt: skip
+    add(
+        "conservative chain, 3 m/s variant at dt = 3 x dt_crit by hand (batch of 4)",
+        outcome(res, 2),
+        None,
+        int(steps_of(res)[2]),
+        wall,
+        f"other 3 variants bitwise equal to an unforced run: {same}",
+    )
     K = np.array([[4.0e4, -3.0e4], [-3.0e4, 3.0e4]])
     Ms = 1.0 / np.sqrt(np.array([1.0, 2.0]))
     w_max = float(np.sqrt(np.linalg.eigvalsh(Ms[:, None] * K * Ms[None, :]).max()))
     with forced_dt("b", -3.0, absolute=1.0001 * 2.0 / w_max):
         res, _, wall = run(model, "impact_velocity", speeds)
     p = res.out.peak_force.max(axis=0)
-    add("conservative chain, 3 m/s variant at dt = 1.0001 x 2/omega_max by hand (2000 steps)",
+    add(
+        "conservative chain, 3 m/s variant at dt = 1.0001 x 2/omega_max by hand (2000 steps)",
         outcome(res, 2, f"blown up but finite: peak force {p[2]:.1e} N vs {p[0]:.1e} N, not flagged [gap]"),
-        float(res.out.energy_error[2]), int(steps_of(res)[2]), wall, "only a non-finite energy balance is UNSTABLE")  # fmt: skip
+        float(res.out.energy_error[2]),
+        int(steps_of(res)[2]),
+        wall,
+        "only a non-finite energy balance is UNSTABLE",
+    )
 
 
 def dampers() -> None:
     print("dampers at safety_factor 1.0")
-    for label, fixed, k, sf in (("free pair, damper", False, None, 1.0),
-                                ("free pair, damper + 1e4 N/m spring", False, 1.0e4, 1.0),
-                                ("free pair, damper", False, None, 0.5), ("free pair, damper", False, None, None),
-                                ("fixed anchor, damper", True, None, 1.0), ("fixed anchor, damper", True, None, None)):  # fmt: skip
+    for label, fixed, k, sf in (
+        ("free pair, damper", False, None, 1.0),
+        ("free pair, damper + 1e4 N/m spring", False, 1.0e4, 1.0),
+        ("free pair, damper", False, None, 0.5),
+        ("free pair, damper", False, None, None),
+        ("fixed anchor, damper", True, None, 1.0),
+        ("fixed anchor, damper", True, None, None),
+    ):
         model = cases.damper_pair(sf or 1.0, k)
         if fixed:
             model["nodes"]["a"] = {"position": [0.0], "fixed": True}
@@ -293,8 +360,14 @@ def dampers() -> None:
             else f"final KE {ke:.1e} J from 0.5 J: dt_crit 2x too large for dampers [bug]"
         )
         kind = f"sf {sf:g}" if sf else "default tolerance 1e-3"
-        add(f"damper 1000 N s/m, {label}, {kind}", outcome(res, 0, wrong), float(res.out.energy_error[0]),
-            int(steps_of(res)[0]), wall, f"dt {res.dt[0]:.3g} s; final KE {ke:.2g} J")  # fmt: skip
+        add(
+            f"damper 1000 N s/m, {label}, {kind}",
+            outcome(res, 0, wrong),
+            float(res.out.energy_error[0]),
+            int(steps_of(res)[0]),
+            wall,
+            f"dt {res.dt[0]:.3g} s; final KE {ke:.2g} J",
+        )
 
 
 # --------------------------------------------------------------------------------------------------

@@ -66,10 +66,17 @@ def frontal_plan(n_variants: int, end_time: float | None, histories: str, curve_
     set_: dict[str, Any] = {"output": {"histories": histories}}
     if end_time is not None:
         set_["end_time"] = end_time
-    first = ("curves.rail-loading.scale", [0.8 + 0.8 * (m - 120.0) / 90.0 for m in masses]) if curve_axis else (
-        "nodes.engine.mass", masses)  # fmt: skip
-    study = {"name": "throughput", "model": str(FRONTAL), "matrix": {first[0]: first[1],
-             "impact_velocity": speeds}, "set": set_}  # fmt: skip
+    first = (
+        ("curves.rail-loading.scale", [0.8 + 0.8 * (m - 120.0) / 90.0 for m in masses])
+        if curve_axis
+        else ("nodes.engine.mass", masses)
+    )
+    study = {
+        "name": "throughput",
+        "model": str(FRONTAL),
+        "matrix": {first[0]: first[1], "impact_velocity": speeds},
+        "set": set_,
+    }
     plan = load_study(study)
     assert plan.n_variants == n_variants
     return plan
@@ -104,8 +111,10 @@ def peak_check(batches: list[Batch], histories: tuple[str, ...], n_out: int) -> 
     g = run_compiled(b, histories, n_out)
     s = run_specialised(b, histories, n_out)
     x = run_generated(b, histories, n_out)
-    same = all(np.array_equal(getattr(g, k), getattr(x, k), equal_nan=True) for k in
-               ("status", "peak_force", "peak_acceleration", "max_crush", "absorbed_energy", "energy_error"))  # fmt: skip
+    same = all(
+        np.array_equal(getattr(g, k), getattr(x, k), equal_nan=True)
+        for k in ("status", "peak_force", "peak_acceleration", "max_crush", "absorbed_energy", "energy_error")
+    )
     return float(np.max(np.abs(s.peak_force - g.peak_force) / np.maximum(np.abs(g.peak_force), 1e-300))), same
 
 
@@ -124,8 +133,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sizes", type=int, nargs="+", default=[1, 100, 10_000, 1_000_000])
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--end-time-big", type=float, default=0.006,
-                    help="end_time [s] for sizes >= 10^6 (the model has 0.12 s)")  # fmt: skip
+    ap.add_argument(
+        "--end-time-big",
+        type=float,
+        default=0.006,
+        help="end_time [s] for sizes >= 10^6 (the model has 0.12 s)",
+    )
     ap.add_argument("--out", type=Path, default=RESULTS)
     args = ap.parse_args(argv)
     start_load = load()
@@ -156,18 +169,23 @@ def main(argv: list[str] | None = None) -> int:
             kernels = ("generic", "generated", "specialised")
             res: dict[str, list[float]] = {k + sfx: [] for k in kernels for sfx in ("", "_cpu")}
             for r in range(args.repeats):
-                for k in kernels[r % 3:] + kernels[: r % 3]:  # rotate the order between repeats
+                for k in kernels[r % 3 :] + kernels[: r % 3]:  # rotate the order between repeats
                     wall, cpu, _ = run_all(k, batches, histories, plan.n_out)
                     res[k].append(wall)
                     res[k + "_cpu"].append(cpu)
             ratios = [g / s for g, s in zip(res["generic"], res["specialised"], strict=True)]
             gratios = [g / s for g, s in zip(res["generated"], res["specialised"], strict=True)]
             row = {
-                "variants": V, "histories": hist_mode, "curve_axis": curve_axis, "threads": th,
+                "variants": V,
+                "histories": hist_mode,
+                "curve_axis": curve_axis,
+                "threads": th,
                 "steps_per_variant": int(n_steps.max()),
                 "end_time_s": float(plan.base[plan.topology.blocks["end_time"].start]),
-                "chunk": min(chunk_size(plan), MAX_CHUNK), "element_steps": elem_steps,
-                "generic_s": median(res["generic"]), "specialised_s": median(res["specialised"]),
+                "chunk": min(chunk_size(plan), MAX_CHUNK),
+                "element_steps": elem_steps,
+                "generic_s": median(res["generic"]),
+                "specialised_s": median(res["specialised"]),
                 "generic_es_per_s": elem_steps / median(res["generic"]),
                 "specialised_es_per_s": elem_steps / median(res["specialised"]),
                 "generated_s": median(res["generated"]),
@@ -176,27 +194,50 @@ def main(argv: list[str] | None = None) -> int:
                 "generated_es_per_cpu_s": elem_steps / median(res["generated_cpu"]),
                 "specialised_es_per_cpu_s": elem_steps / median(res["specialised_cpu"]),
                 "ratio_generic_over_specialised": median(ratios),
-                "ratio_min": min(ratios), "ratio_max": max(ratios),
+                "ratio_min": min(ratios),
+                "ratio_max": max(ratios),
                 "ratio_generated_over_specialised": median(gratios),
-                "gratio_min": min(gratios), "gratio_max": max(gratios), "repeats": args.repeats,
-                "peak_force_max_rel_diff": check, "generated_equals_generic": same,
-                "load_before": load0, "load_after": load(),
-            }  # fmt: skip
+                "gratio_min": min(gratios),
+                "gratio_max": max(gratios),
+                "repeats": args.repeats,
+                "peak_force_max_rel_diff": check,
+                "generated_equals_generic": same,
+                "load_before": load0,
+                "load_after": load(),
+            }
             rows.append(row)
-            print(f"V={V:>8} hist={hist_mode:4} curve_axis={curve_axis} threads={th}: generic "
-                  f"{row['generic_es_per_s']:.3g}, generated {row['generated_es_per_s']:.3g}, specialised "
-                  f"{row['specialised_es_per_s']:.3g} es/s; generated/specialised time "
-                  f"{row['ratio_generated_over_specialised']:.2f} (peak-force check {check:.1e}, generated == "
-                  f"generic: {same}; load {row['load_after']})", flush=True)  # fmt: skip
+            print(
+                f"V={V:>8} hist={hist_mode:4} curve_axis={curve_axis} threads={th}: generic "
+                f"{row['generic_es_per_s']:.3g}, generated {row['generated_es_per_s']:.3g}, specialised "
+                f"{row['specialised_es_per_s']:.3g} es/s; generated/specialised time "
+                f"{row['ratio_generated_over_specialised']:.2f} (peak-force check {check:.1e}, generated == "
+                f"generic: {same}; load {row['load_after']})",
+                flush=True,
+            )
 
     args.out.mkdir(parents=True, exist_ok=True)
     info = machine(start_load)
     write_csv(args.out / "throughput.csv", rows, info)
     plot(rows, args.out / "throughput.png")
-    cols = ["variants", "histories", "curve_axis", "threads", "steps_per_variant", "element_steps",
-            "generic_es_per_s", "generated_es_per_s", "specialised_es_per_s", "ratio_generated_over_specialised",
-            "gratio_min", "gratio_max", "ratio_generic_over_specialised", "generated_es_per_cpu_s",
-            "specialised_es_per_cpu_s", "generated_equals_generic", "load_after"]  # fmt: skip
+    cols = [
+        "variants",
+        "histories",
+        "curve_axis",
+        "threads",
+        "steps_per_variant",
+        "element_steps",
+        "generic_es_per_s",
+        "generated_es_per_s",
+        "specialised_es_per_s",
+        "ratio_generated_over_specialised",
+        "gratio_min",
+        "gratio_max",
+        "ratio_generic_over_specialised",
+        "generated_es_per_cpu_s",
+        "specialised_es_per_cpu_s",
+        "generated_equals_generic",
+        "load_after",
+    ]
     text = (
         "# Throughput: generic and generated kernels vs hand-specialised loop (frontal-9mass)\n\n"
         + machine_md(info)
@@ -236,10 +277,20 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
                 color="C0",
                 label=f"generic, {th} thread(s)",
             )
-            ax.plot(x, [r["generated_es_per_s"] for r in sel], "^" + ls, color="C2",
-                    label=f"generated, {th} thread(s)")  # fmt: skip
-            ax.plot(x, [r["specialised_es_per_s"] for r in sel], "s" + ls, color="C3",
-                    label=f"hand-specialised, {th} thread(s)")  # fmt: skip
+            ax.plot(
+                x,
+                [r["generated_es_per_s"] for r in sel],
+                "^" + ls,
+                color="C2",
+                label=f"generated, {th} thread(s)",
+            )
+            ax.plot(
+                x,
+                [r["specialised_es_per_s"] for r in sel],
+                "s" + ls,
+                color="C3",
+                label=f"hand-specialised, {th} thread(s)",
+            )
         ax.axhline(GOAL, color="gray", lw=0.8, ls=":")
         ax.text(1.2, GOAL * 1.15, "goal 1e9 (2 threads, histories off)", color="gray", fontsize=8)
         ax.set_xscale("log")

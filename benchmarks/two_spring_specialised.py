@@ -39,12 +39,12 @@ R1, R2 = _ramp(C1), _ramp(C2)
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
 def _f1(e):  # pragma: no cover - compiled
-    return (R1[0] + R1[1] * (e - R1[2]) + R1[4] * max(0.0, e - R1[3]) + R1[6] * max(0.0, e - R1[5]))
+    return R1[0] + R1[1] * (e - R1[2]) + R1[4] * max(0.0, e - R1[3]) + R1[6] * max(0.0, e - R1[5])
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
 def _f2(e):  # pragma: no cover - compiled
-    return (R2[0] + R2[1] * (e - R2[2]) + R2[4] * max(0.0, e - R2[3]) + R2[6] * max(0.0, e - R2[5]))
+    return R2[0] + R2[1] * (e - R2[2]) + R2[4] * max(0.0, e - R2[3]) + R2[6] * max(0.0, e - R2[5])
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
@@ -108,14 +108,31 @@ def _block(lo, hi, m1, m2, v1_0, v2_0, dt, n_steps, peak_f, crush, energy, peak_
         peak_a[0, k], peak_a[1, k] = pa1[w], pa2[w]
 
 
-def run_specialised(m1: np.ndarray, m2: np.ndarray, v1: np.ndarray, v2: np.ndarray, dt: np.ndarray,
-                    n_steps: np.ndarray, threads: int = 2) -> dict[str, np.ndarray]:  # fmt: skip
+def run_specialised(
+    m1: np.ndarray,
+    m2: np.ndarray,
+    v1: np.ndarray,
+    v2: np.ndarray,
+    dt: np.ndarray,
+    n_steps: np.ndarray,
+    threads: int = 2,
+) -> dict[str, np.ndarray]:
     """Integrate every variant (arrays of length V); returns the summaries, springs/masses on axis 0."""
     V = len(dt)
     out = {k: np.zeros((2, V)) for k in ("peak_force", "max_crush", "absorbed_energy", "peak_acceleration")}
     starts = list(range(0, V, BLOCK)) + [V]
-    args = (1.0 / m1, 1.0 / m2, v1, v2, dt, n_steps.astype(np.int64), out["peak_force"], out["max_crush"],
-            out["absorbed_energy"], out["peak_acceleration"])  # fmt: skip
+    args = (
+        1.0 / m1,
+        1.0 / m2,
+        v1,
+        v2,
+        dt,
+        n_steps.astype(np.int64),
+        out["peak_force"],
+        out["max_crush"],
+        out["absorbed_energy"],
+        out["peak_acceleration"],
+    )
     with ThreadPoolExecutor(threads) as pool:
         list(pool.map(lambda b: _block(starts[b], starts[b + 1], *args), range(len(starts) - 1)))
     return out

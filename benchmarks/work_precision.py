@@ -80,8 +80,11 @@ def plan_for(model: dict[str, Any], time_step: dict[str, float]) -> Plan:
 
 
 def cs_values(out: Any, k: int = 0) -> dict[str, np.ndarray]:
-    return {"peak_force": out.peak_force[:, k], "peak_deceleration": out.peak_acceleration[:, k],
-            "absorbed_energy": out.absorbed_energy[:, k]}  # fmt: skip
+    return {
+        "peak_force": out.peak_force[:, k],
+        "peak_deceleration": out.peak_acceleration[:, k],
+        "absorbed_energy": out.absorbed_energy[:, k],
+    }
 
 
 def run_cs(model: dict[str, Any], time_step: dict[str, float], repeats: int, budget: float) -> dict[str, Any]:
@@ -102,8 +105,14 @@ def run_cs(model: dict[str, Any], time_step: dict[str, float], repeats: int, bud
     assert out is not None
     assert np.all(out.status == 0), f"{model['name']} {time_step}: status {set(out.status.tolist())}"
     assert np.all(out.peak_force == out.peak_force[:, :1]), "identical variants must give identical results"
-    return {"values": cs_values(out), "t_variant": median(times) / V, "batch": V, "dt": float(steps.dt[0]),
-            "dt_over_crit": float(steps.dt[0] / steps.dt_crit[0]), "n_steps": n_steps}  # fmt: skip
+    return {
+        "values": cs_values(out),
+        "t_variant": median(times) / V,
+        "batch": V,
+        "dt": float(steps.dt[0]),
+        "dt_over_crit": float(steps.dt[0] / steps.dt_crit[0]),
+        "n_steps": n_steps,
+    }
 
 
 def ref_scipy_values(
@@ -121,8 +130,11 @@ def ref_scipy_values(
 
 def sm_values(sol: Any) -> dict[str, np.ndarray]:
     pk = sol.peaks()
-    return {"peak_force": pk["peak_force"], "peak_deceleration": pk["peak_deceleration"],
-            "absorbed_energy": sol.absorbed_energy()}  # fmt: skip
+    return {
+        "peak_force": pk["peak_force"],
+        "peak_deceleration": pk["peak_deceleration"],
+        "absorbed_energy": sol.absorbed_energy(),
+    }
 
 
 def run_scipy(model: dict[str, Any], method: str, rtol: float, atol: float, sample: int) -> dict[str, Any]:
@@ -205,8 +217,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--scipy-sample", type=int, default=3)
     ap.add_argument("--out", type=Path, default=RESULTS)
-    ap.add_argument("--promise-only", action="store_true",
-                    help="only the references and the tolerance sweep: writes tolerance_promise.{csv,md}")  # fmt: skip
+    ap.add_argument(
+        "--promise-only",
+        action="store_true",
+        help="only the references and the tolerance sweep: writes tolerance_promise.{csv,md}",
+    )
     args = ap.parse_args(argv)
     start_load = load()
     t_start = time.perf_counter()
@@ -276,10 +291,18 @@ def main(argv: list[str] | None = None) -> int:
             err = rel_errors(res["values"], ref)
             for q in skip:
                 err[q] = math.nan
-            row = {"model": name, "series": series, "setting": setting, "t_variant_s": res["t_variant"],
-                   **{f"err_{q}": err[q] for q in QUANTITIES}, "batch": res.get("batch", 1),
-                   "dt_over_crit": res.get("dt_over_crit", math.nan), "n_steps": res.get("n_steps", 0),
-                   "nfev": res.get("nfev", 0), "events": res.get("events", 0)}  # fmt: skip
+            row = {
+                "model": name,
+                "series": series,
+                "setting": setting,
+                "t_variant_s": res["t_variant"],
+                **{f"err_{q}": err[q] for q in QUANTITIES},
+                "batch": res.get("batch", 1),
+                "dt_over_crit": res.get("dt_over_crit", math.nan),
+                "n_steps": res.get("n_steps", 0),
+                "nfev": res.get("nfev", 0),
+                "events": res.get("events", 0),
+            }
             rows.append(row)
             return row
 
@@ -299,8 +322,15 @@ def main(argv: list[str] | None = None) -> int:
                 p[f"{q}_err"] = e
                 p[f"{q}_err/tol"] = e / tol
                 floor = unc[q]
-                p[f"{q}_verdict"] = ("n/a" if not np.isfinite(e) else "under tol" if e <= tol else
-                                     "within 2x" if e <= 2 * tol else "OVER 2x")  # fmt: skip
+                p[f"{q}_verdict"] = (
+                    "n/a"
+                    if not np.isfinite(e)
+                    else "under tol"
+                    if e <= tol
+                    else "within 2x"
+                    if e <= 2 * tol
+                    else "OVER 2x"
+                )
                 if np.isfinite(e) and e <= 2 * tol and floor > tol:
                     p[f"{q}_verdict"] += " (reference floor above tol)"
             promise.append(p)
@@ -315,10 +345,20 @@ def main(argv: list[str] | None = None) -> int:
             for q in QUANTITIES:
                 if q in skip:
                     continue
-                cs_env = pareto([(r["t_variant_s"], r[f"err_{q}"]) for r in rows
-                                 if r["model"] == name and r["series"].startswith("crashstudy")])  # fmt: skip
-                sp_env = pareto([(r["t_variant_s"], r[f"err_{q}"]) for r in rows
-                                 if r["model"] == name and r["series"].startswith("scipy")])  # fmt: skip
+                cs_env = pareto(
+                    [
+                        (r["t_variant_s"], r[f"err_{q}"])
+                        for r in rows
+                        if r["model"] == name and r["series"].startswith("crashstudy")
+                    ]
+                )
+                sp_env = pareto(
+                    [
+                        (r["t_variant_s"], r[f"err_{q}"])
+                        for r in rows
+                        if r["model"] == name and r["series"].startswith("scipy")
+                    ]
+                )
                 c = {"model": name, "quantity": q}
                 for e in (1e-2, 1e-3, 1e-4, 1e-5, 1e-6):
                     tc, ts = time_at(cs_env, e), time_at(sp_env, e)
@@ -328,42 +368,67 @@ def main(argv: list[str] | None = None) -> int:
                 c["crossover"] = crossover(cs_env, sp_env)
                 cross.append(c)
         if not args.promise_only:
-            plot_model(name, [r for r in rows if r["model"] == name], unc, ref_kind, args.out / f"wp_{name}.png")
+            plot_model(
+                name, [r for r in rows if r["model"] == name], unc, ref_kind, args.out / f"wp_{name}.png"
+            )
         print(f"{name}: {time.perf_counter() - t_model:.0f} s (load {load()})", flush=True)
 
     args.out.mkdir(parents=True, exist_ok=True)
     info = machine(start_load)
     write_csv(args.out / "tolerance_promise.csv", promise, info)
-    promise_table = md_table(promise, ["model", "tolerance"] + [f"{q}_{k}" for q in QUANTITIES
-                                                                for k in ("err/tol", "verdict")])  # fmt: skip
+    promise_table = md_table(
+        promise, ["model", "tolerance"] + [f"{q}_{k}" for q in QUANTITIES for k in ("err/tol", "verdict")]
+    )
     if args.promise_only:
-        text = ["# Tolerance promise: achieved relative error vs requested tolerance\n\n", machine_md(info),
-                f"- total script time: {time.perf_counter() - t_start:.0f} s\n",
-                "- run: `python benchmarks/work_precision.py --promise-only` (references and errors as in "
-                "work_precision.md)\n\n", "## References\n\n", md_table(refs), "\n## Tolerance promise\n\n",
-                promise_table]  # fmt: skip
+        text = [
+            "# Tolerance promise: achieved relative error vs requested tolerance\n\n",
+            machine_md(info),
+            f"- total script time: {time.perf_counter() - t_start:.0f} s\n",
+            "- run: `python benchmarks/work_precision.py --promise-only` (references and errors as in "
+            "work_precision.md)\n\n",
+            "## References\n\n",
+            md_table(refs),
+            "\n## Tolerance promise\n\n",
+            promise_table,
+        ]
         (args.out / "tolerance_promise.md").write_text("".join(text))
         print(f"wrote {args.out / 'tolerance_promise.md'} ({time.perf_counter() - t_start:.0f} s)")
         return 0
     write_csv(args.out / "work_precision.csv", rows, info)
-    text = ["# Work-precision: error vs time per variant\n\n", machine_md(info),
-            f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n", __doc__.split("\n\n", 1)[1], "\n",
-            "## References\n\n", md_table(refs), "\n## Crossover: scipy time / crashstudy time at equal error\n\n",
-            "Both sides are their lower envelope (best setting of any series) interpolated in log-log; > 1 means "
-            "crashstudy is faster at that error; nan where a side does not reach that error.\n\n", md_table(cross),
-            "\n## Tolerance promise: achieved relative error vs requested tolerance\n\n",
-            promise_table,
-            "\n## All points\n\n",
-            md_table(rows, ["model", "series", "setting", "t_variant_s"] + [f"err_{q}" for q in QUANTITIES]
-                     + ["batch", "dt_over_crit", "n_steps", "nfev", "events"]),
-            "\n## Plots\n\n"] + [f"![{m}](wp_{m}.png)\n" for m in args.models]  # fmt: skip
+    text = [
+        "# Work-precision: error vs time per variant\n\n",
+        machine_md(info),
+        f"- total script time: {time.perf_counter() - t_start:.0f} s\n\n",
+        __doc__.split("\n\n", 1)[1],
+        "\n",
+        "## References\n\n",
+        md_table(refs),
+        "\n## Crossover: scipy time / crashstudy time at equal error\n\n",
+        "Both sides are their lower envelope (best setting of any series) interpolated in log-log; > 1 means "
+        "crashstudy is faster at that error; nan where a side does not reach that error.\n\n",
+        md_table(cross),
+        "\n## Tolerance promise: achieved relative error vs requested tolerance\n\n",
+        promise_table,
+        "\n## All points\n\n",
+        md_table(
+            rows,
+            ["model", "series", "setting", "t_variant_s"]
+            + [f"err_{q}" for q in QUANTITIES]
+            + ["batch", "dt_over_crit", "n_steps", "nfev", "events"],
+        ),
+        "\n## Plots\n\n",
+    ] + [f"![{m}](wp_{m}.png)\n" for m in args.models]
     (args.out / "work_precision.md").write_text("".join(text))
     print(f"wrote {args.out / 'work_precision.md'} ({time.perf_counter() - t_start:.0f} s)")
     return 0
 
 
-STYLE = {"crashstudy safety_factor": ("C0", "o-"), "crashstudy tolerance": ("C2", "s-"),
-         "scipy RK45": ("C1", "^--"), "scipy DOP853": ("C3", "v--")}  # fmt: skip
+STYLE = {
+    "crashstudy safety_factor": ("C0", "o-"),
+    "crashstudy tolerance": ("C2", "s-"),
+    "scipy RK45": ("C1", "^--"),
+    "scipy DOP853": ("C3", "v--"),
+}
 
 
 def plot_model(
@@ -384,12 +449,24 @@ def plot_model(
             e = [max(r[f"err_{q}"], FLOOR) for r in sel]
             ax.plot(t, e, fmt, color=color, label=series, ms=5)
             for r, ti, ei in zip(sel, t, e, strict=True):
-                ax.annotate(f"{r['setting']:g}", (ti, ei), fontsize=6, color=color, xytext=(3, 2),
-                            textcoords="offset points")  # fmt: skip
+                ax.annotate(
+                    f"{r['setting']:g}",
+                    (ti, ei),
+                    fontsize=6,
+                    color=color,
+                    xytext=(3, 2),
+                    textcoords="offset points",
+                )
         if np.isfinite(unc[q]) and unc[q] > 0:
             ax.axhline(max(unc[q], FLOOR), color="gray", ls=":", lw=1)
-            ax.text(0.01, max(unc[q], FLOOR) * 1.3, "reference uncertainty", transform=ax.get_yaxis_transform(),
-                    fontsize=7, color="gray")  # fmt: skip
+            ax.text(
+                0.01,
+                max(unc[q], FLOOR) * 1.3,
+                "reference uncertainty",
+                transform=ax.get_yaxis_transform(),
+                fontsize=7,
+                color="gray",
+            )
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("time per variant [s]")

@@ -87,7 +87,7 @@ CRUSH_REBOUND: dict[str, Any] = {
             "material": {"type": "crush", "loading": "front", "unloading_stiffness": 4.0e7},
         },
         "belt": {"nodes": ["body", "occupant"], "material": {"type": "linear_elastic", "stiffness": 1.5e5}},
-    },  # fmt: skip
+    },
     "initial_velocity": {"body": [-15.0], "occupant": [-15.0]},
     "end_time": 0.15,
 }
@@ -102,7 +102,7 @@ MOUNT_CYCLE: dict[str, Any] = {
             "y": [-3.0e5, -3.0e4, -2.0e4, 0.0, 2.0e4, 3.0e4, 3.0e5],
         },
         "mount-unloading": {"x": [-0.01, 0.0, 0.01], "y": [-4.5e4, 0.0, 4.5e4]},
-    },  # fmt: skip
+    },
     "nodes": {
         "frame": {"position": [0.0], "fixed": True},
         "engine": {"position": [0.3], "mass": 170.0},
@@ -123,7 +123,7 @@ MOUNT_CYCLE: dict[str, Any] = {
             "nodes": ["engine", "gearbox"],
             "material": {"type": "linear_elastic", "stiffness": 2.0e6},
         },
-    },  # fmt: skip
+    },
     "initial_velocity": {"engine": [-4.0], "gearbox": [-4.0]},
     "end_time": 0.25,
 }

@@ -11,7 +11,9 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # for `import helpers`, `import reference_scipy`, ...
+sys.path.insert(
+    0, str(Path(__file__).resolve().parent)
+)  # for `import helpers`, `import reference_scipy`, ...
 # runs started by tests never leave a compiler running behind them (tests of it set this themselves)
 os.environ["CRASHSTUDY_BACKGROUND_COMPILE"] = "0"
 
@@ -50,12 +52,20 @@ def pytest_configure(config: pytest.Config) -> None:
     too. A run without workers (one file, ``-n 0``) compiles only what its tests ask for, when they ask."""
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
         return
-    other = subprocess.Popen([sys.executable, "-c", "import conftest; conftest.warm_other_core()"],
-                             cwd=Path(__file__).resolve().parent)  # fmt: skip
-    run_model({"name": "warm-up", "nodes": {"a": {"position": [0.0], "fixed": True},
-                                            "b": {"position": [1.0], "mass": 1.0}},
-               "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 1.0}}},
-               "end_time": 0.01, "output": {"histories": "none"}}, kernel="generic")  # fmt: skip
+    other = subprocess.Popen(
+        [sys.executable, "-c", "import conftest; conftest.warm_other_core()"],
+        cwd=Path(__file__).resolve().parent,
+    )
+    run_model(
+        {
+            "name": "warm-up",
+            "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+            "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 1.0}}},
+            "end_time": 0.01,
+            "output": {"histories": "none"},
+        },
+        kernel="generic",
+    )
     other.wait()
 
 

@@ -46,8 +46,9 @@ def noisy_spring_force(k: float, m: float, noise: float = 0.01) -> tuple[np.ndar
     sampled at 201 points over 0.1 s, with Gaussian noise of ``noise`` x the peak force (seed 0)."""
     from scipy.integrate import solve_ivp
 
-    sol = solve_ivp(lambda t, y: [y[1], -k / m * y[0]], (0.0, 0.1), [0.0, 1.0], rtol=1e-10, atol=1e-12,
-                    dense_output=True)  # fmt: skip
+    sol = solve_ivp(
+        lambda t, y: [y[1], -k / m * y[0]], (0.0, 0.1), [0.0, 1.0], rtol=1e-10, atol=1e-12, dense_output=True
+    )
     t = np.linspace(0.0, 0.1, 201)
     force = k * sol.sol(t)[0]
     return t, force + np.random.default_rng(0).normal(0.0, noise * np.abs(force).max(), t.size)
@@ -65,13 +66,17 @@ def model_plan(model: str | dict[str, Any]) -> Plan:
     reader as a file would."""
     if isinstance(model, dict):
         try:
-            return plan_from_model(parse_model(LoadedYaml(model, "", f"<{model.get('name', 'test model')}>", {})))
+            return plan_from_model(
+                parse_model(LoadedYaml(model, "", f"<{model.get('name', 'test model')}>", {}))
+            )
         except InputError:
             model = yaml.safe_dump(model, sort_keys=False)
     return plan_from_model(parse_model(loads_yaml(model, file="<test model>")))
 
 
-def model_batch(model: str | dict[str, Any], variants: dict[str, list[float]] | None = None) -> tuple[Any, Plan]:
+def model_batch(
+    model: str | dict[str, Any], variants: dict[str, list[float]] | None = None
+) -> tuple[Any, Plan]:
     """(batch, plan) of a model with axis values per variant ({path: [v0, v1, ...]}; one variant without)."""
     from crashstudy.arrays.compiler import apply_axis
 
@@ -85,8 +90,9 @@ def model_batch(model: str | dict[str, Any], variants: dict[str, list[float]] | 
     return batch, plan
 
 
-def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: dict[str, list[float]] | None = None
-              ) -> tuple[KernelOutput, Any, Plan]:  # fmt: skip
+def run_model(
+    model: str | dict[str, Any], kernel: str = "compiled", variants: dict[str, list[float]] | None = None
+) -> tuple[KernelOutput, Any, Plan]:
     """Run a model (optionally with axis values per variant: {path: [v0, v1, ...]}).
 
     Returns (kernel output, batch, plan); histories follow the model's ``output.histories``.
@@ -98,8 +104,9 @@ def run_model(model: str | dict[str, Any], kernel: str = "compiled", variants: d
     return out, batch, plan
 
 
-def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float | None = None
-            ) -> subprocess.CompletedProcess[str]:  # fmt: skip
+def run_cli(
+    *args: str | Path, cwd: Path | None = None, timeout: float | None = None
+) -> subprocess.CompletedProcess[str]:
     """``crashstudy ARGS`` run IN THIS PROCESS as the installed command runs it (``python -m crashstudy.cli``):
     what it prints on stdout and stderr, its exit code (``SystemExit`` of argparse included), in folder
     ``cwd``; returned as the CompletedProcess of :func:`run_cli_process`. It saves a fresh interpreter's
@@ -110,7 +117,9 @@ def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float | None = 
     from crashstudy.cli.main import main
 
     argv = [str(a) for a in args]
-    encoding = locale.getpreferredencoding(False)  # a pipe's, as python sets up sys.stdout and sys.stderr for one
+    encoding = locale.getpreferredencoding(
+        False
+    )  # a pipe's, as python sets up sys.stdout and sys.stderr for one
     out = io.TextIOWrapper(io.BytesIO(), encoding, errors="strict", write_through=True)
     err = io.TextIOWrapper(io.BytesIO(), encoding, errors="backslashreplace", write_through=True)
     with _as_its_own_process(cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -123,8 +132,10 @@ def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float | None = 
                 print(exc.code, file=sys.stderr)
                 rc = 1
     # decoded as subprocess.run(text=True) decodes a pipe: universal newlines ("\r" of a progress line is "\n")
-    text = [s.buffer.getvalue().decode(encoding).replace("\r\n", "\n").replace("\r", "\n")  # type: ignore[attr-defined]
-            for s in (out, err)]  # fmt: skip
+    text = [
+        s.buffer.getvalue().decode(encoding).replace("\r\n", "\n").replace("\r", "\n")  # type: ignore[attr-defined]
+        for s in (out, err)
+    ]
     return subprocess.CompletedProcess(["crashstudy", *argv], rc, *text)
 
 
@@ -134,19 +145,29 @@ def run_main(*argv: str | Path) -> tuple[int, str, str]:
     return p.returncode, p.stdout, p.stderr
 
 
-def run_cli_process(*args: str | Path, cwd: Path | None = None, timeout: float = 600
-                    ) -> subprocess.CompletedProcess[str]:  # fmt: skip
+def run_cli_process(
+    *args: str | Path, cwd: Path | None = None, timeout: float = 600
+) -> subprocess.CompletedProcess[str]:
     """The installed command line in a subprocess (as a user runs it): for tests of what only a process
     boundary shows (signals, hangs and timeouts, variables read at import, pipes, the entry point)."""
-    return subprocess.run([sys.executable, "-m", "crashstudy.cli", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=timeout)  # fmt: skip
+    return subprocess.run(
+        [sys.executable, "-m", "crashstudy.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout,
+    )
 
 
 #: a fresh interpreter's warning filters (python without -W or PYTHONWARNINGS): pytest's own, e.g.
 #: ``error::CrashstudyWarning`` of pyproject.toml, do not apply to a command a user runs
-_FRESH_FILTERS = (("default", DeprecationWarning, "__main__"), ("ignore", DeprecationWarning, ""),
-                  ("ignore", PendingDeprecationWarning, ""), ("ignore", ImportWarning, ""),
-                  ("ignore", ResourceWarning, ""))  # fmt: skip
+_FRESH_FILTERS = (
+    ("default", DeprecationWarning, "__main__"),
+    ("ignore", DeprecationWarning, ""),
+    ("ignore", PendingDeprecationWarning, ""),
+    ("ignore", ImportWarning, ""),
+    ("ignore", ResourceWarning, ""),
+)
 
 
 @contextlib.contextmanager
@@ -248,7 +269,9 @@ def same_bits(r: np.ndarray, g: np.ndarray) -> bool:
     return bool(np.array_equal(np.signbit(r[zero]), np.signbit(g[zero])))
 
 
-def output_differences(a: KernelOutput, b: KernelOutput, ia: Any = slice(None), ib: Any = slice(None)) -> list[str]:
+def output_differences(
+    a: KernelOutput, b: KernelOutput, ia: Any = slice(None), ib: Any = slice(None)
+) -> list[str]:
     """Names of what differs between variants ``ia`` of ``a`` and ``ib`` of ``b`` (default: all of both),
     bit for bit: every summary (:func:`same_bits`), each optional output (the metrics' step record,
     criteria) present in both or neither, the same histories with equal values and NaN where NaN (the
@@ -262,7 +285,9 @@ def output_differences(a: KernelOutput, b: KernelOutput, ia: Any = slice(None), 
             if (x is None) != (y is None):
                 diff.append(f"{f.name} (only in one of them)")
             continue
-        if f.name == "criteria":  # the crash criteria of each variant (metrics.record.ChunkCriteria), variant first
+        if (
+            f.name == "criteria"
+        ):  # the crash criteria of each variant (metrics.record.ChunkCriteria), variant first
             same = set(x.values) == set(y.values) and np.array_equal(x.notes[ia], y.notes[ib])
             if not same or any(not same_bits(x.values[k][ia], y.values[k][ib]) for k in x.values):
                 diff.append(f.name)

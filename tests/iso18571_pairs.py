@@ -27,8 +27,11 @@ def _pulse(t: np.ndarray, shift: float = 0.0, scale: float = 1.0, stretch: float
 
 
 def _trapezoid(t: np.ndarray, rise: float, flat: float, fall: float, peak: float) -> np.ndarray:
-    return peak * np.interp(t, [0.0, 0.004, 0.004 + rise, 0.004 + rise + flat, 0.004 + rise + flat + fall, 1.0],
-                            [0, 0, 1, 1, 0, 0])  # fmt: skip
+    return peak * np.interp(
+        t,
+        [0.0, 0.004, 0.004 + rise, 0.004 + rise + flat, 0.004 + rise + flat + fall, 1.0],
+        [0, 0, 1, 1, 0, 0],
+    )
 
 
 def _damped(t: np.ndarray, f: float, zeta: float, amp: float, phase: float = 0.0) -> np.ndarray:
@@ -57,17 +60,28 @@ def pairs() -> dict[str, tuple[np.ndarray, np.ndarray]]:
         "offset_20": (base, base + 20.0),
         "sign_flip": (base, -base),
         "trapezoid_vs_pulse": (_trapezoid(t1, 0.01, 0.03, 0.02, 250.0), base),
-        "trapezoid_rise": (_trapezoid(t1, 0.01, 0.03, 0.02, 250.0), _trapezoid(t1, 0.015, 0.025, 0.02, 240.0)),
+        "trapezoid_rise": (
+            _trapezoid(t1, 0.01, 0.03, 0.02, 250.0),
+            _trapezoid(t1, 0.015, 0.025, 0.02, 240.0),
+        ),
         "damped_freq": (_damped(t2, 25.0, 0.1, 5.0), _damped(t2, 27.0, 0.12, 5.5)),
         "damped_phase": (_damped(t2, 25.0, 0.1, 5.0), _damped(t2, 25.0, 0.1, 5.0, phase=0.4)),
-        "damped_noise": (_damped(t2, 25.0, 0.1, 5.0), _damped(t2, 25.0, 0.1, 5.0) + rng.normal(0, 0.3, t2.shape)),
+        "damped_noise": (
+            _damped(t2, 25.0, 0.1, 5.0),
+            _damped(t2, 25.0, 0.1, 5.0) + rng.normal(0, 0.3, t2.shape),
+        ),
         "velocity_ramp": (15.0 - np.cumsum(base) * DT, 15.5 - np.cumsum(_pulse(t1, 0.002, 0.95)) * DT),
-        "displacement": (np.cumsum(15.0 - np.cumsum(base) * DT) * DT,
-                         np.cumsum(14.0 - np.cumsum(_pulse(t1, stretch=1.05)) * DT) * DT),  # fmt: skip
+        "displacement": (
+            np.cumsum(15.0 - np.cumsum(base) * DT) * DT,
+            np.cumsum(14.0 - np.cumsum(_pulse(t1, stretch=1.05)) * DT) * DT,
+        ),
         "random_walks": (np.cumsum(rng.normal(0, 1, 1500)), np.cumsum(rng.normal(0, 1, 1500))),
         "unrelated_sine": (np.sin(2 * np.pi * 30 * t1), np.cos(2 * np.pi * 47 * t1) * 0.5),
         "short_curves": (base[:60], 1.1 * base[3:63]),
         # two nearly straight rises: every shift correlates to ~1 (an ill-conditioned phase search)
-        "near_linear_ramps": (np.sqrt(200.0) * np.sin(t1[:501] * np.sqrt(50.0)), 10.0 * np.sin(10.0 * t1[:501])),
+        "near_linear_ramps": (
+            np.sqrt(200.0) * np.sin(t1[:501] * np.sqrt(50.0)),
+            10.0 * np.sin(10.0 * t1[:501]),
+        ),
     }
     return out

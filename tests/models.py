@@ -15,14 +15,16 @@ TWO_SPRING_CRUSH: dict[str, Any] = {  # the study tests' model (tests/test_study
         "body": {"position": [0.9], "mass": 800.0},
     },
     "springs": {
-        "crush": {"nodes": ["wall", "front"],
-                  "material": {"type": "crush", "loading": "crush-loading", "unloading_stiffness": 5.0e6}},
+        "crush": {
+            "nodes": ["wall", "front"],
+            "material": {"type": "crush", "loading": "crush-loading", "unloading_stiffness": 5.0e6},
+        },
         "body": {"nodes": ["front", "body"], "material": {"type": "linear_elastic", "stiffness": 2.0e6}},
     },
     "initial_velocity": {"front": [-10.0], "body": [-10.0]},
     "end_time": 0.02,
     "output": {"interval": 2.0e-4},
-}  # fmt: skip
+}
 
 DROP = """\
 name: drop

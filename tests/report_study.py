@@ -33,22 +33,35 @@ def write_and_run(folder: Path) -> Path:
 
     folder.mkdir(parents=True, exist_ok=True)
     model = {
-        "name": "crush-block", "units": "SI",
+        "name": "crush-block",
+        "units": "SI",
         "curves": {"c1": {"x": [-10.0, -0.01, 0.0], "y": [-PLATEAU, -PLATEAU, 0.0]}},
         "nodes": {"ground": {"position": [0.0], "fixed": True}, "body": {"position": [1.0], "mass": 1000.0}},
-        "springs": {"s1": {"nodes": ["ground", "body"],
-                           "material": {"type": "crush", "loading": "c1", "unloading_stiffness": 1.0e7}}},
+        "springs": {
+            "s1": {
+                "nodes": ["ground", "body"],
+                "material": {"type": "crush", "loading": "c1", "unloading_stiffness": 1.0e7},
+            }
+        },
         "initial_velocity": {"body": [-5.0]},
         "end_time": 0.25,
         "time_step": {"dt": DT},
-        "metrics": [{"node": "body", "cfc": 60, "criteria": ["peak_g", "hic15", "clip3ms", "olc", "delta_v"]}],
+        "metrics": [
+            {"node": "body", "cfc": 60, "criteria": ["peak_g", "hic15", "clip3ms", "olc", "delta_v"]}
+        ],
         "output": {"histories": ["acceleration", "filtered_acceleration", "spring_force"]},
-    }  # fmt: skip
-    study = {"name": "crush-report", "model": "model.yaml",
-             "matrix": {"nodes.body.mass": MASSES},
-             "zip": [{"impact_velocity": SPEEDS, "springs.s1.material.unloading_stiffness": STIFFNESS}],
-             "optimize": {"minimize": "max_crush.s1", "constraints": [f"peak_deceleration_g.body <= {CONSTRAINT_G}"],
-                          "variables": {"nodes.body.mass": [800.0, 1000.0]}}}  # fmt: skip
+    }
+    study = {
+        "name": "crush-report",
+        "model": "model.yaml",
+        "matrix": {"nodes.body.mass": MASSES},
+        "zip": [{"impact_velocity": SPEEDS, "springs.s1.material.unloading_stiffness": STIFFNESS}],
+        "optimize": {
+            "minimize": "max_crush.s1",
+            "constraints": [f"peak_deceleration_g.body <= {CONSTRAINT_G}"],
+            "variables": {"nodes.body.mass": [800.0, 1000.0]},
+        },
+    }
     (folder / "model.yaml").write_text(yaml.safe_dump(model, sort_keys=False))
     (folder / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     run_study(folder / "study.yaml", folder / "out", force=True)

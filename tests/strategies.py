@@ -41,8 +41,14 @@ def increasing(draw: st.DrawFn, n: int, lo: float, hi: float, min_gap: float) ->
 
 
 @st.composite
-def force_curve(draw: st.DrawFn, through_origin: bool, need_compression: bool = False,
-                increasing_y: bool = False, kmax: float = 1e5, signed: bool = False) -> dict[str, list[float]]:  # fmt: skip
+def force_curve(
+    draw: st.DrawFn,
+    through_origin: bool,
+    need_compression: bool = False,
+    increasing_y: bool = False,
+    kmax: float = 1e5,
+    signed: bool = False,
+) -> dict[str, list[float]]:
     """A material curve (elongation -> force): compression knots, the origin, tension knots."""
     n_neg = draw(st.integers(1 if need_compression or through_origin else 0, 3))
     n_pos = draw(st.integers(1 if through_origin or n_neg == 0 else 0, 3))
@@ -100,7 +106,10 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
                 pos = [round(parent[0] + draw(st.sampled_from([-1, 1])) * length, 6)]
             else:
                 ang = draw(num(0.0, 2 * math.pi))
-                pos = [round(parent[0] + length * math.cos(ang), 6), round(parent[1] + length * math.sin(ang), 6)]
+                pos = [
+                    round(parent[0] + length * math.cos(ang), 6),
+                    round(parent[1] + length * math.sin(ang), 6),
+                ]
         positions.append(pos)
         node: dict[str, Any] = {"position": pos}
         if k == 0 and root_fixed:
@@ -116,7 +125,9 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
         cands = [j for j in range(k) if positions[j] != positions[k]]
         assume(cands)
         j = draw(st.sampled_from(cands))
-        kind = draw(st.sampled_from(["linear_elastic", "nonlinear_elastic", "general_nonlinear", "crush", "damper"]))
+        kind = draw(
+            st.sampled_from(["linear_elastic", "nonlinear_elastic", "general_nonlinear", "crush", "damper"])
+        )
         kmax = draw(num(1e2, 1e5))
         if kind == "linear_elastic":
             mat: dict[str, Any] = {"type": kind, "stiffness": round(kmax, 3)}
@@ -124,7 +135,9 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
             mat = {"type": kind, "damping": round(draw(num(0.0, 100.0)), 3)}
         elif kind == "nonlinear_elastic":
             cid = f"c{k}"
-            curves[cid] = draw(force_curve(through_origin=True, kmax=kmax, signed=True))  # a preload: initial_elongation
+            curves[cid] = draw(
+                force_curve(through_origin=True, kmax=kmax, signed=True)
+            )  # a preload: initial_elongation
             mat = {"type": kind, "curve": cid}
         elif kind == "crush":
             cid = f"c{k}"
@@ -139,21 +152,29 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
                 mat["tension_yield"] = round(draw(num(1.0, 1e4)), 3)
             if draw(st.booleans()):
                 mat["compression_yield"] = -round(draw(num(1.0, 1e4)), 3)
-        springs[f"s{k}"] = {"nodes": [ids[j], ids[k]] if draw(st.booleans()) else [ids[k], ids[j]], "material": mat}
+        springs[f"s{k}"] = {
+            "nodes": [ids[j], ids[k]] if draw(st.booleans()) else [ids[k], ids[j]],
+            "material": mat,
+        }
         if kind != "damper" and draw(st.integers(0, 3)) == 0:  # a preloaded spring (force at t = 0)
             springs[f"s{k}"]["initial_elongation"] = round(draw(num(-0.05, 0.05)), 4)
     free = [nid for nid in ids if nodes[nid].get("fixed") is not True]
     model: dict[str, Any] = {
-        "name": "generated", "units": draw(st.sampled_from(["SI", "mm-ms-kg-kN", "mm-s-t-N"])),
-        "curves": curves, "nodes": nodes, "springs": springs,
-    }  # fmt: skip
+        "name": "generated",
+        "units": draw(st.sampled_from(["SI", "mm-ms-kg-kN", "mm-s-t-N"])),
+        "curves": curves,
+        "nodes": nodes,
+        "springs": springs,
+    }
     iv: dict[str, list[float]] = {}
     some = draw(st.sampled_from([1, 1, 1, 0]))  # 3 in 4 models start moving
     moving: list[str] = draw(st.lists(st.sampled_from(free), min_size=some, unique=True)) if free else []
     for nid in moving:
         fixed = nodes[nid].get("fixed") or []
-        iv[nid] = [0.0 if ax in fixed else draw(st.sampled_from([-1, 1])) * round(draw(num(0.5, 20.0)), 3)
-                   for ax in "xy"[:dim]]  # fmt: skip
+        iv[nid] = [
+            0.0 if ax in fixed else draw(st.sampled_from([-1, 1])) * round(draw(num(0.5, 20.0)), 3)
+            for ax in "xy"[:dim]
+        ]
     if iv and draw(st.sampled_from([False] * 7 + [True])):
         # an extreme but finite speed: the state overflows and the variant must fail with a reason
         nid = sorted(iv)[0]
@@ -166,8 +187,10 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
     if free and with_loads:
         loads: list[dict[str, Any]] = []
         for _ in range(draw(st.integers(1, 2))):
-            load: dict[str, Any] = {"node": draw(st.sampled_from(free)),
-                                    "force": [round(draw(num(-1e3, 1e3)), 2) for _ in range(dim)]}  # fmt: skip
+            load: dict[str, Any] = {
+                "node": draw(st.sampled_from(free)),
+                "force": [round(draw(num(-1e3, 1e3)), 2) for _ in range(dim)],
+            }
             if draw(st.booleans()):
                 cid = f"t{len(loads)}"
                 curves[cid] = draw(time_curve(end_time))
@@ -175,10 +198,17 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
             loads.append(load)
         model["loads"] = loads
     if draw(st.sampled_from([False, False, True])):
-        normal = [draw(st.sampled_from([-1.0, 1.0]))] if dim == 1 else [round(draw(num(-1.0, 1.0)), 3) for _ in "xy"]
+        normal = (
+            [draw(st.sampled_from([-1.0, 1.0]))]
+            if dim == 1
+            else [round(draw(num(-1.0, 1.0)), 3) for _ in "xy"]
+        )
         assume(any(normal))
-        wall: dict[str, Any] = {"id": "wall", "point": [round(draw(num(-2.0, 2.0)), 3) for _ in range(dim)],
-                                "normal": normal}  # fmt: skip
+        wall: dict[str, Any] = {
+            "id": "wall",
+            "point": [round(draw(num(-2.0, 2.0)), 3) for _ in range(dim)],
+            "normal": normal,
+        }
         if draw(st.booleans()):
             wall["nodes"] = draw(st.lists(st.sampled_from(ids), min_size=1, unique=True))
         # every node the wall stops starts on its front side (validate refuses one behind it): move the wall back
@@ -187,8 +217,10 @@ def valid_model(draw: st.DrawFn) -> dict[str, Any]:
         behind = min(float(np.dot(np.subtract(x, wall["point"]), unit)) for x in held)
         if behind < 0:
             back = behind - draw(num(0.0, 0.5))
-            wall["point"] = [float(round(p + back * u, 3) - 1e-3 * math.copysign(1.0, u))
-                             for p, u in zip(wall["point"], unit, strict=True)]
+            wall["point"] = [
+                float(round(p + back * u, 3) - 1e-3 * math.copysign(1.0, u))
+                for p, u in zip(wall["point"], unit, strict=True)
+            ]
         model["rigid_walls"] = [wall]
     model["end_time"] = end_time
     if draw(st.booleans()):

@@ -40,8 +40,10 @@ def test_error_estimate_bounds_the_helicopter_peaks_against_a_fine_run() -> None
     model["output"] = {"histories": "none"}
     out, batch, _ = run_model(model)
     fine, _, _ = run_model({**model, "time_step": {"safety_factor": 0.002}})
-    true = max(np.max(np.abs(out.peak_force / fine.peak_force - 1.0)),
-               np.max(np.abs(out.peak_acceleration[1:] / fine.peak_acceleration[1:] - 1.0)))  # fmt: skip
+    true = max(
+        np.max(np.abs(out.peak_force / fine.peak_force - 1.0)),
+        np.max(np.abs(out.peak_acceleration[1:] / fine.peak_acceleration[1:] - 1.0)),
+    )
     est = error_estimate(batch, out)[0]
     assert true < 3.0 * est, (true, est)
     assert est < 1e-3 and true < 1e-3

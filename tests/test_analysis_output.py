@@ -33,8 +33,11 @@ output: {interval: 5.0e-4}
 metrics:
   - {node: body, cfc: 180, criteria: [peak_g, clip3ms]}
 """
-ZIP = {"springs.ep.material.yield_force": [4.0e3, 6.0e3], "springs.ep.material.tangent_stiffness": [1.0e4, 2.0e4],
-       "nodes.body.mass": [100.0, 120.0]}  # fmt: skip
+ZIP = {
+    "springs.ep.material.yield_force": [4.0e3, 6.0e3],
+    "springs.ep.material.tangent_stiffness": [1.0e4, 2.0e4],
+    "nodes.body.mass": [100.0, 120.0],
+}
 
 
 @pytest.fixture(scope="module")
@@ -52,8 +55,9 @@ def tied(tmp_path_factory: pytest.TempPathFactory) -> Path:
 # ---- item 5: sort by any column, and show it ----------------------------------------------------------------------
 
 
-def test_summary_sorts_by_a_column_outside_columns_and_shows_it(tied: Path, capsys: pytest.CaptureFixture[str],
-                                                                monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_summary_sorts_by_a_column_outside_columns_and_shows_it(
+    tied: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Before: ``--sort peak_g.body --columns clip3ms`` exited 2 "no column 'peak_g.body'"."""
     monkeypatch.setenv("COLUMNS", "400")  # one line per row
     capsys.readouterr()
@@ -72,12 +76,21 @@ def test_summary_sorts_by_a_column_outside_columns_and_shows_it(tied: Path, caps
 
 DOC_FORMAT = Path(__file__).resolve().parents[1] / "docs" / "format.md"
 CURVE = {"x": [-1.0, 0.0, 1.0], "y": [-1.0e3, 0.0, 1.0e3]}
-MATERIALS = {"linear_elastic": {"stiffness": 1.0e5}, "nonlinear_elastic": {"curve": "c"},
-             "general_nonlinear": {"loading": "c", "unloading": "c", "tension_yield": 1.0e3, "compression_yield": -1.0e3},
-             "crush": {"loading": "c", "unloading_stiffness": 1.0e5}, "damper": {"damping": 100.0},
-             "elastoplastic": {"stiffness": 1.0e5, "tangent_stiffness": 1.0e4, "yield_force": 1.0e3},
-             "nonlinear_damper": {"curve": "c"},
-             "rate_elastic": {"curves": [{"rate": 0.0, "curve": "c"}, {"rate": 2.0, "curve": "c"}]}}  # fmt: skip
+MATERIALS = {
+    "linear_elastic": {"stiffness": 1.0e5},
+    "nonlinear_elastic": {"curve": "c"},
+    "general_nonlinear": {
+        "loading": "c",
+        "unloading": "c",
+        "tension_yield": 1.0e3,
+        "compression_yield": -1.0e3,
+    },
+    "crush": {"loading": "c", "unloading_stiffness": 1.0e5},
+    "damper": {"damping": 100.0},
+    "elastoplastic": {"stiffness": 1.0e5, "tangent_stiffness": 1.0e4, "yield_force": 1.0e3},
+    "nonlinear_damper": {"curve": "c"},
+    "rate_elastic": {"curves": [{"rate": 0.0, "curve": "c"}, {"rate": 2.0, "curve": "c"}]},
+}
 
 
 def _doc_material_units() -> dict[str, dict[str, str]]:
@@ -86,14 +99,14 @@ def _doc_material_units() -> dict[str, dict[str, str]]:
     import re
 
     text = DOC_FORMAT.read_text()
-    table = text[text.index("## Spring materials"):].split("\n\n", 2)[1]
+    table = text[text.index("## Spring materials") :].split("\n\n", 2)[1]
     out: dict[str, dict[str, str]] = {}
     for row in table.splitlines()[2:]:
         cells = row.split("|")
         kind, params = cells[1].strip().strip("`"), cells[2]
         out[kind] = {}
         for m in re.finditer(r"`([a-z_]+)`", params):
-            unit = re.search(r"\(([a-z·/]+)\)", params[m.end():])
+            unit = re.search(r"\(([a-z·/]+)\)", params[m.end() :])
             if unit:  # curve ids have none (only numeric fields are looked up)
                 out[kind][m.group(1)] = unit.group(1)
     return out
@@ -104,7 +117,9 @@ def _unit_of(expression: str, system: str) -> str:
 
     u = UNIT_SYSTEMS[system]
     names = {"force": u.force, "length": u.length, "time": u.time, "mass": u.mass}
-    return "".join(names.get(p, "*" if p == "·" else p) for p in __import__("re").split(r"([a-z]+|·)", expression) if p)
+    return "".join(
+        names.get(p, "*" if p == "·" else p) for p in __import__("re").split(r"([a-z]+|·)", expression) if p
+    )
 
 
 def _numeric_fields(cls: type) -> list[str]:
@@ -132,39 +147,68 @@ def test_every_material_parameter_axis_has_the_unit_the_docs_give(system: str, t
     checked = 0
     for cls in classes:
         kind = typing.get_args(cls.model_fields["type"].annotation)[0]
-        model = {"name": "m", "units": system, "curves": {"c": CURVE},
-                 "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
-                 "springs": {"s": {"nodes": ["a", "b"], "material": {"type": kind, **MATERIALS[kind]}}},
-                 "end_time": 0.01}  # fmt: skip
+        model = {
+            "name": "m",
+            "units": system,
+            "curves": {"c": CURVE},
+            "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+            "springs": {"s": {"nodes": ["a", "b"], "material": {"type": kind, **MATERIALS[kind]}}},
+            "end_time": 0.01,
+        }
         file = tmp_path / f"{kind}.yaml"
         file.write_text(yaml.safe_dump(model))
         for field in _numeric_fields(cls):
             v = MATERIALS[kind][field]
-            plan = load_study({"name": "u", "model": str(file), "matrix": {f"springs.s.material.{field}": [v, 1.1 * v]}})
+            plan = load_study(
+                {"name": "u", "model": str(file), "matrix": {f"springs.s.material.{field}": [v, 1.1 * v]}}
+            )
             got = units_of(plan)[axis_unit(plan.axes[0].path, plan)]
             assert got == _unit_of(docs[kind][field], system), (kind, field, got, docs[kind][field])
             checked += 1
         if kind == "rate_elastic":  # a rate of its list: an elongation rate
-            plan = load_study({"name": "u", "model": str(file), "matrix": {"springs.s.material.curves.1.rate": [2.0, 3.0]}})
+            plan = load_study(
+                {"name": "u", "model": str(file), "matrix": {"springs.s.material.curves.1.rate": [2.0, 3.0]}}
+            )
             assert units_of(plan)[axis_unit(plan.axes[0].path, plan)] == _unit_of("length/time", system)
         if {"curve", "loading", "curves"} & set(MATERIALS[kind]):  # a point of its curve
-            plan = load_study({"name": "u", "model": str(file), "matrix": {"curves.c.x.0": [-1.0, -1.1], "curves.c.y.2": [1e3, 2e3]}})
+            plan = load_study(
+                {
+                    "name": "u",
+                    "model": str(file),
+                    "matrix": {"curves.c.x.0": [-1.0, -1.1], "curves.c.y.2": [1e3, 2e3]},
+                }
+            )
             x_unit = "length/time" if kind == "nonlinear_damper" else "length"
             assert [units_of(plan)[axis_unit(a.path, plan)] for a in plan.axes] == [
-                _unit_of(x_unit, system), _unit_of("force", system)], kind
-    assert checked == 8  # stiffness x2, tension/compression_yield, unloading_stiffness, damping, elastoplastic x3
+                _unit_of(x_unit, system),
+                _unit_of("force", system),
+            ], kind
+    assert (
+        checked == 8
+    )  # stiffness x2, tension/compression_yield, unloading_stiffness, damping, elastoplastic x3
 
 
-def test_results_plot_and_summary_carry_the_axis_units(tied: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_results_plot_and_summary_carry_the_axis_units(
+    tied: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     res = open_results(tied)
     try:
         ds = res.dataset
-        got = {a: ds[a].attrs["units"] for a in ("springs.ep.material.yield_force",
-                                                  "springs.ep.material.tangent_stiffness", "nodes.body.mass")}
+        got = {
+            a: ds[a].attrs["units"]
+            for a in (
+                "springs.ep.material.yield_force",
+                "springs.ep.material.tangent_stiffness",
+                "nodes.body.mass",
+            )
+        }
     finally:
         res.close()
-    assert got == {"springs.ep.material.yield_force": "N", "springs.ep.material.tangent_stiffness": "N/m",
-                   "nodes.body.mass": "kg"}  # fmt: skip
+    assert got == {
+        "springs.ep.material.yield_force": "N",
+        "springs.ep.material.tangent_stiffness": "N/m",
+        "nodes.body.mass": "kg",
+    }
     capsys.readouterr()
     assert main(["summary", str(tied), "--columns", "peak_g"]) == 0
     out = capsys.readouterr().out
@@ -174,7 +218,9 @@ def test_results_plot_and_summary_carry_the_axis_units(tied: Path, capsys: pytes
 # ---- item 8: an exceedance fraction of a matrix is no probability --------------------------------------------------
 
 
-def test_exceed_on_a_matrix_warns_that_it_is_not_a_random_sample(tied: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_exceed_on_a_matrix_warns_that_it_is_not_a_random_sample(
+    tied: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Before: 'P(peak_g.body > 15) = 0.5  (95% CI 0.06759 .. 0.9324, exact binomial; 2 of 4 variants)', no remark."""
     capsys.readouterr()
     assert main(["summary", str(tied), "--exceed", "peak_g.body", "15"]) == 0
@@ -183,13 +229,20 @@ def test_exceed_on_a_matrix_warns_that_it_is_not_a_random_sample(tied: Path, cap
     assert "warning: this study has no sampled design" in err and "not a confidence interval" in err
 
 
-@pytest.mark.parametrize(("design", "axes", "warned"), [
-    ("{method: lhs, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], ""),
-    ("{method: random, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], ""),
-    ("{method: saltelli, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], "design method saltelli"),
-    ("{method: morris, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], "design method morris"),
-    ("{method: lhs, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a", "b"], "crossed with matrix/zip axes ['b']"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("design", "axes", "warned"),
+    [
+        ("{method: lhs, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], ""),
+        ("{method: random, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], ""),
+        ("{method: saltelli, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], "design method saltelli"),
+        ("{method: morris, n: 8, axes: {a: {uniform: [0, 1]}}}", ["a"], "design method morris"),
+        (
+            "{method: lhs, n: 8, axes: {a: {uniform: [0, 1]}}}",
+            ["a", "b"],
+            "crossed with matrix/zip axes ['b']",
+        ),
+    ],
+)
 def test_sample_caveat_only_for_a_plain_sampled_design(design: str, axes: list[str], warned: str) -> None:
     import json
 
@@ -217,7 +270,8 @@ end_time: 0.1
 
 
 def test_calibration_gives_intervals_that_hold_the_truth_and_names_an_undetermined_variable(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Spring force of k = 3.1e4 N/m, m = 2.6 kg at 1 m/s (scipy RK45, rtol 1e-10, independent of the
     kernel) plus 1% Gaussian noise; a third variable, the yield force of a spring on a node at rest (it never
     carries force), cannot affect the channel. Before: its value came back at the middle of its bounds with
@@ -235,10 +289,20 @@ def test_calibration_gives_intervals_that_hold_the_truth_and_names_an_undetermin
 
     pd.DataFrame({"time": t, "value": noisy}).to_csv(tmp_path / "data.csv", index=False)
     (tmp_path / "model.yaml").write_text(LINEAR_IDLE)
-    variables = {"springs.s.material.stiffness": [1.0e4, 5.0e4], "nodes.body.mass": [1.0, 4.0],
-                 "springs.never.material.yield_force": [20.0, 80.0]}  # fmt: skip
-    study = {"name": "cal", "model": "model.yaml", "calibrate": {
-        "data": "data.csv", "channel": {"quantity": "spring_force", "spring": "s"}, "variables": variables}}  # fmt: skip
+    variables = {
+        "springs.s.material.stiffness": [1.0e4, 5.0e4],
+        "nodes.body.mass": [1.0, 4.0],
+        "springs.never.material.yield_force": [20.0, 80.0],
+    }
+    study = {
+        "name": "cal",
+        "model": "model.yaml",
+        "calibrate": {
+            "data": "data.csv",
+            "channel": {"quantity": "spring_force", "spring": "s"},
+            "variables": variables,
+        },
+    }
     (tmp_path / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     out = tmp_path / "out"
     capsys.readouterr()
@@ -273,7 +337,9 @@ def test_uncertainty_matches_the_closed_form_of_a_straight_line_fit() -> None:
     (b, a), cov = np.polyfit(t, y, 1, cov="unscaled")
     r = a + b * t - y
     jac = np.column_stack([np.ones_like(t), t, np.zeros_like(t)])
-    rep = uncertainty(jac, r, ["a", "b", "z"], np.array([a, b, 0.5]), np.zeros(3), np.array([10.0, 10.0, 1.0]))
+    rep = uncertainty(
+        jac, r, ["a", "b", "z"], np.array([a, b, 0.5]), np.zeros(3), np.array([10.0, 10.0, 1.0])
+    )
     half = stats.t.ppf(0.975, 28) * np.sqrt(np.diag(cov) * (r @ r) / 28)
     assert rep["a"]["ci95"] == pytest.approx([a - half[1], a + half[1]], rel=1e-9)
     assert rep["b"]["ci95"] == pytest.approx([b - half[0], b + half[0]], rel=1e-9)
@@ -297,12 +363,25 @@ def _six_zip() -> tuple[object, dict[str, str], list[str]]:
 
     axes = ["impact_velocity", "nodes.m.mass", *SIX]
     rows = []
-    for i, (v, m, z) in enumerate(itertools.product([10.0, 12.0, 14.0], [1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 3.0])):
-        rows.append({"variant": i, "impact_velocity": v, "nodes.m.mass": m, **{p: z * (k + 1) for k, p in enumerate(SIX)},
-                     "status": "ok", "peak_force.rail0": v * m * z})  # fmt: skip
+    for i, (v, m, z) in enumerate(
+        itertools.product([10.0, 12.0, 14.0], [1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 3.0])
+    ):
+        rows.append(
+            {
+                "variant": i,
+                "impact_velocity": v,
+                "nodes.m.mass": m,
+                **{p: z * (k + 1) for k, p in enumerate(SIX)},
+                "status": "ok",
+                "peak_force.rail0": v * m * z,
+            }
+        )
     zipped = {p: [1.0 * (k + 1), 2.0 * (k + 1), 3.0 * (k + 1)] for k, p in enumerate(SIX)}
-    attrs = {"study_yaml": yaml.safe_dump({"name": "z", "model": "m.yaml", "zip": [zipped]}),
-             "crashstudy_axes": json.dumps(axes), "units": "SI"}  # fmt: skip
+    attrs = {
+        "study_yaml": yaml.safe_dump({"name": "z", "model": "m.yaml", "zip": [zipped]}),
+        "crashstudy_axes": json.dumps(axes),
+        "units": "SI",
+    }
     return pd.DataFrame(rows), attrs, axes
 
 
@@ -312,8 +391,9 @@ def test_heat_map_footnote_names_the_zip_group_once_and_fits_the_image(tmp_path:
     from crashstudy.analysis.plot_matrix import plot_matrix
 
     df, attrs, axes = _six_zip()
-    fig = plot_matrix(df, "peak_force.rail0", "impact_velocity", "nodes.m.mass", axes=axes,
-                      factors=factors(attrs, axes))  # fmt: skip
+    fig = plot_matrix(
+        df, "peak_force.rail0", "impact_velocity", "nodes.m.mass", axes=axes, factors=factors(attrs, axes)
+    )
     fig.savefig(tmp_path / "heat.png")
     note = next(t for t in fig.texts if "each cell" in t.get_text())
     text = note.get_text()
@@ -321,7 +401,9 @@ def test_heat_map_footnote_names_the_zip_group_once_and_fits_the_image(tmp_path:
     assert note.get_window_extent(fig.canvas.get_renderer()).x1 <= fig.bbox.width  # type: ignore[attr-defined]
     cells = fig.axes[0].images[0].get_array()
     assert float(cells.max()) == pytest.approx(14.0 * 4.0 * 3.0)  # max over the zip factor's three values
-    fig = plot_matrix(df, "peak_force.rail0", SIX[2], "impact_velocity", axes=axes, factors=factors(attrs, axes))
+    fig = plot_matrix(
+        df, "peak_force.rail0", SIX[2], "impact_velocity", axes=axes, factors=factors(attrs, axes)
+    )
     moved = " ".join(t.get_text().replace("\n", " ") for t in fig.texts)
     assert f"{SIX[2]} moves with" in moved and "each cell: max over nodes.m.mass" in moved
     with pytest.raises(Exception, match="move together"):
@@ -336,13 +418,19 @@ def test_legend_names_the_zip_group_once_and_labels_hold_one_value_per_factor() 
     from crashstudy.analysis.plot_style import Variants
 
     df, attrs, axes = _six_zip()
-    ds = xr.Dataset({a: ("variant", df[a].to_numpy(), {"units": "N/m" if "rail" in a else "m/s"}) for a in axes},
-                    coords={"variant": df["variant"].to_numpy()}, attrs=attrs)  # fmt: skip
+    ds = xr.Dataset(
+        {a: ("variant", df[a].to_numpy(), {"units": "N/m" if "rail" in a else "m/s"}) for a in axes},
+        coords={"variant": df["variant"].to_numpy()},
+        attrs=attrs,
+    )
     look = Variants(ds, np.arange(36), axes)
     fig = Figure()
     look.decorate(fig, [fig.subplots()])
     title = fig._crashstudy_legends[0].get_title().get_text().replace("\n", " ")  # type: ignore[attr-defined]
-    assert "differing only in zip: springs.rail0.material.stiffness, springs.rail1.material.stiffness, ... (6 paths)" in title
+    assert (
+        "differing only in zip: springs.rail0.material.stiffness, springs.rail1.material.stiffness, ... (6 paths)"
+        in title
+    )
     assert SIX[4] not in title
     few = Variants(ds, np.arange(3), axes)
     assert few.labels == ["10, 1, 1", "10, 1, 2", "10, 1, 3"]
@@ -356,15 +444,21 @@ def test_sensitivity_has_one_row_per_factor_and_compare_one_parameter_per_factor
 
     df, attrs, axes = _six_zip()
     t = indices(df, attrs, "peak_force.rail0", "correlation")
-    assert sorted(set(t["axis"])) == sorted(["impact_velocity", "nodes.m.mass",
-                                             "zip: springs.rail0.material.stiffness, springs.rail1.material.stiffness, "
-                                             "... (6 paths)"])  # fmt: skip
+    assert sorted(set(t["axis"])) == sorted(
+        [
+            "impact_velocity",
+            "nodes.m.mass",
+            "zip: springs.rail0.material.stiffness, springs.rail1.material.stiffness, ... (6 paths)",
+        ]
+    )
     assert len(t) == 3 * 2
     from scipy import stats
 
     rho = t.set_index(["axis", "index"])["value"]
     zip_name = next(a for a in t["axis"] if a.startswith("zip:"))
-    assert rho[(zip_name, "spearman")] == pytest.approx(stats.spearmanr(df[SIX[5]], df["peak_force.rail0"])[0], abs=1e-12)
+    assert rho[(zip_name, "spearman")] == pytest.approx(
+        stats.spearmanr(df[SIX[5]], df["peak_force.rail0"])[0], abs=1e-12
+    )
     cmp = Comparison.__new__(Comparison)
     cmp.axes, cmp.factors = axes, factors(attrs, axes)
     text = cmp._params(df.iloc[5])
@@ -412,5 +506,7 @@ def test_sensitivity_over_time_has_one_curve_per_factor(tied: Path) -> None:
         da = over_time(res.dataset, "spring_force", "pad")
     finally:
         res.close()
-    assert list(da["axis_path"].values) == ["impact_velocity", "zip: springs.ep.material.yield_force, "
-                                            "springs.ep.material.tangent_stiffness, ... (3 paths)"]  # fmt: skip
+    assert list(da["axis_path"].values) == [
+        "impact_velocity",
+        "zip: springs.ep.material.yield_force, springs.ep.material.tangent_stiffness, ... (3 paths)",
+    ]

@@ -119,8 +119,14 @@ class BackendSuite:
     partial, final = PARTIAL, "results.nc"  # the store's names (results.zarr[.partial] with store="zarr")
 
     def run(self, study_file: Path, out: Path, **kw: Any) -> Any:
-        return run_plan(load_study(study_file), out, force=not kw.get("resume", False), progress=False,
-                        **self.options, **kw)  # fmt: skip
+        return run_plan(
+            load_study(study_file),
+            out,
+            force=not kw.get("resume", False),
+            progress=False,
+            **self.options,
+            **kw,
+        )
 
     def test_results_identical_to_in_process(
         self, study_file: Path, reference: xr.Dataset, tmp_path: Path
@@ -129,17 +135,21 @@ class BackendSuite:
         assert (rep.n_variants, rep.n_computed, rep.n_failed) == (N_VARIANTS, N_VARIANTS, 0)
         assert_same_results(_load(tmp_path), reference)
 
-    def test_many_small_chunks_identical_to_in_process(self, study_file: Path, reference: xr.Dataset,
-                                                       tmp_path: Path) -> None:  # fmt: skip
+    def test_many_small_chunks_identical_to_in_process(
+        self, study_file: Path, reference: xr.Dataset, tmp_path: Path
+    ) -> None:
         rep = self.run(study_file, tmp_path, chunk=SMALL_CHUNK)
         assert rep.n_computed == N_VARIANTS
         assert_same_results(_load(tmp_path), reference)
 
-    def test_interrupted_run_resumes_to_identical_results(self, study_file: Path, reference: xr.Dataset,
-                                                          tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    def test_interrupted_run_resumes_to_identical_results(
+        self, study_file: Path, reference: xr.Dataset, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
         real = crashstudy.run.backends.make_backend
         with monkeypatch.context() as m:
-            m.setattr(crashstudy.run.backends, "make_backend", lambda *a, **k: InterruptAfter(real(*a, **k), 2))
+            m.setattr(
+                crashstudy.run.backends, "make_backend", lambda *a, **k: InterruptAfter(real(*a, **k), 2)
+            )
             with pytest.raises(KeyboardInterrupt):
                 self.run(study_file, tmp_path, chunk=SMALL_CHUNK)
         assert (tmp_path / self.partial).exists() and not (tmp_path / self.final).exists()
@@ -215,18 +225,28 @@ def receipt_bound(variants: int) -> int:
 
 
 @pytest.mark.parametrize("store", ["netcdf", "zarr"])
-def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, reference: xr.Dataset, tmp_path: Path,
-                                                              monkeypatch: pytest.MonkeyPatch, store: str) -> None:  # fmt: skip
+def test_dask_study_completes_identically_when_a_worker_dies(
+    study_file: Path, reference: xr.Dataset, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, store: str
+) -> None:
     """A worker dies in its first task (with Zarr: its region half written): the result is the in-process one.
     With Zarr the workers write the store and send back only receipts (issue 19 item 3)."""
     marker = tmp_path / "worker-killed"
     real = crashstudy.run.backends.make_backend
     made: list[KillOneWorker] = []
-    monkeypatch.setattr(crashstudy.run.backends, "make_backend",
-                        lambda *a, **k: made.append(KillOneWorker(real(*a, **k), marker)) or made[-1])  # fmt: skip
+    monkeypatch.setattr(
+        crashstudy.run.backends,
+        "make_backend",
+        lambda *a, **k: made.append(KillOneWorker(real(*a, **k), marker)) or made[-1],
+    )
     out = tmp_path / "out"
     rep = run_plan(
-        load_study(study_file), out, scheduler="local", chunk=SMALL_CHUNK, force=True, progress=False, store=store
+        load_study(study_file),
+        out,
+        scheduler="local",
+        chunk=SMALL_CHUNK,
+        force=True,
+        progress=False,
+        store=store,
     )
     assert marker.exists(), "no worker was killed"
     assert rep.n_computed == N_VARIANTS and rep.n_failed == 0
@@ -240,7 +260,9 @@ def test_dask_study_completes_identically_when_a_worker_dies(study_file: Path, r
         assert all(isinstance(r, ChunkResult) for r, _ in received)
 
 
-def test_receipt_is_checksums_and_texts_not_arrays(study_file: Path, reference: xr.Dataset, tmp_path: Path) -> None:
+def test_receipt_is_checksums_and_texts_not_arrays(
+    study_file: Path, reference: xr.Dataset, tmp_path: Path
+) -> None:
     """In this process: a region written by ``write_region`` and recorded from its receipt equals the
     in-process result; its receipt is under 64 B per variant + 16 KiB, the chunk's arrays 32.6 kB per
     variant; a task of another study writes nothing; a receipt whose checksums the store does not hold (a folder the client does not see) is an
@@ -268,12 +290,17 @@ def test_receipt_is_checksums_and_texts_not_arrays(study_file: Path, reference: 
 
 
 def test_regions_are_cut_at_stored_chunks() -> None:
-    assert list(regions.regions([(0, 3), (4, 11), (13, 14)], 5)) == [[(0, 3), (4, 5)], [(5, 10)], [(10, 11), (13, 14)]]
+    assert list(regions.regions([(0, 3), (4, 11), (13, 14)], 5)) == [
+        [(0, 3), (4, 5)],
+        [(5, 10)],
+        [(10, 11), (13, 14)],
+    ]
 
 
 @pytest.mark.parametrize("kill_at", [1, 2, 3])
-def test_zarr_store_replaced_whole_at_every_rename(study_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                   kill_at: int) -> None:  # fmt: skip
+def test_zarr_store_replaced_whole_at_every_rename(
+    study_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, kill_at: int
+) -> None:
     """A re-run that replaces a finished results.zarr is killed at its k-th rename: results.zarr is
     still a whole, finished store (the old one or the new one), never missing."""
     plan = load_study(study_file)
@@ -309,9 +336,9 @@ def test_dask_backend_without_distributed_asks_for_the_extra(monkeypatch: pytest
         crashstudy.run.backends.make_backend(1, "tcp://127.0.0.1:8786")
 
 
-def test_cli_without_distributed_exits_2_with_the_install_hint(study_file: Path, tmp_path: Path,
-                                                                monkeypatch: pytest.MonkeyPatch,
-                                                                capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_cli_without_distributed_exits_2_with_the_install_hint(
+    study_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     from crashstudy.cli.main import main
 
     monkeypatch.setitem(sys.modules, "distributed", None)
@@ -322,8 +349,9 @@ def test_cli_without_distributed_exits_2_with_the_install_hint(study_file: Path,
     assert "pip install 'crashstudy[dask]'" in capsys.readouterr().err
 
 
-def test_backend_that_cannot_start_leaves_no_partial_result(study_file: Path, tmp_path: Path,
-                                                             monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_backend_that_cannot_start_leaves_no_partial_result(
+    study_file: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(InputError):
         run_plan(load_study(study_file), tmp_path, scheduler="local", force=True, progress=False)

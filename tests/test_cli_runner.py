@@ -34,7 +34,9 @@ def test_in_process_command_prints_and_exits_as_the_installed_command(tmp_path: 
     for argv in COMMANDS:
         here = run_cli(*argv, cwd=tmp_path)
         real = run_cli_process(*argv, cwd=tmp_path)
-        assert (here.returncode, here.stdout, here.stderr) == (real.returncode, real.stdout, real.stderr), argv
+        assert (here.returncode, here.stdout, here.stderr) == (real.returncode, real.stdout, real.stderr), (
+            argv
+        )
     assert not (tmp_path / "out").exists()
 
 
@@ -67,11 +69,23 @@ def test_the_runner_puts_back_what_a_command_changes(monkeypatch: pytest.MonkeyP
         return 0
 
     monkeypatch.setitem(cli_main.COMMANDS, "validate", changes)
-    before = (os.getcwd(), dict(os.environ), list(warnings.filters), warnings.showwarning,
-              signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))  # fmt: skip
+    before = (
+        os.getcwd(),
+        dict(os.environ),
+        list(warnings.filters),
+        warnings.showwarning,
+        signal.getsignal(signal.SIGINT),
+        signal.getsignal(signal.SIGTERM),
+    )
     assert run_cli("validate", "x.yaml", cwd=tmp_path).returncode == 0
-    after = (os.getcwd(), dict(os.environ), list(warnings.filters), warnings.showwarning,
-             signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))  # fmt: skip
+    after = (
+        os.getcwd(),
+        dict(os.environ),
+        list(warnings.filters),
+        warnings.showwarning,
+        signal.getsignal(signal.SIGINT),
+        signal.getsignal(signal.SIGTERM),
+    )
     assert after == before
     assert not interrupt.STOP.is_set()
 
@@ -86,14 +100,21 @@ def test_validate_and_schema_import_no_table_array_or_plot_library(tmp_path: Pat
 
     (tmp_path / "model.yaml").write_text(TINY_MODEL)
     (tmp_path / "study.yaml").write_text(TINY_STUDY)
-    code = ("import json, sys\nfrom crashstudy.cli.main import main\n"
-            "heavy = ('pandas', 'xarray', 'netCDF4', 'pyarrow', 'dask', 'matplotlib', 'scipy', 'numba')\nseen = {}\n"
-            "for argv in json.loads(sys.argv[1]):\n    main(argv)\n"
-            "    seen[' '.join(argv)] = [m for m in heavy if m in sys.modules]\n"
-            "print(json.dumps(seen))\n")  # fmt: skip
+    code = (
+        "import json, sys\nfrom crashstudy.cli.main import main\n"
+        "heavy = ('pandas', 'xarray', 'netCDF4', 'pyarrow', 'dask', 'matplotlib', 'scipy', 'numba')\nseen = {}\n"
+        "for argv in json.loads(sys.argv[1]):\n    main(argv)\n"
+        "    seen[' '.join(argv)] = [m for m in heavy if m in sys.modules]\n"
+        "print(json.dumps(seen))\n"
+    )
     commands = [["validate", "model.yaml"], ["validate", "study.yaml"], ["schema", "model"]]
-    done = subprocess.run([sys.executable, "-c", code, json.dumps(commands)], capture_output=True, text=True,
-                          cwd=tmp_path, timeout=600)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, "-c", code, json.dumps(commands)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr
     seen = json.loads(done.stdout.splitlines()[-1])
     assert seen == {" ".join(c): [] for c in commands}, seen

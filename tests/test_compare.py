@@ -33,21 +33,33 @@ def model(scale: float = 1.0) -> dict:
         "units": "SI",
         "curves": {"c1": {"x": [-10.0, -0.01, 0.0], "y": [-f, -f, 0.0]}},
         "nodes": {"ground": {"position": [0.0], "fixed": True}, "body": {"position": [1.0], "mass": 1000.0}},
-        "springs": {"s1": {"nodes": ["ground", "body"],
-                           "material": {"type": "crush", "loading": "c1", "unloading_stiffness": 1.0e6}}},
+        "springs": {
+            "s1": {
+                "nodes": ["ground", "body"],
+                "material": {"type": "crush", "loading": "c1", "unloading_stiffness": 1.0e6},
+            }
+        },
         "initial_velocity": {"body": [-5.0]},
         "end_time": 0.2,  # s; the body stops after at most 0.14 s and springs back
         "output": {"histories": "none"},
-    }  # fmt: skip
+    }
 
 
-def run(folder: Path, scale: float = 1.0, matrix: dict | None = None, regression: dict | None = None,
-        set_: dict | None = None) -> Path:  # fmt: skip
+def run(
+    folder: Path,
+    scale: float = 1.0,
+    matrix: dict | None = None,
+    regression: dict | None = None,
+    set_: dict | None = None,
+) -> Path:
     """Write model + study into ``folder`` and run it into ``folder/out``."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "model.yaml").write_text(yaml.safe_dump(model(scale), sort_keys=False))
-    study: dict = {"name": "crush-matrix", "model": "model.yaml",
-                   "matrix": matrix or {"nodes.body.mass": MASSES, "impact_velocity": SPEEDS}}  # fmt: skip
+    study: dict = {
+        "name": "crush-matrix",
+        "model": "model.yaml",
+        "matrix": matrix or {"nodes.body.mass": MASSES, "impact_velocity": SPEEDS},
+    }
     if set_:
         study["set"] = set_
     if regression:
@@ -64,9 +76,11 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "baseline": run(root / "baseline"),
         "same": run(root / "same"),
         "scaled": run(root / "scaled", scale=1.01),
-        "reordered": run(root / "reordered", matrix={"impact_velocity": SPEEDS[::-1], "nodes.body.mass": MASSES[::-1]}),
+        "reordered": run(
+            root / "reordered", matrix={"impact_velocity": SPEEDS[::-1], "nodes.body.mass": MASSES[::-1]}
+        ),
         "scaled_loose": run(root / "scaled_loose", scale=1.01, regression={"peak_force": {"rtol": 0.05}}),
-    }  # fmt: skip
+    }
 
 
 # --- matching and tolerances -----------------------------------------------------------------

@@ -20,10 +20,15 @@ from crashstudy.arrays.batch import build_batch
 from crashstudy.kernel import choice, compile_lock
 from helpers import model_plan
 
-MODEL = {"name": "lock-probe", "units": "SI",
-         "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
-         "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
-         "initial_velocity": {"b": [1.0]}, "end_time": 0.05, "output": {"histories": "none"}}  # fmt: skip
+MODEL = {
+    "name": "lock-probe",
+    "units": "SI",
+    "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+    "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
+    "initial_velocity": {"b": [1.0]},
+    "end_time": 0.05,
+    "output": {"histories": "none"},
+}
 
 HOLDER = r"""
 import fcntl, subprocess, sys, time
@@ -62,14 +67,22 @@ def setup(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-u
     done = tmp_path / "done"
     started: list[tuple[tuple[str, ...], bool]] = []
     monkeypatch.setattr(choice, "generic_ready", lambda: done.exists())
-    monkeypatch.setattr(choice, "start_background", lambda kernels, *a, must=False, **k: started.append((kernels, must))
-                        or subprocess.Popen([sys.executable, "-c", "pass"]))  # fmt: skip
+    monkeypatch.setattr(
+        choice,
+        "start_background",
+        lambda kernels, *a, must=False, **k: (
+            started.append((kernels, must)) or subprocess.Popen([sys.executable, "-c", "pass"])
+        ),
+    )
     holders: list[subprocess.Popen[str]] = []
 
     def hold(mode: str, key: str = "generic", seconds: float = 5.0) -> subprocess.Popen[str]:
         lock = choice.cache_dir() / choice.LOCK_NAME
-        proc = subprocess.Popen([sys.executable, "-c", HOLDER, str(lock), mode, key, str(seconds), str(done)],
-                                stdout=subprocess.PIPE, text=True)  # fmt: skip
+        proc = subprocess.Popen(
+            [sys.executable, "-c", HOLDER, str(lock), mode, key, str(seconds), str(done)],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         holders.append(proc)
         assert proc.stdout is not None and proc.stdout.readline().strip() == "held"
         return proc
@@ -84,14 +97,17 @@ def test_a_run_waits_for_another_process_compiling_the_kernel_it_needs(setup) ->
     batch, plan, hold, started, done = setup
     hold("busy", "generic", 5.0)  # expected in ~5 s, compiling here would take GENERIC_COMPILE (24 s)
     said: list[str] = []
-    choice.compile_foreground(("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append)
+    choice.compile_foreground(
+        ("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append
+    )
     assert started == [] and done.exists(), "it waited and compiled nothing itself"
     assert said[0].startswith("waiting for the generic kernel: process ") and "~24 s" in said[0]
 
 
 @pytest.mark.parametrize(("mode", "why"), [("dead", "is not running"), ("stop", "is stopped")])
-def test_a_lock_of_a_dead_or_stopped_process_makes_the_run_compile_at_once(setup, mode: str, why: str
-                                                                          ) -> None:  # type: ignore[no-untyped-def]  # fmt: skip
+def test_a_lock_of_a_dead_or_stopped_process_makes_the_run_compile_at_once(
+    setup, mode: str, why: str
+) -> None:  # type: ignore[no-untyped-def]
     batch, plan, hold, started, done = setup
     holder = hold("dead" if mode == "dead" else "busy")
     if mode == "stop":
@@ -101,7 +117,9 @@ def test_a_lock_of_a_dead_or_stopped_process_makes_the_run_compile_at_once(setup
                 break
             time.sleep(0.05)
     said: list[str] = []
-    choice.compile_foreground(("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append)
+    choice.compile_foreground(
+        ("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append
+    )
     assert started == [(("generic",), True)], "compiled here, even with the lock held"
     assert len(said) == 1 and said[0].startswith("compiling the generic kernel here") and why in said[0]
     if mode == "stop":
@@ -111,23 +129,28 @@ def test_a_lock_of_a_dead_or_stopped_process_makes_the_run_compile_at_once(setup
 def test_a_stuck_holder_is_waited_for_only_until_it_shows_no_progress(setup) -> None:  # type: ignore[no-untyped-def]
     batch, plan, hold, started, done = setup
     hold("sleep", "generic", 5.0)  # alive, says it compiles the generic kernel, uses no CPU
-    limit, _ = compile_lock.plan_wait(compile_lock.read_holder(choice.cache_dir() / choice.LOCK_NAME), "generic",
-                                      choice.GENERIC_COMPILE)  # fmt: skip
+    limit, _ = compile_lock.plan_wait(
+        compile_lock.read_holder(choice.cache_dir() / choice.LOCK_NAME), "generic", choice.GENERIC_COMPILE
+    )
     assert 0 < limit <= choice.GENERIC_COMPILE  # never longer than compiling it here
     said: list[str] = []
-    choice.compile_foreground(("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append)
+    choice.compile_foreground(
+        ("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append
+    )
     assert started == [(("generic",), True)] and not done.exists()
     assert said[0].startswith("waiting for") and said[1] == (
-        f"stopped waiting (the holder uses no CPU); compiling the generic kernel here (~{choice.GENERIC_COMPILE:.0f} s)")
+        f"stopped waiting (the holder uses no CPU); compiling the generic kernel here (~{choice.GENERIC_COMPILE:.0f} s)"
+    )
 
 
-def test_a_holder_that_gets_too_little_cpu_to_finish_first_is_not_waited_for_long(setup
-                                                                                  ) -> None:  # type: ignore[no-untyped-def]  # fmt: skip
+def test_a_holder_that_gets_too_little_cpu_to_finish_first_is_not_waited_for_long(setup) -> None:  # type: ignore[no-untyped-def]
     """Expected in ~20 CPU-s, but it gets a tenth of a core: it would end in ~200 s, later than compiling here."""
     batch, plan, hold, started, done = setup
     hold("trickle", "generic", 20.0)
     said: list[str] = []
-    choice.compile_foreground(("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append)
+    choice.compile_foreground(
+        ("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append
+    )
     assert started == [(("generic",), True)] and said[0].startswith("waiting for")
     assert said[1].startswith("stopped waiting (at the CPU share it gets, the holder would finish later")
 
@@ -136,7 +159,9 @@ def test_a_holder_compiling_other_kernels_is_not_waited_for(setup) -> None:  # t
     batch, plan, hold, started, done = setup
     hold("busy", "k_0123456789abcdef0123", 2.0)  # another model shape's generated kernel
     said: list[str] = []
-    choice.compile_foreground(("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append)
+    choice.compile_foreground(
+        ("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append
+    )
     assert started == [(("generic",), True)] and "holds the compile lock for other kernels" in said[0]
 
 
@@ -144,12 +169,15 @@ def test_a_holder_expected_later_than_the_own_compile_is_not_waited_for(setup) -
     batch, plan, hold, started, done = setup
     hold("busy", "generic", 10 * choice.GENERIC_COMPILE)
     said: list[str] = []
-    choice.compile_foreground(("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append)
+    choice.compile_foreground(
+        ("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append
+    )
     assert started == [(("generic",), True)] and "compiling here is quicker" in said[0]
 
 
 def test_a_long_run_is_never_committed_to_the_reference_because_another_process_holds_the_lock(
-        setup, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]  # fmt: skip
+    setup, monkeypatch: pytest.MonkeyPatch
+) -> None:  # type: ignore[no-untyped-def]
     """Before: pick() returned the reference whenever any process held the lock (a 426-mass grid ran
     > 10 min on it instead of ~25 s on the generic kernel)."""
     batch, plan, hold, started, done = setup

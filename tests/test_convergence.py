@@ -237,12 +237,8 @@ def test_tolerance_mode_keeps_helicopter_peak_force_error_below_twice_the_tolera
     "tolerance",
     [
         pytest.param(1.0e-2),
-        pytest.param(
-            1.0e-3
-        ),
-        pytest.param(
-            1.0e-4
-        ),
+        pytest.param(1.0e-3),
+        pytest.param(1.0e-4),
     ],
 )
 def test_tolerance_mode_keeps_damped_oscillator_peak_force_error_below_twice_the_tolerance(

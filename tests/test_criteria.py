@@ -139,8 +139,13 @@ def test_hic_of_half_sine_matches_closed_form_with_t1_t2(tau: float) -> None:
 def trapezoid(
     t: np.ndarray, start: float, rise: float, flat: float, fall: float, peak: float, base: float = 0.0
 ):
-    return base + (peak - base) * np.interp(t, [start, start + rise, start + rise + flat, start + rise + flat + fall],
-                                            [0.0, 1.0, 1.0, 0.0], left=0.0, right=0.0)  # fmt: skip
+    return base + (peak - base) * np.interp(
+        t,
+        [start, start + rise, start + rise + flat, start + rise + flat + fall],
+        [0.0, 1.0, 1.0, 0.0],
+        left=0.0,
+        right=0.0,
+    )
 
 
 def clips(x: np.ndarray, dt: float) -> tuple[float, float]:
@@ -182,8 +187,10 @@ def test_clips_equal_their_definitions_on_random_signals() -> None:
         t = np.arange(n) * dt
         cont, cum = clips(x, dt)
         fine = np.arange(0.0, t[-1] - 0.003 + 1e-12, dt / 40)
-        mins = [min(np.interp([a, a + 0.003], t, x).min(), x[(t > a) & (t < a + 0.003)].min(initial=np.inf))
-                for a in fine]  # fmt: skip
+        mins = [
+            min(np.interp([a, a + 0.003], t, x).min(), x[(t > a) & (t < a + 0.003)].min(initial=np.inf))
+            for a in fine
+        ]
         slope = np.abs(np.diff(x)).max() / dt
         assert cont >= max(mins) - 1e-9 and cont - max(mins) <= slope * dt / 40  # within the scan step
         lo, hi = np.minimum(x[:-1], x[1:]), np.maximum(x[:-1], x[1:])
@@ -246,12 +253,30 @@ def test_olc_in_millimetre_units_equals_si() -> None:
     acc = -half_sine(t, 25 * G, 0.08)
     si = one(acc, dt, names=("olc", "delta_v"), v0=15.0)
     mm = one(acc * 1000, dt, names=("olc", "delta_v"), v0=15000.0, metre=1000.0)
-    r = C.compute((acc * 1000)[None, :, None], np.array([t.size]), np.array([dt]), np.array([[15000.0]]),
-                  np.array([1.0]), 1000, ["olc"], G * 1000, metre=1000.0)  # fmt: skip
+    r = C.compute(
+        (acc * 1000)[None, :, None],
+        np.array([t.size]),
+        np.array([dt]),
+        np.array([[15000.0]]),
+        np.array([1.0]),
+        1000,
+        ["olc"],
+        G * 1000,
+        metre=1000.0,
+    )
     assert float(r["olc"][0]) == pytest.approx(si["olc"], rel=1e-12)
     assert mm["delta_v"] == pytest.approx(1000 * si["delta_v"], rel=1e-12)
-    ms = C.compute(acc[None, :, None] * 1e-6, np.array([t.size]), np.array([dt * 1e3]), np.array([[0.015]]),
-                   np.array([1.0]), 1000, C.CRITERIA, G * 1e-6, second=1000.0)  # m, ms  # fmt: skip
+    ms = C.compute(
+        acc[None, :, None] * 1e-6,
+        np.array([t.size]),
+        np.array([dt * 1e3]),
+        np.array([[0.015]]),
+        np.array([1.0]),
+        1000,
+        C.CRITERIA,
+        G * 1e-6,
+        second=1000.0,
+    )  # m, ms
     ref = one(acc, dt, v0=15.0)
     for k in ("peak_g", "hic15", "hic15_t1", "hic36", "clip3ms", "clip3ms_cumulative", "olc", "dri"):
         assert float(ms[k][0]) == pytest.approx(ref[k], rel=1e-9), k
@@ -276,8 +301,11 @@ def test_dri_matches_solve_ivp_of_the_seat_model() -> None:
     rng = np.random.default_rng(2)
     dt = 1e-4
     t = np.arange(1501) * dt
-    pulses = [half_sine(t, 20 * G, 0.03), trapezoid(t, 0.0, 0.005, 0.01, 0.02, 15 * G),
-              np.abs(np.cumsum(rng.normal(size=t.size))) * G * 0.5]  # fmt: skip
+    pulses = [
+        half_sine(t, 20 * G, 0.03),
+        trapezoid(t, 0.0, 0.005, 0.01, 0.02, 15 * G),
+        np.abs(np.cumsum(rng.normal(size=t.size))) * G * 0.5,
+    ]
     for d in pulses:
         want = dri_reference(d, dt)
         got = one(-d, dt, names=("dri",))["dri"]  # deceleration along +x = -acceleration
@@ -396,7 +424,9 @@ def test_unknown_criterion_or_class_is_refused() -> None:
     assert r["hic15"][0] == 0.0 and np.isnan(r["hic15_t1"][0]) and r["peak_g"][0] == 0.0  # a quiet record
 
 
-def test_variants_split_over_threads_give_the_single_thread_values_bitwise(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_variants_split_over_threads_give_the_single_thread_values_bitwise(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """The driver runs parts of the variants side by side; each variant's row is its own, so the
     values equal the one-thread run bit for bit (second implementation: the same driver unsplit)."""
     from crashstudy.kernel import driver
@@ -419,7 +449,11 @@ def test_variants_split_over_threads_give_the_single_thread_values_bitwise(monke
     finally:
         driver.set_threads(old)
     for k, arr in one_thread.items():
-        assert np.array_equal(arr, split[k], equal_nan=True) if k != "criteria_note" else list(arr) == list(split[k])
+        assert (
+            np.array_equal(arr, split[k], equal_nan=True)
+            if k != "criteria_note"
+            else list(arr) == list(split[k])
+        )
 
 
 def test_plain_python_criteria_equal_the_compiled_ones_bitwise(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -448,7 +482,11 @@ def test_plain_python_criteria_equal_the_compiled_ones_bitwise(monkeypatch: pyte
     plain = C.compute(acc, counts, dts, v0, [1.0, 0.0], 180, C.CRITERIA, G)
     assert interpreted._SPENT[0] == 10 + int(counts.sum())  # it did run interpreted
     for k, arr in compiled.items():
-        assert np.array_equal(arr, plain[k], equal_nan=True) if k != "criteria_note" else list(arr) == list(plain[k])
+        assert (
+            np.array_equal(arr, plain[k], equal_nan=True)
+            if k != "criteria_note"
+            else list(arr) == list(plain[k])
+        )
     assert np.array_equal(F.j211_filter(acc[:, :, 0], counts, dts, 60), filt, equal_nan=True)
     monkeypatch.setattr(interpreted, "_SPENT", [interpreted.PLAIN_MAX_SAMPLES])
     assert interpreted.driver_for(C._driver, 1) == (C._driver, True)

@@ -22,24 +22,33 @@ CURVES = {  # crush plateau of 1 kN drawn to 0.1 m; an elastic 100 N/m line draw
 
 
 def _model(material: dict, v0: float, end_time: float) -> dict:
-    return {"name": "one", "curves": CURVES,
-            "nodes": {"wall": {"position": [0.0], "fixed": True}, "m": {"position": [1.0], "mass": 1.0}},
-            "springs": {"s": {"nodes": ["wall", "m"], "material": material},
-                        "link": {"nodes": ["wall", "m"], "material": {"type": "linear_elastic", "stiffness": 1e-6}}},
-            "initial_velocity": {"m": [v0]}, "end_time": end_time, "output": {"histories": "none"}}  # fmt: skip
+    return {
+        "name": "one",
+        "curves": CURVES,
+        "nodes": {"wall": {"position": [0.0], "fixed": True}, "m": {"position": [1.0], "mass": 1.0}},
+        "springs": {
+            "s": {"nodes": ["wall", "m"], "material": material},
+            "link": {"nodes": ["wall", "m"], "material": {"type": "linear_elastic", "stiffness": 1e-6}},
+        },
+        "initial_velocity": {"m": [v0]},
+        "end_time": end_time,
+        "output": {"histories": "none"},
+    }
 
 
 def _run(tmp_path: Path, model: dict, speeds: list[float], capsys: pytest.CaptureFixture[str]) -> tuple:
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(model))
-    (tmp_path / "s.yaml").write_text(yaml.safe_dump({"name": "ends", "model": "m.yaml",
-                                                     "matrix": {"impact_velocity": speeds}}))  # fmt: skip
+    (tmp_path / "s.yaml").write_text(
+        yaml.safe_dump({"name": "ends", "model": "m.yaml", "matrix": {"impact_velocity": speeds}})
+    )
     assert main(["run", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "out")]) == 0
     res = open_results(tmp_path / "out")
     return res.summary, res.dataset, capsys.readouterr().err
 
 
-def test_a_crush_spring_crushed_past_its_curve_is_flagged_and_warned(tmp_path: Path,
-                                                                     capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_a_crush_spring_crushed_past_its_curve_is_flagged_and_warned(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """1 kg at v0 into a 1 kN plateau: crush m v0^2 / (2 F) = 0.032 m at 8 m/s (within the drawn 0.1 m),
     0.125 m at 15.81 m/s and 0.2 m at 20 m/s (past it: the plateau extrapolated); the tension end of
     a crush curve is never checked; the linear spring has no column."""
@@ -61,7 +70,9 @@ def test_an_elastic_curve_checks_both_ends(tmp_path: Path, capsys: pytest.Captur
     df, _, err = _run(tmp_path, _model(line, -0.5, 0.7), [0.5, 1.5], capsys)
     assert df["max_elongation.s"][1] == pytest.approx(0.15, rel=1e-3)
     assert list(df["past_curve_end.s"]) == [0.0, 3.0]
-    assert "compressed past its curve's first point in 1" in err and "stretched past its last point in 1" in err
+    assert (
+        "compressed past its curve's first point in 1" in err and "stretched past its last point in 1" in err
+    )
     (tmp_path / "away").mkdir()
     away, _, _ = _run(tmp_path / "away", _model(line, 1.5, 0.1), [1.5], capsys)
     assert away["max_elongation.s"][0] == pytest.approx(0.15 * math.sin(1.0), rel=1e-3)
@@ -70,7 +81,8 @@ def test_an_elastic_curve_checks_both_ends(tmp_path: Path, capsys: pytest.Captur
 
 @pytest.mark.parametrize("compression_yield", [None, -5.0])
 def test_a_general_nonlinear_stretch_is_checked_only_without_a_compression_yield(
-        compression_yield: float | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    compression_yield: float | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Moving away at 1.5 m/s for 0.1 s on the 100 N/m loading line: stretched sin(1) 0.15 = 0.126 m,
     past the curve's last point (0.1 m). Without a compression yield the force is read on the loading
     curve there: flagged (2). With one, a stretch is never checked (after a compression yield it would
@@ -90,8 +102,9 @@ def test_a_failed_variant_has_no_past_curve_end(tmp_path: Path, capsys: pytest.C
     line = {"type": "nonlinear_elastic", "curve": "line"}
     model = dict(_model(line, -0.5, 0.7), time_step={"dt": 0.03})
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(model))
-    (tmp_path / "s.yaml").write_text(yaml.safe_dump({"name": "ends", "model": "m.yaml",
-                                                     "matrix": {"nodes.m.mass": [1.0, 0.01]}}))  # fmt: skip
+    (tmp_path / "s.yaml").write_text(
+        yaml.safe_dump({"name": "ends", "model": "m.yaml", "matrix": {"nodes.m.mass": [1.0, 0.01]}})
+    )
     assert main(["run", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "out")]) == 1
     df = open_results(tmp_path / "out").summary
     assert list(df["status"]) == ["ok", "failed"]

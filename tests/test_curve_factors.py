@@ -28,13 +28,16 @@ K0, M, V0 = 4.0e4, 2.0, 3.0  # N/m, kg, m/s
 def _spring(dt: float) -> dict[str, Any]:
     """A mass on a straight nonlinear_elastic curve of slope K0 (3 knots), moving at V0."""
     return {
-        "name": "one-spring", "units": "SI",
+        "name": "one-spring",
+        "units": "SI",
         "curves": {"c": {"x": [-1.0, 0.0, 1.0], "y": [-K0, 0.0, K0]}},
         "nodes": {"wall": {"position": [0.0], "fixed": True}, "m": {"position": [1.0], "mass": M}},
         "springs": {"s": {"nodes": ["wall", "m"], "material": {"type": "nonlinear_elastic", "curve": "c"}}},
-        "initial_velocity": {"m": [-V0]}, "end_time": 0.05, "time_step": {"dt": dt},
+        "initial_velocity": {"m": [-V0]},
+        "end_time": 0.05,
+        "time_step": {"dt": dt},
         "output": {"histories": "none", "interval": 0.05},
-    }  # fmt: skip
+    }
 
 
 SCALES = {"curves.c.scale": [0.5, 1.0, 2.0, 3.0], "curves.c.x_scale": [1.0, 2.0, 0.5, 1.5]}
@@ -49,18 +52,24 @@ def test_a_scaled_curve_is_scale_times_the_curve_of_x_over_x_scale(kernel: str) 
     np.testing.assert_allclose(out.peak_force[0], V0 * np.sqrt(k * M), rtol=2e-4)
 
 
-def test_the_generated_kernel_keeps_a_scaled_curves_shape_and_reads_three_factors_per_variant(tmp_path: Path) -> None:
+def test_the_generated_kernel_keeps_a_scaled_curves_shape_and_reads_three_factors_per_variant(
+    tmp_path: Path,
+) -> None:
     """The study's scale axes leave the curve's points alone: the kernel's shape has the curve as a factor
     curve, its coefficients are registers and no per-variant knot or slope is read."""
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(_spring(1e-4), sort_keys=False))
-    plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"), "matrix": SCALES | {"impact_velocity": [2.0, 3.0]}})
+    plan = load_study(
+        {"name": "s", "model": str(tmp_path / "m.yaml"), "matrix": SCALES | {"impact_velocity": [2.0, 3.0]}}
+    )
     assert plan.varying_curves == frozenset({-1})  # curve 0, scaled only
     batch, _ = model_batch(_spring(1e-4), SCALES)
     shape = _shape(batch, (), plan.varying_curves)
     assert shape["const"] == [] and shape["fac"] == [0]
     src = source(shape)
     assert "cfac[0, 0, q]" in src and "cfac[2, 0, q]" in src
-    assert not any(f"{a}[" in src for a in ("cx", "cy", "cds", "cs0")), "a per-variant curve coefficient is read"
+    assert not any(f"{a}[" in src for a in ("cx", "cy", "cds", "cs0")), (
+        "a per-variant curve coefficient is read"
+    )
 
 
 def test_scale_axes_give_the_points_times_the_factors() -> None:
@@ -71,7 +80,9 @@ def test_scale_axes_give_the_points_times_the_factors() -> None:
     assert np.array_equal(batch.cs0[0], K0 * (ys / xs)) and np.all(batch.by == batch.by[:, :1])
 
 
-def test_blocks_are_run_in_a_few_calls_per_thread_not_one_call_per_block(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_blocks_are_run_in_a_few_calls_per_thread_not_one_call_per_block(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """Each call of a compiled kernel unboxes its argument records; 10^6 short variants are ~4000 blocks."""
     calls: list[tuple[int, int]] = []
     monkeypatch.setattr(driver, "_THREADS", [2])

@@ -54,8 +54,17 @@ def test_each_distribution_has_its_stated_moments_and_bounds() -> None:
     from scipy import stats
 
     n = 4096
-    r = rows("sobol", n, 2, {"n": ("normal", [10.0, 2.0]), "ln": ("lognormal", [0.5, 0.25]),
-                             "t": ("truncnormal", [1.0, 1.0, 0.5, 3.0]), "u": ("uniform", [-3.0, 5.0])})  # fmt: skip
+    r = rows(
+        "sobol",
+        n,
+        2,
+        {
+            "n": ("normal", [10.0, 2.0]),
+            "ln": ("lognormal", [0.5, 0.25]),
+            "t": ("truncnormal", [1.0, 1.0, 0.5, 3.0]),
+            "u": ("uniform", [-3.0, 5.0]),
+        },
+    )
     se = 3.0 / np.sqrt(n)
     assert abs(r["n"].mean() - 10.0) < 2.0 * se and abs(r["n"].std() - 2.0) < 2.0 * se
     assert abs(np.log(r["ln"]).mean() - 0.5) < 0.25 * se and abs(np.log(r["ln"]).std() - 0.25) < 0.25 * se
@@ -68,9 +77,11 @@ def test_each_distribution_has_its_stated_moments_and_bounds() -> None:
 def test_design_rows_are_numbered_after_the_matrix_and_are_the_axis_coordinates(tmp_path: Path) -> None:
     """matrix impact_velocity [3, 5] x 8 design rows: variant = 8 * matrix index + row; the coordinates
     are the rows of :func:`rows` with the file's seed."""
-    study = _study(tmp_path, {"method": "lhs", "n": 8, "seed": 4,
-                              "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0]}}},
-                   {"impact_velocity": [3.0, 5.0]})  # fmt: skip
+    study = _study(
+        tmp_path,
+        {"method": "lhs", "n": 8, "seed": 4, "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0]}}},
+        {"impact_velocity": [3.0, 5.0]},
+    )
     plan = load_study(study)
     assert plan.shape == (2, 8) and plan.n_variants == 16
     vals = plan.axis_values(0, 16)
@@ -84,9 +95,18 @@ def test_a_design_study_runs_each_row_as_the_model_alone_and_a_rerun_reuses_ever
 ) -> None:
     """Peak force of each variant = v sqrt(k m) (undamped linear spring, closed form, 1e-3 relative at
     safety factor 0.9 ... measured 2e-4); the same study again computes nothing."""
-    study = _study(tmp_path, {"method": "halton", "n": 12, "seed": 0,
-                              "axes": {"nodes.body.mass": {"uniform": [50.0, 150.0]},
-                                       "impact_velocity": {"truncnormal": [5.0, 1.0, 3.0, 7.0]}}})  # fmt: skip
+    study = _study(
+        tmp_path,
+        {
+            "method": "halton",
+            "n": 12,
+            "seed": 0,
+            "axes": {
+                "nodes.body.mass": {"uniform": [50.0, 150.0]},
+                "impact_velocity": {"truncnormal": [5.0, 1.0, 3.0, 7.0]},
+            },
+        },
+    )
     out = tmp_path / "out"
     assert main(["run", str(study), "-o", str(out), "--progress", "off"]) == 0
     s = open_results(out).summary
@@ -97,16 +117,26 @@ def test_a_design_study_runs_each_row_as_the_model_alone_and_a_rerun_reuses_ever
     assert "0 variants computed" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize(("design", "expected"), [
-    ({"n": 8, "axes": {"nodes.body.mass": {"uniform": [120.0, 80.0]}}}, "needs low < high"),
-    ({"n": 8, "axes": {"nodes.body.mass": {"normal": [100.0, -1.0]}}}, "standard deviation"),
-    ({"n": 8, "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0], "normal": [1.0, 1.0]}}}, "exactly one"),
-    ({"n": 8, "method": "grid", "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0]}}}, "design.method"),
-    ({"n": 8, "axes": {"nodes.body.mas": {"uniform": [80.0, 120.0]}}}, "unknown axis 'nodes.body.mas'"),
-    ({"n": 8, "axes": {"nodes.body.mass": {"normal": [10.0, 50.0]}}}, "makes the model invalid"),
-])  # fmt: skip
-def test_a_bad_design_is_exit_2_naming_its_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                 design: dict[str, Any], expected: str) -> None:  # fmt: skip
+@pytest.mark.parametrize(
+    ("design", "expected"),
+    [
+        ({"n": 8, "axes": {"nodes.body.mass": {"uniform": [120.0, 80.0]}}}, "needs low < high"),
+        ({"n": 8, "axes": {"nodes.body.mass": {"normal": [100.0, -1.0]}}}, "standard deviation"),
+        (
+            {"n": 8, "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0], "normal": [1.0, 1.0]}}},
+            "exactly one",
+        ),
+        (
+            {"n": 8, "method": "grid", "axes": {"nodes.body.mass": {"uniform": [80.0, 120.0]}}},
+            "design.method",
+        ),
+        ({"n": 8, "axes": {"nodes.body.mas": {"uniform": [80.0, 120.0]}}}, "unknown axis 'nodes.body.mas'"),
+        ({"n": 8, "axes": {"nodes.body.mass": {"normal": [10.0, 50.0]}}}, "makes the model invalid"),
+    ],
+)
+def test_a_bad_design_is_exit_2_naming_its_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], design: dict[str, Any], expected: str
+) -> None:
     study = _study(tmp_path, design)
     capsys.readouterr()
     assert main(["validate", str(study)]) == 2
@@ -144,13 +174,20 @@ def test_sobol_indices_of_a_crash_run_match_the_closed_form_of_its_peak_force(tm
     base points = 1024 variants) gives indices within max(3 confidence half-widths, 0.03) of them."""
     from crashstudy.analysis.sensitivity import indices
 
-    bounds = {"impact_velocity": [3.0, 7.0], "springs.pad.material.stiffness": [5.0e5, 2.0e6],
-              "nodes.body.mass": [50.0, 150.0]}  # fmt: skip
+    bounds = {
+        "impact_velocity": [3.0, 7.0],
+        "springs.pad.material.stiffness": [5.0e5, 2.0e6],
+        "nodes.body.mass": [50.0, 150.0],
+    }
     (va, vb), (ka, kb), (ma, mb) = bounds.values()
     sq = lambda a, b: (2.0 / 3.0 * (b**1.5 - a**1.5) / (b - a), (a + b) / 2.0)  # noqa: E731 - E sqrt(x), E x
-    s1, st = _product_indices([((va + vb) / 2.0, (va * va + va * vb + vb * vb) / 3.0), sq(ka, kb), sq(ma, mb)])
-    study = _study(tmp_path, {"method": "saltelli", "n": 128, "seed": 3,
-                              "axes": {p: {"uniform": b} for p, b in bounds.items()}})  # fmt: skip
+    s1, st = _product_indices(
+        [((va + vb) / 2.0, (va * va + va * vb + vb * vb) / 3.0), sq(ka, kb), sq(ma, mb)]
+    )
+    study = _study(
+        tmp_path,
+        {"method": "saltelli", "n": 128, "seed": 3, "axes": {p: {"uniform": b} for p, b in bounds.items()}},
+    )
     out = tmp_path / "out"
     assert main(["run", str(study), "-o", str(out), "--progress", "off"]) == 0
     res = open_results(out)
@@ -159,15 +196,22 @@ def test_sobol_indices_of_a_crash_run_match_the_closed_form_of_its_peak_force(tm
     for k, path in enumerate(bounds):
         for i, exact in (("S1", s1[k]), ("ST", st[k])):
             got = t.loc[(path, i)]
-            assert abs(got["value"] - exact) <= max(3.0 * got["confidence"], 0.03), (path, i, got["value"], exact)
+            assert abs(got["value"] - exact) <= max(3.0 * got["confidence"], 0.03), (
+                path,
+                i,
+                got["value"],
+                exact,
+            )
 
 
 def test_a_design_study_on_two_worker_processes_gives_the_in_process_numbers(tmp_path: Path) -> None:
     """The design's rows are a dimension like a zip group, so the backends need nothing new: --jobs 2
     (process pool) writes the same summary, bit for bit, as one process."""
-    study = _study(tmp_path, {"method": "sobol", "n": 32, "seed": 6,
-                              "axes": {"nodes.body.mass": {"lognormal": [4.6, 0.2]}}},
-                   {"impact_velocity": [3.0, 5.0]})  # fmt: skip
+    study = _study(
+        tmp_path,
+        {"method": "sobol", "n": 32, "seed": 6, "axes": {"nodes.body.mass": {"lognormal": [4.6, 0.2]}}},
+        {"impact_velocity": [3.0, 5.0]},
+    )
     one, two = tmp_path / "one", tmp_path / "two"
     assert main(["run", str(study), "-o", str(one), "--progress", "off"]) == 0
     assert main(["run", str(study), "-o", str(two), "--jobs", "2", "--progress", "off"]) == 0

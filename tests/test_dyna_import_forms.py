@@ -53,13 +53,17 @@ force vs elongation
 """
 
 DIRECT: dict[str, Any] = {
-    "name": "titled-cards", "units": "mm-ms-kg-kN",
+    "name": "titled-cards",
+    "units": "mm-ms-kg-kN",
     "curves": {"curve-11": {"x": [-20.0, 0.0, 20.0], "y": [-6.0, 0.0, 2.0]}},
     "nodes": {"n1": {"position": [0.0], "fixed": True}, "n2": {"position": [50.0], "mass": 5.0}},
-    "springs": {"s1": {"nodes": ["n1", "n2"], "material": {"type": "nonlinear_elastic", "curve": "curve-11"}},
-                "s2": {"nodes": ["n1", "n2"], "material": {"type": "damper", "damping": 0.002}}},
-    "initial_velocity": {"n2": [-4.0]}, "end_time": 20.0,
-}  # fmt: skip
+    "springs": {
+        "s1": {"nodes": ["n1", "n2"], "material": {"type": "nonlinear_elastic", "curve": "curve-11"}},
+        "s2": {"nodes": ["n1", "n2"], "material": {"type": "damper", "damping": 0.002}},
+    },
+    "initial_velocity": {"n2": [-4.0]},
+    "end_time": 20.0,
+}
 
 
 def test_title_variants_material_numbers_and_curve_scales_read_as_the_same_model(tmp_path: Path) -> None:

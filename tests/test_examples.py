@@ -60,8 +60,12 @@ def test_there_are_example_studies_and_models() -> None:
 def test_example_study_loads_and_its_corners_run(study: Path, tmp_path: Path) -> None:
     full = load_study(study)
     design = load_yaml(study).data.get("design")
-    rows = (lambda n: n_rows(design.get("method", "lhs"), n, len(design["axes"]))) if design else (lambda n: 1)
-    assert full.n_variants == math.prod(len(v) for v in _groups(load_yaml(study).data)) * rows(design and design["n"])
+    rows = (
+        (lambda n: n_rows(design.get("method", "lhs"), n, len(design["axes"]))) if design else (lambda n: 1)
+    )
+    assert full.n_variants == math.prod(len(v) for v in _groups(load_yaml(study).data)) * rows(
+        design and design["n"]
+    )
     if study.stem == "frontal-matrix":
         assert full.n_variants >= 1000  # issue 3: the frontal example has at least 10^3 variants
 
@@ -71,7 +75,10 @@ def test_example_study_loads_and_its_corners_run(study: Path, tmp_path: Path) ->
     assert [a.path for a in plan.axes] == [a.path for a in full.axes]
     for small, big in zip(plan.axes, full.axes, strict=True):  # the corners of the shipped axes
         if design and small.path in design["axes"]:  # rows of the same distributions: inside their range
-            assert big.values.min() - 1e-9 <= small.values.min() and small.values.max() <= big.values.max() + 1e-9
+            assert (
+                big.values.min() - 1e-9 <= small.values.min()
+                and small.values.max() <= big.values.max() + 1e-9
+            )
             continue
         np.testing.assert_array_equal(small.values, [big.values[0], big.values[-1]][: len(small.values)])
     assert plan.n_out == full.n_out and plan.topology.histories == full.topology.histories  # `set` kept

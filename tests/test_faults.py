@@ -99,9 +99,22 @@ class Run:
     def __init__(self, study: Path, out: Path, *extra: str) -> None:
         self.out = out
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "crashstudy.cli", "run", str(study), "-o", str(out), "--progress", "on", *extra],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=default_sigint,
-        )  # fmt: skip
+            [
+                sys.executable,
+                "-m",
+                "crashstudy.cli",
+                "run",
+                str(study),
+                "-o",
+                str(out),
+                "--progress",
+                "on",
+                *extra,
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            preexec_fn=default_sigint,
+        )
         assert self.proc.stderr is not None
         flags = fcntl.fcntl(self.proc.stderr, fcntl.F_GETFL)
         fcntl.fcntl(self.proc.stderr, fcntl.F_SETFL, flags | os.O_NONBLOCK)
@@ -127,15 +140,19 @@ class Run:
         while not condition():
             if self.proc.poll() is not None:
                 self._read()
-                pytest.fail(f"the run ended (exit {self.proc.returncode}) before {what}:\n{self.err.decode()[-2000:]}")
+                pytest.fail(
+                    f"the run ended (exit {self.proc.returncode}) before {what}:\n{self.err.decode()[-2000:]}"
+                )
             if time.monotonic() - t0 > timeout:
                 self.proc.kill()
                 pytest.fail(f"timed out waiting for {what}")
             time.sleep(0.005)
 
     def wait_chunks(self, n: int) -> int:
-        self.wait_for(lambda: self.done() >= n * CHUNK and (self.out / "results.nc.partial").exists(),
-                      f"{n} chunks were written")  # fmt: skip
+        self.wait_for(
+            lambda: self.done() >= n * CHUNK and (self.out / "results.nc.partial").exists(),
+            f"{n} chunks were written",
+        )
         return self.done()
 
     def finish(self, timeout: float = 240) -> tuple[int, str, str]:
@@ -217,9 +234,11 @@ def test_fault_study_writes_many_chunks(fault_dir: Path) -> None:
 # ------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("sig", "jobs"), [(signal.SIGINT, 1), (signal.SIGTERM, 1), (signal.SIGKILL, 1),
-                                           (signal.SIGTERM, 2)],
-                         ids=["SIGINT", "SIGTERM", "SIGKILL", "SIGTERM-jobs2"])  # fmt: skip
+@pytest.mark.parametrize(
+    ("sig", "jobs"),
+    [(signal.SIGINT, 1), (signal.SIGTERM, 1), (signal.SIGKILL, 1), (signal.SIGTERM, 2)],
+    ids=["SIGINT", "SIGTERM", "SIGKILL", "SIGTERM-jobs2"],
+)
 def test_interrupted_run_leaves_partial_only_and_resumes_identically(
     fault_dir: Path, reference: tuple[xr.Dataset, Path], tmp_path: Path, sig: signal.Signals, jobs: int
 ) -> None:
@@ -244,7 +263,12 @@ def test_interrupted_run_leaves_partial_only_and_resumes_identically(
     p = cli("run", fault_dir / "study.yaml", "-o", out, "--resume", "--progress", "off")
     assert p.returncode == 0, p.stderr
     assert f"({N_VARIANTS - kept} variants computed" in p.stdout, p.stdout  # only the missing ones ran
-    assert sorted(x.name for x in out.iterdir()) == ["manifest.json", "results.nc", "summary.csv", "summary.parquet"]
+    assert sorted(x.name for x in out.iterdir()) == [
+        "manifest.json",
+        "results.nc",
+        "summary.csv",
+        "summary.parquet",
+    ]
     assert_identical(load(out), reference[0], out, reference[1])
 
 
@@ -282,7 +306,11 @@ class Outcome:
 
 def _pool_workers(pid: int) -> list[psutil.Process]:
     kids = psutil.Process(pid).children()
-    return [k for k in kids if "spawn_main" in " ".join(k.cmdline()) and "resource_tracker" not in " ".join(k.cmdline())]
+    return [
+        k
+        for k in kids
+        if "spawn_main" in " ".join(k.cmdline()) and "resource_tracker" not in " ".join(k.cmdline())
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -296,7 +324,9 @@ def worker_killed(fault_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> 
     rc, _, err = run.finish()
     files = sorted(p.name for p in out.iterdir())
     kept = done_in_partial(out) if "results.nc.partial" in files else -1
-    resume = run_cli_process("run", fault_dir / "study.yaml", "-o", out, "--resume", "--jobs", "2", "--progress", "off")
+    resume = run_cli_process(
+        "run", fault_dir / "study.yaml", "-o", out, "--resume", "--jobs", "2", "--progress", "off"
+    )
     return Outcome(rc, err, files, kept, resume, out)
 
 
@@ -326,8 +356,9 @@ def _mount_tmpfs(where: Path, size: str) -> None:
     where.mkdir(parents=True, exist_ok=True)
     if os.geteuid() != 0:
         pytest.skip("mounting a tmpfs needs root")
-    p = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)], capture_output=True,
-                       text=True)  # fmt: skip
+    p = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)], capture_output=True, text=True
+    )
     if p.returncode != 0:
         pytest.skip(f"mount -t tmpfs is not permitted here: {p.stderr.strip()}")
 
@@ -400,7 +431,9 @@ def test_disk_full_is_a_clear_message(disk_full) -> None:  # type: ignore[no-unt
 
 
 def test_disk_full_then_freed_resume_completes_identically(
-    disk_full, fault_dir: Path, reference: tuple[xr.Dataset, Path]  # type: ignore[no-untyped-def]
+    disk_full,
+    fault_dir: Path,
+    reference: tuple[xr.Dataset, Path],  # type: ignore[no-untyped-def]
 ) -> None:
     full, p, out = disk_full
     _remount(full, "size=64m")
@@ -410,7 +443,9 @@ def test_disk_full_then_freed_resume_completes_identically(
 
 
 def test_disk_full_while_writing_the_summary_then_resume_completes(
-    fault_dir: Path, reference: tuple[xr.Dataset, Path], tmpfs  # type: ignore[no-untyped-def]
+    fault_dir: Path,
+    reference: tuple[xr.Dataset, Path],
+    tmpfs,  # type: ignore[no-untyped-def]
 ) -> None:
     """Room for results.nc.partial but not for summary.csv: the run fails before the rename, cleanly."""
     size = (reference[1] / "results.nc").stat().st_size + 128 * 1024
@@ -426,7 +461,12 @@ def test_disk_full_while_writing_the_summary_then_resume_completes(
     r = cli("run", fault_dir / "study.yaml", "-o", out, "--resume", "--progress", "off")
     assert r.returncode == 0, r.stderr
     assert "(0 variants computed" in r.stdout  # every variant was already in the partial file
-    assert sorted(x.name for x in out.iterdir()) == ["manifest.json", "results.nc", "summary.csv", "summary.parquet"]
+    assert sorted(x.name for x in out.iterdir()) == [
+        "manifest.json",
+        "results.nc",
+        "summary.csv",
+        "summary.parquet",
+    ]
     assert_identical(load(out), reference[0], out, reference[1])
 
 
@@ -442,7 +482,9 @@ def test_model_path_is_relative_to_the_study_file_not_the_working_directory(tmp_
     (proj / "small.yaml").write_text(SMALL_STUDY)
     elsewhere = tmp_path / "elsewhere"
     (elsewhere / "models").mkdir(parents=True)
-    (elsewhere / "models" / "fault-model.yaml").write_text("name: decoy\nnodes: {}\n")  # invalid if it were read
+    (elsewhere / "models" / "fault-model.yaml").write_text(
+        "name: decoy\nnodes: {}\n"
+    )  # invalid if it were read
     for study in ("../project/small.yaml", str(proj / "small.yaml")):
         p = cli("validate", study, cwd=elsewhere)
         assert p.returncode == 0 and "valid study (6 variants)" in p.stdout, p.stderr
@@ -468,21 +510,36 @@ def test_output_is_written_only_inside_the_chosen_folder(fault_dir: Path, tmp_pa
         ("run", "../project/small.yaml", "--dry-run"),
         ("validate", "../project/small.yaml"),
         ("summary", "../chosen/run"),
-    ]  # fmt: skip
+    ]
     for argv in steps:
         p = cli(*argv, cwd=cwd)
         assert p.returncode == 0, (argv, p.stderr)
     new = files_under(tmp_path) - before
     assert new and all(f == "chosen" or f.startswith("chosen/") for f in new), sorted(new)
-    assert sorted(new) == ["chosen", "chosen/run", "chosen/run/manifest.json", "chosen/run/results.nc",
-                           "chosen/run/summary.csv", "chosen/run/summary.parquet", "chosen/sim", "chosen/sim/manifest.json",
-                           "chosen/sim/results.nc", "chosen/sim/summary.csv", "chosen/sim/summary.parquet"]  # fmt: skip
+    assert sorted(new) == [
+        "chosen",
+        "chosen/run",
+        "chosen/run/manifest.json",
+        "chosen/run/results.nc",
+        "chosen/run/summary.csv",
+        "chosen/run/summary.parquet",
+        "chosen/sim",
+        "chosen/sim/manifest.json",
+        "chosen/sim/results.nc",
+        "chosen/sim/summary.csv",
+        "chosen/sim/summary.parquet",
+    ]
     # without -o the folder is results/<study name> under the working directory, and nothing else
     p = cli("run", "../project/small.yaml", "--progress", "off", cwd=cwd)
     assert p.returncode == 0, p.stderr
-    assert files_under(cwd) == {"results", "results/small-study", "results/small-study/results.nc",
-                                "results/small-study/summary.csv", "results/small-study/summary.parquet",
-                                "results/small-study/manifest.json"}  # fmt: skip
+    assert files_under(cwd) == {
+        "results",
+        "results/small-study",
+        "results/small-study/results.nc",
+        "results/small-study/summary.csv",
+        "results/small-study/summary.parquet",
+        "results/small-study/manifest.json",
+    }
 
 
 @pytest.mark.parametrize("name", ["../escape", "a/b", "/abs", ".."])
@@ -526,8 +583,13 @@ def test_existing_results_are_not_overwritten_without_force(fault_dir: Path, tmp
     assert p.returncode == 0, p.stderr
     assert load(out).attrs["study_name"] == "other-study"
     assert (out / "notes.txt").read_text() == "mine\n"
-    assert sorted(x.name for x in out.iterdir()) == ["manifest.json", "notes.txt", "results.nc", "summary.csv",
-                                                    "summary.parquet"]
+    assert sorted(x.name for x in out.iterdir()) == [
+        "manifest.json",
+        "notes.txt",
+        "results.nc",
+        "summary.csv",
+        "summary.parquet",
+    ]
 
 
 def test_unfinished_run_is_not_restarted_without_resume_or_force(fault_dir: Path, tmp_path: Path) -> None:
@@ -566,8 +628,10 @@ def test_resume_onto_another_studys_partial_is_a_clear_input_error(fault_dir: Pa
 # ------------------------------------------------------------------------------------------------
 
 GOOD_STUDY = "name: attack\nmodel: models/fault-model.yaml\nmatrix:\n  nodes.body.mass: [1.0, 2.0]\n"
-LAUGHS = "".join(f"{chr(97 + k)}: &{chr(97 + k)} [" + ", ".join(["lol" if k == 0 else f"*{chr(96 + k)}"] * 10) + "]\n"
-                 for k in range(9))  # 10^9 values once expanded  # fmt: skip
+LAUGHS = "".join(
+    f"{chr(97 + k)}: &{chr(97 + k)} [" + ", ".join(["lol" if k == 0 else f"*{chr(96 + k)}"] * 10) + "]\n"
+    for k in range(9)
+)  # 10^9 values once expanded
 
 
 def _model(old: str, new: str) -> str:
@@ -577,37 +641,92 @@ def _model(old: str, new: str) -> str:
 
 # (id, which file is attacked, its text, the line and field the message must name)
 ATTACKS = [
-    ("python-object-apply", "model", _model("end_time: 2.0", "end_time: !!python/object/apply:os.system ['touch PWNED']"),
-     12, "end_time"),
+    (
+        "python-object-apply",
+        "model",
+        _model("end_time: 2.0", "end_time: !!python/object/apply:os.system ['touch PWNED']"),
+        12,
+        "end_time",
+    ),
     ("python-name", "model", _model("mass: 2.0}", "mass: !!python/name:os.system }"), 6, "nodes.body.mass"),
-    ("python-object-new-in-study", "study",
-     GOOD_STUDY.replace("[1.0, 2.0]", "[!!python/object/new:subprocess.Popen [['touch', 'PWNED']]]"), 4,
-     "matrix.nodes.body.mass.0"),
-    ("local-tag", "study", GOOD_STUDY.replace("[1.0, 2.0]", "!custom [1.0, 2.0]"), 4, "matrix.nodes.body.mass"),
+    (
+        "python-object-new-in-study",
+        "study",
+        GOOD_STUDY.replace("[1.0, 2.0]", "[!!python/object/new:subprocess.Popen [['touch', 'PWNED']]]"),
+        4,
+        "matrix.nodes.body.mass.0",
+    ),
+    (
+        "local-tag",
+        "study",
+        GOOD_STUDY.replace("[1.0, 2.0]", "!custom [1.0, 2.0]"),
+        4,
+        "matrix.nodes.body.mass",
+    ),
     ("billion-laughs-model", "model", LAUGHS + FAULT_MODEL, 6, ""),
     ("billion-laughs-study", "study", LAUGHS + GOOD_STUDY, 6, ""),
-    ("deep-flow-nesting", "model", FAULT_MODEL + "description2: " + "[" * 100_000 + "]" * 100_000 + "\n", 15, ""),
-    ("deep-block-nesting", "study", GOOD_STUDY + "set:\n" + "".join("  " * (k + 1) + f"k{k}:\n" for k in range(200))
-     + "  " * 201 + "v: 1\n", 69, ""),
-    ("huge-integer", "study", GOOD_STUDY.replace("[1.0, 2.0]", "[" + "9" * 1_000_000 + "]"), 4,
-     "matrix.nodes.body.mass.0"),
+    (
+        "deep-flow-nesting",
+        "model",
+        FAULT_MODEL + "description2: " + "[" * 100_000 + "]" * 100_000 + "\n",
+        15,
+        "",
+    ),
+    (
+        "deep-block-nesting",
+        "study",
+        GOOD_STUDY
+        + "set:\n"
+        + "".join("  " * (k + 1) + f"k{k}:\n" for k in range(200))
+        + "  " * 201
+        + "v: 1\n",
+        69,
+        "",
+    ),
+    (
+        "huge-integer",
+        "study",
+        GOOD_STUDY.replace("[1.0, 2.0]", "[" + "9" * 1_000_000 + "]"),
+        4,
+        "matrix.nodes.body.mass.0",
+    ),
     ("float-overflow-to-inf", "model", _model("mass: 2.0}", "mass: 1.0e400}"), 6, "nodes.body.mass"),
-    ("nan-in-matrix", "study", GOOD_STUDY.replace("[1.0, 2.0]", "[1.0, .nan]"), 4, "matrix.nodes.body.mass.1"),
+    (
+        "nan-in-matrix",
+        "study",
+        GOOD_STUDY.replace("[1.0, 2.0]", "[1.0, .nan]"),
+        4,
+        "matrix.nodes.body.mass.1",
+    ),
     ("inf-in-set", "study", GOOD_STUDY + "set: {end_time: .inf}\n", 5, "set"),
-    ("minus-inf-in-model", "model", _model("stiffness: 2.0e4", "stiffness: -.inf"), 10,
-     "springs.spring.material.stiffness"),
+    (
+        "minus-inf-in-model",
+        "model",
+        _model("stiffness: 2.0e4", "stiffness: -.inf"),
+        10,
+        "springs.spring.material.stiffness",
+    ),
     ("document-over-20-MB", "model", FAULT_MODEL + "# " + "x" * (21 * 2**20) + "\n", None, ""),
-]  # fmt: skip
+]
 
 
 #: attacks whose regression would hang or fill memory: run in a subprocess with a timeout (the others in this process)
-MAY_HANG = {"billion-laughs-model", "billion-laughs-study", "deep-flow-nesting", "deep-block-nesting", "huge-integer",
-            "document-over-20-MB"}  # fmt: skip
+MAY_HANG = {
+    "billion-laughs-model",
+    "billion-laughs-study",
+    "deep-flow-nesting",
+    "deep-block-nesting",
+    "huge-integer",
+    "document-over-20-MB",
+}
 
 
-@pytest.mark.parametrize(("kind", "text", "line", "field"), [a[1:] for a in ATTACKS], ids=[a[0] for a in ATTACKS])
-def test_yaml_attack_is_refused_with_exit_2(tmp_path: Path, kind: str, text: str, line: int | None, field: str,
-                                           request: pytest.FixtureRequest) -> None:  # fmt: skip
+@pytest.mark.parametrize(
+    ("kind", "text", "line", "field"), [a[1:] for a in ATTACKS], ids=[a[0] for a in ATTACKS]
+)
+def test_yaml_attack_is_refused_with_exit_2(
+    tmp_path: Path, kind: str, text: str, line: int | None, field: str, request: pytest.FixtureRequest
+) -> None:
     (tmp_path / "models").mkdir()
     model = tmp_path / "models" / "fault-model.yaml"
     study = tmp_path / "study.yaml"
@@ -635,10 +754,18 @@ def test_yaml_attack_is_refused_with_exit_2(tmp_path: Path, kind: str, text: str
 
 def test_variant_bomb_is_refused_without_traceback(fault_dir: Path, tmp_path: Path) -> None:
     values = "[" + ", ".join(f"{1.0 + k / 100:.2f}" for k in range(100)) + "]"
-    axes = ["nodes.body.mass", "springs.spring.material.stiffness", "impact_velocity", "end_time",
-            "nodes.body.position.0", "initial_velocity.body.0"]  # fmt: skip
+    axes = [
+        "nodes.body.mass",
+        "springs.spring.material.stiffness",
+        "impact_velocity",
+        "end_time",
+        "nodes.body.position.0",
+        "initial_velocity.body.0",
+    ]
     study = fault_dir / "bomb.yaml"
-    study.write_text("name: bomb\nmodel: models/fault-model.yaml\nmatrix:\n" + "".join(f"  {a}: {values}\n" for a in axes))
+    study.write_text(
+        "name: bomb\nmodel: models/fault-model.yaml\nmatrix:\n" + "".join(f"  {a}: {values}\n" for a in axes)
+    )
     p = cli("run", study, "--dry-run")  # refused up front, naming the count and the limit
     assert p.returncode == 2 and "1,000,000,000,000 variants" in p.stderr, p.stderr
     assert_clean_message(p.stderr)

@@ -30,23 +30,34 @@ def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(
     from crashstudy.kernel import choice
 
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(crush_bounce(), sort_keys=False))
-    study = {"name": "pick", "model": str(tmp_path / "m.yaml"), "matrix": {"curves.plateau.scale": [0.8, 1.2],
-             "impact_velocity": [8.0, 10.0, 12.0]}}  # fmt: skip
+    study = {
+        "name": "pick",
+        "model": str(tmp_path / "m.yaml"),
+        "matrix": {"curves.plateau.scale": [0.8, 1.2], "impact_velocity": [8.0, 10.0, 12.0]},
+    }
     plan = load_study(study)
     assert plan.varying_curves == frozenset({-1 - plan.topology.curve_ids.index("plateau")})  # scaled only
     calls: list[str] = []
     real_generated, real_generic = generated.run_generated, runner_generic()
-    monkeypatch.setattr(generated, "run_generated", lambda *a, **k: calls.append("generated") or real_generated(*a, **k))
-    monkeypatch.setattr("crashstudy.kernel.compiled.run_compiled",
-                        lambda *a, **k: calls.append("generic") or real_generic(*a, **k))  # fmt: skip
-    monkeypatch.setattr(choice, "_LOADED", set())  # no kernel loaded yet: the choice does not depend on test order
+    monkeypatch.setattr(
+        generated, "run_generated", lambda *a, **k: calls.append("generated") or real_generated(*a, **k)
+    )
+    monkeypatch.setattr(
+        "crashstudy.kernel.compiled.run_compiled",
+        lambda *a, **k: calls.append("generic") or real_generic(*a, **k),
+    )
+    monkeypatch.setattr(
+        choice, "_LOADED", set()
+    )  # no kernel loaded yet: the choice does not depend on test order
     monkeypatch.setattr(choice, "generated_ready", lambda *a, **k: True)
     fast = run_chunk(plan, 0, plan.n_variants)
     monkeypatch.setattr(choice, "generated_ready", lambda *a, **k: False)
     monkeypatch.setattr(choice, "generic_ready", lambda: True)
     slow = run_chunk(plan, 0, plan.n_variants)
     monkeypatch.setattr(choice, "generic_ready", lambda: False)
-    monkeypatch.setattr(choice, "own_compile_running", lambda: True)  # the reference while this run's compile runs
+    monkeypatch.setattr(
+        choice, "own_compile_running", lambda: True
+    )  # the reference while this run's compile runs
     plain = run_chunk(plan, 0, plan.n_variants)
     assert calls == ["generated", "generic"]
     assert_bitwise(slow.out, fast.out)
@@ -68,15 +79,24 @@ def test_bad_kernel_environment_variable_is_an_input_error_before_anything_is_wr
 
     out = tmp_path / "res"
     env = dict(os.environ, CRASHSTUDY_KERNEL="fastest")
-    proc = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(HELICOPTER), "--output", str(out)],
-                          capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "-m", "crashstudy.cli", "simulate", str(HELICOPTER), "--output", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert proc.returncode == 2, proc.stderr
-    assert ("environment: CRASHSTUDY_KERNEL: expected reference, generic or generated (unset: the fastest kernel "
-            "that is ready), got 'fastest'") in proc.stderr
+    assert (
+        "environment: CRASHSTUDY_KERNEL: expected reference, generic or generated (unset: the fastest kernel "
+        "that is ready), got 'fastest'"
+    ) in proc.stderr
     assert "Traceback" not in proc.stderr and not out.exists()
 
 
-def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """``CRASHSTUDY_KERNEL`` decides the kernel of a run that leaves the choice open: ``generated`` sends
     it to the generated one, ``generic`` keeps it off even when that shape is compiled, ``reference``
     to NumPy; results are the reference's either way."""
@@ -84,8 +104,12 @@ def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(monkeypat
 
     calls: list[str] = []
     real_gen, real_generic = generated.run_generated, compiled.run_compiled
-    monkeypatch.setattr(generated, "run_generated", lambda *a, **k: calls.append("generated") or real_gen(*a, **k))
-    monkeypatch.setattr(compiled, "run_compiled", lambda *a, **k: calls.append("generic") or real_generic(*a, **k))
+    monkeypatch.setattr(
+        generated, "run_generated", lambda *a, **k: calls.append("generated") or real_gen(*a, **k)
+    )
+    monkeypatch.setattr(
+        compiled, "run_compiled", lambda *a, **k: calls.append("generic") or real_generic(*a, **k)
+    )
     ref, _, _ = run_model(mount_reversal(), kernel="reference")
     for env, expected in (("generated", "generated"), ("generic", "generic"), ("reference", "generic")):
         monkeypatch.setenv("CRASHSTUDY_KERNEL", env)

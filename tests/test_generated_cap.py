@@ -28,9 +28,18 @@ def chain(n: int) -> dict[str, Any]:
     springs = {}
     for i in range(1, n + 1):
         nodes[f"n{i}"] = {"position": [0.01 * i], "mass": 1.0}
-        springs[f"s{i}"] = {"nodes": [f"n{i - 1}", f"n{i}"], "material": {"type": "linear_elastic", "stiffness": 1e6}}
-    return {"name": f"chain{n}", "nodes": nodes, "springs": springs, "initial_velocity": {f"n{n}": [-1.0]},
-            "end_time": 0.01, "output": {"histories": "none"}}  # fmt: skip
+        springs[f"s{i}"] = {
+            "nodes": [f"n{i - 1}", f"n{i}"],
+            "material": {"type": "linear_elastic", "stiffness": 1e6},
+        }
+    return {
+        "name": f"chain{n}",
+        "nodes": nodes,
+        "springs": springs,
+        "initial_velocity": {f"n{n}": [-1.0]},
+        "end_time": 0.01,
+        "output": {"histories": "none"},
+    }
 
 
 def test_a_model_above_the_cap_gets_the_generic_kernel_even_when_the_generated_one_is_named() -> None:
@@ -38,7 +47,11 @@ def test_a_model_above_the_cap_gets_the_generic_kernel_even_when_the_generated_o
     above, _ = model_batch(chain(MAX_GENERATED_SPRINGS + 1))
     assert generated.unsupported(at) is None
     why = generated.unsupported(above)
-    assert why is not None and f"{MAX_GENERATED_SPRINGS + 1} springs" in why and str(MAX_GENERATED_SPRINGS) in why
+    assert (
+        why is not None
+        and f"{MAX_GENERATED_SPRINGS + 1} springs" in why
+        and str(MAX_GENERATED_SPRINGS) in why
+    )
     assert choice.pick(above, (), None, kernel="generated") == "generic"
     assert choice.pick(at, (), None, kernel="generated") == "generated"
 
@@ -51,8 +64,10 @@ def test_a_run_that_names_the_generated_kernel_for_a_large_model_says_which_kern
     monkeypatch.setenv("CRASHSTUDY_KERNEL", "generated")
     done = run_cli("simulate", str(model), "-o", str(tmp_path / "out"))
     assert done.returncode == 0, done.stderr
-    assert (f"note: the generic kernel runs this model, not the generated one: the model has "
-            f"{MAX_GENERATED_SPRINGS + 1} springs") in done.stderr  # fmt: skip
+    assert (
+        f"note: the generic kernel runs this model, not the generated one: the model has "
+        f"{MAX_GENERATED_SPRINGS + 1} springs"
+    ) in done.stderr
     assert "status ok" in done.stdout + done.stderr
 
 
@@ -64,7 +79,9 @@ def _measured() -> list[tuple[int, float]]:
 
 
 @pytest.mark.parametrize("springs, measured", _measured())
-def test_the_compile_estimate_follows_the_measured_growth_with_the_springs(springs: int, measured: float) -> None:
+def test_the_compile_estimate_follows_the_measured_growth_with_the_springs(
+    springs: int, measured: float
+) -> None:
     material = model_batch(chain(springs))[0].material
     estimate = choice.generated_compile_seconds(np.full_like(material, material[0]), 0)
     assert measured / 2 <= estimate <= measured * 2, (springs, estimate, measured)

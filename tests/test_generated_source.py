@@ -16,13 +16,19 @@ GOLDEN = Path(__file__).parent / "golden" / "two_spring_kernel.py"
 TWO_SPRINGS = {  # a bumper on a crush curve against a wall, the body behind it on a linear rail
     "name": "two-springs",
     "curves": {"crush": {"x": [-0.3, -0.05, 0.0, 0.1], "y": [-6.0e4, -4.0e4, 0.0, 1.0e4]}},
-    "nodes": {"wall": {"position": [0.0], "fixed": True}, "bumper": {"position": [0.5], "mass": 20.0},
-              "body": {"position": [1.5], "mass": 800.0}},
-    "springs": {"front": {"nodes": ["wall", "bumper"], "material": {"type": "nonlinear_elastic", "curve": "crush"}},
-                "rail": {"nodes": ["bumper", "body"], "material": {"type": "linear_elastic", "stiffness": 2.0e6}}},
-    "initial_velocity": {"bumper": [-10.0], "body": [-10.0]}, "end_time": 0.1,
+    "nodes": {
+        "wall": {"position": [0.0], "fixed": True},
+        "bumper": {"position": [0.5], "mass": 20.0},
+        "body": {"position": [1.5], "mass": 800.0},
+    },
+    "springs": {
+        "front": {"nodes": ["wall", "bumper"], "material": {"type": "nonlinear_elastic", "curve": "crush"}},
+        "rail": {"nodes": ["bumper", "body"], "material": {"type": "linear_elastic", "stiffness": 2.0e6}},
+    },
+    "initial_velocity": {"bumper": [-10.0], "body": [-10.0]},
+    "end_time": 0.1,
     "output": {"interval": 1.0e-3, "histories": ["spring_force", "kinetic_energy"]},
-}  # fmt: skip
+}
 
 
 def generated_source() -> str:
@@ -37,7 +43,8 @@ def generated_source() -> str:
 def test_generated_source_of_the_two_spring_model_is_the_golden_file() -> None:
     got = generated_source()
     assert got == GOLDEN.read_text(), (
-        "the generated source changed: bump GEN_VERSION and regenerate with python tests/test_generated_source.py")
+        "the generated source changed: bump GEN_VERSION and regenerate with python tests/test_generated_source.py"
+    )
     assert "# generated" not in got and "def run_blocks(" in got
 
 
@@ -54,7 +61,10 @@ EP_BESIDE_FACTOR_CURVE = {
     },
     "springs": {
         "ep": {"nodes": ["a", "b"], "material": EP},
-        "cr": {"nodes": ["b", "c"], "material": {"type": "crush", "loading": "k0", "unloading_stiffness": 2.0e5}},
+        "cr": {
+            "nodes": ["b", "c"],
+            "material": {"type": "crush", "loading": "k0", "unloading_stiffness": 2.0e5},
+        },
     },
     "initial_velocity": {"c": [-3.0]},
     "end_time": 0.05,

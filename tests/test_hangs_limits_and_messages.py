@@ -80,12 +80,33 @@ def test_a_scheduler_that_accepts_and_never_answers_exits_2_after_the_stated_tim
     study = write(tmp_path)
     # the command line with the connect timeout at 1 s (10 s by default); it hung for good before the fix:
     # the subprocess timeout (60 s) only stops a hang, the test asserts no time
-    code = ("import sys, crashstudy.run.dask_backend as d; d.CONNECT_TIMEOUT = 1.0; from crashstudy.cli.main import main; "
-            "sys.exit(main(sys.argv[1:]))")  # fmt: skip
-    p = subprocess.run([sys.executable, "-c", code, "run", str(study), "-o", str(tmp_path / "out"), "--scheduler",
-                        silent_listener, "--progress", "off"], capture_output=True, text=True, timeout=60)  # fmt: skip
-    assert_exit_2(p, f"--scheduler: cannot connect to a Dask scheduler at '{silent_listener}' (waited up to 1 s)",
-                  "accepted the connection but sent no Dask handshake")  # fmt: skip
+    code = (
+        "import sys, crashstudy.run.dask_backend as d; d.CONNECT_TIMEOUT = 1.0; from crashstudy.cli.main import main; "
+        "sys.exit(main(sys.argv[1:]))"
+    )
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            code,
+            "run",
+            str(study),
+            "-o",
+            str(tmp_path / "out"),
+            "--scheduler",
+            silent_listener,
+            "--progress",
+            "off",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert_exit_2(
+        p,
+        f"--scheduler: cannot connect to a Dask scheduler at '{silent_listener}' (waited up to 1 s)",
+        "accepted the connection but sent no Dask handshake",
+    )
     assert not (tmp_path / "out").exists()
 
 
@@ -101,8 +122,11 @@ def test_a_fifo_as_the_file_to_validate_is_refused_before_it_is_opened(tmp_path:
 def test_a_fifo_device_or_directory_as_model_path_is_named_as_what_it_is(tmp_path: Path, cli: Cli) -> None:
     os.mkfifo(tmp_path / "pipe.yaml")
     (tmp_path / "folder.yaml").mkdir()
-    cases = {"pipe.yaml": "not a regular file: it is a named pipe (FIFO)", "/dev/null": "a character device",
-             "folder.yaml": "is a directory, expected a YAML file"}  # fmt: skip
+    cases = {
+        "pipe.yaml": "not a regular file: it is a named pipe (FIFO)",
+        "/dev/null": "a character device",
+        "folder.yaml": "is a directory, expected a YAML file",
+    }
     for model, expect in cases.items():
         study = tmp_path / "study.yaml"
         study.write_text(STUDY.replace("model.yaml", model))
@@ -121,14 +145,18 @@ def chain_model(n: int) -> str:
     lines = ["name: chain", "nodes:", "  n0: {position: [0.0], fixed: true}"]
     lines += [f"  n{i}: {{position: [{0.1 * i:.1f}], mass: 1.0}}" for i in range(1, n)]
     lines += ["springs:"]
-    lines += [f"  s{i}: {{nodes: [n{i - 1}, n{i}], material: {{type: linear_elastic, stiffness: 1000.0}}}}"
-              for i in range(1, n)]  # fmt: skip
+    lines += [
+        f"  s{i}: {{nodes: [n{i - 1}, n{i}], material: {{type: linear_elastic, stiffness: 1000.0}}}}"
+        for i in range(1, n)
+    ]
     return "\n".join(lines + ["end_time: 0.01", "output: {histories: none}"]) + "\n"
 
 
 def values_of(n: int) -> int:
     """Values in chain_model(n), counted by hand: each key, scalar, list and mapping is one."""
-    fixed = 1 + 2 + 2 + 2 + 2 + 4  # top mapping; name: v; nodes: {}; springs: {}; end_time: v; output: {histories: v}
+    fixed = (
+        1 + 2 + 2 + 2 + 2 + 4
+    )  # top mapping; name: v; nodes: {}; springs: {}; end_time: v; output: {histories: v}
     node = 7  # key, mapping, 'position', list, number, 'fixed' / 'mass', its value
     spring = 12  # key, mapping, 'nodes', list, 2 ids, 'material', mapping, 'type', value, 'stiffness', value
     return fixed + node * n + spring * (n - 1)
@@ -143,8 +171,11 @@ def test_a_chain_over_the_value_limit_is_refused_naming_the_limit_and_how_to_rai
     monkeypatch.setenv("CRASHSTUDY_MAX_VALUES", "100000")
     assert values_of(n) == 114_001  # 19 per node and its spring: over 100,000
     p = cli("validate", tmp_path / "chain.yaml")
-    assert_exit_2(p, "document too large: more than 100,000 values", "set the environment variable "
-                  "CRASHSTUDY_MAX_VALUES to read more")  # fmt: skip
+    assert_exit_2(
+        p,
+        "document too large: more than 100,000 values",
+        "set the environment variable CRASHSTUDY_MAX_VALUES to read more",
+    )
     assert "alias bomb" not in p.stderr  # was: "refusing a possible alias bomb" for a plain model
     monkeypatch.setenv("CRASHSTUDY_MAX_VALUES", str(values_of(n)))  # the limit is inclusive and exact
     doc = yamlio.load_yaml(tmp_path / "chain.yaml")
@@ -171,8 +202,9 @@ def test_a_document_with_far_more_values_than_the_limit_is_refused_before_it_is_
     assert composed == []
 
 
-def test_validate_parses_a_big_study_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                          capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_validate_parses_a_big_study_once(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     from crashstudy.cli.main import main
 
     masses = [1.0 + 1e-4 * i for i in range(20_000)]  # 20,000 variants; before: parsed 3 times by validate
@@ -187,14 +219,18 @@ def test_validate_parses_a_big_study_once(tmp_path: Path, monkeypatch: pytest.Mo
     np.testing.assert_array_equal(plan.axes[0].values, masses)
 
 
-def test_only_the_shown_unknown_keys_get_a_did_you_mean_hint(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_only_the_shown_unknown_keys_get_a_did_you_mean_hint(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     import difflib
 
     from crashstudy.schema import report
 
     calls: list[str] = []
     real = difflib.get_close_matches
-    monkeypatch.setattr(difflib, "get_close_matches", lambda word, *a, **k: calls.append(word) or real(word, *a, **k))
+    monkeypatch.setattr(
+        difflib, "get_close_matches", lambda word, *a, **k: calls.append(word) or real(word, *a, **k)
+    )
     keys = "\n".join(f"  k{i}: 1" for i in range(3000))
     study = write(tmp_path, f"name: s\nmodel: model.yaml\nset:\n{keys}\n")
     with pytest.raises(InputError) as info:
@@ -214,28 +250,42 @@ def test_a_model_of_1e14_element_steps_is_refused_by_validate_and_simulate(tmp_p
     # end_time 1e9 s at a fixed dt of 1e-5 s: 1e14 steps of its one spring (2.5 s of warm-up compile would
     # then be followed by about a day of computing)
     model = MODEL.replace("end_time: 0.05", "end_time: 1.0e9\ntime_step: {dt: 1.0e-5}").replace(
-        "histories: none", "histories: none, interval: 1.0e6")
+        "histories: none", "histories: none, interval: 1.0e6"
+    )
     (tmp_path / "long.yaml").write_text(model)
     for command in ("validate", "simulate"):
         p = cli(command, tmp_path / "long.yaml", *(("-o", tmp_path / "out") if command == "simulate" else ()))
-        assert_exit_2(p, "long.yaml:10: end_time: the run would take about 1e+14 element-steps", "1.16 days",
-                      "at most 1e+13", "CRASHSTUDY_MAX_WORK")  # 1e14 / 1e9 per s = 1e5 s = 1.157 days
+        assert_exit_2(
+            p,
+            "long.yaml:10: end_time: the run would take about 1e+14 element-steps",
+            "1.16 days",
+            "at most 1e+13",
+            "CRASHSTUDY_MAX_WORK",
+        )  # 1e14 / 1e9 per s = 1e5 s = 1.157 days
     assert not (tmp_path / "out").exists()
 
 
 def test_an_end_time_axis_up_to_1e12_is_refused_with_the_estimate_and_runs_with_the_limit_raised(
     tmp_path: Path, cli: Cli
 ) -> None:
-    study = write(tmp_path, "name: s\nmodel: model.yaml\nmatrix:\n  end_time: [0.05, 1.0, 1.0e12]\n"
-                  "  nodes.body.mass: [1.0, 2.0]\n")  # fmt: skip
+    study = write(
+        tmp_path,
+        "name: s\nmodel: model.yaml\nmatrix:\n  end_time: [0.05, 1.0, 1.0e12]\n"
+        "  nodes.body.mass: [1.0, 2.0]\n",
+    )
     plan_work = []
     for env in ({}, {"CRASHSTUDY_MAX_WORK": "1e20"}):
         with pytest.MonkeyPatch.context() as mp:  # read when the plan is made, not at import: in this process
             for name, value in env.items():
                 mp.setenv(name, value)
             plan_work.append(cli("validate", study))
-    assert_exit_2(plan_work[0], "study.yaml:4: matrix.end_time: the run would take about", "element-steps",
-                  "the longest variant (4) takes", "CRASHSTUDY_MAX_WORK")  # fmt: skip
+    assert_exit_2(
+        plan_work[0],
+        "study.yaml:4: matrix.end_time: the run would take about",
+        "element-steps",
+        "the longest variant (4) takes",
+        "CRASHSTUDY_MAX_WORK",
+    )
     assert plan_work[1].returncode == 0 and "about" in plan_work[1].stdout, plan_work[1].stderr
     # independent count (docs/solver.md): dt_crit = 0.99 * 2 / sqrt(2 K / m) (one spring, one mass), the default
     # tolerance 1e-3 takes dt = 2 sqrt(1e-3 / 2) dt_crit, made the largest step that divides the sampling
@@ -258,7 +308,9 @@ def test_an_end_time_axis_up_to_1e12_is_refused_with_the_estimate_and_runs_with_
 
 def test_a_small_study_reports_no_work_line_and_passes(tmp_path: Path, cli: Cli) -> None:
     p = cli("validate", write(tmp_path))
-    assert p.returncode == 0 and p.stdout == f"{tmp_path / 'study.yaml'}: valid study (2 variants)\n", p.stderr
+    assert p.returncode == 0 and p.stdout == f"{tmp_path / 'study.yaml'}: valid study (2 variants)\n", (
+        p.stderr
+    )
 
 
 # ------------------------------------------------------------------------------------------------
@@ -277,7 +329,9 @@ def test_a_path_too_long_is_invalid_input_not_a_failed_write(tmp_path: Path, cli
     assert_exit_2(cli("validate", study), "s2.yaml:2: model: cannot use the model path", "File name too long")
 
 
-def test_compare_names_metrics_that_failed_by_nan_instead_of_a_zero_rel_diff(tmp_path: Path, cli: Cli) -> None:
+def test_compare_names_metrics_that_failed_by_nan_instead_of_a_zero_rel_diff(
+    tmp_path: Path, cli: Cli
+) -> None:
     from crashstudy.run.runner import run_plan
 
     plan = load_study(write(tmp_path))
@@ -289,7 +343,9 @@ def test_compare_names_metrics_that_failed_by_nan_instead_of_a_zero_rel_diff(tmp
         if (new / name).exists():
             df = pd.read_parquet(new / name) if name.endswith("parquet") else pd.read_csv(new / name)
             df.loc[1, column] = np.nan
-            df.to_parquet(new / name, index=False) if name.endswith("parquet") else df.to_csv(new / name, index=False)
+            df.to_parquet(new / name, index=False) if name.endswith("parquet") else df.to_csv(
+                new / name, index=False
+            )
     reseal(new)  # as if the run had written the NaN (an edited file is refused: test_write_read.py)
     p = cli("compare", new, tmp_path / "base")
     assert p.returncode == 1, p.stdout + p.stderr
@@ -302,4 +358,6 @@ def test_summary_head_minus_one_exits_2(tmp_path: Path, cli: Cli) -> None:
     from crashstudy.run.runner import run_plan
 
     run_plan(load_study(write(tmp_path)), tmp_path / "out", progress=False)
-    assert_exit_2(cli("summary", tmp_path / "out", "--head", "-1"), "--head: expected 0 (every row) or a number")
+    assert_exit_2(
+        cli("summary", tmp_path / "out", "--head", "-1"), "--head: expected 0 (every row) or a number"
+    )

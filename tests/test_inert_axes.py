@@ -18,19 +18,29 @@ from helpers import run_cli, run_model
 
 MODEL = {
     "name": "anchor-and-body",
-    "nodes": {"anchor": {"position": [0.0], "fixed": True, "mass": 3.0},
-              "body": {"position": [1.0], "mass": 2.0}},
-    "springs": {"s": {"nodes": ["anchor", "body"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}}},
+    "nodes": {
+        "anchor": {"position": [0.0], "fixed": True, "mass": 3.0},
+        "body": {"position": [1.0], "mass": 2.0},
+    },
+    "springs": {
+        "s": {"nodes": ["anchor", "body"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}}
+    },
     "initial_velocity": {"body": [-1.0]},
     "end_time": 0.2,
     "output": {"histories": ["displacement", "spring_force"]},
-}  # fmt: skip
+}
 
 
 def _write(tmp_path: Path, matrix: dict[str, list[float]]) -> Path:
     (tmp_path / "model.yaml").write_text(yaml.safe_dump(MODEL))
     study = tmp_path / "study.yaml"
-    study.write_text(yaml.safe_dump({"name": "inert", "model": "model.yaml", "matrix": matrix}, sort_keys=False, default_flow_style=None))
+    study.write_text(
+        yaml.safe_dump(
+            {"name": "inert", "model": "model.yaml", "matrix": matrix},
+            sort_keys=False,
+            default_flow_style=None,
+        )
+    )
     return study
 
 
@@ -39,7 +49,9 @@ def test_the_mass_of_a_fixed_node_changes_no_history_and_its_axis_is_refused(tmp
     body, _, _ = run_model(MODEL, kernel="reference", variants={"nodes.body.mass": [2.0, 200.0]})
     for name in ("displacement", "spring_force"):
         h = anchor.histories[name]
-        assert np.array_equal(h[..., 0], h[..., 1]), name  # bit-identical: the anchor's mass enters no equation
+        assert np.array_equal(h[..., 0], h[..., 1]), (
+            name
+        )  # bit-identical: the anchor's mass enters no equation
     assert not np.allclose(body.histories["displacement"][..., 0], body.histories["displacement"][..., 1])
 
     study = _write(tmp_path, {"impact_velocity": [1.0, 2.0], "nodes.anchor.mass": [3.0, 300.0]})
@@ -56,12 +68,19 @@ def test_a_free_nodes_mass_axis_is_not_refused(tmp_path: Path) -> None:
     assert problems == []
 
 
-def test_a_matrix_axis_listing_a_value_twice_warns_with_the_count_of_repeated_variants(tmp_path: Path) -> None:
+def test_a_matrix_axis_listing_a_value_twice_warns_with_the_count_of_repeated_variants(
+    tmp_path: Path,
+) -> None:
     study = _write(tmp_path, {"nodes.body.mass": [2.0, 4.0, 2.0], "impact_velocity": [1.0, 2.0]})
     done = run_cli("validate", str(study))
     assert done.returncode == 0, done.stderr
     # 3 masses x 2 speeds: the third mass repeats the first, so 2 of the 6 variants repeat others
-    assert f"{study}:4: matrix.nodes.body.mass: lists 2 (2 times): 2 of the 6 variants repeat others" in done.stderr
+    assert (
+        f"{study}:4: matrix.nodes.body.mass: lists 2 (2 times): 2 of the 6 variants repeat others"
+        in done.stderr
+    )
     out, _, _ = run_model(MODEL, kernel="reference", variants={"nodes.body.mass": [2.0, 4.0, 2.0]})
     d = out.histories["displacement"]
-    assert np.array_equal(d[..., 0], d[..., 2]) and not np.array_equal(d[..., 0], d[..., 1])  # the warning's claim, checked
+    assert np.array_equal(d[..., 0], d[..., 2]) and not np.array_equal(
+        d[..., 0], d[..., 1]
+    )  # the warning's claim, checked

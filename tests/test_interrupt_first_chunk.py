@@ -67,8 +67,13 @@ def _study(tmp_path: Path, template: str, n_speeds: int) -> Path:
 
 
 def _fresh_env(tmp_path: Path) -> dict[str, str]:
-    return dict(os.environ, CRASHSTUDY_KERNEL_CACHE=str(tmp_path / "kernels"), NUMBA_CACHE_DIR=str(tmp_path / "numba"),
-                CRASHSTUDY_BACKGROUND_COMPILE="0", CRASHSTUDY_KERNEL="")  # fmt: skip
+    return dict(
+        os.environ,
+        CRASHSTUDY_KERNEL_CACHE=str(tmp_path / "kernels"),
+        NUMBA_CACHE_DIR=str(tmp_path / "numba"),
+        CRASHSTUDY_BACKGROUND_COMPILE="0",
+        CRASHSTUDY_KERNEL="",
+    )
 
 
 def _default_sigint() -> None:
@@ -80,18 +85,26 @@ def _cli(*args: str | Path) -> list[str]:
     return [sys.executable, "-m", "crashstudy.cli", *map(str, args)]
 
 
-def _interrupt_when_started(study: Path, out: Path, env: dict[str, str], wait: float,
-                            started: str = r"\b0/\d+ variants") -> tuple[int, str]:  # fmt: skip
+def _interrupt_when_started(
+    study: Path, out: Path, env: dict[str, str], wait: float, started: str = r"\b0/\d+ variants"
+) -> tuple[int, str]:
     """Start ``crashstudy run``, send SIGINT ``wait`` s after its stderr matches ``started`` (default: the
     progress line says ``0/N variants``, the chunks have started), return (exit code, stderr)."""
     err_path = out.parent / "stderr.txt"
     with open(err_path, "w") as err:
-        proc = subprocess.Popen(_cli("run", study, "-o", out, "--progress", "on"), env=env, stdout=subprocess.DEVNULL,
-                                stderr=err, preexec_fn=_default_sigint)  # fmt: skip
+        proc = subprocess.Popen(
+            _cli("run", study, "-o", out, "--progress", "on"),
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=err,
+            preexec_fn=_default_sigint,
+        )
         t0 = time.monotonic()
         while not re.search(started, err_path.read_text()):
             if proc.poll() is not None:
-                pytest.fail(f"the run ended (exit {proc.returncode}) before it started:\n{err_path.read_text()}")
+                pytest.fail(
+                    f"the run ended (exit {proc.returncode}) before it started:\n{err_path.read_text()}"
+                )
             if time.monotonic() - t0 > 240:
                 proc.kill()
                 pytest.fail("the run did not start its chunks within 240 s")
@@ -116,7 +129,9 @@ def _done(out: Path) -> int:
 def _kernel_in_cache(numba_dir: Path) -> bool:
     """Whether numba's cache holds the index of a compiled kernel (generic or generated; the index is
     written after the compiled code)."""
-    return any(p.name.startswith("compiled._run") or ".run_blocks-" in p.name for p in numba_dir.rglob("*.nbi"))
+    return any(
+        p.name.startswith("compiled._run") or ".run_blocks-" in p.name for p in numba_dir.rglob("*.nbi")
+    )
 
 
 def _lock_free(kernels: Path) -> bool:
@@ -129,8 +144,13 @@ def _resume_and_check(study: Path, out: Path, n: int) -> None:
     """``--resume`` (on the generic kernel of the test session's cache: the kernel does not change the
     values) computes all ``n`` variants; a few equal a fresh computation of them here."""
     env = dict(os.environ, CRASHSTUDY_KERNEL="generic", CRASHSTUDY_BACKGROUND_COMPILE="0")
-    p = subprocess.run(_cli("run", study, "-o", out, "--resume", "--progress", "off"), env=env, capture_output=True,
-                       text=True, timeout=600)  # fmt: skip
+    p = subprocess.run(
+        _cli("run", study, "-o", out, "--resume", "--progress", "off"),
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stderr
     assert f"({n} variants computed" in p.stdout, p.stdout
     assert not (out / "results.nc.partial").exists()
@@ -139,7 +159,9 @@ def _resume_and_check(study: Path, out: Path, n: int) -> None:
         assert ds.sizes["variant"] == n
         assert int(np.count_nonzero(ds["status"].values == 0)) == n  # 0: ok (flag_meanings)
         for lo in (0, n // 2, n - 3):
-            ref = run_chunk(plan, lo, lo + 3, kernel="generic")  # a fresh computation (bitwise the reference's)
+            ref = run_chunk(
+                plan, lo, lo + 3, kernel="generic"
+            )  # a fresh computation (bitwise the reference's)
             got = ds["peak_force"].isel(variant=slice(lo, lo + 3)).values
             np.testing.assert_allclose(got, ref.out.peak_force.T, rtol=1e-12, atol=0.0)
             got_a = ds["absorbed_energy"].isel(variant=slice(lo, lo + 3)).values
@@ -151,8 +173,13 @@ def test_ctrl_c_while_the_kernel_compiles_stops_the_compile_at_once(
 ) -> None:
     study = _study(tmp_path, BIG, 30)
     out = tmp_path / "out"
-    code, err = _interrupt_when_started(study, out, _fresh_env(tmp_path), wait=2.0,
-                                        started=r"note: compiling the generated kernel .*Ctrl-C stops")  # fmt: skip
+    code, err = _interrupt_when_started(
+        study,
+        out,
+        _fresh_env(tmp_path),
+        wait=2.0,
+        started=r"note: compiling the generated kernel .*Ctrl-C stops",
+    )
     assert code == 130, err
     assert "interrupted" in err and "--resume" in err and "Traceback" not in err, err
     assert sorted(p.name for p in out.iterdir()) == ["results.nc.partial"]

@@ -42,8 +42,9 @@ COUNTS: Counter[str] = Counter()
 HISTORIES = ["position", "velocity", "spring_force", "spring_elongation"]
 #: 15 examples per test in the default profile (derandomized: the same ones on every run), 100 new ones on
 #: every run under HYPOTHESIS_PROFILE=explore (strategies.examples)
-SETTINGS = settings(max_examples=examples(15, 100), deadline=None, database=None,
-                    suppress_health_check=list(HealthCheck))  # fmt: skip
+SETTINGS = settings(
+    max_examples=examples(15, 100), deadline=None, database=None, suppress_health_check=list(HealthCheck)
+)
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -81,14 +82,20 @@ def small_study(draw: st.DrawFn) -> tuple[dict[str, Any], dict[str, list[float]]
         unit = np.asarray(w["normal"]) / np.linalg.norm(w["normal"])
         k = int(np.argmax(np.abs(unit)))
         back = draw(st.lists(num(0.0, 0.5), min_size=n, max_size=n))
-        return model, {f"rigid_walls.0.point.{k}": [w["point"][k] - b * math.copysign(1.0, unit[k]) for b in back]}
+        return model, {
+            f"rigid_walls.0.point.{k}": [w["point"][k] - b * math.copysign(1.0, unit[k]) for b in back]
+        }
     path, values = draw(st.sampled_from(choices))
     return model, {path: draw(st.lists(values, min_size=n, max_size=n))}
 
 
 def _held_free(model: dict[str, Any], wall: dict[str, Any]) -> list[int]:
     ids = list(model["nodes"])
-    return [k for k, nid in enumerate(ids) if nid in wall.get("nodes", ids) and model["nodes"][nid].get("fixed") is not True]
+    return [
+        k
+        for k, nid in enumerate(ids)
+        if nid in wall.get("nodes", ids) and model["nodes"][nid].get("fixed") is not True
+    ]
 
 
 def check_invariants(model: dict[str, Any], variants: dict[str, list[float]]) -> None:
@@ -122,10 +129,19 @@ def check_invariants(model: dict[str, Any], variants: dict[str, list[float]]) ->
         F, e = h["spring_force"][:, :, v], h["spring_elongation"][:, :, v]
         for s, sp in enumerate(model["springs"].values()):  # 3. force of the sign of the elongation
             mat = sp["material"]
-            cid = mat.get("curve", mat.get("loading"))  # round-off is relative to the law's forces, not the run's
-            scale = max(np.abs(model["curves"][cid]["y"])) if cid else mat.get("stiffness", 0.0) * np.nanmax(np.abs(e[:, s]))
+            cid = mat.get(
+                "curve", mat.get("loading")
+            )  # round-off is relative to the law's forces, not the run's
+            scale = (
+                max(np.abs(model["curves"][cid]["y"]))
+                if cid
+                else mat.get("stiffness", 0.0) * np.nanmax(np.abs(e[:, s]))
+            )
             elastic = mat["type"] in ("linear_elastic", "nonlinear_elastic") or (
-                mat["type"] == "general_nonlinear" and "tension_yield" not in mat and "compression_yield" not in mat)
+                mat["type"] == "general_nonlinear"
+                and "tension_yield" not in mat
+                and "compression_yield" not in mat
+            )
             if elastic:
                 # within the curve's points: beyond them the law extrapolates the end segment, which may
                 # cross zero (a warned, documented extrapolation: results' past_curve_end, docs/format.md)
@@ -143,7 +159,9 @@ def check_invariants(model: dict[str, Any], variants: dict[str, list[float]]) ->
 
 @SETTINGS
 @given(small_study())
-def test_invariants_hold_on_random_models_and_studies(case: tuple[dict[str, Any], dict[str, list[float]]]) -> None:
+def test_invariants_hold_on_random_models_and_studies(
+    case: tuple[dict[str, Any], dict[str, list[float]]],
+) -> None:
     model, variants = case
     COUNTS["studies" if variants else "models"] += 1
     check_invariants(model, variants)
@@ -161,12 +179,25 @@ def crush_stop(draw: st.DrawFn) -> dict[str, Any]:
     mass = draw(num(0.5, 50.0))
     v0 = math.sqrt(2 * draw(num(0.05, 0.9)) * work / mass)  # stops before the curve's first point
     end = 10.0 * abs(xs[0]) / v0
-    return {"name": "crush-stop", "units": "SI", "curves": {"c": curve},
-            "nodes": {"base": {"position": [0.0], "fixed": True}, "m": {"position": [1.0], "mass": round(mass, 4)}},
-            "springs": {"s": {"nodes": ["base", "m"], "material": {"type": "crush", "loading": "c",
-                                                                  "unloading_stiffness": 2 * kmax}}},
-            "initial_velocity": {"m": [-v0]}, "end_time": end, "time_step": {"safety_factor": 0.5},
-            "output": {"histories": ["velocity"], "interval": end / 400}}  # fmt: skip
+    return {
+        "name": "crush-stop",
+        "units": "SI",
+        "curves": {"c": curve},
+        "nodes": {
+            "base": {"position": [0.0], "fixed": True},
+            "m": {"position": [1.0], "mass": round(mass, 4)},
+        },
+        "springs": {
+            "s": {
+                "nodes": ["base", "m"],
+                "material": {"type": "crush", "loading": "c", "unloading_stiffness": 2 * kmax},
+            }
+        },
+        "initial_velocity": {"m": [-v0]},
+        "end_time": end,
+        "time_step": {"safety_factor": 0.5},
+        "output": {"histories": ["velocity"], "interval": end / 400},
+    }
 
 
 @SETTINGS
@@ -179,7 +210,11 @@ def test_a_mass_stopped_over_a_crush_d_peaks_at_least_at_v0_squared_over_2d(mode
     v0, d = -model["initial_velocity"]["m"][0], float(out.max_crush[0, 0])
     bound = v0**2 / (2 * d)
     # the discrete work of the crush force equals KE0 to the energy balance's 1e-3
-    assert out.peak_acceleration[1, 0] >= bound * (1 - 1e-3), (float(out.peak_acceleration[1, 0]), bound, dump(model))
+    assert out.peak_acceleration[1, 0] >= bound * (1 - 1e-3), (
+        float(out.peak_acceleration[1, 0]),
+        bound,
+        dump(model),
+    )
     COUNTS["crush_stops_checked"] += 1
 
 

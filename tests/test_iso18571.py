@@ -34,8 +34,16 @@ def test_scores_match_objective_rating_metrics(name: str) -> None:
         assert abs(float(got[score][0]) - ref[score]) <= TOL, (score, float(got[score][0]), ref[score])
 
 
-LIVE = ["scaled_1.3", "shift_-3ms", "stretch_0.8_scale_1.2", "noise_10pct", "sign_flip", "damped_freq",
-        "displacement", "near_linear_ramps"]  # fmt: skip
+LIVE = [
+    "scaled_1.3",
+    "shift_-3ms",
+    "stretch_0.8_scale_1.2",
+    "noise_10pct",
+    "sign_flip",
+    "damped_freq",
+    "displacement",
+    "near_linear_ramps",
+]
 
 
 def test_scores_match_the_installed_package() -> None:
@@ -47,12 +55,20 @@ def test_scores_match_the_installed_package() -> None:
         test, model = all_pairs[name]
         t = np.arange(len(test)) * 1e-4
         iso = rating.ISO18571(np.column_stack([t, test]), np.column_stack([t, model]))
-        ref = {"R": iso.overall_rating(-1), "Z": iso.corridor_rating(-1), "EP": iso.phase_rating(-1),
-               "EM": iso.magnitude_rating(-1), "ES": iso.slope_rating(-1)}  # fmt: skip
+        ref = {
+            "R": iso.overall_rating(-1),
+            "Z": iso.corridor_rating(-1),
+            "EP": iso.phase_rating(-1),
+            "EM": iso.magnitude_rating(-1),
+            "ES": iso.slope_rating(-1),
+        }
         got = rate(test, model[None, :])
         for score in SCORES:
             assert abs(float(got[score][0]) - ref[score]) <= TOL, (name, score)
-            assert abs(ref[score] - REFERENCE[name][score]) <= 1e-12, (name, score)  # the fixture is its output
+            assert abs(ref[score] - REFERENCE[name][score]) <= 1e-12, (
+                name,
+                score,
+            )  # the fixture is its output
 
 
 def test_one_call_rates_many_variants_as_each_alone() -> None:
@@ -69,7 +85,15 @@ def test_one_call_rates_many_variants_as_each_alone() -> None:
 
 def test_grades_follow_the_2014_sliding_scale() -> None:
     assert [grade(r) for r in (1.0, 0.9401, 0.94, 0.81, 0.80, 0.59, 0.58, 0.0)] == [
-        "excellent", "excellent", "good", "good", "fair", "fair", "poor", "poor"]  # fmt: skip
+        "excellent",
+        "excellent",
+        "good",
+        "good",
+        "fair",
+        "fair",
+        "poor",
+        "poor",
+    ]
     assert grade(float("nan")) == ""
 
 

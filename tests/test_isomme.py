@@ -20,9 +20,14 @@ from crashstudy.exchange.testcurve import read_curve
 
 FIX = Path(__file__).resolve().parent / "fixtures" / "isomme"
 PY = json.loads((FIX / "pyisomme_read.json").read_text(encoding="utf-8"))
-VARIANTS = {"utf8": FIX / "pyisomme/utf8/PYISO-1", "utf8bom": FIX / "pyisomme/utf8bom/PYISO-1/PYISO-1.mme",
-            "cp1252": FIX / "pyisomme/cp1252/PYISO-1", "latin1": FIX / "pyisomme/latin1/PYISO-1",
-            "crlf": FIX / "pyisomme/crlf/PYISO-1", "zip": FIX / "pyisomme/zip/PYISO-1.zip"}  # fmt: skip
+VARIANTS = {
+    "utf8": FIX / "pyisomme/utf8/PYISO-1",
+    "utf8bom": FIX / "pyisomme/utf8bom/PYISO-1/PYISO-1.mme",
+    "cp1252": FIX / "pyisomme/cp1252/PYISO-1",
+    "latin1": FIX / "pyisomme/latin1/PYISO-1",
+    "crlf": FIX / "pyisomme/crlf/PYISO-1",
+    "zip": FIX / "pyisomme/zip/PYISO-1.zip",
+}
 RTOL = 1e-12
 
 
@@ -36,7 +41,9 @@ def test_reads_what_pyisomme_read(variant: str) -> None:
     NaN, explicit time from the TIRS channel) equal to what pyisomme read from the same bytes."""
     assert PY["variants"][variant]["same_as_utf8"]
     test = read_test(VARIANTS[variant])
-    assert test.header["Laboratory name"] == PY["variants"][variant]["laboratory"] == "Prüfstand Köln (Ü-Halle)"
+    assert (
+        test.header["Laboratory name"] == PY["variants"][variant]["laboratory"] == "Prüfstand Köln (Ü-Halle)"
+    )
     assert sorted(test.codes.values()) == sorted(PY["utf8"]["channels"])
     for code, rec in PY["utf8"]["channels"].items():
         ch = test.find(code)
@@ -63,17 +70,22 @@ def test_novalue_and_explicit_time_present() -> None:
     assert (FIX / "pyisomme/utf8bom/PYISO-1/PYISO-1.mme").read_bytes().startswith(b"\xef\xbb\xbf")
 
 
-@pytest.mark.parametrize(("code", "quantity", "system", "factor", "tfactor"), [
-    ("11HEAD0000H3ACXA", "acceleration", "SI", 9.80665, 1.0),  # g -> m/s^2
-    ("11HEAD0000H3ACXA", "acceleration", "mm-ms-kg-kN", 9.80665e-3, 1e3),  # g -> mm/ms^2, s -> ms
-    ("10VEHCCG0000ACX0", "acceleration", "mm-s-t-N", 1e3, 1.0),  # m / s2 -> mm/s^2
-    ("10VEHCCG0000VEX0", "velocity", "SI", 1 / 3.6, 1.0),  # km/h -> m/s
-    ("11CHST0000H3VEX0", "velocity", "mm-ms-kg-kN", 1.0, 1e3),  # m/s = mm/ms
-    ("10VEHCCG0000DSX0", "displacement", "SI", 1e-3, 1.0),  # mm -> m
-    ("11FEMRLE00H3FOZB", "spring_force", "SI", 1e3, 1.0),  # kN -> N
-    ("10SEBE0000B3FO00", "spring_force", "mm-ms-kg-kN", 1.0, 1e3),  # kN = kN, explicit time
-])  # fmt: skip
-def test_units_converted_into_the_model(code: str, quantity: str, system: str, factor: float, tfactor: float) -> None:
+@pytest.mark.parametrize(
+    ("code", "quantity", "system", "factor", "tfactor"),
+    [
+        ("11HEAD0000H3ACXA", "acceleration", "SI", 9.80665, 1.0),  # g -> m/s^2
+        ("11HEAD0000H3ACXA", "acceleration", "mm-ms-kg-kN", 9.80665e-3, 1e3),  # g -> mm/ms^2, s -> ms
+        ("10VEHCCG0000ACX0", "acceleration", "mm-s-t-N", 1e3, 1.0),  # m / s2 -> mm/s^2
+        ("10VEHCCG0000VEX0", "velocity", "SI", 1 / 3.6, 1.0),  # km/h -> m/s
+        ("11CHST0000H3VEX0", "velocity", "mm-ms-kg-kN", 1.0, 1e3),  # m/s = mm/ms
+        ("10VEHCCG0000DSX0", "displacement", "SI", 1e-3, 1.0),  # mm -> m
+        ("11FEMRLE00H3FOZB", "spring_force", "SI", 1e3, 1.0),  # kN -> N
+        ("10SEBE0000B3FO00", "spring_force", "mm-ms-kg-kN", 1.0, 1e3),  # kN = kN, explicit time
+    ],
+)
+def test_units_converted_into_the_model(
+    code: str, quantity: str, system: str, factor: float, tfactor: float
+) -> None:
     """Hand-derived unit factors (closed form) on pyisomme's numbers."""
     rec = PY["utf8"]["channels"][code]
     c = read_curve(VARIANTS["zip"], channel=code, quantity=quantity, system=system)
@@ -83,7 +95,9 @@ def test_units_converted_into_the_model(code: str, quantity: str, system: str, f
 
 def test_wildcards_and_ambiguity() -> None:
     path = VARIANTS["cp1252"]
-    assert read_curve(path, channel="11HEAD??????ACX?", quantity="acceleration").label.endswith("11HEAD0000H3ACXA")
+    assert read_curve(path, channel="11HEAD??????ACX?", quantity="acceleration").label.endswith(
+        "11HEAD0000H3ACXA"
+    )
     with pytest.raises(IsoMmeError) as e:
         read_curve(path, channel="10VEHCCG0000????", quantity="acceleration")
     assert e.value.field == "channel" and "3 channels match" in str(e.value)
@@ -97,7 +111,9 @@ def test_wildcards_and_ambiguity() -> None:
 
 def test_unit_errors_and_override() -> None:
     path = VARIANTS["utf8"]
-    with pytest.raises(IsoMmeError, match="is a unit of velocity; the model's acceleration needs a unit of acceleration") as e:
+    with pytest.raises(
+        IsoMmeError, match="is a unit of velocity; the model's acceleration needs a unit of acceleration"
+    ) as e:
         read_curve(path, channel="10VEHCCG0000VEX0", quantity="acceleration")
     assert e.value.field == "unit"
     with pytest.raises(IsoMmeError, match="unknown unit 'furlong'"):
@@ -134,12 +150,23 @@ def ours_channels() -> list[OutChannel]:
     t = np.arange(50) * 2e-4
     acc = 200.0 * np.sin(np.pi * t / 0.01)
     acc[7] = np.nan
-    return [OutChannel("10VEHCCG0000ACX0", "cabin (acceleration x)", "m/(s*s)", 0.0, 2e-4, acc),
-            OutChannel("10VEHCCG0000ACXD", "cabin (acceleration x, CFC 60)", "m/(s*s)", 0.0, 2e-4, acc * 0.9,
-                       (("Channel frequency class", "60"),)),
-            OutChannel("10VEHCCG0000VEX0", "cabin (velocity x)", "m/s", 0.0, 2e-4, 15.0 - np.cumsum(acc) * 1e-4),
-            OutChannel("10VEHCCG0000DSX0", "cabin (displacement x)", "m", 0.0, 2e-4, t * 15.0 - t**2),
-            OutChannel("10SPRGCRASH00FO0", "crash-box (spring force)", "N", 0.0, 2e-4, -1.5e5 * np.sin(t * 300.0))]
+    return [
+        OutChannel("10VEHCCG0000ACX0", "cabin (acceleration x)", "m/(s*s)", 0.0, 2e-4, acc),
+        OutChannel(
+            "10VEHCCG0000ACXD",
+            "cabin (acceleration x, CFC 60)",
+            "m/(s*s)",
+            0.0,
+            2e-4,
+            acc * 0.9,
+            (("Channel frequency class", "60"),),
+        ),
+        OutChannel("10VEHCCG0000VEX0", "cabin (velocity x)", "m/s", 0.0, 2e-4, 15.0 - np.cumsum(acc) * 1e-4),
+        OutChannel("10VEHCCG0000DSX0", "cabin (displacement x)", "m", 0.0, 2e-4, t * 15.0 - t**2),
+        OutChannel(
+            "10SPRGCRASH00FO0", "crash-box (spring force)", "N", 0.0, 2e-4, -1.5e5 * np.sin(t * 300.0)
+        ),
+    ]
 
 
 def test_writer_fixture_is_current(tmp_path: Path) -> None:
@@ -161,6 +188,8 @@ def test_pyisomme_read_our_files() -> None:
         assert rec["unit"] == c.unit and rec["name"] == c.name
         assert (rec["t0"], rec["dt"], rec["n"]) == (c.t0, c.dt, len(c.values))
         np.testing.assert_allclose(_values(rec), c.values, rtol=1e-11, equal_nan=True)  # 12 digits written
-        np.testing.assert_allclose(rec["time"], c.t0 + c.dt * np.arange(len(c.values)), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(
+            rec["time"], c.t0 + c.dt * np.arange(len(c.values)), rtol=1e-12, atol=1e-15
+        )
         ours = read_test(FIX / "ours" / "crashstudy-7").find(c.code)
         np.testing.assert_allclose(ours.values, _values(rec), rtol=RTOL, equal_nan=True)

@@ -25,10 +25,15 @@ from crashstudy.arrays.batch import build_batch
 from crashstudy.kernel import cache, generated
 from helpers import model_plan
 
-MODEL = {"name": "cache-probe", "units": "SI",
-         "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
-         "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
-         "initial_velocity": {"b": [1.0]}, "end_time": 0.05, "output": {"histories": "none"}}  # fmt: skip
+MODEL = {
+    "name": "cache-probe",
+    "units": "SI",
+    "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+    "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
+    "initial_velocity": {"b": [1.0]},
+    "end_time": 0.05,
+    "output": {"histories": "none"},
+}
 
 
 class _Pwn:
@@ -89,8 +94,9 @@ def test_cache_of_another_user_is_skipped(tmp_path: Path) -> None:
     assert folder != other and len(said) == 1 and f"belongs to user id {owner}" in said[0]
 
 
-def test_unusable_home_reuses_one_private_folder_per_user_in_the_temp_folder(tmp_path: Path,
-                                                                            monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_unusable_home_reuses_one_private_folder_per_user_in_the_temp_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Before: every run made a fresh crashstudy-kernels-XXXX folder (~400 KB each, never removed, and its
     kernels never reused); now every run of this user takes crashstudy-kernels-<uid>."""
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
@@ -106,8 +112,9 @@ def test_unusable_home_reuses_one_private_folder_per_user_in_the_temp_folder(tmp
 
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="needs root to hand the folder to another user")
-def test_a_per_user_temp_folder_made_by_another_user_is_not_used_and_the_fresh_one_is_removed(tmp_path: Path
-                                                                                             ) -> None:  # fmt: skip
+def test_a_per_user_temp_folder_made_by_another_user_is_not_used_and_the_fresh_one_is_removed(
+    tmp_path: Path,
+) -> None:
     tmpdir = tmp_path / "tmp"
     tmpdir.mkdir()
     os.chmod(tmpdir, 0o1777)
@@ -119,8 +126,9 @@ def test_a_per_user_temp_folder_made_by_another_user_is_not_used_and_the_fresh_o
     env = {k: v for k, v in os.environ.items() if k not in ("CRASHSTUDY_KERNEL_CACHE", "NUMBA_CACHE_DIR")}
     env.update(HOME=str(blocker / "home"), TMPDIR=str(tmpdir))
     code = "from crashstudy.kernel import cache; print(cache.cache_dir())"
-    done = subprocess.run([sys.executable, "-W", "always", "-c", code], capture_output=True, text=True, env=env,
-                          timeout=120)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, "-W", "always", "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
     used = Path(done.stdout.strip())
     assert done.returncode == 0 and used.parent == tmpdir and used != taken, done.stderr
     assert "belongs to user id 65534" in done.stderr
@@ -141,8 +149,9 @@ def test_a_private_folder_inside_a_folder_others_may_write_is_not_private(tmp_pa
 
 
 @pytest.mark.parametrize("how", ["mode 0777", "owned by nobody"])
-def test_planted_index_in_a_shared_numba_cache_is_never_loaded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                               how: str) -> None:  # fmt: skip
+def test_planted_index_in_a_shared_numba_cache_is_never_loaded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, how: str
+) -> None:
     """Before: with NUMBA_CACHE_DIR a folder another user can write, numba unpickled the index planted
     there at the first call of a compiled function (the marker was written, exit 0, no warning)."""
     from numba.core import caching, config
@@ -165,24 +174,36 @@ def test_planted_index_in_a_shared_numba_cache_is_never_loaded(tmp_path: Path, m
         else:
             os.chown(where, 65534, -1)
     env = dict(os.environ, NUMBA_CACHE_DIR=str(shared), CRASHSTUDY_KERNEL_CACHE=str(tmp_path / "kernels"))
-    code = ("import crashstudy\nfrom crashstudy.kernel import cache, laws\ncache.cache_dir()\n"
-            "print(laws.linear_force(2.0, 3.0))")  # fmt: skip
-    done = subprocess.run([sys.executable, "-W", "always", "-c", code], capture_output=True, text=True, env=env,
-                          timeout=300)  # fmt: skip
+    code = (
+        "import crashstudy\nfrom crashstudy.kernel import cache, laws\ncache.cache_dir()\n"
+        "print(laws.linear_force(2.0, 3.0))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-W", "always", "-c", code], capture_output=True, text=True, env=env, timeout=300
+    )
     assert not marker.exists(), "a planted numba index was unpickled"
     assert done.returncode == 0 and done.stdout.strip() == "6.0", done.stderr
     assert f"numba cache {shared} (NUMBA_CACHE_DIR) not used" in done.stderr
     assert list((tmp_path / "kernels" / "numba").rglob("*.nbi")), "numba's cache moved into the kernel folder"
     model = tmp_path / "model.yaml"  # the command line says it on one line
     model.write_text(yaml.safe_dump(MODEL, sort_keys=False))
-    cli = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(model), "-o", str(tmp_path / "out")],
-                         capture_output=True, text=True, env=dict(env, CRASHSTUDY_KERNEL="reference"), timeout=300)  # fmt: skip
+    cli = subprocess.run(
+        [sys.executable, "-m", "crashstudy.cli", "simulate", str(model), "-o", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        env=dict(env, CRASHSTUDY_KERNEL="reference"),
+        timeout=300,
+    )
     assert cli.returncode == 0 and not marker.exists(), cli.stderr
     assert [line for line in cli.stderr.splitlines() if "NUMBA_CACHE_DIR" in line] == [
         f"warning: numba cache {shared} (NUMBA_CACHE_DIR) not used: "
-        + ("group or others may write into it (mode 0777)" if how == "mode 0777"
-           else f"it belongs to user id 65534, not to this user ({os.geteuid()})")
-        + f"; numba's compiled code goes to {tmp_path / 'kernels' / 'numba'}"]  # fmt: skip
+        + (
+            "group or others may write into it (mode 0777)"
+            if how == "mode 0777"
+            else f"it belongs to user id 65534, not to this user ({os.geteuid()})"
+        )
+        + f"; numba's compiled code goes to {tmp_path / 'kernels' / 'numba'}"
+    ]
 
 
 def test_planted_numba_index_in_the_old_shared_temp_folder_is_never_loaded(tmp_path: Path) -> None:
@@ -204,15 +225,22 @@ def test_planted_numba_index_in_the_old_shared_temp_folder_is_never_loaded(tmp_p
     marker = tmp_path / "pwned"
     tag = f"py{sys.version_info.major}{sys.version_info.minor}"
     for lineno in {deco + 1, first + 1}:
-        (planted / "__pycache__" / f"k_{key}.run_blocks-{lineno}.{tag}.nbi").write_bytes(pickle.dumps(_Pwn(marker)))
+        (planted / "__pycache__" / f"k_{key}.run_blocks-{lineno}.{tag}.nbi").write_bytes(
+            pickle.dumps(_Pwn(marker))
+        )
     model = tmp_path / "model.yaml"
     model.write_text(yaml.safe_dump(MODEL, sort_keys=False))
     blocker = tmp_path / "blocker"
     blocker.write_text("")
     env = {k: v for k, v in os.environ.items() if k != "CRASHSTUDY_KERNEL_CACHE"}
     env.update(HOME=str(blocker / "home"), TMPDIR=str(tmpdir), CRASHSTUDY_KERNEL="generated")
-    done = subprocess.run([sys.executable, "-m", "crashstudy.cli", "simulate", str(model), "-o", str(tmp_path / "out")],
-                          capture_output=True, text=True, env=env, timeout=600)  # fmt: skip
+    done = subprocess.run(
+        [sys.executable, "-m", "crashstudy.cli", "simulate", str(model), "-o", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
     assert not marker.exists(), "a planted numba index was unpickled"
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr and "warning: kernel cache" in done.stderr

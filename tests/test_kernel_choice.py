@@ -29,11 +29,18 @@ def _chain(n_springs: int, end_time: float, stiffness: float = 2.0e5) -> dict:
     springs = {}
     for k in range(1, n_springs + 1):
         nodes[f"n{k}"] = {"position": [0.1 * k], "mass": 1.0 + 0.25 * k}
-        springs[f"s{k}"] = {"nodes": [f"n{k - 1}", f"n{k}"],
-                            "material": {"type": "linear_elastic", "stiffness": stiffness * (1 + 0.1 * k)}}  # fmt: skip
-    return {"name": f"chain{n_springs}", "nodes": nodes, "springs": springs, "end_time": end_time,
-            "initial_velocity": {f"n{n_springs}": [-10.0]},
-            "output": {"histories": ["spring_force"]}}  # fmt: skip
+        springs[f"s{k}"] = {
+            "nodes": [f"n{k - 1}", f"n{k}"],
+            "material": {"type": "linear_elastic", "stiffness": stiffness * (1 + 0.1 * k)},
+        }
+    return {
+        "name": f"chain{n_springs}",
+        "nodes": nodes,
+        "springs": springs,
+        "end_time": end_time,
+        "initial_velocity": {f"n{n_springs}": [-10.0]},
+        "output": {"histories": ["spring_force"]},
+    }
 
 
 def _batch(model: dict, n: int):
@@ -60,7 +67,9 @@ def test_reference_time_model_matches_its_calibration_points() -> None:
     assert choice.reference_seconds(1, 8, 8000) == pytest.approx(1216e-6, rel=0.1)
 
 
-def test_a_tiny_run_takes_the_reference_even_when_nothing_is_compiled(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_tiny_run_takes_the_reference_even_when_nothing_is_compiled(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """One variant of 400 steps: expected reference time ~0.04 s, below loading any compiled kernel,
     so the reference runs whatever is compiled; its numbers equal the generic kernel's bitwise."""
     batch, plan = _batch(_chain(1, 0.02), 1)
@@ -68,12 +77,15 @@ def test_a_tiny_run_takes_the_reference_even_when_nothing_is_compiled(monkeypatc
     for ready in (False, True):
         monkeypatch.setattr(choice, "generic_ready", lambda r=ready: r)
         assert choice.pick(batch, plan.topology.histories, None) == "reference"
-    _bitwise(run_kernel(batch, plan.topology.histories, plan.n_out, "generic"),
-             run_kernel(batch, plan.topology.histories, plan.n_out))  # fmt: skip
+    _bitwise(
+        run_kernel(batch, plan.topology.histories, plan.n_out, "generic"),
+        run_kernel(batch, plan.topology.histories, plan.n_out),
+    )
 
 
-def test_a_long_run_compiles_the_quicker_kernel_only_when_that_beats_the_reference(monkeypatch: pytest.MonkeyPatch
-                                                                                   ) -> None:  # fmt: skip
+def test_a_long_run_compiles_the_quicker_kernel_only_when_that_beats_the_reference(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """With nothing compiled and no other process compiling, a chunk whose reference time exceeds a
     kernel's compile + run time goes to the kernel quicker to compile and run: this shape's generated
     one (3 linear springs: ~3 s against the generic kernel's 24 s), the generic one when the generated
@@ -87,7 +99,10 @@ def test_a_long_run_compiles_the_quicker_kernel_only_when_that_beats_the_referen
     monkeypatch.setattr(choice, "own_compile_running", lambda: False)
     short, plan = _batch(_chain(3, 0.2), 8)
     gen_cost = choice.generated_compile_seconds(short.material, 0)
-    assert gen_cost == pytest.approx(choice.GEN_BASE + 3 * choice.GEN_SPRING) and gen_cost < choice.GENERIC_COMPILE
+    assert (
+        gen_cost == pytest.approx(choice.GEN_BASE + 3 * choice.GEN_SPRING)
+        and gen_cost < choice.GENERIC_COMPILE
+    )
     t_short = choice.reference_seconds(float(short.n_steps.max()), 3, float(short.n_steps.sum()) * 3)
     assert choice.LOAD < t_short < gen_cost
     assert choice.pick(short, (), None) == "reference"
@@ -170,15 +185,18 @@ def test_background_compile_makes_the_generated_kernel_ready_and_its_numbers_are
     _bitwise(run_reference(batch, hist, plan.n_out), run_kernel(batch, hist, plan.n_out))
 
 
-def test_ctrl_c_stops_a_foreground_compile_and_kills_the_compiler(tmp_path: Path,
-                                                                  monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_ctrl_c_stops_a_foreground_compile_and_kills_the_compiler(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """``stop`` raising (what Ctrl-C does through crashstudy.interrupt) ends the wait with
     KeyboardInterrupt and the compiler process is killed: the shape never becomes compiled."""
     monkeypatch.setenv("CRASHSTUDY_KERNEL_CACHE", str(tmp_path / "kernels"))
     batch, plan = _batch(_chain(4, 0.2), 4)
     started: list[subprocess.Popen] = []
     real = choice.start_background
-    monkeypatch.setattr(choice, "start_background", lambda *a, **k: started.append(real(*a, **k)) or started[-1])
+    monkeypatch.setattr(
+        choice, "start_background", lambda *a, **k: started.append(real(*a, **k)) or started[-1]
+    )
     calls = []
 
     def stop() -> None:
@@ -226,12 +244,30 @@ def test_cli_run_of_a_small_study_on_empty_caches_compiles_nothing(tmp_path: Pat
     """The README's example study on empty kernel and numba caches, background compiles allowed: the run
     is short, so nothing is compiled (no kernel source, no numba cache file) and no note is printed;
     its peaks equal an in-process reference run of variant 0."""
-    env = dict(os.environ, HOME=str(tmp_path / "home"), NUMBA_CACHE_DIR=str(tmp_path / "numba"),
-               CRASHSTUDY_KERNEL_CACHE=str(tmp_path / "kernels"), CRASHSTUDY_BACKGROUND_COMPILE="1")  # fmt: skip
+    env = dict(
+        os.environ,
+        HOME=str(tmp_path / "home"),
+        NUMBA_CACHE_DIR=str(tmp_path / "numba"),
+        CRASHSTUDY_KERNEL_CACHE=str(tmp_path / "kernels"),
+        CRASHSTUDY_BACKGROUND_COMPILE="1",
+    )
     env.pop("CRASHSTUDY_KERNEL", None)
     out = tmp_path / "res"
-    proc = subprocess.run([sys.executable, "-m", "crashstudy.cli", "run", str(ROOT / "studies/subfloor-small.yaml"),
-                           "-o", str(out)], capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "crashstudy.cli",
+            "run",
+            str(ROOT / "studies/subfloor-small.yaml"),
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     assert "note:" not in proc.stderr
     assert not list((tmp_path / "numba").rglob("*.nbi")) and not list((tmp_path / "kernels").glob("k_*.py"))

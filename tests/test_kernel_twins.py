@@ -56,7 +56,9 @@ def _check_both_ways(ref: KernelOutput, batch: Any, plan: Any) -> None:
     intervals differ (their time steps do)."""
     for prefix, sign in (("fwd", 1.0), ("rev", -1.0)):
         springs = _springs(plan, prefix)
-        assert len(springs) == 5 and np.all(batch.sign[springs] == sign) and np.all(ref.peak_force[springs] > 0)
+        assert (
+            len(springs) == 5 and np.all(batch.sign[springs] == sign) and np.all(ref.peak_force[springs] > 0)
+        )
     assert np.all(ref.status == 0) and len(np.unique(batch.out_every)) > 1
 
 
@@ -85,7 +87,11 @@ def _check_full_twin_walls(ref: KernelOutput, batch: Any, plan: Any) -> None:
 
 def _check_penalty(ref: KernelOutput, batch: Any, plan: Any) -> None:
     _check_walls(ref, batch, plan)
-    assert np.all(batch.wall_stiffness[1] > 0) and np.all(ref.wall_impulse[1] == 0.0) and np.all(ref.peak_wall_force[1] > 0)
+    assert (
+        np.all(batch.wall_stiffness[1] > 0)
+        and np.all(ref.wall_impulse[1] == 0.0)
+        and np.all(ref.peak_wall_force[1] > 0)
+    )
 
 
 def _check_crushed(ref: KernelOutput, batch: Any, plan: Any) -> None:
@@ -142,7 +148,7 @@ CHECKS: dict[str, Callable[[KernelOutput, Any, Any], None]] = {
     "frontal-curve-and-mass-axes-lane-compaction": _check_frontal,
     "early-termination": _check_termination,
     **{f"v2-spring-features-and-rate-elastic-{dim}d": _check_v2_and_rate for dim in (1, 2)},
-}  # fmt: skip
+}
 
 
 def test_every_case_has_its_check() -> None:
@@ -159,7 +165,9 @@ def test_fast_kernels_bitwise_equal_to_reference(case: str) -> None:
     histories = plan.topology.histories
     ref = run_batch(batch, histories, plan.n_out, "reference", record=record)
     CHECKS[case](ref, batch, plan)
-    assert (ref.step_acceleration is not None and np.any(ref.step_acceleration != 0.0)) == (case in RECORD_CASES)
+    assert (ref.step_acceleration is not None and np.any(ref.step_acceleration != 0.0)) == (
+        case in RECORD_CASES
+    )
     for kernel in FAST:
         got = run_batch(batch, histories, plan.n_out, kernel, record=record)
         diff = output_differences(ref, got)
@@ -176,8 +184,12 @@ def test_ordered_run_spreads_each_variant_back_to_the_callers_columns() -> None:
     spread = np.array([2, 0, 2, 4, 1, 3])
     got, estimate = entry.run_ordered(batch, plan.topology.histories, plan.n_out, spread, "generic")
     for f in fields(KernelOutput):
-        if f.name != "histories" and not (getattr(got, f.name) is None is getattr(ref, f.name)):  # optional outputs
-            assert np.array_equal(getattr(got, f.name), getattr(ref, f.name)[..., spread], equal_nan=True), f.name
+        if f.name != "histories" and not (
+            getattr(got, f.name) is None is getattr(ref, f.name)
+        ):  # optional outputs
+            assert np.array_equal(getattr(got, f.name), getattr(ref, f.name)[..., spread], equal_nan=True), (
+                f.name
+            )
     for name, r in ref.histories.items():
         assert np.array_equal(got.histories[name], r[..., spread], equal_nan=True), name
     assert estimate.shape == (6,) and np.all(np.isnan(estimate))

@@ -65,12 +65,17 @@ def test_crush_spring_pulled_into_tension_reports_no_knot_of_the_tension_side() 
     the knot's 500 N exactly (relative 1e-15) although its samples stay >= 0.4% below it."""
     curve = {"x": [-1.0, 0.0, 0.01, 0.1], "y": [-1000.0, 0.0, 500.0, 0.0]}
     peaks = {}
-    for kind, material in (("crush", {"type": "crush", "loading": "c", "unloading_stiffness": 1.0e6}),
-                           ("elastic", {"type": "nonlinear_elastic", "curve": "c"})):  # fmt: skip
+    for kind, material in (
+        ("crush", {"type": "crush", "loading": "c", "unloading_stiffness": 1.0e6}),
+        ("elastic", {"type": "nonlinear_elastic", "curve": "c"}),
+    ):
         model = {
             "name": f"tension-{kind}",
             "curves": {"c": curve},
-            "nodes": {"ground": {"position": [0.0], "fixed": True}, "body": {"position": [1.0], "mass": 10.0}},
+            "nodes": {
+                "ground": {"position": [0.0], "fixed": True},
+                "body": {"position": [1.0], "mass": 10.0},
+            },
             "springs": {"s": {"nodes": ["ground", "body"], "material": material}},
             "initial_velocity": {"body": [3.0]},
             "end_time": 0.01,
@@ -90,19 +95,25 @@ def test_knot_flags_mark_the_local_maxima_of_the_curve_magnitude() -> None:
     side, the plateau can be passed over whole) is flagged; monotone curves, end knots and time curves
     are not."""
     model = dict(CRUSH_REBOUND)
-    model["curves"] = dict(CRUSH_REBOUND["curves"], plateau={"x": [-1.0, -0.1, -0.02, 0.0],
-                                                             "y": [-3000.0, -2000.0, -2000.0, 0.0]},
-                           pulse={"x": [0.0, 0.01, 0.02], "y": [0.0, 1.0, 0.0]})  # fmt: skip
-    model["springs"] = dict(CRUSH_REBOUND["springs"],
-                            pad={"nodes": ["barrier", "body"], "material": {"type": "nonlinear_elastic",
-                                                                            "curve": "plateau"}})  # fmt: skip
+    model["curves"] = dict(
+        CRUSH_REBOUND["curves"],
+        plateau={"x": [-1.0, -0.1, -0.02, 0.0], "y": [-3000.0, -2000.0, -2000.0, 0.0]},
+        pulse={"x": [0.0, 0.01, 0.02], "y": [0.0, 1.0, 0.0]},
+    )
+    model["springs"] = dict(
+        CRUSH_REBOUND["springs"],
+        pad={"nodes": ["barrier", "body"], "material": {"type": "nonlinear_elastic", "curve": "plateau"}},
+    )
     model["loads"] = [{"node": "occupant", "force": [10.0], "curve": "pulse"}]
     plan = model_plan(model)
     batch, _ = build_batch(plan.topology, plan.params(0, 1), plan.interval)
     off = plan.topology.curve_offsets
     ids = list(plan.topology.curve_ids)
-    expect = {"front": [0.0, 0.0, 0.0, -3.2e5, 0.0], "plateau": [0.0, 0.0, -2000.0, 0.0],
-              "pulse": [0.0, 0.0, 0.0]}  # fmt: skip
+    expect = {
+        "front": [0.0, 0.0, 0.0, -3.2e5, 0.0],
+        "plateau": [0.0, 0.0, -2000.0, 0.0],
+        "pulse": [0.0, 0.0, 0.0],
+    }
     for cid, want in expect.items():
         c = ids.index(cid)
         got = batch.knot_y[off[c] : off[c + 1], 0]
@@ -113,6 +124,7 @@ def test_knot_flags_mark_the_local_maxima_of_the_curve_magnitude() -> None:
 # --------------------------------------------------------------------------------------------------
 # crush-rebound (benchmarks/wp_models.py) against an independent hybrid scipy solution
 # --------------------------------------------------------------------------------------------------
+
 
 def _front_load(e: float) -> float:
     return min(0.0, float(np.interp(e, FRONT_X, FRONT_Y)))
@@ -159,8 +171,9 @@ def _crush_rebound_truth() -> dict[str, np.ndarray]:
             evs = [event(lambda t, y, e_sep=e_sep: y[0] - e_sep, 1.0 if st["mode"] == "contact" else -1.0)]
             if st["mode"] == "contact":
                 evs.append(event(lambda t, y: y[0] - st["emin"], -1.0))
-        sol = solve_ivp(rhs, (t, T_END), y, method="DOP853", rtol=1e-12, atol=1e-14, dense_output=True,
-                        events=evs)  # fmt: skip
+        sol = solve_ivp(
+            rhs, (t, T_END), y, method="DOP853", rtol=1e-12, atol=1e-14, dense_output=True, events=evs
+        )
         t1 = float(sol.t[-1])
         y1 = sol.y[:, -1]
         fired = [k for k, te in enumerate(sol.t_events) if len(te)]
@@ -173,9 +186,12 @@ def _crush_rebound_truth() -> dict[str, np.ndarray]:
             k = int(np.argmax(vals[:, q]))
             a, b = ts[max(k - 1, 0)], ts[min(k + 1, 400)]
             if b > a:
-                res = minimize_scalar(lambda tt, q=q, dense=sol.sol: -quantities(dense(tt))[q], bounds=(a, b),
-                                      method="bounded",
-                                      options={"xatol": 1e-15})  # fmt: skip
+                res = minimize_scalar(
+                    lambda tt, q=q, dense=sol.sol: -quantities(dense(tt))[q],
+                    bounds=(a, b),
+                    method="bounded",
+                    options={"xatol": 1e-15},
+                )
                 best[q] = max(best[q], vals[k, q], -float(res.fun))
         if fired:
             k = fired[0]

@@ -46,18 +46,20 @@ CURVES = {
     "soft": {"x": [-0.2, -0.05, 0.0, 0.05, 0.2], "y": [-800.0, -500.0, 0.0, 500.0, 800.0]},
     "stiff": {"x": [-0.2, 0.0, 0.1, 0.2], "y": [-4000.0, 0.0, 1500.0, 2500.0]},
     "pulse": {"x": [0.0, 0.01, 0.03], "y": [0.0, 1.0, 0.0]},
-}  # fmt: skip
+}
 
 
 @pytest.fixture(scope="module")
 def curves() -> tuple[Any, dict[str, int]]:
     """The curve arrays of a batch holding CURVES (one variant) and each curve's index."""
     model = {
-        "name": "law-curves", "curves": CURVES,
+        "name": "law-curves",
+        "curves": CURVES,
         "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
         "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 1.0}}},
-        "loads": [{"node": "b", "force": [1.0], "curve": "pulse"}], "end_time": 0.01,
-    }  # fmt: skip
+        "loads": [{"node": "b", "force": [1.0], "curve": "pulse"}],
+        "end_time": 0.01,
+    }
     b, _ = model_batch(model)
     return b, {cid: i for i, cid in enumerate(CURVES)}
 
@@ -84,12 +86,16 @@ def test_curve_at_and_time_curve_at_equal_their_twins(curves: tuple[Any, dict[st
     cx, cy, cds, cs0, off = _args(b)
     for name, c in idx.items():
         for e in rng.uniform(-0.4, 0.4, 50):
-            assert laws.curve_at(c, e, 0, cx, cy, cds, cs0, off) == twin.curve_eval(c, np.array([e]), cx, cy, cds, cs0,
-                                                                                   off)[0], name  # fmt: skip
+            assert (
+                laws.curve_at(c, e, 0, cx, cy, cds, cs0, off)
+                == twin.curve_eval(c, np.array([e]), cx, cy, cds, cs0, off)[0]
+            ), name
     c = idx["pulse"]
     for t in np.concatenate([rng.uniform(-0.01, 0.04, 50), [0.0, 0.03, 0.03 + 1e-12, -1e-12]]):
-        assert laws.time_curve_at(c, t, 0, cx, cy, cds, cs0, off) == twin.time_curve_eval(c, np.array([t]), cx, cy,
-                                                                                         cds, cs0, off)[0]  # fmt: skip
+        assert (
+            laws.time_curve_at(c, t, 0, cx, cy, cds, cs0, off)
+            == twin.time_curve_eval(c, np.array([t]), cx, cy, cds, cs0, off)[0]
+        )
 
 
 def test_curve_inverses_equal_their_twins(curves: tuple[Any, dict[str, int]]) -> None:
@@ -129,8 +135,9 @@ def test_elastoplastic_law_equals_its_twin_along_a_random_path() -> None:
 
 
 @pytest.mark.parametrize("yields", [(500.0, -2000.0), (np.inf, -np.inf), (800.0, -np.inf)])
-def test_general_law_and_reversal_equal_their_twin_along_a_random_path(curves: tuple[Any, dict[str, int]],
-                                                                        yields: tuple[float, float]) -> None:  # fmt: skip
+def test_general_law_and_reversal_equal_their_twin_along_a_random_path(
+    curves: tuple[Any, dict[str, int]], yields: tuple[float, float]
+) -> None:
     """Rules 1-3 (``general_law``) and rule 4 (``general_reverse``, when ``general_law`` flags a reversal)
     against ``materials.general_nonlinear``, with the state handed on from step to step."""
     b, idx = curves
@@ -144,15 +151,18 @@ def test_general_law_and_reversal_equal_their_twin_along_a_random_path(curves: t
         L = laws.curve_at(ca, e - s[5], 0, cx, cy, cds, cs0, off)
         Ut = laws.curve_at(cb, e - s[1], 0, cx, cy, cds, cs0, off)
         Uc = laws.curve_at(cb, e - s[3], 0, cx, cy, cds, cs0, off)
-        F, s[0], s[1], s[2], s[3], s[4], s[6], s[7], rev = laws.general_law(e, s[0], s[1], s[2], s[3], s[4], s[6],
-                                                                             s[7], L, Ut, Uc, yt, yc)  # fmt: skip
+        F, s[0], s[1], s[2], s[3], s[4], s[6], s[7], rev = laws.general_law(
+            e, s[0], s[1], s[2], s[3], s[4], s[6], s[7], L, Ut, Uc, yt, yc
+        )
         if rev:
             reversals += 1
             before = [float(v) for v in st[:, 0]]  # rule 4 starts from the state before the step
             F, s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7] = laws.general_reverse(
-                e, *before[:5], before[6], before[7], yt, yc, ca, cb, 0, cx, cy, cds, cs0, b.cs1, off)
-        want = twin.general_nonlinear(np.array([e]), st, ca, cb, np.array([yt]), np.array([yc]), cx, cy, cds, cs0,
-                                      b.cs1, off)[0]  # fmt: skip
+                e, *before[:5], before[6], before[7], yt, yc, ca, cb, 0, cx, cy, cds, cs0, b.cs1, off
+            )
+        want = twin.general_nonlinear(
+            np.array([e]), st, ca, cb, np.array([yt]), np.array([yc]), cx, cy, cds, cs0, b.cs1, off
+        )[0]
         assert F == want and s == [float(v) for v in st[:, 0]], e
     if np.isfinite(yt) and np.isfinite(yc):
         assert reversals > 0  # the path reaches rule 4
@@ -169,10 +179,18 @@ def test_rate_segment_fold_equals_the_rate_elastic_twin(curves: tuple[Any, dict[
     for e, r in zip(rng.uniform(-0.25, 0.25, 200), rng.uniform(-9.0, 9.0, 200), strict=True):
         F = laws.curve_at(rc[0], e, 0, cx, cy, cds, cs0, off)
         for k in range(len(rc) - 1):
-            F = laws.rate_segment(F, abs(r), rates[k, 0], rates[k + 1, 0],
-                                  laws.curve_at(rc[k], e, 0, cx, cy, cds, cs0, off),
-                                  laws.curve_at(rc[k + 1], e, 0, cx, cy, cds, cs0, off))  # fmt: skip
-        assert F == twin.rate_elastic(np.array([e]), np.array([r]), rc, rates, cx, cy, cds, cs0, off)[0], (e, r)
+            F = laws.rate_segment(
+                F,
+                abs(r),
+                rates[k, 0],
+                rates[k + 1, 0],
+                laws.curve_at(rc[k], e, 0, cx, cy, cds, cs0, off),
+                laws.curve_at(rc[k + 1], e, 0, cx, cy, cds, cs0, off),
+            )
+        assert F == twin.rate_elastic(np.array([e]), np.array([r]), rc, rates, cx, cy, cds, cs0, off)[0], (
+            e,
+            r,
+        )
 
 
 def test_small_laws_equal_their_twins() -> None:
@@ -182,11 +200,16 @@ def test_small_laws_equal_their_twins() -> None:
         a, bb, c, d, e = rng.normal(0.0, 1.0, 5)
         assert laws.linear_force(a, bb) == a * bb and laws.damper_force(a, bb) == a * bb
         assert laws.nonlinear_force(a) == a
-        assert laws.knot_peak(abs(a), bb, bb + abs(c), d, e) == knot_peak_np(np.array([abs(a)]), np.array([bb]),
-                                                                             np.array([bb + abs(c)]), np.array([d]),
-                                                                             np.array([e]))[0]  # fmt: skip
-        assert step_laws.wall_hold(a, bb, abs(c) + 0.1) == wall_hold_np(np.array([a]), np.array([bb]),
-                                                                   np.array([abs(c) + 0.1]))[0]  # fmt: skip
+        assert (
+            laws.knot_peak(abs(a), bb, bb + abs(c), d, e)
+            == knot_peak_np(
+                np.array([abs(a)]), np.array([bb]), np.array([bb + abs(c)]), np.array([d]), np.array([e])
+            )[0]
+        )
+        assert (
+            step_laws.wall_hold(a, bb, abs(c) + 0.1)
+            == wall_hold_np(np.array([a]), np.array([bb]), np.array([abs(c) + 0.1]))[0]
+        )
         fp, energy = wall_penalty_np(np.array([abs(a)]), np.array([bb]))
         assert step_laws.wall_penalty(abs(a), bb) == (fp[0], energy[0])
 
@@ -204,8 +227,13 @@ def test_energy_balance_and_instability_laws_equal_their_twins() -> None:
         limit = step_laws.unstable_limit(scale, wmax, floor)
         assert limit == unstable_limit_np(np.array([scale]), np.array([wmax]), np.array([floor]))[0]
         for b in (bal, limit, np.nextafter(limit, np.inf), 0.0, np.inf, np.nan):
-            assert step_laws.unstable(b, limit) == unstable_np(np.array([b]), np.array([limit]))[0], (b, limit)
-    assert step_laws.unstable(np.nan, 1.0) and step_laws.unstable(2.0, 1.0) and not step_laws.unstable(1.0, 1.0)
+            assert step_laws.unstable(b, limit) == unstable_np(np.array([b]), np.array([limit]))[0], (
+                b,
+                limit,
+            )
+    assert (
+        step_laws.unstable(np.nan, 1.0) and step_laws.unstable(2.0, 1.0) and not step_laws.unstable(1.0, 1.0)
+    )
 
 
 def test_prescribed_motion_laws_equal_their_twins() -> None:
@@ -228,9 +256,13 @@ def test_prescribed_motion_laws_equal_their_twins() -> None:
                 got = step_laws.prescribed_step(last, vn, vo, pa, dtn)
                 want = prescribed_step_np(np.array([last]), *arr(vn, vo, pa, dtn))
                 assert got == (want[0][0], want[1][0])
-        landed = x + dt * step_laws.prescribed_velocity(PM_CODES["displacement"], x0, scale, tc, x, vo, dt, dtn)
+        landed = x + dt * step_laws.prescribed_velocity(
+            PM_CODES["displacement"], x0, scale, tc, x, vo, dt, dtn
+        )
         assert abs(landed - (x0 + scale * tc)) <= 1e-12 * (1.0 + abs(x0 + scale * tc) + abs(x) / dt * dt)
-        assert step_laws.prescribed_velocity(PM_CODES["velocity"], x0, scale, tc, x, vo, dt, dtn) == scale * tc
+        assert (
+            step_laws.prescribed_velocity(PM_CODES["velocity"], x0, scale, tc, x, vo, dt, dtn) == scale * tc
+        )
 
 
 def test_stop_test_law_equals_its_twin() -> None:
@@ -246,7 +278,9 @@ def test_stop_test_law_equals_its_twin() -> None:
             got = step_laws.stop_test(kef, fsum, psum, ke, scale, wmax, opening)
             want = stop_test_np(*(np.array([x]) for x in (kef, fsum, psum, ke, scale, wmax, opening)))[0]
             assert got == want, (kef, fsum, psum, ke, scale, wmax, opening)
-    assert step_laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, True) and not step_laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, False)
+    assert step_laws.stop_test(0.1, 1.0, 10.0, 5.0, 10.0, 0.0, True) and not step_laws.stop_test(
+        0.1, 1.0, 10.0, 5.0, 10.0, 0.0, False
+    )
 
 
 def test_node_update_laws_equal_their_twins_and_integrate_constant_acceleration_exactly() -> None:

@@ -50,8 +50,10 @@ def test_a_speed_in_m_s_in_an_mm_s_t_n_model_warns_and_names_the_likely_unit(tmp
     rc, err = run("validate", str(model))
     assert rc == 0
     # 15.6 mm/s = 0.0156 m/s; read as m/s it is 15600 mm/s
-    assert (f"warning: {model}: initial velocity 15.6 mm/s is 0.0156 m/s, slower than a walking pace (1 m/s): did "
-            "you mean 15.6 m/s? In mm-s-t-N that is 15600 mm/s") in err  # fmt: skip
+    assert (
+        f"warning: {model}: initial velocity 15.6 mm/s is 0.0156 m/s, slower than a walking pace (1 m/s): did "
+        "you mean 15.6 m/s? In mm-s-t-N that is 15600 mm/s"
+    ) in err
     rc, err = run("simulate", str(model), "-o", str(tmp_path / "out"))
     assert rc == 0
     # KE 182 mJ stops within 0.1 mm on the 4e4 N/mm first segment: 3.8 kN on 1.5 t = 0.26 g
@@ -74,19 +76,27 @@ def test_a_bumper_test_at_4_km_h_does_not_warn(tmp_path: Path) -> None:
 def test_a_slow_impact_velocity_axis_value_warns_naming_the_axis(tmp_path: Path) -> None:
     (tmp_path / "m.yaml").write_text(SLOW.replace("[-15.6]", "[-15600.0]"), encoding="utf-8")
     study = tmp_path / "s.yaml"
-    study.write_text("name: s\nmodel: m.yaml\nmatrix:\n  impact_velocity: [0.0, 15.6, 15600.0]\n", encoding="utf-8")
+    study.write_text(
+        "name: s\nmodel: m.yaml\nmatrix:\n  impact_velocity: [0.0, 15.6, 15600.0]\n", encoding="utf-8"
+    )
     rc, err = run("validate", str(study))
     assert rc == 0
-    assert f"warning: {study}: impact_velocity value 15.6 mm/s is 0.0156 m/s, slower than a walking pace" in err, err
+    assert (
+        f"warning: {study}: impact_velocity value 15.6 mm/s is 0.0156 m/s, slower than a walking pace" in err
+    ), err
 
 
 def test_a_body_below_1_g_at_a_plausible_speed_names_forces_or_masses() -> None:
     speeds = [15600.0]  # mm/s: 15.6 m/s, a plausible crash speed
     got = peak_g_warnings("mm-s-t-N", "m1", 0.5, 3, speeds)
-    assert len(got) == 1 and "0.5 g of node 'm1'" in got[0] and "forces too small or masses too large" in got[0]
+    assert (
+        len(got) == 1 and "0.5 g of node 'm1'" in got[0] and "forces too small or masses too large" in got[0]
+    )
     assert peak_g_warnings("mm-s-t-N", "m1", 1.5, 3, speeds) == []
     assert peak_g_warnings("mm-s-t-N", "m1", 0.5, 3) == []  # no speeds: nothing known about the cause
-    assert peak_g_warnings("mm-s-t-N", "m1", 0.5, 3, speeds, prescribed=True) == []  # driven: not a crash pulse
+    assert (
+        peak_g_warnings("mm-s-t-N", "m1", 0.5, 3, speeds, prescribed=True) == []
+    )  # driven: not a crash pulse
 
 
 BODIES = """\
@@ -114,7 +124,8 @@ output: {histories: none}
 
 
 def test_results_carry_the_body_node_and_the_warning_after_a_run_reads_it_not_the_yaml(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The body is the heaviest node fixed in no direction and not driven: not the partly fixed 5 t rail,
     not the driven 3 t cart, but the 1 t body; the initial speeds are |(-3, 4)| = 5 and 1. The check after
     ``simulate`` takes them from the results' ``body`` attribute, never re-validating the stored YAML."""
@@ -124,12 +135,19 @@ def test_results_carry_the_body_node_and_the_warning_after_a_run_reads_it_not_th
     from crashstudy.results.attributes import body_facts
     from crashstudy.results.store import open_results
 
-    assert body_facts(_plan(BODIES)) == {"node": "body", "initial_speeds": [5.0, 1.0], "prescribed_motion": True}
+    assert body_facts(_plan(BODIES)) == {
+        "node": "body",
+        "initial_speeds": [5.0, 1.0],
+        "prescribed_motion": True,
+    }
     (tmp_path / "slow.yaml").write_text(SLOW, encoding="utf-8")
     assert run("simulate", str(tmp_path / "slow.yaml"), "-o", str(tmp_path / "out"))[0] == 0
     res = open_results(tmp_path / "out")
-    assert json.loads(res.dataset.attrs["body"]) == {"node": "m1", "initial_speeds": [15.6],
-                                                     "prescribed_motion": False}  # fmt: skip
+    assert json.loads(res.dataset.attrs["body"]) == {
+        "node": "m1",
+        "initial_speeds": [15.6],
+        "prescribed_motion": False,
+    }
 
     def refuse(*a: object, **k: object) -> None:
         raise AssertionError("the stored model was validated again")
@@ -139,7 +157,11 @@ def test_results_carry_the_body_node_and_the_warning_after_a_run_reads_it_not_th
     monkeypatch.setattr(cli_main, "_warn", said.extend)
     cli_main._after_run(res)  # 0.26 g: the low-g warning names the stored 15.6 mm/s as the likely cause
     res.close()
-    assert len(said) == 1 and "of node 'm1'" in said[0] and "likely cause: its initial velocity 15.6 mm/s" in said[0]
+    assert (
+        len(said) == 1
+        and "of node 'm1'" in said[0]
+        and "likely cause: its initial velocity 15.6 mm/s" in said[0]
+    )
 
 
 TWO_DOF = """\
@@ -165,12 +187,20 @@ def _plan(text: str):  # type: ignore[no-untyped-def]
 
 
 def test_the_first_natural_period_is_the_closed_form_of_one_and_two_masses() -> None:
-    one = _plan(TWO_DOF.format(end=0.1).replace("  tip: {position: [1.1], mass: 0.1}\n", "").replace(
-        "  stiff: {nodes: [body, tip], material: {type: linear_elastic, stiffness: 1.0e9}}\n", "").replace(
-        ", tip: [-5.0]", ""))  # fmt: skip
-    assert first_period(one.topology, one.base) == pytest.approx(2 * math.pi * math.sqrt(1000.0 / 1.0e5), rel=1e-12)
-    free = _plan(TWO_DOF.format(end=0.1).replace("base: {position: [0.0], fixed: true}",
-                                                 "base: {position: [0.0], mass: 500.0}"))  # fmt: skip
+    one = _plan(
+        TWO_DOF.format(end=0.1)
+        .replace("  tip: {position: [1.1], mass: 0.1}\n", "")
+        .replace("  stiff: {nodes: [body, tip], material: {type: linear_elastic, stiffness: 1.0e9}}\n", "")
+        .replace(", tip: [-5.0]", "")
+    )
+    assert first_period(one.topology, one.base) == pytest.approx(
+        2 * math.pi * math.sqrt(1000.0 / 1.0e5), rel=1e-12
+    )
+    free = _plan(
+        TWO_DOF.format(end=0.1).replace(
+            "base: {position: [0.0], fixed: true}", "base: {position: [0.0], mass: 500.0}"
+        )
+    )
     # three free masses on two springs: omega^2 are the eigenvalues of M^-1 K; here the soft pair dominates
     import numpy as np
 
@@ -188,7 +218,10 @@ def test_an_end_time_far_from_the_first_natural_period_warns(tmp_path: Path, end
     model.write_text(TWO_DOF.format(end=end), encoding="utf-8")
     rc, err = run("validate", str(model))
     assert rc == 0
-    assert f"times the model's first natural period (0.628 s, springs at their steepest slope): far {side}" in err, err
+    assert (
+        f"times the model's first natural period (0.628 s, springs at their steepest slope): far {side}"
+        in err
+    ), err
     model.write_text(TWO_DOF.format(end=1.0), encoding="utf-8")
     assert "natural period" not in run("validate", str(model))[1]
 

@@ -21,8 +21,20 @@ from crashstudy.vocabulary.materials import MATERIAL_CODES, MATERIALS, MaterialS
 
 def _code_name(row: MaterialSpec) -> str:
     """The vocabulary.codes constant that holds the row's code."""
-    names = [n for n in ("LINEAR", "NONLINEAR", "GENERAL", "CRUSH", "DAMPER", "ELASTOPLASTIC", "NONLINEAR_DAMPER",
-                         "RATE_ELASTIC") if getattr(codes, n, None) == row.code]  # fmt: skip
+    names = [
+        n
+        for n in (
+            "LINEAR",
+            "NONLINEAR",
+            "GENERAL",
+            "CRUSH",
+            "DAMPER",
+            "ELASTOPLASTIC",
+            "NONLINEAR_DAMPER",
+            "RATE_ELASTIC",
+        )
+        if getattr(codes, n, None) == row.code
+    ]
     assert len(names) == 1, f"{row.name}: code {row.code} is not exactly one vocabulary.codes constant"
     return names[0]
 
@@ -42,9 +54,13 @@ def test_schema_union_is_the_table() -> None:
         cls = getattr(model, m.schema_class)
         assert typing.get_args(cls.model_fields["type"].annotation) == (m.name,)
         for slot in m.slots:
-            assert slot.field in cls.model_fields, f"{m.name}: slot {slot.field} is no field of {m.schema_class}"
+            assert slot.field in cls.model_fields, (
+                f"{m.name}: slot {slot.field} is no field of {m.schema_class}"
+            )
         for role in m.curves:
-            assert role.field in cls.model_fields, f"{m.name}: curve {role.field} is no field of {m.schema_class}"
+            assert role.field in cls.model_fields, (
+                f"{m.name}: curve {role.field} is no field of {m.schema_class}"
+            )
 
 
 @pytest.mark.parametrize("row", MATERIALS, ids=lambda m: m.name)
@@ -60,12 +76,18 @@ def test_every_row_has_laws_twin_branches_and_a_twin_case(row: MaterialSpec) -> 
     const = _code_name(row)
     generic = inspect.getsource(generic_force) + inspect.getsource(compiled)
     assert f"kind == {const}" in generic, (
-        f"{row.name}: no branch in the generic kernel's force dispatch (generic_force.force, compiled._run)")
+        f"{row.name}: no branch in the generic kernel's force dispatch (generic_force.force, compiled._run)"
+    )
     emitted = inspect.getsource(gen_springs.pass_b_springs)
-    assert f"k == codes.{const}" in emitted or (const == "GENERAL" and "mat[s] == codes.GENERAL" in emitted), (
-        f"{row.name}: no branch in the generator's dispatch (gen_springs.pass_b_springs)")
-    assert f"kind == {const}" in inspect.getsource(reference._force), f"{row.name}: no branch in reference._force"
-    assert row.name in _twin_case_materials(), f"{row.name}: no case in the bitwise twin suite (tests/test_kernel_twins.py)"
+    assert f"k == codes.{const}" in emitted or (
+        const == "GENERAL" and "mat[s] == codes.GENERAL" in emitted
+    ), f"{row.name}: no branch in the generator's dispatch (gen_springs.pass_b_springs)"
+    assert f"kind == {const}" in inspect.getsource(reference._force), (
+        f"{row.name}: no branch in reference._force"
+    )
+    assert row.name in _twin_case_materials(), (
+        f"{row.name}: no case in the bitwise twin suite (tests/test_kernel_twins.py)"
+    )
 
 
 def _twin_case_materials() -> set[str]:

@@ -88,8 +88,9 @@ class GeneralNonlinearOracle:
     shift of the loading curve along the elongation axis (rule 4).
     """
 
-    def __init__(self, loading: PL, unloading: PL, tension_yield: float | None,
-                 compression_yield: float | None) -> None:  # fmt: skip
+    def __init__(
+        self, loading: PL, unloading: PL, tension_yield: float | None, compression_yield: float | None
+    ) -> None:
         self.L, self.U = loading, unloading
         self.initial_yield = {+1: tension_yield, -1: compression_yield}
         self.yielded = {+1: False, -1: False}
@@ -178,8 +179,14 @@ TABLE4_LOADING = {"x": [-0.3, -0.27, -0.225, -0.01, 0.0], "y": [-1.0e6, -5.0e5, 
 TABLE4_UNLOADING = {"x": [-0.006, 0.0, 0.006], "y": [-1.7e5, 0.0, 1.7e5]}  # m, N
 
 
-def driven_spring(material: dict[str, Any], curves: dict[str, dict[str, list[float]]], path: list[tuple[float, float]],
-                  dt: float, units: str = "SI", mass: float = 1.0) -> dict[str, Any]:  # fmt: skip
+def driven_spring(
+    material: dict[str, Any],
+    curves: dict[str, dict[str, list[float]]],
+    path: list[tuple[float, float]],
+    dt: float,
+    units: str = "SI",
+    mass: float = 1.0,
+) -> dict[str, Any]:
     """A 1-D spring a-b, ``a`` fixed, ``b``'s displacement following ``path`` [(t, u), ...]."""
     end = path[-1][0]
     t, u = zip(*path, (end + 0.5, path[-1][1]), strict=True)  # hold past end_time (time curves are 0 outside)
@@ -236,8 +243,9 @@ class Driven:
         return pytest.approx(value, abs=ORACLE_RTOL * self.peak)
 
 
-def gn(loading: dict[str, list[float]], unloading: dict[str, list[float]], ty: float | None,
-       yc: float | None) -> tuple[dict[str, Any], GeneralNonlinearOracle]:  # fmt: skip
+def gn(
+    loading: dict[str, list[float]], unloading: dict[str, list[float]], ty: float | None, yc: float | None
+) -> tuple[dict[str, Any], GeneralNonlinearOracle]:
     """A general_nonlinear material block (curves 'L', 'U') and its oracle."""
     mat: dict[str, Any] = {"type": "general_nonlinear", "loading": "L", "unloading": "U"}
     if ty is not None:
@@ -291,8 +299,17 @@ def test_compression_yield_with_table4_cabin_curves() -> None:
     plateau, stiffening, unloading on the shifted unloading line far into tension (never yields in
     tension), reloading back onto L beyond e*."""
     mat, oracle = gn(TABLE4_LOADING, TABLE4_UNLOADING, None, -150000.0)
-    path = [(0.0, 0.0), (0.005, -0.005), (0.008, -0.002), (0.156, -0.15), (0.256, -0.25), (0.266, -0.24),
-            (0.276, -0.23), (0.306, -0.26), (0.31, -0.26)]  # fmt: skip
+    path = [
+        (0.0, 0.0),
+        (0.005, -0.005),
+        (0.008, -0.002),
+        (0.156, -0.15),
+        (0.256, -0.25),
+        (0.266, -0.24),
+        (0.276, -0.23),
+        (0.306, -0.26),
+        (0.31, -0.26),
+    ]
     run = Driven(driven_spring(mat, {"L": TABLE4_LOADING, "U": TABLE4_UNLOADING}, path, 1.0e-4, "SI"))
     run.check_oracle(oracle)
     ku = 1.7e5 / 0.006
@@ -391,8 +408,17 @@ def test_crush_loads_springs_back_separates_and_recontacts_on_the_same_line() ->
     ku = 5.0e6
     mat = {"type": "crush", "loading": "L", "unloading_stiffness": ku}
     # 0.5 m/s: crush to -50 mm, spring back 1 mm, separate, pull to +50 mm, come back, crush to -100 mm
-    path = [(0.0, 0.0), (0.1, -0.05), (0.102, -0.049), (0.12, -0.04), (0.3, 0.05), (0.496, -0.048), (0.5, -0.05),
-            (0.6, -0.1), (0.8, 0.0)]  # fmt: skip
+    path = [
+        (0.0, 0.0),
+        (0.1, -0.05),
+        (0.102, -0.049),
+        (0.12, -0.04),
+        (0.3, 0.05),
+        (0.496, -0.048),
+        (0.5, -0.05),
+        (0.6, -0.1),
+        (0.8, 0.0),
+    ]
     run = Driven(driven_spring(mat, {"L": L}, path, 1.0e-4))
     oracle = CrushOracle(PL(**L), ku)
     run.check_oracle(oracle)

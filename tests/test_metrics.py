@@ -70,8 +70,9 @@ def test_closed_form_root_is_right() -> None:
 
 
 @pytest.mark.parametrize("units", ["SI", "mm-ms-kg-kN"])
-def test_half_sine_pulse_gives_closed_form_hic_peak_g_and_delta_v(units: str, tmp_path: Path,
-                                                                  capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_half_sine_pulse_gives_closed_form_hic_peak_g_and_delta_v(
+    units: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     model = tmp_path / "pulse.yaml"
     model.write_text(pulse_model(units))
     assert main(["simulate", str(model), "-o", str(tmp_path / "out")]) == 0, capsys.readouterr().err
@@ -94,16 +95,22 @@ def test_half_sine_pulse_gives_closed_form_hic_peak_g_and_delta_v(units: str, tm
 def test_summary_columns_are_the_criteria_of_the_asking_nodes_and_equal_the_dataset(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    metrics = ("  - {node: sled, cfc: 1000, criteria: [peak_g, hic15]}\n"
-               "  - {node: other, cfc: 60, criteria: [delta_v]}")  # fmt: skip
+    metrics = (
+        "  - {node: sled, cfc: 1000, criteria: [peak_g, hic15]}\n"
+        "  - {node: other, cfc: 60, criteria: [delta_v]}"
+    )
     model = tmp_path / "pulse.yaml"
     model.write_text(pulse_model(metrics=metrics))
     assert main(["simulate", str(model), "-o", str(tmp_path / "out")]) == 0, capsys.readouterr().err
     res = open_results(tmp_path / "out")
     df, ds = res.summary, res.dataset
     wanted = {"peak_g.sled", "hic15.sled", "hic15_t1.sled", "hic15_t2.sled", "delta_v.other"}
-    crit_cols = {c for c in df.columns if c.split(".")[0] in ("peak_g", "hic15", "hic15_t1", "hic15_t2", "delta_v",
-                                                              "hic36", "olc", "dri", "clip3ms")}  # fmt: skip
+    crit_cols = {
+        c
+        for c in df.columns
+        if c.split(".")[0]
+        in ("peak_g", "hic15", "hic15_t1", "hic15_t2", "delta_v", "hic36", "olc", "dri", "clip3ms")
+    }
     assert crit_cols == wanted
     for col in wanted:
         name, node = col.split(".")
@@ -133,12 +140,18 @@ def sweeps(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
     root = tmp_path_factory.mktemp("sweeps")
     out = {}
-    for name, factor, regression in (("baseline", 1.0, ""), ("bigger", 1.01, "regression:\n  hic15: {rtol: 0.05}\n")):
-        model = pulse_model(metrics="  - {node: sled, cfc: 1000, criteria: [peak_g, hic15, hic36]}", scale_a=factor)
+    for name, factor, regression in (
+        ("baseline", 1.0, ""),
+        ("bigger", 1.01, "regression:\n  hic15: {rtol: 0.05}\n"),
+    ):
+        model = pulse_model(
+            metrics="  - {node: sled, cfc: 1000, criteria: [peak_g, hic15, hic36]}", scale_a=factor
+        )
         (root / f"{name}.yaml").write_text(model)
         values = ", ".join(f"{s:g}" for s in SCALES)
         (root / f"{name}-study.yaml").write_text(
-            f"name: sweep\nmodel: {name}.yaml\nmatrix:\n  curves.pulse.scale: [{values}]\n{regression}")
+            f"name: sweep\nmodel: {name}.yaml\nmatrix:\n  curves.pulse.scale: [{values}]\n{regression}"
+        )
         run_study(root / f"{name}-study.yaml", root / name)
         out[name] = root / name
     return out
@@ -151,7 +164,9 @@ def test_study_sweep_criteria_follow_the_closed_form_over_the_axis(sweeps: dict[
         assert df["hic15.sled"][k] == pytest.approx(hic_closed_form(s * A_G, T_PULSE, 0.015)[0], rel=5e-3)
 
 
-def test_compare_flags_a_criterion_that_moved_and_the_regression_block_tolerates_it(sweeps: dict[str, Path]) -> None:
+def test_compare_flags_a_criterion_that_moved_and_the_regression_block_tolerates_it(
+    sweeps: dict[str, Path],
+) -> None:
     from crashstudy.analysis.compare import compare
 
     cmp = compare(sweeps["bigger"], sweeps["baseline"])
@@ -165,13 +180,18 @@ def test_compare_flags_a_criterion_that_moved_and_the_regression_block_tolerates
     assert (moved["new"] / moved["old"] - 1).to_numpy() == pytest.approx(1.01**2.5 - 1, rel=2e-3)
 
 
-def test_summary_sort_orders_by_a_criterion(sweeps: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
+def test_summary_sort_orders_by_a_criterion(
+    sweeps: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
     capsys.readouterr()
     assert main(["summary", str(sweeps["baseline"]), "--sort", "hic15.sled", "--columns", "hic15.sled"]) == 0
     lines = [ln.split() for ln in capsys.readouterr().out.splitlines()[2:]]
     assert [int(ln[1]) for ln in lines] == [2, 1, 0]  # the largest pulse (variant 2) has the largest HIC
     # a criterion's name alone picks its one node's column (not hic15_t1.sled, hic15_t2.sled)
-    assert main(["summary", str(sweeps["baseline"]), "--sort", "hic15", "--ascending", "--columns", "hic15"]) == 0
+    assert (
+        main(["summary", str(sweeps["baseline"]), "--sort", "hic15", "--ascending", "--columns", "hic15"])
+        == 0
+    )
     lines = [ln.split() for ln in capsys.readouterr().out.splitlines()[2:]]
     assert [int(ln[1]) for ln in lines] == [0, 1, 2]
 
@@ -179,8 +199,21 @@ def test_summary_sort_orders_by_a_criterion(sweeps: dict[str, Path], capsys: pyt
 def test_matrix_plot_draws_a_criterion_over_the_axis(sweeps: dict[str, Path], tmp_path: Path) -> None:
     from crashstudy.analysis.plot_matrix import plot_matrix
 
-    assert main(["plot", str(sweeps["baseline"]), "--kind", "matrix", "--quantity", "hic15.sled",
-                 "-o", str(tmp_path)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "plot",
+                str(sweeps["baseline"]),
+                "--kind",
+                "matrix",
+                "--quantity",
+                "hic15.sled",
+                "-o",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
     assert (tmp_path / "matrix-hic15.sled.png").stat().st_size > 0
     fig = plot_matrix(open_results(sweeps["baseline"]).summary, "hic15.sled")
     y = fig.axes[0].lines[0].get_ydata()
@@ -198,7 +231,9 @@ def test_pulse_plot_shows_the_filtered_pulse_in_g_over_ms_beside_the_raw_channel
     res = open_results(sweeps["baseline"])
     fig = plot_pulse(res.dataset)
     ax = fig.axes[0]
-    assert ax.get_xlabel() == "time [ms]" and ax.get_ylabel() == "deceleration along travel [g]"  # signed (item 23.10)
+    assert (
+        ax.get_xlabel() == "time [ms]" and ax.get_ylabel() == "deceleration along travel [g]"
+    )  # signed (item 23.10)
     for j, s in enumerate(SCALES):
         raw, filt = ax.lines[2 * j], ax.lines[2 * j + 1]
         assert max(raw.get_xdata()) == pytest.approx(30.0)  # end_time 0.03 s in ms
@@ -211,7 +246,9 @@ def _plan(tmp_path: Path, text: str, study: str = ""):
     from crashstudy.study.plan import load_study
 
     (tmp_path / "m.yaml").write_text(text)
-    (tmp_path / "s.yaml").write_text(study or "name: s\nmodel: m.yaml\nmatrix:\n  curves.pulse.scale: [0.5, 1.0, 0.75]\n")
+    (tmp_path / "s.yaml").write_text(
+        study or "name: s\nmodel: m.yaml\nmatrix:\n  curves.pulse.scale: [0.5, 1.0, 0.75]\n"
+    )
     return load_study(tmp_path / "s.yaml")
 
 
@@ -263,25 +300,40 @@ def test_a_chunk_whose_record_passes_the_budget_runs_in_batches_with_the_same_re
     assert calls == [1, 1, 1]
     for name, arr in whole.criteria.values.items():
         assert np.array_equal(arr, split.criteria.values[name], equal_nan=True), name
-    assert np.array_equal(whole.out.histories["filtered_acceleration"], split.out.histories["filtered_acceleration"],
-                          equal_nan=True)  # fmt: skip
+    assert np.array_equal(
+        whole.out.histories["filtered_acceleration"],
+        split.out.histories["filtered_acceleration"],
+        equal_nan=True,
+    )
     assert np.array_equal(whole.out.peak_acceleration, split.out.peak_acceleration)
 
 
-def test_bad_metrics_in_a_study_set_exit_2_at_their_own_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    study = ("name: s\nmodel: m.yaml\nmatrix:\n  curves.pulse.scale: [0.5, 1.0]\nset:\n  metrics:\n"
-             "    - {node: sled, criteria: [peak_g]}\n    - node: sledd\n      criteria: [hic15]\n"
-             "      direction: [1.0, 0.0]\n")  # fmt: skip
+def test_bad_metrics_in_a_study_set_exit_2_at_their_own_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    study = (
+        "name: s\nmodel: m.yaml\nmatrix:\n  curves.pulse.scale: [0.5, 1.0]\nset:\n  metrics:\n"
+        "    - {node: sled, criteria: [peak_g]}\n    - node: sledd\n      criteria: [hic15]\n"
+        "      direction: [1.0, 0.0]\n"
+    )
     (tmp_path / "m.yaml").write_text(pulse_model())
     (tmp_path / "s.yaml").write_text(study)
-    for argv in (["validate", str(tmp_path / "s.yaml")], ["run", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "o")]):
+    for argv in (
+        ["validate", str(tmp_path / "s.yaml")],
+        ["run", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "o")],
+    ):
         capsys.readouterr()
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert "Traceback" not in err
-        assert f"{tmp_path / 's.yaml'}:8: set.metrics.1.node: after 'set' the model is invalid: unknown node 'sledd'" in err
-        assert (f"{tmp_path / 's.yaml'}:10: set.metrics.1.direction: after 'set' the model is invalid: expected 1 "
-                "component(s) (the model is 1-D), got 2") in err  # fmt: skip
+        assert (
+            f"{tmp_path / 's.yaml'}:8: set.metrics.1.node: after 'set' the model is invalid: unknown node 'sledd'"
+            in err
+        )
+        assert (
+            f"{tmp_path / 's.yaml'}:10: set.metrics.1.direction: after 'set' the model is invalid: expected 1 "
+            "component(s) (the model is 1-D), got 2"
+        ) in err
 
 
 def test_schema_and_result_tables_name_every_criterion_of_the_maths() -> None:
@@ -317,27 +369,42 @@ def test_a_rerun_reuses_finished_variants_with_their_criteria_and_notes(tmp_path
     assert second["hic15.sled"][1] == first["hic15.sled"][0]
 
 
-def test_2d_default_direction_is_the_initial_velocity_direction(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_2d_default_direction_is_the_initial_velocity_direction(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """A 2-D drop: the sled falls at 10 m/s (-y) and the half-sine decelerates it (+y acceleration).
     Against the direction of travel the deceleration is positive: ``delta_v = 2 A T / pi``; the default
     direction equals an explicit [0, -2] (normalised) and differs from +y (dri sees the pulse reversed)."""
-    text = pulse_model(metrics=(
-        "  - {node: sled, criteria: [delta_v, dri]}\n"
-        "  - {node: other, direction: [0.0, -2.0], criteria: [delta_v, dri]}\n"
-        "  - {node: third, direction: y, criteria: [dri]}"))  # fmt: skip
-    text = (text.replace("position: [0.0], fixed", "position: [0.0, 0.0], fixed")
-            .replace("position: [1.0]", "position: [0.0, 1.0]").replace("position: [2.0]", "position: [0.0, 2.0]")
-            .replace("direction: x, curve: pulse", "direction: y, curve: pulse")
-            .replace("initial_velocity: {sled: [10.0], other: [10.0]}",
-                     "initial_velocity: {sled: [0.0, -10.0], other: [0.0, -10.0], third: [0.0, -10.0]}"))  # fmt: skip
+    text = pulse_model(
+        metrics=(
+            "  - {node: sled, criteria: [delta_v, dri]}\n"
+            "  - {node: other, direction: [0.0, -2.0], criteria: [delta_v, dri]}\n"
+            "  - {node: third, direction: y, criteria: [dri]}"
+        )
+    )
+    text = (
+        text.replace("position: [0.0], fixed", "position: [0.0, 0.0], fixed")
+        .replace("position: [1.0]", "position: [0.0, 1.0]")
+        .replace("position: [2.0]", "position: [0.0, 2.0]")
+        .replace("direction: x, curve: pulse", "direction: y, curve: pulse")
+        .replace(
+            "initial_velocity: {sled: [10.0], other: [10.0]}",
+            "initial_velocity: {sled: [0.0, -10.0], other: [0.0, -10.0], third: [0.0, -10.0]}",
+        )
+    )
     text = text.replace("scale: -", "scale: ")  # +y acceleration
     # other and third follow the same pulse
     amp = f"{A_G * G:.12g}"
-    text = text.replace("prescribed_motion:\n", "prescribed_motion:\n"
-                        f"  - {{node: other, quantity: acceleration, direction: y, curve: pulse, scale: {amp}}}\n"
-                        f"  - {{node: third, quantity: acceleration, direction: y, curve: pulse, scale: {amp}}}\n")  # fmt: skip
-    text = text.replace("  other: {position: [0.0, 2.0], mass: 1.0}",
-                        "  other: {position: [0.0, 2.0], mass: 1.0}\n  third: {position: [0.0, 3.0], mass: 1.0}")
+    text = text.replace(
+        "prescribed_motion:\n",
+        "prescribed_motion:\n"
+        f"  - {{node: other, quantity: acceleration, direction: y, curve: pulse, scale: {amp}}}\n"
+        f"  - {{node: third, quantity: acceleration, direction: y, curve: pulse, scale: {amp}}}\n",
+    )
+    text = text.replace(
+        "  other: {position: [0.0, 2.0], mass: 1.0}",
+        "  other: {position: [0.0, 2.0], mass: 1.0}\n  third: {position: [0.0, 3.0], mass: 1.0}",
+    )
     model = tmp_path / "drop.yaml"
     model.write_text(text)
     assert main(["simulate", str(model), "-o", str(tmp_path / "out")]) == 0, capsys.readouterr().err
@@ -347,8 +414,9 @@ def test_2d_default_direction_is_the_initial_velocity_direction(tmp_path: Path, 
     assert float(ds["dri"].sel(node="third")) < 0.5 * float(ds["dri"].sel(node="sled"))
 
 
-def test_validate_warns_when_the_step_is_too_long_for_the_filter_class(tmp_path: Path,
-                                                                       capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_validate_warns_when_the_step_is_too_long_for_the_filter_class(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     model = tmp_path / "coarse.yaml"
     model.write_text(pulse_model(extra="output: {interval: 1.0e-3}\n").replace("dt: 1e-05", "dt: 0.0002"))
     capsys.readouterr()
@@ -367,8 +435,13 @@ def test_criteria_of_a_chunk_are_the_same_on_every_kernel(kernel: str, tmp_path:
     bit for bit (the record is bitwise equal, the criteria a function of it)."""
     from crashstudy.run.runner import run_chunk
 
-    plan = _plan(tmp_path, pulse_model(metrics="  - {node: sled, cfc: 600, criteria: [peak_g, hic15, clip3ms, "
-                                                "clip3ms_cumulative, olc, dri, delta_v]}"))  # fmt: skip
+    plan = _plan(
+        tmp_path,
+        pulse_model(
+            metrics="  - {node: sled, cfc: 600, criteria: [peak_g, hic15, clip3ms, "
+            "clip3ms_cumulative, olc, dri, delta_v]}"
+        ),
+    )
     ref, got = run_chunk(plan, 0, 3, kernel="reference"), run_chunk(plan, 0, 3, kernel=kernel)
     assert set(ref.criteria.values) == set(got.criteria.values)
     for name, arr in ref.criteria.values.items():
@@ -402,7 +475,9 @@ def every_step(tmp_path_factory: pytest.TempPathFactory):
 
 
 @pytest.mark.parametrize("k", [[5, 5, 5], [1, 3, 5], [7, 1, 9]])
-def test_block_record_of_the_reference_is_the_mean_of_the_every_step_record(k: list[int], tmp_path: Path, every_step) -> None:
+def test_block_record_of_the_reference_is_the_mean_of_the_every_step_record(
+    k: list[int], tmp_path: Path, every_step
+) -> None:
     """Row r of variant v is the mean of a^n over steps r k - h .. r k + h (h = (k - 1) / 2) that ran:
     the first row holds steps 0 .. h, the last the steps up to the end. Truth: the every-step record
     (k = 1) averaged by hand; 1e-12 of the largest |a| (summation order)."""
@@ -432,12 +507,20 @@ def test_block_record_with_k_1_is_the_every_step_record_bit_for_bit(every_step) 
     assert every.step_acceleration is not None
     assert every.step_acceleration.shape[0] == int(batch.n_steps.max()) + 1
     last = np.rint(every.t_end / batch.dt).astype(np.int64)
-    assert np.array_equal(block_means(every.step_acceleration, last, np.ones(3, dtype=np.int64)),
-                          every.step_acceleration)  # fmt: skip
+    assert np.array_equal(
+        block_means(every.step_acceleration, last, np.ones(3, dtype=np.int64)), every.step_acceleration
+    )
 
 
-@pytest.mark.parametrize("case", ["full-twin-2d-mixed-prescribed", "early-termination",
-                                  "frontal-curve-and-mass-axes-lane-compaction", "2d-crushed-to-zero"])  # fmt: skip
+@pytest.mark.parametrize(
+    "case",
+    [
+        "full-twin-2d-mixed-prescribed",
+        "early-termination",
+        "frontal-curve-and-mass-axes-lane-compaction",
+        "2d-crushed-to-zero",
+    ],
+)
 def test_block_record_is_bitwise_the_references_on_the_fast_kernels(case: str) -> None:
     """Blocks of 1, 3, 5 and 7 steps mixed over the variants (lanes compacted, variants ending early or
     failing): every kernel adds a^n into the same rows in step order, so the sums are equal bit for bit
@@ -455,7 +538,9 @@ def test_block_record_is_bitwise_the_references_on_the_fast_kernels(case: str) -
     ref = run_batch(batch, topo.histories, plan.n_out, "reference", record=record)
     assert ref.step_acceleration is not None and np.any(ref.step_acceleration != 0.0)
     seven = batch.rec_block == 7  # blocks, not every step: nothing past the last block's row
-    assert np.all(ref.step_acceleration[int(np.max(block_rows(batch.n_steps[seven], 7))) :, ..., seven] == 0.0)
+    assert np.all(
+        ref.step_acceleration[int(np.max(block_rows(batch.n_steps[seven], 7))) :, ..., seven] == 0.0
+    )
     for kernel in ("generic", "generated"):
         got = run_batch(batch, topo.histories, plan.n_out, kernel, record=record)
         assert output_differences(ref, got) == [], kernel
@@ -485,24 +570,33 @@ EXAMPLE_STUDIES = {
 }
 
 
-def _example_criteria(tmp_path: Path, model: str, every_step: bool, tolerance: float | None,
-                      monkeypatch: pytest.MonkeyPatch) -> dict[str, np.ndarray]:  # fmt: skip
+def _example_criteria(
+    tmp_path: Path, model: str, every_step: bool, tolerance: float | None, monkeypatch: pytest.MonkeyPatch
+) -> dict[str, np.ndarray]:
     from crashstudy.metrics import record as metrics
     from crashstudy.run.runner import run_chunk
 
     d = tmp_path / f"{model}-{every_step}-{tolerance}"
     d.mkdir()
-    (d / "m.yaml").write_text((Path(__file__).resolve().parents[1] / "studies" / "models" / f"{model}.yaml").read_text())
+    (d / "m.yaml").write_text(
+        (Path(__file__).resolve().parents[1] / "studies" / "models" / f"{model}.yaml").read_text()
+    )
     ts = f"set:\n  time_step: {{tolerance: {tolerance}}}\n" if tolerance else ""
-    plan = _plan(d, (d / "m.yaml").read_text(), f"name: s\nmodel: m.yaml\nmatrix:\n{EXAMPLE_STUDIES[model]}{ts}")
+    plan = _plan(
+        d, (d / "m.yaml").read_text(), f"name: s\nmodel: m.yaml\nmatrix:\n{EXAMPLE_STUDIES[model]}{ts}"
+    )
     with monkeypatch.context() as mp:
         if every_step:
             mp.setattr(metrics, "RECORD_RATE", math.inf)
         res = run_chunk(plan, 0, plan.n_variants)
     assert np.all(res.out.status == 0)
     topo = plan.topology
-    return {f"{name}.{topo.node_ids[n]}": arr[:, n] for name, arr in res.criteria.values.items()
-            for n in range(topo.n_nodes) if np.all(np.isfinite(arr[:, n]))}  # fmt: skip
+    return {
+        f"{name}.{topo.node_ids[n]}": arr[:, n]
+        for name, arr in res.criteria.values.items()
+        for n in range(topo.n_nodes)
+        if np.all(np.isfinite(arr[:, n]))
+    }
 
 
 @pytest.mark.parametrize("model", list(EXAMPLE_STUDIES))

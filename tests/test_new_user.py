@@ -53,8 +53,14 @@ def digest(path: Path) -> str:
 def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("newuser")
     dump(d / "model.yaml", MODEL)
-    dump(d / "study.yaml", {"name": "speeds", "model": "model.yaml",
-                            "matrix": {"nodes.body.mass": [600.0, 800.0], "impact_velocity": [6.0, 10.0]}})  # fmt: skip
+    dump(
+        d / "study.yaml",
+        {
+            "name": "speeds",
+            "model": "model.yaml",
+            "matrix": {"nodes.body.mass": [600.0, 800.0], "impact_velocity": [6.0, 10.0]},
+        },
+    )
     return d
 
 
@@ -128,16 +134,23 @@ def test_an_axis_that_changes_nothing_is_refused_by_validate_and_run(
     rest = copy.deepcopy(MODEL)
     del rest["initial_velocity"]  # every node at rest: impact_velocity has nothing to rescale
     dump(tmp_path / "rest.yaml", rest)
-    study = dump(tmp_path / "s.yaml", {"name": "at-rest", "model": "rest.yaml",
-                                       "matrix": {"nodes.body.mass": [600.0, 800.0],
-                                                  "impact_velocity": [6.0, 10.0, 14.0]}})  # fmt: skip
+    study = dump(
+        tmp_path / "s.yaml",
+        {
+            "name": "at-rest",
+            "model": "rest.yaml",
+            "matrix": {"nodes.body.mass": [600.0, 800.0], "impact_velocity": [6.0, 10.0, 14.0]},
+        },
+    )
     head = f"{study}:{line_of(study, 'impact_velocity')}: matrix.impact_velocity: "
     for argv in (["validate", str(study)], ["run", str(study), "-o", str(tmp_path / "out")]):
         capsys.readouterr()
         assert main(argv) == 2
         err = capsys.readouterr().err
-        assert any(ln.startswith(head) and "changes nothing" in ln and "initial_velocity" in ln
-                   for ln in err.splitlines()), err  # fmt: skip
+        assert any(
+            ln.startswith(head) and "changes nothing" in ln and "initial_velocity" in ln
+            for ln in err.splitlines()
+        ), err
     assert not (tmp_path / "out").exists()  # run refused before anything was written
 
 
@@ -145,9 +158,15 @@ def test_fixed_dt_above_some_variants_critical_step_names_dt_crit_and_the_axis_v
     work: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     masses = [0.1, 0.2, 50.0]
-    study = dump(tmp_path / "dt.yaml", {"name": "fixed-dt", "model": str(work / "model.yaml"),
-                                        "matrix": {"nodes.front.mass": masses, "impact_velocity": [6.0, 10.0]},
-                                        "set": {"time_step": {"dt": 3.0e-4}}})  # fmt: skip
+    study = dump(
+        tmp_path / "dt.yaml",
+        {
+            "name": "fixed-dt",
+            "model": str(work / "model.yaml"),
+            "matrix": {"nodes.front.mass": masses, "impact_velocity": [6.0, 10.0]},
+            "set": {"time_step": {"dt": 3.0e-4}},
+        },
+    )
     crit = [0.99 * 2.0 / np.sqrt(2.0 * K_FRONT / m) for m in masses]  # 1.67e-4, 2.37e-4, 2.65e-3 s
     assert crit[0] < crit[1] < 3.0e-4 < crit[2]
     head = f"{study}:{line_of(study, 'time_step')}: time_step.dt: "
@@ -169,9 +188,15 @@ def test_fixed_dt_above_some_variants_critical_step_names_dt_crit_and_the_axis_v
     s = crashstudy.open_results(tmp_path / "out").summary
     assert (s["status"] == "failed").tolist() == [m < 1.0 for m in s["nodes.front.mass"]]
     # no variant can: a mistake validate sees, reported before anything runs (exit 2, nothing written)
-    none = dump(tmp_path / "dt-none.yaml", {"name": "fixed-dt-none", "model": str(work / "model.yaml"),
-                                            "matrix": {"nodes.front.mass": masses[:2]},
-                                            "set": {"time_step": {"dt": 3.0e-4}}})  # fmt: skip
+    none = dump(
+        tmp_path / "dt-none.yaml",
+        {
+            "name": "fixed-dt-none",
+            "model": str(work / "model.yaml"),
+            "matrix": {"nodes.front.mass": masses[:2]},
+            "set": {"time_step": {"dt": 3.0e-4}},
+        },
+    )
     for argv in (["validate", str(none)], ["run", str(none), "-o", str(tmp_path / "out2")]):
         capsys.readouterr()
         assert main(argv) == 2
@@ -183,8 +208,14 @@ def test_fixed_dt_above_some_variants_critical_step_names_dt_crit_and_the_axis_v
 def test_a_study_without_model_key_is_told_so_not_read_as_a_model(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    study = dump(tmp_path / "s.yaml", {"name": "no-model", "matrix": {"nodes.body.mass": [600.0, 800.0]},
-                                       "zip": [{"impact_velocity": [6.0, 10.0]}]})  # fmt: skip
+    study = dump(
+        tmp_path / "s.yaml",
+        {
+            "name": "no-model",
+            "matrix": {"nodes.body.mass": [600.0, 800.0]},
+            "zip": [{"impact_velocity": [6.0, 10.0]}],
+        },
+    )
     assert main(["validate", str(study)]) == 2
     err = capsys.readouterr().err
     assert f"{study}:1: model: missing required field 'model'" in err
@@ -235,8 +266,9 @@ def test_si_numbers_declared_mm_ms_kg_kn_warn_but_stay_valid(
 
 
 @pytest.mark.parametrize("name", ["frontal-9mass", "general-nonlinear-tension", "helicopter-subfloor"])
-def test_the_example_models_raise_no_plausibility_warning(name: str, tmp_path: Path,
-                                                          capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_the_example_models_raise_no_plausibility_warning(
+    name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Light nodes between stiff springs (the frontal bumper, 15 kg: ~2,600 g) and prescribed motion
     (kinematic spikes) peak far above 1000 g legitimately: only the heaviest free mass is judged."""
     model = Path(__file__).resolve().parents[1] / "studies" / "models" / f"{name}.yaml"
@@ -259,9 +291,15 @@ def test_the_example_models_raise_no_plausibility_warning(name: str, tmp_path: P
 def failing_run(work: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """6 variants, 4 of them failed (fixed dt above their critical step), run through the Python API."""
     out = tmp_path_factory.mktemp("failing") / "run"
-    crashstudy.run_study({"name": "fixed-dt", "model": str(work / "model.yaml"),
-                          "matrix": {"nodes.front.mass": [0.1, 0.2, 50.0], "impact_velocity": [6.0, 10.0]},
-                          "set": {"time_step": {"dt": 3.0e-4}}}, out)  # fmt: skip
+    crashstudy.run_study(
+        {
+            "name": "fixed-dt",
+            "model": str(work / "model.yaml"),
+            "matrix": {"nodes.front.mass": [0.1, 0.2, 50.0], "impact_velocity": [6.0, 10.0]},
+            "set": {"time_step": {"dt": 3.0e-4}},
+        },
+        out,
+    )
     return out
 
 
@@ -346,15 +384,21 @@ def test_help_describes_every_argument_of_every_command() -> None:
     import argparse
 
     sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
-    missing = [f"{name} {act.dest}" for name, p in sub.choices.items() for act in p._actions
-               if not isinstance(act, argparse._HelpAction) and not act.help]  # fmt: skip
+    missing = [
+        f"{name} {act.dest}"
+        for name, p in sub.choices.items()
+        for act in p._actions
+        if not isinstance(act, argparse._HelpAction) and not act.help
+    ]
     assert missing == []
 
 
 def test_errors_of_a_study_given_as_a_dict_name_the_dict_not_a_file_line(work: Path) -> None:
     with pytest.raises(InputError) as exc:
-        crashstudy.run_study({"name": "d", "model": str(work / "model.yaml"),
-                              "matrix": {"nodes.body.mas": [600.0, 800.0]}}, work / "never")  # fmt: skip
+        crashstudy.run_study(
+            {"name": "d", "model": str(work / "model.yaml"), "matrix": {"nodes.body.mas": [600.0, 800.0]}},
+            work / "never",
+        )
     text = str(exc.value)
     assert text.startswith("study (dict): matrix.nodes.body.mas: unknown axis"), text
     assert "<study dict>" not in text and not re.search(r":\d+:", text)
@@ -370,8 +414,9 @@ def test_compare_of_a_single_run_with_a_study_says_why_nothing_matches(
         assert "single model run" in cmp.report() and "no variant can be matched" in cmp.report()
 
 
-def test_a_crush_curve_with_positive_forces_in_compression_is_refused(tmp_path: Path,
-                                                                      capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_a_crush_curve_with_positive_forces_in_compression_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Found by a new user trying the docs: a crush curve drawn with positive forces (x < 0, y > 0) was
     valid, the spring carried min(0, curve) = 0 and the car went through the barrier with status ok."""
     bad = copy.deepcopy(MODEL)
@@ -391,9 +436,14 @@ def test_an_axis_that_matters_only_for_some_values_of_another_is_not_refused(
     impact_velocity [0, 1, 0] matters where impact_velocity is 1 (a node at rest gets no speed, one
     moving does), but the check tried the other axis at its first and last value only (both 0) and
     refused the axis as doing nothing. Every occurring setting of the other axes is tried now."""
-    study = dump(tmp_path / "s.yaml", {"name": "speeds", "model": str(work / "model.yaml"),
-                                       "matrix": {"initial_velocity.body.0": [0.0, -1.0],
-                                                  "impact_velocity": [0.0, 1.0, 0.0]}})  # fmt: skip
+    study = dump(
+        tmp_path / "s.yaml",
+        {
+            "name": "speeds",
+            "model": str(work / "model.yaml"),
+            "matrix": {"initial_velocity.body.0": [0.0, -1.0], "impact_velocity": [0.0, 1.0, 0.0]},
+        },
+    )
     capsys.readouterr()
     assert main(["validate", str(study)]) == 0, capsys.readouterr().err
 
@@ -405,8 +455,11 @@ def test_output_piped_into_a_reader_that_stops_early_exits_0_without_an_error() 
     import subprocess
     import sys
 
-    proc = subprocess.Popen([sys.executable, "-m", "crashstudy.cli", "schema", "model"], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE)  # fmt: skip
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "crashstudy.cli", "schema", "model"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     assert proc.stdout is not None
     proc.stdout.close()  # the reader is gone before the first byte
     _, err = proc.communicate(timeout=60)

@@ -37,16 +37,26 @@ def _write(tmp: Path, model: str, study: dict) -> Path:
     return path
 
 
-def test_optimum_plateau_force_of_a_crush_stop_matches_the_closed_form(tmp_path: Path,
-                                                                       capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_optimum_plateau_force_of_a_crush_stop_matches_the_closed_form(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """1000 kg at 10 m/s into a crush spring whose plateau force F is the variable: peak deceleration F/m
     is smallest for the weakest F that keeps max crush <= 0.2 m. Energy: m v^2 / 2 = F (d - 0.0005)
     (the 1 mm ramp absorbs F / 2 per mm), so F* = 50 kJ / 0.1995 m = 250.63 kN, scale 2.5063, 25.557 g.
     The optimiser finds it within 1% (measured 0.03%) and the optimum is feasible."""
-    study = _write(tmp_path, CRUSH, {"optimize": {"minimize": "peak_deceleration_g.body",
-                                                  "constraints": ["max_crush.crush <= 0.2"],
-                                                  "variables": {"curves.plateau.scale": [0.5, 5.0]},
-                                                  "budget": 300, "seed": 1}})  # fmt: skip
+    study = _write(
+        tmp_path,
+        CRUSH,
+        {
+            "optimize": {
+                "minimize": "peak_deceleration_g.body",
+                "constraints": ["max_crush.crush <= 0.2"],
+                "variables": {"curves.plateau.scale": [0.5, 5.0]},
+                "budget": 300,
+                "seed": 1,
+            }
+        },
+    )
     out = tmp_path / "out"
     assert main(["optimize", str(study), "-o", str(out)]) == 0
     opt = yaml.safe_load((out / "optimum.yaml").read_text())
@@ -62,24 +72,51 @@ def test_optimum_plateau_force_of_a_crush_stop_matches_the_closed_form(tmp_path:
 
 
 def test_infeasible_and_failed_candidates_rank_after_every_feasible_one() -> None:
-    df = pd.DataFrame({"status": ["ok", "ok", "ok", "failed"], "obj": [5.0, 1.0, 1.0, np.nan],
-                       "c": [0.1, 0.3, 0.25, np.nan]})  # fmt: skip
+    df = pd.DataFrame(
+        {
+            "status": ["ok", "ok", "ok", "failed"],
+            "obj": [5.0, 1.0, 1.0, np.nan],
+            "c": [0.1, 0.3, 0.25, np.nan],
+        }
+    )
     score, feasible = scores(df, "obj", [("c", "<=", 0.2)])
     assert feasible.tolist() == [True, False, False, False]
     assert score[0] == 5.0 and INFEASIBLE < score[2] < score[1] < score[3]  # least violating first
 
 
-@pytest.mark.parametrize(("block", "expected"), [
-    ({}, "no optimize: block"),
-    ({"optimize": {"minimize": "peak_force.nope", "variables": {"curves.plateau.scale": [0.5, 5.0]}, "budget": 30}},
-     "no summary column 'peak_force.nope'"),
-    ({"optimize": {"minimize": "peak_force.crush", "variables": {"curves.plateau.scale": [5.0, 0.5]}}},
-     "need low < high"),
-    ({"optimize": {"minimize": "peak_force.crush", "constraints": ["max_crush.crush < 0.2"],
-                   "variables": {"curves.plateau.scale": [0.5, 5.0]}}}, "optimize.constraints.0"),
-])  # fmt: skip
-def test_a_bad_optimize_block_is_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str], block: dict,
-                                        expected: str) -> None:  # fmt: skip
+@pytest.mark.parametrize(
+    ("block", "expected"),
+    [
+        ({}, "no optimize: block"),
+        (
+            {
+                "optimize": {
+                    "minimize": "peak_force.nope",
+                    "variables": {"curves.plateau.scale": [0.5, 5.0]},
+                    "budget": 30,
+                }
+            },
+            "no summary column 'peak_force.nope'",
+        ),
+        (
+            {"optimize": {"minimize": "peak_force.crush", "variables": {"curves.plateau.scale": [5.0, 0.5]}}},
+            "need low < high",
+        ),
+        (
+            {
+                "optimize": {
+                    "minimize": "peak_force.crush",
+                    "constraints": ["max_crush.crush < 0.2"],
+                    "variables": {"curves.plateau.scale": [0.5, 5.0]},
+                }
+            },
+            "optimize.constraints.0",
+        ),
+    ],
+)
+def test_a_bad_optimize_block_is_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], block: dict, expected: str
+) -> None:
     study = _write(tmp_path, CRUSH, block)
     capsys.readouterr()
     assert main(["optimize", str(study), "-o", str(tmp_path / "out")]) == 2
@@ -110,17 +147,26 @@ def test_the_frontal_optimize_example_at_small_size_beats_the_base_design(tmp_pa
     assert main(["optimize", str(study), "-o", str(out)]) == 0
     opt = yaml.safe_load((out / "optimum.yaml").read_text())
     base = simulate(STUDIES / "models" / "frontal-9mass.yaml", tmp_path / "base").summary
-    assert opt["feasible"] and opt["objective"]["peak_deceleration_g.survival_room"] < \
-        base["peak_deceleration_g.survival_room"].iloc[0]  # fmt: skip
+    assert (
+        opt["feasible"]
+        and opt["objective"]["peak_deceleration_g.survival_room"]
+        < base["peak_deceleration_g.survival_room"].iloc[0]
+    )
 
 
-def test_the_helicopter_calibrate_example_at_small_size_gives_back_the_values_of_its_record(tmp_path: Path) -> None:
+def test_the_helicopter_calibrate_example_at_small_size_gives_back_the_values_of_its_record(
+    tmp_path: Path,
+) -> None:
     """studies/helicopter-calibrate.yaml on the first 40 ms of its synthetic record (made with scale 1.25,
     troop mass 320 kg at a 20x finer step, 2% noise): both recovered within 1%."""
     record = pd.read_csv(STUDIES / "data" / "helicopter-drop.csv")
     record[record["time"] <= 0.04].to_csv(tmp_path / "drop.csv", index=False)
-    study = _small_copy(STUDIES / "helicopter-calibrate.yaml", tmp_path, calibrate={"data": "drop.csv"},
-                        set={"end_time": 0.04})  # fmt: skip
+    study = _small_copy(
+        STUDIES / "helicopter-calibrate.yaml",
+        tmp_path,
+        calibrate={"data": "drop.csv"},
+        set={"end_time": 0.04},
+    )
     out = tmp_path / "out"
     assert main(["calibrate", str(study), "-o", str(out)]) == 0
     cal = yaml.safe_load((out / "calibrated.yaml").read_text())["variables"]

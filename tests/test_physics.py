@@ -155,12 +155,16 @@ def _crush_model() -> dict[str, Any]:
         "name": "crush",
         "curves": {"plateau": {"x": [-1.0, -X1, 0.0], "y": [-F0, -F0, 0.0]}},
         "nodes": {"ground": {"position": [0.0], "fixed": True}, "mass": {"position": [1.0], "mass": M_C}},
-        "springs": {"crush": {"nodes": ["ground", "mass"],
-                              "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": KU}}},
+        "springs": {
+            "crush": {
+                "nodes": ["ground", "mass"],
+                "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": KU},
+            }
+        },
         "initial_velocity": {"mass": [-V_C]},
         "end_time": 0.02,
         "output": {"interval": 1.0e-4},
-    }  # fmt: skip
+    }
 
 
 def test_crush_spring_max_crush_matches_energy_balance() -> None:
@@ -212,13 +216,17 @@ def test_pendulum_on_stiff_spring_swings_like_scipy_reference(angle_deg: float) 
     th = np.radians(angle_deg)
     model = {
         "name": "pendulum",
-        "nodes": {"pivot": {"position": [0.0, 0.0], "fixed": True},
-                  "bob": {"position": [float(np.sin(th)), float(-np.cos(th))], "mass": 1.0}},
-        "springs": {"rod": {"nodes": ["pivot", "bob"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}}},
+        "nodes": {
+            "pivot": {"position": [0.0, 0.0], "fixed": True},
+            "bob": {"position": [float(np.sin(th)), float(-np.cos(th))], "mass": 1.0},
+        },
+        "springs": {
+            "rod": {"nodes": ["pivot", "bob"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}}
+        },
         "gravity": [0.0, -G],
         "end_time": 2.5,
         "output": {"interval": 2.5e-3},
-    }  # fmt: skip
+    }
     out, _, plan = run_model(model)
     t = np.arange(plan.n_out) * plan.interval
     ref = solve_reference(model, t_eval=t, method="DOP853", rtol=1e-10, atol=1e-12)
@@ -315,14 +323,19 @@ def _drop(h: float = 0.2) -> tuple[dict[str, Any], float, float]:
     w = float(np.sqrt(k / mb))
     model = {
         "name": "drop",
-        "nodes": {"foot": {"position": [0.0, h], "mass": mf}, "body": {"position": [0.0, h + 0.5], "mass": mb}},
-        "springs": {"leg": {"nodes": ["foot", "body"], "material": {"type": "linear_elastic", "stiffness": k}}},
+        "nodes": {
+            "foot": {"position": [0.0, h], "mass": mf},
+            "body": {"position": [0.0, h + 0.5], "mass": mb},
+        },
+        "springs": {
+            "leg": {"nodes": ["foot", "body"], "material": {"type": "linear_elastic", "stiffness": k}}
+        },
         "rigid_walls": [{"id": "floor", "point": [0.0, 0.0], "normal": [0.0, 1.0], "nodes": ["foot"]}],
         "gravity": [0.0, -G],
         # impact, then half a period of the body on the leg: the leg is in compression throughout
         "end_time": round(v_hit / G + np.pi / w, 4),
         "output": {"interval": 1.0e-4},
-    }  # fmt: skip
+    }
     # the foot stops; the body (speed v_hit, gravity) compresses the leg: F = m g + sqrt((m g)^2 + k m v^2)
     f_peak = mb * G + float(np.sqrt((mb * G) ** 2 + k * mb * v_hit**2))
     return model, v_hit, f_peak
@@ -372,8 +385,10 @@ def _pull(dim: int, end_time: float) -> dict[str, Any]:
         nodes = {"anchor": {"position": [0.0], "fixed": True}, "grip": {"position": [0.5], "mass": 0.2}}
         pm = {"node": "grip", "quantity": "displacement", "direction": "x", "curve": "path", "scale": 2.0}
     else:  # along -y, away from the anchor above it: the spring stretches
-        nodes = {"anchor": {"position": [0.0, 0.5], "fixed": True},
-                 "grip": {"position": [0.0, 0.0], "mass": 0.2, "fixed": ["x"]}}  # fmt: skip
+        nodes = {
+            "anchor": {"position": [0.0, 0.5], "fixed": True},
+            "grip": {"position": [0.0, 0.0], "mass": 0.2, "fixed": ["x"]},
+        }
         pm = {"node": "grip", "quantity": "displacement", "direction": "y", "curve": "path", "scale": -2.0}
     return {
         "name": "pull",
@@ -426,12 +441,16 @@ def _tow(initial_velocity: float) -> dict[str, Any]:
         "name": "tow",
         "curves": {"speed": {"x": [0.0, 1.0], "y": [1.0, 1.0]}},
         "nodes": {"anchor": {"position": [0.0], "fixed": True}, "tug": {"position": [1.0], "mass": 1.0}},
-        "springs": {"s": {"nodes": ["anchor", "tug"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}}},
-        "prescribed_motion": [{"node": "tug", "quantity": "velocity", "direction": "x", "curve": "speed", "scale": 2.0}],
+        "springs": {
+            "s": {"nodes": ["anchor", "tug"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}}
+        },
+        "prescribed_motion": [
+            {"node": "tug", "quantity": "velocity", "direction": "x", "curve": "speed", "scale": 2.0}
+        ],
         "initial_velocity": {"tug": [initial_velocity]},
         "end_time": 0.5,
         "output": {"interval": 1.0e-3},
-    }  # fmt: skip
+    }
 
 
 @pytest.mark.parametrize(
@@ -441,7 +460,7 @@ def _tow(initial_velocity: float) -> dict[str, Any]:
         pytest.param(
             0.0,
             id="started-from-rest",
-        ),  # fmt: skip
+        ),
     ],
 )
 def test_prescribed_velocity_external_work_equals_kinetic_plus_internal_energy(
@@ -501,9 +520,13 @@ def _chain(masses: np.ndarray, stiffness: np.ndarray, fixed_end: bool) -> tuple[
     for i, m in enumerate(masses, start=1):
         nodes[f"n{i}"] = {"position": [float(i)], "mass": float(m)}
     ids = list(nodes)
-    springs = {f"s{i}": {"nodes": [ids[i], ids[i + 1]],
-                         "material": {"type": "linear_elastic", "stiffness": float(stiffness[i])}}
-               for i in range(len(ids) - 1)}  # fmt: skip
+    springs = {
+        f"s{i}": {
+            "nodes": [ids[i], ids[i + 1]],
+            "material": {"type": "linear_elastic", "stiffness": float(stiffness[i])},
+        }
+        for i in range(len(ids) - 1)
+    }
     n = len(ids)
     K = np.zeros((n, n))
     for i in range(n - 1):
@@ -540,8 +563,14 @@ def _chain_params() -> list[Any]:
             end = "fixed-end" if fixed_end else "free"
             n_springs = n if fixed_end else n - 1
             out.append(pytest.param(np.ones(n), np.full(n_springs, 1.0e4), fixed_end, id=f"{n}-equal-{end}"))
-            out.append(pytest.param(rng.uniform(0.1, 10.0, n), rng.uniform(1.0e3, 1.0e5, n_springs), fixed_end,
-                                    id=f"{n}-unequal-{end}"))  # fmt: skip
+            out.append(
+                pytest.param(
+                    rng.uniform(0.1, 10.0, n),
+                    rng.uniform(1.0e3, 1.0e5, n_springs),
+                    fixed_end,
+                    id=f"{n}-unequal-{end}",
+                )
+            )
     return [p for p in out if p.id != "2-equal-free"]  # that one attains the bound: tested on its own below
 
 
@@ -579,7 +608,6 @@ def test_free_dumbbell_at_safety_factor_one_stays_bounded() -> None:
         f"omega_max dt = {omega_max * batch.dt[0]:.6f}; peak force {out.peak_force[0, 0]:.3g} N after 1000 steps, "
         f"{out.peak_force[0, 1]:.3g} N after 2000"
     )
-
 
 
 REFUSED_DT_MODEL = """\

@@ -11,17 +11,25 @@ import yaml
 
 from helpers import run_cli
 
-MODEL = {"name": "link-probe", "units": "SI",
-         "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
-         "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
-         "initial_velocity": {"b": [1.0]}, "end_time": 0.05, "output": {"histories": "none"}}  # fmt: skip
+MODEL = {
+    "name": "link-probe",
+    "units": "SI",
+    "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+    "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
+    "initial_velocity": {"b": [1.0]},
+    "end_time": 0.05,
+    "output": {"histories": "none"},
+}
 
 
 def _study(tmp: Path) -> Path:
     (tmp / "model.yaml").write_text(yaml.safe_dump(MODEL, sort_keys=False))
     study = tmp / "study.yaml"
-    study.write_text(yaml.safe_dump({"name": "links", "model": "model.yaml",
-                                     "matrix": {"nodes.b.mass": [1.0, 4.0]}}, sort_keys=False))  # fmt: skip
+    study.write_text(
+        yaml.safe_dump(
+            {"name": "links", "model": "model.yaml", "matrix": {"nodes.b.mass": [1.0, 4.0]}}, sort_keys=False
+        )
+    )
     return study
 
 
@@ -54,7 +62,9 @@ def test_dangling_link_at_results_partial_is_refused_or_removed_never_followed(t
     out = tmp_path / "out"
     out.mkdir()
     (out / "results.nc.partial").symlink_to(elsewhere / "stolen.nc")
-    plain = run_cli("run", str(study), "-o", str(out))  # looks like an unfinished run: refused, nothing written
+    plain = run_cli(
+        "run", str(study), "-o", str(out)
+    )  # looks like an unfinished run: refused, nothing written
     assert plain.returncode == 2 and "unfinished run" in plain.stderr and "Traceback" not in plain.stderr
     resume = run_cli("run", str(study), "-o", str(out), "--resume")
     assert resume.returncode == 2 and "symbolic link" in resume.stderr and "Traceback" not in resume.stderr

@@ -69,23 +69,38 @@ def _run(tmp: Path, model: dict, matrix: dict, name: str, **study) -> Path:
 @pytest.fixture(scope="module")
 def small(tmp_path_factory) -> Path:
     """2 x 3 matrix, every variant ok, all histories kept."""
-    return _run(tmp_path_factory.mktemp("small"), MODEL_1D, {AXES[0]: [0.5, 1.0], AXES[1]: [1.0, 2.0, 3.0]},
-                "plot-small")  # fmt: skip
+    return _run(
+        tmp_path_factory.mktemp("small"),
+        MODEL_1D,
+        {AXES[0]: [0.5, 1.0], AXES[1]: [1.0, 2.0, 3.0]},
+        "plot-small",
+    )
 
 
 @pytest.fixture(scope="module")
 def with_failures(tmp_path_factory) -> Path:
     """3 stiffnesses x 6 speeds with a fixed dt: the stiffest 6 variants exceed dt_crit and fail."""
     model = {**MODEL_1D, "time_step": {"dt": 2.0e-4}}
-    return _run(tmp_path_factory.mktemp("failures"), model,
-                {"springs.lower.material.stiffness": [1.0e4, 2.0e4, 1.0e9],
-                 "impact_velocity": [1.0, 1.5, 2.0, 2.5, 3.0, 3.5]}, "plot-failures")  # fmt: skip
+    return _run(
+        tmp_path_factory.mktemp("failures"),
+        model,
+        {
+            "springs.lower.material.stiffness": [1.0e4, 2.0e4, 1.0e9],
+            "impact_velocity": [1.0, 1.5, 2.0, 2.5, 3.0, 3.5],
+        },
+        "plot-failures",
+    )
 
 
 @pytest.fixture(scope="module")
 def no_histories(tmp_path_factory) -> Path:
-    return _run(tmp_path_factory.mktemp("nohist"), MODEL_1D, {AXES[0]: [0.5, 1.0], AXES[1]: [1.0, 2.0]},
-                "plot-nohist", set={"output": {"histories": "none"}})  # fmt: skip
+    return _run(
+        tmp_path_factory.mktemp("nohist"),
+        MODEL_1D,
+        {AXES[0]: [0.5, 1.0], AXES[1]: [1.0, 2.0]},
+        "plot-nohist",
+        set={"output": {"histories": "none"}},
+    )
 
 
 @pytest.fixture(scope="module")
@@ -108,8 +123,16 @@ def opened():
 
 
 def _args(directory: Path, **kw) -> argparse.Namespace:
-    base = {"dir": str(directory), "kind": "history", "quantity": None, "items": None, "x_axis": None,
-            "y_axis": None, "max_variants": 50, "output": None}  # fmt: skip
+    base = {
+        "dir": str(directory),
+        "kind": "history",
+        "quantity": None,
+        "items": None,
+        "x_axis": None,
+        "y_axis": None,
+        "max_variants": 50,
+        "output": None,
+    }
     return argparse.Namespace(**{**base, **kw})
 
 
@@ -239,7 +262,9 @@ def test_many_variants_are_coloured_by_the_first_axis_with_a_colour_bar(with_fai
     ds = opened(with_failures).dataset
     fig = plot_history(ds, "spring_force", ["lower"])
     bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
-    assert len(bars) == 1 and bars[0].get_ylabel() == "springs.lower.material.stiffness [N/m]"  # with its unit
+    assert (
+        len(bars) == 1 and bars[0].get_ylabel() == "springs.lower.material.stiffness [N/m]"
+    )  # with its unit
     colours = {line.get_gid(): line.get_color() for line in fig.axes[0].lines}
     k = ds["springs.lower.material.stiffness"].values
     same = [f"variant {v}" for v in range(18) if k[v] == 1.0e4]
@@ -272,15 +297,18 @@ def test_missing_histories_ask_for_a_rerun_but_matrix_still_works(no_histories, 
     _assert_real_png(paths[0])
 
 
-@pytest.mark.parametrize(("kw", "valid"), [
-    ({"quantity": "spring_forse"}, "valid: position, displacement"),
-    ({"items": ["middle"]}, "valid springs: lower, upper"),
-    ({"quantity": "acceleration", "items": ["ground", "roof"]}, "valid nodes: ground, base, top"),
-    ({"kind": "force-displacement", "items": ["nope"]}, "valid springs: lower, upper"),
-    ({"kind": "matrix", "x_axis": "mass"}, "valid axes: nodes.top.mass, impact_velocity"),
-    ({"kind": "matrix", "quantity": "peak_forse"}, "valid: absorbed_energy"),
-    ({"kind": "matrix", "quantity": "peak_force", "items": ["middle"]}, "valid items: lower, upper"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("kw", "valid"),
+    [
+        ({"quantity": "spring_forse"}, "valid: position, displacement"),
+        ({"items": ["middle"]}, "valid springs: lower, upper"),
+        ({"quantity": "acceleration", "items": ["ground", "roof"]}, "valid nodes: ground, base, top"),
+        ({"kind": "force-displacement", "items": ["nope"]}, "valid springs: lower, upper"),
+        ({"kind": "matrix", "x_axis": "mass"}, "valid axes: nodes.top.mass, impact_velocity"),
+        ({"kind": "matrix", "quantity": "peak_forse"}, "valid: absorbed_energy"),
+        ({"kind": "matrix", "quantity": "peak_force", "items": ["middle"]}, "valid items: lower, upper"),
+    ],
+)
 def test_unknown_names_are_input_errors_listing_the_valid_ones(small, tmp_path, kw, valid):
     with pytest.raises(InputError) as exc:
         plot_command(_args(small, output=str(tmp_path), **kw))
@@ -299,8 +327,9 @@ def test_each_kind_writes_a_real_png(small, tmp_path, kind):
 
 
 def test_matrix_by_metric_name_and_items_writes_one_png_per_item(small, tmp_path):
-    paths = plot_command(_args(small, kind="matrix", quantity="peak_force", items=["lower", "upper"],
-                               output=str(tmp_path)))  # fmt: skip
+    paths = plot_command(
+        _args(small, kind="matrix", quantity="peak_force", items=["lower", "upper"], output=str(tmp_path))
+    )
     assert [p.name for p in paths] == ["matrix-peak_force.lower.png", "matrix-peak_force.upper.png"]
 
 
@@ -323,8 +352,18 @@ def test_cli_main_matrix_returns_0_and_prints_the_paths(small, capsys):
 
 
 def test_real_command_line_writes_history_png(small, tmp_path, cli):
-    proc = cli("plot", str(small), "--kind", "history", "--items", "upper", "--max-variants", "3",
-               "-o", str(tmp_path))  # fmt: skip
+    proc = cli(
+        "plot",
+        str(small),
+        "--kind",
+        "history",
+        "--items",
+        "upper",
+        "--max-variants",
+        "3",
+        "-o",
+        str(tmp_path),
+    )
     assert proc.returncode == 0, proc.stderr
     path = tmp_path / "history-spring_force-upper.png"  # the items are part of the name
     assert proc.stdout.strip() == f"wrote {path}"
@@ -335,16 +374,24 @@ def test_real_command_line_writes_history_png(small, tmp_path, cli):
 
 # --- issue 13 item 6: legends, units, file names, styles, the matrix default ------------------------
 
-LONG_AXES = {"springs.lower.material.stiffness": [1.0e4, 1.0e6], "nodes.top.mass": [0.5, 1.0],
-             "impact_velocity": [1.0, 2.0, 3.0]}  # fmt: skip
+LONG_AXES = {
+    "springs.lower.material.stiffness": [1.0e4, 1.0e6],
+    "nodes.top.mass": [0.5, 1.0],
+    "impact_velocity": [1.0, 2.0, 3.0],
+}
 
 
 @pytest.fixture(scope="module")
 def long_names(tmp_path_factory) -> Path:
     """2 x 2 x 3 variants with long axis paths (the legend entries of issue 13 did not fit), and a
     regression block naming the top node's deceleration."""
-    return _run(tmp_path_factory.mktemp("long"), MODEL_1D, LONG_AXES, "plot-long",
-                regression={"peak_deceleration_g.top": {"rtol": 1e-3}})  # fmt: skip
+    return _run(
+        tmp_path_factory.mktemp("long"),
+        MODEL_1D,
+        LONG_AXES,
+        "plot-long",
+        regression={"peak_deceleration_g.top": {"rtol": 1e-3}},
+    )
 
 
 def _boxes(fig):
@@ -356,13 +403,24 @@ def _boxes(fig):
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     legends = [leg.get_window_extent(renderer) for leg in fig.legends]
-    notes = [t.get_window_extent(renderer) for t in fig.texts if "showing" in t.get_text() or "failed" in t.get_text()]
-    panels = [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible() and ax.get_label() != "<colorbar>"]
+    notes = [
+        t.get_window_extent(renderer)
+        for t in fig.texts
+        if "showing" in t.get_text() or "failed" in t.get_text()
+    ]
+    panels = [
+        ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible() and ax.get_label() != "<colorbar>"
+    ]
     return fig.bbox, legends, notes, panels
 
 
 def _inside(box, outer, tol: float = 0.5) -> bool:
-    return box.x0 >= outer.x0 - tol and box.y0 >= outer.y0 - tol and box.x1 <= outer.x1 + tol and box.y1 <= outer.y1 + tol
+    return (
+        box.x0 >= outer.x0 - tol
+        and box.y0 >= outer.y0 - tol
+        and box.x1 <= outer.x1 + tol
+        and box.y1 <= outer.y1 + tol
+    )
 
 
 def _overlap(a, b) -> bool:
@@ -384,7 +442,8 @@ def test_legend_and_note_lie_inside_the_figure_and_overlap_nothing(long_names, o
     # the legend title names the axes with their units; an entry is the values (8 entries, 1e-12)
     leg = fig.legends[0]
     assert leg.get_title().get_text().replace("\n", " ") == (
-        "springs.lower.material.stiffness [N/m], nodes.top.mass [kg], impact_velocity [m/s]")
+        "springs.lower.material.stiffness [N/m], nodes.top.mass [kg], impact_velocity [m/s]"
+    )
     k, m, v = (ds[a].values for a in LONG_AXES)
     assert [t.get_text() for t in leg.get_texts()][0] == f"{k[0]:g}, {m[0]:g}, {v[0]:g}"
 
@@ -395,8 +454,13 @@ def test_many_variants_get_a_colour_per_first_axis_value_and_a_line_style_per_se
     lines = fig.axes[0].lines
     k = ds["springs.lower.material.stiffness"].values
     m = ds["nodes.top.mass"].values
-    pairs = {(line.get_color() if isinstance(line.get_color(), str) else tuple(line.get_color()), line.get_linestyle())
-             for line in lines}  # fmt: skip
+    pairs = {
+        (
+            line.get_color() if isinstance(line.get_color(), str) else tuple(line.get_color()),
+            line.get_linestyle(),
+        )
+        for line in lines
+    }
     assert len(pairs) == len(set(zip(k, m, strict=True))) == 4  # 2 stiffnesses x 2 masses, each its own look
     for a, b in ((0, 1), (0, 6)):  # same k, other mass: same colour, other style; other k: other colour
         assert (lines[a].get_color() == lines[b].get_color()) == (k[a] == k[b])
@@ -417,8 +481,11 @@ def test_history_labels_carry_units_and_convert_to_g_and_ms(long_names, opened):
     line = ax.lines[3]
     k = int(line.get_gid().split()[1])
     np.testing.assert_allclose(line.get_xdata(), ds["time"].values * 1e3, rtol=1e-12)
-    np.testing.assert_allclose(line.get_ydata(), ds["acceleration"].sel(node="top").isel(variant=k, axis=0).values
-                               / 9.80665, rtol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(
+        line.get_ydata(),
+        ds["acceleration"].sel(node="top").isel(variant=k, axis=0).values / 9.80665,
+        rtol=1e-12,
+    )
 
 
 def test_forces_take_an_engineering_prefix():
@@ -429,7 +496,10 @@ def test_forces_take_an_engineering_prefix():
     assert display_scale("N", [3.0e6]) == (1e-6, "MN")
     assert display_scale("kN", [2.0e3]) == (1e-3, "MN")  # mm-ms-kg-kN results
     assert display_scale("m/s^2", [1.0], system="SI", accel_unit="g") == (1 / 9.80665, "g")
-    assert display_scale("s", time_unit="ms") == (1e3, "ms") and display_scale("ms", time_unit="ms") == (1.0, "ms")
+    assert display_scale("s", time_unit="ms") == (1e3, "ms") and display_scale("ms", time_unit="ms") == (
+        1.0,
+        "ms",
+    )
 
 
 def test_force_displacement_draws_kilonewtons_when_forces_pass_1000_newtons(long_names, opened):
@@ -449,10 +519,20 @@ def test_matrix_axes_carry_units(long_names, opened):
     from crashstudy.analysis.plot_style import axis_units
 
     axes = list(LONG_AXES)
-    fig = pm(res.summary, "peak_force.lower", x=axes[0], y=axes[2], axes=axes, units="N",
-             axis_units=axis_units(res.dataset, axes))  # fmt: skip
+    fig = pm(
+        res.summary,
+        "peak_force.lower",
+        x=axes[0],
+        y=axes[2],
+        axes=axes,
+        units="N",
+        axis_units=axis_units(res.dataset, axes),
+    )
     ax = fig.axes[0]
-    assert ax.get_xlabel() == "springs.lower.material.stiffness [N/m]" and ax.get_ylabel() == "impact_velocity [m/s]"
+    assert (
+        ax.get_xlabel() == "springs.lower.material.stiffness [N/m]"
+        and ax.get_ylabel() == "impact_velocity [m/s]"
+    )
     assert fig.axes[1].get_ylabel() == "peak_force.lower [kN]"
     cells = np.ma.filled(ax.images[0].get_array(), np.nan)
     truth = res.summary.pivot_table(index=axes[2], columns=axes[0], values="peak_force.lower", aggfunc="max")
@@ -471,8 +551,11 @@ def test_file_names_carry_the_items_so_later_plots_do_not_overwrite_earlier_ones
     second = plot_command(_args(small, items=["upper"], output=str(tmp_path)))
     fd = plot_command(_args(small, kind="force-displacement", items=["upper"], output=str(tmp_path)))
     names = [p.name for p in first + second + fd]
-    assert names == ["history-spring_force-lower.png", "history-spring_force-upper.png",
-                     "force-displacement-upper.png"]  # fmt: skip
+    assert names == [
+        "history-spring_force-lower.png",
+        "history-spring_force-upper.png",
+        "force-displacement-upper.png",
+    ]
     assert all(p.exists() for p in first + second + fd)
 
 

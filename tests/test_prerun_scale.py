@@ -27,8 +27,10 @@ def _brute(plan: Any, path: str) -> bool:
     key = np.stack(others, axis=1) if others else np.zeros((n, 0))
     _, group = np.unique(key, axis=0, return_inverse=True)
     group = group.reshape(-1)
-    return any(not np.array_equal(P[:, group == g], np.repeat(P[:, group == g][:, :1], (group == g).sum(), axis=1))
-               for g in np.unique(group))  # fmt: skip
+    return any(
+        not np.array_equal(P[:, group == g], np.repeat(P[:, group == g][:, :1], (group == g).sum(), axis=1))
+        for g in np.unique(group)
+    )
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -37,8 +39,12 @@ def test_axis_check_agrees_with_every_variant(tmp_path: Any, seed: int) -> None:
     value) or matter only for some values of another axis: the check equals the brute force."""
     rng = np.random.default_rng(seed)
     (tmp_path / "m.yaml").write_text(MODEL)
-    choices = {"initial_velocity.body.0": [1.0, -2.0, 3.0], "impact_velocity": [0.0, 0.0, 1.5, 2.0],
-               "nodes.body.mass": [2.0, 2.0, 3.0], "springs.s.material.stiffness": [2.0e4, 3.0e4]}  # fmt: skip
+    choices = {
+        "initial_velocity.body.0": [1.0, -2.0, 3.0],
+        "impact_velocity": [0.0, 0.0, 1.5, 2.0],
+        "nodes.body.mass": [2.0, 2.0, 3.0],
+        "springs.s.material.stiffness": [2.0e4, 3.0e4],
+    }
     matrix = {}
     for path in rng.permutation(list(choices)):
         k = int(rng.integers(1, len(choices[path]) + 1))
@@ -56,9 +62,20 @@ def test_axis_that_matters_for_one_value_of_a_big_axis_is_found_by_the_sample(tm
 
     (tmp_path / "m.yaml").write_text(MODEL)
     for speeds, changes in (([0.0, 1.5], True), ([0.0], False)):
-        plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"), "matrix": {
-            "initial_velocity.body.0": [1.0, -2.0], "nodes.body.mass": [1.0, 3.0], "impact_velocity": speeds}})  # fmt: skip
-        iv, mass, speed = plan.axes  # the mass axis widened to 110,000 values (its validation is not under test)
+        plan = load_study(
+            {
+                "name": "s",
+                "model": str(tmp_path / "m.yaml"),
+                "matrix": {
+                    "initial_velocity.body.0": [1.0, -2.0],
+                    "nodes.body.mass": [1.0, 3.0],
+                    "impact_velocity": speeds,
+                },
+            }
+        )
+        iv, mass, speed = (
+            plan.axes
+        )  # the mass axis widened to 110,000 values (its validation is not under test)
         mass = dataclasses.replace(mass, values=np.linspace(1.0, 3.0, 110_000))
         plan = dataclasses.replace(plan, axes=(iv, mass, speed), shape=(2, 110_000, len(speeds)))
         assert _axis_changes_model(plan, iv) is changes
@@ -68,10 +85,17 @@ def test_checks_of_a_1e7_variant_study_take_memory_of_its_distinct_values(tmp_pa
     """10^7 variants (1000 x 100 x 100): check_plan allocated the other axes' settings of 800,000 sampled
     variants per axis (about 60 MB; 2.3 s of np.unique at 10^6); now its peak follows the 1200 distinct values."""
     (tmp_path / "m.yaml").write_text(MODEL)
-    plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"), "matrix": {
-        "nodes.body.mass": [float(v) for v in np.linspace(1.0, 3.0, 1000)],
-        "springs.s.material.stiffness": [float(v) for v in np.linspace(1e4, 3e4, 100)],
-        "impact_velocity": [float(v) for v in np.linspace(1.0, 2.0, 100)]}})  # fmt: skip
+    plan = load_study(
+        {
+            "name": "s",
+            "model": str(tmp_path / "m.yaml"),
+            "matrix": {
+                "nodes.body.mass": [float(v) for v in np.linspace(1.0, 3.0, 1000)],
+                "springs.s.material.stiffness": [float(v) for v in np.linspace(1e4, 3e4, 100)],
+                "impact_velocity": [float(v) for v in np.linspace(1.0, 2.0, 100)],
+            },
+        }
+    )
     assert plan.n_variants == 10**7
     tracemalloc.start()
     try:
@@ -93,8 +117,11 @@ def test_ranges_of_a_fresh_run_cover_every_variant_once_in_order(n: int, size: i
     assert _ranges(np.ones(n, dtype=bool), size) == expected
     todo = np.ones(n, dtype=bool)
     todo[0] = False  # the general path, for comparison
-    assert _ranges(todo, size) == [(lo, hi) for lo, hi in [(1, min(1 + size, n))] + [
-        (lo, min(lo + size, n)) for lo in range(1 + size, n, size)] if lo < hi]  # fmt: skip
+    assert _ranges(todo, size) == [
+        (lo, hi)
+        for lo, hi in [(1, min(1 + size, n))] + [(lo, min(lo + size, n)) for lo in range(1 + size, n, size)]
+        if lo < hi
+    ]
 
 
 def test_work_estimate_counts_each_step_setting_once_and_exactly(tmp_path: Any, monkeypatch: Any) -> None:
@@ -105,13 +132,30 @@ def test_work_estimate_counts_each_step_setting_once_and_exactly(tmp_path: Any, 
     from crashstudy.arrays.batch import build_batch
     from crashstudy.study.work import estimate_work
 
-    (tmp_path / "m.yaml").write_text(MODEL.replace("end_time: 0.05", "end_time: 2.0").replace(
-        "histories: none}", "histories: none, interval: 2.0}\ntime_step: {safety_factor: 0.5}"))  # steps vary with the mass
+    (tmp_path / "m.yaml").write_text(
+        MODEL.replace("end_time: 0.05", "end_time: 2.0").replace(
+            "histories: none}", "histories: none, interval: 2.0}\ntime_step: {safety_factor: 0.5}"
+        )
+    )  # steps vary with the mass
     masses = [float(v) for v in np.linspace(1.0, 4.0, 300)]
-    plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"),
-                       "matrix": {"nodes.body.mass": masses, "impact_velocity": [float(v) for v in np.linspace(0.5, 3.0, 300)]}})  # fmt: skip
-    every = np.concatenate([build_batch(plan.topology, plan.params(lo, min(lo + 30000, plan.n_variants)), plan.interval)[0]
-                            .n_steps for lo in range(0, plan.n_variants, 30000)])  # fmt: skip
+    plan = load_study(
+        {
+            "name": "s",
+            "model": str(tmp_path / "m.yaml"),
+            "matrix": {
+                "nodes.body.mass": masses,
+                "impact_velocity": [float(v) for v in np.linspace(0.5, 3.0, 300)],
+            },
+        }
+    )
+    every = np.concatenate(
+        [
+            build_batch(plan.topology, plan.params(lo, min(lo + 30000, plan.n_variants)), plan.interval)[
+                0
+            ].n_steps
+            for lo in range(0, plan.n_variants, 30000)
+        ]
+    )
     truth = float(every.sum())
     assert len(np.unique(every)) > 50
     built: list[int] = []
@@ -122,7 +166,9 @@ def test_work_estimate_counts_each_step_setting_once_and_exactly(tmp_path: Any, 
         return real(topo, P, interval)
 
     monkeypatch.setattr(batch_mod, "variant_steps", counted)
-    monkeypatch.setattr(batch_mod, "build_batch", lambda *a: pytest.fail("a whole batch built to count steps"))
+    monkeypatch.setattr(
+        batch_mod, "build_batch", lambda *a: pytest.fail("a whole batch built to count steps")
+    )
     work, worst, steps = estimate_work(plan)
     assert work == pytest.approx(truth * plan.topology.n_springs, rel=1e-12)
     assert sum(built) == 300

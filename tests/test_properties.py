@@ -57,8 +57,10 @@ COUNTS: Counter[str] = Counter()
 def _report_counts() -> Iterator[None]:
     yield
     if COUNTS:
-        print("\n[test_properties] generated inputs run: "
-              + ", ".join(f"{k}={v}" for k, v in sorted(COUNTS.items())))  # fmt: skip
+        print(
+            "\n[test_properties] generated inputs run: "
+            + ", ".join(f"{k}={v}" for k, v in sorted(COUNTS.items()))
+        )
 
 
 # ------------------------------------------------------------------------------------------------
@@ -105,13 +107,22 @@ def test_random_valid_model_runs_or_fails_with_a_clear_status(model: dict[str, A
         if rc == 1:
             COUNTS["models_failed_cleanly"] += 1
             speeds = [abs(v) for vec in model.get("initial_velocity", {}).values() for v in vec]
-            kind = "extreme speed" if any(v > 1e100 for v in speeds) else "at rest" if not any(speeds) else "moving"
+            kind = (
+                "extreme speed"
+                if any(v > 1e100 for v in speeds)
+                else "at rest"
+                if not any(speeds)
+                else "moving"
+            )
             COUNTS[f"failure ({kind}): " + str(row["failure_reason"]).split(" at t=")[0].split(" (")[0]] += 1
             assert row["status"] == "failed", row
             assert str(row["failure_reason"]).strip(), row
             assert "failed: " in err and str(row["failure_reason"]) in err
             # a well-posed model may only fail because a 2-D spring collapsed, never as "unstable"
-            assert not checked or "crushed to zero length" in row["failure_reason"], (row["failure_reason"], dump(model))
+            assert not checked or "crushed to zero length" in row["failure_reason"], (
+                row["failure_reason"],
+                dump(model),
+            )
         else:
             COUNTS["models_ok"] += 1
             assert row["status"] == "ok", row
@@ -122,7 +133,10 @@ def test_random_valid_model_runs_or_fails_with_a_clear_status(model: dict[str, A
                 # (about 5 % at safety_factor 1). An accounting bug shows as 1e-3 ... 1 (see the xfails below)
                 dampers = any(sp["material"]["type"] == "damper" for sp in model["springs"].values())
                 COUNTS["models_energy_balance_checked"] += 1
-                assert row["energy_error"] < (0.1 if dampers else 1e-3), (row["energy_error"], dump(model))  # energy balance target 1e-3
+                assert row["energy_error"] < (0.1 if dampers else 1e-3), (
+                    row["energy_error"],
+                    dump(model),
+                )  # energy balance target 1e-3
 
 
 def _well_posed(model: dict[str, Any]) -> bool:
@@ -186,8 +200,9 @@ output: {interval: 1.0e-5, histories: all}
 
 @pytest.mark.parametrize("kernel", ["reference", "generic", "generated"])
 @pytest.mark.parametrize("wall", ["1.0", "0.99996"], ids=["starts-on-the-wall", "wall-within-first-step"])
-def test_energy_error_of_a_node_that_reaches_a_wall_in_the_first_step(tmp_path: Path, wall: str, kernel: str,
-                                                                       monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_energy_error_of_a_node_that_reaches_a_wall_in_the_first_step(
+    tmp_path: Path, wall: str, kernel: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A 1 kg mass at 10 m/s (dt = 1e-5 s, 1e-4 m per step) hits a stonewall at once: all 50 J go into
     ``wall_energy``, KE + IE + E_wall - W_ext must stay 50 J at every sample and ``energy_error`` be round-off.
     (Found by the model generator: the t = 0 balance and record held that first impact's wall energy
@@ -200,7 +215,9 @@ def test_energy_error_of_a_node_that_reaches_a_wall_in_the_first_step(tmp_path: 
     assert rc == 0, err
     res = Results(tmp_path / "out")
     ds = res.dataset
-    balance = (ds["kinetic_energy"] + ds["internal_energy"] + ds["wall_energy"] - ds["external_work"]).values[0]
+    balance = (ds["kinetic_energy"] + ds["internal_energy"] + ds["wall_energy"] - ds["external_work"]).values[
+        0
+    ]
     final_wall = float(ds["wall_energy"][0, -1])
     err_value = float(ds["energy_error"][0])
     res.close()
@@ -237,7 +254,9 @@ def test_preloaded_spring_keeps_the_energy_balance(tmp_path: Path, speed: float 
     0.1 m/s gave energy_error = 0.25. Such a curve is now an input error; with initial_elongation the first
     half step books F0 on the mean rate and IE0 is in the balance."""
     path = tmp_path / "preloaded.yaml"
-    path.write_text(PRELOADED.replace("SPEED", "" if speed is None else f"initial_velocity: {{b: [{speed}]}}"))
+    path.write_text(
+        PRELOADED.replace("SPEED", "" if speed is None else f"initial_velocity: {{b: [{speed}]}}")
+    )
     rc, out, err = run_main("simulate", str(path), "-o", str(tmp_path / "out"))
     res = Results(tmp_path / "out")
     ds = res.dataset
@@ -248,7 +267,7 @@ def test_preloaded_spring_keeps_the_energy_balance(tmp_path: Path, speed: float 
     assert rc == 0, err
     v0 = speed or 0.0
     assert x_end == pytest.approx(0.5 + v0 * 0.05 - 50.0 * 0.05**2, abs=1e-12)
-    assert np.abs(balance - balance[0]).max() < 1e-9, (balance[:3] - balance[0])
+    assert np.abs(balance - balance[0]).max() < 1e-9, balance[:3] - balance[0]
     assert err_value < 1e-6
 
 
@@ -260,8 +279,30 @@ EXAMPLE_MODELS = sorted((STUDIES / "models").glob("*.yaml"))
 EXAMPLE_STUDIES = sorted(STUDIES.glob("*.yaml"))
 NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?(?![\w.])")
 ID_WORD = re.compile(r"\b[a-z][a-z0-9_]*(?:-[a-z0-9_]+)*\b")
-BAD_NUMBERS = [".nan", ".inf", "-.inf", "1e400", "-1e400", "1.0e308", "9" * 40, "9" * 5000, "0", "-0.0", "1e-320",
-               "0x7f", "0o17", "'1.0'", "1_000", "NaN", "inf", "12abc", "~", "[]", "{}", "true"]  # fmt: skip
+BAD_NUMBERS = [
+    ".nan",
+    ".inf",
+    "-.inf",
+    "1e400",
+    "-1e400",
+    "1.0e308",
+    "9" * 40,
+    "9" * 5000,
+    "0",
+    "-0.0",
+    "1e-320",
+    "0x7f",
+    "0o17",
+    "'1.0'",
+    "1_000",
+    "NaN",
+    "inf",
+    "12abc",
+    "~",
+    "[]",
+    "{}",
+    "true",
+]
 
 
 @st.composite
@@ -271,8 +312,22 @@ def corrupt(draw: st.DrawFn, text: str) -> bytes:
     for _ in range(draw(st.integers(1, 3))):
         s = data.decode("utf-8", "surrogateescape")
         lines = s.splitlines(keepends=True) or [""]
-        op = draw(st.sampled_from(["delete-line", "number-to-text", "bad-number", "duplicate-line", "swap-lines",
-                                   "swap-ids", "random-bytes", "truncate", "indent", "replace-char"]))  # fmt: skip
+        op = draw(
+            st.sampled_from(
+                [
+                    "delete-line",
+                    "number-to-text",
+                    "bad-number",
+                    "duplicate-line",
+                    "swap-lines",
+                    "swap-ids",
+                    "random-bytes",
+                    "truncate",
+                    "indent",
+                    "replace-char",
+                ]
+            )
+        )
         COUNTS[f"corruption:{op}"] += 1
         if op == "delete-line":
             del lines[draw(st.integers(0, len(lines) - 1))]
@@ -282,9 +337,12 @@ def corrupt(draw: st.DrawFn, text: str) -> bytes:
             if not nums:
                 continue
             m = draw(st.sampled_from(nums))
-            new = draw(st.sampled_from(["heavy", "x", "one", "1.0.0", "1,5", "12 kg", "'3'"])) if op == "number-to-text" \
-                else draw(st.sampled_from(BAD_NUMBERS))  # fmt: skip
-            s = s[: m.start()] + new + s[m.end():]
+            new = (
+                draw(st.sampled_from(["heavy", "x", "one", "1.0.0", "1,5", "12 kg", "'3'"]))
+                if op == "number-to-text"
+                else draw(st.sampled_from(BAD_NUMBERS))
+            )
+            s = s[: m.start()] + new + s[m.end() :]
         elif op == "duplicate-line":
             k = draw(st.integers(0, len(lines) - 1))
             lines.insert(k, lines[k])
@@ -315,7 +373,7 @@ def corrupt(draw: st.DrawFn, text: str) -> bytes:
             if not s:
                 continue
             k = draw(st.integers(0, len(s) - 1))
-            s = s[:k] + draw(st.sampled_from(list(":-[]{},&*!#'\"|>%@`"))) + s[k + 1:]
+            s = s[:k] + draw(st.sampled_from(list(":-[]{},&*!#'\"|>%@`"))) + s[k + 1 :]
         data = s.encode("utf-8", "surrogateescape")
     return data
 
@@ -355,8 +413,11 @@ def _check_validate(path: Path, model_path: Path | None = None) -> None:
 def test_corrupted_model_text_never_crashes_validate(studies_copy: Path, data: st.DataObject) -> None:
     """Draws 100 corrupted models (250 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     source = data.draw(st.sampled_from(["generated"] + [p.name for p in EXAMPLE_MODELS]), label="source")
-    text = dump(data.draw(valid_model(), label="model")) if source == "generated" \
-        else (STUDIES / "models" / source).read_text(encoding="utf-8")  # fmt: skip
+    text = (
+        dump(data.draw(valid_model(), label="model"))
+        if source == "generated"
+        else (STUDIES / "models" / source).read_text(encoding="utf-8")
+    )
     raw = data.draw(corrupt(text), label="corrupted")
     path = studies_copy / "models" / "corrupted-model.yaml"
     path.write_bytes(raw)
@@ -457,8 +518,9 @@ def valid_study(draw: st.DrawFn) -> tuple[dict[str, Any], list[int], list[list[s
         study["zip"] = []
         for g in groups:
             n = draw(st.integers(1, 5))
-            study["zip"].append({p: [round(v, 6) for v in draw(st.lists(AXIS_VALUES[p], min_size=n, max_size=n))]
-                                 for p in g})  # fmt: skip
+            study["zip"].append(
+                {p: [round(v, 6) for v in draw(st.lists(AXIS_VALUES[p], min_size=n, max_size=n))] for p in g}
+            )
             lengths.append(n)
             dims.append(g)
     if draw(st.booleans()):
@@ -483,7 +545,9 @@ def _assert_axis_changes_no_parameter(plan: Any, path: str) -> None:
 
 @settings(max_examples=examples(50, 150), deadline=None, suppress_health_check=list(HealthCheck))
 @given(valid_study())
-def test_random_valid_study_counts_its_variants(case: tuple[dict[str, Any], list[int], list[list[str]]]) -> None:
+def test_random_valid_study_counts_its_variants(
+    case: tuple[dict[str, Any], list[int], list[list[str]]],
+) -> None:
     """Draws 50 studies (150 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     from crashstudy.study.plan import load_study
 
@@ -510,7 +574,7 @@ def test_random_valid_study_counts_its_variants(case: tuple[dict[str, Any], list
         # row-major numbering: matrix axes first, then zip groups, the last dimension fastest
         assert plan.n_variants == expected
         got = plan.axis_values(0, expected)
-        table = (study.get("matrix", {}) | {p: v for g in study.get("zip", []) for p, v in g.items()})
+        table = study.get("matrix", {}) | {p: v for g in study.get("zip", []) for p, v in g.items()}
         for k, idx in enumerate(itertools.product(*(range(n) for n in lengths))):
             for dim, paths in enumerate(dims):
                 for p in paths:
@@ -522,13 +586,55 @@ def test_random_valid_study_counts_its_variants(case: tuple[dict[str, Any], list
 # 6. random options of `compare` and `summary`
 # ------------------------------------------------------------------------------------------------
 
-SET_PARTS = ["nodes", "body", "front", "wall", "springs", "crush", "damper", "material", "stiffness", "damping",
-             "position", "mass", "fixed", "name", "end_time", "output", "interval", "histories", "time_step", "dt",
-             "safety_factor", "loads", "force", "node", "curves", "pulse", "x", "y", "scale", "gravity",
-             "initial_velocity", "0", "1", "2", "7", "-1", "foo", ""]  # fmt: skip
-SET_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10, 10), num(-1e3, 1e3), st.sampled_from(
-    ["text", "body", "none", "all", "", "1e400"]), st.lists(num(-1.0, 1.0), max_size=3),
-    st.dictionaries(st.sampled_from(["x", "dt", "mass", "interval"]), num(1e-4, 1.0), max_size=2))  # fmt: skip
+SET_PARTS = [
+    "nodes",
+    "body",
+    "front",
+    "wall",
+    "springs",
+    "crush",
+    "damper",
+    "material",
+    "stiffness",
+    "damping",
+    "position",
+    "mass",
+    "fixed",
+    "name",
+    "end_time",
+    "output",
+    "interval",
+    "histories",
+    "time_step",
+    "dt",
+    "safety_factor",
+    "loads",
+    "force",
+    "node",
+    "curves",
+    "pulse",
+    "x",
+    "y",
+    "scale",
+    "gravity",
+    "initial_velocity",
+    "0",
+    "1",
+    "2",
+    "7",
+    "-1",
+    "foo",
+    "",
+]
+SET_VALUES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-10, 10),
+    num(-1e3, 1e3),
+    st.sampled_from(["text", "body", "none", "all", "", "1e400"]),
+    st.lists(num(-1.0, 1.0), max_size=3),
+    st.dictionaries(st.sampled_from(["x", "dt", "mass", "interval"]), num(1e-4, 1.0), max_size=2),
+)
 
 
 def _assert_invalid_lines(err: str, study: Path, model: Path) -> None:
@@ -539,9 +645,22 @@ def _assert_invalid_lines(err: str, study: Path, model: Path) -> None:
         assert ln.startswith("... and ") or ln.startswith((f"{study}:", f"{model}:")), (ln, err)
 
 
-SET_PATHS = st.one_of(st.lists(st.sampled_from(SET_PARTS), min_size=1, max_size=5).map(".".join), st.sampled_from(
-    ["end_time", "nodes.body.mass", "springs.body.material.stiffness", "output.interval", "time_step.safety_factor",
-     "gravity.0", "nodes.front.position.0", "loads.0.force.0", "curves.pulse.scale"]))  # fmt: skip
+SET_PATHS = st.one_of(
+    st.lists(st.sampled_from(SET_PARTS), min_size=1, max_size=5).map(".".join),
+    st.sampled_from(
+        [
+            "end_time",
+            "nodes.body.mass",
+            "springs.body.material.stiffness",
+            "output.interval",
+            "time_step.safety_factor",
+            "gravity.0",
+            "nodes.front.position.0",
+            "loads.0.force.0",
+            "curves.pulse.scale",
+        ]
+    ),
+)
 
 
 @settings(max_examples=examples(60, 150), deadline=None, suppress_health_check=list(HealthCheck))
@@ -551,8 +670,12 @@ def test_random_set_paths_never_crash_validate(overrides: dict[str, Any]) -> Non
     with tempfile.TemporaryDirectory(prefix="crashstudy-prop-") as tmp:
         d = Path(tmp)
         (d / "model.yaml").write_text(SMALL_MODEL)
-        study = {"name": "set-study", "model": "model.yaml", "set": overrides,
-                 "matrix": {"nodes.body.mass": [800.0, 900.0]}}  # fmt: skip
+        study = {
+            "name": "set-study",
+            "model": "model.yaml",
+            "set": overrides,
+            "matrix": {"nodes.body.mass": [800.0, 900.0]},
+        }
         (d / "study.yaml").write_text(dump(study))
         rc, out, err = run_main("validate", str(d / "study.yaml"))
     COUNTS["set_paths_validated"] += 1
@@ -578,8 +701,9 @@ INVALID_AXIS_VALUES = {  # path -> (a valid value, invalid values)
 
 @settings(max_examples=examples(20, 60), deadline=None, suppress_health_check=list(HealthCheck))
 @given(st.sampled_from(sorted(INVALID_AXIS_VALUES)), st.integers(2, 1000), st.data())
-def test_an_invalid_value_anywhere_among_up_to_1000_distinct_axis_values_is_caught(path: str, n: int,
-                                                                                  data: st.DataObject) -> None:  # fmt: skip
+def test_an_invalid_value_anywhere_among_up_to_1000_distinct_axis_values_is_caught(
+    path: str, n: int, data: st.DataObject
+) -> None:
     """Draws 20 axes (60 under ``HYPOTHESIS_PROFILE=explore``, new ones on each run)."""
     from crashstudy.errors import InputError
     from crashstudy.study.plan import load_study
@@ -607,25 +731,55 @@ def test_an_invalid_value_anywhere_among_up_to_1000_distinct_axis_values_is_caug
 def two_results(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("options")
     (root / "model.yaml").write_text(SMALL_MODEL)
-    (root / "study.yaml").write_text("name: opts\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: [800.0, 900.0, "
-                                     "1000.0]\n  impact_velocity: [5.0, 10.0]\n")  # fmt: skip
+    (root / "study.yaml").write_text(
+        "name: opts\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: [800.0, 900.0, "
+        "1000.0]\n  impact_velocity: [5.0, 10.0]\n"
+    )
     for name in ("new", "base"):
         rc, _, err = run_main("run", str(root / "study.yaml"), "-o", str(root / name), "--progress", "off")
         assert rc == 0, err
     return root / "new", root / "base"
 
 
-WORDS = st.sampled_from(["peak", "peak_force", "crush", "body", "variant", "status", "nodes.body.mass", "x", "",
-                         "energy_error", "dt", "-1", "nan", "impact_velocity", "failure_reason", "zzz"])  # fmt: skip
-NUMBERS = st.sampled_from(["0", "1", "-1", "1e-6", "0.5", "nan", "inf", "-inf", "1e308", "abc", "", "5", "100",
-                           "-3", "2.5"])  # fmt: skip
+WORDS = st.sampled_from(
+    [
+        "peak",
+        "peak_force",
+        "crush",
+        "body",
+        "variant",
+        "status",
+        "nodes.body.mass",
+        "x",
+        "",
+        "energy_error",
+        "dt",
+        "-1",
+        "nan",
+        "impact_velocity",
+        "failure_reason",
+        "zzz",
+    ]
+)
+NUMBERS = st.sampled_from(
+    ["0", "1", "-1", "1e-6", "0.5", "nan", "inf", "-inf", "1e308", "abc", "", "5", "100", "-3", "2.5"]
+)
 
 
 @st.composite
 def options(draw: st.DrawFn, command: str) -> list[str]:
-    picked = draw(st.lists(st.sampled_from({
-        "summary": ["--sort", "--ascending", "--head", "--columns", "--variant"],
-        "compare": ["--rtol", "--atol", "--junit"]}[command]), unique=True, max_size=4))  # fmt: skip
+    picked = draw(
+        st.lists(
+            st.sampled_from(
+                {
+                    "summary": ["--sort", "--ascending", "--head", "--columns", "--variant"],
+                    "compare": ["--rtol", "--atol", "--junit"],
+                }[command]
+            ),
+            unique=True,
+            max_size=4,
+        )
+    )
     args: list[str] = []
     for opt in picked:
         if opt == "--ascending":
@@ -635,7 +789,10 @@ def options(draw: st.DrawFn, command: str) -> list[str]:
         elif opt in ("--sort",):
             args += [opt, draw(WORDS)]
         elif opt == "--junit":
-            args += [opt, draw(st.sampled_from(["report.xml", "summary.csv", "results.nc", "sub/none/r.xml"]))]
+            args += [
+                opt,
+                draw(st.sampled_from(["report.xml", "summary.csv", "results.nc", "sub/none/r.xml"])),
+            ]
         else:
             args.append(f"{opt}={draw(NUMBERS)}")
     return args
@@ -656,7 +813,9 @@ def test_random_options_of_compare_and_summary_exit_0_1_or_2_without_a_traceback
     COUNTS[f"{command}_options_exit_{rc}"] += 1
     assert rc in ((0, 2) if command == "summary" else (0, 1, 2)), (args, rc, out, err)
     assert "Traceback" not in err
-    if rc == 2 and err:  # ours, or argparse's usage line for a value that is no number / an option without one
+    if (
+        rc == 2 and err
+    ):  # ours, or argparse's usage line for a value that is no number / an option without one
         assert err.startswith(("error: invalid input\n", "usage: crashstudy ")), (args, err)
     if rc == 1:  # compare only (two runs of one study): a verdict, never a crash
         assert out.splitlines()[-1].startswith("FAILED"), out

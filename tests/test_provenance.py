@@ -27,7 +27,9 @@ end_time: 0.05
 def _study(tmp: Path, masses: str, name: str = "reuse") -> Path:
     (tmp / "model.yaml").write_text(MODEL)
     study = tmp / "study.yaml"
-    study.write_text(f"name: {name}\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: {masses}\n  impact_velocity: [1.0, 2.0]\n")
+    study.write_text(
+        f"name: {name}\nmodel: model.yaml\nmatrix:\n  nodes.body.mass: {masses}\n  impact_velocity: [1.0, 2.0]\n"
+    )
     return study
 
 
@@ -40,8 +42,9 @@ def _identical(a: xr.Dataset, b: xr.Dataset) -> None:
 
 
 @pytest.mark.parametrize("store", ["netcdf", "zarr"])
-def test_rerun_reuses_unchanged_variants_and_recomputes_changed_ones(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                                     store: str) -> None:  # fmt: skip
+def test_rerun_reuses_unchanged_variants_and_recomputes_changed_ones(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], store: str
+) -> None:
     study = _study(tmp_path, "[1.0, 2.0, 3.0]")
     out = tmp_path / "out"
     assert main(["run", str(study), "-o", str(out), "--store", store]) == 0
@@ -75,7 +78,9 @@ def test_results_record_version_content_hashes_and_per_variant_hashes(tmp_path: 
     assert len({tuple(h) for h in hashes}) == 4  # 128-bit hashes of the four different variants
 
 
-def test_force_recomputes_and_another_study_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_force_recomputes_and_another_study_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     study = _study(tmp_path, "[1.0, 2.0]")
     out = tmp_path / "out"
     assert main(["run", str(study), "-o", str(out)]) == 0

@@ -14,13 +14,17 @@ SECRET = "s3cr3t-token-do-not-print"
 
 def _study_of(tmp: Path, model: Path) -> Path:
     study = tmp / "study.yaml"
-    study.write_text(yaml.safe_dump({"name": "probe", "model": str(model), "matrix": {"nodes.b.mass": [1.0]}}))
+    study.write_text(
+        yaml.safe_dump({"name": "probe", "model": str(model), "matrix": {"nodes.b.mass": [1.0]}})
+    )
     return study
 
 
 def test_study_pointing_at_a_system_like_file_does_not_quote_it(tmp_path: Path) -> None:
     passwd = tmp_path / "passwd"  # like /etc/passwd: colon-separated fields, no spaces
-    passwd.write_text(f"root:x:0:0:{SECRET}:/root:/bin/bash\ndaemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\n")
+    passwd.write_text(
+        f"root:x:0:0:{SECRET}:/root:/bin/bash\ndaemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\n"
+    )
     for args in (("validate", str(passwd)), ("run", str(_study_of(tmp_path, passwd)))):
         done = run_cli(*args)
         assert done.returncode == 2 and "Traceback" not in done.stderr
@@ -42,9 +46,11 @@ def test_file_of_key_value_lines_is_refused_without_echoing_its_keys(tmp_path: P
 
 def test_escape_sequences_in_a_key_are_shown_escaped_never_sent_to_the_terminal(tmp_path: Path) -> None:
     model = tmp_path / "model.yaml"
-    model.write_text('name: esc\nnodes:\n  a: {position: [0.0], fixed: true}\n  "b\\e[2J\\e]0;pwned\\a": {position: [1.0], mass: 1.0}\n'
-                     '  "line\\nbreak": {position: [2.0], mass: 1.0}\n'
-                     'springs:\n  s: {nodes: [a, c], material: {type: linear_elastic, stiffness: 1.0}}\nend_time: 0.1\n')  # fmt: skip
+    model.write_text(
+        'name: esc\nnodes:\n  a: {position: [0.0], fixed: true}\n  "b\\e[2J\\e]0;pwned\\a": {position: [1.0], mass: 1.0}\n'
+        '  "line\\nbreak": {position: [2.0], mass: 1.0}\n'
+        "springs:\n  s: {nodes: [a, c], material: {type: linear_elastic, stiffness: 1.0}}\nend_time: 0.1\n"
+    )
     done = run_cli("validate", str(model))
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert "\x1b" not in done.stderr and "\x07" not in done.stderr

@@ -32,19 +32,29 @@ def _driven(speed: float) -> dict[str, Any]:
     """A rate_elastic spring between a fixed anchor and a node driven at ``speed`` [m/s] (< 0: crushed)."""
     return {
         "name": "rate-elastic-driven",
-        "curves": {"soft": {"x": [-1.0, 0.0, 1.0], "y": [-K1, 0.0, K1]},
-                   "stiff": {"x": [-1.0, 0.0, 1.0], "y": [-K2, 0.0, K2]},
-                   "const": {"x": [0.0, 1.0], "y": [1.0, 1.0]}},
+        "curves": {
+            "soft": {"x": [-1.0, 0.0, 1.0], "y": [-K1, 0.0, K1]},
+            "stiff": {"x": [-1.0, 0.0, 1.0], "y": [-K2, 0.0, K2]},
+            "const": {"x": [0.0, 1.0], "y": [1.0, 1.0]},
+        },
         "nodes": {"anchor": {"position": [0.0], "fixed": True}, "end": {"position": [1.0], "mass": 1.0}},
-        "springs": {"s": {"nodes": ["anchor", "end"],
-                          "material": {"type": "rate_elastic", "curves": [{"rate": R1, "curve": "soft"},
-                                                                          {"rate": R2, "curve": "stiff"}]}}},
+        "springs": {
+            "s": {
+                "nodes": ["anchor", "end"],
+                "material": {
+                    "type": "rate_elastic",
+                    "curves": [{"rate": R1, "curve": "soft"}, {"rate": R2, "curve": "stiff"}],
+                },
+            }
+        },
         "initial_velocity": {"end": [speed]},
-        "prescribed_motion": [{"node": "end", "quantity": "velocity", "direction": "x", "curve": "const",
-                               "scale": speed}],
-        "end_time": 0.05, "time_step": {"dt": 1.6e-5},  # below the rate terms' damper limit (2e-5 at scale 2)
+        "prescribed_motion": [
+            {"node": "end", "quantity": "velocity", "direction": "x", "curve": "const", "scale": speed}
+        ],
+        "end_time": 0.05,
+        "time_step": {"dt": 1.6e-5},  # below the rate terms' damper limit (2e-5 at scale 2)
         "output": {"interval": 1.0e-3, "histories": ["spring_force", "spring_elongation"]},
-    }  # fmt: skip
+    }
 
 
 @pytest.mark.parametrize("speed", [0.4, -0.4, 1.5, -2.2, 2.9, 5.0, -8.0])
@@ -63,8 +73,9 @@ def test_one_curve_is_rate_independent() -> None:
     model = _driven(2.0)
     model["springs"]["s"]["material"]["curves"] = [{"rate": 1.0, "curve": "stiff"}]
     out, _, _ = run_model(model, kernel="reference")
-    np.testing.assert_allclose(out.histories["spring_force"][1:, 0, 0],
-                               K2 * out.histories["spring_elongation"][1:, 0, 0], rtol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(
+        out.histories["spring_force"][1:, 0, 0], K2 * out.histories["spring_elongation"][1:, 0, 0], rtol=1e-12
+    )
 
 
 def _mass(v0: float, dt: float) -> dict[str, Any]:
@@ -80,8 +91,15 @@ def _mass(v0: float, dt: float) -> dict[str, Any]:
 def _solve_ivp(v0: float, t: np.ndarray) -> np.ndarray:
     from scipy.integrate import solve_ivp
 
-    sol = solve_ivp(lambda _t, y: [y[1], -k_of(abs(y[1])) * y[0] / 2.0], (0.0, float(t[-1])), [0.0, v0],
-                    rtol=1e-11, atol=1e-13, dense_output=True, max_step=1e-5)  # fmt: skip
+    sol = solve_ivp(
+        lambda _t, y: [y[1], -k_of(abs(y[1])) * y[0] / 2.0],
+        (0.0, float(t[-1])),
+        [0.0, v0],
+        rtol=1e-11,
+        atol=1e-13,
+        dense_output=True,
+        max_step=1e-5,
+    )
     return sol.sol(t)[0]
 
 
@@ -148,8 +166,9 @@ def test_negative_rate_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert "springs.s.material.curves.0.rate" in err
 
 
-def test_each_curve_must_pass_the_origin_and_have_the_sign_of_e(tmp_path: Path,
-                                                                 capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_each_curve_must_pass_the_origin_and_have_the_sign_of_e(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     def shifted(m: dict[str, Any]) -> None:
         m["curves"]["stiff"]["y"] = [-K2 + 5.0, 5.0, K2 + 5.0]
 

@@ -33,16 +33,29 @@ KMAX = K1 + F1 / D  # its steepest curve slope [N/m]
 def _model(time_step: dict[str, float], end_time: float = 0.005) -> dict[str, Any]:
     return {
         "name": "rate-stiff",
-        "curves": {"soft": {"x": [-1.0, 0.0, 1.0], "y": [-K1, 0.0, K1]},
-                   "plateau": {"x": [-1.0, -D, 0.0, D, 1.0], "y": [-(K1 + F1), -(K1 * D + F1), 0.0, K1 * D + F1, K1 + F1]}},
+        "curves": {
+            "soft": {"x": [-1.0, 0.0, 1.0], "y": [-K1, 0.0, K1]},
+            "plateau": {
+                "x": [-1.0, -D, 0.0, D, 1.0],
+                "y": [-(K1 + F1), -(K1 * D + F1), 0.0, K1 * D + F1, K1 + F1],
+            },
+        },
         "nodes": {"anchor": {"position": [0.0], "fixed": True}, "end": {"position": [1.0], "mass": M}},
-        "springs": {"s": {"nodes": ["anchor", "end"], "initial_elongation": E0,
-                          "material": {"type": "rate_elastic", "curves": [{"rate": 0.0, "curve": "soft"},
-                                                                          {"rate": R, "curve": "plateau"}]}}},
+        "springs": {
+            "s": {
+                "nodes": ["anchor", "end"],
+                "initial_elongation": E0,
+                "material": {
+                    "type": "rate_elastic",
+                    "curves": [{"rate": 0.0, "curve": "soft"}, {"rate": R, "curve": "plateau"}],
+                },
+            }
+        },
         "loads": [{"node": "end", "force": [-P]}],
-        "end_time": end_time, "time_step": time_step,
+        "end_time": end_time,
+        "time_step": time_step,
         "output": {"interval": 0.001, "histories": ["spring_elongation"]},
-    }  # fmt: skip
+    }
 
 
 def _creep(t: np.ndarray) -> np.ndarray:
@@ -80,8 +93,10 @@ def test_critical_step_is_the_spring_damper_limit(second: bool) -> None:
     implementation: the damper's own rule). The old bound (KMAX alone) was 11x higher."""
     model = _model({"dt": 1.0e-6})
     if second:
-        model["springs"] = {"k": {"nodes": ["anchor", "end"], "material": {"type": "linear_elastic", "stiffness": KMAX}},
-                            "c": {"nodes": ["anchor", "end"], "material": {"type": "damper", "damping": C}}}  # fmt: skip
+        model["springs"] = {
+            "k": {"nodes": ["anchor", "end"], "material": {"type": "linear_elastic", "stiffness": KMAX}},
+            "c": {"nodes": ["anchor", "end"], "material": {"type": "damper", "damping": C}},
+        }
     limit = _limit(KMAX, C)
     assert limit < _limit(KMAX, 0.0) / 10.0
     for factor, refused in ((1.0 - 1e-9, 0), (1.0 + 1e-9, 1)):

@@ -63,7 +63,8 @@ def hashes(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 
 
 def test_a_results_object_hashes_its_summary_once_however_often_it_reads_it(
-        results: dict[int, Path], hashes: list[int]) -> None:  # fmt: skip
+    results: dict[int, Path], hashes: list[int]
+) -> None:
     """Names, row count, a column peak, one row, the blocks and the whole table: six reads, one hash
     (before: one per read, 6 x 12 GB at 10^8 variants)."""
     res = open_results(results[1000])
@@ -100,8 +101,9 @@ def _edited_copy(folder: Path, dest: Path) -> Path:
 
 
 @pytest.mark.parametrize("how", ["renamed over", "edited in place, times put back"])
-def test_a_summary_changed_after_its_hash_is_still_refused(results: dict[int, Path], tmp_path: Path,
-                                                           hashes: list[int], how: str) -> None:  # fmt: skip
+def test_a_summary_changed_after_its_hash_is_still_refused(
+    results: dict[int, Path], tmp_path: Path, hashes: list[int], how: str
+) -> None:
     folder = shutil.copytree(results[1000], tmp_path / "r")
     res = open_results(folder)
     assert res.summary_rows() == 1000  # hashed and vouched for
@@ -124,7 +126,8 @@ def test_a_summary_changed_after_its_hash_is_still_refused(results: dict[int, Pa
 
 
 def test_summary_is_whole_up_to_its_limit_and_refused_beyond_with_the_bounded_readers_named(
-        results: dict[int, Path], monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    results: dict[int, Path], monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     import pandas as pd
 
     from crashstudy.cli.main import main
@@ -135,7 +138,9 @@ def test_summary_is_whole_up_to_its_limit_and_refused_beyond_with_the_bounded_re
     res.summary_limit = 1000
     pd.testing.assert_frame_equal(res.summary, pd.read_parquet(folder / "summary.parquet"))
     res.summary_limit = 999
-    with pytest.raises(InputError, match=r"1000 rows, more than the 999 .*\.summary_batches\(columns, rows\)"):
+    with pytest.raises(
+        InputError, match=r"1000 rows, more than the 999 .*\.summary_batches\(columns, rows\)"
+    ):
         _ = res.summary
     res.summary_limit = None
     assert len(res.summary) == 1000
@@ -162,7 +167,8 @@ def _opened_peak(folder: Path) -> tuple[int, object]:
 
 
 def test_a_large_dataset_opens_without_reading_its_variables_and_reads_what_the_eager_one_reads(
-        results: dict[int, Path], monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    results: dict[int, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Beyond summary_limit variants: every variable along ``variant`` is lazy after opening, the traced
     peak of opening grows < 1 B per variant (N -> 4N; the eager open decodes the texts whole: >= 24 B),
     and indexed slices equal the eager dataset's (the independent truth: decode_texts of the whole)."""
@@ -180,16 +186,18 @@ def test_a_large_dataset_opens_without_reading_its_variables_and_reads_what_the_
     assert not [n for n in along if isinstance(lazy[n].variable._data, np.ndarray)]
     for name in along:
         for part in (slice(5, 50), slice(3990, None), [0, 17, 3999]):
-            np.testing.assert_array_equal(lazy[name].isel(variant=part).values,
-                                          eager[name].isel(variant=part).values)  # fmt: skip
+            np.testing.assert_array_equal(
+                lazy[name].isel(variant=part).values, eager[name].isel(variant=part).values
+            )
 
 
 # --- the store's template: the variant numbers written in blocks -----------------------------------------
 
 
 @pytest.mark.parametrize("store_kind", ["netcdf", "zarr"])
-def test_creating_a_store_does_not_hold_every_variant_number(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                             store_kind: str) -> None:  # fmt: skip
+def test_creating_a_store_does_not_hold_every_variant_number(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, store_kind: str
+) -> None:
     """The traced peak of creating the result store (template: variant numbers, axis values) grows < 2 B
     per variant from 1e5 to 4e5 variants, blocks of 4096 (np.arange of the whole study: 8 B per variant,
     800 MB at 10^8; independent truth: the stored numbers are 0 .. N-1)."""
@@ -242,7 +250,8 @@ def _command_peak(argv: list[str]) -> int:
 
 
 def test_sensitivity_correlation_reads_block_by_block_and_equals_scipy(
-        results: dict[int, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    results: dict[int, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """``sensitivity --method correlation`` on N = 1000 and 4N variants, blocks of BLOCK rows, the metric ranked
     in buckets of BLOCK rows: the peak grows < 8 B per variant of the 3N more (+ 128 KiB); measured 1.5; before,
     the five columns whole plus SciPy's ranks: 136 B per variant. The numbers equal scipy.stats.spearmanr / pearsonr
@@ -269,6 +278,7 @@ def test_sensitivity_correlation_reads_block_by_block_and_equals_scipy(
         assert got.loc[(axis, "spearman"), "value"] == pytest.approx(stats.spearmanr(x, y)[0], abs=1e-12)
         assert got.loc[(axis, "pearson"), "value"] == pytest.approx(stats.pearsonr(x, y)[0], abs=1e-12)
 
+
 # --- compare of large results block by block (analysis/compare_stream.py) ----------------------------------
 
 
@@ -292,19 +302,26 @@ def moved(results: dict[int, Path], tmp_path_factory: pytest.TempPathFactory) ->
     df["status"], df["failure_reason"] = pd.Categorical(status), pd.Categorical(reason)
     baseline = original.copy()
     baseline.loc[[250, 600], "status"] = "failed"  # failed -> ok in "moved" at 600, failed -> failed at 250
-    return {"1000": results[1000], "4000": results[4000],
-            "moved": _with_summary(results[1000], root / "moved", df, 300),
-            "baseline": _with_summary(results[1000], root / "baseline", baseline, BLOCK),
-            "reversed": _with_summary(results[1000], root / "reversed", original.iloc[::-1], BLOCK),
-            "subset": _with_summary(results[1000], root / "subset", original.drop(index=[*range(100, 180),
-                                                                                     *range(900, 950)]), BLOCK)}
+    return {
+        "1000": results[1000],
+        "4000": results[4000],
+        "moved": _with_summary(results[1000], root / "moved", df, 300),
+        "baseline": _with_summary(results[1000], root / "baseline", baseline, BLOCK),
+        "reversed": _with_summary(results[1000], root / "reversed", original.iloc[::-1], BLOCK),
+        "subset": _with_summary(
+            results[1000], root / "subset", original.drop(index=[*range(100, 180), *range(900, 950)]), BLOCK
+        ),
+    }
 
 
 def _with_summary(folder: Path, dest: Path, df: pd.DataFrame, rows: int) -> Path:
     """A copy of the result ``folder`` whose summary.parquet is ``df`` (row groups of ``rows``), resealed."""
     shutil.copytree(folder, dest)
-    pq.write_table(pa.Table.from_pandas(df.reset_index(drop=True), preserve_index=False), dest / "summary.parquet",
-                   row_group_size=rows)
+    pq.write_table(
+        pa.Table.from_pandas(df.reset_index(drop=True), preserve_index=False),
+        dest / "summary.parquet",
+        row_group_size=rows,
+    )
     reseal(dest)
     return dest
 
@@ -396,7 +413,9 @@ def test_compare_of_a_large_result_does_not_grow_with_the_variants(
     for n in ("1000", "4000"):
         base = moved[n]
         if order == "reversed":
-            base = _with_summary(base, tmp_path / n, pd.read_parquet(base / "summary.parquet").iloc[::-1], BLOCK)
+            base = _with_summary(
+                base, tmp_path / n, pd.read_parquet(base / "summary.parquet").iloc[::-1], BLOCK
+            )
         _command_peak(["compare", str(moved[n]), str(base)])  # warm: imports and caches of the first call
         peaks[n] = _command_peak(["compare", str(moved[n]), str(base)])
     assert peaks["4000"] - peaks["1000"] < 3000 * 16 + 128 * 1024, peaks

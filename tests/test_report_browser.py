@@ -47,12 +47,17 @@ def test_report_renders_in_chromium(browser, report: Path, tmp_path: Path) -> No
         assert seen["requests"] == []  # nothing fetched: every script and style is in the file
         # nothing in the page points outside it
         external = page.eval_on_selector_all(
-            "[src],[href]", "es => es.map(e => e.getAttribute('src') || e.getAttribute('href'))"
-            ".filter(u => !u.startsWith('#') && !u.startsWith('data:') && !u.startsWith('blob:'))")  # fmt: skip
+            "[src],[href]",
+            "es => es.map(e => e.getAttribute('src') || e.getAttribute('href'))"
+            ".filter(u => !u.startsWith('#') && !u.startsWith('data:') && !u.startsWith('blob:'))",
+        )
         assert external == []
         # every figure drawn, with a nonzero size; parallel coordinates, anthill, criteria, history, sensitivity
-        sizes = page.eval_on_selector_all("div.fig", "ds => ds.map(d => { const s = d.querySelector('.main-svg');"
-                                          " const r = s.getBoundingClientRect(); return [r.width, r.height]; })")  # fmt: skip
+        sizes = page.eval_on_selector_all(
+            "div.fig",
+            "ds => ds.map(d => { const s = d.querySelector('.main-svg');"
+            " const r = s.getBoundingClientRect(); return [r.width, r.height]; })",
+        )
         assert len(sizes) >= 8 and all(w > 100 and h > 100 for w, h in sizes)
         assert page.locator("div.fig .parcoords").count() == 1
         assert page.locator("div.fig .scatterlayer .point").count() > 0

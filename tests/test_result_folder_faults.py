@@ -78,10 +78,13 @@ output: {histories: none}
 """
 
 
-@pytest.mark.parametrize("nodes, line, field", [(", nodes: [anchor, body]", 14, "rigid_walls.0.nodes.1"),
-                                                ("", 14, "rigid_walls.0")])  # fmt: skip
-def test_a_wall_holding_a_node_with_prescribed_motion_into_it_is_refused(tmp_path: Path, cli: Cli, nodes: str,
-                                                                        line: int, field: str) -> None:  # fmt: skip
+@pytest.mark.parametrize(
+    "nodes, line, field",
+    [(", nodes: [anchor, body]", 14, "rigid_walls.0.nodes.1"), ("", 14, "rigid_walls.0")],
+)
+def test_a_wall_holding_a_node_with_prescribed_motion_into_it_is_refused(
+    tmp_path: Path, cli: Cli, nodes: str, line: int, field: str
+) -> None:
     model = tmp_path / "m.yaml"
     model.write_text(DRIVEN_INTO_WALL.replace("WALL_NODES", nodes))
     for cmd in (("validate", model), ("simulate", model, "-o", tmp_path / "out")):
@@ -133,9 +136,9 @@ def _kill_after(monkeypatch: pytest.MonkeyPatch, n: int) -> list[tuple[str, str]
     return done
 
 
-def test_a_kill_after_the_first_rename_of_a_rerun_leaves_a_folder_results_refuses(tmp_path: Path, cli: Cli,
-                                                                                   monkeypatch: pytest.MonkeyPatch
-                                                                                   ) -> None:  # fmt: skip
+def test_a_kill_after_the_first_rename_of_a_rerun_leaves_a_folder_results_refuses(
+    tmp_path: Path, cli: Cli, monkeypatch: pytest.MonkeyPatch
+) -> None:
     study = write(tmp_path)
     out = tmp_path / "out"
     runner.run_study(study, out)
@@ -155,7 +158,8 @@ def test_a_kill_after_the_first_rename_of_a_rerun_leaves_a_folder_results_refuse
 
 @pytest.mark.parametrize("n", [0, 1, 2, 3, 4])
 def test_a_kill_at_any_rename_leaves_old_results_or_a_refused_folder_never_a_mixed_one(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, n: int) -> None:  # fmt: skip
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, n: int
+) -> None:
     study = write(tmp_path)
     out = tmp_path / "out"
     runner.run_study(study, out)
@@ -185,8 +189,9 @@ def test_a_kill_at_any_rename_leaves_old_results_or_a_refused_folder_never_a_mix
 STORES = {"netcdf": ("results.nc", "results.nc.partial"), "zarr": ("results.zarr", "results.zarr.partial")}
 
 
-def _interrupted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunks: int, store: str = "netcdf"
-                 ) -> tuple[Path, Path]:  # fmt: skip
+def _interrupted(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunks: int, store: str = "netcdf"
+) -> tuple[Path, Path]:
     """A run of TINY_STUDY (one variant a chunk) stopped after ``chunks`` chunks: (study, out)."""
     study = write(tmp_path)
     out = tmp_path / "out"
@@ -207,8 +212,9 @@ def _interrupted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunks: int, s
     return study, out
 
 
-def test_a_partial_renamed_by_hand_is_not_a_finished_result(tmp_path: Path, cli: Cli,
-                                                            monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_a_partial_renamed_by_hand_is_not_a_finished_result(
+    tmp_path: Path, cli: Cli, monkeypatch: pytest.MonkeyPatch
+) -> None:
     study, out = _interrupted(tmp_path, monkeypatch, 1)
     os.rename(out / "results.nc.partial", out / "results.nc")
     with pytest.raises(InputError, match="not a finished result"):
@@ -221,8 +227,9 @@ def test_a_partial_renamed_by_hand_is_not_a_finished_result(tmp_path: Path, cli:
 
 
 @pytest.mark.parametrize("store", list(STORES))
-def test_a_corrupted_number_in_a_partial_is_computed_again_on_resume(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                                     store: str) -> None:  # fmt: skip
+def test_a_corrupted_number_in_a_partial_is_computed_again_on_resume(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, store: str
+) -> None:
     study, out = _interrupted(tmp_path, monkeypatch, 2, store)
     with open_store(out / STORES[store][1], "a") as nc:
         assert np.ma.filled(nc.variables["done"][:], 0).tolist() == [1, 1, 0]
@@ -271,11 +278,17 @@ print(r.run_plan(load_study(study), out, chunk=1, progress=False).n_computed)
 """
 
 
-def test_a_second_run_into_a_folder_a_live_run_writes_exits_2_and_leaves_it_alone(tmp_path: Path, cli: Cli) -> None:
+def test_a_second_run_into_a_folder_a_live_run_writes_exits_2_and_leaves_it_alone(
+    tmp_path: Path, cli: Cli
+) -> None:
     study = write(tmp_path)
     out, started, go = tmp_path / "out", tmp_path / "started", tmp_path / "go"
-    first = subprocess.Popen([sys.executable, "-c", HELD_RUN, str(study), str(out), str(started), str(go)],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    first = subprocess.Popen(
+        [sys.executable, "-c", HELD_RUN, str(study), str(out), str(started), str(go)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 300
         while not started.exists():
@@ -329,8 +342,11 @@ def test_pool_workers_exit_when_the_main_process_is_killed() -> None:
             assert parent.poll() is None
             assert time.monotonic() < deadline, "the pool never started two workers"
             time.sleep(0.1)
-            workers = [k for k in psutil.Process(parent.pid).children()
-                       if "spawn_main" in " ".join(k.cmdline()) and "resource_tracker" not in " ".join(k.cmdline())]  # fmt: skip
+            workers = [
+                k
+                for k in psutil.Process(parent.pid).children()
+                if "spawn_main" in " ".join(k.cmdline()) and "resource_tracker" not in " ".join(k.cmdline())
+            ]
         time.sleep(1.0)  # let the workers take their tasks (a 600 s sleep each)
         parent.send_signal(signal.SIGKILL)
         parent.wait()
@@ -389,13 +405,19 @@ def test_variant_checksums_equal_their_definition_in_python_integers() -> None:
     from crashstudy.results import integrity
 
     rng = np.random.default_rng(5)
-    arrays = {"a": rng.normal(size=(9, 3)), "b": rng.integers(0, 2**62, (9, 20)).astype(np.uint64),
-              "c": rng.integers(-100, 100, (9, 3)).astype("i1"), "d": rng.normal(size=9)}  # fmt: skip
+    arrays = {
+        "a": rng.normal(size=(9, 3)),
+        "b": rng.integers(0, 2**62, (9, 20)).astype(np.uint64),
+        "c": rng.integers(-100, 100, (9, 3)).astype("i1"),
+        "d": rng.normal(size=9),
+    }
     names = sorted(arrays)
     got = integrity.variant_sums(arrays, names)
     for v in range(9):
-        raw = b"".join(np.ascontiguousarray(arrays[n][v]).tobytes().ljust(-(-arrays[n][v].nbytes // 8) * 8, b"\0")
-                       for n in names)  # fmt: skip
+        raw = b"".join(
+            np.ascontiguousarray(arrays[n][v]).tobytes().ljust(-(-arrays[n][v].nbytes // 8) * 8, b"\0")
+            for n in names
+        )
         words = [int.from_bytes(raw[8 * k : 8 * k + 8], "little") for k in range(len(raw) // 8)]
         truth = sum(w * (2 * k + 1) * 0x9E3779B97F4A7C15 for k, w in enumerate(words)) % 2**64
         assert int(got[v]) == truth, v

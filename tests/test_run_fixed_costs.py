@@ -16,9 +16,14 @@ from helpers import LINEAR_SPRING, model_plan
 
 
 def _batch(n: int, end_time: float) -> Any:
-    model = {"name": "fixedcost", "nodes": {"w": {"position": [0.0], "fixed": True}, "m": {"position": [0.5], "mass": 1.0}},
-             "springs": {"s": {"nodes": ["w", "m"], "material": {"type": "linear_elastic", "stiffness": 1.0e5}}},
-             "initial_velocity": {"m": [-5.0]}, "end_time": end_time, "output": {"histories": "none"}}  # fmt: skip
+    model = {
+        "name": "fixedcost",
+        "nodes": {"w": {"position": [0.0], "fixed": True}, "m": {"position": [0.5], "mass": 1.0}},
+        "springs": {"s": {"nodes": ["w", "m"], "material": {"type": "linear_elastic", "stiffness": 1.0e5}}},
+        "initial_velocity": {"m": [-5.0]},
+        "end_time": end_time,
+        "output": {"histories": "none"},
+    }
     plan = model_plan(model)
     P = np.repeat(plan.base[:, None], n, axis=1)
     apply_axis(P, plan.topology.paths["nodes.m.mass"], np.linspace(1.0, 2.0, n))
@@ -38,9 +43,12 @@ def _full_choice(b: Any, repeat: float, generic: bool) -> str:
     return min(times, key=lambda k: times[k])
 
 
-@pytest.mark.parametrize("end_time, n, repeat", [(0.05, 64, 1.0), (0.05, 64, 1e4), (0.5, 1000, 100.0), (0.002, 8, 1.0)])
-def test_a_ready_generated_kernel_never_loads_the_generic_one(monkeypatch: pytest.MonkeyPatch, end_time: float,
-                                                              n: int, repeat: float) -> None:  # fmt: skip
+@pytest.mark.parametrize(
+    "end_time, n, repeat", [(0.05, 64, 1.0), (0.05, 64, 1e4), (0.5, 1000, 100.0), (0.002, 8, 1.0)]
+)
+def test_a_ready_generated_kernel_never_loads_the_generic_one(
+    monkeypatch: pytest.MonkeyPatch, end_time: float, n: int, repeat: float
+) -> None:
     """With this shape's generated kernel compiled, pick and plan_start never ask whether the generic
     kernel is compiled (that imports its module: ~0.1-0.5 s of a short run) whenever the generated one
     wins anyway; the kernel picked equals the full comparison with the generic kernel compiled."""
@@ -60,12 +68,16 @@ def test_a_ready_generated_kernel_never_loads_the_generic_one(monkeypatch: pytes
     assert not asked or truth == "generic"
 
 
-DT_MODEL = LINEAR_SPRING.replace("end_time: 0.1", "end_time: 0.05") + "time_step: {dt: 0.004}\noutput: {histories: none}\n"
+DT_MODEL = (
+    LINEAR_SPRING.replace("end_time: 0.1", "end_time: 0.05")
+    + "time_step: {dt: 0.004}\noutput: {histories: none}\n"
+)
 
 
 @pytest.mark.parametrize("seed", range(8))
 def test_fixed_dt_check_equals_every_variants_batch_and_builds_only_distinct_steps(
-        tmp_path: Any, monkeypatch: pytest.MonkeyPatch, seed: int) -> None:  # fmt: skip
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch, seed: int
+) -> None:
     """The pre-run check of a fixed dt (study.sanity._dt_refused) refuses exactly the variants whose
     batch (build_batch over every variant: the independent truth) is refused, with their critical
     steps; and it computes one step choice per distinct setting of the dimensions holding a non-velocity
@@ -77,8 +89,12 @@ def test_fixed_dt_check_equals_every_variants_batch_and_builds_only_distinct_ste
 
     rng = np.random.default_rng(seed)
     (tmp_path / "m.yaml").write_text(DT_MODEL)
-    choices = {"nodes.body.mass": [0.05, 0.3, 2.0, 0.1], "springs.s.material.stiffness": [1.0e4, 4.0e4, 9.0e4],
-               "impact_velocity": [1.0, 2.0, 3.0], "initial_velocity.body.0": [0.5, -1.0]}  # fmt: skip
+    choices = {
+        "nodes.body.mass": [0.05, 0.3, 2.0, 0.1],
+        "springs.s.material.stiffness": [1.0e4, 4.0e4, 9.0e4],
+        "impact_velocity": [1.0, 2.0, 3.0],
+        "initial_velocity.body.0": [0.5, -1.0],
+    }
     matrix = {}
     for path in rng.permutation(list(choices)):
         k = int(rng.integers(1, len(choices[path]) + 1))
@@ -100,12 +116,14 @@ def test_fixed_dt_check_equals_every_variants_batch_and_builds_only_distinct_ste
     other = [p for p in plan.topology.paths if p in ("nodes.body.mass", "springs.s.material.stiffness")]
     distinct = int(np.prod([len(matrix[p]) for p in other if p in matrix] or [1]))
     assert sum(built) == distinct, (matrix, built)
-    assert np.array_equal(batch_mod.variant_steps(plan.topology, plan.params(0, n), plan.interval).dt_crit,
-                          steps.dt_crit)  # the step choice alone equals the batch's  # fmt: skip
+    assert np.array_equal(
+        batch_mod.variant_steps(plan.topology, plan.params(0, n), plan.interval).dt_crit, steps.dt_crit
+    )  # the step choice alone equals the batch's
 
 
 def test_a_chunk_is_built_in_step_order_never_copied_and_its_numbers_are_unchanged(
-        tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A chunk whose variants' step counts are unsorted (a safety-factor step over a mass axis given
     heavy-light-heavy) is built in step order: the kernel entry never copies the batch into that order
     (``Batch.take`` not called), and every output equals the earlier path's (build the batch in variant
@@ -118,8 +136,13 @@ def test_a_chunk_is_built_in_step_order_never_copied_and_its_numbers_are_unchang
     text = DT_MODEL.replace("time_step: {dt: 0.004}", "time_step: {safety_factor: 0.5}")
     (tmp_path / "m.yaml").write_text(text.replace("{histories: none}", "{histories: none, interval: 0.05}"))
     masses = [2.0, 0.05, 1.0, 0.2, 3.0, 0.5, 0.1, 1.5]
-    plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"),
-                       "matrix": {"nodes.body.mass": masses, "impact_velocity": [1.0, 2.0]}})  # fmt: skip
+    plan = load_study(
+        {
+            "name": "s",
+            "model": str(tmp_path / "m.yaml"),
+            "matrix": {"nodes.body.mass": masses, "impact_velocity": [1.0, 2.0]},
+        }
+    )
     n = plan.n_variants
     batch, _ = build_batch(plan.topology, plan.params(0, n), plan.interval)
     assert not np.all(np.diff(batch.n_steps) >= 0)  # the case: unsorted, spread beyond SORT_SPREAD
@@ -148,8 +171,13 @@ def test_a_chunk_with_repeated_variants_is_made_from_variant_numbers_in_step_ord
     text = DT_MODEL.replace("time_step: {dt: 0.004}", "time_step: {safety_factor: 0.5}")
     (tmp_path / "m.yaml").write_text(text.replace("{histories: none}", "{histories: none, interval: 0.05}"))
     masses = [2.0, 0.05, 1.0, 0.2, 2.0, 0.5, 0.05]
-    plan = load_study({"name": "s", "model": str(tmp_path / "m.yaml"),
-                       "matrix": {"impact_velocity": [1.0, 2.0], "nodes.body.mass": masses}})  # fmt: skip
+    plan = load_study(
+        {
+            "name": "s",
+            "model": str(tmp_path / "m.yaml"),
+            "matrix": {"impact_velocity": [1.0, 2.0], "nodes.body.mass": masses},
+        }
+    )
     n = plan.n_variants
     cols = np.array([1, 2, 3, 4, 6, 8, 10])
     inverse = np.arange(len(cols))
@@ -161,6 +189,11 @@ def test_a_chunk_with_repeated_variants_is_made_from_variant_numbers_in_step_ord
     assert not plan.variants_distinct
     got = run_chunk(plan, 0, n, "reference")
     for k in range(n):
-        alone, _ = entry.run_ordered(build_batch(plan.topology, plan.params(k, k + 1), plan.interval)[0], (),
-                                     plan.n_out, np.arange(1), "reference")  # fmt: skip
+        alone, _ = entry.run_ordered(
+            build_batch(plan.topology, plan.params(k, k + 1), plan.interval)[0],
+            (),
+            plan.n_out,
+            np.arange(1),
+            "reference",
+        )
         assert_bitwise(alone, entry.spread_columns(got.out, np.array([k]), (), plan.n_out))

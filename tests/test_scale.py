@@ -31,14 +31,21 @@ def two_spring_study(folder: Path, n: int, name: str = "scale") -> Path:
     m2 = [round(float(v), 9) for v in np.linspace(1.0, 3.0, n // 8)]
     m1 = [round(float(v), 9) for v in np.linspace(0.5, 2.0, 8)]
     path = folder / "study.yaml"
-    path.write_text(f"name: {name}\nmodel: model.yaml\nmatrix:\n  nodes.m2.mass: {m2}\n  nodes.m1.mass: {m1}\n")
+    path.write_text(
+        f"name: {name}\nmodel: model.yaml\nmatrix:\n  nodes.m2.mass: {m2}\n  nodes.m1.mass: {m1}\n"
+    )
     return path
 
 
 @pytest.fixture
 def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
-    for mod, name in ((integrity, "CHECK_BLOCK"), (store, "REUSE_BLOCK"), (store, "AXIS_BLOCK"),
-                      (tables, "SUMMARY_BLOCK"), (curve_ends, "BLOCK")):  # fmt: skip
+    for mod, name in (
+        (integrity, "CHECK_BLOCK"),
+        (store, "REUSE_BLOCK"),
+        (store, "AXIS_BLOCK"),
+        (tables, "SUMMARY_BLOCK"),
+        (curve_ends, "BLOCK"),
+    ):
         monkeypatch.setattr(mod, name, BLOCK, raising=False)  # raising=False: the test runs at main too
 
 
@@ -58,8 +65,9 @@ def traced_peak(study: Path, out: Path, **kw: object) -> int:
         tracemalloc.stop()
 
 
-def test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants(tmp_path: Path, small_blocks: None
-                                                                               ) -> None:  # fmt: skip
+def test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants(
+    tmp_path: Path, small_blocks: None
+) -> None:
     """At N = 2048 and 4N variants, a fresh run and a re-run (every variant reused) peak at traced memory that
     grows by less than 24 bytes per variant of the 3N more (plus 256 KiB). Before: the re-run's hash lookup and
     copy held ~40 bytes per variant, the summary's variant index 8 and the decoded texts of the dataset ~100;
@@ -74,7 +82,9 @@ def test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants(t
     variant); with 100 B per variant held on purpose (a list of arrays in run_chunk) the fresh run grows
     106 B per variant and the test fails."""
     n = 8 * BLOCK
-    traced_peak(two_spring_study(tmp_path / "warm-up", 16), tmp_path / "warm-up" / "out")  # once-only imports, kernel load
+    traced_peak(
+        two_spring_study(tmp_path / "warm-up", 16), tmp_path / "warm-up" / "out"
+    )  # once-only imports, kernel load
     peaks = {}
     for size in (n, 4 * n):
         study = two_spring_study(tmp_path / str(size), size)
@@ -161,8 +171,9 @@ def command_peak(argv: list[str]) -> tuple[int, str]:
 
 
 @pytest.mark.parametrize("command", list(READERS))
-def test_peak_memory_of_a_reader_does_not_grow_with_the_variants(two_results: dict[int, Path], command: str,
-                                                                monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_peak_memory_of_a_reader_does_not_grow_with_the_variants(
+    two_results: dict[int, Path], command: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Each reader's traced peak at 4N variants exceeds the one at N by less than READERS[command] bytes per
     variant of the 3N more (+ 256 KiB); blocks of BLOCK rows."""
     from crashstudy.results import reader
@@ -199,6 +210,8 @@ def test_block_readers_give_what_pandas_gives_on_the_whole_table(two_results: di
             want = whole[cols].sort_values(column, ascending=ascending, kind="stable").head(37)
             pd.testing.assert_frame_equal(top.astype({"status": str}), want.astype({"status": str}))
     row = res.summary_row(1234)
-    pd.testing.assert_frame_equal(row.astype({"status": str}),
-                                  whole[whole["variant"] == 1234].reset_index(drop=True).astype({"status": str}))
+    pd.testing.assert_frame_equal(
+        row.astype({"status": str}),
+        whole[whole["variant"] == 1234].reset_index(drop=True).astype({"status": str}),
+    )
     assert res.summary_row(10**6).empty and res.summary_rows() == len(whole)

@@ -79,12 +79,15 @@ def test_every_schema_property_has_a_one_line_description(
 
 
 @pytest.mark.parametrize("kind", ["model", "study"])
-def test_every_numeric_schema_property_states_its_units(kind: str, capsys: pytest.CaptureFixture[str]) -> None:
+def test_every_numeric_schema_property_states_its_units(
+    kind: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     """A property that holds numbers says its unit in brackets (``[force/length]``, ``[1]``, ...)."""
     numeric = [
-        (p, sub) for p, sub in _properties(_schema(kind, capsys))
+        (p, sub)
+        for p, sub in _properties(_schema(kind, capsys))
         if '"number"' in json.dumps({k: v for k, v in sub.items() if k != "description"})
-    ]  # fmt: skip
+    ]
     assert len(numeric) >= (22 if kind == "model" else 4)
     assert [p for p, sub in numeric if "[" not in sub["description"]] == []
 

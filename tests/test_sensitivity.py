@@ -24,8 +24,14 @@ def _frame(method: str, n: int, y_of: Any, d: int = 3) -> tuple[pd.DataFrame, di
     """A summary of a design over d uniform [0, 1] axes whose metric is ``y_of(unit rows)``."""
     u = unit_rows(method, n, 5, d)
     axes = [f"a{k}" for k in range(d)]
-    df = pd.DataFrame({"variant": np.arange(len(u)), **{a: u[:, k] for k, a in enumerate(axes)},
-                       "status": "ok", "y": y_of(u)})  # fmt: skip
+    df = pd.DataFrame(
+        {
+            "variant": np.arange(len(u)),
+            **{a: u[:, k] for k, a in enumerate(axes)},
+            "status": "ok",
+            "y": y_of(u),
+        }
+    )
     design = {"method": method, "n": n, "seed": 5, "axes": {a: {"uniform": [0.0, 1.0]} for a in axes}}
     attrs = {"crashstudy_axes": json.dumps(axes), "study_yaml": yaml.safe_dump({"design": design})}
     return df, attrs
@@ -75,7 +81,9 @@ def test_correlation_and_its_fisher_interval() -> None:
     half = 1.959963984540054 / np.sqrt(399 - 3)
     width = (np.tanh(np.arctanh(r) + half) - np.tanh(np.arctanh(r) - half)) / 2
     assert t.loc[("a0", "spearman"), "confidence"] == pytest.approx(width, rel=1e-9)
-    assert t.loc[("a0", "pearson"), "value"] == pytest.approx(stats.pearsonr(df.loc[ok, "a0"], df.loc[ok, "y"])[0])
+    assert t.loc[("a0", "pearson"), "value"] == pytest.approx(
+        stats.pearsonr(df.loc[ok, "a0"], df.loc[ok, "y"])[0]
+    )
     assert (t["note"] == "1 failed variant(s) left out").all()
 
 
@@ -90,25 +98,40 @@ def test_exceedance_is_the_binomial_fraction_with_its_exact_interval() -> None:
 
 
 MODEL = DROP.replace("end_time: 0.03", "end_time: 0.02").replace(
-    "output: {histories: none}", "output: {interval: 1.0e-3, histories: [spring_force]}")  # the drop of test_design, sampled
+    "output: {histories: none}", "output: {interval: 1.0e-3, histories: [spring_force]}"
+)  # the drop of test_design, sampled
 
 
-def test_command_line_writes_sensitivity_csv_and_the_history_over_time(tmp_path: Path,
-                                                                       capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_command_line_writes_sensitivity_csv_and_the_history_over_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """A 64-row LHS over mass and speed of a linear drop: peak force = v sqrt(k m), so its Spearman
     correlation with speed and with mass are both positive; the history correlation at every sample
     equals scipy.stats.spearmanr across variants (second implementation, 1e-12); exit 2 for sobol on a
     study without a saltelli design, and for a non-number limit of --exceed."""
     (tmp_path / "model.yaml").write_text(MODEL)
-    study = {"name": "drop-design", "model": "model.yaml",
-             "design": {"method": "lhs", "n": 64, "seed": 2, "axes": {
-                 "nodes.body.mass": {"uniform": [50.0, 150.0]}, "impact_velocity": {"uniform": [3.0, 7.0]}}}}  # fmt: skip
+    study = {
+        "name": "drop-design",
+        "model": "model.yaml",
+        "design": {
+            "method": "lhs",
+            "n": 64,
+            "seed": 2,
+            "axes": {
+                "nodes.body.mass": {"uniform": [50.0, 150.0]},
+                "impact_velocity": {"uniform": [3.0, 7.0]},
+            },
+        },
+    }
     (tmp_path / "study.yaml").write_text(yaml.safe_dump(study))
     out = tmp_path / "out"
     assert main(["run", str(tmp_path / "study.yaml"), "-o", str(out), "--progress", "off"]) == 0
     assert main(["sensitivity", str(out), "--metric", "peak_force.pad", "--history", "spring_force"]) == 0
     t = pd.read_csv(out / "sensitivity.csv").set_index(["axis", "index"])
-    assert t.loc[("impact_velocity", "spearman"), "value"] > 0.5 and t.loc[("nodes.body.mass", "spearman"), "value"] > 0.3
+    assert (
+        t.loc[("impact_velocity", "spearman"), "value"] > 0.5
+        and t.loc[("nodes.body.mass", "spearman"), "value"] > 0.3
+    )
     with xr.open_dataset(out / "results.nc") as ds:
         force, v = ds["spring_force"].values[:, :, 0], ds["impact_velocity"].values
     with xr.open_dataarray(out / "sensitivity_spring_force.nc") as da:
@@ -125,16 +148,23 @@ def test_command_line_writes_sensitivity_csv_and_the_history_over_time(tmp_path:
 
 
 def test_over_time_refuses_an_unknown_item() -> None:
-    ds = xr.Dataset({"spring_force": (("variant", "time", "spring"), np.zeros((3, 2, 1))),
-                     "status": ("variant", np.array(["ok"] * 3)), "a": ("variant", [1.0, 2.0, 3.0])},
-                    coords={"spring": ["s"], "time": [0.0, 1.0]}, attrs={"crashstudy_axes": '["a"]'})  # fmt: skip
+    ds = xr.Dataset(
+        {
+            "spring_force": (("variant", "time", "spring"), np.zeros((3, 2, 1))),
+            "status": ("variant", np.array(["ok"] * 3)),
+            "a": ("variant", [1.0, 2.0, 3.0]),
+        },
+        coords={"spring": ["s"], "time": [0.0, 1.0]},
+        attrs={"crashstudy_axes": '["a"]'},
+    )
     with pytest.raises(ValueError, match="no spring 'x'"):
         over_time(ds, "spring_force", "x")
 
 
 @pytest.mark.parametrize("distinct_max", [1 << 20, 50])  # 50: the sampled axis is ranked whole (SciPy)
-def test_streamed_correlation_equals_scipy_on_the_whole_columns_with_ties(monkeypatch: pytest.MonkeyPatch,
-                                                                          distinct_max: int) -> None:
+def test_streamed_correlation_equals_scipy_on_the_whole_columns_with_ties(
+    monkeypatch: pytest.MonkeyPatch, distinct_max: int
+) -> None:
     """correlation_table over blocks of 997 rows, the metric ranked in buckets of ~300 rows (~20 bucket files):
     Spearman and Pearson equal scipy.stats.spearmanr / pearsonr on the whole columns of the rows that ran
     (second implementation, 1e-12). Two matrix axes (6 and 40 values) and a sampled one (6000 values); the
@@ -154,12 +184,18 @@ def test_streamed_correlation_equals_scipy_on_the_whole_columns_with_ties(monkey
     y[rng.integers(0, n, 20)] = np.nan
     df = pd.DataFrame({"variant": np.arange(n), "a": a, "b": b, "c": c, "status": status, "y": y})
     blocks = lambda: (df.iloc[lo : lo + 997] for lo in range(0, n, 997))  # noqa: E731
-    t = correlation.correlation_table(blocks, {"a": "a", "b": "b", "c": "c"}, "y").set_index(["axis", "index"])
+    t = correlation.correlation_table(blocks, {"a": "a", "b": "b", "c": "c"}, "y").set_index(
+        ["axis", "index"]
+    )
     ok = (status == "ok") & np.isfinite(y)
     assert len(np.unique(y[ok])) < 200
     for ax in ("a", "b", "c"):
-        assert t.loc[(ax, "spearman"), "value"] == pytest.approx(stats.spearmanr(df[ax][ok], y[ok])[0], abs=1e-12)
-        assert t.loc[(ax, "pearson"), "value"] == pytest.approx(stats.pearsonr(df[ax][ok], y[ok])[0], abs=1e-12)
+        assert t.loc[(ax, "spearman"), "value"] == pytest.approx(
+            stats.spearmanr(df[ax][ok], y[ok])[0], abs=1e-12
+        )
+        assert t.loc[(ax, "pearson"), "value"] == pytest.approx(
+            stats.pearsonr(df[ax][ok], y[ok])[0], abs=1e-12
+        )
     assert (t["note"] == f"{int((~ok).sum())} failed variant(s) left out").all()
     const = df.assign(y=1.0)  # a metric that does not vary: no correlation (NaN), as SciPy would warn
     t = correlation.correlation_table(lambda: iter([const]), {"a": "a"}, "y")

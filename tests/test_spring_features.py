@@ -31,17 +31,27 @@ from crashstudy.schema.yamlio import loads_yaml
 from helpers import model_plan, run_model
 
 
-def _one_spring(material: dict[str, Any], mass: float, v0: float = 0.0, dim: int = 1, end_time: float = 0.1,
-                dt: float | None = None, interval: float = 1.0e-4, **options: Any) -> dict[str, Any]:  # fmt: skip
+def _one_spring(
+    material: dict[str, Any],
+    mass: float,
+    v0: float = 0.0,
+    dim: int = 1,
+    end_time: float = 0.1,
+    dt: float | None = None,
+    interval: float = 1.0e-4,
+    **options: Any,
+) -> dict[str, Any]:
     """Node ``a`` fixed at the origin, node ``b`` (``mass``) 1 m away (in 2-D along (0.6, 0.8)) moving away
     from ``a`` at ``v0`` along the spring; spring ``s`` with ``material`` and spring ``options``."""
     axis = [1.0] if dim == 1 else [0.6, 0.8]
     model: dict[str, Any] = {
-        "name": "one-spring", "curves": material.pop("_curves", {}),
+        "name": "one-spring",
+        "curves": material.pop("_curves", {}),
         "nodes": {"a": {"position": [0.0] * dim, "fixed": True}, "b": {"position": axis, "mass": mass}},
         "springs": {"s": {"nodes": ["a", "b"], "material": material, **options}},
-        "end_time": end_time, "output": {"interval": interval},
-    }  # fmt: skip
+        "end_time": end_time,
+        "output": {"interval": interval},
+    }
     if v0:
         model["initial_velocity"] = {"b": [v0 * c for c in axis]}
     if dt is not None:
@@ -89,8 +99,15 @@ def test_elastoplastic_impact_max_and_residual_elongation_and_elastic_rebound_ma
     ``F_max / sqrt(K m)``. Tolerance 1e-3 relative (dt = 1e-5 s, omega dt ~ 6e-4)."""
     v0 = 5.0
     e_max, f_max = _plastic_peak(v0)
-    model = _one_spring({"type": "elastoplastic", "stiffness": K, "tangent_stiffness": KT, "yield_force": FY},
-                        MASS, direction * v0, dim, end_time=0.12, dt=1.0e-5, interval=1.0e-5)  # fmt: skip
+    model = _one_spring(
+        {"type": "elastoplastic", "stiffness": K, "tangent_stiffness": KT, "yield_force": FY},
+        MASS,
+        direction * v0,
+        dim,
+        end_time=0.12,
+        dt=1.0e-5,
+        interval=1.0e-5,
+    )
     out, _, _ = run_model(model, kernel="reference")
     assert out.status[0] == 0
     peak = out.max_elongation[0, 0] if direction > 0 else out.max_crush[0, 0]
@@ -113,8 +130,13 @@ def test_elastoplastic_perfectly_plastic_spring_flows_at_the_yield_force() -> No
     """KT = 0: the force never exceeds FY (to round-off) and the plastic flow takes the energy above the
     elastic limit: ``e_max = ey / 2 + m v0^2 / (2 FY)``."""
     v0 = 5.0
-    model = _one_spring({"type": "elastoplastic", "stiffness": K, "tangent_stiffness": 0.0, "yield_force": FY},
-                        MASS, v0, end_time=0.08, dt=1.0e-5)  # fmt: skip
+    model = _one_spring(
+        {"type": "elastoplastic", "stiffness": K, "tangent_stiffness": 0.0, "yield_force": FY},
+        MASS,
+        v0,
+        end_time=0.08,
+        dt=1.0e-5,
+    )
     out, _, _ = run_model(model, kernel="reference")
     assert out.peak_force[0, 0] == pytest.approx(FY, rel=1e-12)
     assert out.max_elongation[0, 0] == pytest.approx(0.5 * FY / K + MASS * v0**2 / (2 * FY), rel=1e-3)
@@ -126,17 +148,32 @@ def test_elastoplastic_reverse_yield_waits_for_the_grown_yield_force_then_harden
     the grown yield force -F1 (not -FY) at ``e_r = 0.1 - 2 F1 / K``; then ``F = -F1 + KT (e - e_r)``.
     Every sample to 1e-9 of F1."""
     e1, f1 = 0.1, FY + KT * (0.1 - FY / K)
-    model = _one_spring({"type": "elastoplastic", "stiffness": K, "tangent_stiffness": KT, "yield_force": FY,
-                         "_curves": {"path": {"x": [0.0, 1.0, 3.0], "y": [0.0, e1, -e1]}}}, 1.0, end_time=3.0,
-                        dt=1.0e-3, interval=1.0e-3)  # fmt: skip
-    model["prescribed_motion"] = [{"node": "b", "quantity": "displacement", "direction": "x", "curve": "path"}]
+    model = _one_spring(
+        {
+            "type": "elastoplastic",
+            "stiffness": K,
+            "tangent_stiffness": KT,
+            "yield_force": FY,
+            "_curves": {"path": {"x": [0.0, 1.0, 3.0], "y": [0.0, e1, -e1]}},
+        },
+        1.0,
+        end_time=3.0,
+        dt=1.0e-3,
+        interval=1.0e-3,
+    )
+    model["prescribed_motion"] = [
+        {"node": "b", "quantity": "displacement", "direction": "x", "curve": "path"}
+    ]
     out, _, _ = run_model(model, kernel="reference")
     e = out.histories["spring_elongation"][:, 0, 0]
     f = out.histories["spring_force"][:, 0, 0]
     t = np.arange(len(e)) * 1.0e-3
     e_r = e1 - 2.0 * f1 / K
-    truth = np.where(t <= 1.0 + 1e-9, np.where(e <= FY / K, K * e, FY + KT * (e - FY / K)),
-                     np.where(e >= e_r, f1 - K * (e1 - e), -f1 + KT * (e - e_r)))  # fmt: skip
+    truth = np.where(
+        t <= 1.0 + 1e-9,
+        np.where(e <= FY / K, K * e, FY + KT * (e - FY / K)),
+        np.where(e >= e_r, f1 - K * (e1 - e), -f1 + KT * (e - e_r)),
+    )
     assert np.max(np.abs(f - truth)) < 1e-9 * f1
     assert f.min() == pytest.approx(-f1 + KT * (-e1 - e_r), rel=1e-9)
 
@@ -154,8 +191,15 @@ def test_nonlinear_damper_decelerates_a_mass_like_the_closed_form(dim: int) -> N
     peak deceleration ``F0 / m`` to 1e-3 (dt = 1e-4 s)."""
     m, v0, f0, r1 = 10.0, 5.0, 100.0, 1.0
     curve = {"x": [-10.0, -r1, 0.0, r1, 10.0], "y": [-f0, -f0, 0.0, f0, f0]}
-    model = _one_spring({"type": "nonlinear_damper", "curve": "blow-off", "_curves": {"blow-off": curve}},
-                        m, v0, dim, end_time=0.8, dt=1.0e-4, interval=1.0e-3)  # fmt: skip
+    model = _one_spring(
+        {"type": "nonlinear_damper", "curve": "blow-off", "_curves": {"blow-off": curve}},
+        m,
+        v0,
+        dim,
+        end_time=0.8,
+        dt=1.0e-4,
+        interval=1.0e-3,
+    )
     out, _, plan = run_model(model, kernel="reference")
     assert out.status[0] == 0
     t = np.arange(plan.n_out) * 1.0e-3
@@ -186,8 +230,16 @@ def test_spring_breaks_at_its_failure_elongation_and_the_mass_flies_on_at_the_sp
     k, m, v0, ef = 1.0e4, 1.0, 2.0, 0.01
     w = math.sqrt(k / m)
     failure = {"tension": ef} if direction > 0 else {"compression": -ef}
-    model = _one_spring({"type": "linear_elastic", "stiffness": k}, m, direction * v0, dim, end_time=0.01,
-                        dt=1.0e-6, interval=1.0e-5, failure=failure)  # fmt: skip
+    model = _one_spring(
+        {"type": "linear_elastic", "stiffness": k},
+        m,
+        direction * v0,
+        dim,
+        end_time=0.01,
+        dt=1.0e-6,
+        interval=1.0e-5,
+        failure=failure,
+    )
     out, _, _ = run_model(model, kernel="reference")
     t_f = math.asin(ef * w / v0) / w
     assert out.status[0] == 0
@@ -205,12 +257,21 @@ def test_spring_breaks_at_its_failure_elongation_and_the_mass_flies_on_at_the_sp
 
 def test_failure_time_is_nan_while_the_spring_holds() -> None:
     """Amplitude 0.02 m, failure at 0.03 m: it never breaks (NaN), and the force history stays ``k e``."""
-    model = _one_spring({"type": "linear_elastic", "stiffness": 1.0e4}, 1.0, 2.0, end_time=0.01, dt=1.0e-6,
-                        interval=1.0e-5, failure={"tension": 0.03, "compression": -0.03})  # fmt: skip
+    model = _one_spring(
+        {"type": "linear_elastic", "stiffness": 1.0e4},
+        1.0,
+        2.0,
+        end_time=0.01,
+        dt=1.0e-6,
+        interval=1.0e-5,
+        failure={"tension": 0.03, "compression": -0.03},
+    )
     out, _, _ = run_model(model, kernel="reference")
     assert np.isnan(out.spring_fail_time[0, 0])
     h = out.histories
-    assert np.allclose(h["spring_force"][:, 0, 0], 1.0e4 * h["spring_elongation"][:, 0, 0], rtol=1e-12, atol=0)
+    assert np.allclose(
+        h["spring_force"][:, 0, 0], 1.0e4 * h["spring_elongation"][:, 0, 0], rtol=1e-12, atol=0
+    )
 
 
 # --------------------------------------------------------------------------------------------------
@@ -248,15 +309,20 @@ def _prestressed(dim: int, curve: bool) -> dict[str, Any]:
     """The same model written with initial_elongation: F = 100 e through the origin, e0 = 0.05 m (5 N)."""
     material: dict[str, Any] = {"type": "linear_elastic", "stiffness": 100.0}
     if curve:
-        material = {"type": "nonlinear_elastic", "curve": "pull", "_curves": {"pull": {"x": [-0.1, 0.1],
-                                                                                       "y": [-10.0, 10.0]}}}  # fmt: skip
+        material = {
+            "type": "nonlinear_elastic",
+            "curve": "pull",
+            "_curves": {"pull": {"x": [-0.1, 0.1], "y": [-10.0, 10.0]}},
+        }
     model = _one_spring(material, 1.0, 0.0, dim, end_time=0.5, interval=1.0e-3, initial_elongation=0.05)
     return model
 
 
 @pytest.mark.parametrize("curve", [True, False], ids=["nonlinear_elastic", "linear_elastic"])
 @pytest.mark.parametrize("dim", [1, 2])
-def test_prestressed_release_follows_the_closed_form_and_keeps_the_energy_balance(dim: int, curve: bool) -> None:
+def test_prestressed_release_follows_the_closed_form_and_keeps_the_energy_balance(
+    dim: int, curve: bool
+) -> None:
     """Released from rest, the mass oscillates about the free length: ``u(t) = -e0 (1 - cos(w t))`` along the
     spring, ``w = sqrt(k / m) = 10 rad/s``. With the default time step (tolerance 1e-3): ``u`` within 1e-3 of
     ``2 e0`` at every sample, the variant ok with ``energy_error < 1e-3`` (IE0 = k e0^2 / 2 = 0.125 J
@@ -296,25 +362,48 @@ def test_preloaded_elastoplastic_crush_and_general_nonlinear_start_as_if_loaded_
       300 N at 0.02 m, e0 = 0.03 m: it yielded on the way, so it unloads on F* + U(e - e*) (U slope 1e5),
       not on L: the force after release is ``F(e0) + 1e5 (e - e0)`` while it unloads.
     """
-    plastic = _one_spring({"type": "elastoplastic", "stiffness": K, "tangent_stiffness": KT, "yield_force": FY},
-                          MASS, end_time=0.001, dt=1.0e-6, initial_elongation=0.1)  # fmt: skip
+    plastic = _one_spring(
+        {"type": "elastoplastic", "stiffness": K, "tangent_stiffness": KT, "yield_force": FY},
+        MASS,
+        end_time=0.001,
+        dt=1.0e-6,
+        initial_elongation=0.1,
+    )
     out, batch, _ = run_model(plastic, kernel="reference")
     assert out.histories["spring_force"][0, 0, 0] == pytest.approx(2500.0, rel=1e-12)
     assert batch.ie0[0, 0] == pytest.approx(0.5 * FY * 0.05 + FY * 0.05 + 0.5 * KT * 0.05**2, rel=1e-12)
 
     crush_curve = {"x": [-0.1, -0.01, 0.0], "y": [-1500.0, -1000.0, 0.0]}
-    crush = _one_spring({"type": "crush", "loading": "c", "unloading_stiffness": 1.0e6, "_curves": {"c": crush_curve}},
-                        MASS, end_time=0.001, dt=1.0e-6, initial_elongation=-0.05)  # fmt: skip
+    crush = _one_spring(
+        {"type": "crush", "loading": "c", "unloading_stiffness": 1.0e6, "_curves": {"c": crush_curve}},
+        MASS,
+        end_time=0.001,
+        dt=1.0e-6,
+        initial_elongation=-0.05,
+    )
     out, batch, _ = run_model(crush, kernel="reference")
     f_e0 = -1000.0 - 500.0 * 0.04 / 0.09
     assert out.histories["spring_force"][0, 0, 0] == pytest.approx(f_e0, rel=1e-12)
     assert batch.ie0[0, 0] == pytest.approx(0.5 * 1000.0 * 0.01 + 0.5 * (1000.0 - f_e0) * 0.04, rel=1e-12)
 
-    curves = {"load": {"x": [-0.1, 0.0, 0.01, 0.02, 0.1], "y": [-1.0e4, 0.0, 500.0, 300.0, 300.0]},
-              "unload": {"x": [-0.1, 0.0, 0.1], "y": [-1.0e4, 0.0, 1.0e4]}}  # fmt: skip
-    general = _one_spring({"type": "general_nonlinear", "loading": "load", "unloading": "unload",
-                           "tension_yield": 400.0, "_curves": curves}, 1.0, end_time=0.002, dt=1.0e-6,
-                          interval=1.0e-6, initial_elongation=0.03)  # fmt: skip
+    curves = {
+        "load": {"x": [-0.1, 0.0, 0.01, 0.02, 0.1], "y": [-1.0e4, 0.0, 500.0, 300.0, 300.0]},
+        "unload": {"x": [-0.1, 0.0, 0.1], "y": [-1.0e4, 0.0, 1.0e4]},
+    }
+    general = _one_spring(
+        {
+            "type": "general_nonlinear",
+            "loading": "load",
+            "unloading": "unload",
+            "tension_yield": 400.0,
+            "_curves": curves,
+        },
+        1.0,
+        end_time=0.002,
+        dt=1.0e-6,
+        interval=1.0e-6,
+        initial_elongation=0.03,
+    )
     out, batch, _ = run_model(general, kernel="reference")
     e = out.histories["spring_elongation"][:, 0, 0]
     f = out.histories["spring_force"][:, 0, 0]
@@ -352,8 +441,9 @@ def test_max_elongation_of_a_linear_oscillator_is_its_amplitude_in_summary_csv(t
 def test_fast_kernels_give_the_reference_numbers_for_a_breaking_spring(kernel: str) -> None:
     """A spring that breaks, on each fast kernel (the generated one runs it itself): bitwise the reference's
     failure time, max elongation and velocities (the full twin cases are in test_kernel_twins)."""
-    model = _one_spring({"type": "linear_elastic", "stiffness": 1.0e4}, 1.0, 2.0, end_time=0.01,
-                        failure={"tension": 0.01})  # fmt: skip
+    model = _one_spring(
+        {"type": "linear_elastic", "stiffness": 1.0e4}, 1.0, 2.0, end_time=0.01, failure={"tension": 0.01}
+    )
     ref, batch, _ = run_model(model, kernel="reference")
     assert generated.unsupported(batch) is None
     assert choice.pick(batch, (), None, kernel) == kernel
@@ -366,25 +456,51 @@ def test_fast_kernels_give_the_reference_numbers_for_a_breaking_spring(kernel: s
 
 BAD = {
     "tangent-not-below-stiffness": (
-        {"type": "elastoplastic", "stiffness": 100.0, "tangent_stiffness": 100.0, "yield_force": 1.0}, {},
-        "springs.s.material.tangent_stiffness", "tangent_stiffness must be below stiffness"),
+        {"type": "elastoplastic", "stiffness": 100.0, "tangent_stiffness": 100.0, "yield_force": 1.0},
+        {},
+        "springs.s.material.tangent_stiffness",
+        "tangent_stiffness must be below stiffness",
+    ),
     "damper-with-initial-elongation": (
-        {"type": "damper", "damping": 1.0}, {"initial_elongation": 0.1},
-        "springs.s.initial_elongation", "initial elongation"),
+        {"type": "damper", "damping": 1.0},
+        {"initial_elongation": 0.1},
+        "springs.s.initial_elongation",
+        "initial elongation",
+    ),
     "failure-below-initial-elongation": (
-        {"type": "linear_elastic", "stiffness": 1.0}, {"initial_elongation": 0.1, "failure": {"tension": 0.05}},
-        "springs.s.failure.tension", "above initial_elongation"),
+        {"type": "linear_elastic", "stiffness": 1.0},
+        {"initial_elongation": 0.1, "failure": {"tension": 0.05}},
+        "springs.s.failure.tension",
+        "above initial_elongation",
+    ),
     "compression-failure-positive": (
-        {"type": "linear_elastic", "stiffness": 1.0}, {"failure": {"compression": 0.05}},
-        "springs.s.failure.compression", "less than 0"),
+        {"type": "linear_elastic", "stiffness": 1.0},
+        {"failure": {"compression": 0.05}},
+        "springs.s.failure.compression",
+        "less than 0",
+    ),
     "damper-curve-decreasing": (
-        {"type": "nonlinear_damper", "curve": "c", "_curves": {"c": {"x": [-1.0, 0.0, 1.0], "y": [1.0, 0.0, -1.0]}}},
-        {}, "springs.s.material.curve", "must be increasing"),
+        {
+            "type": "nonlinear_damper",
+            "curve": "c",
+            "_curves": {"c": {"x": [-1.0, 0.0, 1.0], "y": [1.0, 0.0, -1.0]}},
+        },
+        {},
+        "springs.s.material.curve",
+        "must be increasing",
+    ),
     "crush-curve-off-origin": (
-        {"type": "crush", "loading": "c", "unloading_stiffness": 1.0,
-         "_curves": {"c": {"x": [-1.0, 0.0], "y": [-2.0, -1.0]}}},
-        {}, "springs.s.material.loading", "initial_elongation"),
-}  # fmt: skip
+        {
+            "type": "crush",
+            "loading": "c",
+            "unloading_stiffness": 1.0,
+            "_curves": {"c": {"x": [-1.0, 0.0], "y": [-2.0, -1.0]}},
+        },
+        {},
+        "springs.s.material.loading",
+        "initial_elongation",
+    ),
+}
 
 
 @pytest.mark.parametrize("case", list(BAD))
@@ -403,8 +519,13 @@ def test_study_axis_values_that_break_a_v2_rule_are_refused_per_variant() -> Non
     schema: a failure elongation on the wrong side of the initial elongation, a tangent stiffness not below
     the stiffness, a damper curve point that takes the curve off the origin (the reason names
     initial_elongation). Valid columns pass."""
-    model = _one_spring({"type": "elastoplastic", "stiffness": 100.0, "tangent_stiffness": 10.0, "yield_force": 1.0},
-                        1.0, 1.0, initial_elongation=0.01, failure={"tension": 0.05})  # fmt: skip
+    model = _one_spring(
+        {"type": "elastoplastic", "stiffness": 100.0, "tangent_stiffness": 10.0, "yield_force": 1.0},
+        1.0,
+        1.0,
+        initial_elongation=0.01,
+        failure={"tension": 0.05},
+    )
     plan = model_plan(model)
     topo = plan.topology
     P = np.repeat(plan.base[:, None], 4, axis=1)
@@ -413,11 +534,23 @@ def test_study_axis_values_that_break_a_v2_rule_are_refused_per_variant() -> Non
     apply_axis(P, topo.paths["springs.s.initial_elongation"], np.array([0.01, 0.01, 0.01, -0.2]))
     check = check_parameters(topo, P, plan.interval)
     assert check.bad.tolist() == [False, True, True, False]
-    assert "springs.s.failure.tension: expected an elongation above initial_elongation (0.01)" in check.reason(1)
-    assert "springs.s.material.tangent_stiffness: expected a tangent_stiffness >= 0 and below stiffness" in check.reason(2)
+    assert (
+        "springs.s.failure.tension: expected an elongation above initial_elongation (0.01)" in check.reason(1)
+    )
+    assert (
+        "springs.s.material.tangent_stiffness: expected a tangent_stiffness >= 0 and below stiffness"
+        in check.reason(2)
+    )
 
-    damper = _one_spring({"type": "nonlinear_damper", "curve": "c",
-                          "_curves": {"c": {"x": [-1.0, 0.0, 1.0], "y": [-1.0, 0.0, 1.0]}}}, 1.0, 1.0)  # fmt: skip
+    damper = _one_spring(
+        {
+            "type": "nonlinear_damper",
+            "curve": "c",
+            "_curves": {"c": {"x": [-1.0, 0.0, 1.0], "y": [-1.0, 0.0, 1.0]}},
+        },
+        1.0,
+        1.0,
+    )
     plan = model_plan(damper)
     P = np.repeat(plan.base[:, None], 2, axis=1)
     apply_axis(P, plan.topology.paths["curves.c.y.1"], np.array([0.0, 0.5]))
@@ -426,9 +559,14 @@ def test_study_axis_values_that_break_a_v2_rule_are_refused_per_variant() -> Non
     assert "must pass through the origin" in check.reason(1) and "initial_elongation" in check.reason(1)
 
 
-PULL = {"name": "pull", "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
-        "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
-        "initial_velocity": {"b": [1.0]}, "end_time": 0.1, "output": {"histories": "all"}}  # fmt: skip
+PULL = {
+    "name": "pull",
+    "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+    "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
+    "initial_velocity": {"b": [1.0]},
+    "end_time": 0.1,
+    "output": {"histories": "all"},
+}
 
 
 @pytest.mark.parametrize("kernel", ["reference", "generic", "generated"])
@@ -457,7 +595,9 @@ def test_results_files_hold_no_negative_zero(tmp_path: Path, monkeypatch: pytest
     path = tmp_path / "m.yaml"
     path.write_text(yaml.safe_dump(one_d_materials(False)))
     monkeypatch.setenv("CRASHSTUDY_KERNEL", "reference")
-    acc = run_chunk(plan_from_model(load_model(str(path))), 0, 1).out.histories["acceleration"]  # what the run below computes
+    acc = run_chunk(plan_from_model(load_model(str(path))), 0, 1).out.histories[
+        "acceleration"
+    ]  # what the run below computes
     assert np.any((acc == 0.0) & np.signbit(acc))  # the case has what the files must not show
     simulate(str(path), tmp_path / "out").close()
     with netCDF4.Dataset(tmp_path / "out" / "results.nc") as nc:
@@ -474,11 +614,21 @@ def test_a_preload_against_a_curve_that_pushes_the_wrong_way_is_refused() -> Non
     in compression) preloaded to e0 = -0.0312 stores IE0 = -257 e0^2 < 0, and the instability test failed at
     t = 0 (the kernels now scale it by KE0 + |IE0|). Such a curve is a negative stiffness, a sign slip: since
     issue 23 item 2 it is refused before anything runs, naming the curve and its first wrong point."""
-    model = {"name": "wrong-way", "curves": {"c": {"x": [-0.5, 0.0, 0.5], "y": [257.0, 0.0, -257.0]}},
-             "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [-1.0], "mass": 0.5}},
-             "springs": {"s": {"nodes": ["b", "a"], "material": {"type": "nonlinear_elastic", "curve": "c"},
-                               "initial_elongation": -0.0312}},
-             "initial_velocity": {"b": [1.0]}, "end_time": 0.002, "output": {"histories": ["internal_energy"]}}  # fmt: skip
+    model = {
+        "name": "wrong-way",
+        "curves": {"c": {"x": [-0.5, 0.0, 0.5], "y": [257.0, 0.0, -257.0]}},
+        "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [-1.0], "mass": 0.5}},
+        "springs": {
+            "s": {
+                "nodes": ["b", "a"],
+                "material": {"type": "nonlinear_elastic", "curve": "c"},
+                "initial_elongation": -0.0312,
+            }
+        },
+        "initial_velocity": {"b": [1.0]},
+        "end_time": 0.002,
+        "output": {"histories": ["internal_energy"]},
+    }
     with pytest.raises(InputError) as err:
         run_model(model)
     assert "curve 'c' has force 257 at x = -0.5 (point 0)" in str(err.value)

@@ -78,14 +78,23 @@ def chain(n: int, unequal: bool, fixed: bool, safety_factor: float = 1.0) -> dic
     nodes.update({f"m{i}": {"position": [float(i + 1)], "mass": float(mass[i])} for i in range(n)})
     ids = list(nodes)
     k = 10.0 ** rng.uniform(3, 5, len(ids) - 1) if unequal else np.full(len(ids) - 1, 1.0e4)
-    springs = {f"s{i}": {"nodes": [ids[i], ids[i + 1]], "material": {"type": "linear_elastic", "stiffness": float(k[i])}}
-               for i in range(len(ids) - 1)}  # fmt: skip
+    springs = {
+        f"s{i}": {
+            "nodes": [ids[i], ids[i + 1]],
+            "material": {"type": "linear_elastic", "stiffness": float(k[i])},
+        }
+        for i in range(len(ids) - 1)
+    }
     v0 = rng.uniform(-1.0, 1.0, n)
     return {
-        "name": f"chain-{n}", "nodes": nodes, "springs": springs,
+        "name": f"chain-{n}",
+        "nodes": nodes,
+        "springs": springs,
         "initial_velocity": {f"m{i}": [float(v0[i])] for i in range(n)},
-        "end_time": 1.0, "time_step": {"safety_factor": safety_factor}, "output": {"histories": "none"},
-    }  # fmt: skip
+        "end_time": 1.0,
+        "time_step": {"safety_factor": safety_factor},
+        "output": {"histories": "none"},
+    }
 
 
 def chain_omega_max(model: dict[str, Any]) -> float:
@@ -116,14 +125,23 @@ def ratio_model(k_ratio: float, m_ratio: float, safety_factor: float = 1.0) -> d
     """ground --soft (1 N/m)-- heavy (1 kg) --stiff (k_ratio N/m)-- light (1/m_ratio kg), both started at 1 m/s."""
     return {
         "name": "ratios",
-        "nodes": {"ground": {"position": [0.0], "fixed": True}, "heavy": {"position": [1.0], "mass": 1.0},
-                  "light": {"position": [2.0], "mass": 1.0 / m_ratio}},
-        "springs": {"soft": {"nodes": ["ground", "heavy"], "material": {"type": "linear_elastic", "stiffness": 1.0}},
-                    "stiff": {"nodes": ["heavy", "light"], "material": {"type": "linear_elastic", "stiffness": k_ratio}}},
+        "nodes": {
+            "ground": {"position": [0.0], "fixed": True},
+            "heavy": {"position": [1.0], "mass": 1.0},
+            "light": {"position": [2.0], "mass": 1.0 / m_ratio},
+        },
+        "springs": {
+            "soft": {"nodes": ["ground", "heavy"], "material": {"type": "linear_elastic", "stiffness": 1.0}},
+            "stiff": {
+                "nodes": ["heavy", "light"],
+                "material": {"type": "linear_elastic", "stiffness": k_ratio},
+            },
+        },
         "initial_velocity": {"heavy": [1.0], "light": [1.0]},
-        "end_time": 1.0, "time_step": {"safety_factor": safety_factor},
+        "end_time": 1.0,
+        "time_step": {"safety_factor": safety_factor},
         "output": {"histories": ["displacement"]},
-    }  # fmt: skip
+    }
 
 
 def ratio_closed_form(k_ratio: float, m_ratio: float, t: np.ndarray) -> np.ndarray:
@@ -159,10 +177,16 @@ def snap_through(
         "name": "snap-through",
         "curves": {"shell": {"x": [-1.5, -1.0, -0.5, 0.0, 1.0], "y": [-2.0, 0.0, -2.0, 0.0, 4.0]}},
         "nodes": {"anchor": {"position": [0.0], "fixed": True}, "body": {"position": [1.0], "mass": 1.0}},
-        "springs": {"shell": {"nodes": ["anchor", "body"], "material": {"type": "nonlinear_elastic", "curve": "shell"}}},
+        "springs": {
+            "shell": {
+                "nodes": ["anchor", "body"],
+                "material": {"type": "nonlinear_elastic", "curve": "shell"},
+            }
+        },
         "initial_velocity": {"body": [-v0]},
-        "end_time": end_time, "output": {"interval": end_time / 10, "histories": "none"},
-    }  # fmt: skip
+        "end_time": end_time,
+        "output": {"interval": end_time / 10, "histories": "none"},
+    }
     if time_step:
         model["time_step"] = time_step
     return model
@@ -192,13 +216,20 @@ def conservative(steps: int, safety_factor: float = 1.0) -> dict[str, Any]:
     """ground -- 1e4 N/m -- a (1 kg) -- 3e4 N/m -- b (2 kg), a at 1 m/s and b at -2 m/s; histories none."""
     model = {
         "name": "conservative",
-        "nodes": {"ground": {"position": [0.0], "fixed": True}, "a": {"position": [1.0], "mass": 1.0},
-                  "b": {"position": [2.0], "mass": 2.0}},
-        "springs": {"s1": {"nodes": ["ground", "a"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}},
-                    "s2": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 3.0e4}}},
+        "nodes": {
+            "ground": {"position": [0.0], "fixed": True},
+            "a": {"position": [1.0], "mass": 1.0},
+            "b": {"position": [2.0], "mass": 2.0},
+        },
+        "springs": {
+            "s1": {"nodes": ["ground", "a"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}},
+            "s2": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 3.0e4}},
+        },
         "initial_velocity": {"a": [1.0], "b": [-2.0]},
-        "end_time": 1.0, "time_step": {"safety_factor": safety_factor}, "output": {"histories": "none"},
-    }  # fmt: skip
+        "end_time": 1.0,
+        "time_step": {"safety_factor": safety_factor},
+        "output": {"histories": "none"},
+    }
     return at_step(model, steps)
 
 
@@ -208,10 +239,14 @@ def damper_pair(safety_factor: float, stiffness: float | None = None) -> dict[st
     if stiffness:
         springs["s"] = {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": stiffness}}
     model = {
-        "name": "damper-pair", "nodes": {"a": {"position": [0.0], "mass": 1.0}, "b": {"position": [1.0], "mass": 1.0}},
-        "springs": springs, "initial_velocity": {"b": [1.0]}, "end_time": 1.0,
-        "time_step": {"safety_factor": safety_factor}, "output": {"histories": "none"},
-    }  # fmt: skip
+        "name": "damper-pair",
+        "nodes": {"a": {"position": [0.0], "mass": 1.0}, "b": {"position": [1.0], "mass": 1.0}},
+        "springs": springs,
+        "initial_velocity": {"b": [1.0]},
+        "end_time": 1.0,
+        "time_step": {"safety_factor": safety_factor},
+        "output": {"histories": "none"},
+    }
     return at_step(model, 200)
 
 
@@ -243,13 +278,20 @@ def mass_axis_study(tmp: Path, dt: float, masses: list[float]) -> Path:
     """A study over the mass of the free end of a 2-mass chain run at a fixed ``dt``."""
     model = {
         "name": "fixed-dt-chain",
-        "nodes": {"ground": {"position": [0.0], "fixed": True}, "a": {"position": [1.0], "mass": 1.0},
-                  "b": {"position": [2.0], "mass": 1.0}},
-        "springs": {"s1": {"nodes": ["ground", "a"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}},
-                    "s2": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}}},
+        "nodes": {
+            "ground": {"position": [0.0], "fixed": True},
+            "a": {"position": [1.0], "mass": 1.0},
+            "b": {"position": [2.0], "mass": 1.0},
+        },
+        "springs": {
+            "s1": {"nodes": ["ground", "a"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}},
+            "s2": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}},
+        },
         "initial_velocity": {"a": [1.0], "b": [1.0]},
-        "end_time": 0.5, "time_step": {"dt": dt}, "output": {"interval": 0.01, "histories": "none"},
-    }  # fmt: skip
+        "end_time": 0.5,
+        "time_step": {"dt": dt},
+        "output": {"interval": 0.01, "histories": "none"},
+    }
     (tmp / "chain.yaml").write_text(yaml.safe_dump(model, sort_keys=False))
     study = {"name": "light-ends", "model": "chain.yaml", "matrix": {"nodes.b.mass": masses}}
     path = tmp / "light-ends.yaml"
@@ -435,7 +477,12 @@ def test_helicopter_2d_crushed_through_zero_length_fails_the_variant(tmp_path: P
 # 4. softening (negative-slope) curves: snap-through
 # --------------------------------------------------------------------------------------------------
 
-SNAP_SPEEDS = [0.6, 0.8, 1.2, 2.0]  # m/s: before the softening (KE 0.18, 0.32 J), on it (0.72 J), past it (2 J)
+SNAP_SPEEDS = [
+    0.6,
+    0.8,
+    1.2,
+    2.0,
+]  # m/s: before the softening (KE 0.18, 0.32 J), on it (0.72 J), past it (2 J)
 
 
 def test_softening_curve_critical_step_uses_the_steepest_absolute_slope() -> None:
@@ -527,7 +574,9 @@ def test_fixed_dt_above_critical_refuses_only_the_light_variants_of_a_study(tmp_
     assert np.all(res.dt[2:] == pytest.approx(1.0e-3))
 
 
-@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # the NumPy kernel on the way to inf
+@pytest.mark.filterwarnings(
+    "ignore:overflow encountered:RuntimeWarning"
+)  # the NumPy kernel on the way to inf
 def test_instability_forced_by_hand_fails_that_variant_only() -> None:
     """One variant of four gets dt = 3 x dt_crit by hand (omega_max dt about 4.4): status UNSTABLE at a finite
     time, NaN histories after it; the three others are bitwise equal to running each alone, on every kernel;
@@ -546,7 +595,9 @@ def test_instability_forced_by_hand_fails_that_variant_only() -> None:
         for k in (0, 2, 3):
             alone = run_kernel(batch.take(np.array([k])), plan.topology.histories, plan.n_out, kernel)
             assert alone.status[0] == 0
-            assert output_differences(out, alone, k, 0) == [], f"{kernel}: variant {k} differs from its run alone"
+            assert output_differences(out, alone, k, 0) == [], (
+                f"{kernel}: variant {k} differs from its run alone"
+            )
 
 
 def test_instability_forced_by_hand_is_reported_by_the_runner_with_its_reason(
@@ -560,8 +611,11 @@ def test_instability_forced_by_hand_is_reported_by_the_runner_with_its_reason(
 
     model = conservative(2000)
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(model, sort_keys=False))
-    (tmp_path / "s.yaml").write_text(yaml.safe_dump({"name": "forced", "model": "m.yaml",
-                                                      "matrix": {"impact_velocity": [1.0, 2.0, 3.0, 4.0]}}))  # fmt: skip
+    (tmp_path / "s.yaml").write_text(
+        yaml.safe_dump(
+            {"name": "forced", "model": "m.yaml", "matrix": {"impact_velocity": [1.0, 2.0, 3.0, 4.0]}}
+        )
+    )
     plan = load_study(tmp_path / "s.yaml")
     clean = runner.run_chunk(plan, 0, 4)
     real = runner.build_batch
@@ -575,9 +629,11 @@ def test_instability_forced_by_hand_is_reported_by_the_runner_with_its_reason(
     monkeypatch.setattr(runner, "build_batch", patched)
     res = runner.run_chunk(plan, 0, 4)
     assert list(res.out.status) == [0, 0, UNSTABLE, 0], res.reasons
-    m = re.fullmatch(r"numerical instability: energy balance lost \(non-finite, or error above 100%\) at t=(\S+) "
-                         r"\(dt_crit=(\S+), node (\w+) / spring (\w+)\)",
-                     res.reasons[2])  # fmt: skip
+    m = re.fullmatch(
+        r"numerical instability: energy balance lost \(non-finite, or error above 100%\) at t=(\S+) "
+        r"\(dt_crit=(\S+), node (\w+) / spring (\w+)\)",
+        res.reasons[2],
+    )
     assert m, res.reasons[2]
     assert float(m.group(2)) == pytest.approx(res.dt_crit[2], rel=1e-5)
     for k in (0, 1, 3):

@@ -48,8 +48,13 @@ SCALES = [0.8, 1.0, 1.2, 1.5]
 SPEEDS = [4.0, 6.0, 8.0, 10.0, 12.0]
 ZIP_K = [1.5e6, 3.0e6]
 ZIP_M = [40.0, 60.0]
-AXES = ["nodes.body.mass", "curves.crush-loading.scale", "impact_velocity",
-        "springs.body.material.stiffness", "nodes.front.mass"]  # fmt: skip
+AXES = [
+    "nodes.body.mass",
+    "curves.crush-loading.scale",
+    "impact_velocity",
+    "springs.body.material.stiffness",
+    "nodes.front.mass",
+]
 
 
 def dump(path: Path, data: dict[str, Any]) -> Path:
@@ -109,9 +114,12 @@ def work(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def matrix_study(work: Path) -> Path:
-    study = {"name": "order-check", "model": "model.yaml",
-             "matrix": {AXES[0]: MASSES, AXES[1]: SCALES, AXES[2]: SPEEDS},
-             "zip": [{AXES[3]: ZIP_K, AXES[4]: ZIP_M}]}  # fmt: skip
+    study = {
+        "name": "order-check",
+        "model": "model.yaml",
+        "matrix": {AXES[0]: MASSES, AXES[1]: SCALES, AXES[2]: SPEEDS},
+        "zip": [{AXES[3]: ZIP_K, AXES[4]: ZIP_M}],
+    }
     return dump(work / "matrix.yaml", study)
 
 
@@ -172,11 +180,20 @@ def test_each_variant_equals_the_model_run_alone_with_simulate(matrix_run: Path,
         alone.close()
         assert str(one["status"].values[0]) == "ok"
         for name in ("peak_force", "max_crush", "absorbed_energy", "peak_deceleration"):
-            np.testing.assert_allclose(ds[name].values[k], one[name].values[0], rtol=RTOL, atol=0,
-                                       err_msg=f"variant {k} {variants[k]}: {name}")  # fmt: skip
+            np.testing.assert_allclose(
+                ds[name].values[k],
+                one[name].values[0],
+                rtol=RTOL,
+                atol=0,
+                err_msg=f"variant {k} {variants[k]}: {name}",
+            )
         assert ds["dt"].values[k] == pytest.approx(one["dt"].values[0], rel=RTOL)
-        np.testing.assert_allclose(ds["spring_force"].values[k], one["spring_force"].values[0], rtol=RTOL,
-                                   atol=RTOL * np.abs(one["spring_force"].values).max())  # fmt: skip
+        np.testing.assert_allclose(
+            ds["spring_force"].values[k],
+            one["spring_force"].values[0],
+            rtol=RTOL,
+            atol=RTOL * np.abs(one["spring_force"].values).max(),
+        )
     # the axes really change the answer (the comparison is not between copies of one run)
     assert len(np.unique(np.round(ds["peak_force"].values[:, 0], 6))) > 100
 
@@ -248,17 +265,27 @@ def test_impact_velocity_sets_every_initial_speed_keeping_each_direction(work: P
         one = simulate(dump(work / f"oblique-{k}.yaml", d), work / f"oblique-{k}").dataset.load()
         for name in ("velocity", "displacement", "spring_force"):
             ref = one[name].values[0]
-            np.testing.assert_allclose(ds[name].values[k], ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max(),
-                                       err_msg=f"speed {speed}: {name}")  # fmt: skip
+            np.testing.assert_allclose(
+                ds[name].values[k],
+                ref,
+                rtol=1e-12,
+                atol=1e-12 * np.abs(ref).max(),
+                err_msg=f"speed {speed}: {name}",
+            )
         np.testing.assert_allclose(ds["peak_force"].values[k], one["peak_force"].values[0], rtol=RTOL)
         v0 = ds["velocity"].values[k, 0]  # (node, axis) at t = 0
-        np.testing.assert_allclose(v0, [[0, 0], [0.6 * speed, -0.8 * speed], [0, -speed], [0, 0]], rtol=1e-14,
-                                   atol=1e-14 * speed)  # fmt: skip
+        np.testing.assert_allclose(
+            v0, [[0, 0], [0.6 * speed, -0.8 * speed], [0, -speed], [0, 0]], rtol=1e-14, atol=1e-14 * speed
+        )
 
 
 def test_set_overrides_apply_to_every_variant(work: Path) -> None:
-    study = {"name": "set-check", "model": str(work / "model.yaml"), "matrix": {"impact_velocity": [5.0, 9.0]},
-             "set": {"end_time": 0.012, "output": {"interval": 4.0e-4}, "nodes.front.mass": 45.0}}  # fmt: skip
+    study = {
+        "name": "set-check",
+        "model": str(work / "model.yaml"),
+        "matrix": {"impact_velocity": [5.0, 9.0]},
+        "set": {"end_time": 0.012, "output": {"interval": 4.0e-4}, "nodes.front.mass": 45.0},
+    }
     ds = crashstudy.run_study(study, work / "set-out").dataset.load()
     np.testing.assert_allclose(ds["time"].values, np.arange(31) * 4.0e-4, rtol=0, atol=1e-15)
     assert ds["time"].values[-1] == pytest.approx(0.012, rel=1e-12)
@@ -286,8 +313,9 @@ def test_unknown_axis_is_an_input_error_naming_the_closest_paths(work: Path) -> 
     assert "nodes.body.mass" in exc.value.format()
 
 
-def test_dry_run_prints_the_variant_count_and_runs_nothing(matrix_study: Path, work: Path,
-                                                           capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_dry_run_prints_the_variant_count_and_runs_nothing(
+    matrix_study: Path, work: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = work / "dry"
     assert main(["run", str(matrix_study), "-o", str(out), "--dry-run"]) == 0
     text = capsys.readouterr().out
@@ -338,9 +366,17 @@ for line in sys.stdin:
 @pytest.fixture(scope="module")
 def resume_study(work: Path) -> tuple[Path, Path]:
     """A 120-variant study and its uninterrupted, in-process result."""
-    study = dump(work / "resume.yaml", {"name": "resume-check", "model": "model.yaml",
-                                        "matrix": {"nodes.body.mass": [float(m) for m in np.linspace(600, 1000, 6)],
-                                                   "impact_velocity": [float(v) for v in np.linspace(4, 12, 20)]}})  # fmt: skip
+    study = dump(
+        work / "resume.yaml",
+        {
+            "name": "resume-check",
+            "model": "model.yaml",
+            "matrix": {
+                "nodes.body.mass": [float(m) for m in np.linspace(600, 1000, 6)],
+                "impact_velocity": [float(v) for v in np.linspace(4, 12, 20)],
+            },
+        },
+    )
     ref = work / "resume-ref"
     run_plan(load_study(study), ref, progress=False)
     return study, ref
@@ -353,11 +389,20 @@ def test_interrupted_run_resumes_to_results_identical_to_an_uninterrupted_run(
     study, ref = resume_study
     out = work / f"resume-{sig.name}"
     partial, final = out / "results.nc.partial", out / "results.nc"
-    reader = subprocess.Popen([sys.executable, "-c", DONE_READER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                              text=True, env={**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"})  # fmt: skip
-    proc = subprocess.Popen([sys.executable, "-c", SLOW_CLI, "run", str(study), "-o", str(out), "--progress", "off"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # fmt: skip  (as in a terminal)
+    reader = subprocess.Popen(
+        [sys.executable, "-c", DONE_READER],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "HDF5_USE_FILE_LOCKING": "FALSE"},
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SLOW_CLI, "run", str(study), "-o", str(out), "--progress", "off"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )  # (as in a terminal)
     try:
         done, deadline = 0, time.monotonic() + 120
         while done < 10:  # two chunks written and flushed (24 chunks in all: > 5 s to go)
@@ -399,10 +444,13 @@ def test_interrupted_run_resumes_to_results_identical_to_an_uninterrupted_run(
     pd.testing.assert_frame_equal(pd.read_csv(out / "summary.csv"), pd.read_csv(ref / "summary.csv"))
 
 
-def test_resume_after_the_study_changed_is_refused_as_invalid_input(work: Path, monkeypatch: pytest.MonkeyPatch,
-                                                                    capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
-    study = dump(work / "changed.yaml", {"name": "changed", "model": "model.yaml",
-                                         "matrix": {"impact_velocity": [4.0, 6.0, 8.0]}})  # fmt: skip
+def test_resume_after_the_study_changed_is_refused_as_invalid_input(
+    work: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    study = dump(
+        work / "changed.yaml",
+        {"name": "changed", "model": "model.yaml", "matrix": {"impact_velocity": [4.0, 6.0, 8.0]}},
+    )
     out = work / "changed-out"
     import crashstudy.run.runner as runner
 
@@ -427,8 +475,9 @@ def test_resume_after_the_study_changed_is_refused_as_invalid_input(work: Path, 
     assert "--force" in err and "Traceback" not in err
 
 
-def test_finished_results_are_not_overwritten_without_force(resume_study: tuple[Path, Path], work: Path,
-                                                           capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_finished_results_are_not_overwritten_without_force(
+    resume_study: tuple[Path, Path], work: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Another study's finished results in the folder: exit 2, files untouched; ``--force`` replaces them.
 
     (Re-running the *same* study into its folder reuses its unchanged variants: the result stays
@@ -438,8 +487,10 @@ def test_finished_results_are_not_overwritten_without_force(resume_study: tuple[
     out = work / "overwrite"
     assert main(["run", str(study), "-o", str(out), "--progress", "off"]) == 0
     before = {p.name: p.read_bytes() for p in (out / "results.nc", out / "summary.csv")}
-    other = dump(work / "other.yaml", {"name": "another-study", "model": "model.yaml",
-                                       "matrix": {"impact_velocity": [3.0, 5.0]}})  # fmt: skip
+    other = dump(
+        work / "other.yaml",
+        {"name": "another-study", "model": "model.yaml", "matrix": {"impact_velocity": [3.0, 5.0]}},
+    )
     capsys.readouterr()
     assert main(["run", str(other), "-o", str(out), "--progress", "off"]) == 2
     err = capsys.readouterr().err
@@ -468,16 +519,22 @@ def test_fixed_dt_above_dt_crit_fails_only_the_light_variants(
     work: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     masses = [2.0, 5.0, 20.0, 50.0, 200.0]
-    probe = crashstudy.run_study({"name": "dt-crit", "model": str(work / "model.yaml"),
-                                  "matrix": {"nodes.front.mass": masses}}, work / "dt-crit").dataset  # fmt: skip
+    probe = crashstudy.run_study(
+        {"name": "dt-crit", "model": str(work / "model.yaml"), "matrix": {"nodes.front.mass": masses}},
+        work / "dt-crit",
+    ).dataset
     dt_crit = probe["dt_crit"].values  # the front mass controls: dt_crit grows as sqrt(mass)
     assert np.all(np.diff(dt_crit) > 0)
     dt = float(np.sqrt(dt_crit[1] * dt_crit[2]))  # above dt_crit of 2 and 5 kg, below that of 20 kg
-    study = dump(work / "fixed-dt.yaml", {
-        "name": "fixed-dt", "model": "model.yaml",
-        "matrix": {"nodes.front.mass": masses, "impact_velocity": [6.0, 10.0]},
-        "set": {"time_step": {"dt": dt}, "end_time": 400 * dt, "output": {"interval": 4 * dt}},
-    })  # fmt: skip
+    study = dump(
+        work / "fixed-dt.yaml",
+        {
+            "name": "fixed-dt",
+            "model": "model.yaml",
+            "matrix": {"nodes.front.mass": masses, "impact_velocity": [6.0, 10.0]},
+            "set": {"time_step": {"dt": dt}, "end_time": 400 * dt, "output": {"interval": 4 * dt}},
+        },
+    )
     out = work / "fixed-dt"
     capsys.readouterr()
     # the others can run: a warning names dt_crit before the run, the four fail with their reason
@@ -521,8 +578,10 @@ def test_2d_spring_pressed_to_zero_length_fails_its_variant_only(work: Path) -> 
     """The plate is pushed 0.6 m x scale down onto the ground node 0.3 m away: scale 0.5 reaches zero
     length at t = 0.1 s, scale 1.0 at 0.05 s; scale 0.25 stops half way and completes."""
     model = dump(work / "press.yaml", PRESS_2D)
-    s = crashstudy.run_study({"name": "press", "model": str(model), "matrix": {"curves.push.scale": [0.25, 0.5, 1.0]}},
-                             work / "press-out").summary  # fmt: skip
+    s = crashstudy.run_study(
+        {"name": "press", "model": str(model), "matrix": {"curves.push.scale": [0.25, 0.5, 1.0]}},
+        work / "press-out",
+    ).summary
     assert s["status"].tolist() == ["ok", "failed", "failed"]
     assert s["failure_reason"][0] == ""
     for k, t in ((1, 0.1), (2, 0.05)):
@@ -535,13 +594,18 @@ def test_2d_spring_pressed_to_zero_length_fails_its_variant_only(work: Path) -> 
 DROP_2D: dict[str, Any] = {
     "name": "drop-2d",
     "units": "SI",
-    "nodes": {"ground": {"position": [0.0, 0.0], "fixed": True}, "mass": {"position": [0.0, 0.3], "mass": 100.0},
-              "top": {"position": [0.0, 0.6], "mass": 50.0}},
-    "springs": {"lower": {"nodes": ["ground", "mass"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}},
-                "upper": {"nodes": ["mass", "top"], "material": {"type": "linear_elastic", "stiffness": 1.0e6}}},
+    "nodes": {
+        "ground": {"position": [0.0, 0.0], "fixed": True},
+        "mass": {"position": [0.0, 0.3], "mass": 100.0},
+        "top": {"position": [0.0, 0.6], "mass": 50.0},
+    },
+    "springs": {
+        "lower": {"nodes": ["ground", "mass"], "material": {"type": "linear_elastic", "stiffness": 1.0e4}},
+        "upper": {"nodes": ["mass", "top"], "material": {"type": "linear_elastic", "stiffness": 1.0e6}},
+    },
     "initial_velocity": {"mass": [0.0, -1.0], "top": [0.0, -1.0]},
     "end_time": 0.3,
-}  # fmt: skip
+}
 
 
 def test_2d_spring_crushed_through_zero_length_by_an_impact_fails(work: Path) -> None:
@@ -552,8 +616,9 @@ def test_2d_spring_crushed_through_zero_length_by_an_impact_fails(work: Path) ->
     step); before 83f33cc this went undetected: status 'ok', max_crush 0.2995 m, the node ending
     1.5 m below the ground with the spring turned inside out."""
     model = dump(work / "drop.yaml", DROP_2D)
-    res = crashstudy.run_study({"name": "drop", "model": str(model), "matrix": {"impact_velocity": [1.0, 10.0]}},
-                               work / "drop-out")  # fmt: skip
+    res = crashstudy.run_study(
+        {"name": "drop", "model": str(model), "matrix": {"impact_velocity": [1.0, 10.0]}}, work / "drop-out"
+    )
     s = res.summary
     assert s["status"][0] == "ok" and s["max_crush.lower"][0] == pytest.approx(0.1224, rel=1e-2)
     assert s["status"][1] == "failed", (
@@ -572,18 +637,37 @@ def test_2d_spring_crushed_through_zero_length_by_an_impact_fails(work: Path) ->
 # Python API and `crashstudy summary`
 
 
-UNITS_SI = {"position": "m", "displacement": "m", "velocity": "m/s", "acceleration": "m/s^2", "spring_force": "N",
-            "spring_elongation": "m", "kinetic_energy": "J", "internal_energy": "J", "external_work": "J",
-            "wall_energy": "J", "peak_force": "N", "max_crush": "m", "absorbed_energy": "J",
-            "peak_deceleration": "m/s^2", "peak_deceleration_g": "g", "energy_error": "1", "dt": "s", "time": "s"}  # fmt: skip
+UNITS_SI = {
+    "position": "m",
+    "displacement": "m",
+    "velocity": "m/s",
+    "acceleration": "m/s^2",
+    "spring_force": "N",
+    "spring_elongation": "m",
+    "kinetic_energy": "J",
+    "internal_energy": "J",
+    "external_work": "J",
+    "wall_energy": "J",
+    "peak_force": "N",
+    "max_crush": "m",
+    "absorbed_energy": "J",
+    "peak_deceleration": "m/s^2",
+    "peak_deceleration_g": "g",
+    "energy_error": "1",
+    "dt": "s",
+    "time": "s",
+}
 
 
 @pytest.fixture(scope="module")
 def api_run(
     work: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> tuple[crashstudy.run.runner.Results, dict[str, Any]]:
-    study = {"name": "api-check", "model": str(work / "model.yaml"),
-             "matrix": {"nodes.body.mass": [700.0, 900.0], "impact_velocity": [5.0, 8.0, 11.0]}}  # fmt: skip
+    study = {
+        "name": "api-check",
+        "model": str(work / "model.yaml"),
+        "matrix": {"nodes.body.mass": [700.0, 900.0], "impact_velocity": [5.0, 8.0, 11.0]},
+    }
     cwd = Path.cwd()
     os.chdir(tmp_path_factory.mktemp("api"))  # run_study's default folder is results/<study name>
     try:
@@ -600,8 +684,17 @@ def test_run_study_dict_and_open_results_summary_table(api_run: tuple[Any, dict[
     s = res.summary
     assert isinstance(s, pd.DataFrame) and len(s) == 6
     assert list(s.columns[:3]) == ["variant", "nodes.body.mass", "impact_velocity"]
-    for col in ("status", "failure_reason", "peak_force.crush", "peak_force.body", "max_crush.crush",
-                "absorbed_energy.body", "peak_deceleration_g.body", "energy_error", "dt"):  # fmt: skip
+    for col in (
+        "status",
+        "failure_reason",
+        "peak_force.crush",
+        "peak_force.body",
+        "max_crush.crush",
+        "absorbed_energy.body",
+        "peak_deceleration_g.body",
+        "energy_error",
+        "dt",
+    ):
         assert col in s.columns, col
     np.testing.assert_array_equal(s["nodes.body.mass"], [700.0] * 3 + [900.0] * 3)
     np.testing.assert_array_equal(s["impact_velocity"], [5.0, 8.0, 11.0] * 2)
@@ -615,8 +708,9 @@ def test_run_study_dict_and_open_results_summary_table(api_run: tuple[Any, dict[
     assert worst.is_monotonic_increasing
 
 
-def test_dataset_has_units_and_the_input_files_verbatim(api_run: tuple[Any, dict[str, Any]], matrix_run: Path,
-                                                        matrix_study: Path, work: Path) -> None:  # fmt: skip
+def test_dataset_has_units_and_the_input_files_verbatim(
+    api_run: tuple[Any, dict[str, Any]], matrix_run: Path, matrix_study: Path, work: Path
+) -> None:
     res, study = api_run
     ds = res.dataset
     for name, var in ds.data_vars.items():
@@ -660,8 +754,9 @@ def _printed_variants(text: str) -> list[int]:
     return [int(r[1]) for r in rows]
 
 
-def test_summary_sort_prints_rows_in_column_order(api_run: tuple[Any, dict[str, Any]],
-                                                  capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_summary_sort_prints_rows_in_column_order(
+    api_run: tuple[Any, dict[str, Any]], capsys: pytest.CaptureFixture[str]
+) -> None:
     res, _ = api_run
     s = res.summary
     col = "peak_deceleration_g.body"
@@ -698,8 +793,9 @@ def test_summary_sort_prints_rows_in_column_order(api_run: tuple[Any, dict[str, 
     assert "4 more rows" in out
 
 
-def test_summary_unknown_sort_column_exits_2_naming_similar_columns(api_run: tuple[Any, dict[str, Any]],
-                                                                    capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_summary_unknown_sort_column_exits_2_naming_similar_columns(
+    api_run: tuple[Any, dict[str, Any]], capsys: pytest.CaptureFixture[str]
+) -> None:
     res, _ = api_run
     capsys.readouterr()
     assert main(["summary", str(res.dir), "--sort", "peak_force"]) == 2
@@ -707,8 +803,9 @@ def test_summary_unknown_sort_column_exits_2_naming_similar_columns(api_run: tup
     assert "peak_force.crush" in err and "peak_force.body" in err and "Traceback" not in err
 
 
-def test_summary_misspelt_sort_column_suggests_the_close_ones(api_run: tuple[Any, dict[str, Any]],
-                                                              capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_summary_misspelt_sort_column_suggests_the_close_ones(
+    api_run: tuple[Any, dict[str, Any]], capsys: pytest.CaptureFixture[str]
+) -> None:
     res, _ = api_run
     capsys.readouterr()
     assert main(["summary", str(res.dir), "--sort", "peak_forse.crush"]) == 2

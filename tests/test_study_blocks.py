@@ -18,15 +18,24 @@ from crashstudy.study.blocks import BLOCKS
 from helpers import LINEAR_SPRING
 
 MODEL = LINEAR_SPRING
-OPTIMIZE = {"minimize": "peak_deceleration_g.body", "constraints": ["max_crush.s <= 0.2"],
-            "variables": {"springs.s.material.stiffness": [1.0e4, 4.0e4]}}  # fmt: skip
-CALIBRATE = {"data": "data.csv", "channel": {"quantity": "spring_force", "spring": "s"},
-             "variables": {"nodes.body.mass": [1.0, 4.0]}}  # fmt: skip
+OPTIMIZE = {
+    "minimize": "peak_deceleration_g.body",
+    "constraints": ["max_crush.s <= 0.2"],
+    "variables": {"springs.s.material.stiffness": [1.0e4, 4.0e4]},
+}
+CALIBRATE = {
+    "data": "data.csv",
+    "channel": {"quantity": "spring_force", "spring": "s"},
+    "variables": {"nodes.body.mass": [1.0, 4.0]},
+}
 
 
 def _set(d: dict[str, Any], dotted: str, value: Any) -> None:
-    *head, last = dotted.split(".", 2) if dotted.startswith(("optimize.variables", "calibrate.variables")) \
-        else dotted.split(".")  # fmt: skip
+    *head, last = (
+        dotted.split(".", 2)
+        if dotted.startswith(("optimize.variables", "calibrate.variables"))
+        else dotted.split(".")
+    )
     for k in head:
         d = d[k]
     d[last] = value
@@ -34,43 +43,84 @@ def _set(d: dict[str, Any], dotted: str, value: Any) -> None:
 
 # (name, block edits: dotted key -> value (None deletes), field the message must name)
 CORPUS = [
-    ("reversed bounds", {"optimize.variables": {"springs.s.material.stiffness": [4.0e4, 1.0e4]}},
-     "optimize.variables.springs.s.material.stiffness"),
-    ("equal bounds", {"optimize.variables": {"springs.s.material.stiffness": [2.0e4, 2.0e4]}},
-     "optimize.variables.springs.s.material.stiffness"),
-    ("misspelt axis", {"optimize.variables": {"springs.s.material.stifness": [1.0e4, 4.0e4]}},
-     "optimize.variables.springs.s.material.stifness"),
-    ("bound makes the model invalid", {"optimize.variables": {"nodes.body.mass": [-1.0, 4.0]}},
-     "optimize.variables.nodes.body.mass.0"),
+    (
+        "reversed bounds",
+        {"optimize.variables": {"springs.s.material.stiffness": [4.0e4, 1.0e4]}},
+        "optimize.variables.springs.s.material.stiffness",
+    ),
+    (
+        "equal bounds",
+        {"optimize.variables": {"springs.s.material.stiffness": [2.0e4, 2.0e4]}},
+        "optimize.variables.springs.s.material.stiffness",
+    ),
+    (
+        "misspelt axis",
+        {"optimize.variables": {"springs.s.material.stifness": [1.0e4, 4.0e4]}},
+        "optimize.variables.springs.s.material.stifness",
+    ),
+    (
+        "bound makes the model invalid",
+        {"optimize.variables": {"nodes.body.mass": [-1.0, 4.0]}},
+        "optimize.variables.nodes.body.mass.0",
+    ),
     ("minimize a text column", {"optimize.minimize": "status"}, "optimize.minimize"),
     ("minimize an unknown column", {"optimize.minimize": "peak_deceleration_g.bdy"}, "optimize.minimize"),
-    ("constraint on an unknown column", {"optimize.constraints": ["max_crush.rail <= 0.2"]},
-     "optimize.constraints.0"),
-    ("constraint limit not a number", {"optimize.constraints": ["max_crush.s <= nan"]}, "optimize.constraints.0"),
-    ("calibrate reversed bounds", {"calibrate.variables": {"nodes.body.mass": [4.0, 1.0]}},
-     "calibrate.variables.nodes.body.mass"),
-    ("calibrate misspelt axis", {"calibrate.variables": {"nodes.bodi.mass": [1.0, 4.0]}},
-     "calibrate.variables.nodes.bodi.mass"),
-    ("unknown channel node", {"calibrate.channel": {"quantity": "acceleration", "node": "cabin"}},
-     "calibrate.channel.node"),
-    ("fixed node as channel", {"calibrate.channel": {"quantity": "velocity", "node": "anchor"}},
-     "calibrate.channel.node"),
+    (
+        "constraint on an unknown column",
+        {"optimize.constraints": ["max_crush.rail <= 0.2"]},
+        "optimize.constraints.0",
+    ),
+    (
+        "constraint limit not a number",
+        {"optimize.constraints": ["max_crush.s <= nan"]},
+        "optimize.constraints.0",
+    ),
+    (
+        "calibrate reversed bounds",
+        {"calibrate.variables": {"nodes.body.mass": [4.0, 1.0]}},
+        "calibrate.variables.nodes.body.mass",
+    ),
+    (
+        "calibrate misspelt axis",
+        {"calibrate.variables": {"nodes.bodi.mass": [1.0, 4.0]}},
+        "calibrate.variables.nodes.bodi.mass",
+    ),
+    (
+        "unknown channel node",
+        {"calibrate.channel": {"quantity": "acceleration", "node": "cabin"}},
+        "calibrate.channel.node",
+    ),
+    (
+        "fixed node as channel",
+        {"calibrate.channel": {"quantity": "velocity", "node": "anchor"}},
+        "calibrate.channel.node",
+    ),
     ("node quantity without node", {"calibrate.channel": {"quantity": "displacement"}}, "calibrate.channel"),
-    ("direction y in a 1-D model", {"calibrate.channel": {"quantity": "velocity", "node": "body", "direction": "y"}},
-     "calibrate.channel.direction"),
+    (
+        "direction y in a 1-D model",
+        {"calibrate.channel": {"quantity": "velocity", "node": "body", "direction": "y"}},
+        "calibrate.channel.direction",
+    ),
     ("spring_force without spring", {"calibrate.channel": {"quantity": "spring_force"}}, "calibrate.channel"),
-    ("unknown channel spring", {"calibrate.channel": {"quantity": "spring_force", "spring": "rail"}},
-     "calibrate.channel.spring"),
+    (
+        "unknown channel spring",
+        {"calibrate.channel": {"quantity": "spring_force", "spring": "rail"}},
+        "calibrate.channel.spring",
+    ),
     ("missing data file", {"calibrate.data": "nothing-here.csv"}, "calibrate.data"),
     ("data file is a folder", {"calibrate.data": "."}, "calibrate.data"),
-]  # fmt: skip
+]
 
 
 def _study(tmp: Path, edits: dict[str, Any]) -> Path:
     (tmp / "model.yaml").write_text(MODEL)
     (tmp / "data.csv").write_text("time,value\n0.0,0.0\n0.01,1.0\n0.02,0.0\n")
-    study: dict[str, Any] = {"name": "blocks", "model": "model.yaml", "optimize": copy.deepcopy(OPTIMIZE),
-                             "calibrate": copy.deepcopy(CALIBRATE)}  # fmt: skip
+    study: dict[str, Any] = {
+        "name": "blocks",
+        "model": "model.yaml",
+        "optimize": copy.deepcopy(OPTIMIZE),
+        "calibrate": copy.deepcopy(CALIBRATE),
+    }
     for key, value in edits.items():
         _set(study, key, value)
     path = tmp / "study.yaml"
@@ -84,8 +134,9 @@ def test_valid_blocks_pass(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
 
 
 @pytest.mark.parametrize(("name", "edits", "field"), CORPUS, ids=[c[0] for c in CORPUS])
-def test_broken_block_is_refused_with_its_field(tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str,
-                                                edits: dict[str, Any], field: str) -> None:  # fmt: skip
+def test_broken_block_is_refused_with_its_field(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str, edits: dict[str, Any], field: str
+) -> None:
     path = _study(tmp_path, edits)
     assert main(["validate", str(path)]) == 2, name
     err = capsys.readouterr().err
@@ -94,11 +145,14 @@ def test_broken_block_is_refused_with_its_field(tmp_path: Path, capsys: pytest.C
 
 
 @pytest.mark.parametrize("command", [["run", "--dry-run"], ["optimize"], ["calibrate"]])
-def test_every_command_refuses_a_broken_block(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                              command: list[str]) -> None:  # fmt: skip
+def test_every_command_refuses_a_broken_block(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: list[str]
+) -> None:
     """``minimize: status`` and a spring channel without a spring ended in tracebacks in optimize and
     calibrate; now every command that loads the study refuses them before running anything."""
-    path = _study(tmp_path, {"optimize.minimize": "status", "calibrate.channel": {"quantity": "spring_force"}})
+    path = _study(
+        tmp_path, {"optimize.minimize": "status", "calibrate.channel": {"quantity": "spring_force"}}
+    )
     out = tmp_path / "out"
     assert main([command[0], str(path), *command[1:], "-o", str(out)]) == 2
     err = capsys.readouterr().err
@@ -113,8 +167,9 @@ def test_every_top_level_block_of_a_study_has_a_check() -> None:
     assert {k for k, v in BLOCKS.items() if callable(v)} == {"optimize", "calibrate"}
 
 
-def test_many_unknown_set_keys_are_refused_first_few_then_a_count(tmp_path: Path,
-                                                                  capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+def test_many_unknown_set_keys_are_refused_first_few_then_a_count(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """20,000 keys under set: that are no model field (issue 24 item 10: 499,000 took 21 s, every one
     reported): the first 5 with their own lines and a suggestion, then one line 'and 19,998 more'; a
     known key among them (end_time) is not reported."""

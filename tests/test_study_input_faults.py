@@ -54,7 +54,9 @@ def write(folder: Path, study: str, model: str = TINY_MODEL) -> Path:
 # ------------------------------------------------------------------------------------------------
 
 
-def test_resume_into_a_finished_folder_recomputes_the_variants_whose_model_changed(tmp_path: Path, cli: Cli) -> None:
+def test_resume_into_a_finished_folder_recomputes_the_variants_whose_model_changed(
+    tmp_path: Path, cli: Cli
+) -> None:
     study, out = write(tmp_path, TINY_STUDY), tmp_path / "out"
     assert cli("run", study, "-o", out, "--progress", "off").returncode == 0
     again = cli("run", study, "-o", out, "--resume", "--progress", "off")  # nothing changed: all reused
@@ -69,7 +71,9 @@ def test_resume_into_a_finished_folder_recomputes_the_variants_whose_model_chang
     np.testing.assert_allclose(df["peak_force.spring"], expect, rtol=2e-3)  # tolerance mode 1e-3
 
 
-def test_resume_into_the_finished_folder_of_another_study_exits_2_and_keeps_it(tmp_path: Path, cli: Cli) -> None:
+def test_resume_into_the_finished_folder_of_another_study_exits_2_and_keeps_it(
+    tmp_path: Path, cli: Cli
+) -> None:
     study, out = write(tmp_path, TINY_STUDY), tmp_path / "out"
     assert cli("run", study, "-o", out, "--progress", "off").returncode == 0
     before = (out / "results.nc").read_bytes()
@@ -91,8 +95,13 @@ def test_axis_coordinates_of_a_study_over_two_million_variants_are_written(tmp_p
     (tmp_path / "model.yaml").write_text(TINY_MODEL)
     masses = [1.0 + 0.001 * i for i in range(1500)]
     ends = [0.01 + 1e-5 * j for j in range(1401)]
-    plan = load_study({"name": "big", "model": str(tmp_path / "model.yaml"),
-                       "matrix": {"nodes.body.mass": masses, "end_time": ends}})  # fmt: skip
+    plan = load_study(
+        {
+            "name": "big",
+            "model": str(tmp_path / "model.yaml"),
+            "matrix": {"nodes.body.mass": masses, "end_time": ends},
+        }
+    )
     assert plan.n_variants == 1500 * 1401 > 2_000_000
     writer = ResultWriter(tmp_path / "out", plan)
     writer.abort()
@@ -115,24 +124,53 @@ def _values(n: int, first: float, step: float, bad_at: int, bad: float) -> list[
 
 
 AXIS_CASES = [  # id, model, axis, values, expected message part
-    ("negative-stiffness", TINY_MODEL, "springs.spring.material.stiffness", _values(300, 1e3, 1.0, 250, -5.0),
-     "greater than 0"),
-    ("negative-tension-yield", GENERAL_MODEL, "springs.spring.material.tension_yield",
-     _values(300, 1e3, 1.0, 230, -3.0), "greater than 0"),
-    ("curve-knot-out-of-order", GENERAL_MODEL, "curves.load.x.2", _values(300, 0.05, 1e-4, 260, -0.5),
-     "strictly increasing"),
-    ("safety-factor-above-1", TINY_MODEL.replace("end_time", "time_step: {safety_factor: 0.5}\nend_time"),
-     "time_step.safety_factor", _values(300, 0.5, 1e-3, 299, 2.0), "less than or equal to 1"),
-    ("curve-scaled-to-infinity", GENERAL_MODEL, "curves.load.scale", _values(300, 0.5, 1e-3, 270, 1e306),
-     "not finite"),
-]  # fmt: skip
+    (
+        "negative-stiffness",
+        TINY_MODEL,
+        "springs.spring.material.stiffness",
+        _values(300, 1e3, 1.0, 250, -5.0),
+        "greater than 0",
+    ),
+    (
+        "negative-tension-yield",
+        GENERAL_MODEL,
+        "springs.spring.material.tension_yield",
+        _values(300, 1e3, 1.0, 230, -3.0),
+        "greater than 0",
+    ),
+    (
+        "curve-knot-out-of-order",
+        GENERAL_MODEL,
+        "curves.load.x.2",
+        _values(300, 0.05, 1e-4, 260, -0.5),
+        "strictly increasing",
+    ),
+    (
+        "safety-factor-above-1",
+        TINY_MODEL.replace("end_time", "time_step: {safety_factor: 0.5}\nend_time"),
+        "time_step.safety_factor",
+        _values(300, 0.5, 1e-3, 299, 2.0),
+        "less than or equal to 1",
+    ),
+    (
+        "curve-scaled-to-infinity",
+        GENERAL_MODEL,
+        "curves.load.scale",
+        _values(300, 0.5, 1e-3, 270, 1e306),
+        "not finite",
+    ),
+]
 
 
 @pytest.mark.parametrize("case", AXIS_CASES, ids=[c[0] for c in AXIS_CASES])
-def test_an_invalid_axis_value_after_the_first_200_is_refused_at_its_line(case: tuple[Any, ...], tmp_path: Path) -> None:
+def test_an_invalid_axis_value_after_the_first_200_is_refused_at_its_line(
+    case: tuple[Any, ...], tmp_path: Path
+) -> None:
     _, model, axis, values, expect = case
     bad_at = next(k for k, v in enumerate(values) if v in (-5.0, -3.0, -0.5, 2.0, 1e306))
-    text = "name: s6\nmodel: model.yaml\nmatrix:\n  " + axis + ":\n" + "".join(f"    - {v!r}\n" for v in values)
+    text = (
+        "name: s6\nmodel: model.yaml\nmatrix:\n  " + axis + ":\n" + "".join(f"    - {v!r}\n" for v in values)
+    )
     study = write(tmp_path, text, model)
     with pytest.raises(InputError) as exc:
         load_study(study)
@@ -141,23 +179,32 @@ def test_an_invalid_axis_value_after_the_first_200_is_refused_at_its_line(case: 
     assert repr(values[bad_at]) in p.message and expect in p.message, p.message
 
 
-def test_validate_names_the_study_file_axis_line_and_value_of_the_251st_distinct_value(tmp_path: Path, cli: Cli) -> None:
+def test_validate_names_the_study_file_axis_line_and_value_of_the_251st_distinct_value(
+    tmp_path: Path, cli: Cli
+) -> None:
     values = _values(300, 1e3, 1.0, 250, -5.0)
     text = "name: s6\nmodel: model.yaml\nmatrix:\n  springs.spring.material.stiffness:\n"
     study = write(tmp_path, text + "".join(f"    - {v!r}\n" for v in values))
     p = cli("validate", study)
-    assert_exit_2(p, f"{study}:255: matrix.springs.spring.material.stiffness.250: value -5.0 makes the model invalid")
+    assert_exit_2(
+        p, f"{study}:255: matrix.springs.spring.material.stiffness.250: value -5.0 makes the model invalid"
+    )
 
 
 # ------------------------------------------------------------------------------------------------
 # item 7: step counts that overflow
 # ------------------------------------------------------------------------------------------------
 
-OVERFLOW_MODEL = (TINY_MODEL.replace("mass: 2.0", "mass: 1.0e-40").replace(f"stiffness: {K}", "stiffness: 1.0e300")
-                  .replace("end_time: 0.05", "end_time: 1.0e300"))  # fmt: skip
+OVERFLOW_MODEL = (
+    TINY_MODEL.replace("mass: 2.0", "mass: 1.0e-40")
+    .replace(f"stiffness: {K}", "stiffness: 1.0e300")
+    .replace("end_time: 0.05", "end_time: 1.0e300")
+)
 
 
-def test_a_model_whose_step_count_overflows_is_refused_by_validate_and_simulate(tmp_path: Path, cli: Cli) -> None:
+def test_a_model_whose_step_count_overflows_is_refused_by_validate_and_simulate(
+    tmp_path: Path, cli: Cli
+) -> None:
     model = tmp_path / "model.yaml"
     model.write_text(OVERFLOW_MODEL)
     line = OVERFLOW_MODEL.splitlines().index("end_time: 1.0e300") + 1
@@ -168,9 +215,14 @@ def test_a_model_whose_step_count_overflows_is_refused_by_validate_and_simulate(
     assert not (tmp_path / "out" / "results.nc").exists()
 
 
-def test_variants_whose_step_count_overflows_fail_with_the_reason_and_the_others_run(tmp_path: Path, cli: Cli) -> None:
+def test_variants_whose_step_count_overflows_fail_with_the_reason_and_the_others_run(
+    tmp_path: Path, cli: Cli
+) -> None:
     # each value alone is fine (1e12 and 2e7 steps); together 2e17 steps (dt 4e-14 s over 1e4 s)
-    study = write(tmp_path, "name: s7\nmodel: model.yaml\nzip:\n  - {nodes.body.mass: [2.0, 1.0e-20], end_time: [0.05, 1.0e4]}\n")
+    study = write(
+        tmp_path,
+        "name: s7\nmodel: model.yaml\nzip:\n  - {nodes.body.mass: [2.0, 1.0e-20], end_time: [0.05, 1.0e4]}\n",
+    )
     p = cli("run", study, "-o", tmp_path / "out", "--progress", "off")
     assert p.returncode == 1, p.stderr
     assert "1 of 2 variants failed" in p.stderr and "Warning" not in p.stderr, p.stderr
@@ -197,18 +249,21 @@ def two_results(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return root / "new", root / "base"
 
 
-@pytest.mark.parametrize("option", [("--rtol", "-1"), ("--rtol", "nan"), ("--rtol", "inf"), ("--atol", "-1e-3"),
-                                    ("--atol", "nan")])  # fmt: skip
-def test_compare_refuses_a_tolerance_that_is_negative_or_not_finite(two_results: tuple[Path, Path], cli: Cli,
-                                                                    option: tuple[str, str]) -> None:  # fmt: skip
+@pytest.mark.parametrize(
+    "option", [("--rtol", "-1"), ("--rtol", "nan"), ("--rtol", "inf"), ("--atol", "-1e-3"), ("--atol", "nan")]
+)
+def test_compare_refuses_a_tolerance_that_is_negative_or_not_finite(
+    two_results: tuple[Path, Path], cli: Cli, option: tuple[str, str]
+) -> None:
     new, base = two_results
     assert cli("compare", new, base).returncode == 0  # identical results pass with the defaults
     p = cli("compare", new, base, f"{option[0]}={option[1]}")
     assert_exit_2(p, f"{option[0]}:", "a finite number >= 0")
 
 
-def test_compare_fails_a_baseline_whose_summary_lost_variants(two_results: tuple[Path, Path], cli: Cli,
-                                                              tmp_path: Path) -> None:  # fmt: skip
+def test_compare_fails_a_baseline_whose_summary_lost_variants(
+    two_results: tuple[Path, Path], cli: Cli, tmp_path: Path
+) -> None:
     import shutil
 
     new, base = two_results
@@ -242,8 +297,9 @@ SET_CASES = [
 
 
 @pytest.mark.parametrize("key,value,expect", SET_CASES, ids=[c[0] for c in SET_CASES])
-def test_a_set_path_into_a_scalar_or_past_a_list_exits_2_at_its_line(tmp_path: Path, cli: Cli, key: str, value: str,
-                                                                     expect: str) -> None:  # fmt: skip
+def test_a_set_path_into_a_scalar_or_past_a_list_exits_2_at_its_line(
+    tmp_path: Path, cli: Cli, key: str, value: str, expect: str
+) -> None:
     study = write(tmp_path, f"name: s17\nmodel: model.yaml\nset:\n  {key}: {value}\n")
     assert_exit_2(cli("validate", study), f"{study}:4: set.{key}:", expect)
 
@@ -318,10 +374,16 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
         if ref.op != "set":
             continue
         base = float(plan.base[ref.slots[0]])
-        probes = sorted({-1.0, 0.0, 1e-3, 0.05, 0.5, 1.0, 2.0, 10.0, base, -base, 2 * base, base + 1e-3, base - 1e-3})
-        if path == "nodes.anchor.mass":  # a fixed node without mass compiles to 0.0 ("no mass"): 0 is not refused
+        probes = sorted(
+            {-1.0, 0.0, 1e-3, 0.05, 0.5, 1.0, 2.0, 10.0, base, -base, 2 * base, base + 1e-3, base - 1e-3}
+        )
+        if (
+            path == "nodes.anchor.mass"
+        ):  # a fixed node without mass compiles to 0.0 ("no mass"): 0 is not refused
             probes.remove(0.0)
-        if not np.isfinite(base):  # an absent failure threshold compiles to +-inf ("never"): inf is not refused
+        if not np.isfinite(
+            base
+        ):  # an absent failure threshold compiles to +-inf ("never"): inf is not refused
             probes = sorted(p for p in probes if np.isfinite(p))
         P = np.repeat(plan.base[:, None], len(probes), axis=1)
         apply_axis(P, ref, np.asarray(probes))
@@ -332,5 +394,3 @@ def test_the_vectorised_parameter_check_agrees_with_the_model_validation_on_ever
             compared += 1
             invalid += bool(schema_says)
     assert compared > 400 and invalid > 100, (compared, invalid)  # every rule kind was exercised
-
-

@@ -26,11 +26,16 @@ from crashstudy.study.plan import load_study
 MASSES = [0.001, 0.002, 1.0, 2.0, 3.0, 4.0]  # fastest axis: the first row group holds every failure text
 SPEEDS = [0.5, 1.0, 1.5, 2.0]
 K, DT, END = 1.0e6, 1.2e-4, 9.6e-4  # 8 steps; m >= 1 kg: dt <= T / 52, still rising at END
-MODEL = {"name": "st", "units": "SI",
-         "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
-         "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": K}}},
-         "initial_velocity": {"b": [1.0]}, "end_time": END, "time_step": {"dt": DT},
-         "output": {"interval": END, "histories": "none"}}  # fmt: skip
+MODEL = {
+    "name": "st",
+    "units": "SI",
+    "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
+    "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": K}}},
+    "initial_velocity": {"b": [1.0]},
+    "end_time": END,
+    "time_step": {"dt": DT},
+    "output": {"interval": END, "histories": "none"},
+}
 
 
 def _plan(tmp: Path, axes: dict[str, list[float]]):  # type: ignore[no-untyped-def]
@@ -66,7 +71,8 @@ def _from_store(out: Path, name: str) -> bytes:
 
 @pytest.mark.parametrize("kind", ["netcdf", "zarr"])
 def test_a_streamed_summary_is_the_table_made_from_the_store_byte_for_byte(
-        tmp_path: Path, made: list[str], kind: str) -> None:  # fmt: skip
+    tmp_path: Path, made: list[str], kind: str
+) -> None:
     plan = _plan(tmp_path, {"impact_velocity": SPEEDS, "nodes.b.mass": MASSES})
     run_plan(plan, tmp_path / "R", kernel="reference", chunk=5, progress=False, store=kind, csv=False)
     assert made == []  # streamed: the store was not read back
@@ -76,13 +82,17 @@ def test_a_streamed_summary_is_the_table_made_from_the_store_byte_for_byte(
     m, v0 = s["nodes.b.mass"].to_numpy(), s["impact_velocity"].to_numpy()
     bad = 2 * np.sqrt(m / K) < DT
     assert bad.sum() == 2 * len(SPEEDS) and (s["status"][bad] == "failed").all()
-    assert np.isnan(s["peak_force.s"][bad]).all() and s["failure_reason"][bad].str.contains("above the critical").all()
+    assert (
+        np.isnan(s["peak_force.s"][bad]).all()
+        and s["failure_reason"][bad].str.contains("above the critical").all()
+    )
     want = v0[~bad] * np.sqrt(K * m[~bad]) * np.sin(END * np.sqrt(K / m[~bad]))
     np.testing.assert_allclose(s["peak_force.s"].to_numpy()[~bad], want, rtol=5e-3)  # 8 steps: 0.22 % at 1 kg
 
 
 def test_a_text_first_seen_after_a_written_row_group_makes_the_table_from_the_store(
-        tmp_path: Path, made: list[str]) -> None:  # fmt: skip
+    tmp_path: Path, made: list[str]
+) -> None:
     # the masses the slow axis, the failing ones (1 and 2 g) last: their failure texts first appear after
     # the first row group was written
     plan = _plan(tmp_path, {"nodes.b.mass": MASSES[::-1], "impact_velocity": SPEEDS})
@@ -93,7 +103,8 @@ def test_a_text_first_seen_after_a_written_row_group_makes_the_table_from_the_st
 
 
 def test_a_resumed_run_made_from_the_store_equals_a_streamed_run_byte_for_byte(
-        tmp_path: Path, made: list[str], monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    tmp_path: Path, made: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     plan = _plan(tmp_path, {"impact_velocity": SPEEDS, "nodes.b.mass": MASSES})
     run_plan(plan, tmp_path / "fresh", kernel="reference", chunk=5, progress=False, csv=False)
     assert made == []
@@ -111,4 +122,6 @@ def test_a_resumed_run_made_from_the_store_equals_a_streamed_run_byte_for_byte(
     monkeypatch.setattr(store.ResultWriter, "write", real)
     run_plan(plan, tmp_path / "R", kernel="reference", chunk=5, progress=False, resume=True, csv=False)
     assert made == ["store"]
-    assert (tmp_path / "R" / tables.PARQUET).read_bytes() == (tmp_path / "fresh" / tables.PARQUET).read_bytes()
+    assert (tmp_path / "R" / tables.PARQUET).read_bytes() == (
+        tmp_path / "fresh" / tables.PARQUET
+    ).read_bytes()

@@ -34,8 +34,13 @@ def limited() -> None:
 def cli(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
     """The command line in a subprocess; a hang (a FIFO read) fails the test after ``timeout`` seconds."""
     try:
-        return subprocess.run([sys.executable, "-m", "crashstudy.cli", *args], capture_output=True, text=True,
-                              timeout=timeout, preexec_fn=limited)  # fmt: skip
+        return subprocess.run(
+            [sys.executable, "-m", "crashstudy.cli", *args],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            preexec_fn=limited,
+        )
     except subprocess.TimeoutExpired:
         pytest.fail(f"crashstudy {' '.join(args)} hung for {timeout} s")
 
@@ -51,10 +56,18 @@ def made(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 # --- item 5: a FIFO or a link to /dev/zero in a result folder ---------------------------------------
 
 
-@pytest.mark.parametrize(("name", "plant"), [("manifest.json", "fifo"), ("summary.parquet", "zero"),
-                                             ("results.nc", "fifo"), ("manifest.json", "zero")])  # fmt: skip
-def test_summary_refuses_a_fifo_or_a_link_to_dev_zero_in_a_result_folder(made: dict[str, Path], tmp_path: Path,
-                                                                         name: str, plant: str) -> None:  # fmt: skip
+@pytest.mark.parametrize(
+    ("name", "plant"),
+    [
+        ("manifest.json", "fifo"),
+        ("summary.parquet", "zero"),
+        ("results.nc", "fifo"),
+        ("manifest.json", "zero"),
+    ],
+)
+def test_summary_refuses_a_fifo_or_a_link_to_dev_zero_in_a_result_folder(
+    made: dict[str, Path], tmp_path: Path, name: str, plant: str
+) -> None:
     t = shutil.copytree(made["R"], tmp_path / "R")
     (t / name).unlink()
     if plant == "fifo":
@@ -84,19 +97,25 @@ def _with_data(made: dict[str, Path], tmp: Path, plant: str) -> Path:
         data.symlink_to(secret)
     else:  # times past end_time (0.05 s) or before t = 0
         t = np.linspace(0.0, 0.08, 81) if plant == "late" else np.linspace(-0.01, 0.05, 61)
-        pd.DataFrame({"time": t, "value": np.sqrt(200.0) * np.sin(t * np.sqrt(50.0))}).to_csv(data, index=False)
+        pd.DataFrame({"time": t, "value": np.sqrt(200.0) * np.sin(t * np.sqrt(50.0))}).to_csv(
+            data, index=False
+        )
     return tmp / "cal.yaml"
 
 
-@pytest.mark.parametrize(("plant", "expected"), [
-    ("fifo", "it is a named pipe (FIFO); expected a regular file"),
-    ("zero", "expected a regular file"),
-    ("secret", "line 1: expected the header 'time,value'"),
-    ("late", "line 53: the data run from t = 0 to 0.08, the model from 0 to end_time 0.05"),
-    ("early", "line 2: the data run from t = -0.01 to 0.05"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("plant", "expected"),
+    [
+        ("fifo", "it is a named pipe (FIFO); expected a regular file"),
+        ("zero", "expected a regular file"),
+        ("secret", "line 1: expected the header 'time,value'"),
+        ("late", "line 53: the data run from t = 0 to 0.08, the model from 0 to end_time 0.05"),
+        ("early", "line 2: the data run from t = -0.01 to 0.05"),
+    ],
+)
 def test_calibrate_data_is_read_only_as_a_regular_file_within_the_models_time(
-        made: dict[str, Path], tmp_path: Path, plant: str, expected: str) -> None:  # fmt: skip
+    made: dict[str, Path], tmp_path: Path, plant: str, expected: str
+) -> None:
     """Never hangs, never fills memory, never quotes the file (a link to a secret), names the line."""
     study = _with_data(made, tmp_path, plant)
     run = cli if plant in ("fifo", "zero") else run_cli  # a FIFO or /dev/zero read would hang or fill memory
@@ -114,8 +133,12 @@ class Search:
     """``crashstudy optimize`` with a budget too large to finish, its progress read as it comes."""
 
     def __init__(self, study: Path, out: Path) -> None:
-        self.proc = subprocess.Popen([sys.executable, "-m", "crashstudy.cli", "optimize", str(study), "-o", str(out)],
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=limited)  # fmt: skip
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "crashstudy.cli", "optimize", str(study), "-o", str(out)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            preexec_fn=limited,
+        )
         assert self.proc.stderr is not None
         os.set_blocking(self.proc.stderr.fileno(), False)
         self.err = b""
@@ -126,7 +149,9 @@ class Search:
             assert self.proc.stderr is not None
             self.err += self.proc.stderr.read() or b""
             if self.proc.poll() is not None:
-                pytest.fail(f"optimize ended (exit {self.proc.returncode}) before generation {n}: {self.err[-2000:]!r}")
+                pytest.fail(
+                    f"optimize ended (exit {self.proc.returncode}) before generation {n}: {self.err[-2000:]!r}"
+                )
             if time.monotonic() - t0 > timeout:
                 self.proc.kill()
                 pytest.fail(f"no generation {n} within {timeout} s")
@@ -143,7 +168,8 @@ class Search:
 
 @pytest.mark.parametrize("signals", [[signal.SIGINT], [signal.SIGTERM, signal.SIGTERM]])
 def test_optimize_stops_on_a_signal_and_leaves_the_earlier_outputs_whole(
-        made: dict[str, Path], tmp_path: Path, signals: list[int]) -> None:  # fmt: skip
+    made: dict[str, Path], tmp_path: Path, signals: list[int]
+) -> None:
     """A finished optimize of the same study is in the folder; a re-run with a budget of 10^6 is stopped
     in its search. It ends with 130, says it cannot resume (not 'continue with --resume'), and the
     folder holds the earlier optimum.yaml, history.csv and results unchanged, which still agree."""

@@ -88,12 +88,17 @@ def test_mass_resting_against_a_wall_under_a_preloaded_spring(kernel: str) -> No
     model = {
         "name": "rest",
         "nodes": {"anchor": {"position": [1.0], "fixed": True}, "m": {"position": [0.0], "mass": 10.0}},
-        "springs": {"s": {"nodes": ["m", "anchor"], "initial_elongation": -0.01,
-                          "material": {"type": "linear_elastic", "stiffness": 1.0e5}}},
+        "springs": {
+            "s": {
+                "nodes": ["m", "anchor"],
+                "initial_elongation": -0.01,
+                "material": {"type": "linear_elastic", "stiffness": 1.0e5},
+            }
+        },
         "rigid_walls": [{"id": "wall", "point": [0.0], "normal": [1.0], "nodes": ["m"]}],
         "end_time": 0.05,
         "output": {"interval": 1.0e-3, "histories": ["wall_force", "acceleration"]},
-    }  # fmt: skip
+    }
     out, _, _ = run_model(model, kernel)
     assert out.status[0] == 0
     assert _rel(out.peak_wall_force[0, 0], 1000.0) < 1e-9

@@ -87,35 +87,49 @@ def write(tmp: Path, name: str, text: str) -> Path:
 @pytest.mark.parametrize(("text", "line", "wall"), [(WALL_1D, 10, 0), (WALL_2D, 11, 1)], ids=["1-D", "2-D"])
 @pytest.mark.parametrize("command", ["validate", "simulate"])
 def test_a_node_behind_a_wall_is_refused_naming_the_wall_the_node_and_the_distance(
-        tmp_path: Path, text: str, line: int, wall: int, command: str) -> None:  # fmt: skip
+    tmp_path: Path, text: str, line: int, wall: int, command: str
+) -> None:
     model = write(tmp_path, "m.yaml", text)
     rc, err = run(command, str(model), *(["-o", str(tmp_path / "out")] if command == "simulate" else []))
     assert rc == 2, err
     assert "Traceback" not in err
     # 1500 - 1.5 = 1498.5 m along the (normalised) wall normal; m2 is behind too
-    assert f"{model}:{line}: rigid_walls.{wall}.point: node 'm1' starts 1498.5 m behind wall 'wall' (and 1 more" in err
+    assert (
+        f"{model}:{line}: rigid_walls.{wall}.point: node 'm1' starts 1498.5 m behind wall 'wall' (and 1 more"
+        in err
+    )
     assert "floor" not in err  # both nodes are 0.2 m above the floor: on its front side
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
 
 
 def test_a_study_axis_that_moves_a_wall_or_a_node_behind_it_is_refused_at_that_value(tmp_path: Path) -> None:
     write(tmp_path, "m.yaml", WALL_1D.replace("point: [1500.0]", "point: [0.0]"))
-    study = write(tmp_path, "s.yaml", "name: s\nmodel: m.yaml\nmatrix:\n  rigid_walls.0.point.0: [0.0, 1.0, 1500.0]\n"
-                  "zip:\n  - {nodes.m2.position.0: [2.0, -2.0]}\n")  # fmt: skip
+    study = write(
+        tmp_path,
+        "s.yaml",
+        "name: s\nmodel: m.yaml\nmatrix:\n  rigid_walls.0.point.0: [0.0, 1.0, 1500.0]\n"
+        "zip:\n  - {nodes.m2.position.0: [2.0, -2.0]}\n",
+    )
     rc, err = run("validate", str(study))
     assert rc == 2, err
-    assert f"{study}:4: matrix.rigid_walls.0.point.0.2: value 1500.0 makes the model invalid: node 'm1' starts " \
-           "1498.5 m behind wall 'wall'" in err  # fmt: skip
+    assert (
+        f"{study}:4: matrix.rigid_walls.0.point.0.2: value 1500.0 makes the model invalid: node 'm1' starts "
+        "1498.5 m behind wall 'wall'" in err
+    )
     assert "point.0.1" not in err  # 1.0 is 0.5 m in front of m1
-    assert "zip.0.nodes.m2.position.0.1: value -2.0 makes the model invalid: node 'm2' starts 2 m behind" in err
+    assert (
+        "zip.0.nodes.m2.position.0.1: value -2.0 makes the model invalid: node 'm2' starts 2 m behind" in err
+    )
     rc, err = run("run", str(study), "--dry-run")
     assert rc == 2 and "1498.5 m behind wall" in err, err
 
 
 def test_nodes_a_wall_does_not_stop_or_that_cannot_move_into_it_may_start_behind_it(tmp_path: Path) -> None:
-    text = WALL_1D.replace("m1: {position: [1.5], mass: 4000.0}", "m1: {position: [1.5], fixed: true}").replace(
-        "initial_velocity: {m1: [-15.6], m2: [-15.6]}", "initial_velocity: {m2: [-15.6]}").replace(
-        "normal: [1.0]}", "normal: [1.0], nodes: [m1]}")  # fmt: skip
+    text = (
+        WALL_1D.replace("m1: {position: [1.5], mass: 4000.0}", "m1: {position: [1.5], fixed: true}")
+        .replace("initial_velocity: {m1: [-15.6], m2: [-15.6]}", "initial_velocity: {m2: [-15.6]}")
+        .replace("normal: [1.0]}", "normal: [1.0], nodes: [m1]}")
+    )
     assert run("validate", str(write(tmp_path, "a.yaml", text)))[0] == 0
     on_plane = WALL_1D.replace("point: [1500.0]", "point: [1.5]")
     assert run("validate", str(write(tmp_path, "b.yaml", on_plane)))[0] == 0
@@ -129,30 +143,42 @@ def test_the_distance_behind_a_wall_is_the_signed_distance_along_the_unit_normal
     depth = depth_behind_walls(x, free, point, normal, np.array([[True, True]]))
     assert depth[0, :, 0] == pytest.approx([5.0, 0.0], rel=1e-15)
     fixed_x = np.array([[False, True], [True, True]])  # moves only along y, the normal has a y part
-    assert depth_behind_walls(x, fixed_x, point, normal, np.array([[True, True]]))[0, 0, 0] == pytest.approx(5.0)
+    assert depth_behind_walls(x, fixed_x, point, normal, np.array([[True, True]]))[0, 0, 0] == pytest.approx(
+        5.0
+    )
 
 
 @pytest.mark.parametrize("command", ["validate", "simulate"])
-def test_a_loading_curve_of_the_wrong_sign_is_refused_naming_the_curve_and_the_point(tmp_path: Path,
-                                                                                      command: str) -> None:
+def test_a_loading_curve_of_the_wrong_sign_is_refused_naming_the_curve_and_the_point(
+    tmp_path: Path, command: str
+) -> None:
     model = write(tmp_path, "m.yaml", CURVE)
     rc, err = run(command, str(model), *(["-o", str(tmp_path / "out")] if command == "simulate" else []))
     assert rc == 2, err
-    assert (f"{model}:10: springs.s.material.loading: the general_nonlinear loading curve 'load' has force 200000 "
-            "at x = -0.5 (point 0): in compression (x < 0) its force must be <= 0") in err  # fmt: skip
+    assert (
+        f"{model}:10: springs.s.material.loading: the general_nonlinear loading curve 'load' has force 200000 "
+        "at x = -0.5 (point 0): in compression (x < 0) its force must be <= 0"
+    ) in err
 
 
 def test_a_nonlinear_elastic_curve_of_the_wrong_sign_in_tension_is_refused(tmp_path: Path) -> None:
     text = CURVE.replace("y: [2.0e5, 0.0, 2.0e5]", "y: [-2.0e5, 0.0, -1.0e3]").replace(
-        "{type: general_nonlinear, loading: load, unloading: unload}", "{type: nonlinear_elastic, curve: load}")
+        "{type: general_nonlinear, loading: load, unloading: unload}",
+        "{type: nonlinear_elastic, curve: load}",
+    )
     rc, err = run("validate", str(write(tmp_path, "m.yaml", text)))
-    assert rc == 2 and "the nonlinear_elastic curve 'load' has force -1000 at x = 0.5 (point 2): in tension" in err
+    assert (
+        rc == 2
+        and "the nonlinear_elastic curve 'load' has force -1000 at x = 0.5 (point 2): in tension" in err
+    )
 
 
 def test_a_tension_free_curve_is_legal(tmp_path: Path) -> None:
     """Zero force on one side is of no sign: a compression-only contact spring stays valid."""
     text = CURVE.replace("y: [2.0e5, 0.0, 2.0e5]", "y: [-2.0e5, 0.0, 0.0]").replace(
-        "{type: general_nonlinear, loading: load, unloading: unload}", "{type: nonlinear_elastic, curve: load}")
+        "{type: general_nonlinear, loading: load, unloading: unload}",
+        "{type: nonlinear_elastic, curve: load}",
+    )
     assert run("validate", str(write(tmp_path, "m.yaml", text)))[0] == 0
 
 
@@ -161,8 +187,10 @@ def test_a_study_axis_that_flips_a_curve_point_is_refused_at_that_value(tmp_path
     study = write(tmp_path, "s.yaml", "name: s\nmodel: m.yaml\nmatrix:\n  curves.load.y.0: [-3.0e5, 1.0e5]\n")
     rc, err = run("validate", str(study))
     assert rc == 2, err
-    assert (f"{study}:4: matrix.curves.load.y.0.1: value 100000.0 makes the model invalid: the general_nonlinear "
-            "loading curve 'load' has force 100000 at x = -0.5 (point 0)") in err  # fmt: skip
+    assert (
+        f"{study}:4: matrix.curves.load.y.0.1: value 100000.0 makes the model invalid: the general_nonlinear "
+        "loading curve 'load' has force 100000 at x = -0.5 (point 0)"
+    ) in err
     assert "y.0.0" not in err
 
 

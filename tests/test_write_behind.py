@@ -29,7 +29,11 @@ SPEEDS = [0.5, 1.0, 1.5, 2.0]
 
 def _plan(tmp: Path):  # type: ignore[no-untyped-def]
     (tmp / "model.yaml").write_text(yaml.safe_dump(MODEL, sort_keys=False))
-    study = {"name": "behind", "model": "model.yaml", "matrix": {"nodes.b.mass": MASSES, "impact_velocity": SPEEDS}}
+    study = {
+        "name": "behind",
+        "model": "model.yaml",
+        "matrix": {"nodes.b.mass": MASSES, "impact_velocity": SPEEDS},
+    }
     (tmp / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     return load_study(tmp / "study.yaml")
 
@@ -41,7 +45,8 @@ def _run(tmp: Path, out: str, threaded: bool, monkeypatch: pytest.MonkeyPatch) -
 
 
 def test_results_written_behind_the_kernel_equal_those_written_in_the_main_thread_byte_for_byte(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     threads: set[str] = set()
     real = ResultWriter.write
 
@@ -67,7 +72,8 @@ def test_results_written_behind_the_kernel_equal_those_written_in_the_main_threa
 
 
 def test_a_write_that_fails_on_the_writer_thread_fails_the_run_and_leaves_a_resumable_file(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     real = ResultWriter.write
     calls = []
 

@@ -108,8 +108,18 @@ def test_problem_helper_gives_dotted_field_and_line() -> None:
 
 @pytest.mark.parametrize(
     ("text", "value"),
-    [("2.0e7", 2.0e7), ("1e-3", 1e-3), ("5E+4", 5e4), (".5", 0.5), ("-1.5e-3", -1.5e-3), ("+2.", 2.0),
-     ("1e999", math.inf), (".inf", math.inf), ("-.Inf", -math.inf), ("+.INF", math.inf)],
+    [
+        ("2.0e7", 2.0e7),
+        ("1e-3", 1e-3),
+        ("5E+4", 5e4),
+        (".5", 0.5),
+        ("-1.5e-3", -1.5e-3),
+        ("+2.", 2.0),
+        ("1e999", math.inf),
+        (".inf", math.inf),
+        ("-.Inf", -math.inf),
+        ("+.INF", math.inf),
+    ],
 )
 def test_core_schema_floats(text: str, value: float) -> None:
     loaded = loads_yaml(f"v: {text}\n")
@@ -122,8 +132,16 @@ def test_nan_parses_to_float_nan() -> None:
 
 @pytest.mark.parametrize(
     ("text", "value"),
-    [("0", 0), ("42", 42), ("-17", -17), ("+3", 3), ("007", 7), ("0x1F", 31), ("0o17", 15),
-     ("9" * 30, int("9" * 30))],
+    [
+        ("0", 0),
+        ("42", 42),
+        ("-17", -17),
+        ("+3", 3),
+        ("007", 7),
+        ("0x1F", 31),
+        ("0o17", 15),
+        ("9" * 30, int("9" * 30)),
+    ],
 )
 def test_core_schema_ints(text: str, value: int) -> None:
     loaded = loads_yaml(f"v: {text}\n")
@@ -132,16 +150,47 @@ def test_core_schema_ints(text: str, value: int) -> None:
 
 @pytest.mark.parametrize(
     ("text", "value"),
-    [("true", True), ("True", True), ("TRUE", True), ("false", False), ("False", False), ("FALSE", False),
-     ("null", None), ("~", None), ("", None), ("NULL", None)],
+    [
+        ("true", True),
+        ("True", True),
+        ("TRUE", True),
+        ("false", False),
+        ("False", False),
+        ("FALSE", False),
+        ("null", None),
+        ("~", None),
+        ("", None),
+        ("NULL", None),
+    ],
 )
 def test_core_schema_bools_and_nulls(text: str, value: bool | None) -> None:
     assert loads_yaml(f"v: {text}\n").data["v"] is value
 
 
 @pytest.mark.parametrize(
-    "text", ["yes", "no", "on", "off", "Yes", "OFF", "y", "n", "2024-01-01", "1_000", "0b101", "1:30", "0x", "1e", "e3",
-             ".", "-1-", "tRUE", "nan", "inf"],
+    "text",
+    [
+        "yes",
+        "no",
+        "on",
+        "off",
+        "Yes",
+        "OFF",
+        "y",
+        "n",
+        "2024-01-01",
+        "1_000",
+        "0b101",
+        "1:30",
+        "0x",
+        "1e",
+        "e3",
+        ".",
+        "-1-",
+        "tRUE",
+        "nan",
+        "inf",
+    ],
 )
 def test_yaml11_only_forms_stay_strings(text: str) -> None:
     assert loads_yaml(f"v: {text}\n").data["v"] == text
@@ -154,8 +203,10 @@ def test_quoted_numbers_stay_strings_and_keys_are_always_strings() -> None:
 
 
 def test_explicit_plain_data_tags_are_accepted() -> None:
-    loaded = loads_yaml("a: !!str 12\nb: !!float 1\nc: !!int '7'\nd: !!bool 'true'\ne: !!null ''\n"
-                        "f: !!seq [1]\ng: !!map {k: v}\n")
+    loaded = loads_yaml(
+        "a: !!str 12\nb: !!float 1\nc: !!int '7'\nd: !!bool 'true'\ne: !!null ''\n"
+        "f: !!seq [1]\ng: !!map {k: v}\n"
+    )
     assert loaded.data == {"a": "12", "b": 1.0, "c": 7, "d": True, "e": None, "f": [1], "g": {"k": "v"}}
     assert type(loaded.data["b"]) is float
 
@@ -192,13 +243,15 @@ def test_keys_equal_as_text_are_duplicates_even_if_quoted() -> None:
 
 @pytest.mark.parametrize(
     ("value", "tag"),
-    [("!!python/object/apply:os.system ['echo hi']", "!!python/object/apply:os.system"),
-     ("!!python/object:collections.OrderedDict {}", "!!python/object:collections.OrderedDict"),
-     ("!!python/name:os.system ''", "!!python/name:os.system"),
-     ("!custom 3", "!custom"),
-     ("!!binary aGVsbG8=", "!!binary"),
-     ("!!timestamp 2024-01-01", "!!timestamp"),
-     ("!!set {a, b}", "!!set")],
+    [
+        ("!!python/object/apply:os.system ['echo hi']", "!!python/object/apply:os.system"),
+        ("!!python/object:collections.OrderedDict {}", "!!python/object:collections.OrderedDict"),
+        ("!!python/name:os.system ''", "!!python/name:os.system"),
+        ("!custom 3", "!custom"),
+        ("!!binary aGVsbG8=", "!!binary"),
+        ("!!timestamp 2024-01-01", "!!timestamp"),
+        ("!!set {a, b}", "!!set"),
+    ],
 )
 def test_unsafe_or_unknown_tags_are_refused_with_tag_and_line(value: str, tag: str) -> None:
     problem = only_problem(f"name: x\nspring:\n  k: {value}\n")
@@ -213,7 +266,9 @@ def test_tagged_key_is_refused() -> None:
 
 def test_tag_on_top_level_mapping_is_refused() -> None:
     problem = only_problem("!!python/object:crashstudy.Model\nname: x\n")
-    assert problem.line == 1 and problem.message.startswith("unsupported tag !!python/object:crashstudy.Model")
+    assert problem.line == 1 and problem.message.startswith(
+        "unsupported tag !!python/object:crashstudy.Model"
+    )
 
 
 def test_merge_keys_are_refused_with_advice() -> None:
@@ -236,13 +291,17 @@ def billion_laughs(levels: int) -> str:
 @pytest.mark.parametrize("levels", [9, 10])
 def test_billion_laughs_is_refused_without_expanding(levels: int) -> None:
     problem = only_problem(billion_laughs(levels))  # returns at once: aliases are counted, never expanded
-    assert problem.message.startswith("document too large: more than 1,000,000 values once aliases are expanded")
+    assert problem.message.startswith(
+        "document too large: more than 1,000,000 values once aliases are expanded"
+    )
     assert problem.line == 7  # a6 is the first level that expands past the limit (1,111,111 values)
 
 
 def test_small_alias_tree_loads_as_independent_copies_with_lines() -> None:
-    loaded = loads_yaml("steel: &steel {type: linear_elastic, stiffness: 2.0e7}\n"
-                        "springs:\n  a: {material: *steel}\n  b:\n    material: *steel\n")
+    loaded = loads_yaml(
+        "steel: &steel {type: linear_elastic, stiffness: 2.0e7}\n"
+        "springs:\n  a: {material: *steel}\n  b:\n    material: *steel\n"
+    )
     a, b = loaded.data["springs"]["a"]["material"], loaded.data["springs"]["b"]["material"]
     assert a == b == {"type": "linear_elastic", "stiffness": 2.0e7}
     a["stiffness"] = 1.0
@@ -263,7 +322,8 @@ def test_recursive_alias_is_refused() -> None:
 
 def test_undefined_alias_and_redefined_anchor_are_errors() -> None:
     assert only_problem("a: 1\nb: *nope\n") == Problem(
-        "m.yaml", 2, "", "alias *nope names no anchor &nope defined before it")
+        "m.yaml", 2, "", "alias *nope names no anchor &nope defined before it"
+    )
     assert only_problem("a: &x 1\nb: &x 2\n").message == "anchor &x defined twice (first at line 1)"
 
 
@@ -341,14 +401,24 @@ def test_tab_indentation_is_syntax_error() -> None:
 
 @pytest.mark.parametrize(
     ("text", "line", "found"),
-    [("", 1, "an empty document"), ("# only a comment\n", 1, "an empty document"), ("---\n", 1, "an empty document"),
-     ("~\n", 1, "plain text"),
-     ("- a\n- b\n", 1, "a list"), ("\n\njust text\n", 3, "plain text")],
+    [
+        ("", 1, "an empty document"),
+        ("# only a comment\n", 1, "an empty document"),
+        ("---\n", 1, "an empty document"),
+        ("~\n", 1, "plain text"),
+        ("- a\n- b\n", 1, "a list"),
+        ("\n\njust text\n", 3, "plain text"),
+    ],
 )
 def test_top_level_must_be_a_mapping(text: str, line: int, found: str) -> None:
     problem = only_problem(text)
-    assert problem == Problem("m.yaml", line, "", f"expected a mapping at top level (key: value lines), found {found}"
-                                                  " (is this a crashstudy model or study file?)")  # fmt: skip
+    assert problem == Problem(
+        "m.yaml",
+        line,
+        "",
+        f"expected a mapping at top level (key: value lines), found {found}"
+        " (is this a crashstudy model or study file?)",
+    )
 
 
 def test_explicit_document_markers_around_one_document_are_fine() -> None:
@@ -405,8 +475,10 @@ def test_directory_is_input_error(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("error", "reason"),
-    [(PermissionError(13, "Permission denied"), "permission denied"),
-     (OSError(5, "Input/output error"), "cannot read the file (Input/output error)")],
+    [
+        (PermissionError(13, "Permission denied"), "permission denied"),
+        (OSError(5, "Input/output error"), "cannot read the file (Input/output error)"),
+    ],
 )
 def test_unreadable_file_is_input_error(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, error: OSError, reason: str
@@ -436,9 +508,46 @@ def test_non_utf8_file_is_input_error(tmp_path: Path) -> None:
 # --- rule 9: nothing but InputError ------------------------------------------------------------
 
 YAMLISH = st.lists(
-    st.sampled_from(["a", "b", ":", " ", "  ", "\n", "- ", "[", "]", "{", "}", ",", "&x ", "*x", "!!", "!t ",
-                     "'", '"', "#", "1", "1e-3", "9" * 40, ".inf", "~", "?", "|", ">", "---", "...", "<<", "\t",
-                     "%YAML 1.2", "\\", "\x00", "\ufeff", "é"]),
+    st.sampled_from(
+        [
+            "a",
+            "b",
+            ":",
+            " ",
+            "  ",
+            "\n",
+            "- ",
+            "[",
+            "]",
+            "{",
+            "}",
+            ",",
+            "&x ",
+            "*x",
+            "!!",
+            "!t ",
+            "'",
+            '"',
+            "#",
+            "1",
+            "1e-3",
+            "9" * 40,
+            ".inf",
+            "~",
+            "?",
+            "|",
+            ">",
+            "---",
+            "...",
+            "<<",
+            "\t",
+            "%YAML 1.2",
+            "\\",
+            "\x00",
+            "\ufeff",
+            "é",
+        ]
+    ),
     max_size=40,
 ).map("".join)
 
@@ -465,8 +574,9 @@ def test_any_bytes_in_a_file_give_data_or_input_error(tmp_path: Path, raw: bytes
         assert exc.problems and exc.problems[0].file == str(path)
 
 
-def test_a_file_that_gives_no_data_without_waiting_is_an_input_error(tmp_path: Path,
-                                                                     monkeypatch: pytest.MonkeyPatch) -> None:  # fmt: skip
+def test_a_file_that_gives_no_data_without_waiting_is_an_input_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """/proc/kmsg is a 'regular' file whose non-blocking read has nothing to give (None): that was a
     TypeError traceback in yamlio._read (issue 24 item 10). Simulated with a FIFO that has a writer but no
     data, passed off as a regular file: an InputError naming the file, no traceback."""
@@ -485,4 +595,3 @@ def test_a_file_that_gives_no_data_without_waiting_is_an_input_error(tmp_path: P
         os.close(writer)
     (p,) = exc.value.problems
     assert p.file == str(fifo) and "gives no data without waiting" in p.message
-

@@ -42,29 +42,42 @@ TWIN_1D: dict[str, Any] = {  # crush, linear + damper, nonlinear, general_nonlin
         "driver": {"position": [2.0], "mass": 1.0},
     },
     "springs": {
-        "crush": {"nodes": ["ground", "a"],
-                  "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": 2.0e6}},
+        "crush": {
+            "nodes": ["ground", "a"],
+            "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": 2.0e6},
+        },
         "link": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 2.0e5}},
         "dash": {"nodes": ["a", "b"], "material": {"type": "damper", "damping": 150.0}},
         "rubber": {"nodes": ["b", "c"], "material": {"type": "nonlinear_elastic", "curve": "soft"}},
-        "yielding": {"nodes": ["c", "driver"],
-                     "material": {"type": "general_nonlinear", "loading": "gn-load", "unloading": "gn-unload",
-                                  "tension_yield": 1500.0, "compression_yield": -1500.0}},
+        "yielding": {
+            "nodes": ["c", "driver"],
+            "material": {
+                "type": "general_nonlinear",
+                "loading": "gn-load",
+                "unloading": "gn-unload",
+                "tension_yield": 1500.0,
+                "compression_yield": -1500.0,
+            },
+        },
     },
     "initial_velocity": {"a": [-6.0], "b": [-6.0], "c": [-6.0], "driver": [-2.0]},
     "gravity": [-G],
     "loads": [{"node": "b", "force": [-800.0], "curve": "pulse"}],
-    "prescribed_motion": [{"node": "driver", "quantity": "velocity", "direction": "x", "curve": "pull", "scale": 2.0}],
+    "prescribed_motion": [
+        {"node": "driver", "quantity": "velocity", "direction": "x", "curve": "pull", "scale": 2.0}
+    ],
     "rigid_walls": [{"id": "stop", "point": [0.47], "normal": [1.0], "nodes": ["a"]}],
     "end_time": 0.06,
     "output": {"interval": 5.0e-4},
-}  # fmt: skip
+}
 
 TWIN_2D_HELI: dict[str, Any] = {  # helicopter-like, 2 general_nonlinear, sliding onto a floor, gravity, load
     "name": "twin-2d-heli",
     "curves": {
-        "uf-load": {"x": [-0.5, -0.223, -0.045, -0.009, 0.0, 10.0],
-                    "y": [-76000.0, -57200.0, -70000.0, -40000.0, 0.0, 5000.0]},
+        "uf-load": {
+            "x": [-0.5, -0.223, -0.045, -0.009, 0.0, 10.0],
+            "y": [-76000.0, -57200.0, -70000.0, -40000.0, 0.0, 5000.0],
+        },
         "uf-unload": {"x": [-0.009, 0.0, 0.009], "y": [-40000.0, 0.0, 40000.0]},
         "cab-load": {"x": [-0.3, -0.27, -0.225, -0.01, 0.0], "y": [-1.0e6, -5.0e5, -1.5e5, -1.5e5, 0.0]},
         "cab-unload": {"x": [-0.006, 0.0, 0.006], "y": [-1.7e5, 0.0, 1.7e5]},
@@ -76,12 +89,25 @@ TWIN_2D_HELI: dict[str, Any] = {  # helicopter-like, 2 general_nonlinear, slidin
         "cabin": {"position": [0.0, 0.9], "mass": 300.0},
     },
     "springs": {
-        "underfloor": {"nodes": ["ground", "transmission"],
-                       "material": {"type": "general_nonlinear", "loading": "uf-load", "unloading": "uf-unload",
-                                    "tension_yield": 5000.0, "compression_yield": -40000.0}},
-        "cabin": {"nodes": ["transmission", "cabin"],
-                  "material": {"type": "general_nonlinear", "loading": "cab-load", "unloading": "cab-unload",
-                               "compression_yield": -150000.0}},
+        "underfloor": {
+            "nodes": ["ground", "transmission"],
+            "material": {
+                "type": "general_nonlinear",
+                "loading": "uf-load",
+                "unloading": "uf-unload",
+                "tension_yield": 5000.0,
+                "compression_yield": -40000.0,
+            },
+        },
+        "cabin": {
+            "nodes": ["transmission", "cabin"],
+            "material": {
+                "type": "general_nonlinear",
+                "loading": "cab-load",
+                "unloading": "cab-unload",
+                "compression_yield": -150000.0,
+            },
+        },
     },
     "initial_velocity": {"transmission": [0.5, -8.2], "cabin": [0.0, -8.2]},
     "gravity": [0.0, -G],
@@ -89,9 +115,11 @@ TWIN_2D_HELI: dict[str, Any] = {  # helicopter-like, 2 general_nonlinear, slidin
     "rigid_walls": [{"id": "floor", "point": [0.0, 0.1], "normal": [0.0, 1.0], "nodes": ["transmission"]}],
     "end_time": 0.12,
     "output": {"interval": 1.0e-3},
-}  # fmt: skip
+}
 
-TWIN_2D_MIXED: dict[str, Any] = {  # crush, damper, linear, nonlinear; displacement + acceleration pm; inclined wall
+TWIN_2D_MIXED: dict[
+    str, Any
+] = {  # crush, damper, linear, nonlinear; displacement + acceleration pm; inclined wall
     "name": "twin-2d-mixed",
     "curves": {
         "crumple": {"x": [-1.0, -0.05, -0.005, 0.0], "y": [-9000.0, -4000.0, -5000.0, 0.0]},
@@ -107,8 +135,10 @@ TWIN_2D_MIXED: dict[str, Any] = {  # crush, damper, linear, nonlinear; displacem
         "shaker": {"position": [0.6, 0.0], "mass": 0.5},
     },
     "springs": {
-        "crumple": {"nodes": ["base", "bob"],
-                    "material": {"type": "crush", "loading": "crumple", "unloading_stiffness": 4.0e5}},
+        "crumple": {
+            "nodes": ["base", "bob"],
+            "material": {"type": "crush", "loading": "crumple", "unloading_stiffness": 4.0e5},
+        },
         "dash": {"nodes": ["ram", "bob"], "material": {"type": "damper", "damping": 40.0}},
         "strut": {"nodes": ["ram", "bob"], "material": {"type": "linear_elastic", "stiffness": 5.0e4}},
         "bushing": {"nodes": ["bob", "tip"], "material": {"type": "nonlinear_elastic", "curve": "bushing"}},
@@ -123,7 +153,7 @@ TWIN_2D_MIXED: dict[str, Any] = {  # crush, damper, linear, nonlinear; displacem
     "rigid_walls": [{"id": "slope", "point": [0.6, 0.297], "normal": [-0.3, 1.0], "nodes": ["tip"]}],
     "end_time": 0.1,
     "output": {"interval": 1.0e-3},
-}  # fmt: skip
+}
 
 TWINS = {
     "1d-all-materials": (TWIN_1D, "nodes.a.mass", [1.0, 2.0, 4.0, 6.0, 8.0]),
@@ -149,9 +179,13 @@ MATERIALS = {
     "crush": {"type": "crush", "loading": "crush", "unloading_stiffness": 1.0e6},
     "nonlinear_elastic": {"type": "nonlinear_elastic", "curve": "elastic"},
     # yields at -1000 N on the first segment, then crushes on over the knot (mode -1 loading path)
-    "general_nonlinear": {"type": "general_nonlinear", "loading": "elastic", "unloading": "steep",
-                          "compression_yield": -1000.0},
-}  # fmt: skip
+    "general_nonlinear": {
+        "type": "general_nonlinear",
+        "loading": "elastic",
+        "unloading": "steep",
+        "compression_yield": -1000.0,
+    },
+}
 
 
 def one_mass(kind: str, dim: int = 1, dt: float = 2.5e-4) -> dict[str, Any]:
@@ -166,7 +200,10 @@ def one_mass(kind: str, dim: int = 1, dt: float = 2.5e-4) -> dict[str, Any]:
     return {
         "name": f"knot-{kind}-{dim}d",
         "curves": CURVES,
-        "nodes": {"ground": {"position": [0.0] * dim, "fixed": True}, "body": {"position": pos, "mass": MASS}},
+        "nodes": {
+            "ground": {"position": [0.0] * dim, "fixed": True},
+            "body": {"position": pos, "mass": MASS},
+        },
         "springs": {"s": {"nodes": ["ground", "body"], "material": MATERIALS[kind]}},
         "initial_velocity": {"body": vel},
         "end_time": 0.06,
@@ -187,10 +224,12 @@ CRUSH_REBOUND: dict[str, Any] = {
         "occupant": {"position": [1.6], "mass": M_O},
     },
     "springs": {
-        "front": {"nodes": ["barrier", "body"],
-                  "material": {"type": "crush", "loading": "front", "unloading_stiffness": K_U}},
+        "front": {
+            "nodes": ["barrier", "body"],
+            "material": {"type": "crush", "loading": "front", "unloading_stiffness": K_U},
+        },
         "belt": {"nodes": ["body", "occupant"], "material": {"type": "linear_elastic", "stiffness": K_BELT}},
-    },  # fmt: skip
+    },
     "initial_velocity": {"body": [-V0], "occupant": [-V0]},
     "end_time": T_END,
     "output": {"interval": T_END, "histories": "none"},
@@ -200,13 +239,18 @@ CRUSH_REBOUND: dict[str, Any] = {
 # features of the generated kernel (tests/test_generated.py) and of both fast kernels
 # --------------------------------------------------------------------------------------------------
 
-def without_walls_and_loads(model: dict[str, Any], keep_gravity: bool = True, keep_walls: bool = False
-                             ) -> dict[str, Any]:  # fmt: skip
+
+def without_walls_and_loads(
+    model: dict[str, Any], keep_gravity: bool = True, keep_walls: bool = False
+) -> dict[str, Any]:
     """``model`` without what generated kernels leave to the generic one (prescribed motion), and without
     its walls and loads / gravity unless kept."""
     m = copy.deepcopy(model)
-    for key in ("prescribed_motion",) + (() if keep_walls else ("rigid_walls", "loads")) + (
-            () if keep_gravity else ("gravity",)):  # fmt: skip
+    for key in (
+        ("prescribed_motion",)
+        + (() if keep_walls else ("rigid_walls", "loads"))
+        + (() if keep_gravity else ("gravity",))
+    ):
         m.pop(key, None)
     for node in m["nodes"].values():  # a prescribed dof of the twin becomes a free one
         node.pop("fixed", None) if node.get("fixed") is not True else None
@@ -233,18 +277,29 @@ def mount_reversal() -> dict[str, Any]:
     return {
         "name": "mount-reversal",
         "curves": {
-            "load": {"x": [-0.1, -0.04, -0.01, 0.0, 0.01, 0.04, 0.1],
-                     "y": [-3.0e5, -3.0e4, -2.0e4, 0.0, 2.0e4, 3.0e4, 3.0e5]},
+            "load": {
+                "x": [-0.1, -0.04, -0.01, 0.0, 0.01, 0.04, 0.1],
+                "y": [-3.0e5, -3.0e4, -2.0e4, 0.0, 2.0e4, 3.0e4, 3.0e5],
+            },
             "unload": {"x": [-0.01, 0.0, 0.01], "y": [-4.5e4, 0.0, 4.5e4]},
         },
         "nodes": {"frame": {"position": [0.0], "fixed": True}, "engine": {"position": [0.2], "mass": 170.0}},
-        "springs": {"mount": {"nodes": ["frame", "engine"],
-                              "material": {"type": "general_nonlinear", "loading": "load", "unloading": "unload",
-                                           "tension_yield": 2.0e4, "compression_yield": -2.0e4}}},
+        "springs": {
+            "mount": {
+                "nodes": ["frame", "engine"],
+                "material": {
+                    "type": "general_nonlinear",
+                    "loading": "load",
+                    "unloading": "unload",
+                    "tension_yield": 2.0e4,
+                    "compression_yield": -2.0e4,
+                },
+            }
+        },
         "initial_velocity": {"engine": [-3.0]},
         "end_time": 0.08,
         "output": {"interval": 2.0e-4, "histories": ["spring_force", "spring_elongation", "acceleration"]},
-    }  # fmt: skip
+    }
 
 
 def crush_bounce(v0: float = 10.0) -> dict[str, Any]:
@@ -255,14 +310,18 @@ def crush_bounce(v0: float = 10.0) -> dict[str, Any]:
         "name": "crush-bounce",
         "curves": {"plateau": {"x": [-2.0, -1.0e-4, 0.0], "y": [-2.0e4, -2.0e4, 0.0]}},
         "nodes": {"wall": {"position": [0.0], "fixed": True}, "body": {"position": [1.0], "mass": 100.0}},
-        "springs": {"pad": {"nodes": ["wall", "body"],
-                            "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": 2.0e6}}},
+        "springs": {
+            "pad": {
+                "nodes": ["wall", "body"],
+                "material": {"type": "crush", "loading": "plateau", "unloading_stiffness": 2.0e6},
+            }
+        },
         "initial_velocity": {"body": [-v0]},
         "end_time": 0.2,
         "time_step": {"tolerance": 1.0e-5},
         "termination": {"kinetic_energy_fraction": 1.0e-3},
         "output": {"interval": 1.0e-3, "histories": ["spring_force"]},
-    }  # fmt: skip
+    }
 
 
 # --------------------------------------------------------------------------------------------------
@@ -278,8 +337,13 @@ def disjoint(parts: dict[str, dict[str, Any]]) -> dict[str, Any]:
     side by side and unconnected: every node, spring and used curve ``id`` becomes ``<prefix>-<id>``; end
     time, time step and output are the first part's."""
     first = next(iter(parts.values()))
-    model: dict[str, Any] = {"name": "-".join(parts), "curves": {}, "nodes": {}, "springs": {},
-                             "initial_velocity": {}}  # fmt: skip
+    model: dict[str, Any] = {
+        "name": "-".join(parts),
+        "curves": {},
+        "nodes": {},
+        "springs": {},
+        "initial_velocity": {},
+    }
     for p, part in parts.items():
         assert not {"rigid_walls", "loads", "prescribed_motion", "gravity"} & set(part), p
         for sid, sp in part["springs"].items():
@@ -313,15 +377,19 @@ def knots(dim: int) -> dict[str, Any]:
 _KNOT_PREFIX = {"crush": "crush", "nonlinear_elastic": "elastic", "general_nonlinear": "general"}
 KNOT_MASSES = {f"nodes.{p}-body.mass": MASSES for p in _KNOT_PREFIX.values()}
 # force and abscissa scales of every spring curve of :func:`knots` but the unloading one (per-variant factors)
-SCALED_KNOTS = {f"curves.{c}.{f}": v for c in ("crush-crush", "elastic-elastic", "general-elastic") for f, v in
-                (("scale", [0.7, 0.8, 0.9, 1.0, 0.75]), ("x_scale", [1.0, 1.1, 1.2, 1.3, 1.4]))}  # fmt: skip
+SCALED_KNOTS = {
+    f"curves.{c}.{f}": v
+    for c in ("crush-crush", "elastic-elastic", "general-elastic")
+    for f, v in (("scale", [0.7, 0.8, 0.9, 1.0, 0.75]), ("x_scale", [1.0, 1.1, 1.2, 1.3, 1.4]))
+}
 
 
 def _helicopter_walls() -> dict[str, Any]:
     model = without_walls_and_loads(TWIN_2D_HELI, keep_walls=True)
     model["rigid_walls"][0]["nodes"] = ["transmission", "cabin"]  # the floor
-    model["rigid_walls"].append({"id": "side", "point": [0.03, 0.0], "normal": [-1.0, 0.0],
-                                 "nodes": ["transmission", "cabin"]})  # fmt: skip
+    model["rigid_walls"].append(
+        {"id": "side", "point": [0.03, 0.0], "normal": [-1.0, 0.0], "nodes": ["transmission", "cabin"]}
+    )
     return model
 
 
@@ -335,7 +403,9 @@ def _helicopter_penalty_side() -> dict[str, Any]:
 def _frontal() -> dict[str, Any]:
     model = yaml.safe_load(FRONTAL.read_text())
     model["output"] = {"interval": 1.0e-3, "histories": "all"}
-    model["end_time"] = 0.015  # 24 variants ending at 16 different steps (reference run 3.4 s CPU; 6.9 at 0.03)
+    model["end_time"] = (
+        0.015  # 24 variants ending at 16 different steps (reference run 3.4 s CPU; 6.9 at 0.03)
+    )
     return model
 
 
@@ -357,14 +427,20 @@ def _bounce_many() -> dict[str, Any]:
 
 _rng = np.random.default_rng(4)
 # per-variant and constant curves, and variants ending at different steps (lane compaction)
-_FRONTAL_AXES = {"curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 24)),
-                 "nodes.engine.mass": list(_rng.uniform(100.0, 250.0, 24)),
-                 "nodes.bumper.mass": list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 24)))}  # fmt: skip
+_FRONTAL_AXES = {
+    "curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 24)),
+    "nodes.engine.mass": list(_rng.uniform(100.0, 250.0, 24)),
+    "nodes.bumper.mass": list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 24))),
+}
 
 # force and abscissa scales of spring, time and motion curves (a constant shape and per-variant factors)
-_SCALED_1D = {"curves.plateau.scale": [0.6, 0.7, 0.8, 0.9, 1.0], "curves.soft.x_scale": [1.0, 1.1, 1.2, 1.3, 1.4],
-              "curves.gn-load.scale": [1.0, 0.9, 0.8, 0.7, 0.95], "curves.pulse.x_scale": [0.5, 0.8, 1.0, 1.5, 2.0],
-              "curves.pull.x_scale": [1.0, 0.5, 2.0, 1.5, 0.8]}  # fmt: skip
+_SCALED_1D = {
+    "curves.plateau.scale": [0.6, 0.7, 0.8, 0.9, 1.0],
+    "curves.soft.x_scale": [1.0, 1.1, 1.2, 1.3, 1.4],
+    "curves.gn-load.scale": [1.0, 0.9, 0.8, 0.7, 0.95],
+    "curves.pulse.x_scale": [0.5, 0.8, 1.0, 1.5, 2.0],
+    "curves.pull.x_scale": [1.0, 0.5, 2.0, 1.5, 0.8],
+}
 
 
 def _v2_springs(dim: int) -> dict[str, Any]:
@@ -375,29 +451,57 @@ def _v2_springs(dim: int) -> dict[str, Any]:
     at = lambda r: [r * c for c in ax]  # noqa: E731
     return {
         "name": f"v2-springs-{dim}d",
-        "curves": {"blow-off": {"x": [-10.0, -1.0, 0.0, 1.0, 10.0], "y": [-300.0, -300.0, 0.0, 300.0, 300.0]},
-                   "load": {"x": [-0.1, 0.0, 0.01, 0.02, 0.2], "y": [-1.0e4, 0.0, 600.0, 400.0, 900.0]},
-                   "unload": {"x": [-0.1, 0.0, 0.1], "y": [-1.0e4, 0.0, 1.0e4]},
-                   "crush": {"x": [-0.3, -0.01, 0.0], "y": [-3000.0, -1500.0, 0.0]}},
-        "nodes": {"a": {"position": at(0.0), "fixed": True}, "b": {"position": at(1.0), "mass": 10.0},
-                  "c": {"position": at(2.0), "mass": 5.0}},
+        "curves": {
+            "blow-off": {"x": [-10.0, -1.0, 0.0, 1.0, 10.0], "y": [-300.0, -300.0, 0.0, 300.0, 300.0]},
+            "load": {"x": [-0.1, 0.0, 0.01, 0.02, 0.2], "y": [-1.0e4, 0.0, 600.0, 400.0, 900.0]},
+            "unload": {"x": [-0.1, 0.0, 0.1], "y": [-1.0e4, 0.0, 1.0e4]},
+            "crush": {"x": [-0.3, -0.01, 0.0], "y": [-3000.0, -1500.0, 0.0]},
+        },
+        "nodes": {
+            "a": {"position": at(0.0), "fixed": True},
+            "b": {"position": at(1.0), "mass": 10.0},
+            "c": {"position": at(2.0), "mass": 5.0},
+        },
         "springs": {
-            "ep": {"nodes": ["a", "b"], "initial_elongation": 0.02, "failure": {"tension": 0.12},
-                   "material": {"type": "elastoplastic", "stiffness": 4.0e4, "tangent_stiffness": 1.0e4,
-                                "yield_force": 2.0e3}},
+            "ep": {
+                "nodes": ["a", "b"],
+                "initial_elongation": 0.02,
+                "failure": {"tension": 0.12},
+                "material": {
+                    "type": "elastoplastic",
+                    "stiffness": 4.0e4,
+                    "tangent_stiffness": 1.0e4,
+                    "yield_force": 2.0e3,
+                },
+            },
             "nd": {"nodes": ["a", "b"], "material": {"type": "nonlinear_damper", "curve": "blow-off"}},
-            "gn": {"nodes": ["b", "c"], "initial_elongation": 0.015,
-                   "material": {"type": "general_nonlinear", "loading": "load", "unloading": "unload",
-                                "tension_yield": 500.0}},
-            "cr": {"nodes": ["b", "c"], "initial_elongation": -0.01, "failure": {"compression": -0.2},
-                   "material": {"type": "crush", "loading": "crush", "unloading_stiffness": 2.0e5}},
-            "lin": {"nodes": ["a", "c"], "failure": {"tension": 0.06, "compression": -0.06},
-                    "material": {"type": "linear_elastic", "stiffness": 2.0e3}},
+            "gn": {
+                "nodes": ["b", "c"],
+                "initial_elongation": 0.015,
+                "material": {
+                    "type": "general_nonlinear",
+                    "loading": "load",
+                    "unloading": "unload",
+                    "tension_yield": 500.0,
+                },
+            },
+            "cr": {
+                "nodes": ["b", "c"],
+                "initial_elongation": -0.01,
+                "failure": {"compression": -0.2},
+                "material": {"type": "crush", "loading": "crush", "unloading_stiffness": 2.0e5},
+            },
+            "lin": {
+                "nodes": ["a", "c"],
+                "failure": {"tension": 0.06, "compression": -0.06},
+                "material": {"type": "linear_elastic", "stiffness": 2.0e3},
+            },
         },
         "initial_velocity": {"b": at(3.0), "c": at(-2.0)},
-        "end_time": 0.3, "time_step": {"safety_factor": 0.5},
+        "end_time": 0.3,
+        "time_step": {"safety_factor": 0.5},
         "output": {"interval": 1.0e-3},
-    }  # fmt: skip
+    }
 
 
 def _v2_intact(dim: int) -> dict[str, Any]:
@@ -418,23 +522,40 @@ def rate_elastic_model(dim: int) -> dict[str, Any]:
     at = lambda r: [r * c for c in ax]  # noqa: E731
     return {
         "name": f"rate-elastic-{dim}d",
-        "curves": {"soft": {"x": [-0.2, -0.05, 0.0, 0.05, 0.2], "y": [-800.0, -500.0, 0.0, 500.0, 800.0]},
-                   "mid": {"x": [-0.2, -0.05, 0.0, 0.05, 0.2], "y": [-1600.0, -1000.0, 0.0, 1000.0, 1600.0]},
-                   "stiff": {"x": [-0.2, 0.0, 0.1, 0.2], "y": [-4000.0, 0.0, 1500.0, 2500.0]}},
-        "nodes": {"a": {"position": at(0.0), "fixed": True}, "b": {"position": at(1.0), "mass": 10.0},
-                  "c": {"position": at(2.0), "mass": 5.0}},
+        "curves": {
+            "soft": {"x": [-0.2, -0.05, 0.0, 0.05, 0.2], "y": [-800.0, -500.0, 0.0, 500.0, 800.0]},
+            "mid": {"x": [-0.2, -0.05, 0.0, 0.05, 0.2], "y": [-1600.0, -1000.0, 0.0, 1000.0, 1600.0]},
+            "stiff": {"x": [-0.2, 0.0, 0.1, 0.2], "y": [-4000.0, 0.0, 1500.0, 2500.0]},
+        },
+        "nodes": {
+            "a": {"position": at(0.0), "fixed": True},
+            "b": {"position": at(1.0), "mass": 10.0},
+            "c": {"position": at(2.0), "mass": 5.0},
+        },
         "springs": {
-            "re": {"nodes": ["a", "b"], "initial_elongation": 0.01,
-                   "material": {"type": "rate_elastic", "curves": [{"rate": 0.0, "curve": "soft"},
-                                                                   {"rate": 2.0, "curve": "mid"},
-                                                                   {"rate": 6.0, "curve": "stiff"}]}},
-            "re1": {"nodes": ["b", "c"], "material": {"type": "rate_elastic", "curves": [{"rate": 1.0, "curve": "mid"}]}},
+            "re": {
+                "nodes": ["a", "b"],
+                "initial_elongation": 0.01,
+                "material": {
+                    "type": "rate_elastic",
+                    "curves": [
+                        {"rate": 0.0, "curve": "soft"},
+                        {"rate": 2.0, "curve": "mid"},
+                        {"rate": 6.0, "curve": "stiff"},
+                    ],
+                },
+            },
+            "re1": {
+                "nodes": ["b", "c"],
+                "material": {"type": "rate_elastic", "curves": [{"rate": 1.0, "curve": "mid"}]},
+            },
             "lin": {"nodes": ["a", "c"], "material": {"type": "linear_elastic", "stiffness": 2.0e3}},
         },
         "initial_velocity": {"b": at(3.0), "c": at(-2.0)},
-        "end_time": 0.3, "time_step": {"safety_factor": 0.5},
+        "end_time": 0.3,
+        "time_step": {"safety_factor": 0.5},
         "output": {"interval": 1.0e-3},
-    }  # fmt: skip
+    }
 
 
 def v2_and_rate(dim: int) -> dict[str, Any]:
@@ -446,32 +567,58 @@ _V2_AXES = {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0], "curves.r-mid.scale": 
 
 # case -> (model builder, study axes); tests/test_kernel_twins.py CHECKS says what each case must exercise
 CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]]]] = {
-    "1d-every-material-both-ways": (both_ways, {"nodes.fwd-a.mass": [1.0, 2.0, 4.0, 6.0, 8.0],
-                                                "nodes.rev-a.mass": [8.0, 6.0, 4.0, 2.0, 1.0]}),
-    "full-twin-1d-all-materials-scaled-curves": ((lambda: TWINS["1d-all-materials"][0]),
-                                                 {"nodes.a.mass": TWINS["1d-all-materials"][2], **_SCALED_1D}),
-    "full-twin-2d-helicopter-two-walls": (_helicopter_walls, {"nodes.cabin.mass": [200.0, 250, 300, 350, 400]}),
-    "2d-rigid-and-penalty-walls": (_helicopter_penalty_side, {"rigid_walls.1.stiffness": [2e5, 5e5, 1e6, 2e6, 4e6]}),
-    "full-twin-2d-mixed-prescribed": ((lambda: TWINS["2d-mixed-prescribed"][0]),
-                                      {"nodes.bob.mass": TWINS["2d-mixed-prescribed"][2]}),
+    "1d-every-material-both-ways": (
+        both_ways,
+        {"nodes.fwd-a.mass": [1.0, 2.0, 4.0, 6.0, 8.0], "nodes.rev-a.mass": [8.0, 6.0, 4.0, 2.0, 1.0]},
+    ),
+    "full-twin-1d-all-materials-scaled-curves": (
+        (lambda: TWINS["1d-all-materials"][0]),
+        {"nodes.a.mass": TWINS["1d-all-materials"][2], **_SCALED_1D},
+    ),
+    "full-twin-2d-helicopter-two-walls": (
+        _helicopter_walls,
+        {"nodes.cabin.mass": [200.0, 250, 300, 350, 400]},
+    ),
+    "2d-rigid-and-penalty-walls": (
+        _helicopter_penalty_side,
+        {"rigid_walls.1.stiffness": [2e5, 5e5, 1e6, 2e6, 4e6]},
+    ),
+    "full-twin-2d-mixed-prescribed": (
+        (lambda: TWINS["2d-mixed-prescribed"][0]),
+        {"nodes.bob.mass": TWINS["2d-mixed-prescribed"][2]},
+    ),
     "2d-crushed-to-zero": (_helicopter_crushed, {"impact_velocity": [6.0, 8.2, 10.0, 30.0]}),
     "general-nonlinear-reversal": (mount_reversal, {"impact_velocity": [2.0, 2.5, 3.0, 3.5]}),
-    "knots-crush-rebound": (lambda: dict(CRUSH_REBOUND, time_step={"tolerance": 1e-3},
-                                         output={"interval": 1e-3, "histories": ["spring_force"]}),
-                            {"nodes.body.mass": [900.0, 1100.0, 1200.0, 1300.0, 1500.0]}),
+    "knots-crush-rebound": (
+        lambda: dict(
+            CRUSH_REBOUND,
+            time_step={"tolerance": 1e-3},
+            output={"interval": 1e-3, "histories": ["spring_force"]},
+        ),
+        {"nodes.body.mass": [900.0, 1100.0, 1200.0, 1300.0, 1500.0]},
+    ),
     "knots-every-curve-material-1d": (lambda: knots(1), KNOT_MASSES),
     "knots-every-curve-material-2d": (lambda: knots(2), KNOT_MASSES),
     "scaled-knots-every-curve-material": (lambda: knots(1), SCALED_KNOTS),
     "frontal-curve-and-mass-axes-lane-compaction": (_frontal, _FRONTAL_AXES),
     "early-termination": (_bounce_many, {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}),
-    **{f"v2-spring-features-and-rate-elastic-{dim}d": ((lambda d=dim: v2_and_rate(d)), _V2_AXES) for dim in (1, 2)},
-}  # fmt: skip
+    **{
+        f"v2-spring-features-and-rate-elastic-{dim}d": ((lambda d=dim: v2_and_rate(d)), _V2_AXES)
+        for dim in (1, 2)
+    },
+}
 
 # cases run with the per-step record of every movable node (tests/test_metrics.py's record twins are these
 # shapes: one compile serves both files); the others run without a record
-RECORD_CASES = ("full-twin-1d-all-materials-scaled-curves", "full-twin-2d-helicopter-two-walls",
-                "2d-rigid-and-penalty-walls", "full-twin-2d-mixed-prescribed", "2d-crushed-to-zero",
-                "frontal-curve-and-mass-axes-lane-compaction", "early-termination")  # fmt: skip
+RECORD_CASES = (
+    "full-twin-1d-all-materials-scaled-curves",
+    "full-twin-2d-helicopter-two-walls",
+    "2d-rigid-and-penalty-walls",
+    "full-twin-2d-mixed-prescribed",
+    "2d-crushed-to-zero",
+    "frontal-curve-and-mass-axes-lane-compaction",
+    "early-termination",
+)
 # the slowest compiles, started at session start on the other core (tests/conftest.py)
 WARM_RECORD_CASES = ("frontal-curve-and-mass-axes-lane-compaction", "full-twin-2d-helicopter-two-walls")
 

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import os as _os
 
-if _os.environ.get("NUMBA_CACHE_DIR"):  # numba loads pickles from it: only a private folder (before numba reads it)
+if _os.environ.get(
+    "NUMBA_CACHE_DIR"
+):  # numba loads pickles from it: only a private folder (before numba reads it)
     from crashstudy.kernel.cache import secure_numba_cache as _secure
 
     _secure()

@@ -18,15 +18,24 @@ KERNEL = "CRASHSTUDY_KERNEL"
 BACKGROUND_COMPILE = "CRASHSTUDY_BACKGROUND_COMPILE"
 GEN_BLOCK = "CRASHSTUDY_GEN_BLOCK"
 GEN_BLOCK_DEFAULT, GEN_BLOCK_MAX = 256, 65536  # variants per block of the generated kernel
-BACKGROUND = {"0": "never", "no": "never", "off": "never", "false": "never", "1": "auto", "yes": "auto",
-              "on": "auto", "true": "auto", "always": "always"}  # fmt: skip
+BACKGROUND = {
+    "0": "never",
+    "no": "never",
+    "off": "never",
+    "false": "never",
+    "1": "auto",
+    "yes": "auto",
+    "on": "auto",
+    "true": "auto",
+    "always": "always",
+}
 
 #: every variable crashstudy reads, with the values it takes (the message of a wrong value)
 VARIABLES: dict[str, str] = {
     KERNEL: "reference, generic or generated (unset: the fastest kernel that is ready)",
     BACKGROUND_COMPILE: "0 (or no, off, false: never), 1 (or yes, on, true; the default) or always",
     GEN_BLOCK: f"a whole number of variants per block of the generated kernel, 1 to {GEN_BLOCK_MAX} "
-               f"(default {GEN_BLOCK_DEFAULT})",  # fmt: skip
+    f"(default {GEN_BLOCK_DEFAULT})",
     "CRASHSTUDY_MAX_VALUES": "a whole number of values > 0 (schema/yamlcompose.py max_values)",
     "CRASHSTUDY_MAX_WORK": "a number of element-steps > 0 (study/work.py max_work)",
     "CRASHSTUDY_KERNEL_CACHE": "a folder only you can write to (else it is skipped with a warning)",

@@ -88,7 +88,9 @@ def folder_lock(folder: Path) -> Iterator[None]:
         os.unlink(path)  # planted: a lock file is never a link
     for _ in range(100):
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0), 0o644)
+            fd = os.open(
+                path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0), 0o644
+            )
         except OSError as exc:  # a folder there (EISDIR), a link planted since (ELOOP)
             raise PlantedEntryError(_lock_problem(path, exc)) from None
         if not stat.S_ISREG(os.fstat(fd).st_mode):  # a FIFO or device planted there: flock says only EINVAL
@@ -129,8 +131,10 @@ def folder_lock(folder: Path) -> Iterator[None]:
 
 def _lock_problem(path: Path, exc: OSError | None) -> str:
     what = "it is not a regular file" if exc is None else (exc.strerror or "it cannot be opened")
-    return (f"the lock file {path} cannot be used: {what}; crashstudy expects a regular file there (or nothing) "
-            "that it creates itself: remove it and run again")
+    return (
+        f"the lock file {path} cannot be used: {what}; crashstudy expects a regular file there (or nothing) "
+        "that it creates itself: remove it and run again"
+    )
 
 
 def _remove_if_created(folder: Path, created: bool) -> None:
@@ -234,8 +238,13 @@ def file_kind(mode: int) -> str:
     ...), or "" for a regular file: the one wording of every message that refuses such a file."""
     if stat.S_ISREG(mode):
         return ""
-    kinds = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
-             (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))  # fmt: skip
+    kinds = (
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISFIFO, "a named pipe (FIFO)"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    )
     return next((name for test, name in kinds if test(mode)), "a special file")
 
 
@@ -248,7 +257,12 @@ def open_regular(path: Path, limit: int | None = None, what: str = "", follow: b
     memory. Raises :class:`PlantedEntryError` naming the file (``what``: how a message calls it)
     and what was expected; never quotes its content. :class:`FileNotFoundError` when it is missing."""
     name = what or str(path)
-    flags = os.O_RDONLY | (0 if follow else _NOFOLLOW) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    flags = (
+        os.O_RDONLY
+        | (0 if follow else _NOFOLLOW)
+        | getattr(os, "O_NONBLOCK", 0)
+        | getattr(os, "O_CLOEXEC", 0)
+    )
     try:
         fd = os.open(path, flags)
     except FileNotFoundError:
@@ -262,7 +276,9 @@ def open_regular(path: Path, limit: int | None = None, what: str = "", follow: b
         if kind:
             raise PlantedEntryError(f"{name} cannot be read: it is {kind}; expected a regular file")
         if limit is not None and st.st_size > limit:
-            raise PlantedEntryError(f"{name} cannot be read: it has {st.st_size} bytes; expected at most {limit}")
+            raise PlantedEntryError(
+                f"{name} cannot be read: it has {st.st_size} bytes; expected at most {limit}"
+            )
     except BaseException:
         os.close(fd)
         raise

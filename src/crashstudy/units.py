@@ -40,8 +40,18 @@ UNIT_SYSTEMS: dict[str, UnitSystem] = {
 
 
 #: each base unit name of :data:`UNIT_SYSTEMS` in SI (1 of it is this many m, s, kg, N or J)
-SI_VALUE: dict[str, float] = {"m": 1.0, "mm": 1e-3, "s": 1.0, "ms": 1e-3, "kg": 1.0, "t": 1e3,
-                              "N": 1.0, "kN": 1e3, "J": 1.0, "mJ": 1e-3}  # fmt: skip
+SI_VALUE: dict[str, float] = {
+    "m": 1.0,
+    "mm": 1e-3,
+    "s": 1.0,
+    "ms": 1e-3,
+    "kg": 1.0,
+    "t": 1e3,
+    "N": 1.0,
+    "kN": 1e3,
+    "J": 1.0,
+    "mJ": 1e-3,
+}
 
 
 def si_per_unit(system: str, kind: str) -> float:
@@ -49,6 +59,13 @@ def si_per_unit(system: str, kind: str) -> float:
     ``system`` is: a value in the system times this is the value in SI."""
     u = UNIT_SYSTEMS[system]
     length, time = SI_VALUE[u.length], SI_VALUE[u.time]
-    derived = {"velocity": length / time, "acceleration": length / time**2, "length": length, "time": time,
-               "force": SI_VALUE[u.force], "mass": SI_VALUE[u.mass], "energy": SI_VALUE[u.energy]}  # fmt: skip
+    derived = {
+        "velocity": length / time,
+        "acceleration": length / time**2,
+        "length": length,
+        "time": time,
+        "force": SI_VALUE[u.force],
+        "mass": SI_VALUE[u.mass],
+        "energy": SI_VALUE[u.energy],
+    }
     return derived[kind]

@@ -19,8 +19,16 @@ from crashstudy import interrupt
 POPSIZE = 15
 
 
-def calibrate_iso18571(ev: Any, spec: dict[str, Any], t_data: np.ndarray, y_data: np.ndarray, second: float,
-                       units: dict[str, str], progress: Any, channel_history: Any) -> dict[str, Any]:  # fmt: skip
+def calibrate_iso18571(
+    ev: Any,
+    spec: dict[str, Any],
+    t_data: np.ndarray,
+    y_data: np.ndarray,
+    second: float,
+    units: dict[str, str],
+    progress: Any,
+    channel_history: Any,
+) -> dict[str, Any]:
     """The calibration result (as :func:`crashstudy.analysis.optimization.calibrate` returns it, plus
     ``objective``, ``iso18571``: R, Z, EP, EM, ES and the grade at the fit). ``channel_history(plan, res,
     channel)`` is the calibrated channel of every run (the caller's, so that this module does not import it)."""
@@ -45,27 +53,56 @@ def calibrate_iso18571(ev: Any, spec: dict[str, Any], t_data: np.ndarray, y_data
         scores, _, _ = rated(x.T)
         r = scores["R"]
         best[0] = max(best[0], float(np.nanmax(r))) if np.isfinite(r).any() else best[0]
-        print(f"  generation {ev.batches - 1}: {x.shape[1]} candidates, best R so far {best[0]:.4f}, "
-              f"{ev.evaluations} evaluations, {time.perf_counter() - t0:.1f} s", file=progress, flush=True)  # fmt: skip
+        print(
+            f"  generation {ev.batches - 1}: {x.shape[1]} candidates, best R so far {best[0]:.4f}, "
+            f"{ev.evaluations} evaluations, {time.perf_counter() - t0:.1f} s",
+            file=progress,
+            flush=True,
+        )
         interrupt.check()  # a stop request: after the whole generation
         return np.where(np.isfinite(r), 1.0 - r, 2.0)
 
-    print(f"calibrating {d} variable(s) to {len(t_data)} data points by the ISO/TS 18571 rating (a line per "
-          "generation; the first may compile the kernel)", file=progress, flush=True)  # fmt: skip
+    print(
+        f"calibrating {d} variable(s) to {len(t_data)} data points by the ISO/TS 18571 rating (a line per "
+        "generation; the first may compile the kernel)",
+        file=progress,
+        flush=True,
+    )
     t0 = time.perf_counter()
-    fit = differential_evolution(f, bounds, vectorized=True, updating="deferred", popsize=POPSIZE, maxiter=maxiter,
-                                 seed=0, polish=False, tol=1e-8, atol=0.0, init="latinhypercube")  # fmt: skip
+    fit = differential_evolution(
+        f,
+        bounds,
+        vectorized=True,
+        updating="deferred",
+        popsize=POPSIZE,
+        maxiter=maxiter,
+        seed=0,
+        polish=False,
+        tol=1e-8,
+        atol=0.0,
+        init="latinhypercube",
+    )
     seconds = time.perf_counter() - t0
     evaluations, batches = ev.evaluations, ev.batches
     scores, t, h = rated(np.array([fit.x]))
     model = np.interp(t_data, t, h[0])
     if not np.isfinite(scores["R"][0]):
-        raise FloatingPointError(f"the model failed at the best candidate {dict(zip(variables, fit.x, strict=True))}")
+        raise FloatingPointError(
+            f"the model failed at the best candidate {dict(zip(variables, fit.x, strict=True))}"
+        )
     iso: dict[str, Any] = {k: round(float(scores[k][0]), 6) for k in ("R", "Z", "EP", "EM", "ES")}
     iso["grade"] = grade(float(scores["R"][0]))
     iso["interval"] = [float(scores["t0"]), float(scores["t1"])]
-    return {"variables": {k: float(v) for k, v in zip(variables, fit.x, strict=True)}, "objective": "iso18571",
-            "iso18571": iso, "rms_error": float(np.sqrt(np.mean((model - y_data) ** 2))),
-            "correlation": float(np.corrcoef(model, y_data)[0, 1]), "data_points": int(len(t_data)),
-            "evaluations": int(evaluations), "batches": int(batches), "seconds": round(seconds, 3),
-            "message": str(fit.message), "_fit": (t_data, y_data, model, units)}  # fmt: skip
+    return {
+        "variables": {k: float(v) for k, v in zip(variables, fit.x, strict=True)},
+        "objective": "iso18571",
+        "iso18571": iso,
+        "rms_error": float(np.sqrt(np.mean((model - y_data) ** 2))),
+        "correlation": float(np.corrcoef(model, y_data)[0, 1]),
+        "data_points": int(len(t_data)),
+        "evaluations": int(evaluations),
+        "batches": int(batches),
+        "seconds": round(seconds, 3),
+        "message": str(fit.message),
+        "_fit": (t_data, y_data, model, units),
+    }

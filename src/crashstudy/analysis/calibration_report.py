@@ -18,13 +18,16 @@ from typing import Any
 
 import numpy as np
 
-UNDETERMINED = 1e-9  # a Jacobian column (times the bounds' width) below this fraction of the largest: no effect
+UNDETERMINED = (
+    1e-9  # a Jacobian column (times the bounds' width) below this fraction of the largest: no effect
+)
 POOR = 0.25  # a 95% interval wider than this fraction of the bounds
 CORRELATED = 0.99  # |correlation| of two fitted values beyond which neither is determined alone
 
 
-def uncertainty(jac: np.ndarray, residuals: np.ndarray, names: list[str], x: np.ndarray, lo: np.ndarray,
-                hi: np.ndarray) -> dict[str, dict[str, Any]]:  # fmt: skip
+def uncertainty(
+    jac: np.ndarray, residuals: np.ndarray, names: list[str], x: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> dict[str, dict[str, Any]]:
     """Per variable: ``value``, ``ci95`` ([low, high], None when undetermined), ``status`` (determined,
     poorly determined, undetermined) and ``note`` (why, "" when determined)."""
     from scipy import stats
@@ -38,8 +41,12 @@ def uncertainty(jac: np.ndarray, residuals: np.ndarray, names: list[str], x: np.
     keep = np.flatnonzero(~none)
     out: dict[str, dict[str, Any]] = {}
     for k in np.flatnonzero(none):
-        out[names[k]] = {"value": float(x[k]), "ci95": None, "status": "undetermined",
-                         "note": "the channel does not depend on it: its value is where the search started"}  # fmt: skip
+        out[names[k]] = {
+            "value": float(x[k]),
+            "ci95": None,
+            "status": "undetermined",
+            "note": "the channel does not depend on it: its value is where the search started",
+        }
     dof = n - len(keep)
     if len(keep) and dof > 0:
         jk = jac[:, keep]
@@ -55,19 +62,33 @@ def uncertainty(jac: np.ndarray, residuals: np.ndarray, names: list[str], x: np.
                 notes.append(f"its 95% interval is {half[j] * 2 / width[k]:.0%} of its bounds")
             for i, other in enumerate(keep):
                 if i != j and np.isfinite(corr[j, i]) and abs(corr[j, i]) > CORRELATED:
-                    notes.append(f"correlated with {names[other]} (r = {corr[j, i]:.4f}): the data fix a combination")
-            out[names[k]] = {"value": float(x[k]), "ci95": [float(x[k] - half[j]), float(x[k] + half[j])],
-                             "status": "poorly determined" if notes else "determined", "note": "; ".join(notes)}  # fmt: skip
+                    notes.append(
+                        f"correlated with {names[other]} (r = {corr[j, i]:.4f}): the data fix a combination"
+                    )
+            out[names[k]] = {
+                "value": float(x[k]),
+                "ci95": [float(x[k] - half[j]), float(x[k] + half[j])],
+                "status": "poorly determined" if notes else "determined",
+                "note": "; ".join(notes),
+            }
     else:
         for k in keep:
-            out[names[k]] = {"value": float(x[k]), "ci95": None, "status": "poorly determined",
-                             "note": f"{n} data points for {len(keep)} variables: no interval"}  # fmt: skip
+            out[names[k]] = {
+                "value": float(x[k]),
+                "ci95": None,
+                "status": "poorly determined",
+                "note": f"{n} data points for {len(keep)} variables: no interval",
+            }
     return {name: out[name] for name in names}
 
 
 def uncertainty_notes(report: dict[str, dict[str, Any]]) -> list[str]:
     """One warning line per variable that is not determined (for the command's output)."""
-    return [f"warning: {name} is {v['status']}: {v['note']}" for name, v in report.items() if v["status"] != "determined"]
+    return [
+        f"warning: {name} is {v['status']}: {v['note']}"
+        for name, v in report.items()
+        if v["status"] != "determined"
+    ]
 
 
 def progress_line(batch: int, runs: int, rms: float, evaluations: int, seconds: float) -> str:

@@ -117,11 +117,17 @@ class Comparison:
     n_matched: int = 0
     n_status: int = 0  #: status changes (all; ``status`` lists at most STATUS_KEPT of a streamed comparison)
     n_status_failures: int = 0  #: ... of which ok -> failed
-    n_missing: int = 0  #: baseline variants missing (``missing`` lists at most STATUS_KEPT of a streamed comparison)
+    n_missing: int = (
+        0  #: baseline variants missing (``missing`` lists at most STATUS_KEPT of a streamed comparison)
+    )
     n_extra: int = 0  #: new variants not in the baseline (``extra``: idem)
-    streamed: bool = False  #: read block by block: no per-variant arrays (``frame``, ``columns``, ``matched``)
+    streamed: bool = (
+        False  #: read block by block: no per-variant arrays (``frame``, ``columns``, ``matched``)
+    )
     notes: list[str] = field(default_factory=list)
-    damaged: list[str] = field(default_factory=list)  #: a side whose summary lost (or repeats) variants: failures
+    damaged: list[str] = field(
+        default_factory=list
+    )  #: a side whose summary lost (or repeats) variants: failures
     rtol: float = DEFAULT_RTOL
     atol: float = DEFAULT_ATOL
     study_name: str = ""
@@ -138,8 +144,10 @@ class Comparison:
         ``passed``. Built on first use (a study of 10^6 variants makes a large table).
         """
         if self.streamed:
-            raise ValueError("this comparison was read block by block (a large result in the same variant order "
-                             "as its baseline): it keeps no per-variant table; see docs/scale.md")
+            raise ValueError(
+                "this comparison was read block by block (a large result in the same variant order "
+                "as its baseline): it keeps no per-variant table; see docs/scale.md"
+            )
         if self._frame is None:
             parts = []
             for name, c in self.columns.items():
@@ -166,8 +174,13 @@ class Comparison:
     def failed(self) -> int:
         """Number of findings that fail the check: metric values past tolerance, variants missing
         from the new result, ``ok`` -> ``failed`` status changes and metric columns gone missing."""
-        return (self.failed_values + self.n_missing + self.status_failures + len(self.missing_columns)
-                + len(self.damaged))  # fmt: skip
+        return (
+            self.failed_values
+            + self.n_missing
+            + self.status_failures
+            + len(self.missing_columns)
+            + len(self.damaged)
+        )
 
     def failing_columns(self) -> dict[str, int]:
         """Metric column -> number of its values past tolerance (only columns with any)."""
@@ -177,8 +190,18 @@ class Comparison:
         """One row per compared metric column: ``metric``, ``failed`` (values past tolerance),
         ``compared``, ``max_rel_diff`` (largest |rel diff|), ``rtol``, ``atol``, ``worst_score``;
         the worst first."""
-        rows = [{"metric": n, "failed": c.failed, "compared": c.compared, "max_rel_diff": c.max_rel_diff,
-                 "rtol": c.rtol, "atol": c.atol, "worst_score": c.worst_score} for n, c in self.stats.items()]
+        rows = [
+            {
+                "metric": n,
+                "failed": c.failed,
+                "compared": c.compared,
+                "max_rel_diff": c.max_rel_diff,
+                "rtol": c.rtol,
+                "atol": c.atol,
+                "worst_score": c.worst_score,
+            }
+            for n, c in self.stats.items()
+        ]
         df = pd.DataFrame(
             rows, columns=["metric", "failed", "compared", "max_rel_diff", "rtol", "atol", "worst_score"]
         )
@@ -196,37 +219,46 @@ class Comparison:
         top = self.top(n)
         if top.empty:
             return "no metric value changed"
-        text = pd.DataFrame({
-            "variant": top["variant"].astype(str),
-            "parameters": [self._params(r) for _, r in top.iterrows()],
-            "metric": top["metric"],
-            "old": [f"{v:.7g}" for v in top["old"]],
-            "new": [f"{v:.7g}" for v in top["new"]],
-            "rel diff": [f"{v:+.3e}" for v in top["rel_diff"]],
-            "tolerance": [f"{v:.3g}" for v in top["tolerance"]],
-            "diff/tol": [f"{v:.3g}" for v in top["score"]],
-            "": ["ok" if p else "FAIL" for p in top["passed"]],
-        })  # fmt: skip
+        text = pd.DataFrame(
+            {
+                "variant": top["variant"].astype(str),
+                "parameters": [self._params(r) for _, r in top.iterrows()],
+                "metric": top["metric"],
+                "old": [f"{v:.7g}" for v in top["old"]],
+                "new": [f"{v:.7g}" for v in top["new"]],
+                "rel diff": [f"{v:+.3e}" for v in top["rel_diff"]],
+                "tolerance": [f"{v:.3g}" for v in top["tolerance"]],
+                "diff/tol": [f"{v:.3g}" for v in top["score"]],
+                "": ["ok" if p else "FAIL" for p in top["passed"]],
+            }
+        )
         head = f"what moved most (|new - old| / tolerance, largest first; {len(top)} shown):"
         return head + "\n" + text.to_string(index=False)
 
     def _params(self, row: pd.Series) -> str:
         """``axis=value`` per factor: a zip group by its first path (its other paths move with it)."""
         groups = self.factors or {a: [a] for a in self.axes}
-        return " ".join(f"{ax}={row[ax]:.6g}" + (f" (+{len(m) - 1} zipped)" if len(m) > 1 else "")
-                        for ax, m in groups.items() if ax in row and pd.notna(row[ax])) or "-"  # fmt: skip
+        return (
+            " ".join(
+                f"{ax}={row[ax]:.6g}" + (f" (+{len(m) - 1} zipped)" if len(m) > 1 else "")
+                for ax, m in groups.items()
+                if ax in row and pd.notna(row[ax])
+            )
+            or "-"
+        )
 
     def verdict(self) -> str:
         """One line: FAILED or OK, with what failed."""
         n_cols = len(self.stats)
         if not self.failed:
             extra = f"; {self.n_extra} new variants not in the baseline" if self.n_extra else ""
-            return (f"OK: {self.n_matched} variants x {n_cols} metrics within tolerance of the baseline"
-                    f"{extra}")  # fmt: skip
+            return f"OK: {self.n_matched} variants x {n_cols} metrics within tolerance of the baseline{extra}"
         parts = list(self.damaged)
         if self.failed_values:
-            parts.append(f"{self.failed_values} values in {len(self.failing_columns())} of {n_cols} metrics "
-                         f"moved past tolerance")  # fmt: skip
+            parts.append(
+                f"{self.failed_values} values in {len(self.failing_columns())} of {n_cols} metrics "
+                f"moved past tolerance"
+            )
         if self.status_failures:
             parts.append(f"{self.status_failures} variants went from ok to failed")
         if self.n_missing:
@@ -237,10 +269,18 @@ class Comparison:
 
     def report(self, n: int = 20) -> str:
         """Everything ``crashstudy compare`` prints."""
-        lines = [f"comparing {self.new_dir} against baseline {self.baseline_dir}", *("note: " + s for s in self.notes),
-                 self.table(n)]  # fmt: skip
+        lines = [
+            f"comparing {self.new_dir} against baseline {self.baseline_dir}",
+            *("note: " + s for s in self.notes),
+            self.table(n),
+        ]
         for title, df, col, count in (
-            ("baseline variants missing from the new result", self.missing, "baseline_variant", self.n_missing),
+            (
+                "baseline variants missing from the new result",
+                self.missing,
+                "baseline_variant",
+                self.n_missing,
+            ),
             ("new variants not in the baseline (not a failure)", self.extra, "variant", self.n_extra),
         ):
             if count:
@@ -281,8 +321,13 @@ class Comparison:
         return junit(self, path)
 
 
-def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, atol: float | None = None,
-            tolerances: dict[str, dict[str, float]] | None = None) -> Comparison:  # fmt: skip
+def compare(
+    new: ResultsLike,
+    baseline: ResultsLike,
+    rtol: float | None = None,
+    atol: float | None = None,
+    tolerances: dict[str, dict[str, float]] | None = None,
+) -> Comparison:
     """Compare a result with its baseline, variant by variant (matched by parameter values).
 
     Parameters
@@ -308,20 +353,27 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
     rtol = DEFAULT_RTOL if rtol is None else check_tolerance("rtol", rtol)
     atol = DEFAULT_ATOL if atol is None else check_tolerance("atol", atol)
     n_side, b_side = _Side.read(new, "new"), _Side.read(baseline, "baseline")
-    tol = (study_tolerances(n_side.attrs) if tolerances is None
-           else TypeAdapter(dict[str, Tolerance]).validate_python(tolerances))  # fmt: skip
+    tol = (
+        study_tolerances(n_side.attrs)
+        if tolerances is None
+        else TypeAdapter(dict[str, Tolerance]).validate_python(tolerances)
+    )
     notes = []
     axes = list(dict.fromkeys([*n_side.axes, *b_side.axes]))
     if bool(n_side.axes) != bool(b_side.axes):  # a single model run against a study: nothing can match
         single, study = ("new", "baseline") if not n_side.axes else ("baseline", "new")
         axes_of = b_side.axes if not n_side.axes else n_side.axes
-        notes.append(f"the {single} result is a single model run (crashstudy simulate: no study axes) and the "
-                     f"{study} result is a study over {axes_of}: variants are matched by their axis values, "
-                     "which a single run does not have, so no variant can be matched; compare a simulate "
-                     "result with a simulate result, or a study with a run of the same study")  # fmt: skip
+        notes.append(
+            f"the {single} result is a single model run (crashstudy simulate: no study axes) and the "
+            f"{study} result is a study over {axes_of}: variants are matched by their axis values, "
+            "which a single run does not have, so no variant can be matched; compare a simulate "
+            "result with a simulate result, or a study with a run of the same study"
+        )
     elif set(n_side.axes) != set(b_side.axes):
-        notes.append(f"the study axes differ (new: {n_side.axes or 'none'}, baseline: {b_side.axes or 'none'}): "
-                     "variants match only on equal values of every axis")  # fmt: skip
+        notes.append(
+            f"the study axes differ (new: {n_side.axes or 'none'}, baseline: {b_side.axes or 'none'}): "
+            "variants match only on equal values of every axis"
+        )
     vn, vb = n_side.attrs.get("crashstudy_version"), b_side.attrs.get("crashstudy_version")
     if vn != vb:
         notes.append(f"crashstudy versions differ: new {vn}, baseline {vb}")
@@ -333,19 +385,35 @@ def compare(new: ResultsLike, baseline: ResultsLike, rtol: float | None = None, 
     tol_of = {c: _tolerance_for(c, tol, rtol, atol) for c in n_cols if c in b_cols}  # compared columns
     fields = streamed_if_large(n_side, b_side, axes, tol_of) or _whole(n_side, b_side, axes, tol_of)
     return Comparison(
-        new_dir=n_side.dir, baseline_dir=b_side.dir, axes=axes, missing_columns=[c for c in b_cols if c not in n_cols],
-        extra_columns=[c for c in n_cols if c not in b_cols], notes=notes, rtol=rtol, atol=atol,
+        new_dir=n_side.dir,
+        baseline_dir=b_side.dir,
+        axes=axes,
+        missing_columns=[c for c in b_cols if c not in n_cols],
+        extra_columns=[c for c in n_cols if c not in b_cols],
+        notes=notes,
+        rtol=rtol,
+        atol=atol,
         damaged=[s.damage for s in (n_side, b_side) if s.damage],
-        study_name=n_side.study_name, factors=factors(n_side.attrs, axes), **fields,
+        study_name=n_side.study_name,
+        factors=factors(n_side.attrs, axes),
+        **fields,
     )
 
 
-def _whole(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]) -> dict[str, Any]:
+def _whole(
+    new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]
+) -> dict[str, Any]:
     """The fields of a comparison of the two summaries read whole, matched by their axis values (an outer
     merge: any order, any subsets)."""
     stats = {c: ColumnStats(*t) for c, t in tolerances.items()}
     got = merged(new.summary, base.summary, axes, tolerances, stats)
     status = got["status"]
-    return {**got, "stats": stats, "n_matched": len(got["matched"]), "n_status": len(status),
-            "n_missing": len(got["missing"]), "n_extra": len(got["extra"]),
-            "n_status_failures": int((~status["passed"]).sum()) if len(status) else 0}
+    return {
+        **got,
+        "stats": stats,
+        "n_matched": len(got["matched"]),
+        "n_status": len(status),
+        "n_missing": len(got["missing"]),
+        "n_extra": len(got["extra"]),
+        "n_status_failures": int((~status["passed"]).sum()) if len(status) else 0,
+    }

@@ -1,5 +1,6 @@
 """The two sides of a regression comparison: opening result folders, their damage, the study's
 tolerances and the keys that match variants (used by :mod:`crashstudy.analysis.compare`)."""
+
 from __future__ import annotations
 
 import difflib
@@ -34,7 +35,9 @@ JUNIT_SUITE = "crashstudy compare"
 JUNIT_LIST = 10  #: variants listed in a JUnit failure
 
 ResultsLike = Results | str | os.PathLike[str]
-WHOLE_ROWS = 200_000  #: summary rows up to which compare reads both tables whole (and keeps per-variant arrays)
+WHOLE_ROWS = (
+    200_000  #: summary rows up to which compare reads both tables whole (and keeps per-variant arrays)
+)
 
 
 @dataclass
@@ -94,9 +97,12 @@ class _Side:
         """Why the summary does not list each variant of results.nc once ("" if it does)."""
         source = self.res.summary_source
         if self.whole is not None:
-            return _damage([self.whole["variant"]] if "variant" in self.whole else [], self.n_variants, self.role,
-                           source)
-        if self.rows == self.n_variants:  # numbered 0, 1, ... in order (as a run writes it): checked per block
+            return _damage(
+                [self.whole["variant"]] if "variant" in self.whole else [], self.n_variants, self.role, source
+            )
+        if (
+            self.rows == self.n_variants
+        ):  # numbered 0, 1, ... in order (as a run writes it): checked per block
             blocks, lo = self.res.summary_batches(["variant"]), 0
             try:
                 for b in blocks:
@@ -131,15 +137,22 @@ def _damage(variants: Iterable[pd.Series], n_variants: int, role: str, source: s
         numbers = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=np.float64)
         rows += len(numbers)
         with np.errstate(invalid="ignore"):
-            ours = np.isfinite(numbers) & (numbers >= 0) & (numbers < n_variants) & (numbers == np.floor(numbers))
+            ours = (
+                np.isfinite(numbers)
+                & (numbers >= 0)
+                & (numbers < n_variants)
+                & (numbers == np.floor(numbers))
+            )
         seen[numbers[ours].astype(np.int64)] = True
     missing = np.flatnonzero(~seen)
     if not len(missing) and rows == n_variants:
         return ""
     shown = ", ".join(str(int(v)) for v in missing[:10]) + (", ..." if len(missing) > 10 else "")
     what = f"; missing: variants {shown}" if len(missing) else f"; {rows} rows (rows repeated or foreign)"
-    return (f"the {role} {source} lists {int(seen.sum())} of the "
-            f"{n_variants} variants in its results.nc{what}: the result folder is damaged")
+    return (
+        f"the {role} {source} lists {int(seen.sum())} of the "
+        f"{n_variants} variants in its results.nc{what}: the result folder is damaged"
+    )
 
 
 _XML_BAD = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
@@ -159,9 +172,11 @@ def load_results(directory: str | os.PathLike[str], role: str = "result") -> Res
     final = integrity.final_name(d)
     if not (d / final).is_file() and not (final == ZARR_FINAL and (d / final).is_dir()):
         partial = next((p for p in (PARTIAL, ZARR_PARTIAL) if (d / p).exists()), None)
-        why = (f"the run did not finish (only {partial}); finish it with `crashstudy run STUDY -o {d} --resume`"
-               if partial else
-               f"no {FINAL} here: not a result folder (write one with `crashstudy run STUDY -o {d}`)")  # fmt: skip
+        why = (
+            f"the run did not finish (only {partial}); finish it with `crashstudy run STUDY -o {d} --resume`"
+            if partial
+            else f"no {FINAL} here: not a result folder (write one with `crashstudy run STUDY -o {d}`)"
+        )
         raise InputError([Problem(str(d), None, "", f"{role}: {why}")])
     return Results(d)
 
@@ -196,8 +211,9 @@ def _round_key(x: pd.Series) -> np.ndarray:
 def _keys(df: pd.DataFrame, axes: list[str]) -> pd.DataFrame:
     """Match key of every row: rounded axis values (NaN for an axis this side lacks), the
     occurrence number among equal values, and the row number."""
-    keys = pd.DataFrame({f"_k{i}": _round_key(df[ax]) if ax in df else np.nan for i, ax in enumerate(axes)},
-                        index=df.index)  # fmt: skip
+    keys = pd.DataFrame(
+        {f"_k{i}": _round_key(df[ax]) if ax in df else np.nan for i, ax in enumerate(axes)}, index=df.index
+    )
     keys["_dup"] = keys.groupby(list(keys.columns), dropna=False).cumcount() if axes else np.arange(len(df))
     keys["_row"] = np.arange(len(df))
     return keys.reset_index(drop=True)
@@ -211,8 +227,11 @@ def _axis_frame(df: pd.DataFrame, rows: np.ndarray, axes: list[str]) -> pd.DataF
 
 def _metric_columns(df: pd.DataFrame, axes: list[str], named: set[str]) -> list[str]:
     skip = set(axes) | set(TEXT_COLUMNS) | (set(NOT_COMPARED) - named)
-    return [c for c in df.columns if c not in skip and pd.api.types.is_numeric_dtype(df[c])
-            and not pd.api.types.is_bool_dtype(df[c])]  # fmt: skip
+    return [
+        c
+        for c in df.columns
+        if c not in skip and pd.api.types.is_numeric_dtype(df[c]) and not pd.api.types.is_bool_dtype(df[c])
+    ]
 
 
 def _tolerance_for(
@@ -233,8 +252,14 @@ def _check_keys(tolerances: dict[str, Tolerance], columns: set[str], attrs: dict
     for k in bad:
         close = difflib.get_close_matches(k, sorted(names), n=3, cutoff=0.5)
         hint = f"; did you mean {', '.join(close)}?" if close else f"; metrics: {', '.join(sorted(names))}"
-        problems.append(Problem(file, doc.line_of(("regression", k)), f"regression.{k}",
-                                f"no summary metric or column {k!r} in the results{hint}"))  # fmt: skip
+        problems.append(
+            Problem(
+                file,
+                doc.line_of(("regression", k)),
+                f"regression.{k}",
+                f"no summary metric or column {k!r} in the results{hint}",
+            )
+        )
     raise InputError(problems)
 
 
@@ -245,6 +270,14 @@ def check_tolerance(name: str, value: Any, option: str | None = None) -> float:
     except (TypeError, ValueError):
         number = math.nan
     if not (math.isfinite(number) and number >= 0):
-        raise InputError([Problem("crashstudy compare", None, option or name,
-                                  f"expected a finite number >= 0 for the {name}, got {value!r}")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    "crashstudy compare",
+                    None,
+                    option or name,
+                    f"expected a finite number >= 0 for the {name}, got {value!r}",
+                )
+            ]
+        )
     return number

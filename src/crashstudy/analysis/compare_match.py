@@ -24,8 +24,14 @@ if TYPE_CHECKING:
 PART_ROWS = 1 << 18  #: rows of a side in one part (on average): its merge holds ~700 B a row at once
 
 
-def merged(N: pd.DataFrame, B: pd.DataFrame, axes: list[str], tolerances: dict[str, tuple[float, float]],
-           stats: dict[str, ColumnStats], keep: bool = True) -> dict[str, Any]:
+def merged(
+    N: pd.DataFrame,
+    B: pd.DataFrame,
+    axes: list[str],
+    tolerances: dict[str, tuple[float, float]],
+    stats: dict[str, ColumnStats],
+    keep: bool = True,
+) -> dict[str, Any]:
     """Match the rows of ``N`` (new) and ``B`` (baseline) by their axis values, add the matched values to
     ``stats``: matched, missing, extra, status (in the new rows' order, the missing in the baseline's) and
     the per-variant columns (only if ``keep``: ~2.4 kB a row). A ``_row`` column, where present, numbers the
@@ -44,7 +50,9 @@ def merged(N: pd.DataFrame, B: pd.DataFrame, axes: list[str], tolerances: dict[s
             matched[ax] = B[ax].to_numpy()[rb]
     matched["variant"] = N["variant"].to_numpy()[rn].astype(int)
     matched["baseline_variant"] = B["variant"].to_numpy()[rb].astype(int)
-    missing = _axis_frame(B, only_b, axes).assign(baseline_variant=B["variant"].to_numpy()[only_b].astype(int))
+    missing = _axis_frame(B, only_b, axes).assign(
+        baseline_variant=B["variant"].to_numpy()[only_b].astype(int)
+    )
     extra = _axis_frame(N, only_n, axes).assign(variant=N["variant"].to_numpy()[only_n].astype(int))
     reason = N["failure_reason"].fillna("").astype(str).to_numpy()[rn]
     old_st, new_st = B["status"].astype(str).to_numpy()[rb], N["status"].astype(str).to_numpy()[rn]
@@ -64,7 +72,9 @@ def merged(N: pd.DataFrame, B: pd.DataFrame, axes: list[str], tolerances: dict[s
     return {"matched": matched, "missing": missing, "extra": extra, "status": status, "columns": columns}
 
 
-def partitioned(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]) -> dict[str, Any]:
+def partitioned(
+    new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]
+) -> dict[str, Any]:
     """The fields of a comparison of two summaries too large to merge in memory: split by a hash of their
     keys into parts of about :data:`PART_ROWS` rows (Parquet files in a temporary folder, ``TMPDIR``), each
     part merged by :func:`merged`. Kept: the aggregates per column, the counts, and the first
@@ -88,13 +98,21 @@ def partitioned(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, 
                 both = pd.concat([kept[key], got[key]], ignore_index=True) if key in kept else got[key]
                 kept[key] = both.sort_values("_row", kind="stable").head(STATUS_KEPT)
     lists = {key: df.drop(columns="_row").reset_index(drop=True) for key, df in kept.items()}
-    return {**empty_lists(axes), **lists, "stats": stats, "n_matched": counts["matched"],
-            "n_status": counts["status"], "n_status_failures": counts["failures"], "n_missing": counts["missing"],
-            "n_extra": counts["extra"]}
+    return {
+        **empty_lists(axes),
+        **lists,
+        "stats": stats,
+        "n_matched": counts["matched"],
+        "n_status": counts["status"],
+        "n_status_failures": counts["failures"],
+        "n_missing": counts["missing"],
+        "n_extra": counts["extra"],
+    }
 
 
-def _split(side: _Side, cols: list[str], texts: list[str], axes: list[str], n_parts: int,
-           folder: Path) -> dict[str, dict[str, int]]:
+def _split(
+    side: _Side, cols: list[str], texts: list[str], axes: list[str], n_parts: int, folder: Path
+) -> dict[str, dict[str, int]]:
     """Write the rows of ``side`` into the part files ``{role}-{part}.bin`` of ``folder``, each in the table's
     row order: one float64 per column (a text as its code in the returned tables), then the row number."""
     tables: dict[str, dict[str, int]] = {t: {} for t in texts}
@@ -102,8 +120,9 @@ def _split(side: _Side, cols: list[str], texts: list[str], axes: list[str], n_pa
         rows = np.empty((len(block), len(cols) + 1))
         for j, c in enumerate(cols):
             if c in tables:
-                values, inverse = np.unique(block[c].astype(object).fillna("").astype(str).to_numpy(),
-                                            return_inverse=True)
+                values, inverse = np.unique(
+                    block[c].astype(object).fillna("").astype(str).to_numpy(), return_inverse=True
+                )
                 rows[:, j] = np.array([tables[c].setdefault(v, len(tables[c])) for v in values])[inverse]
             else:
                 rows[:, j] = pd.to_numeric(block[c], errors="coerce").to_numpy(dtype=np.float64)
@@ -129,8 +148,12 @@ def _read(path: Path, cols: list[str], tables: dict[str, dict[str, int]]) -> pd.
 
 def _part_of(block: pd.DataFrame, axes: list[str], n_parts: int) -> np.ndarray:
     """The part of each row: a hash of its rounded axis values (-0.0 as 0.0, one NaN), the same for equal keys."""
-    keys = pd.DataFrame({f"_k{i}": _round_key(block[ax]) if ax in block else np.full(len(block), np.nan)
-                         for i, ax in enumerate(axes)})
+    keys = pd.DataFrame(
+        {
+            f"_k{i}": _round_key(block[ax]) if ax in block else np.full(len(block), np.nan)
+            for i, ax in enumerate(axes)
+        }
+    )
     keys = keys.apply(lambda k: np.where(np.isnan(k), np.nan, k + 0.0)) if axes else keys
     if not axes:
         return np.zeros(len(block), dtype=np.int64)

@@ -22,7 +22,9 @@ if TYPE_CHECKING:
     from collections.abc import Iterable
 
 
-def aligned(a: Iterable[pd.DataFrame], b: Iterable[pd.DataFrame]) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
+def aligned(
+    a: Iterable[pd.DataFrame], b: Iterable[pd.DataFrame]
+) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
     """Pairs of blocks of the same rows of two tables read block by block (their blocks may differ)."""
     ia, ib = iter(a), iter(b)
     ra: pd.DataFrame | None = None
@@ -42,7 +44,7 @@ def aligned(a: Iterable[pd.DataFrame], b: Iterable[pd.DataFrame]) -> Iterator[tu
 
 
 def same_order(new: _Side, base: _Side, axes: list[str]) -> str:
-    """"" when both summaries list the same (rounded) axis values in the same order, so that matching by
+    """ "" when both summaries list the same (rounded) axis values in the same order, so that matching by
     axis values pairs row i with row i; else what differs. Read block by block (the axis columns only)."""
     if new.rows != base.rows:
         return f"the new summary has {new.rows} rows, the baseline's {base.rows}"
@@ -57,13 +59,17 @@ def same_order(new: _Side, base: _Side, axes: list[str]) -> str:
             differ = ~((kn == kb) | (np.isnan(kn) & np.isnan(kb)))
             if differ.any():
                 k = int(np.argmax(differ))
-                return (f"row {lo + k}: {ax} is {float(bn[ax].iloc[k]):.12g} in the new summary, "
-                        f"{float(bb[ax].iloc[k]):.12g} in the baseline's")
+                return (
+                    f"row {lo + k}: {ax} is {float(bn[ax].iloc[k]):.12g} in the new summary, "
+                    f"{float(bb[ax].iloc[k]):.12g} in the baseline's"
+                )
         lo += len(bn)
     return ""
 
 
-def streamed(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]) -> dict[str, Any]:
+def streamed(
+    new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]
+) -> dict[str, Any]:
     """The fields of a :class:`~crashstudy.analysis.compare.Comparison` of two summaries in the same order
     (:func:`same_order`), read side by side block by block; ``tolerances``: column -> (rtol, atol)."""
     stats = {c: ColumnStats(*t) for c, t in tolerances.items()}
@@ -77,7 +83,9 @@ def streamed(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tup
         rows["variant"] = bn["variant"].to_numpy().astype(int)
         rows["baseline_variant"] = bb["variant"].to_numpy().astype(int)
         reason = bn["failure_reason"].astype(object).fillna("").astype(str).to_numpy()
-        st = status_rows(rows, bb["status"].astype(str).to_numpy(), bn["status"].astype(str).to_numpy(), reason)
+        st = status_rows(
+            rows, bb["status"].astype(str).to_numpy(), bn["status"].astype(str).to_numpy(), reason
+        )
         n_status += len(st)
         n_failures += int((~st["passed"]).sum())
         if len(st) and kept < STATUS_KEPT:
@@ -88,12 +96,19 @@ def streamed(new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tup
             nw = pd.to_numeric(bn[c], errors="coerce").to_numpy(dtype=np.float64)
             stats[c].add(_Column(old, nw, *tolerances[c]), rows, lo)
         lo += len(bn)
-    return {**empty_lists(axes), **({"status": pd.concat(status, ignore_index=True)} if status else {}),
-            "stats": stats, "n_matched": lo, "n_status": n_status, "n_status_failures": n_failures}
+    return {
+        **empty_lists(axes),
+        **({"status": pd.concat(status, ignore_index=True)} if status else {}),
+        "stats": stats,
+        "n_matched": lo,
+        "n_status": n_status,
+        "n_status_failures": n_failures,
+    }
 
 
-def streamed_if_large(new: _Side, base: _Side, axes: list[str],
-                       tolerances: dict[str, tuple[float, float]]) -> dict[str, Any] | None:
+def streamed_if_large(
+    new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]
+) -> dict[str, Any] | None:
     """The fields of a comparison read block by block when a summary has more than WHOLE_ROWS rows: side by
     side when both list their variants in the same order, else (beyond the rows Results.summary reads
     whole) split into parts by a hash of their keys (:func:`~crashstudy.analysis.compare_match.partitioned`);

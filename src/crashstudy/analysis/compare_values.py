@@ -14,7 +14,15 @@ import pandas as pd
 
 KEPT = 100  #: rows of each column kept for the report (the largest scores): ``top(n)`` for n up to this
 STATUS_KEPT = 10_000  #: status changes listed (the first ones); all are counted
-SHOWN = ("metric", "old", "new", "rel_diff", "tolerance", "score", "passed")  #: columns of ``top`` after the row's
+SHOWN = (
+    "metric",
+    "old",
+    "new",
+    "rel_diff",
+    "tolerance",
+    "score",
+    "passed",
+)  #: columns of ``top`` after the row's
 
 
 @dataclass
@@ -73,8 +81,9 @@ class ColumnStats:
         self.top_failed = _keep(self.top_failed, c, rows, start, failed)
 
 
-def _keep(kept: pd.DataFrame | None, c: _Column, rows: pd.DataFrame, start: int | np.ndarray,
-          mask: np.ndarray) -> pd.DataFrame | None:
+def _keep(
+    kept: pd.DataFrame | None, c: _Column, rows: pd.DataFrame, start: int | np.ndarray, mask: np.ndarray
+) -> pd.DataFrame | None:
     """``kept`` and the rows of ``mask`` together: the KEPT largest scores (ties: the earlier row first)."""
     idx = np.flatnonzero(mask)
     if len(idx) > KEPT:
@@ -90,8 +99,9 @@ def _keep(kept: pd.DataFrame | None, c: _Column, rows: pd.DataFrame, start: int 
     return both.head(KEPT).reset_index(drop=True)
 
 
-def top_rows(stats: dict[str, ColumnStats], row_columns: list[str], n: int, column: str | None,
-             only_failed: bool) -> pd.DataFrame:
+def top_rows(
+    stats: dict[str, ColumnStats], row_columns: list[str], n: int, column: str | None, only_failed: bool
+) -> pd.DataFrame:
     """The ``n`` values that moved most relative to their tolerance over the columns of ``stats`` (or only
     ``column``): the row's columns, then :data:`SHOWN`; largest score first, ties in column order."""
     if n > KEPT:
@@ -123,6 +133,11 @@ def empty_lists(axes: list[str]) -> dict[str, Any]:
     empty = pd.DataFrame({ax: pd.Series(dtype=float) for ax in axes})
     matched = empty.assign(variant=pd.Series(dtype=int), baseline_variant=pd.Series(dtype=int))
     none = np.array([], dtype=str)
-    return {"matched": matched, "missing": empty.assign(baseline_variant=pd.Series(dtype=int)),
-            "extra": empty.assign(variant=pd.Series(dtype=int)), "status": status_rows(matched, none, none, none),
-            "columns": {}, "streamed": True}
+    return {
+        "matched": matched,
+        "missing": empty.assign(baseline_variant=pd.Series(dtype=int)),
+        "extra": empty.assign(variant=pd.Series(dtype=int)),
+        "status": status_rows(matched, none, none, none),
+        "columns": {},
+        "streamed": True,
+    }

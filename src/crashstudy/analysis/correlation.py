@@ -83,7 +83,9 @@ class _Counts:
             return
         v, c = np.unique(x, return_counts=True)
         merged, inv = np.unique(np.concatenate([self.values, v]), return_inverse=True)
-        self.counts = np.bincount(inv, weights=np.concatenate([self.counts, c]), minlength=len(merged)).astype(np.int64)
+        self.counts = np.bincount(
+            inv, weights=np.concatenate([self.counts, c]), minlength=len(merged)
+        ).astype(np.int64)
         self.values = merged
         if len(merged) > DISTINCT_MAX:
             self.too_many, self.values, self.counts = True, np.empty(0), np.empty(0, dtype=np.int64)
@@ -124,8 +126,14 @@ def correlation_table(blocks: Blocks, factors: dict[str, str], metric: str) -> p
     by_counts = [k for k, c in enumerate(counts) if not c.too_many]
     spearman = [math.nan] * len(names)
     if n > 2 and varies_y and by_counts:
-        sums = _rank_sums(blocks, metric, [columns[k] for k in by_counts], [counts[k] for k in by_counts], n,
-                          np.concatenate(sample))
+        sums = _rank_sums(
+            blocks,
+            metric,
+            [columns[k] for k in by_counts],
+            [counts[k] for k in by_counts],
+            n,
+            np.concatenate(sample),
+        )
         for k, r in zip(by_counts, sums, strict=True):
             spearman[k] = r
     for k, c in enumerate(counts):
@@ -139,8 +147,17 @@ def correlation_table(blocks: Blocks, factors: dict[str, str], metric: str) -> p
             r = float(r) if varies else math.nan
             half = Z95 / np.sqrt(n - 3) if n > 3 else math.nan
             lo, hi = np.tanh(np.arctanh(np.clip(r, -0.999999, 0.999999)) + np.array([-half, half]))
-            rows.append({"metric": metric, "group": "", "axis": name, "index": index, "value": r,
-                         "confidence": float((hi - lo) / 2), "note": note})
+            rows.append(
+                {
+                    "metric": metric,
+                    "group": "",
+                    "axis": name,
+                    "index": index,
+                    "value": r,
+                    "confidence": float((hi - lo) / 2),
+                    "note": note,
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -150,8 +167,9 @@ def _ran(block: pd.DataFrame, metric: str) -> tuple[np.ndarray, np.ndarray]:
     return (block["status"].astype(str) == "ok").to_numpy() & np.isfinite(y), y
 
 
-def _rank_sums(blocks: Blocks, metric: str, columns: list[str], counts: list[_Counts], n: int,
-               sample: np.ndarray) -> list[float]:
+def _rank_sums(
+    blocks: Blocks, metric: str, columns: list[str], counts: list[_Counts], n: int, sample: np.ndarray
+) -> list[float]:
     """Spearman's r of the metric with each of ``columns`` (ranked from ``counts``): the metric split by
     value into buckets on disk (pass 2), each bucket ranked in memory (pass 3)."""
     n_buckets = max(1, math.ceil(n / BUCKET_ROWS))
@@ -164,15 +182,19 @@ def _rank_sums(blocks: Blocks, metric: str, columns: list[str], counts: list[_Co
             for block in blocks():
                 ok, y = _ran(block, metric)
                 y = y[ok]
-                codes = [np.searchsorted(c.values, block[col].to_numpy(dtype=float)[ok]).astype(np.int32)
-                         for col, c in zip(columns, counts, strict=True)]
+                codes = [
+                    np.searchsorted(c.values, block[col].to_numpy(dtype=float)[ok]).astype(np.int32)
+                    for col, c in zip(columns, counts, strict=True)
+                ]
                 bucket = np.searchsorted(cuts, y, side="right")  # equal values: one bucket
                 order = np.argsort(bucket, kind="stable")
                 edges = np.searchsorted(bucket[order], np.arange(len(files) + 1))
                 for b, fh in enumerate(handles):
                     part = order[edges[b] : edges[b + 1]]
                     if len(part):
-                        fh.write(np.column_stack([y[part].view(np.int64), *(c[part] for c in codes)]).tobytes())
+                        fh.write(
+                            np.column_stack([y[part].view(np.int64), *(c[part] for c in codes)]).tobytes()
+                        )
         finally:
             for fh in handles:
                 fh.close()

@@ -102,11 +102,15 @@ def best_shift(test: np.ndarray, models: np.ndarray) -> np.ndarray:
         cy = np.concatenate([np.zeros((len(y), 1)), np.cumsum(y, axis=1)], axis=1)
         cy2 = np.concatenate([np.zeros((len(y), 1)), np.cumsum(y * y, axis=1)], axis=1)
         xc = np.fft.irfft(fx * np.fft.rfft(y, size, axis=1), size, axis=1)  # xc[k] = sum_i x[i] y[i + k]
-        left = _pearson(xc[:, m], cx[n - m], cx2[n - m], cy[:, n, None] - cy[:, m], cy2[:, n, None] - cy2[:, m],
-                        length)  # fmt: skip  # x[:n-m] with y[m:]
-        right = _pearson(xc[:, (size - m) % size], cx[n] - cx[m], cx2[n] - cx2[m], cy[:, n - m], cy2[:, n - m],
-                         length)  # fmt: skip  # x[m:] with y[:n-m]
-        order = np.empty((len(y), 2 * window - 1))  # candidates in the standard's order: 0, L1, R1, L2, R2, ...
+        left = _pearson(
+            xc[:, m], cx[n - m], cx2[n - m], cy[:, n, None] - cy[:, m], cy2[:, n, None] - cy2[:, m], length
+        )  # x[:n-m] with y[m:]
+        right = _pearson(
+            xc[:, (size - m) % size], cx[n] - cx[m], cx2[n] - cx2[m], cy[:, n - m], cy2[:, n - m], length
+        )  # x[m:] with y[:n-m]
+        order = np.empty(
+            (len(y), 2 * window - 1)
+        )  # candidates in the standard's order: 0, L1, R1, L2, R2, ...
         order[:, 0] = left[:, 0]
         order[:, 1::2], order[:, 2::2] = left[:, 1:], right[:, 1:]
         first_nan = np.isnan(order[:, 0])  # no correlation at 0: nothing beats it (the reference keeps m = 0)
@@ -116,8 +120,9 @@ def best_shift(test: np.ndarray, models: np.ndarray) -> np.ndarray:
     return out
 
 
-def _pearson(sxy: np.ndarray, sx: np.ndarray, sxx: np.ndarray, sy: np.ndarray, syy: np.ndarray,
-             n: np.ndarray) -> np.ndarray:  # fmt: skip
+def _pearson(
+    sxy: np.ndarray, sx: np.ndarray, sxx: np.ndarray, sy: np.ndarray, syy: np.ndarray, n: np.ndarray
+) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         cov = sxy - sx * sy / n
         vx, vy = sxx - sx * sx / n, syy - sy * sy / n
@@ -140,8 +145,10 @@ def rate(test: np.ndarray, models: np.ndarray) -> dict[str, np.ndarray]:
     if models.shape[-1] != n or n < MIN_SAMPLES:
         raise ValueError(f"expected curves of one length >= {MIN_SAMPLES}; got {n} and {models.shape[-1]}")
     if not np.all(np.isfinite(test)) or not np.any(test != test[0]):
-        raise ValueError("the test curve is constant (or not finite) on the rated interval: its corridor, "
-                         "correlation and slopes are undefined; rate another interval or channel")  # fmt: skip
+        raise ValueError(
+            "the test curve is constant (or not finite) on the rated interval: its corridor, "
+            "correlation and slopes are undefined; rate another interval or channel"
+        )
     z = np.concatenate([corridor(test, models[lo : lo + BLOCK]) for lo in range(0, len(models), BLOCK)])
     shift = best_shift(test, models)
     err_m, err_s = _shifted_errors(test, models, shift, DTW_BAND, DT)
@@ -255,7 +262,9 @@ def _slope_error(c, t, dt):  # pragma: no cover - compiled
     return num / den if den > 0 else np.nan
 
 
-def rated_interval(t_model: np.ndarray, t_test: np.ndarray, window: tuple[float, float] | None) -> tuple[float, float]:
+def rated_interval(
+    t_model: np.ndarray, t_test: np.ndarray, window: tuple[float, float] | None
+) -> tuple[float, float]:
     """The interval both curves cover (cut to ``window`` when given), in model time."""
     t0, t1 = max(float(t_model[0]), float(t_test[0])), min(float(t_model[-1]), float(t_test[-1]))
     if window is not None:
@@ -263,8 +272,14 @@ def rated_interval(t_model: np.ndarray, t_test: np.ndarray, window: tuple[float,
     return t0, t1
 
 
-def rate_histories(t_model: np.ndarray, models: np.ndarray, t_test: np.ndarray, test: np.ndarray, second: float,
-                   window: tuple[float, float] | None = None) -> dict[str, np.ndarray]:  # fmt: skip
+def rate_histories(
+    t_model: np.ndarray,
+    models: np.ndarray,
+    t_test: np.ndarray,
+    test: np.ndarray,
+    second: float,
+    window: tuple[float, float] | None = None,
+) -> dict[str, np.ndarray]:
     """:func:`rate` of the histories ``models`` (V, len(t_model)) against the test curve (``t_test``,
     ``test``), both resampled to :data:`RATE_HZ` on their common interval (cut to ``window``); times in
     model units, ``second`` of them in one second. Rows that are not finite score NaN. Adds ``t0``,
@@ -272,9 +287,11 @@ def rate_histories(t_model: np.ndarray, models: np.ndarray, t_test: np.ndarray, 
     t0, t1 = rated_interval(t_model, t_test, window)
     grid = rating_grid(t0 / second, t1 / second) * second if t1 > t0 else np.empty(0)
     if len(grid) < MIN_SAMPLES:
-        raise ValueError(f"the test ({t_test[0]:g} .. {t_test[-1]:g}) and the model ({t_model[0]:g} .. "
-                         f"{t_model[-1]:g}) overlap{f' within the window {window[0]:g} .. {window[1]:g}' if window else ''}"
-                         f" on {max(len(grid), 0)} samples at 10 kHz; at least {MIN_SAMPLES} are needed")  # fmt: skip
+        raise ValueError(
+            f"the test ({t_test[0]:g} .. {t_test[-1]:g}) and the model ({t_model[0]:g} .. "
+            f"{t_model[-1]:g}) overlap{f' within the window {window[0]:g} .. {window[1]:g}' if window else ''}"
+            f" on {max(len(grid), 0)} samples at 10 kHz; at least {MIN_SAMPLES} are needed"
+        )
     y_test = resample(t_test, test, grid)
     y = resample(t_model, models, grid)
     ok = np.all(np.isfinite(y), axis=1)

@@ -59,8 +59,12 @@ class Evaluator:
             if self.interval is not None:
                 out["interval"] = self.interval
             setting["output"] = out
-        corners = {"name": self.study["name"], "model": self.study["model"], "set": setting,
-                   "zip": [{p: [float(v) for v in b] for p, b in self.variables.items()}]}  # fmt: skip
+        corners = {
+            "name": self.study["name"],
+            "model": self.study["model"],
+            "set": setting,
+            "zip": [{p: [float(v) for v in b] for p, b in self.variables.items()}],
+        }
         self.plan = load_study(corners)
 
     def run(self, x: np.ndarray) -> tuple[pd.DataFrame, Any]:
@@ -69,8 +73,10 @@ class Evaluator:
         from crashstudy.run.runner import run_chunk
         from crashstudy.study.plan import Axis
 
-        axes = tuple(Axis(a.path, np.ascontiguousarray(x[:, k], dtype=np.float64), 0, a.ref)
-                     for k, a in enumerate(self.plan.axes))  # fmt: skip
+        axes = tuple(
+            Axis(a.path, np.ascontiguousarray(x[:, k], dtype=np.float64), 0, a.ref)
+            for k, a in enumerate(self.plan.axes)
+        )
         plan = dataclasses.replace(self.plan, axes=axes, shape=(len(x),))
         res = run_chunk(plan, 0, len(x), repeat=max(self.expected_batches - self.batches, 1.0))
         self.evaluations += len(x)
@@ -83,7 +89,9 @@ def evaluate_columns(ev: Evaluator, x: np.ndarray, columns: list[str]) -> pd.Dat
     df, _ = ev.run(x)
     missing = [c for c in columns if c not in df.columns]
     if missing:
-        raise ValueError(f"no summary column {missing[0]!r}; columns: {[c for c in df.columns if '.' in c][:12]} ...")
+        raise ValueError(
+            f"no summary column {missing[0]!r}; columns: {[c for c in df.columns if '.' in c][:12]} ..."
+        )
     return df[["status", *columns]].reset_index(drop=True)
 
 
@@ -97,7 +105,9 @@ def parse_constraints(texts: list[str]) -> list[tuple[str, str, float]]:
     return out
 
 
-def scores(df: pd.DataFrame, objective: str, constraints: list[tuple[str, str, float]]) -> tuple[np.ndarray, np.ndarray]:
+def scores(
+    df: pd.DataFrame, objective: str, constraints: list[tuple[str, str, float]]
+) -> tuple[np.ndarray, np.ndarray]:
     """(score to minimise, feasible) per candidate; see the module docstring."""
     obj = df[objective].to_numpy(dtype=float)
     violation = np.zeros(len(df))
@@ -139,27 +149,44 @@ def optimize(study: dict[str, Any], progress: Any = None) -> tuple[dict[str, Any
         rec.insert(0, "generation", ev.batches - 1)
         history.append(pd.concat([rec, df, pd.DataFrame({"feasible": feasible, "score": score})], axis=1))
         best = int(np.argmin(score))
-        print(f"  generation {ev.batches - 1}: {len(score)} candidates, best of them {spec['minimize']} "
-              f"{df[spec['minimize']].iloc[best]:.6g} ({'feasible' if feasible[best] else 'infeasible'}), "
-              f"{ev.evaluations} evaluations, {time.perf_counter() - t0:.1f} s", file=progress, flush=True)  # fmt: skip
+        print(
+            f"  generation {ev.batches - 1}: {len(score)} candidates, best of them {spec['minimize']} "
+            f"{df[spec['minimize']].iloc[best]:.6g} ({'feasible' if feasible[best] else 'infeasible'}), "
+            f"{ev.evaluations} evaluations, {time.perf_counter() - t0:.1f} s",
+            file=progress,
+            flush=True,
+        )
         interrupt.check()  # a stop request: after the whole generation
         return score
 
-    result = differential_evolution(f, [tuple(b) for b in variables.values()], vectorized=True, updating="deferred",
-                                    popsize=popsize, maxiter=maxiter, seed=int(spec.get("seed", 0)), polish=False,
-                                    tol=1e-8, atol=0.0, init="latinhypercube")  # fmt: skip
+    result = differential_evolution(
+        f,
+        [tuple(b) for b in variables.values()],
+        vectorized=True,
+        updating="deferred",
+        popsize=popsize,
+        maxiter=maxiter,
+        seed=int(spec.get("seed", 0)),
+        polish=False,
+        tol=1e-8,
+        atol=0.0,
+        init="latinhypercube",
+    )
     seconds = time.perf_counter() - t0
     hist = pd.concat(history, ignore_index=True)
     best = {k: float(v) for k, v in zip(variables, result.x, strict=True)}
     generations, evaluations = ev.batches, ev.evaluations
     row = evaluate_columns(ev, np.array([result.x]), columns).iloc[0]
     summary = {
-        "variables": best, "objective": {spec["minimize"]: float(row[spec["minimize"]])},
+        "variables": best,
+        "objective": {spec["minimize"]: float(row[spec["minimize"]])},
         "constraints": {f"{c} {op} {lim:g}": float(row[c]) for c, op, lim in constraints},
         "feasible": bool(scores(pd.DataFrame([row]), spec["minimize"], constraints)[1][0]),
-        "evaluations": int(evaluations), "generations": int(generations), "seconds": round(seconds, 3),
+        "evaluations": int(evaluations),
+        "generations": int(generations),
+        "seconds": round(seconds, 3),
         "message": str(result.message),
-    }  # fmt: skip
+    }
     return summary, hist
 
 
@@ -181,10 +208,15 @@ def channel_history(plan: Any, res: Any, channel: dict[str, Any]) -> tuple[np.nd
     return np.asarray(plan.times, dtype=float), np.asarray(v, dtype=float).T
 
 
-
-
-def read_data(path: Path, end_time: float | None = None, *, channel: str | None = None, unit: str | None = None,
-              quantity: str | None = None, system: str = "SI") -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def read_data(
+    path: Path,
+    end_time: float | None = None,
+    *,
+    channel: str | None = None,
+    unit: str | None = None,
+    quantity: str | None = None,
+    system: str = "SI",
+) -> tuple[np.ndarray, np.ndarray]:
     """The measured channel in model units (:func:`crashstudy.exchange.testcurve.read_curve`: a CSV
     ``time,value``, or ``channel`` of an ISO-MME test, converted from its unit or ``unit``), its missing
     (NOVALUE) samples dropped, times within 0 .. ``end_time``. A message never quotes the file's content
@@ -208,7 +240,11 @@ def _model_units(study: dict[str, Any]) -> str:
     setting = study.get("set") or {}
     if "units" in setting:
         return str(setting["units"])
-    model = yaml.safe_load(Path(study["model"]).read_text(encoding="utf-8")) if isinstance(study["model"], str) else None
+    model = (
+        yaml.safe_load(Path(study["model"]).read_text(encoding="utf-8"))
+        if isinstance(study["model"], str)
+        else None
+    )
     return str(model.get("units", "SI")) if isinstance(model, dict) else "SI"
 
 
@@ -218,9 +254,11 @@ def check_span(path: Path, t: np.ndarray, end_time: float, slack: float = 0.0) -
     outside = np.flatnonzero((t < 0.0) | (t > end_time * (1.0 + 1e-9) + slack))
     if len(outside):
         raise DataFileError(
-            f"{path}, line {int(outside[0]) + 2}", f"the data run from t = {t[0]:g} to {t[-1]:g}, the model from "
+            f"{path}, line {int(outside[0]) + 2}",
+            f"the data run from t = {t[0]:g} to {t[-1]:g}, the model from "
             f"0 to end_time {end_time:g}; {len(outside)} row(s) lie outside it (the model's channel is not "
-            "defined there): remove them, or make end_time cover the data")  # fmt: skip
+            "defined there): remove them, or make end_time cover the data",
+        )
 
 
 def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = None) -> dict[str, Any]:
@@ -239,7 +277,9 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
     rel, code, data_unit = data_block(spec["data"])
     data_path = base_dir / rel
     system = _model_units(study)
-    t_data, y_data = read_data(data_path, channel=code, unit=data_unit, quantity=channel["quantity"], system=system)
+    t_data, y_data = read_data(
+        data_path, channel=code, unit=data_unit, quantity=channel["quantity"], system=system
+    )
     variables = {k: [float(a), float(b)] for k, (a, b) in spec["variables"].items()}
     lo, hi = np.array([b[0] for b in variables.values()]), np.array([b[1] for b in variables.values()])
     interval = float(np.min(np.diff(t_data))) / 2.0  # the model sampled at least twice as often as the data
@@ -249,8 +289,13 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
     from crashstudy.results.attributes import units_of
 
     unit = units_of(ev.plan)
-    kinds = {"acceleration": "acceleration", "velocity": "velocity", "displacement": "length",
-             "spring_force": "force", "spring_elongation": "length"}  # fmt: skip
+    kinds = {
+        "acceleration": "acceleration",
+        "velocity": "velocity",
+        "displacement": "length",
+        "spring_force": "force",
+        "spring_elongation": "length",
+    }
     units = {"time": unit["time"], "value": unit[kinds[channel["quantity"]]]}
     if spec.get("objective", "rms") == "iso18571":
         from crashstudy.analysis.calibration_iso import calibrate_iso18571
@@ -270,8 +315,11 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
             cache[x[k].tobytes()] = r[k]
         rms = np.sqrt(np.nanmean(r**2, axis=1))
         best[0] = min(best[0], float(np.nanmin(rms))) if np.isfinite(rms).any() else best[0]
-        print(progress_line(ev.batches, len(x), best[0], ev.evaluations, time.perf_counter() - t0), file=progress,
-              flush=True)  # fmt: skip
+        print(
+            progress_line(ev.batches, len(x), best[0], ev.evaluations, time.perf_counter() - t0),
+            file=progress,
+            flush=True,
+        )
         interrupt.check()  # a stop request: after the whole batch
         return r
 
@@ -290,16 +338,29 @@ def calibrate(study: dict[str, Any], base_dir: Path, out: Path, progress: Any = 
         return (r[1:] - r[0]).T / step
 
     x0 = (lo + hi) / 2.0
-    print(f"calibrating {len(variables)} variable(s) to {len(t_data)} data points (a line per batch of runs; the "
-          "first may compile the kernel)", file=progress, flush=True)  # fmt: skip
+    print(
+        f"calibrating {len(variables)} variable(s) to {len(t_data)} data points (a line per batch of runs; the "
+        "first may compile the kernel)",
+        file=progress,
+        flush=True,
+    )
     t0 = time.perf_counter()
-    fit = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=hi - lo, xtol=1e-10, ftol=1e-12, gtol=1e-12)
+    fit = least_squares(
+        fun, x0, jac=jac, bounds=(lo, hi), x_scale=hi - lo, xtol=1e-10, ftol=1e-12, gtol=1e-12
+    )
     seconds = time.perf_counter() - t0
     model = fit.fun + y_data
     rms = float(np.sqrt(np.mean(fit.fun**2)))
     corr = float(np.corrcoef(model, y_data)[0, 1])
-    return {"variables": {k: float(v) for k, v in zip(variables, fit.x, strict=True)}, "rms_error": rms,
-            "correlation": corr, "data_points": int(len(t_data)), "evaluations": int(ev.evaluations),
-            "batches": int(ev.batches), "seconds": round(seconds, 3), "message": str(fit.message),
-            "uncertainty": uncertainty(fit.jac, fit.fun, list(variables), fit.x, lo, hi),
-            "_fit": (t_data, y_data, model, units)}  # fmt: skip
+    return {
+        "variables": {k: float(v) for k, v in zip(variables, fit.x, strict=True)},
+        "rms_error": rms,
+        "correlation": corr,
+        "data_points": int(len(t_data)),
+        "evaluations": int(ev.evaluations),
+        "batches": int(ev.batches),
+        "seconds": round(seconds, 3),
+        "message": str(fit.message),
+        "uncertainty": uncertainty(fit.jac, fit.fun, list(variables), fit.x, lo, hi),
+        "_fit": (t_data, y_data, model, units),
+    }

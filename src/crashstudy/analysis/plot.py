@@ -48,10 +48,20 @@ from crashstudy.errors import InputError, Problem
 
 ITEMS_PER_FIGURE = 6  # subplots in one PNG written by ``crashstudy plot``
 NODE_VARS = ("position", "displacement", "velocity", "acceleration")
-ITEM_DIM = {"position": "node", "displacement": "node", "velocity": "node", "acceleration": "node",
-            "spring_force": "spring", "spring_elongation": "spring", "wall_force": "wall",
-            "kinetic_energy": None, "internal_energy": None, "external_work": None, "wall_energy": None,
-            "filtered_acceleration": "node"}  # fmt: skip
+ITEM_DIM = {
+    "position": "node",
+    "displacement": "node",
+    "velocity": "node",
+    "acceleration": "node",
+    "spring_force": "spring",
+    "spring_elongation": "spring",
+    "wall_force": "wall",
+    "kinetic_energy": None,
+    "internal_energy": None,
+    "external_work": None,
+    "wall_energy": None,
+    "filtered_acceleration": "node",
+}
 
 # ----------------------------------------------------------------------------------------------
 # helpers
@@ -118,10 +128,13 @@ def _need_histories(ds: xr.Dataset, names: Sequence[str]) -> None:
     if not missing:
         return
     kept = [n for n in ITEM_DIM if n in ds.data_vars]
-    raise _fail(_where(ds), f"these results have no {' or '.join(missing)} histories (kept: "
-                f"{', '.join(kept) if kept else 'none; the run used output.histories: none'}); re-run the study "
-                "with histories, e.g. `set: {output: {histories: all}}` in the study file and "
-                "`crashstudy run STUDY.yaml --force` (the matrix plot needs only the summary)")  # fmt: skip
+    raise _fail(
+        _where(ds),
+        f"these results have no {' or '.join(missing)} histories (kept: "
+        f"{', '.join(kept) if kept else 'none; the run used output.histories: none'}); re-run the study "
+        "with histories, e.g. `set: {output: {histories: all}}` in the study file and "
+        "`crashstudy run STUDY.yaml --force` (the matrix plot needs only the summary)",
+    )
 
 
 def _items(ds: xr.Dataset, dim: str, items: Sequence[str] | None, default: Sequence[str]) -> list[str]:
@@ -143,8 +156,11 @@ def _parse_quantity(ds: xr.Dataset, quantity: str) -> tuple[str, str | None]:
     """``"acceleration.y"`` -> ("acceleration", "y"); checks that the name is a history variable."""
     name, _, comp = quantity.partition(".")
     if name not in ITEM_DIM:
-        raise _fail(_where(ds), f"unknown history quantity {quantity!r}; valid: {', '.join(ITEM_DIM)}"
-                    f" (node quantities take a component in 2-D, e.g. acceleration.y)")  # fmt: skip
+        raise _fail(
+            _where(ds),
+            f"unknown history quantity {quantity!r}; valid: {', '.join(ITEM_DIM)}"
+            f" (node quantities take a component in 2-D, e.g. acceleration.y)",
+        )
     if comp:
         axes = [str(a) for a in ds["axis"].values] if "axis" in ds.coords else ["x"]
         if name not in NODE_VARS or comp not in axes:
@@ -179,9 +195,15 @@ def history_values(ds: xr.Dataset, quantity: str, item: str | None) -> tuple[np.
 # the history figures (the matrix figure: crashstudy.analysis.plot_matrix)
 
 
-def plot_history(ds: xr.Dataset, quantity: str = "spring_force", items: Sequence[str] | None = None,
-                 max_variants: int = 50, time_unit: str | None = None, accel_unit: str | None = None,
-                 test: Any = None) -> Figure:  # fmt: skip
+def plot_history(
+    ds: xr.Dataset,
+    quantity: str = "spring_force",
+    items: Sequence[str] | None = None,
+    max_variants: int = 50,
+    time_unit: str | None = None,
+    accel_unit: str | None = None,
+    test: Any = None,
+) -> Figure:
     """Time histories of one quantity, one subplot per node, spring or wall, one line per variant.
 
     Parameters
@@ -237,11 +259,19 @@ def plot_history(ds: xr.Dataset, quantity: str = "spring_force", items: Sequence
     for ax, item in zip(axs, panels, strict=True):
         values, ylabel, unit = history_values(drawn, quantity, item)
         factor, unit = display_scale(unit, values, system=system, accel_unit=accel_unit)
-        for v, row, colour, style, label in zip(index, values * factor, look.colours, look.styles, look.labels,
-                                                strict=True):  # fmt: skip
+        for v, row, colour, style, label in zip(
+            index, values * factor, look.colours, look.styles, look.labels, strict=True
+        ):
             ax.plot(t, row, color=colour, ls=style, lw=1.0, label=label, gid=f"variant {int(v)}")
         if test is not None:
-            ax.plot(test.time * t_factor, test.value * factor, color="k", lw=1.6, label=f"test {test.label}", gid="test")
+            ax.plot(
+                test.time * t_factor,
+                test.value * factor,
+                color="k",
+                lw=1.6,
+                label=f"test {test.label}",
+                gid="test",
+            )
         ax.set_title(f"{dim} {item}" if item is not None else name, fontsize="medium")
         ax.set_ylabel(ylabel + unit_text(unit))
         ax.grid(True, alpha=0.3)
@@ -251,8 +281,9 @@ def plot_history(ds: xr.Dataset, quantity: str = "spring_force", items: Sequence
     return fig
 
 
-def plot_force_displacement(ds: xr.Dataset, springs: Sequence[str] | None = None,
-                            max_variants: int = 50) -> Figure:  # fmt: skip
+def plot_force_displacement(
+    ds: xr.Dataset, springs: Sequence[str] | None = None, max_variants: int = 50
+) -> Figure:
     """Spring force against crush (``-spring_elongation``), one subplot per spring, one line per variant.
 
     Each line follows the spring through loading, unloading and reloading, so hysteresis loops
@@ -284,8 +315,9 @@ def plot_force_displacement(ds: xr.Dataset, springs: Sequence[str] | None = None
         f = np.asarray(force.sel(spring=spring).values)
         factor, f_unit = display_scale(str(force.attrs.get("units", "")), f)
         crush = -np.asarray(elong.sel(spring=spring).values)
-        for v, c, fv, colour, style, label in zip(index, crush, f * factor, look.colours, look.styles, look.labels,
-                                                  strict=True):  # fmt: skip
+        for v, c, fv, colour, style, label in zip(
+            index, crush, f * factor, look.colours, look.styles, look.labels, strict=True
+        ):
             ax.plot(c, fv, color=colour, ls=style, lw=1.0, label=label, gid=f"variant {int(v)}")
         ax.axhline(0.0, color="0.6", lw=0.6)
         ax.axvline(0.0, color="0.6", lw=0.6)

@@ -39,8 +39,9 @@ def metric_columns(summary: pd.DataFrame, axes: Sequence[str] | None = None) -> 
     return [c for c in summary.columns if c not in skip and pd.api.types.is_numeric_dtype(summary[c])]
 
 
-def default_metric(summary: pd.DataFrame, nodes: Sequence[str] | None = None,
-                   prefix: str = "peak_deceleration_g") -> str:  # fmt: skip
+def default_metric(
+    summary: pd.DataFrame, nodes: Sequence[str] | None = None, prefix: str = "peak_deceleration_g"
+) -> str:
     """The ``<prefix>.<item>`` column with the largest values (items restricted to ``nodes`` when given).
 
     With the default prefix this is the peak deceleration of the free node that decelerates most
@@ -58,10 +59,18 @@ def default_metric(summary: pd.DataFrame, nodes: Sequence[str] | None = None,
     return cols[int(np.argmax(peaks))]
 
 
-def plot_matrix(summary: pd.DataFrame, metric: str | None = None, x: str | None = None, y: str | None = None,
-                agg: Aggregate = "max", axes: Sequence[str] | None = None, units: str | None = None,
-                title: str | None = None, axis_units: dict[str, str] | None = None,
-                factors: dict[str, list[str]] | None = None) -> Figure:  # fmt: skip
+def plot_matrix(
+    summary: pd.DataFrame,
+    metric: str | None = None,
+    x: str | None = None,
+    y: str | None = None,
+    agg: Aggregate = "max",
+    axes: Sequence[str] | None = None,
+    units: str | None = None,
+    title: str | None = None,
+    axis_units: dict[str, str] | None = None,
+    factors: dict[str, list[str]] | None = None,
+) -> Figure:
     """A summary metric over the study matrix: a line plot over one axis or a heat map over two.
 
     Parameters
@@ -133,11 +142,19 @@ def plot_matrix(summary: pd.DataFrame, metric: str | None = None, x: str | None 
     groups = factors or {a: [a] for a in axes}
     with_x = next((m for m in groups.values() if x in m), [x])
     if y is not None and y in with_x:
-        raise _fail("<summary>", f"x {x!r} and y {y!r} move together (one zip group); choose an axis of another factor")
+        raise _fail(
+            "<summary>",
+            f"x {x!r} and y {y!r} move together (one zip group); choose an axis of another factor",
+        )
     others = [first for first, m in groups.items() if x not in m and (y is None or y not in m)]
     fnames = {a: factor_name(groups.get(a, [a])) for a in others}
-    moved = [f"{a} moves with {', '.join(p for p in m if p != a)} (one zip group)"
-             for a in (x, y) if a is not None for m in groups.values() if a in m and len(m) > 1]  # fmt: skip
+    moved = [
+        f"{a} moves with {', '.join(p for p in m if p != a)} (one zip group)"
+        for a in (x, y)
+        if a is not None
+        for m in groups.values()
+        if a in m and len(m) > 1
+    ]
     if y is None:
         fig = Figure(figsize=(8.0, 5.0), layout="constrained")
         FigureCanvasAgg(fig)
@@ -159,14 +176,17 @@ def plot_matrix(summary: pd.DataFrame, metric: str | None = None, x: str | None 
         ax.set_xlabel(axis_label(x, axis_units))
         ax.set_ylabel(axis_label(y, axis_units))
         if others:
-            note = "; ".join(filter(None, [f"each cell: {agg} over {', '.join(fnames[a] for a in others)}", note]))
+            note = "; ".join(
+                filter(None, [f"each cell: {agg} over {', '.join(fnames[a] for a in others)}", note])
+            )
     note = "; ".join(filter(None, [*moved, note]))
     finish(fig, title or f"{metric} over the study matrix", note)
     return fig
 
 
-def _matrix_lines(ax, df: pd.DataFrame, metric: str, x: str, others: list[str], units: dict[str, str],
-                  names: dict[str, str]) -> None:  # fmt: skip
+def _matrix_lines(
+    ax, df: pd.DataFrame, metric: str, x: str, others: list[str], units: dict[str, str], names: dict[str, str]
+) -> None:
     if not others:
         d = df.sort_values(x)
         ax.plot(d[x].to_numpy(), d[metric].to_numpy(), "o-", label=metric)
@@ -177,13 +197,20 @@ def _matrix_lines(ax, df: pd.DataFrame, metric: str, x: str, others: list[str], 
         for i, (key, d) in enumerate(groups):
             key = key if isinstance(key, tuple) else (key,)
             d = d.groupby(x)[metric].mean()  # zip groups may repeat an x; one point per x
-            name = ", ".join(f"{names[a]}={float(v):g}{_plain(units.get(a))}" for a, v in zip(others, key, strict=True))
+            name = ", ".join(
+                f"{names[a]}={float(v):g}{_plain(units.get(a))}" for a, v in zip(others, key, strict=True)
+            )
             ax.plot(d.index.to_numpy(), d.to_numpy(), "o-", color=cmap(i % 10), label=name)
         return
     stats = df.groupby(x)[metric].agg(["mean", "min", "max"])
     xs = stats.index.to_numpy()
-    ax.fill_between(xs, stats["min"].to_numpy(), stats["max"].to_numpy(), alpha=0.25,
-                    label=f"min-max over {len(groups)} combinations of {', '.join(names[a] for a in others)}")  # fmt: skip
+    ax.fill_between(
+        xs,
+        stats["min"].to_numpy(),
+        stats["max"].to_numpy(),
+        alpha=0.25,
+        label=f"min-max over {len(groups)} combinations of {', '.join(names[a] for a in others)}",
+    )
     ax.plot(xs, stats["mean"].to_numpy(), "o-", label="mean")
 
 
@@ -208,7 +235,14 @@ def _heat_map(fig: Figure, ax, table: pd.DataFrame, label: str) -> None:
         for (i, j), v in np.ndenumerate(values):
             if np.isfinite(v):
                 dark = norm(v) < 0.6  # viridis is dark at the low end
-                ax.text(j, i, f"{v:.3g}", ha="center", va="center", fontsize=size,
-                        color="white" if dark else "black")  # fmt: skip
+                ax.text(
+                    j,
+                    i,
+                    f"{v:.3g}",
+                    ha="center",
+                    va="center",
+                    fontsize=size,
+                    color="white" if dark else "black",
+                )
             else:
                 ax.text(j, i, "failed", ha="center", va="center", fontsize="x-small", color="0.4")

@@ -78,7 +78,9 @@ def travel_direction(ds: xr.Dataset, node: str, index: np.ndarray) -> np.ndarray
         import yaml
 
         model = yaml.safe_load(str(ds.attrs.get("model_yaml", "")) or "{}") or {}
-        v = ((model.get("initial_velocity") or {}) if isinstance(model, dict) else {}).get(node) or [0.0] * dim
+        v = ((model.get("initial_velocity") or {}) if isinstance(model, dict) else {}).get(node) or [
+            0.0
+        ] * dim
         v0 = np.broadcast_to(np.asarray(v, dtype=float), (len(index), dim))
     speed = np.linalg.norm(v0, axis=1)
     x = np.eye(dim)[0]
@@ -126,13 +128,18 @@ def plot_pulse(ds: xr.Dataset, nodes: Sequence[str] | None = None, max_variants:
     """
     where = _where(ds)
     if "filtered_acceleration" not in ds.data_vars:
-        raise _fail(where, "no filtered pulse in these results: the model has no metrics: block, or its "
-                    "output.histories leave out filtered_acceleration")  # fmt: skip
+        raise _fail(
+            where,
+            "no filtered pulse in these results: the model has no metrics: block, or its "
+            "output.histories leave out filtered_acceleration",
+        )
     _need_histories(ds, ["acceleration", "filtered_acceleration"])
     panels = list(_items(ds, "node", nodes, metric_nodes(ds)))
     index, note = select_variants(ds, max_variants)
     look = Variants(ds, index, study_axes(ds))
-    t_ms = np.asarray(ds["time"].values) * TIME_UNITS[str(ds["time"].attrs.get("units", "s"))] / TIME_UNITS["ms"]
+    t_ms = (
+        np.asarray(ds["time"].values) * TIME_UNITS[str(ds["time"].attrs.get("units", "s"))] / TIME_UNITS["ms"]
+    )
     fig, axs = new_figure(len(panels))
     for ax, node in zip(axs, panels, strict=True):
         raw, filt = signed_pulse(ds, node, index)
@@ -146,7 +153,11 @@ def plot_pulse(ds: xr.Dataset, nodes: Sequence[str] | None = None, max_variants:
     set_xlabel(axs, "time [ms]")
     look.decorate(fig, axs)
     kinds = [Line2D([], [], color="0.3", lw=0.7, alpha=0.5), Line2D([], [], color="0.3", lw=1.4)]
-    fitting_legend(fig, kinds, ["raw (acceleration history)", "SAE J211 filtered (cfc of its metrics entry)"],
-                   "deceleration along the direction of travel: > 0 slows the node, < 0 pushes it along")  # fmt: skip
+    fitting_legend(
+        fig,
+        kinds,
+        ["raw (acceleration history)", "SAE J211 filtered (cfc of its metrics entry)"],
+        "deceleration along the direction of travel: > 0 slows the node, < 0 pushes it along",
+    )
     finish(fig, f"{study_name(ds)}: filtered pulse beside the raw channel", note)
     return fig

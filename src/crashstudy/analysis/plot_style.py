@@ -36,8 +36,13 @@ from crashstudy.units import UNIT_SYSTEMS
 LEGEND_MAX = 10  # up to this many variants: a legend; more: a colour bar keyed to the first axis
 CMAP = "viridis"
 STYLES = ("-", "--", ":", "-.")  # line styles of the second study axis when there are many variants
-PREFIXED = {"N": ("N", "kN", "MN", "GN"), "kN": ("kN", "MN", "GN"), "J": ("J", "kJ", "MJ", "GJ"),
-            "kJ": ("kJ", "MJ", "GJ"), "mJ": ("mJ", "J", "kJ", "MJ")}  # fmt: skip
+PREFIXED = {
+    "N": ("N", "kN", "MN", "GN"),
+    "kN": ("kN", "MN", "GN"),
+    "J": ("J", "kJ", "MJ", "GJ"),
+    "kJ": ("kJ", "MJ", "GJ"),
+    "mJ": ("mJ", "J", "kJ", "MJ"),
+}
 TIME_UNITS = {"s": 1.0, "ms": 1e-3}  # seconds per unit
 
 
@@ -62,8 +67,14 @@ def title_of(da: xr.DataArray, name: str) -> str:
     return str(da.attrs.get("long_name", name)).split(" (", 1)[0]
 
 
-def display_scale(unit: str, values: Any = None, *, system: str | None = None, accel_unit: str | None = None,
-                  time_unit: str | None = None) -> tuple[float, str]:  # fmt: skip
+def display_scale(
+    unit: str,
+    values: Any = None,
+    *,
+    system: str | None = None,
+    accel_unit: str | None = None,
+    time_unit: str | None = None,
+) -> tuple[float, str]:
     """(factor, unit) to show ``values`` of ``unit`` in: ``g`` for an acceleration when ``accel_unit``
     is ``"g"`` (standard gravity of the unit ``system``), ``s``/``ms`` for a time when ``time_unit``
     names one, and for forces and energies the largest engineering prefix that keeps the largest
@@ -149,10 +160,21 @@ def fitting_legend(fig: Figure, handles: list, labels: list[str], title: str, ma
     width = fig.bbox.width
     chars = max(20, int(width / 6.5))  # small font: ~6.5 px per character at 100 dpi
     title = "\n".join(textwrap.wrap(title, chars)) if title else title
-    labels = ["\n".join(textwrap.wrap(lb, chars - 6)) or lb for lb in labels]  # a long label wraps, never cut off
+    labels = [
+        "\n".join(textwrap.wrap(lb, chars - 6)) or lb for lb in labels
+    ]  # a long label wraps, never cut off
     for ncols in range(min(max_cols, max(len(labels), 1)), 0, -1):
-        leg = fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncols=ncols,
-                         fontsize="small", title=title or None, title_fontsize="small", frameon=False)  # fmt: skip
+        leg = fig.legend(
+            handles,
+            labels,
+            loc="lower center",
+            bbox_to_anchor=(0.5, 0.0),
+            ncols=ncols,
+            fontsize="small",
+            title=title or None,
+            title_fontsize="small",
+            frameon=False,
+        )
         box = leg.get_window_extent(_renderer(fig))
         if box.width <= width - 10 or ncols == 1:
             fig._crashstudy_legends = [*getattr(fig, "_crashstudy_legends", []), leg]  # type: ignore[attr-defined]

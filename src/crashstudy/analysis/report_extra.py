@@ -41,11 +41,21 @@ def _csv(res: Any, name: str, where: str, needed: set[str]) -> pd.DataFrame | No
     try:
         df = pd.read_csv(io.BytesIO(raw))
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
-        raise InputError([Problem(f"{where}/{name}", 1, "", f"not a CSV table ({type(exc).__name__})")]) from None
+        raise InputError(
+            [Problem(f"{where}/{name}", 1, "", f"not a CSV table ({type(exc).__name__})")]
+        ) from None
     missing = needed - set(df.columns)
     if missing:
-        raise InputError([Problem(f"{where}/{name}", 1, "", f"expected the columns {', '.join(sorted(needed))}; "
-                                  f"missing {', '.join(sorted(missing))}")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    f"{where}/{name}",
+                    1,
+                    "",
+                    f"expected the columns {', '.join(sorted(needed))}; missing {', '.join(sorted(missing))}",
+                )
+            ]
+        )
     return df
 
 
@@ -57,8 +67,9 @@ def _yaml(res: Any, name: str, where: str) -> dict[str, Any] | None:
         data = yaml.safe_load(raw.decode("utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         line = getattr(getattr(exc, "problem_mark", None), "line", None)
-        raise InputError([Problem(f"{where}/{name}", None if line is None else line + 1, "",
-                                  "not a YAML mapping")]) from None  # fmt: skip
+        raise InputError(
+            [Problem(f"{where}/{name}", None if line is None else line + 1, "", "not a YAML mapping")]
+        ) from None
     if not isinstance(data, dict):
         raise InputError([Problem(f"{where}/{name}", 1, "", "expected a YAML mapping")])
     return data
@@ -81,32 +92,60 @@ def _flat(d: Any, prefix: str = "") -> list[tuple[str, str]]:
 def correlation_section(rep: Any) -> str:
     df = rep.correlation.sort_values("R", ascending=False)
     cols = [c for c in ("variant", *rep.axes, "R", "Z", "EP", "EM", "ES", "grade") if c in df]
-    rows = [[f"{v:.4g}" if isinstance(v, float) else v for v in r] for r in df[cols].head(CORRELATION_SHOWN).itertuples(
-        index=False, name=None)]  # fmt: skip
+    rows = [
+        [f"{v:.4g}" if isinstance(v, float) else v for v in r]
+        for r in df[cols].head(CORRELATION_SHOWN).itertuples(index=False, name=None)
+    ]
     grades = ", ".join(f"{k}: {v}" for k, v in df["grade"].astype(str).value_counts().items())
-    fig = rf.bars([f"variant {v}" for v in df["variant"].head(CORRELATION_SHOWN)][::-1],
-                  df["R"].head(CORRELATION_SHOWN).to_numpy(dtype=float)[::-1], None, "R (ISO/TS 18571) [-]",
-                  "overall rating R of the best-rated variants")  # fmt: skip
-    return (f"<p>ISO/TS 18571 ratings of {len(df)} variants against the test curve (correlation.csv; grades {esc(grades)}"
-            "; R = 0.4 Z + 0.2 EP + 0.2 EM + 0.2 ES, all [-]). Best first:</p>"
-            + html_table(cols, rows, text_cols=(len(cols) - 1,)) + rep.figures.div(fig, 120 + 22 * len(rows)))  # fmt: skip
+    fig = rf.bars(
+        [f"variant {v}" for v in df["variant"].head(CORRELATION_SHOWN)][::-1],
+        df["R"].head(CORRELATION_SHOWN).to_numpy(dtype=float)[::-1],
+        None,
+        "R (ISO/TS 18571) [-]",
+        "overall rating R of the best-rated variants",
+    )
+    return (
+        f"<p>ISO/TS 18571 ratings of {len(df)} variants against the test curve (correlation.csv; grades {esc(grades)}"
+        "; R = 0.4 Z + 0.2 EP + 0.2 EM + 0.2 ES, all [-]). Best first:</p>"
+        + html_table(cols, rows, text_cols=(len(cols) - 1,))
+        + rep.figures.div(fig, 120 + 22 * len(rows))
+    )
 
 
 def sensitivity_section(rep: Any, df: pd.DataFrame) -> str:
     out = ""
     for metric, part in df.groupby("metric", sort=False):
         unit = rf.label(str(metric), _unit_of(rep, str(metric)))
-        groups = part["group"].astype(object).where(part["group"].notna(), "") if "group" in part else [""] * len(part)
-        names = [f"{g}: {a}" if isinstance(g, str) and g else str(a) for g, a in zip(groups, part["axis"], strict=True)]
+        groups = (
+            part["group"].astype(object).where(part["group"].notna(), "")
+            if "group" in part
+            else [""] * len(part)
+        )
+        names = [
+            f"{g}: {a}" if isinstance(g, str) and g else str(a)
+            for g, a in zip(groups, part["axis"], strict=True)
+        ]
         conf = part["confidence"].to_numpy(dtype=float) if "confidence" in part else None
-        fig = rf.bars(names, part["value"].to_numpy(dtype=float), conf, "index [-] (error bars: confidence)",
-                      f"sensitivity of {unit}", group=[str(i) for i in part["index"]])  # fmt: skip
+        fig = rf.bars(
+            names,
+            part["value"].to_numpy(dtype=float),
+            conf,
+            "index [-] (error bars: confidence)",
+            f"sensitivity of {unit}",
+            group=[str(i) for i in part["index"]],
+        )
         out += rep.figures.div(fig, 140 + 34 * len(part))
-        rows = [(n, i, f"{v:.4g}", "-" if not np.isfinite(c) else f"{c:.3g}")
-                for n, i, v, c in zip(names, part["index"], part["value"], part.get("confidence", np.nan), strict=True)]
+        rows = [
+            (n, i, f"{v:.4g}", "-" if not np.isfinite(c) else f"{c:.3g}")
+            for n, i, v, c in zip(
+                names, part["index"], part["value"], part.get("confidence", np.nan), strict=True
+            )
+        ]
         out += html_table(["axis", "index", "value", "confidence (95 %)"], rows, text_cols=(0, 1))
-    return "<p>sensitivity.csv (crashstudy sensitivity): indices of each metric to each axis, with their 95 % " \
-           "confidence half-widths.</p>" + out  # fmt: skip
+    return (
+        "<p>sensitivity.csv (crashstudy sensitivity): indices of each metric to each axis, with their 95 % "
+        "confidence half-widths.</p>" + out
+    )
 
 
 def _unit_of(rep: Any, column: str) -> str:
@@ -121,23 +160,32 @@ def optimisation_section(rep: Any, opt: dict[str, Any] | None, hist: pd.DataFram
         out += "<p>optimum.yaml (crashstudy optimize):</p>" + html_table(["", ""], rows, text_cols=(0, 1))
     if hist is not None and len(hist):
         objective = next(iter((opt or {}).get("objective", {}) or {}), None) or next(
-            (c for c in hist.columns if "." in c), None)  # fmt: skip
+            (c for c in hist.columns if "." in c), None
+        )
         if objective is not None and objective in hist:
             y = hist[objective].to_numpy(dtype=float)
             feasible = hist["feasible"].astype(str).str.lower().isin(["true", "1"]).to_numpy()
             best = np.fmin.accumulate(np.where(feasible, y, np.inf))
             best[~np.isfinite(best)] = np.nan
-            fig = rf.optimisation_history(np.arange(len(y)), y, feasible, best, "candidate [-] (in order of evaluation)",
-                                          rf.label(objective, _unit_of(rep, objective)),
-                                          f"optimisation history: {len(y)} candidates, {int(feasible.sum())} feasible")  # fmt: skip
+            fig = rf.optimisation_history(
+                np.arange(len(y)),
+                y,
+                feasible,
+                best,
+                "candidate [-] (in order of evaluation)",
+                rf.label(objective, _unit_of(rep, objective)),
+                f"optimisation history: {len(y)} candidates, {int(feasible.sum())} feasible",
+            )
             out += rep.figures.div(fig, 420)
     return out
 
 
 def calibration_section(rep: Any, cal: dict[str, Any]) -> str:
     rows = [(k, v) for k, v in _flat(cal)]
-    return "<p>calibrated.yaml (crashstudy calibrate; calibration.png beside it draws data and fit):</p>" + html_table(
-        ["", ""], rows, text_cols=(0, 1))  # fmt: skip
+    return (
+        "<p>calibrated.yaml (crashstudy calibrate; calibration.png beside it draws data and fit):</p>"
+        + html_table(["", ""], rows, text_cols=(0, 1))
+    )
 
 
 def sections(rep: Any) -> list[tuple[str, str, str]]:

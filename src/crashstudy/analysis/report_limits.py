@@ -27,15 +27,19 @@ class Limit:
 
 #: criterion (summary column name before the dot) -> its usual upper limit
 LIMITS: dict[str, Limit] = {
-    "hic15": Limit(700.0, "1", "FMVSS 208 S6.2 (49 CFR 571.208), Hybrid III 50th male; also Euro NCAP/ECE R94 upper"),
+    "hic15": Limit(
+        700.0, "1", "FMVSS 208 S6.2 (49 CFR 571.208), Hybrid III 50th male; also Euro NCAP/ECE R94 upper"
+    ),
     "hic36": Limit(1000.0, "1", "FMVSS 208 before 2000 (HIC36), ECE R94 HPC 1000"),
     "clip3ms": Limit(60.0, "g", "FMVSS 208 S6.3 chest resultant, 3 ms clip, Hybrid III 50th male"),
     "clip3ms_cumulative": Limit(60.0, "g", "FMVSS 208 S6.3 (cumulative 3 ms wording)"),
     "olc": Limit(25.0, "g", "Euro NCAP MPDB assessment protocol: OLC modifier from 25 g (full at 40 g)"),
     "dri": Limit(18.0, "1", "MIL-S-9479 ejection seats, DRI 18 ~ 5 % spinal injury risk (AGARD-AR-330)"),
 }
-NO_LIMIT = {"peak_g": "SAE J211-1 filtered peak; no single limit (pulse-dependent)",
-            "delta_v": "severity measure of the impact; no limit"}  # fmt: skip
+NO_LIMIT = {
+    "peak_g": "SAE J211-1 filtered peak; no single limit (pulse-dependent)",
+    "delta_v": "severity measure of the impact; no limit",
+}
 CRITERIA = ("peak_g", "hic15", "hic36", "clip3ms", "clip3ms_cumulative", "olc", "dri", "delta_v")
 
 
@@ -65,8 +69,11 @@ def criteria_columns(summary: pd.DataFrame) -> list[str]:
 
 
 def limit_checks(columns: list[str]) -> list[Check]:
-    return [Check(c, "<=", LIMITS[c.split(".", 1)[0]].value, LIMITS[c.split(".", 1)[0]].source)
-            for c in columns if c.split(".", 1)[0] in LIMITS]  # fmt: skip
+    return [
+        Check(c, "<=", LIMITS[c.split(".", 1)[0]].value, LIMITS[c.split(".", 1)[0]].source)
+        for c in columns
+        if c.split(".", 1)[0] in LIMITS
+    ]
 
 
 def constraint_checks(study: dict, columns: list[str]) -> list[Check]:
@@ -92,8 +99,11 @@ def user_checks(texts: Sequence[str], columns: list[str], where: str) -> list[Ch
         m = CONSTRAINT.match(str(text))
         value = _number(m.group(3)) if m else None
         if m is None or value is None or m.group(1) not in columns:
-            why = (f"{m.group(1)!r} is not a summary column" if m and value is not None and m.group(1) not in columns
-                   else "expected COLUMN<=NUMBER or COLUMN>=NUMBER")  # fmt: skip
+            why = (
+                f"{m.group(1)!r} is not a summary column"
+                if m and value is not None and m.group(1) not in columns
+                else "expected COLUMN<=NUMBER or COLUMN>=NUMBER"
+            )
             raise InputError([Problem(where, None, "--limits", f"{text!r}: {why}")])
         out.append(Check(m.group(1), m.group(2), value, "--limits"))
     return out

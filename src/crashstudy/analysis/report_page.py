@@ -122,20 +122,28 @@ class Figures:
     def div(self, fig: dict[str, Any], height: int = 420) -> str:
         self.count += 1
         key = f"cs-fig-{self.count}"
-        layout = {"height": height, "margin": {"l": 70, "r": 30, "t": 50, "b": 60}, "template": None,
-                  **fig.get("layout", {})}  # fmt: skip
+        layout = {
+            "height": height,
+            "margin": {"l": 70, "r": 30, "t": 50, "b": 60},
+            "template": None,
+            **fig.get("layout", {}),
+        }
         data = to_json({"data": fig["data"], "layout": layout})
-        return (f'<div class="fig" id="{key}-div" data-fig="{key}" style="height:{height}px"></div>'
-                f'<script type="application/json" id="{key}">{data}</script>')  # fmt: skip
+        return (
+            f'<div class="fig" id="{key}-div" data-fig="{key}" style="height:{height}px"></div>'
+            f'<script type="application/json" id="{key}">{data}</script>'
+        )
 
 
 def figure_div(figures: Figures, fig: dict[str, Any], height: int = 420) -> str:
     return figures.div(fig, height)
 
 
-def html_table(header: Sequence[str], rows: Sequence[Sequence[Any]], text_cols: Sequence[int] = (0,),
-               cls: str = "") -> str:  # fmt: skip
+def html_table(
+    header: Sequence[str], rows: Sequence[Sequence[Any]], text_cols: Sequence[int] = (0,), cls: str = ""
+) -> str:
     """A static table; columns in ``text_cols`` are left-aligned."""
+
     def td(i: int, v: Any, tag: str) -> str:
         return f'<{tag} class="t">{esc(v)}</{tag}>' if i in text_cols else f"<{tag}>{esc(v)}</{tag}>"
 
@@ -160,25 +168,30 @@ def table_data(columns: Sequence[tuple[str, str, bool]], rows: Sequence[Sequence
 
 
 def interactive_table(data_json: str) -> str:
-    return ('<div class="controls">filter: <input id="cs-filter" placeholder="words, or column>value, '
-            'status=failed (space = and)"> rows per page: <select id="cs-pagesize"><option>50</option>'
-            '<option selected>200</option><option>1000</option><option value="all">all</option></select> '
-            '<button id="cs-prev">&lt;</button><button id="cs-next">&gt;</button> <span id="cs-info"></span></div>'
-            '<div class="scroll"><table id="cs-table"></table></div>'
-            f'<script type="application/json" id="cs-table-data">{data_json}</script>')  # fmt: skip
+    return (
+        '<div class="controls">filter: <input id="cs-filter" placeholder="words, or column>value, '
+        'status=failed (space = and)"> rows per page: <select id="cs-pagesize"><option>50</option>'
+        '<option selected>200</option><option>1000</option><option value="all">all</option></select> '
+        '<button id="cs-prev">&lt;</button><button id="cs-next">&gt;</button> <span id="cs-info"></span></div>'
+        '<div class="scroll"><table id="cs-table"></table></div>'
+        f'<script type="application/json" id="cs-table-data">{data_json}</script>'
+    )
 
 
-def page(title: str, subtitle: str, sections: Sequence[tuple[str, str, str]], plotly_js: str,
-         has_table: bool) -> str:  # fmt: skip
+def page(
+    title: str, subtitle: str, sections: Sequence[tuple[str, str, str]], plotly_js: str, has_table: bool
+) -> str:
     """The whole HTML file: ``sections`` as (anchor, heading, body html)."""
     nav = "".join(f'<a href="#{a}">{esc(h)}</a>' for a, h, _ in sections)
     body = "".join(f'<section id="{a}"><h2>{esc(h)}</h2>{b}</section>' for a, h, b in sections)
     table_js = f"<script>{TABLE_JS}</script>" if has_table else ""
-    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<meta name=\"viewport\" content=\"width=device-width\"><title>{esc(title)}</title>"
-            f"<style>{CSS}</style><script>{plotly_js}</script></head><body>"
-            f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header><nav>{nav}</nav><main>{body}</main>"
-            f"{table_js}<script>{FIGURES_JS}</script></body></html>\n")  # fmt: skip
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f'<meta name="viewport" content="width=device-width"><title>{esc(title)}</title>'
+        f"<style>{CSS}</style><script>{plotly_js}</script></head><body>"
+        f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header><nav>{nav}</nav><main>{body}</main>"
+        f"{table_js}<script>{FIGURES_JS}</script></body></html>\n"
+    )
 
 
 def column_unit(ds: Any, column: str) -> str:

@@ -35,20 +35,45 @@ def criteria_section(rep: Report) -> str:
         lim = LIMITS.get(name)
         over = int(np.nansum(v > lim.value)) if lim else 0
         std = str(rep.ds[name].attrs.get("standard", "")) if name in rep.ds.variables else ""
-        rows.append((name, node, shown_unit(unit), f"{np.nanmin(v):.4g}", f"{np.nanmedian(v):.4g}",
-                     f"{np.nanmax(v):.4g}", int(variant[np.nanargmax(v)]),
-                     f"{lim.value:g}" if lim else "-", f"{over} of {int(np.isfinite(v).sum())}" if lim else "-",
-                     lim.source if lim else NO_LIMIT.get(name, "-"), std))  # fmt: skip
+        rows.append(
+            (
+                name,
+                node,
+                shown_unit(unit),
+                f"{np.nanmin(v):.4g}",
+                f"{np.nanmedian(v):.4g}",
+                f"{np.nanmax(v):.4g}",
+                int(variant[np.nanargmax(v)]),
+                f"{lim.value:g}" if lim else "-",
+                f"{over} of {int(np.isfinite(v).sum())}" if lim else "-",
+                lim.source if lim else NO_LIMIT.get(name, "-"),
+                std,
+            )
+        )
         panels.append((c, unit, v, lim.value if lim else None))
     if not rows:
         return ""
-    head = ["criterion", "node", "unit", "min", "median", "max", "max in variant", "usual limit",
-            "variants above", "limit from", "computed per"]  # fmt: skip
+    head = [
+        "criterion",
+        "node",
+        "unit",
+        "min",
+        "median",
+        "max",
+        "max in variant",
+        "usual limit",
+        "variants above",
+        "limit from",
+        "computed per",
+    ]
     out = html_table(head, rows, text_cols=(0, 1, 2, 9, 10))
     cols = min(len(panels), 3)
-    out += rep.figures.div(rf.criteria_histograms(panels, "criteria over the ok variants (red: usual limit)"),
-                            280 * ((len(panels) + cols - 1) // cols) + 80)  # fmt: skip
+    out += rep.figures.div(
+        rf.criteria_histograms(panels, "criteria over the ok variants (red: usual limit)"),
+        280 * ((len(panels) + cols - 1) // cols) + 80,
+    )
     return out
+
 
 def history_section(rep: Report) -> str:
     """The chosen variants' histories (filtered acceleration of the metric nodes, else the crash node's)."""
@@ -59,8 +84,11 @@ def history_section(rep: Report) -> str:
     if "filtered_acceleration" in ds.data_vars:
         fa = ds["filtered_acceleration"]
         first = fa.isel(variant=0)
-        plots = [("filtered_acceleration", str(n)) for n in ds["node"].values
-                 if np.isfinite(first.sel(node=n).values).any()]  # fmt: skip
+        plots = [
+            ("filtered_acceleration", str(n))
+            for n in ds["node"].values
+            if np.isfinite(first.sel(node=n).values).any()
+        ]
     if not plots and "acceleration" in ds.data_vars:
         plots = [("acceleration", crash_node(ds) or free_nodes(ds)[0])]
     if not plots and "spring_force" in ds.data_vars:
@@ -82,12 +110,19 @@ def history_section(rep: Report) -> str:
         labels.append(lab)
     chosen = ds.isel(variant=[pos[v] for v in rep.chosen])
     test = (rep.test[0] * 1e3, rep.test[1]) if rep.test is not None else None
-    out = (f'<p class="note">Variants {", ".join(map(str, rep.chosen))} (--variants to choose; worst/best by '
-           f"{esc(rep.key)}){'; dashed black: the --test curve' if test is not None else ''}.</p>")
+    out = (
+        f'<p class="note">Variants {", ".join(map(str, rep.chosen))} (--variants to choose; worst/best by '
+        f"{esc(rep.key)}){'; dashed black: the --test curve' if test is not None else ''}.</p>"
+    )
     for quantity, item in plots[:HISTORY_PLOTS]:
         values, name, unit = history_values(chosen, quantity, item)
         curves = [(lab, t, values[k]) for k, lab in enumerate(labels)]
-        fig = rf.histories(curves, "time [ms]", rf.label(f"{name} {item}", shown_unit(unit)),
-                           f"{name} of {item}: chosen variants", test)  # fmt: skip
+        fig = rf.histories(
+            curves,
+            "time [ms]",
+            rf.label(f"{name} {item}", shown_unit(unit)),
+            f"{name} of {item}: chosen variants",
+            test,
+        )
         out += rep.figures.div(fig, 460)
     return out

@@ -49,14 +49,19 @@ def parse_variants(text: str, n: int, named: dict[str, int | None], where: str) 
         try:
             a, b = int(lo), int(hi) if dash else int(lo)
         except ValueError:
-            raise fail(where, "--variants", f"{part!r} is not a variant number, a range A-B or one of "
-                        f"{', '.join(named)}") from None  # fmt: skip
+            raise fail(
+                where,
+                "--variants",
+                f"{part!r} is not a variant number, a range A-B or one of {', '.join(named)}",
+            ) from None
         if not (0 <= a <= b < n):
             raise fail(where, "--variants", f"{part!r}: variants are numbered 0 to {n - 1}")
         out.extend(range(a, b + 1))
     out = list(dict.fromkeys(out))
     if len(out) > CHOSEN_MAX:
-        raise fail(where, "--variants", f"{len(out)} variants chosen; at most {CHOSEN_MAX} histories are drawn")
+        raise fail(
+            where, "--variants", f"{len(out)} variants chosen; at most {CHOSEN_MAX} histories are drawn"
+        )
     return out
 
 

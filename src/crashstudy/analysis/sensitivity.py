@@ -52,8 +52,10 @@ def indices(summary: pd.DataFrame, attrs: dict[str, Any], metric: str, method: s
     design = _design(attrs)
     if design is None or design.get("method") != ("saltelli" if method == "sobol" else "morris"):
         need = "saltelli" if method == "sobol" else "morris"
-        raise ValueError(f"--method {method} needs a study with design: {{method: {need}}} (its estimator needs "
-                         f"that sample structure); use --method correlation for any study")  # fmt: skip
+        raise ValueError(
+            f"--method {method} needs a study with design: {{method: {need}}} (its estimator needs "
+            f"that sample structure); use --method correlation for any study"
+        )
     d_axes = list(design["axes"])
     from crashstudy.analysis.factors import factors
 
@@ -61,7 +63,9 @@ def indices(summary: pd.DataFrame, attrs: dict[str, Any], metric: str, method: s
     rows: list[dict[str, Any]] = []
     groups = summary.groupby(other, sort=False) if other else [((), summary)]
     for key, part in groups:
-        label = ", ".join(f"{a}={v:g}" for a, v in zip(other, key if isinstance(key, tuple) else (key,), strict=True))
+        label = ", ".join(
+            f"{a}={v:g}" for a, v in zip(other, key if isinstance(key, tuple) else (key,), strict=True)
+        )
         rows += _salib(part.sort_values("variant"), design, d_axes, metric, method, label)
     return pd.DataFrame(rows)
 
@@ -74,8 +78,9 @@ def factor_columns(attrs: dict[str, Any], axes: list[str]) -> dict[str, str]:
     return {(factor_name(m) if len(m) > 1 else first): first for first, m in factors(attrs, axes).items()}
 
 
-def _salib(part: pd.DataFrame, design: dict[str, Any], axes: list[str], metric: str, method: str,
-           label: str) -> list[dict[str, Any]]:  # fmt: skip
+def _salib(
+    part: pd.DataFrame, design: dict[str, Any], axes: list[str], metric: str, method: str, label: str
+) -> list[dict[str, Any]]:
     from SALib.analyze import morris, sobol
 
     y = part[metric].to_numpy(dtype=float)
@@ -85,23 +90,50 @@ def _salib(part: pd.DataFrame, design: dict[str, Any], axes: list[str], metric: 
     names = ("S1", "ST") if method == "sobol" else ("mu_star", "sigma")
     if failed:
         why = f"{failed} of {len(y)} variants failed: the {method} estimator needs every row (no index)"
-        return [{**base, "axis": a, "index": i, "value": np.nan, "confidence": np.nan, "note": why}
-                for a in axes for i in names]  # fmt: skip
+        return [
+            {**base, "axis": a, "index": i, "value": np.nan, "confidence": np.nan, "note": why}
+            for a in axes
+            for i in names
+        ]
     out = []
     if method == "sobol":
         res = sobol.analyze(problem, y, calc_second_order=True, seed=int(design.get("seed", 0)))
         for k, a in enumerate(axes):
             for i in names:
-                out.append({**base, "axis": a, "index": i, "value": float(res[i][k]),
-                            "confidence": float(res[f"{i}_conf"][k]), "note": ""})  # fmt: skip
+                out.append(
+                    {
+                        **base,
+                        "axis": a,
+                        "index": i,
+                        "value": float(res[i][k]),
+                        "confidence": float(res[f"{i}_conf"][k]),
+                        "note": "",
+                    }
+                )
         return out
     x = unit_rows("morris", int(design["n"]), int(design.get("seed", 0)), len(axes))
     res = morris.analyze(problem, x, y, num_levels=4, seed=int(design.get("seed", 0)))
     for k, a in enumerate(axes):
-        out.append({**base, "axis": a, "index": "mu_star", "value": float(res["mu_star"][k]),
-                    "confidence": float(res["mu_star_conf"][k]), "note": ""})  # fmt: skip
-        out.append({**base, "axis": a, "index": "sigma", "value": float(res["sigma"][k]), "confidence": np.nan,
-                    "note": ""})  # fmt: skip
+        out.append(
+            {
+                **base,
+                "axis": a,
+                "index": "mu_star",
+                "value": float(res["mu_star"][k]),
+                "confidence": float(res["mu_star_conf"][k]),
+                "note": "",
+            }
+        )
+        out.append(
+            {
+                **base,
+                "axis": a,
+                "index": "sigma",
+                "value": float(res["sigma"][k]),
+                "confidence": np.nan,
+                "note": "",
+            }
+        )
     return out
 
 
@@ -120,11 +152,15 @@ class Exceedance:
     if_failed_exceed: float  # the probability if every failed variant had exceeded the limit
 
     def text(self) -> str:
-        out = (f"P({self.column} > {self.limit:g}) = {self.probability:.4g}  (95% CI {self.low:.4g} .. {self.high:.4g}, "
-               f"exact binomial; {self.exceed} of {self.n} variants)")  # fmt: skip
+        out = (
+            f"P({self.column} > {self.limit:g}) = {self.probability:.4g}  (95% CI {self.low:.4g} .. {self.high:.4g}, "
+            f"exact binomial; {self.exceed} of {self.n} variants)"
+        )
         if self.failed:
-            out += (f"\n  {self.failed} failed variant(s) left out; if every one had exceeded the limit: "
-                    f"{self.if_failed_exceed:.4g}")  # fmt: skip
+            out += (
+                f"\n  {self.failed} failed variant(s) left out; if every one had exceeded the limit: "
+                f"{self.if_failed_exceed:.4g}"
+            )
         return out
 
 
@@ -140,16 +176,22 @@ def sample_caveat(attrs: dict[str, Any]) -> str:
     axes = [str(a) for a in json.loads(attrs.get("crashstudy_axes", "[]"))]
     fixed = [a for a in axes if a not in list((design or {}).get("axes") or [])]
     if design is None:
-        return ("this study has no sampled design (matrix/zip axes only): the variants are chosen points, not a "
-                "random sample, so the fraction printed is not a probability of anything and its binomial "
-                "interval is not a confidence interval; use a design: block (lhs, sobol, halton, random) with "
-                "the axes' distributions (docs/design.md)")  # fmt: skip
+        return (
+            "this study has no sampled design (matrix/zip axes only): the variants are chosen points, not a "
+            "random sample, so the fraction printed is not a probability of anything and its binomial "
+            "interval is not a confidence interval; use a design: block (lhs, sobol, halton, random) with "
+            "the axes' distributions (docs/design.md)"
+        )
     if method not in SAMPLED:
-        return (f"design method {method} places its rows for a sensitivity estimator, not as a random sample: "
-                "the fraction printed is not a probability and its binomial interval not a confidence interval")
+        return (
+            f"design method {method} places its rows for a sensitivity estimator, not as a random sample: "
+            "the fraction printed is not a probability and its binomial interval not a confidence interval"
+        )
     if fixed:
-        return (f"the design is crossed with matrix/zip axes {fixed}: the fraction pools their chosen values "
-                "with equal weight, a probability only if that is how they occur")
+        return (
+            f"the design is crossed with matrix/zip axes {fixed}: the fraction pools their chosen values "
+            "with equal weight, a probability only if that is how they occur"
+        )
     return ""
 
 
@@ -172,7 +214,9 @@ def exceedance_of(column: str, limit: float, counts: np.ndarray) -> Exceedance:
     if n == 0:
         return Exceedance(column, limit, 0, 0, failed, float("nan"), float("nan"), float("nan"), float("nan"))
     ci = stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="exact")
-    return Exceedance(column, limit, n, k, failed, k / n, float(ci.low), float(ci.high), (k + failed) / (n + failed))
+    return Exceedance(
+        column, limit, n, k, failed, k / n, float(ci.low), float(ci.high), (k + failed) / (n + failed)
+    )
 
 
 def over_time(ds: Any, quantity: str, item: str | None = None) -> Any:
@@ -208,8 +252,17 @@ def over_time(ds: Any, quantity: str, item: str | None = None) -> Any:
         den = np.sqrt((cx**2).sum() * (cy**2).sum(axis=0))
         with np.errstate(invalid="ignore", divide="ignore"):
             out[k] = np.where(den > 0, (cx[:, None] * cy).sum(axis=0) / den, np.nan)
-    return xr.DataArray(out, dims=("axis_path", "time"), coords={"axis_path": [factor_name(groups[a]) for a in axes],
-                                                                  "time": ds["time"].values},
-                        name=f"spearman_{quantity}", attrs={"units": "1", "long_name": (
-                            f"Spearman correlation of {quantity}" + (f" of {item}" if item else "")
-                            + f" with each study axis ({int(ok.sum())} variants that ran)")})  # fmt: skip
+    return xr.DataArray(
+        out,
+        dims=("axis_path", "time"),
+        coords={"axis_path": [factor_name(groups[a]) for a in axes], "time": ds["time"].values},
+        name=f"spearman_{quantity}",
+        attrs={
+            "units": "1",
+            "long_name": (
+                f"Spearman correlation of {quantity}"
+                + (f" of {item}" if item else "")
+                + f" with each study axis ({int(ok.sum())} variants that ran)"
+            ),
+        },
+    )

@@ -72,7 +72,9 @@ class Batch:
     ke_fraction: np.ndarray  # (V,) termination threshold on KE / KE0 (0: no early termination)
     min_time: np.ndarray  # (V,) [time]
     invalid: np.ndarray  # (V,) int reason code: 0 ok, see INVALID_REASONS
-    energy_floor: np.ndarray  # (V,) [energy] round-off floor of the instability test (1e-9 of the model's scale)
+    energy_floor: (
+        np.ndarray
+    )  # (V,) [energy] round-off floor of the instability test (1e-9 of the model's scale)
     knot_y: np.ndarray  # (K, V) [force] cy at interior knots of a spring curve that are a local maximum of
     # |curve| for that variant (|y| >= |y| of both neighbour knots, y != 0, not flat on both sides), else 0.0
     knot_check: np.ndarray  # (K,) bool, shared: knot_y[k] != 0 for some variant (only these knots are tested)
@@ -85,7 +87,9 @@ class Batch:
     e0: np.ndarray  # (S, V) initial elongation [length]
     fail_t: np.ndarray  # (S, V) tension failure elongation [length] (+inf: never)
     fail_c: np.ndarray  # (S, V) compression failure elongation [length] (-inf: never)
-    state0: np.ndarray  # (S, NSTATE, V) material state at t = 0 (arrays.preload), (0, NSTATE, V) if no preload
+    state0: (
+        np.ndarray
+    )  # (S, NSTATE, V) material state at t = 0 (arrays.preload), (0, NSTATE, V) if no preload
     ie0: np.ndarray  # (S, V) [energy] energy stored in each spring at t = 0 (IE0)
     rate0: np.ndarray  # (S, V) [length/time] elongation rate at t = 0 (a preload's first half step)
     # a curve's shape and its per-variant factors (curve_shapes): cx = bx xs, cy = by ys, slopes = shape's slopes ys/xs
@@ -115,8 +119,25 @@ class Batch:
         return Batch(**out)
 
 
-_SHARED = {"spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_off", "free", "load_node",
-           "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check", "rate_curve", "rate_off"}  # fmt: skip
+_SHARED = {
+    "spring_i",
+    "spring_j",
+    "material",
+    "curve_a",
+    "curve_b",
+    "curve_off",
+    "free",
+    "load_node",
+    "load_curve",
+    "pm_node",
+    "pm_dir",
+    "pm_kind",
+    "pm_curve",
+    "wall_nodes",
+    "knot_check",
+    "rate_curve",
+    "rate_off",
+}
 
 INVALID_REASONS = {
     1: "fixed dt is above the critical step",
@@ -126,7 +147,7 @@ INVALID_REASONS = {
     5: "a wall normal is the zero vector",
     6: "end_time must be > 0",
     7: f"more than {MAX_STEPS:.2g} time steps (end_time / dt, or the sampling interval / dt): the step is too small "
-       "for end_time; check the masses, stiffnesses and end_time",
+    "for end_time; check the masses, stiffnesses and end_time",
 }
 
 
@@ -173,8 +194,23 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
     ktan, fy, e0 = (np.ascontiguousarray(P[b[k]]) for k in ("kt", "fy", "e0"))
     yield_t, yield_c = np.ascontiguousarray(P[b["ty"]]), np.ascontiguousarray(P[b["cy"]])
     with np.errstate(all="ignore"):  # a variant with bad parameters is refused by check_parameters
-        state0, ie0 = preload(topo.material, topo.spring_curves[:, 0], topo.spring_curves[:, 1], e0, kpar, yield_t,
-                              yield_c, ktan, fy, cx, cy, cds, cs0, cs1, off)  # fmt: skip
+        state0, ie0 = preload(
+            topo.material,
+            topo.spring_curves[:, 0],
+            topo.spring_curves[:, 1],
+            e0,
+            kpar,
+            yield_t,
+            yield_c,
+            ktan,
+            fy,
+            cx,
+            cy,
+            cds,
+            cs0,
+            cs1,
+            off,
+        )
     kmax, damp, steps = _steps(topo, P, mass, kpar, cx, cy, interval)
     W = len(topo.wall_ids)
     normal = P[b["wall_normal"]].reshape(W, D, V)
@@ -186,43 +222,104 @@ def build_batch(topo: Topology, P: np.ndarray, interval: float) -> tuple[Batch, 
     wall_k = np.ascontiguousarray(P[b["wall_k"]])
 
     too_many = steps.too_many if steps.too_many is not None else np.zeros(V, dtype=bool)
-    for code, bad in ((7, too_many), (6, ~(end_time > 0)), (5, bad_normal), (4, np.any(length0 == 0, axis=0)),
-                      (3, bad_mass), (2, bad_curve), (1, steps.refused)):  # fmt: skip
+    for code, bad in (
+        (7, too_many),
+        (6, ~(end_time > 0)),
+        (5, bad_normal),
+        (4, np.any(length0 == 0, axis=0)),
+        (3, bad_mass),
+        (2, bad_curve),
+        (1, steps.refused),
+    ):
         invalid = np.where(bad, code, invalid)
     steps.n_steps = np.where(invalid > 0, 0, steps.n_steps)
 
     batch = Batch(
-        spring_i=i.copy(), spring_j=j.copy(), material=topo.material, curve_a=topo.spring_curves[:, 0].copy(),
-        curve_b=topo.spring_curves[:, 1].copy(), curve_off=off, free=free, load_node=topo.load_node,
-        load_curve=topo.load_curve, pm_node=topo.pm_node, pm_dir=topo.pm_dir, pm_kind=topo.pm_kind,
-        pm_curve=topo.pm_curve, wall_nodes=topo.wall_nodes.astype(np.float64),
-        mass=mass, inv_mass=np.ascontiguousarray(inv_mass), x0=x0, v0=v0, length0=length0,
-        sign=np.ascontiguousarray(sign), kpar=kpar, yield_t=yield_t, yield_c=yield_c, cx=cx, cy=cy, cds=cds, cs0=cs0, cs1=cs1,
+        spring_i=i.copy(),
+        spring_j=j.copy(),
+        material=topo.material,
+        curve_a=topo.spring_curves[:, 0].copy(),
+        curve_b=topo.spring_curves[:, 1].copy(),
+        curve_off=off,
+        free=free,
+        load_node=topo.load_node,
+        load_curve=topo.load_curve,
+        pm_node=topo.pm_node,
+        pm_dir=topo.pm_dir,
+        pm_kind=topo.pm_kind,
+        pm_curve=topo.pm_curve,
+        wall_nodes=topo.wall_nodes.astype(np.float64),
+        mass=mass,
+        inv_mass=np.ascontiguousarray(inv_mass),
+        x0=x0,
+        v0=v0,
+        length0=length0,
+        sign=np.ascontiguousarray(sign),
+        kpar=kpar,
+        yield_t=yield_t,
+        yield_c=yield_c,
+        cx=cx,
+        cy=cy,
+        cds=cds,
+        cs0=cs0,
+        cs1=cs1,
         gravity=np.ascontiguousarray(P[b["gravity"]].reshape(D, V)) if topo.has_gravity else np.zeros((D, V)),
         load_force=np.ascontiguousarray(P[b["load"]].reshape(len(topo.load_node), D, V)),
         pm_scale=np.ascontiguousarray(P[b["pm_scale"]]),
         wall_point=np.ascontiguousarray(P[b["wall_point"]].reshape(W, D, V)),
-        wall_normal=np.ascontiguousarray(unit), wall_stiffness=wall_k, dt=steps.dt, n_steps=steps.n_steps,
-        out_every=steps.out_every, ke_fraction=P[b["ke_fraction"].start].copy(),
-        min_time=P[b["min_time"].start].copy(), invalid=invalid,
-        energy_floor=_energy_floor(kmax, length0, mass, v0), rec_block=np.ones(V, dtype=np.int64),
+        wall_normal=np.ascontiguousarray(unit),
+        wall_stiffness=wall_k,
+        dt=steps.dt,
+        n_steps=steps.n_steps,
+        out_every=steps.out_every,
+        ke_fraction=P[b["ke_fraction"].start].copy(),
+        min_time=P[b["min_time"].start].copy(),
+        invalid=invalid,
+        energy_floor=_energy_floor(kmax, length0, mass, v0),
+        rec_block=np.ones(V, dtype=np.int64),
         **knot_peaks(topo, cx, cy),
-        ktan=ktan, fy=fy, e0=e0, fail_t=np.ascontiguousarray(P[b["fail_t"]]),
-        fail_c=np.ascontiguousarray(P[b["fail_c"]]), state0=state0, ie0=ie0, rate0=_rate0(dx, length0, v0, i, j),
-        bx=bx, by=by, cfac=cfac, rate_curve=topo.rate_curves, rate_off=_rate_offsets(topo),
+        ktan=ktan,
+        fy=fy,
+        e0=e0,
+        fail_t=np.ascontiguousarray(P[b["fail_t"]]),
+        fail_c=np.ascontiguousarray(P[b["fail_c"]]),
+        state0=state0,
+        ie0=ie0,
+        rate0=_rate0(dx, length0, v0, i, j),
+        bx=bx,
+        by=by,
+        cfac=cfac,
+        rate_curve=topo.rate_curves,
+        rate_off=_rate_offsets(topo),
         rate_at=np.ascontiguousarray(P[b["rate"]]) if "rate" in b else np.zeros((0, V)),
-    )  # fmt: skip
+    )
     return batch, steps
 
 
-def _steps(topo: Topology, P: np.ndarray, mass: np.ndarray, kpar: np.ndarray, cx: np.ndarray, cy: np.ndarray,
-           interval: float) -> tuple[np.ndarray, np.ndarray, StepChoice]:  # fmt: skip
+def _steps(
+    topo: Topology,
+    P: np.ndarray,
+    mass: np.ndarray,
+    kpar: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    interval: float,
+) -> tuple[np.ndarray, np.ndarray, StepChoice]:
     """(k_max, damping, the step choice) of the variants in ``P``: what :func:`build_batch` and
     :func:`variant_steps` both use."""
     b = topo.blocks
     kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy, P[b["rate"]] if "rate" in b else None)
-    steps = choose_steps(topo, mass, kmax, damp, P[b["end_time"].start], P[b["time_step"].start], interval,
-                         time_curve_spacing(topo, cx), np.ascontiguousarray(P[b["wall_k"]]))  # fmt: skip
+    steps = choose_steps(
+        topo,
+        mass,
+        kmax,
+        damp,
+        P[b["end_time"].start],
+        P[b["time_step"].start],
+        interval,
+        time_curve_spacing(topo, cx),
+        np.ascontiguousarray(P[b["wall_k"]]),
+    )
     return kmax, damp, steps
 
 
@@ -231,7 +328,9 @@ def variant_steps(topo: Topology, P: np.ndarray, interval: float) -> StepChoice:
     without the rest of the batch: the pre-run check of a fixed ``dt`` (study.sanity)."""
     cx, cy = curve_points(topo, P)
     b = topo.blocks
-    return _steps(topo, P, np.ascontiguousarray(P[b["mass"]]), np.ascontiguousarray(P[b["k"]]), cx, cy, interval)[2]
+    return _steps(
+        topo, P, np.ascontiguousarray(P[b["mass"]]), np.ascontiguousarray(P[b["k"]]), cx, cy, interval
+    )[2]
 
 
 def curve_shapes(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -256,7 +355,9 @@ def curve_points(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def _rate_offsets(topo: Topology) -> np.ndarray:
     """(S + 1,) each spring's range in ``topo.rate_curves`` (all empty for a topology without them)."""
-    return topo.rate_offsets if topo.rate_offsets is not None else np.zeros(topo.n_springs + 1, dtype=np.int64)
+    return (
+        topo.rate_offsets if topo.rate_offsets is not None else np.zeros(topo.n_springs + 1, dtype=np.int64)
+    )
 
 
 def _rate0(dx: np.ndarray, length0: np.ndarray, v0: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
@@ -283,8 +384,11 @@ def knot_peaks(topo: Topology, cx: np.ndarray, cy: np.ndarray) -> dict[str, np.n
     K, V = cx.shape
     knot_y = np.zeros((K, V))
     off = topo.curve_offsets
-    curves = {int(topo.spring_curves[s, 0]) for s in range(topo.n_springs)
-              if topo.material[s] in KNOT_MATERIALS and topo.spring_curves[s, 0] >= 0}  # fmt: skip
+    curves = {
+        int(topo.spring_curves[s, 0])
+        for s in range(topo.n_springs)
+        if topo.material[s] in KNOT_MATERIALS and topo.spring_curves[s, 0] >= 0
+    }
     for c in curves:
         a, e = int(off[c]), int(off[c + 1])
         for k in range(a + 1, e - 1):
@@ -299,7 +403,9 @@ def knot_peaks(topo: Topology, cx: np.ndarray, cy: np.ndarray) -> dict[str, np.n
 def _energy_floor(kmax: np.ndarray, length0: np.ndarray, mass: np.ndarray, v0: np.ndarray) -> np.ndarray:
     """1e-9 of the model's energy scale (springs' k L0^2 and the initial m v0^2), per variant."""
     with np.errstate(over="ignore", invalid="ignore"):
-        return 1e-9 * (np.sum(kmax * length0 * length0, axis=0) + np.sum(mass[:, None, :] * v0 * v0, axis=(0, 1)))
+        return 1e-9 * (
+            np.sum(kmax * length0 * length0, axis=0) + np.sum(mass[:, None, :] * v0 * v0, axis=(0, 1))
+        )
 
 
 def time_curve_spacing(topo: Topology, cx: np.ndarray) -> np.ndarray:

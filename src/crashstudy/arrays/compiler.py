@@ -124,16 +124,39 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
     ptot = int(offsets[-1])
     C = len(curve_ids)
-    rate_lists = [getattr(sp.material, BY_NAME[sp.material.type].rate_curves or "", None) or []
-                  for sp in m.springs.values()]  # fmt: skip
+    rate_lists = [
+        getattr(sp.material, BY_NAME[sp.material.type].rate_curves or "", None) or []
+        for sp in m.springs.values()
+    ]
     rate_offsets = np.concatenate([[0], np.cumsum([len(r) for r in rate_lists])]).astype(np.int64)
 
-    sizes = [("mass", N), ("position", N * D), ("velocity", N * D), ("k", S), ("ty", S), ("cy", S),
-             ("cx", ptot), ("cy_", ptot), ("gravity", D), ("load", L * D), ("pm_scale", P),
-             ("wall_point", W * D), ("wall_normal", W * D), ("wall_k", W), ("end_time", 1), ("time_step", 1),
-             ("ke_fraction", 1), ("min_time", 1),
-             ("kt", S), ("fy", S), ("e0", S), ("fail_t", S), ("fail_c", S), ("cfac", 2 * C),
-             ("rate", int(rate_offsets[-1]))]  # fmt: skip
+    sizes = [
+        ("mass", N),
+        ("position", N * D),
+        ("velocity", N * D),
+        ("k", S),
+        ("ty", S),
+        ("cy", S),
+        ("cx", ptot),
+        ("cy_", ptot),
+        ("gravity", D),
+        ("load", L * D),
+        ("pm_scale", P),
+        ("wall_point", W * D),
+        ("wall_normal", W * D),
+        ("wall_k", W),
+        ("end_time", 1),
+        ("time_step", 1),
+        ("ke_fraction", 1),
+        ("min_time", 1),
+        ("kt", S),
+        ("fy", S),
+        ("e0", S),
+        ("fail_t", S),
+        ("fail_c", S),
+        ("cfac", 2 * C),
+        ("rate", int(rate_offsets[-1])),
+    ]
     blocks: dict[str, slice] = {}
     pos = 0
     for name, n in sizes:
@@ -188,10 +211,18 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
         # spring options: preload / free length and failure elongations (inf: never breaks)
         put("e0", s, sp.initial_elongation, None if row.by_rate else f"springs.{sid}.initial_elongation")
         fail = sp.failure
-        put("fail_t", s, fail.tension if fail is not None and fail.tension is not None else np.inf,
-            f"springs.{sid}.failure.tension")
-        put("fail_c", s, fail.compression if fail is not None and fail.compression is not None else -np.inf,
-            f"springs.{sid}.failure.compression")
+        put(
+            "fail_t",
+            s,
+            fail.tension if fail is not None and fail.tension is not None else np.inf,
+            f"springs.{sid}.failure.tension",
+        )
+        put(
+            "fail_c",
+            s,
+            fail.compression if fail is not None and fail.compression is not None else -np.inf,
+            f"springs.{sid}.failure.compression",
+        )
 
     for c, (cid, curve) in enumerate(m.curves.items()):
         o = int(offsets[c])
@@ -222,13 +253,19 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
         for d in range(D):
             put("wall_point", i * D + d, w.point[d], f"rigid_walls.{i}.point.{d}")
             put("wall_normal", i * D + d, w.normal[d], f"rigid_walls.{i}.normal.{d}")
-        put("wall_k", i, w.stiffness or 0.0, f"rigid_walls.{i}.stiffness" if w.stiffness is not None else None)
+        put(
+            "wall_k", i, w.stiffness or 0.0, f"rigid_walls.{i}.stiffness" if w.stiffness is not None else None
+        )
     put("end_time", 0, m.end_time, "end_time")
     mode = m.time_step.mode
     put("time_step", 0, getattr(m.time_step, mode), f"time_step.{mode}")
     term = m.termination
-    put("ke_fraction", 0, term.kinetic_energy_fraction if term else 0.0,
-        "termination.kinetic_energy_fraction" if term else None)
+    put(
+        "ke_fraction",
+        0,
+        term.kinetic_energy_fraction if term else 0.0,
+        "termination.kinetic_energy_fraction" if term else None,
+    )
     put("min_time", 0, term.min_time if term else 0.0, "termination.min_time" if term else None)
 
     hist = m.output.histories
@@ -238,24 +275,43 @@ def compile_model(m: Model) -> tuple[Topology, np.ndarray]:
     keep = hist == "all" or (isinstance(hist, list) and "filtered_acceleration" in hist)
     extra = ("filtered_acceleration",) if m.metrics and keep else ()
     histories = tuple(h for h in histories if h != "filtered_acceleration")
-    metrics = tuple(MetricSpec(nidx[mt.node], _unit(mt.direction, D), mt.cfc, tuple(mt.criteria))
-                    for mt in m.metrics)  # fmt: skip
+    metrics = tuple(
+        MetricSpec(nidx[mt.node], _unit(mt.direction, D), mt.cfc, tuple(mt.criteria)) for mt in m.metrics
+    )
     topo = Topology(
-        name=m.name, units=m.units, dim=D, node_ids=node_ids, spring_ids=spring_ids,
-        curve_ids=curve_ids, wall_ids=tuple(w.id for w in m.rigid_walls),
-        spring_nodes=spring_nodes, material=material, spring_curves=spring_curves,
-        curve_offsets=offsets, fixed=fixed, load_node=load_node, load_curve=load_curve,
+        name=m.name,
+        units=m.units,
+        dim=D,
+        node_ids=node_ids,
+        spring_ids=spring_ids,
+        curve_ids=curve_ids,
+        wall_ids=tuple(w.id for w in m.rigid_walls),
+        spring_nodes=spring_nodes,
+        material=material,
+        spring_curves=spring_curves,
+        curve_offsets=offsets,
+        fixed=fixed,
+        load_node=load_node,
+        load_curve=load_curve,
         pm_node=np.array([nidx[q.node] for q in pm], dtype=np.int64),
         pm_dir=np.array([axes.index(q.direction) for q in pm], dtype=np.int64),
         pm_kind=np.array([kinds[q.quantity] for q in pm], dtype=np.int64),
         pm_curve=np.array([cidx[q.curve] for q in pm], dtype=np.int64),
-        wall_nodes=wall_nodes, has_gravity=m.gravity is not None and any(m.gravity),
-        time_step_mode=mode, output_interval=m.output.interval, histories=histories,
-        termination=term is not None, accuracy_check=m.accuracy_check, blocks=blocks, paths=paths, n_params=pos,
-        metrics=metrics, extra_histories=extra,
+        wall_nodes=wall_nodes,
+        has_gravity=m.gravity is not None and any(m.gravity),
+        time_step_mode=mode,
+        output_interval=m.output.interval,
+        histories=histories,
+        termination=term is not None,
+        accuracy_check=m.accuracy_check,
+        blocks=blocks,
+        paths=paths,
+        n_params=pos,
+        metrics=metrics,
+        extra_histories=extra,
         rate_curves=np.array([cidx[rc.curve] for r in rate_lists for rc in r], dtype=np.int64),
         rate_offsets=rate_offsets,
-    )  # fmt: skip
+    )
     return topo, p
 
 
@@ -263,7 +319,9 @@ def _unit(direction: str | Sequence[float] | None, dim: int) -> tuple[float, ...
     """A metric's direction as a unit vector of ``dim`` components (None: from the initial velocity)."""
     if direction is None:
         return None
-    vec = np.array([1.0 if a == direction else 0.0 for a in "xy"[:dim]] if isinstance(direction, str) else direction)
+    vec = np.array(
+        [1.0 if a == direction else 0.0 for a in "xy"[:dim]] if isinstance(direction, str) else direction
+    )
     return tuple(float(c) for c in vec / np.sqrt(np.sum(vec * vec)))
 
 
@@ -273,7 +331,9 @@ def apply_axis(P: np.ndarray, ref: PathRef, values: np.ndarray) -> None:
     ``values`` has shape ``(V,)``: the axis value of each variant.
     """
     idx = list(ref.slots)
-    with np.errstate(over="ignore", invalid="ignore"):  # a value that overflows is refused by the study's check
+    with np.errstate(
+        over="ignore", invalid="ignore"
+    ):  # a value that overflows is refused by the study's check
         _apply(P, ref, idx, values)
 
 

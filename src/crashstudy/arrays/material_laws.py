@@ -15,11 +15,20 @@ import numpy as np
 
 from crashstudy.vocabulary.codes import NSTATE, TIME_EPS
 
-__all__ = ["NSTATE", "TIME_EPS", "crush", "curve_eval", "general_nonlinear", "rate_elastic", "time_curve_eval"]
+__all__ = [
+    "NSTATE",
+    "TIME_EPS",
+    "crush",
+    "curve_eval",
+    "general_nonlinear",
+    "rate_elastic",
+    "time_curve_eval",
+]
 
 
-def curve_eval(c: int, e: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray,
-               cs0: np.ndarray, off: np.ndarray) -> np.ndarray:
+def curve_eval(
+    c: int, e: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray, cs0: np.ndarray, off: np.ndarray
+) -> np.ndarray:
     """Piecewise-linear curve ``c`` at ``e`` (V,), extrapolated along its end segments (ramp sum)."""
     a, b = int(off[c]), int(off[c + 1])
     y = cy[a] + cs0[c] * (e - cx[a])
@@ -28,8 +37,9 @@ def curve_eval(c: int, e: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.nd
     return y
 
 
-def time_curve_eval(c: int, t: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray,
-                    cs0: np.ndarray, off: np.ndarray) -> np.ndarray:
+def time_curve_eval(
+    c: int, t: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray, cs0: np.ndarray, off: np.ndarray
+) -> np.ndarray:
     """Curve ``c`` as a function of time: interpolated inside its range, zero outside."""
     a, b = int(off[c]), int(off[c + 1])
     eps = TIME_EPS * (cx[b - 1] - cx[a])  # t = n dt carries round-off: a knot at end_time is inside
@@ -37,8 +47,17 @@ def time_curve_eval(c: int, t: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: 
     return np.where(inside, curve_eval(c, t, cx, cy, cds, cs0, off), 0.0)
 
 
-def curve_inverse(c: int, f: np.ndarray, direction: float, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray,
-                  cs0: np.ndarray, cs1: np.ndarray, off: np.ndarray) -> np.ndarray:
+def curve_inverse(
+    c: int,
+    f: np.ndarray,
+    direction: float,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    cds: np.ndarray,
+    cs0: np.ndarray,
+    cs1: np.ndarray,
+    off: np.ndarray,
+) -> np.ndarray:
     """Elongation where curve ``c`` first reaches force ``f``, walking from e = 0 toward ``direction``.
 
     The walk starts at the origin and follows the segments outward (compression: toward -inf,
@@ -74,8 +93,16 @@ def curve_inverse(c: int, f: np.ndarray, direction: float, cx: np.ndarray, cy: n
     return np.where(np.isnan(out), np.where(ok, extended, prev_x), out)
 
 
-def unloading_inverse(c: int, f: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray,
-                      cs0: np.ndarray, cs1: np.ndarray, off: np.ndarray) -> np.ndarray:
+def unloading_inverse(
+    c: int,
+    f: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    cds: np.ndarray,
+    cs0: np.ndarray,
+    cs1: np.ndarray,
+    off: np.ndarray,
+) -> np.ndarray:
     """Elongation where the increasing curve ``c`` has force ``f`` (linear extrapolation at ends)."""
     a, b = int(off[c]), int(off[c + 1])
     x, y = cx[a:b], cy[a:b]
@@ -87,9 +114,20 @@ def unloading_inverse(c: int, f: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds
     return out
 
 
-def general_nonlinear(e: np.ndarray, st: np.ndarray, ca: int, cb: int, yt: np.ndarray, yc: np.ndarray,
-                      cx: np.ndarray, cy: np.ndarray, cds: np.ndarray, cs0: np.ndarray, cs1: np.ndarray,
-                      off: np.ndarray) -> np.ndarray:
+def general_nonlinear(
+    e: np.ndarray,
+    st: np.ndarray,
+    ca: int,
+    cb: int,
+    yt: np.ndarray,
+    yc: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    cds: np.ndarray,
+    cs0: np.ndarray,
+    cs1: np.ndarray,
+    off: np.ndarray,
+) -> np.ndarray:
     """Force of a ``general_nonlinear`` spring at elongation ``e``; updates ``st`` (NSTATE, V) in place.
 
     Implements rules 1-4 of docs/format.md (elastic band, yield, shifted unloading line, reverse yield).
@@ -153,8 +191,17 @@ def general_nonlinear(e: np.ndarray, st: np.ndarray, ca: int, cb: int, yt: np.nd
     return F
 
 
-def crush(e: np.ndarray, st: np.ndarray, ca: int, ku: np.ndarray, cx: np.ndarray, cy: np.ndarray,
-          cds: np.ndarray, cs0: np.ndarray, off: np.ndarray) -> np.ndarray:
+def crush(
+    e: np.ndarray,
+    st: np.ndarray,
+    ca: int,
+    ku: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    cds: np.ndarray,
+    cs0: np.ndarray,
+    off: np.ndarray,
+) -> np.ndarray:
     """Force of a ``crush`` spring (compression only, elastic spring-back, separation); updates ``st``."""
     emin, fstar = st[0], st[1]
     on = e <= emin
@@ -184,8 +231,17 @@ def elastoplastic(e: np.ndarray, st: np.ndarray, k: np.ndarray, kt: np.ndarray, 
     return trial - sg * k * dp
 
 
-def rate_elastic(e: np.ndarray, rate: np.ndarray, curves: np.ndarray, rates: np.ndarray, cx: np.ndarray,
-                 cy: np.ndarray, cds: np.ndarray, cs0: np.ndarray, off: np.ndarray) -> np.ndarray:
+def rate_elastic(
+    e: np.ndarray,
+    rate: np.ndarray,
+    curves: np.ndarray,
+    rates: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    cds: np.ndarray,
+    cs0: np.ndarray,
+    off: np.ndarray,
+) -> np.ndarray:
     """Force of a ``rate_elastic`` spring, ``C(e, |de/dt|)``: the curves ``curves`` (R,) at rates ``rates``
     (R, V), increasing; linear in the rate between the two curves that bracket ``|rate|``, the first curve
     below the first rate, the last above the last (docs/format.md)."""

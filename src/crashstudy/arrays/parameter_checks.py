@@ -60,13 +60,25 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
 
     def ranged(block: str, rows: np.ndarray, bad: np.ndarray, expect: str) -> None:
         start = b[block].start
-        rule(bad[rows], lambda r, c: f"{name.get(start + int(rows[r]), block)}: expected {expect}, "
-             f"got {P[start + int(rows[r]), c]:g}")  # fmt: skip
+        rule(
+            bad[rows],
+            lambda r, c: (
+                f"{name.get(start + int(rows[r]), block)}: expected {expect}, "
+                f"got {P[start + int(rows[r]), c]:g}"
+            ),
+        )
 
     unbounded = ("ty", "cy", "fail_t", "fail_c")  # +-inf: never yields / never breaks
-    plain = np.array([s for blk, sl in b.items() if blk not in unbounded for s in range(sl.start, sl.stop)], dtype=np.int64)
-    rule(~np.isfinite(P[plain]), lambda r, c: f"{name.get(int(plain[r]), 'a parameter')} is not finite "
-         f"({P[plain[r], c]:g}): an axis value or a scale factor made it overflow")  # fmt: skip
+    plain = np.array(
+        [s for blk, sl in b.items() if blk not in unbounded for s in range(sl.start, sl.stop)], dtype=np.int64
+    )
+    rule(
+        ~np.isfinite(P[plain]),
+        lambda r, c: (
+            f"{name.get(int(plain[r]), 'a parameter')} is not finite "
+            f"({P[plain[r], c]:g}): an axis value or a scale factor made it overflow"
+        ),
+    )
     mass = P[b["mass"]]
     movable = np.asarray(~topo.fixed.all(axis=1), dtype=bool)
     ranged("mass", np.arange(N), (movable[:, None] & ~(mass > 0)) | (mass < 0), "a mass > 0")
@@ -76,42 +88,73 @@ def check_parameters(topo: Topology, P: np.ndarray, interval: float) -> Paramete
     _curve_rules(topo, P, rule)
     x0 = P[b["position"]].reshape(N, D, V)
     dx = x0[topo.spring_nodes[:, 1]] - x0[topo.spring_nodes[:, 0]]
-    rule(np.all(dx == 0, axis=1), lambda r, c: f"springs.{topo.spring_ids[r]}: its nodes are at the same position "
-         "(a spring needs a non-zero initial length)")  # fmt: skip
+    rule(
+        np.all(dx == 0, axis=1),
+        lambda r, c: (
+            f"springs.{topo.spring_ids[r]}: its nodes are at the same position "
+            "(a spring needs a non-zero initial length)"
+        ),
+    )
     v0 = P[b["velocity"]].reshape(N * D, V)
     fixed = np.flatnonzero(topo.fixed.reshape(-1))
-    rule(v0[fixed] != 0, lambda r, c: f"initial_velocity.{topo.node_ids[fixed[r] // D]}.{fixed[r] % D}: the node is "
-         "fixed along this axis; its initial velocity there must be 0")  # fmt: skip
+    rule(
+        v0[fixed] != 0,
+        lambda r, c: (
+            f"initial_velocity.{topo.node_ids[fixed[r] // D]}.{fixed[r] % D}: the node is "
+            "fixed along this axis; its initial velocity there must be 0"
+        ),
+    )
     normal = P[b["wall_normal"]].reshape(len(topo.wall_ids), D, V)
     rule(np.all(normal == 0, axis=1), lambda r, c: f"rigid_walls.{r}.normal must not be the zero vector")
     _wall_side_rule(topo, P, x0, normal, rule)
     end, step = P[b["end_time"].start], P[b["time_step"].start]
     rule(~(end > 0), lambda r, c: f"end_time: expected a value > 0, got {end[c]:g}")
     if topo.output_interval is not None:
-        rule(~(end >= topo.output_interval), lambda r, c: f"end_time: expected an end_time no shorter than "
-             f"output.interval ({topo.output_interval:g}), got {end[c]:g}")  # fmt: skip
-    low, high = {"safety_factor": (0.0, 1.0), "dt": (0.0, np.inf), "tolerance": (0.0, 1.0)}[topo.time_step_mode]
+        rule(
+            ~(end >= topo.output_interval),
+            lambda r, c: (
+                f"end_time: expected an end_time no shorter than "
+                f"output.interval ({topo.output_interval:g}), got {end[c]:g}"
+            ),
+        )
+    low, high = {"safety_factor": (0.0, 1.0), "dt": (0.0, np.inf), "tolerance": (0.0, 1.0)}[
+        topo.time_step_mode
+    ]
     ok = (step > low) & ((step <= high) if topo.time_step_mode == "safety_factor" else (step < high))
-    rule(~ok, lambda r, c: f"time_step.{topo.time_step_mode}: expected a value in ({low:g}, {high:g}"
-         f"{']' if topo.time_step_mode == 'safety_factor' else ')'}, got {step[c]:g}")  # fmt: skip
+    rule(
+        ~ok,
+        lambda r, c: (
+            f"time_step.{topo.time_step_mode}: expected a value in ({low:g}, {high:g}"
+            f"{']' if topo.time_step_mode == 'safety_factor' else ')'}, got {step[c]:g}"
+        ),
+    )
     if topo.termination:
         f, t = P[b["ke_fraction"].start], P[b["min_time"].start]
-        rule(~((f > 0) & (f < 1)), lambda r, c: f"termination.kinetic_energy_fraction: expected a value in (0, 1), got {f[c]:g}")
+        rule(
+            ~((f > 0) & (f < 1)),
+            lambda r, c: f"termination.kinetic_energy_fraction: expected a value in (0, 1), got {f[c]:g}",
+        )
         rule(~(t >= 0), lambda r, c: f"termination.min_time: expected a value >= 0, got {t[c]:g}")
     bad = np.zeros(V, dtype=bool)
     for mask, _ in rules:
         bad |= mask.any(axis=0)
     pcx, pcy = curve_points(topo, P)
     kmax, damp = spring_stiffness_bound(topo, P[b["k"]], pcx, pcy, P[b["rate"]] if "rate" in b else None)
-    steps = choose_steps(topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, pcx), P[b["wall_k"]])
+    steps = choose_steps(
+        topo, mass, kmax, damp, end, step, interval, time_curve_spacing(topo, pcx), P[b["wall_k"]]
+    )
     assert steps.too_many is not None
     over = steps.too_many & ~bad  # a variant that breaks another rule has no meaningful step
+
     def too_small(c: int) -> str:
         n = int(steps.control_node[c])
         crit = ("0: stiffness / mass overflows" if steps.dt_crit[c] == 0 else f"{steps.dt_crit[c]:.3g}") + (
-            f", node {topo.node_ids[n]}" if n >= 0 else "")  # fmt: skip
-        return (f"end_time {end[c]:g} (sampled every {interval:g}) needs more than {MAX_STEPS:.2g} time steps at the "
-                f"critical step ({crit}): check the masses, stiffnesses and end_time")  # fmt: skip
+            f", node {topo.node_ids[n]}" if n >= 0 else ""
+        )
+        return (
+            f"end_time {end[c]:g} (sampled every {interval:g}) needs more than {MAX_STEPS:.2g} time steps at the "
+            f"critical step ({crit}): check the masses, stiffnesses and end_time"
+        )
 
     rule(over, lambda r, c: too_small(c))
     return ParameterCheck(bad | over, rules)
@@ -142,11 +185,18 @@ def _rate_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> Non
         if e > a:
             sid, r = topo.spring_ids[s], rates[a:e]
             bad = np.concatenate([~(r[:1] >= 0), ~(np.diff(r, axis=0) > 0)])
-            rule(bad, lambda k, c, sid=sid, r=r: f"springs.{sid}.material.curves.{k}.rate: expected a rate >= 0 and "
-                 f"above the rate before it, got {r[k, c]:g}")  # fmt: skip
+            rule(
+                bad,
+                lambda k, c, sid=sid, r=r: (
+                    f"springs.{sid}.material.curves.{k}.rate: expected a rate >= 0 and "
+                    f"above the rate before it, got {r[k, c]:g}"
+                ),
+            )
 
 
-def _option_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None], ranged: Callable[..., None]) -> None:
+def _option_rules(
+    topo: Topology, P: np.ndarray, rule: Callable[..., None], ranged: Callable[..., None]
+) -> None:
     """The spring options: failure elongations beyond the initial elongation."""
     b = topo.blocks
     e0, ft, fc = (P[b[name]] for name in ("e0", "fail_t", "fail_c"))
@@ -154,14 +204,25 @@ def _option_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None], rang
     ranged("fail_t", every, ~(ft > 0), "a tension failure elongation > 0")
     ranged("fail_c", every, ~(fc < 0), "a compression failure elongation < 0")
     ids = topo.spring_ids
-    rule((ft > 0) & ~(e0 < ft), lambda r, c: f"springs.{ids[r]}.failure.tension: expected an elongation above "
-         f"initial_elongation ({e0[r, c]:g}), got {ft[r, c]:g}: the spring would be broken at t = 0")  # fmt: skip
-    rule((fc < 0) & ~(e0 > fc), lambda r, c: f"springs.{ids[r]}.failure.compression: expected an elongation below "
-         f"initial_elongation ({e0[r, c]:g}), got {fc[r, c]:g}: the spring would be broken at t = 0")  # fmt: skip
+    rule(
+        (ft > 0) & ~(e0 < ft),
+        lambda r, c: (
+            f"springs.{ids[r]}.failure.tension: expected an elongation above "
+            f"initial_elongation ({e0[r, c]:g}), got {ft[r, c]:g}: the spring would be broken at t = 0"
+        ),
+    )
+    rule(
+        (fc < 0) & ~(e0 > fc),
+        lambda r, c: (
+            f"springs.{ids[r]}.failure.compression: expected an elongation below "
+            f"initial_elongation ({e0[r, c]:g}), got {fc[r, c]:g}: the spring would be broken at t = 0"
+        ),
+    )
 
 
-def _wall_side_rule(topo: Topology, P: np.ndarray, x0: np.ndarray, normal: np.ndarray,
-                    rule: Callable[..., None]) -> None:  # fmt: skip
+def _wall_side_rule(
+    topo: Topology, P: np.ndarray, x0: np.ndarray, normal: np.ndarray, rule: Callable[..., None]
+) -> None:
     """Every node a wall stops starts on its front side (:func:`~crashstudy.schema.signs.depth_behind_walls`):
     an axis on a node position or a wall point or normal must keep it there."""
     W, D, V = normal.shape
@@ -174,8 +235,9 @@ def _wall_side_rule(topo: Topology, P: np.ndarray, x0: np.ndarray, normal: np.nd
     def text(r: int, c: int) -> str:
         bad = np.flatnonzero(depth[r, :, c] > 0)
         k = int(bad[0])
-        return f"rigid_walls.{r}.point: " + behind_message(topo.node_ids[k], float(depth[r, k, c]),
-                                                            topo.wall_ids[r], length, bad.size - 1)
+        return f"rigid_walls.{r}.point: " + behind_message(
+            topo.node_ids[k], float(depth[r, k, c]), topo.wall_ids[r], length, bad.size - 1
+        )
 
     rule(np.any(depth > 0, axis=1), text)
 
@@ -191,10 +253,20 @@ def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> No
         a, e = int(off[c]), int(off[c + 1])
         xs = cx[a:e]
         for pts, axis in ((xs, "x"), (cy[a:e], "y")):  # a point times its curve's scale
-            rule(~np.isfinite(pts), lambda r, col, cid=cid, pts=pts, axis=axis: f"curves.{cid}.{axis}.{r} is not "
-                 f"finite ({pts[r, col]:g}): an axis value or a scale factor made it overflow")  # fmt: skip
-        rule(~(np.diff(xs, axis=0) > 0), lambda r, col, cid=cid, xs=xs: f"curves.{cid}.x must be strictly increasing "
-             f"(x.{r} = {xs[r, col]:g} is followed by {xs[r + 1, col]:g})")  # fmt: skip
+            rule(
+                ~np.isfinite(pts),
+                lambda r, col, cid=cid, pts=pts, axis=axis: (
+                    f"curves.{cid}.{axis}.{r} is not "
+                    f"finite ({pts[r, col]:g}): an axis value or a scale factor made it overflow"
+                ),
+            )
+        rule(
+            ~(np.diff(xs, axis=0) > 0),
+            lambda r, col, cid=cid, xs=xs: (
+                f"curves.{cid}.x must be strictly increasing "
+                f"(x.{r} = {xs[r, col]:g} is followed by {xs[r + 1, col]:g})"
+            ),
+        )
     origin: dict[int, str] = {}  # curve -> material type of a spring that uses it
     signed: dict[int, str] = {}  # curve -> a material whose force has the sign of the elongation
     rising: set[int] = set()
@@ -210,39 +282,65 @@ def _curve_rules(topo: Topology, P: np.ndarray, rule: Callable[..., None]) -> No
             if role.rule == "signed":  # a loading curve (an unloading one is increasing)
                 signed[c] = row.name + (" loading" if len(row.curves) > 1 else "")
             else:
-                {"increasing": rising, "compression_part": crush, "non_decreasing": damper}[str(role.rule)].add(c)
+                {"increasing": rising, "compression_part": crush, "non_decreasing": damper}[
+                    str(role.rule)
+                ].add(c)
     for c, kind_name in sorted(origin.items()):
         a, e = int(off[c]), int(off[c + 1])
         at0 = _value_at_zero(cx[a:e], cy[a:e])
         scale = np.max(np.abs(cy[a:e]), axis=0)
         scale = np.where(scale > 0, scale, 1.0)
-        why = ("a damper carries no force at rest; a preload belongs on a spring, with initial_elongation"
-               if kind_name == "nonlinear_damper" else "a spring that carries force at t = 0 says so with "
-               "initial_elongation, never with a shifted curve")  # fmt: skip
-        rule(np.abs(at0) > 1e-9 * scale, lambda r, col, cid=ids[c], at0=at0, kn=kind_name, why=why: f"curves.{cid} "
-             f"must pass through the origin (a {kn} curve; its force at 0 is {at0[col]:g}): {why}")  # fmt: skip
+        why = (
+            "a damper carries no force at rest; a preload belongs on a spring, with initial_elongation"
+            if kind_name == "nonlinear_damper"
+            else "a spring that carries force at t = 0 says so with "
+            "initial_elongation, never with a shifted curve"
+        )
+        rule(
+            np.abs(at0) > 1e-9 * scale,
+            lambda r, col, cid=ids[c], at0=at0, kn=kind_name, why=why: (
+                f"curves.{cid} "
+                f"must pass through the origin (a {kn} curve; its force at 0 is {at0[col]:g}): {why}"
+            ),
+        )
     for c, kind_name in sorted(signed.items()):
         a, e = int(off[c]), int(off[c + 1])
         wrong = wrong_sign_points(cx[a:e], cy[a:e])
 
-        def signed_text(r: int, col: int, cid: str = ids[c], a: int = a, wrong: np.ndarray = wrong,
-                        use: str = kind_name) -> str:  # fmt: skip
+        def signed_text(
+            r: int, col: int, cid: str = ids[c], a: int = a, wrong: np.ndarray = wrong, use: str = kind_name
+        ) -> str:
             k = int(np.argmax(wrong[:, col]))
             return f"curves.{cid}: " + sign_message(cid, k, float(cx[a + k, col]), float(cy[a + k, col]), use)
 
         rule(np.any(wrong, axis=0), signed_text)
     for c in sorted(rising):
         a, e = int(off[c]), int(off[c + 1])
-        rule(~(np.diff(cy[a:e], axis=0) > 0), lambda r, col, cid=ids[c]: f"curves.{cid}.y must be strictly increasing "
-             "(the unloading curve of a general_nonlinear spring)")  # fmt: skip
+        rule(
+            ~(np.diff(cy[a:e], axis=0) > 0),
+            lambda r, col, cid=ids[c]: (
+                f"curves.{cid}.y must be strictly increasing "
+                "(the unloading curve of a general_nonlinear spring)"
+            ),
+        )
     for c in sorted(damper):
         a, e = int(off[c]), int(off[c + 1])
-        rule(~(np.diff(cy[a:e], axis=0) >= 0), lambda r, col, cid=ids[c]: f"curves.{cid}.y must be non-decreasing "
-             "(the force vs elongation rate curve of a nonlinear_damper)")  # fmt: skip
+        rule(
+            ~(np.diff(cy[a:e], axis=0) >= 0),
+            lambda r, col, cid=ids[c]: (
+                f"curves.{cid}.y must be non-decreasing "
+                "(the force vs elongation rate curve of a nonlinear_damper)"
+            ),
+        )
     for c in sorted(crush):
         a = int(off[c])
-        rule(~(cx[a] < 0), lambda r, col, cid=ids[c], a=a: f"curves.{cid} needs a compression part (x < 0): the "
-             f"loading curve of a crush spring starts at x = {cx[a, col]:g}")  # fmt: skip
+        rule(
+            ~(cx[a] < 0),
+            lambda r, col, cid=ids[c], a=a: (
+                f"curves.{cid} needs a compression part (x < 0): the "
+                f"loading curve of a crush spring starts at x = {cx[a, col]:g}"
+            ),
+        )
 
 
 def _value_at_zero(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:

@@ -21,10 +21,23 @@ from crashstudy.vocabulary.codes import CRUSH, ELASTOPLASTIC, GENERAL, LINEAR, N
 from crashstudy.vocabulary.materials import spec
 
 
-def preload(material: np.ndarray, curve_a: np.ndarray, curve_b: np.ndarray, e0: np.ndarray, kpar: np.ndarray,
-            yield_t: np.ndarray, yield_c: np.ndarray, kt: np.ndarray, fy: np.ndarray, cx: np.ndarray,
-            cy: np.ndarray, cds: np.ndarray, cs0: np.ndarray, cs1: np.ndarray, off: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def preload(
+    material: np.ndarray,
+    curve_a: np.ndarray,
+    curve_b: np.ndarray,
+    e0: np.ndarray,
+    kpar: np.ndarray,
+    yield_t: np.ndarray,
+    yield_c: np.ndarray,
+    kt: np.ndarray,
+    fy: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    cds: np.ndarray,
+    cs0: np.ndarray,
+    cs1: np.ndarray,
+    off: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """(state0 (S, NSTATE, V), IE0 (S, V) [energy]) after loading each spring from 0 to ``e0`` (S, V).
 
     ``state0`` is ``(0, NSTATE, V)`` when no spring is preloaded (every kernel then starts from zeros).
@@ -46,15 +59,33 @@ def preload(material: np.ndarray, curve_a: np.ndarray, curve_b: np.ndarray, e0: 
         path = np.concatenate([path, e0[s][None, :]])
         e_prev, f_prev = np.zeros(V), np.zeros(V)
         for e in path:
-            f = _law(kind, s, c, int(curve_b[s]), e, state[s], kpar, yield_t, yield_c, kt, fy, cx, cy, cds, cs0,
-                     cs1, off)  # fmt: skip
+            f = _law(
+                kind,
+                s,
+                c,
+                int(curve_b[s]),
+                e,
+                state[s],
+                kpar,
+                yield_t,
+                yield_c,
+                kt,
+                fy,
+                cx,
+                cy,
+                cds,
+                cs0,
+                cs1,
+                off,
+            )
             ie0[s] += 0.5 * (f + f_prev) * (e - e_prev)
             e_prev, f_prev = e, f
     return state, ie0
 
 
-def _kinks(kind: int, c: int, k: np.ndarray, fy: np.ndarray, cx: np.ndarray, cy: np.ndarray, off: np.ndarray,
-           V: int) -> np.ndarray:  # fmt: skip
+def _kinks(
+    kind: int, c: int, k: np.ndarray, fy: np.ndarray, cx: np.ndarray, cy: np.ndarray, off: np.ndarray, V: int
+) -> np.ndarray:
     """Elongations (M, V) where the force law of a monotonic path may bend."""
     rule = spec(kind).kinks  # the material table's preload kinks
     if rule == "elastic_limit":
@@ -72,9 +103,25 @@ def _kinks(kind: int, c: int, k: np.ndarray, fy: np.ndarray, cx: np.ndarray, cy:
     return np.concatenate([xs, cross])
 
 
-def _law(kind: int, s: int, c: int, cb: int, e: np.ndarray, st: np.ndarray, kpar: np.ndarray, yield_t: np.ndarray,
-         yield_c: np.ndarray, kt: np.ndarray, fy: np.ndarray, cx: np.ndarray, cy: np.ndarray, cds: np.ndarray,
-         cs0: np.ndarray, cs1: np.ndarray, off: np.ndarray) -> np.ndarray:  # fmt: skip
+def _law(
+    kind: int,
+    s: int,
+    c: int,
+    cb: int,
+    e: np.ndarray,
+    st: np.ndarray,
+    kpar: np.ndarray,
+    yield_t: np.ndarray,
+    yield_c: np.ndarray,
+    kt: np.ndarray,
+    fy: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    cds: np.ndarray,
+    cs0: np.ndarray,
+    cs1: np.ndarray,
+    off: np.ndarray,
+) -> np.ndarray:
     if kind == LINEAR:
         return kpar[s] * e
     if kind == NONLINEAR or kind == RATE_ELASTIC:  # rate_elastic: loaded at rate 0, along its first curve

@@ -55,7 +55,9 @@ class StepChoice:
 def curve_max_slope(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, c: int) -> np.ndarray:
     """Largest |slope| of curve ``c`` per variant; ``cx``, ``cy`` are (Ptot, V) knot arrays."""
     a, b = int(off[c]), int(off[c + 1])
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a bad curve is refused by its caller
+    with np.errstate(
+        divide="ignore", invalid="ignore", over="ignore"
+    ):  # a bad curve is refused by its caller
         slopes = np.diff(cy[a:b], axis=0) / np.diff(cx[a:b], axis=0)
     return np.max(np.abs(slopes), axis=0)
 
@@ -71,7 +73,9 @@ def curve_values(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, c: int, x: np.
     return y
 
 
-def rate_damping(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, curves: np.ndarray, rates: np.ndarray) -> np.ndarray:
+def rate_damping(
+    cx: np.ndarray, cy: np.ndarray, off: np.ndarray, curves: np.ndarray, rates: np.ndarray
+) -> np.ndarray:
     """``rate_elastic``'s damping bound per variant: the steepest force change per unit rate,
     ``max |C_{k+1}(e) - C_k(e)| / (r_{k+1} - r_k)`` over neighbouring curves and the elongations both
     curves draw (the difference is piecewise linear with its kinks at their knots, so the knots of both
@@ -80,7 +84,9 @@ def rate_damping(cx: np.ndarray, cy: np.ndarray, off: np.ndarray, curves: np.nda
     for k in range(len(curves) - 1):
         c0, c1 = int(curves[k]), int(curves[k + 1])
         x = np.concatenate([cx[int(off[c0]) : int(off[c0 + 1])], cx[int(off[c1]) : int(off[c1 + 1])]])
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a bad curve is refused elsewhere
+        with np.errstate(
+            divide="ignore", invalid="ignore", over="ignore"
+        ):  # a bad curve is refused elsewhere
             gap = np.max(np.abs(curve_values(cx, cy, off, c1, x) - curve_values(cx, cy, off, c0, x)), axis=0)
             c_eff = np.maximum(c_eff, gap / (rates[k + 1] - rates[k]))
     return c_eff

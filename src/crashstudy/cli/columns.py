@@ -17,7 +17,9 @@ def match_column(where: str, wanted: str, columns: list[str]) -> str:
     if wanted in columns:
         return wanted
     hits = [c for c in columns if wanted in c]
-    named = [c for c in hits if c.split(".", 1)[0] == wanted]  # "hic15": hic15.occupant, not hic15_t1.occupant
+    named = [
+        c for c in hits if c.split(".", 1)[0] == wanted
+    ]  # "hic15": hic15.occupant, not hic15_t1.occupant
     if len(hits) == 1 or len(named) == 1:
         return hits[0] if len(hits) == 1 else named[0]
     if hits:

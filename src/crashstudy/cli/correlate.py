@@ -8,32 +8,65 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-QUANTITIES = {"acceleration": "acceleration", "velocity": "velocity", "displacement": "displacement",
-              "force": "spring_force", "elongation": "spring_elongation", "spring_force": "spring_force",
-              "spring_elongation": "spring_elongation"}  # fmt: skip
+QUANTITIES = {
+    "acceleration": "acceleration",
+    "velocity": "velocity",
+    "displacement": "displacement",
+    "force": "spring_force",
+    "elongation": "spring_elongation",
+    "spring_force": "spring_force",
+    "spring_elongation": "spring_elongation",
+}
 CSV_NAME = "correlation.csv"
 SHOWN = 10  # best variants printed
 
 
 def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
-    co = sub.add_parser("correlate", help="ISO/TS 18571 rating of every variant's history against a test curve "
-                                          "(correlation.csv)")  # fmt: skip
+    co = sub.add_parser(
+        "correlate",
+        help="ISO/TS 18571 rating of every variant's history against a test curve (correlation.csv)",
+    )
     co.add_argument("dir", help="result folder (run or simulate, with histories kept)")
-    co.add_argument("--test", required=True, help="the test curve: a CSV with a time column (model units unless "
-                    "--unit), or an ISO-MME test (.mme, its folder or a .zip; converted from its channel's unit)")
-    co.add_argument("--channel", help="ISO-MME: the 16-character channel code ('?' any one character); CSV: the value "
-                    "column (default value)")
-    co.add_argument("--unit", help="the unit of the test values when the file does not say it or says it wrong "
-                    "(g, m/(s*s), km/h, mm, kN, ...)")
-    co.add_argument("--item", required=True, help="node id (acceleration, velocity, displacement) or spring id "
-                                                  "(force, elongation)")  # fmt: skip
+    co.add_argument(
+        "--test",
+        required=True,
+        help="the test curve: a CSV with a time column (model units unless "
+        "--unit), or an ISO-MME test (.mme, its folder or a .zip; converted from its channel's unit)",
+    )
+    co.add_argument(
+        "--channel",
+        help="ISO-MME: the 16-character channel code ('?' any one character); CSV: the value "
+        "column (default value)",
+    )
+    co.add_argument(
+        "--unit",
+        help="the unit of the test values when the file does not say it or says it wrong "
+        "(g, m/(s*s), km/h, mm, kN, ...)",
+    )
+    co.add_argument(
+        "--item",
+        required=True,
+        help="node id (acceleration, velocity, displacement) or spring id (force, elongation)",
+    )
     co.add_argument("--quantity", required=True, choices=sorted(QUANTITIES), help="the history rated")
-    co.add_argument("--direction", choices=["x", "y", "r"], default="x",
-                    help="node quantities: the component x or y, or r the magnitude (default x)")
-    co.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),
-                    help="rate only within T0 .. T1 [model time units] (default: where both curves are defined)")
-    co.add_argument("--cfc", type=int, help="filter both curves with this SAE J211 channel frequency class first "
-                                              "(e.g. 60, 180, 600, 1000)")  # fmt: skip
+    co.add_argument(
+        "--direction",
+        choices=["x", "y", "r"],
+        default="x",
+        help="node quantities: the component x or y, or r the magnitude (default x)",
+    )
+    co.add_argument(
+        "--window",
+        nargs=2,
+        type=float,
+        metavar=("T0", "T1"),
+        help="rate only within T0 .. T1 [model time units] (default: where both curves are defined)",
+    )
+    co.add_argument(
+        "--cfc",
+        type=int,
+        help="filter both curves with this SAE J211 channel frequency class first (e.g. 60, 180, 600, 1000)",
+    )
     return {"correlate": correlate_command}
 
 
@@ -59,11 +92,15 @@ def model_curves(ds: Any, quantity: str, item: str, direction: str, where: str) 
     if dim == "spring":
         return np.asarray(da.transpose("variant", "time").values, dtype=float)
     axes = [str(a) for a in ds["axis"].values] if "axis" in ds.coords else ["x"]
-    v = np.asarray(da.transpose("variant", "time", ...).values, dtype=float).reshape(ds.sizes["variant"], ds.sizes["time"], -1)
+    v = np.asarray(da.transpose("variant", "time", ...).values, dtype=float).reshape(
+        ds.sizes["variant"], ds.sizes["time"], -1
+    )
     if direction == "r":
         return np.sqrt((v**2).sum(axis=-1))
     if direction not in axes:
-        raise _fail(where, "--direction", f"the model moves along {', '.join(axes)} only; use one of them or r")
+        raise _fail(
+            where, "--direction", f"the model moves along {', '.join(axes)} only; use one of them or r"
+        )
     return v[:, :, axes.index(direction)]
 
 
@@ -78,7 +115,9 @@ def _filtered(t: Any, y: Any, cfc: int, second: float, what: str, where: str) ->
     if rate_too_low(np.array([float(np.mean(dt))]) / second, cfc)[0]:
         raise _fail(where, "--cfc", f"{what} is sampled too coarsely (step {np.mean(dt):g}) for CFC {cfc:g}")
     y2 = np.atleast_2d(y)
-    return j211_filter(y2, np.full(len(y2), y2.shape[1]), np.full(len(y2), float(np.mean(dt))), cfc, second=second)
+    return j211_filter(
+        y2, np.full(len(y2), y2.shape[1]), np.full(len(y2), float(np.mean(dt))), cfc, second=second
+    )
 
 
 def correlate_command(args: argparse.Namespace) -> int:
@@ -104,11 +143,20 @@ def correlate_command(args: argparse.Namespace) -> int:
     try:
         ds = res.dataset
         try:
-            t_test, y_test = read_data(Path(args.test), channel=args.channel, unit=args.unit, quantity=args.quantity,
-                                       system=str(ds.attrs.get("units", "SI")))  # fmt: skip
+            t_test, y_test = read_data(
+                Path(args.test),
+                channel=args.channel,
+                unit=args.unit,
+                quantity=args.quantity,
+                system=str(ds.attrs.get("units", "SI")),
+            )
         except FileNotFoundError:
-            raise _fail(args.test, "--test", "no such file: expected a CSV with a time column and the column "
-                        f"{args.channel or 'value'!r}, or an ISO-MME test") from None  # fmt: skip
+            raise _fail(
+                args.test,
+                "--test",
+                "no such file: expected a CSV with a time column and the column "
+                f"{args.channel or 'value'!r}, or an ISO-MME test",
+            ) from None
         except (DataFileError, OSError) as exc:
             raise _fail(args.test, "--test", str(exc)) from None
         models = model_curves(ds, args.quantity, args.item, args.direction, where)
@@ -121,7 +169,9 @@ def correlate_command(args: argparse.Namespace) -> int:
         if not ok.all():
             models = np.where(ok[:, None], models, np.nan)
         try:
-            scores = rate_histories(t_model, models, t_test, y_test, second, tuple(args.window) if args.window else None)
+            scores = rate_histories(
+                t_model, models, t_test, y_test, second, tuple(args.window) if args.window else None
+            )
         except ValueError as exc:
             raise _fail(args.test, "--window" if args.window else "--test", str(exc)) from None
         axes = study_axes(ds)
@@ -133,19 +183,27 @@ def correlate_command(args: argparse.Namespace) -> int:
         table["grade"] = [grade(float(r)) for r in scores["R"]]
         units = str(ds["time"].attrs.get("units", ""))
     except InputError as exc:  # name the folder as the user typed it
-        raise InputError([Problem(p.file if p.file != str(res.dir) else where, p.line, p.field, p.message)
-                          for p in exc.problems]) from None  # fmt: skip
+        raise InputError(
+            [
+                Problem(p.file if p.file != str(res.dir) else where, p.line, p.field, p.message)
+                for p in exc.problems
+            ]
+        ) from None
     finally:
         res.close()
     out = Path(args.dir) / CSV_NAME
     write_text(out, table.to_csv(index=False))
     best = table.sort_values("R", ascending=False, na_position="last").head(SHOWN)
-    print(f"ISO/TS 18571 rating of {args.quantity} of {args.item}"
-          f"{f' ({args.direction})' if QUANTITIES[args.quantity] in ('acceleration', 'velocity', 'displacement') else ''}"
-          f" against {args.test} on {float(scores['t0']):g} .. {float(scores['t1']):g} {units} "
-          f"({int(scores['samples'])} samples at 10 kHz{f', CFC {args.cfc:g}' if args.cfc else ''}); "
-          f"best {len(best)} of {len(table)}:")  # fmt: skip
-    with pd.option_context("display.width", 160, "display.max_columns", 30, "display.float_format", "{:.4f}".format):
+    print(
+        f"ISO/TS 18571 rating of {args.quantity} of {args.item}"
+        f"{f' ({args.direction})' if QUANTITIES[args.quantity] in ('acceleration', 'velocity', 'displacement') else ''}"
+        f" against {args.test} on {float(scores['t0']):g} .. {float(scores['t1']):g} {units} "
+        f"({int(scores['samples'])} samples at 10 kHz{f', CFC {args.cfc:g}' if args.cfc else ''}); "
+        f"best {len(best)} of {len(table)}:"
+    )
+    with pd.option_context(
+        "display.width", 160, "display.max_columns", 30, "display.float_format", "{:.4f}".format
+    ):
         print(best.to_string(index=False))
     failed = int((~ok).sum())
     if failed:

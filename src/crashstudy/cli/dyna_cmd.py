@@ -15,7 +15,9 @@ from crashstudy.errors import InputError, Problem
 
 def _refuse_existing(out: Path, force: bool, flag: str) -> None:
     if out.exists() and not force:
-        raise InputError([Problem(str(out), None, flag, "exists: pass --force to replace it, or choose another name")])
+        raise InputError(
+            [Problem(str(out), None, flag, "exists: pass --force to replace it, or choose another name")]
+        )
     if out.is_dir():
         raise InputError([Problem(str(out), None, flag, "is a folder: expected a file name")])
 
@@ -41,18 +43,32 @@ def export_dyna(args: argparse.Namespace) -> int:
         what = f"variant {n} of {args.source}"
     else:
         if args.variant not in (None, 0):
-            raise InputError([Problem(args.source, None, "--variant", "a model has one variant (0): --variant "
-                                      "applies to a study file")])  # fmt: skip
+            raise InputError(
+                [
+                    Problem(
+                        args.source,
+                        None,
+                        "--variant",
+                        "a model has one variant (0): --variant applies to a study file",
+                    )
+                ]
+            )
         lm = parse_model(doc)
         what = args.source
     text, rounded = export_deck(lm.model, lm.doc)
     from crashstudy.safefs import write_text
 
     write_text(out, text)
-    print(f"wrote {out}: LS-DYNA deck of {what} ({len(lm.model.nodes)} nodes, {len(lm.model.springs)} springs)")
+    print(
+        f"wrote {out}: LS-DYNA deck of {what} ({len(lm.model.nodes)} nodes, {len(lm.model.springs)} springs)"
+    )
     if rounded:
-        print(f"note: {len(rounded)} value(s) did not fit their fixed-width field exactly and were rounded:",
-              *rounded[:20], sep="\n  ", file=sys.stderr)  # fmt: skip
+        print(
+            f"note: {len(rounded)} value(s) did not fit their fixed-width field exactly and were rounded:",
+            *rounded[:20],
+            sep="\n  ",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -71,11 +87,20 @@ def import_deck(args: argparse.Namespace) -> int:
     if found:
         from pydantic import ValidationError
 
-        errs = ([(tuple(e["loc"]), e["msg"]) for e in found.errors()] if isinstance(found, ValidationError)
-                else found)  # fmt: skip
-        raise InputError([Problem(args.deck, None, ".".join(map(str, loc)), f"{msg} (in the model read from the deck)")
-                          for loc, msg in errs])  # fmt: skip
-    text = f"# imported from {Path(args.deck).name} by crashstudy import\n" + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=110)
+        errs = (
+            [(tuple(e["loc"]), e["msg"]) for e in found.errors()]
+            if isinstance(found, ValidationError)
+            else found
+        )
+        raise InputError(
+            [
+                Problem(args.deck, None, ".".join(map(str, loc)), f"{msg} (in the model read from the deck)")
+                for loc, msg in errs
+            ]
+        )
+    text = f"# imported from {Path(args.deck).name} by crashstudy import\n" + yaml.safe_dump(
+        data, sort_keys=False, default_flow_style=None, width=110
+    )
     write_text(out, text)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)

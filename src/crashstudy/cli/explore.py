@@ -25,16 +25,28 @@ EXIT_INVALID = 2
 
 
 def add_parsers(sub: Any) -> None:
-    se = sub.add_parser("sensitivity", help="sensitivity of a summary column to the study axes (sensitivity.csv)")
+    se = sub.add_parser(
+        "sensitivity", help="sensitivity of a summary column to the study axes (sensitivity.csv)"
+    )
     se.add_argument("dir", help="result folder of a study")
-    se.add_argument("--metric", required=True,
-                    help="summary column, e.g. peak_deceleration_g.cabin (a part of one name will do)")
-    se.add_argument("--method", choices=["correlation", "sobol", "morris"], default="correlation",
-                    help="correlation (any study; Spearman and Pearson), sobol (design method saltelli: S1, ST), "
-                         "morris (design method morris: mu_star, sigma); default correlation")  # fmt: skip
-    se.add_argument("--history", metavar="QUANTITY",
-                    help="also: Spearman correlation of this history (e.g. spring_force) with each axis at every "
-                         "sample -> sensitivity_<quantity>.nc and .png")  # fmt: skip
+    se.add_argument(
+        "--metric",
+        required=True,
+        help="summary column, e.g. peak_deceleration_g.cabin (a part of one name will do)",
+    )
+    se.add_argument(
+        "--method",
+        choices=["correlation", "sobol", "morris"],
+        default="correlation",
+        help="correlation (any study; Spearman and Pearson), sobol (design method saltelli: S1, ST), "
+        "morris (design method morris: mu_star, sigma); default correlation",
+    )
+    se.add_argument(
+        "--history",
+        metavar="QUANTITY",
+        help="also: Spearman correlation of this history (e.g. spring_force) with each axis at every "
+        "sample -> sensitivity_<quantity>.nc and .png",
+    )
     se.add_argument("--item", help="with --history: the spring or node (default the first)")
 
 
@@ -55,7 +67,9 @@ def sensitivity(args: argparse.Namespace) -> int:
         columns = list(dict.fromkeys(["variant", "status", *axes, metric]))
         try:
             if args.method == "correlation":  # block by block: bounded memory (analysis/correlation.py)
-                factors = factor_columns(attrs, [str(a) for a in json.loads(attrs.get("crashstudy_axes", "[]"))])
+                factors = factor_columns(
+                    attrs, [str(a) for a in json.loads(attrs.get("crashstudy_axes", "[]"))]
+                )
                 table = correlation_table(lambda: res.summary_batches(columns), factors, metric)
             else:  # SALib's estimators need their columns whole
                 table = indices(res.summary_columns(columns), attrs, metric, args.method)
@@ -83,8 +97,17 @@ def _over_time(res: Any, args: argparse.Namespace) -> None:
     ds = res.dataset
     if args.history not in ds:
         kept = [v for v in ds.data_vars if "time" in ds[v].dims]
-        raise InputError([Problem(args.dir, None, "--history", f"no history {args.history!r} in the results; "
-                                  f"kept: {kept or 'none (output.histories: none)'}")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    args.dir,
+                    None,
+                    "--history",
+                    f"no history {args.history!r} in the results; "
+                    f"kept: {kept or 'none (output.histories: none)'}",
+                )
+            ]
+        )
     try:
         da = over_time(ds, args.history, args.item)
     except ValueError as exc:
@@ -107,23 +130,35 @@ def _over_time(res: Any, args: argparse.Namespace) -> None:
     ax.set_ylabel("Spearman correlation [1]")
     ax.set_title(f"{da.attrs['long_name']}")
     ax.legend(loc="best", fontsize=8)
-    with replacing(stem.with_suffix(".png"), mode="wb") as fh:  # a link there is replaced, never written through
+    with replacing(
+        stem.with_suffix(".png"), mode="wb"
+    ) as fh:  # a link there is replaced, never written through
         fig.savefig(fh, format="png", dpi=100, bbox_inches="tight")
     plt.close(fig)
     print(f"wrote {stem.with_suffix('.nc')} and {stem.with_suffix('.png')}")
 
 
 def add_search_parsers(sub: Any) -> None:
-    op = sub.add_parser("optimize", help="run a study's optimize: block (optimum.yaml, history.csv, its results)")
+    op = sub.add_parser(
+        "optimize", help="run a study's optimize: block (optimum.yaml, history.csv, its results)"
+    )
     op.add_argument("study", help="study file with an optimize: block")
     op.add_argument("-o", "--output", help="result folder (default results/<study name>)")
-    op.add_argument("--force", action="store_true",
-                    help="overwrite a folder that holds another study's results or an unfinished run (default: refuse)")
-    ca = sub.add_parser("calibrate", help="run a study's calibrate: block (calibrated.yaml, a data-vs-fit plot)")
+    op.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite a folder that holds another study's results or an unfinished run (default: refuse)",
+    )
+    ca = sub.add_parser(
+        "calibrate", help="run a study's calibrate: block (calibrated.yaml, a data-vs-fit plot)"
+    )
     ca.add_argument("study", help="study file with a calibrate: block")
     ca.add_argument("-o", "--output", help="result folder (default results/<study name>)")
-    ca.add_argument("--force", action="store_true",
-                    help="overwrite a folder that holds another study's results or an unfinished run (default: refuse)")
+    ca.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite a folder that holds another study's results or an unfinished run (default: refuse)",
+    )
 
 
 def _study_dict(path: str, block: str) -> tuple[dict[str, Any], Path]:
@@ -135,14 +170,17 @@ def _study_dict(path: str, block: str) -> tuple[dict[str, Any], Path]:
     doc = load_yaml(path)
     data = dict(doc.data)
     if not data.get(block):
-        raise InputError([Problem(path, None, block, f"no {block}: block in this study (see docs/optimize.md)")])
+        raise InputError(
+            [Problem(path, None, block, f"no {block}: block in this study (see docs/optimize.md)")]
+        )
     base = Path(path).resolve().parent
     data["model"] = str((base / data["model"]).resolve())
     return data, base
 
 
-def _finish(command: str, data: dict[str, Any], values: dict[str, float], out: Path,
-            files: list[tuple[Path, Any]]) -> None:  # fmt: skip
+def _finish(
+    command: str, data: dict[str, Any], values: dict[str, float], out: Path, files: list[tuple[Path, Any]]
+) -> None:
     """Run the optimum (or calibrated) values into ``out`` (its lock held by the caller), then write
     ``files`` beside them as one set (:func:`crashstudy.safefs.write_all`)."""
     from crashstudy.analysis.optimization import optimum_study
@@ -153,13 +191,17 @@ def _finish(command: str, data: dict[str, Any], values: dict[str, float], out: P
         run_plan(load_study(optimum_study(data, values)), out, force=True, progress=False, locked=True)
         write_all(files)
     except KeyboardInterrupt:
-        raise Stopped(f"{command} stopped while writing its results into {out}: they are incomplete; run {command} "
-                      "again with --force (it cannot resume)") from None  # fmt: skip
+        raise Stopped(
+            f"{command} stopped while writing its results into {out}: they are incomplete; run {command} "
+            "again with --force (it cannot resume)"
+        ) from None
 
 
 def _searching(command: str, out: Path) -> Stopped:
-    return Stopped(f"{command} stopped during its search: nothing was written ({out} is as it was); {command} "
-                   "cannot resume: run it again")  # fmt: skip
+    return Stopped(
+        f"{command} stopped during its search: nothing was written ({out} is as it was); {command} "
+        "cannot resume: run it again"
+    )
 
 
 def _yaml(result: dict[str, Any]) -> str:
@@ -184,9 +226,16 @@ def optimize_command(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             raise _searching("optimize", out) from None
         text = _yaml(result)
-        _finish("optimize", data, result["variables"], out, [
-            (out / "history.csv", lambda fh: fh.write(history.to_csv(index=False).encode())),
-            (out / "optimum.yaml", lambda fh: fh.write(text.encode()))])  # fmt: skip
+        _finish(
+            "optimize",
+            data,
+            result["variables"],
+            out,
+            [
+                (out / "history.csv", lambda fh: fh.write(history.to_csv(index=False).encode())),
+                (out / "optimum.yaml", lambda fh: fh.write(text.encode())),
+            ],
+        )
     print(text.rstrip())
     print(f"wrote {out / 'optimum.yaml'}, {out / 'history.csv'} and the optimum's results in {out}")
     return EXIT_OK if result["feasible"] else 1
@@ -205,7 +254,9 @@ def calibrate_command(args: argparse.Namespace) -> int:
         try:
             result = calibrate(data, base, out)
         except (ValueError, FloatingPointError, FileNotFoundError) as exc:
-            at: tuple[str, ...] = ("calibrate", "data") if getattr(exc, "data_file", False) else ("calibrate",)
+            at: tuple[str, ...] = (
+                ("calibrate", "data") if getattr(exc, "data_file", False) else ("calibrate",)
+            )
             if len(at) == 2 and isinstance(data["calibrate"]["data"], dict):  # {path, channel, unit}
                 at += (getattr(exc, "field", "path"),)
             line = load_yaml(args.study).line_of(at) if len(at) > 1 else None
@@ -215,9 +266,19 @@ def calibrate_command(args: argparse.Namespace) -> int:
         t, y, model, units = result.pop("_fit")
         text = _yaml(result)
         fig = _fit_plot(t, y, model, data["calibrate"]["channel"], result, units)
-        _finish("calibrate", data, result["variables"], out, [
-            (out / "calibrated.yaml", lambda fh: fh.write(text.encode())),
-            (out / "calibration.png", lambda fh: fig.savefig(fh, format="png", dpi=100, bbox_inches="tight"))])  # fmt: skip
+        _finish(
+            "calibrate",
+            data,
+            result["variables"],
+            out,
+            [
+                (out / "calibrated.yaml", lambda fh: fh.write(text.encode())),
+                (
+                    out / "calibration.png",
+                    lambda fh: fig.savefig(fh, format="png", dpi=100, bbox_inches="tight"),
+                ),
+            ],
+        )
     print(text.rstrip())
     _uncertainty_warnings(result)
     print(f"wrote {out / 'calibrated.yaml'}, {out / 'calibration.png'} and the calibrated results in {out}")
@@ -232,22 +293,27 @@ def _uncertainty_warnings(result: dict[str, Any]) -> None:
         print(line, file=sys.stderr)
 
 
-def _fit_plot(t: Any, y: Any, model: Any, channel: dict[str, Any], result: dict[str, Any],
-              units: dict[str, str]) -> Any:  # fmt: skip
+def _fit_plot(
+    t: Any, y: Any, model: Any, channel: dict[str, Any], result: dict[str, Any], units: dict[str, str]
+) -> Any:
     """The data-vs-fit figure (written by the caller with the other outputs)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    what = channel["quantity"] + (f" of spring {channel['spring']}" if channel.get("spring") else
-                                  f" of node {channel['node']} ({channel.get('direction', 'x')})")  # fmt: skip
+    what = channel["quantity"] + (
+        f" of spring {channel['spring']}"
+        if channel.get("spring")
+        else f" of node {channel['node']} ({channel.get('direction', 'x')})"
+    )
     fig, ax = plt.subplots(figsize=(8, 4.5))
     ax.plot(t, y, ".", ms=3, color="0.4", label="data")
     ax.plot(t, model, "-", color="C3", lw=1.5, label="calibrated model")
     ax.set_xlabel(f"time [{units.get('time', '')}]")
     ax.set_ylabel(f"{channel['quantity'].replace('_', ' ')} [{units.get('value', '')}]")
-    ax.set_title(f"{what}: rms error {result['rms_error']:.3g}, correlation {result['correlation']:.4f}", fontsize=10)
+    ax.set_title(
+        f"{what}: rms error {result['rms_error']:.3g}, correlation {result['correlation']:.4f}", fontsize=10
+    )
     ax.legend(loc="best")
     return fig
-

@@ -24,8 +24,9 @@ def export_isomme(args: argparse.Namespace) -> int:
     try:
         res = open_results(args.source)
     except FileNotFoundError as exc:
-        raise InputError([Problem(where, None, "", f"{exc}; expected a result folder of crashstudy run or "
-                                  "simulate")]) from None  # fmt: skip
+        raise InputError(
+            [Problem(where, None, "", f"{exc}; expected a result folder of crashstudy run or simulate")]
+        ) from None
     ds = res.dataset
     numbers = [int(v) for v in ds["variant"].values]
     try:
@@ -34,22 +35,37 @@ def export_isomme(args: argparse.Namespace) -> int:
         raise InputError([Problem(where, None, "--variants", str(exc))]) from None
     missing = sorted(set(chosen) - set(numbers))
     if missing:
-        raise InputError([Problem(where, None, "--variants", f"variant(s) {missing[:8]} are not in these results")])
+        raise InputError(
+            [Problem(where, None, "--variants", f"variant(s) {missing[:8]} are not in these results")]
+        )
     model = yaml.safe_load(str(ds.attrs.get("model_yaml", ""))) or {}
     study = yaml.safe_load(str(ds.attrs.get("study_yaml", ""))) or {}
     setting = study.get("set") or {} if isinstance(study, dict) else {}
     model.update({k: v for k, v in setting.items() if k in ("iso_mme", "metrics")})
     name = str(ds.attrs.get("study_name") or ds.attrs.get("model_name") or "crashstudy")
     free = [str(n) for n in _json_list(ds.attrs.get("free_nodes"))] or [str(n) for n in ds["node"].values]
-    status = res.summary_columns(["status"])["status"].astype(str).to_numpy()  # manifest-checked, in variant order
+    status = (
+        res.summary_columns(["status"])["status"].astype(str).to_numpy()
+    )  # manifest-checked, in variant order
     out = Path(args.isomme)
     if os.path.lexists(out) and not out.is_dir():
-        raise InputError([Problem(str(out), None, "--isomme", "is a file; expected a folder (new or of tests)")])
+        raise InputError(
+            [Problem(str(out), None, "--isomme", "is a file; expected a folder (new or of tests)")]
+        )
     tests = {v: f"{name}-{v}" for v in chosen}
     existing = [t for t in tests.values() if os.path.lexists(out / t)]
     if existing and not args.force:
-        raise InputError([Problem(str(out), None, "--isomme", f"test folder(s) {', '.join(existing[:4])} exist; use "
-                                  "--force to replace them or choose another OUT")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    str(out),
+                    None,
+                    "--isomme",
+                    f"test folder(s) {', '.join(existing[:4])} exist; use "
+                    "--force to replace them or choose another OUT",
+                )
+            ]
+        )
     out.mkdir(parents=True, exist_ok=True)
     skipped: list[int] = []
     with folder_lock(out):
@@ -58,16 +74,22 @@ def export_isomme(args: argparse.Namespace) -> int:
             if status[k] != "ok":
                 skipped.append(v)
                 continue
-            header = [("Laboratory name", "crashstudy (calculated)"), ("Laboratory test ref. number", test),
-                      ("Title", f"{name} variant {v}"), ("Data source", "calculated"),
-                      ("Comments", f"crashstudy export of {os.path.abspath(args.source)}")]  # fmt: skip
+            header = [
+                ("Laboratory name", "crashstudy (calculated)"),
+                ("Laboratory test ref. number", test),
+                ("Title", f"{name} variant {v}"),
+                ("Data source", "calculated"),
+                ("Comments", f"crashstudy export of {os.path.abspath(args.source)}"),
+            ]
             files = mme_files(test, header, variant_channels(ds, k, model, free))
             (out / test / "Channel").mkdir(parents=True, exist_ok=True)
             write_all([(out / test / rel, lambda fh, b=data: fh.write(b)) for rel, data in files.items()])
     res.close()
     if skipped:
         print(f"skipped {len(skipped)} failed variant(s): {skipped[:10]}", file=sys.stderr)
-    print(f"wrote {len(tests) - len(skipped)} ISO-MME test(s) to {out} ({name}-<variant>/{name}-<variant>.mme)")
+    print(
+        f"wrote {len(tests) - len(skipped)} ISO-MME test(s) to {out} ({name}-<variant>/{name}-<variant>.mme)"
+    )
     return 0
 
 

@@ -26,7 +26,9 @@ PLUGGED: tuple[str, ...] = ("crashstudy.cli.exchange", "crashstudy.cli.report", 
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="crashstudy", description="Lumped-parameter crash models over design matrices.")
+    p = argparse.ArgumentParser(
+        prog="crashstudy", description="Lumped-parameter crash models over design matrices."
+    )
     from crashstudy import __version__
 
     p.add_argument("--version", action="version", version=f"crashstudy {__version__}")
@@ -35,21 +37,46 @@ def _parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="run every variant of a study")
     r.add_argument("study", help="study file (YAML: name, model, matrix/zip axes; see docs/studies.md)")
     r.add_argument("-o", "--output", help="result folder (default results/<study name>)")
-    r.add_argument("--jobs", type=int, default=1, help="worker processes (default 1; the kernel is multi-threaded)")
-    r.add_argument("--scheduler", help="Dask scheduler address tcp://HOST:PORT, or 'local' for a LocalCluster")
-    r.add_argument("--resume", action="store_true", help="finish an interrupted run (only missing variants run)")
-    r.add_argument("--force", action="store_true",
-                   help="recompute everything (default: reuse unchanged variants of this study's earlier results)")
-    r.add_argument("--dry-run", action="store_true", help="validate and print the number of variants, run nothing")
-    r.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
-                   help="progress line (variants done, variants/s, ETA) on stderr: auto = only on a terminal")
-    r.add_argument("--store", choices=["netcdf", "zarr"], default=None,
-                   help="results.nc (default) or results.zarr (Zarr v3, chunked along variant; see docs/format.md)")
+    r.add_argument(
+        "--jobs", type=int, default=1, help="worker processes (default 1; the kernel is multi-threaded)"
+    )
+    r.add_argument(
+        "--scheduler", help="Dask scheduler address tcp://HOST:PORT, or 'local' for a LocalCluster"
+    )
+    r.add_argument(
+        "--resume", action="store_true", help="finish an interrupted run (only missing variants run)"
+    )
+    r.add_argument(
+        "--force",
+        action="store_true",
+        help="recompute everything (default: reuse unchanged variants of this study's earlier results)",
+    )
+    r.add_argument(
+        "--dry-run", action="store_true", help="validate and print the number of variants, run nothing"
+    )
+    r.add_argument(
+        "--progress",
+        choices=["auto", "on", "off"],
+        default="auto",
+        help="progress line (variants done, variants/s, ETA) on stderr: auto = only on a terminal",
+    )
+    r.add_argument(
+        "--store",
+        choices=["netcdf", "zarr"],
+        default=None,
+        help="results.nc (default) or results.zarr (Zarr v3, chunked along variant; see docs/format.md)",
+    )
     csv = r.add_mutually_exclusive_group()
-    csv.add_argument("--csv", dest="csv", action="store_true", default=None,
-                     help="also write summary.csv however many variants (default: up to 100,000)")
-    csv.add_argument("--no-csv", dest="csv", action="store_false",
-                     help="write summary.parquet only (it is always written)")
+    csv.add_argument(
+        "--csv",
+        dest="csv",
+        action="store_true",
+        default=None,
+        help="also write summary.csv however many variants (default: up to 100,000)",
+    )
+    csv.add_argument(
+        "--no-csv", dest="csv", action="store_false", help="write summary.parquet only (it is always written)"
+    )
 
     v = sub.add_parser("validate", help="check a model or study file and report every problem")
     v.add_argument("file", help="model or study file (YAML); which one it is, is told by its keys")
@@ -57,19 +84,31 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("simulate", help="run one model (no matrix)")
     s.add_argument("model", help="model file (YAML: nodes, springs, end_time, ...); a study goes to `run`")
     s.add_argument("-o", "--output", help="result folder (default results/<model name>)")
-    s.add_argument("--force", action="store_true",
-                   help="overwrite a folder that holds other results (default: refuse, exit 2)")
+    s.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite a folder that holds other results (default: refuse, exit 2)",
+    )
 
     sm = sub.add_parser("summary", help="print the summary table of a result folder")
     sm.add_argument("dir", help="result folder (written by run or simulate)")
-    sm.add_argument("--sort", help="column to sort by, any column (always shown; e.g. peak_deceleration_g.cabin; a part of "
-                    "one name will do)")
+    sm.add_argument(
+        "--sort",
+        help="column to sort by, any column (always shown; e.g. peak_deceleration_g.cabin; a part of "
+        "one name will do)",
+    )
     sm.add_argument("--ascending", action="store_true", help="sort ascending (default descending)")
     sm.add_argument("--head", type=int, default=30, help="rows to show (0 = all)")
-    sm.add_argument("--columns", nargs="+", help="columns to show besides variant and the study axes (substrings match)")
+    sm.add_argument(
+        "--columns", nargs="+", help="columns to show besides variant and the study axes (substrings match)"
+    )
     sm.add_argument("--variant", type=int, help="print this variant's row, every column on a line of its own")
-    sm.add_argument("--exceed", nargs=2, metavar=("COLUMN", "LIMIT"),
-                    help="print P(COLUMN > LIMIT) over the variants with its exact 95%% interval (Monte Carlo designs)")
+    sm.add_argument(
+        "--exceed",
+        nargs=2,
+        metavar=("COLUMN", "LIMIT"),
+        help="print P(COLUMN > LIMIT) over the variants with its exact 95%% interval (Monte Carlo designs)",
+    )
 
     from crashstudy.cli import results_cmd  # plot and compare, in their place in --help
 
@@ -126,10 +165,20 @@ def main(argv: list[str] | None = None) -> int:
         note = getattr(exc, "note", "finished variants are kept; continue with --resume")
         print(f"\ninterrupted: {note}", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except BrokenPipeError:  # the reader of our output stopped (`crashstudy summary DIR | head`): nothing wrong
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error when stdout is flushed
+    except (
+        BrokenPipeError
+    ):  # the reader of our output stopped (`crashstudy summary DIR | head`): nothing wrong
+        os.dup2(
+            os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno()
+        )  # no second error when stdout is flushed
         return 0
-    except (FileNotFoundError, NotADirectoryError, PermissionError, IsADirectoryError, PlantedEntryError) as exc:
+    except (
+        FileNotFoundError,
+        NotADirectoryError,
+        PermissionError,
+        IsADirectoryError,
+        PlantedEntryError,
+    ) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     except OSError as exc:  # disk full, read-only folder: say so plainly
@@ -139,18 +188,27 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: cannot write results: {exc}", file=sys.stderr)
         return EXIT_FAILED
     except MemoryError:
-        print("error: out of memory: the model or study needs more memory than this machine has (fewer variants "
-              "or nodes, or histories: none, need less)", file=sys.stderr)  # fmt: skip
+        print(
+            "error: out of memory: the model or study needs more memory than this machine has (fewer variants "
+            "or nodes, or histories: none, need less)",
+            file=sys.stderr,
+        )
         return EXIT_FAILED
     except RuntimeError as exc:
         from concurrent.futures.process import BrokenProcessPool
 
         if isinstance(exc, BrokenProcessPool):
-            print("error: a worker process died; finished variants are kept: continue with --resume", file=sys.stderr)
+            print(
+                "error: a worker process died; finished variants are kept: continue with --resume",
+                file=sys.stderr,
+            )
             return EXIT_FAILED
         if "NetCDF" in str(exc) or "HDF" in str(exc):  # netCDF4 reports a full disk as an HDF error
-            print(f"error: cannot write results ({exc}): is the disk full or the folder not writable? "
-                  "Finished variants are kept: continue with --resume", file=sys.stderr)  # fmt: skip
+            print(
+                f"error: cannot write results ({exc}): is the disk full or the folder not writable? "
+                "Finished variants are kept: continue with --resume",
+                file=sys.stderr,
+            )
             return EXIT_FAILED
         raise
 
@@ -199,8 +257,16 @@ def _after_run(res: Any) -> None:
         return
     peak = res.column_peak(f"peak_deceleration_g.{node}")
     if peak is not None:
-        _warn(peak_g_warnings(str(attrs.get("units", "SI")), node, peak[0], peak[1], body.get("initial_speeds"),
-                              bool(body.get("prescribed_motion"))))  # fmt: skip
+        _warn(
+            peak_g_warnings(
+                str(attrs.get("units", "SI")),
+                node,
+                peak[0],
+                peak[1],
+                body.get("initial_speeds"),
+                bool(body.get("prescribed_motion")),
+            )
+        )
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -209,8 +275,10 @@ def _run(args: argparse.Namespace) -> int:
 
     plan = load_study(args.study)
     _checked(plan)
-    print(f"study {plan.name}: {plan.n_variants} variants"
-          + (" (" + " x ".join(str(s) for s in plan.shape) + ")" if plan.shape else ""))  # fmt: skip
+    print(
+        f"study {plan.name}: {plan.n_variants} variants"
+        + (" (" + " x ".join(str(s) for s in plan.shape) + ")" if plan.shape else "")
+    )
     _work(plan)
     if args.dry_run:
         for ax in plan.axes:
@@ -219,14 +287,29 @@ def _run(args: argparse.Namespace) -> int:
         return EXIT_OK
     progress = None if args.progress == "auto" else args.progress == "on"
     out = Path(args.output) if args.output else default_out(plan.name)
-    rep = run_plan(plan, out, jobs=args.jobs, scheduler=args.scheduler, resume=args.resume, force=args.force,
-                   progress=progress, notes=sys.stderr, csv=args.csv, store=args.store)  # fmt: skip
+    rep = run_plan(
+        plan,
+        out,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        resume=args.resume,
+        force=args.force,
+        progress=progress,
+        notes=sys.stderr,
+        csv=args.csv,
+        store=args.store,
+    )
     reused = f", {rep.n_reused} unchanged variants reused" if rep.n_reused else ""
-    print(f"wrote {rep.results.path} and {_tables(rep.results.dir)} ({rep.n_computed} variants computed in "
-          f"{rep.seconds:.1f} s{reused})")  # fmt: skip
+    print(
+        f"wrote {rep.results.path} and {_tables(rep.results.dir)} ({rep.n_computed} variants computed in "
+        f"{rep.seconds:.1f} s{reused})"
+    )
     _after_run(rep.results)
     if rep.n_failed:
-        print(f"{rep.n_failed} of {rep.n_variants} variants failed (see status / failure_reason)", file=sys.stderr)
+        print(
+            f"{rep.n_failed} of {rep.n_variants} variants failed (see status / failure_reason)",
+            file=sys.stderr,
+        )
         return EXIT_FAILED
     return EXIT_OK
 
@@ -251,14 +334,18 @@ def _validate(args: argparse.Namespace) -> int:
 
         lm = parse_model(doc)
         plan = plan_from_model(lm)
-        if plan.topology.time_step_mode == "dt":  # the runner (pandas, xarray, netCDF4: 0.5 s) only for a fixed dt
+        if (
+            plan.topology.time_step_mode == "dt"
+        ):  # the runner (pandas, xarray, netCDF4: 0.5 s) only for a fixed dt
             from crashstudy.run.runner import refuse_fixed_dt
 
             refuse_fixed_dt(plan, doc)
         _checked(plan)
         m = lm.model
-        print(f"{args.file}: valid model ({len(m.nodes)} nodes, {len(m.springs)} springs, "
-              f"{len(next(iter(m.nodes.values())).position)}-D)")  # fmt: skip
+        print(
+            f"{args.file}: valid model ({len(m.nodes)} nodes, {len(m.springs)} springs, "
+            f"{len(next(iter(m.nodes.values())).position)}-D)"
+        )
         _work(plan)
     return EXIT_OK
 
@@ -268,18 +355,24 @@ def _work(plan: Any) -> None:
     from crashstudy.study.work import WORK_ENV, WORK_RATE, WORK_REPORT, format_duration, max_work
 
     if plan.work >= WORK_REPORT:
-        print(f"  about {plan.work:.3g} element-steps (springs x time steps, summed over the variants): about "
-              f"{format_duration(plan.work / WORK_RATE)} at {WORK_RATE:.0e} a second; the limit is {max_work():.3g} "
-              f"({WORK_ENV})")  # fmt: skip
+        print(
+            f"  about {plan.work:.3g} element-steps (springs x time steps, summed over the variants): about "
+            f"{format_duration(plan.work / WORK_RATE)} at {WORK_RATE:.0e} a second; the limit is {max_work():.3g} "
+            f"({WORK_ENV})"
+        )
 
 
 def _simulate(args: argparse.Namespace) -> int:
     from crashstudy.run.runner import simulate_report
 
-    rep = simulate_report(args.model, args.output, force=args.force, notes=sys.stderr, warn=lambda w: _warn([w]))
+    rep = simulate_report(
+        args.model, args.output, force=args.force, notes=sys.stderr, warn=lambda w: _warn([w])
+    )
     s = rep.results.summary.iloc[0]
     print(f"wrote {rep.results.path} and {_tables(rep.results.dir)}")
-    print(f"  status {s['status']}  dt {s['dt']:.4g}  energy_error {s['energy_error']:.2e}  ({s['dt_control']})")
+    print(
+        f"  status {s['status']}  dt {s['dt']:.4g}  energy_error {s['energy_error']:.2e}  ({s['dt_control']})"
+    )
     _after_run(rep.results)
     if s["status"] != "ok":
         print(f"  failed: {s['failure_reason']}", file=sys.stderr)
@@ -322,9 +415,16 @@ def _calibrate(args: argparse.Namespace) -> int:
     return calibrate_command(args)
 
 
-COMMANDS = {"run": _run, "validate": _validate, "simulate": _simulate, "summary": _summary,
-            "schema": _schema, "sensitivity": _sensitivity,
-            "optimize": _optimize, "calibrate": _calibrate}  # fmt: skip
+COMMANDS = {
+    "run": _run,
+    "validate": _validate,
+    "simulate": _simulate,
+    "summary": _summary,
+    "schema": _schema,
+    "sensitivity": _sensitivity,
+    "optimize": _optimize,
+    "calibrate": _calibrate,
+}
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -62,8 +62,15 @@ def _matrix_summary(res: Any, axes: list[str], quantity: str | None) -> pd.DataF
     return res.summary_columns([c for c in names if c in keep])  # type: ignore[no-any-return]
 
 
-def _matrix_metrics(summary: pd.DataFrame, axes: list[str], quantity: str | None, items: Sequence[str] | None,
-                    nodes: list[str], where: str, node: str | None = None) -> list[str]:  # fmt: skip
+def _matrix_metrics(
+    summary: pd.DataFrame,
+    axes: list[str],
+    quantity: str | None,
+    items: Sequence[str] | None,
+    nodes: list[str],
+    where: str,
+    node: str | None = None,
+) -> list[str]:
     """Metric columns named by ``--quantity`` (a column, or a metric name with optional ``--items``).
     A metric name without items: its column of ``node`` (:func:`crash_node`) when it has one, else
     the column with the largest values."""
@@ -94,20 +101,44 @@ def _test_curve(args: argparse.Namespace, ds: object, name: str, groups: list) -
     """``--test FILE [--channel CODE]``: the test curve in the results' units (one history panel only)."""
     if getattr(args, "test", None) is None:
         if getattr(args, "channel", None):
-            raise InputError([Problem(str(args.dir), None, "--channel", "--channel names a channel of --test FILE: "
-                                      "give --test")])  # fmt: skip
+            raise InputError(
+                [
+                    Problem(
+                        str(args.dir),
+                        None,
+                        "--channel",
+                        "--channel names a channel of --test FILE: give --test",
+                    )
+                ]
+            )
         return None
     if len(groups) != 1 or (groups[0] is not None and len(groups[0]) != 1):
-        raise InputError([Problem(str(args.dir), None, "--test", "a test curve belongs to one item: give --items "
-                                  "with one node or spring")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    str(args.dir),
+                    None,
+                    "--test",
+                    "a test curve belongs to one item: give --items with one node or spring",
+                )
+            ]
+        )
     from crashstudy.exchange.testcurve import read_curve
 
     try:
         units = str(ds.attrs.get("units", "SI"))  # type: ignore[attr-defined]
         return read_curve(Path(args.test), channel=args.channel, quantity=name, system=units)
     except ValueError as exc:
-        raise InputError([Problem(str(args.test), None, f"--{getattr(exc, 'field', 'test')}".replace("--path", "--test"),
-                                  str(exc))]) from None  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    str(args.test),
+                    None,
+                    f"--{getattr(exc, 'field', 'test')}".replace("--path", "--test"),
+                    str(exc),
+                )
+            ]
+        ) from None
 
 
 def plot_command(args: argparse.Namespace) -> list[Path]:
@@ -141,21 +172,36 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
             if args.y_axis is not None:
                 y = None if args.y_axis.lower() == "none" else args.y_axis  # --y none: line plot
             else:
-                y = next((a for a, m in factors(dict(ds.attrs), axes).items() if x not in m), None)  # another factor
+                y = next(
+                    (a for a, m in factors(dict(ds.attrs), axes).items() if x not in m), None
+                )  # another factor
             node = crash_node(ds)
-            for metric in _matrix_metrics(summary, axes, args.quantity, args.items, free_nodes(ds), where, node):
+            for metric in _matrix_metrics(
+                summary, axes, args.quantity, args.items, free_nodes(ds), where, node
+            ):
                 units = (
                     ds[metric.split(".", 1)[0]].attrs.get("units") if metric.split(".", 1)[0] in ds else None
                 )
-                fig = plot_matrix(summary, metric, x, y, axes=axes, units=units, title=f"{study_name(ds)}: {metric}",
-                                  axis_units=axis_units(ds, axes), factors=factors(dict(ds.attrs), axes))  # fmt: skip
+                fig = plot_matrix(
+                    summary,
+                    metric,
+                    x,
+                    y,
+                    axes=axes,
+                    units=units,
+                    title=f"{study_name(ds)}: {metric}",
+                    axis_units=axis_units(ds, axes),
+                    factors=factors(dict(ds.attrs), axes),
+                )
                 suffix = f"-{x}" + (f"-{y}" if y else "") if args.x_axis or args.y_axis else ""
                 figures.append((f"matrix-{metric}{suffix}", fig))
         elif args.kind == "pulse":
             from crashstudy.analysis.plot_pulse import metric_nodes, plot_pulse
 
             if args.quantity:
-                raise _fail(where, "pulse draws filtered_acceleration beside acceleration; --quantity does not apply")
+                raise _fail(
+                    where, "pulse draws filtered_acceleration beside acceleration; --quantity does not apply"
+                )
             if "filtered_acceleration" not in ds.data_vars:
                 plot_pulse(ds)  # raises with the reason
             nodes = _items(ds, "node", args.items, metric_nodes(ds))
@@ -171,7 +217,9 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
             springs = _items(ds, "spring", args.items, [str(v) for v in ds["spring"].values])
             for n, lo in enumerate(range(0, len(springs), ITEMS_PER_FIGURE)):
                 fig = plot_force_displacement(ds, springs[lo : lo + ITEMS_PER_FIGURE], args.max_variants)
-                figures.append((f"force-displacement{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig))
+                figures.append(
+                    (f"force-displacement{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig)
+                )
         else:
             quantity = args.quantity or "spring_force"
             name, _ = _parse_quantity(ds, quantity)
@@ -185,11 +233,16 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
                 groups = [
                     chosen[lo : lo + ITEMS_PER_FIGURE] for lo in range(0, len(chosen), ITEMS_PER_FIGURE)
                 ]
-            units = {"time_unit": getattr(args, "time_unit", None), "accel_unit": getattr(args, "accel_unit", None)}
+            units = {
+                "time_unit": getattr(args, "time_unit", None),
+                "accel_unit": getattr(args, "accel_unit", None),
+            }
             test = _test_curve(args, ds, name, groups)
             for n, group in enumerate(groups):
                 fig = plot_history(ds, quantity, group, args.max_variants, **units, test=test)
-                figures.append((f"history-{quantity}{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig))
+                figures.append(
+                    (f"history-{quantity}{_items_suffix(args.items)}{f'-{n + 1}' if n else ''}", fig)
+                )
         out.mkdir(parents=True, exist_ok=True)
         paths = []
         for stem, fig in figures:

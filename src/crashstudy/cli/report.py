@@ -20,18 +20,33 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     rp = sub.add_parser("report", help="one self-contained HTML report of a result folder (opens offline)")
     rp.add_argument("dir", help="result folder (written by run, simulate, optimize or calibrate)")
     rp.add_argument("-o", "--output", help="the HTML file to write (default DIR/report.html)")
-    rp.add_argument("--variants", metavar="SEL",
-                    help="variants whose histories are drawn: numbers, ranges A-B and the names worst, best, "
-                         "baseline, comma-separated (default worst,best,baseline)")  # fmt: skip
-    rp.add_argument("--responses", nargs="+", metavar="COLUMN",
-                    help="summary columns drawn against the axes (default: the crash node's peak deceleration "
-                         "in g and the crash criteria)")  # fmt: skip
-    rp.add_argument("--limits", nargs="+", metavar="COLUMN<=NUMBER", default=[],
-                    help="your own pass/fail checks on summary columns (as optimize: constraints), drawn with the "
-                         "usual criteria limits and the study's optimize: constraints")  # fmt: skip
-    rp.add_argument("--test", metavar="CSV",
-                    help="a test curve to draw over the histories: CSV with columns time, value (time in s, "
-                         "value in the units of the drawn history)")  # fmt: skip
+    rp.add_argument(
+        "--variants",
+        metavar="SEL",
+        help="variants whose histories are drawn: numbers, ranges A-B and the names worst, best, "
+        "baseline, comma-separated (default worst,best,baseline)",
+    )
+    rp.add_argument(
+        "--responses",
+        nargs="+",
+        metavar="COLUMN",
+        help="summary columns drawn against the axes (default: the crash node's peak deceleration "
+        "in g and the crash criteria)",
+    )
+    rp.add_argument(
+        "--limits",
+        nargs="+",
+        metavar="COLUMN<=NUMBER",
+        default=[],
+        help="your own pass/fail checks on summary columns (as optimize: constraints), drawn with the "
+        "usual criteria limits and the study's optimize: constraints",
+    )
+    rp.add_argument(
+        "--test",
+        metavar="CSV",
+        help="a test curve to draw over the histories: CSV with columns time, value (time in s, "
+        "value in the units of the drawn history)",
+    )
     rp.add_argument("--force", action="store_true", help="replace an existing report file")
     return {"report": report_command}
 
@@ -56,8 +71,12 @@ def output_path(args: argparse.Namespace) -> Path:
         raise _problem(str(out), "-o", "the file exists; use --force to replace it or choose another -o")
     owner = result_folder_of(out.parent) if out.parent != Path(args.dir) else None
     if owner is not None and not args.force and owner.resolve() != Path(args.dir).resolve():
-        raise _problem(str(out), "-o", f"this folder belongs to the results in {owner}, not to {args.dir}; "
-                       "choose another -o or use --force")  # fmt: skip
+        raise _problem(
+            str(out),
+            "-o",
+            f"this folder belongs to the results in {owner}, not to {args.dir}; "
+            "choose another -o or use --force",
+        )
     return out
 
 

@@ -65,7 +65,9 @@ def summary_command(args: argparse.Namespace) -> int:
     from crashstudy.results.store import open_results
 
     if args.head < 0:
-        raise InputError([arg_problem("--head", f"expected 0 (every row) or a number of rows, got {args.head}")])
+        raise InputError(
+            [arg_problem("--head", f"expected 0 (every row) or a number of rows, got {args.head}")]
+        )
     if args.exceed:
         print(exceed_text(args.dir, *args.exceed))
         return EXIT_OK
@@ -80,17 +82,23 @@ def summary_command(args: argparse.Namespace) -> int:
         col = _match_column(args.dir, args.sort, names) if args.sort else None  # any column, shown or not
         shown = names
         if args.columns:
-            picked = [c for c in names if any(k in c for k in args.columns) and c != "variant" and c not in axes]
+            picked = [
+                c for c in names if any(k in c for k in args.columns) and c != "variant" and c not in axes
+            ]
             if col is not None and col not in ("variant", *axes, *picked):
                 picked.append(col)  # the sort column is always shown
             shown = ["variant", *axes, *picked]
-        read = shown + (["failure_reason"] if "failure_reason" in names and "failure_reason" not in shown else [])
+        read = shown + (
+            ["failure_reason"] if "failure_reason" in names and "failure_reason" not in shown else []
+        )
         total = res.summary_rows()
         if col is None:
             blocks = _first_rows(res.summary_batches(read), args.head)
         else:
             blocks = iter([_top_rows(res.summary_batches(read), col, args.ascending, args.head)])
-        if args.head or total <= READ_BLOCK:  # at most --head (or READ_BLOCK) rows: one table, as it always was
+        if (
+            args.head or total <= READ_BLOCK
+        ):  # at most --head (or READ_BLOCK) rows: one table, as it always was
             import pandas as pd
 
             blocks = iter([pd.concat(list(blocks)) if total else pd.DataFrame(columns=read)])
@@ -147,8 +155,18 @@ def _print_block(block: Any, shown: list[str], units: dict[str, str], header: bo
     table = block[[c for c in shown if c != "failure_reason"]].copy()
     cols = list(table.columns)
     table.columns = pd.MultiIndex.from_tuples([(c, f"[{units[c]}]" if units.get(c) else "") for c in cols])
-    with pd.option_context("display.max_columns", None, "display.width", width, "display.max_colwidth", None,
-                           "display.expand_frame_repr", True, "display.max_rows", None):  # fmt: skip
+    with pd.option_context(
+        "display.max_columns",
+        None,
+        "display.width",
+        width,
+        "display.max_colwidth",
+        None,
+        "display.expand_frame_repr",
+        True,
+        "display.max_rows",
+        None,
+    ):
         print(table.to_string(line_width=width, header=header))
     if more > 0:
         print(f"... {more} more rows (--head 0 shows all)")
@@ -156,7 +174,11 @@ def _print_block(block: Any, shown: list[str], units: dict[str, str], header: bo
         print("failure reasons:")
         for v, why in zip(block["variant"], reasons.astype(str), strict=True):
             if why:
-                print(textwrap.fill(f"variant {v}: {why}", width, subsequent_indent="    ", break_long_words=False))
+                print(
+                    textwrap.fill(
+                        f"variant {v}: {why}", width, subsequent_indent="    ", break_long_words=False
+                    )
+                )
 
 
 def _column_units(ds: Any, columns: list[str]) -> dict[str, str]:
@@ -173,8 +195,14 @@ def _print_variant(rows: Any, units: dict[str, str], args: argparse.Namespace, r
     from crashstudy.cli.columns import arg_problem
 
     if rows.empty:
-        raise InputError([arg_problem(args.dir, f"--variant {args.variant}: the variants are numbered 0 to "
-                                      f"{res.summary_rows() - 1}")])  # fmt: skip
+        raise InputError(
+            [
+                arg_problem(
+                    args.dir,
+                    f"--variant {args.variant}: the variants are numbered 0 to {res.summary_rows() - 1}",
+                )
+            ]
+        )
     row = rows.iloc[0]
     labels = {c: c + (f" [{units[c]}]" if units.get(c) else "") for c in rows.columns}
     w = max(len(x) for x in labels.values())

@@ -22,10 +22,24 @@ def _row(kind: str, width: int, names: str) -> list[Field]:
 
 LAYOUTS: dict[str, list[Field]] = {
     "TITLE": [("TITLE", 80, "a")],
-    "CONTROL_TERMINATION": [("ENDTIM", 10, "f"), ("ENDCYC", 10, "i"), ("DTMIN", 10, "f"), ("ENDENG", 10, "f"),
-                            ("ENDMAS", 10, "f"), ("NOSOL", 10, "i")],
-    "CONTROL_TIMESTEP": [("DTINIT", 10, "f"), ("TSSFAC", 10, "f"), ("ISDO", 10, "i"), ("TSLIMT", 10, "f"),
-                         ("DT2MS", 10, "f"), ("LCTM", 10, "i"), ("ERODE", 10, "i"), ("MS1ST", 10, "i")],
+    "CONTROL_TERMINATION": [
+        ("ENDTIM", 10, "f"),
+        ("ENDCYC", 10, "i"),
+        ("DTMIN", 10, "f"),
+        ("ENDENG", 10, "f"),
+        ("ENDMAS", 10, "f"),
+        ("NOSOL", 10, "i"),
+    ],
+    "CONTROL_TIMESTEP": [
+        ("DTINIT", 10, "f"),
+        ("TSSFAC", 10, "f"),
+        ("ISDO", 10, "i"),
+        ("TSLIMT", 10, "f"),
+        ("DT2MS", 10, "f"),
+        ("LCTM", 10, "i"),
+        ("ERODE", 10, "i"),
+        ("MS1ST", 10, "i"),
+    ],
     "NODE": [("NID", 8, "i"), ("X", 16, "f"), ("Y", 16, "f"), ("Z", 16, "f"), ("TC", 8, "i"), ("RC", 8, "i")],
     "ELEMENT_MASS": [("EID", 8, "i"), ("NID", 8, "i"), ("MASS", 16, "f"), ("PID", 8, "i")],
     "PART_HEADING": [("HEADING", 70, "a")],
@@ -39,17 +53,36 @@ LAYOUTS: dict[str, list[Field]] = {
     "MAT_DAMPER_NONLINEAR_VISCOUS": [("MID", 10, "i"), ("LCDR", 10, "i")],
     "MAT_SPRING_GENERAL_NONLINEAR": [*_row("i", 10, "MID LCDL LCDU"), *_row("f", 10, "BETA TYI CYI")],
     "MAT_SPRING_INELASTIC": [("MID", 10, "i"), ("LCFD", 10, "i"), ("KU", 10, "f"), ("CTF", 10, "f")],
-    "DEFINE_CURVE": [*_row("i", 10, "LCID SIDR"), *_row("f", 10, "SFA SFO OFFA OFFO"), *_row("i", 10, "DATTYP LCINT")],
+    "DEFINE_CURVE": [
+        *_row("i", 10, "LCID SIDR"),
+        *_row("f", 10, "SFA SFO OFFA OFFO"),
+        *_row("i", 10, "DATTYP LCINT"),
+    ],
     "DEFINE_CURVE_POINT": [("A", 20, "f"), ("O", 20, "f")],
     "DEFINE_TABLE": [("TBID", 10, "i"), ("SFA", 10, "f"), ("OFFA", 10, "f")],
     "DEFINE_TABLE_ROW": [("VALUE", 20, "f"), ("LCID", 20, "i")],
-    "ELEMENT_DISCRETE": [*_row("i", 8, "EID PID N1 N2 VID"), ("S", 16, "f"), ("PF", 8, "i"), ("OFFSET", 16, "f")],
+    "ELEMENT_DISCRETE": [
+        *_row("i", 8, "EID PID N1 N2 VID"),
+        ("S", 16, "f"),
+        ("PF", 8, "i"),
+        ("OFFSET", 16, "f"),
+    ],
     "INITIAL_VELOCITY_NODE": [("NID", 10, "i"), *_row("f", 10, "VX VY VZ VXR VYR VZR"), ("ICID", 10, "i")],
     "BOUNDARY_SPC_NODE": _row("i", 10, "NID CID DOFX DOFY DOFZ DOFRX DOFRY DOFRZ"),
-    "BOUNDARY_PRESCRIBED_MOTION_NODE": [*_row("i", 10, "NID DOF VAD LCID"), ("SF", 10, "f"), ("VID", 10, "i"),
-                                        *_row("f", 10, "DEATH BIRTH")],
+    "BOUNDARY_PRESCRIBED_MOTION_NODE": [
+        *_row("i", 10, "NID DOF VAD LCID"),
+        ("SF", 10, "f"),
+        ("VID", 10, "i"),
+        *_row("f", 10, "DEATH BIRTH"),
+    ],
     "LOAD_NODE_POINT": [*_row("i", 10, "NID DOF LCID"), ("SF", 10, "f"), *_row("i", 10, "CID M1 M2 M3")],
-    "LOAD_BODY": [("LCID", 10, "i"), ("SF", 10, "f"), ("LCIDDR", 10, "i"), *_row("f", 10, "XC YC ZC"), ("CID", 10, "i")],
+    "LOAD_BODY": [
+        ("LCID", 10, "i"),
+        ("SF", 10, "f"),
+        ("LCIDDR", 10, "i"),
+        *_row("f", 10, "XC YC ZC"),
+        ("CID", 10, "i"),
+    ],
     "RIGIDWALL_ID": [("ID", 10, "i"), ("TITLE", 70, "a")],
     "RIGIDWALL_PLANAR": [*_row("i", 10, "NSID NSIDEX BOXID"), *_row("f", 10, "OFFSET BIRTH DEATH RWKSF")],
     "RIGIDWALL_PLANAR_2": _row("f", 10, "XT YT ZT XH YH ZH FRIC WVEL"),
@@ -73,7 +106,11 @@ def fmt_float(v: float, width: int) -> tuple[str, bool]:
         candidates.append(f"{m if '.' in m else m + '.'}e{int(e)}")
         fixed = f"{v:.{p + 1}f}"
         if float(fixed) != 0.0:
-            candidates.append(fixed.replace("0.", ".", 1) if fixed.startswith(("0.", "-0.")) and len(fixed) > width else fixed)
+            candidates.append(
+                fixed.replace("0.", ".", 1)
+                if fixed.startswith(("0.", "-0.")) and len(fixed) > width
+                else fixed
+            )
     exact = [c for c in candidates if float(c) == v]
     if candidates[0] == plain and len(plain) <= width:  # readable first: 100.0 rather than 1.e2
         return plain, True
@@ -146,7 +183,7 @@ def read_card(text: str, layout: str, exact: dict[float, float] | None = None) -
     if "," in text and fields[0][2] != "a":
         parts = text.split(",")
         if len(parts) > len(fields):
-            if any(p.strip() for p in parts[len(fields):]):
+            if any(p.strip() for p in parts[len(fields) :]):
                 raise FieldError(f"{len(parts)} comma-separated fields, {layout} has {len(fields)}")
         parts = parts[: len(fields)]
     else:
@@ -165,7 +202,9 @@ def read_card(text: str, layout: str, exact: dict[float, float] | None = None) -
             try:
                 num = float(s.replace("D", "E").replace("d", "e"))
             except ValueError:
-                raise FieldError(f"field {name} is {s!r}: expected {'an integer' if kind == 'i' else 'a number'}") from None
+                raise FieldError(
+                    f"field {name} is {s!r}: expected {'an integer' if kind == 'i' else 'a number'}"
+                ) from None
             if kind == "i":
                 if num != int(num):
                     raise FieldError(f"field {name} is {s!r}: expected an integer")

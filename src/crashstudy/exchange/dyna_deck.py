@@ -65,10 +65,16 @@ def _read(path: Path, shown: str, deck: Deck, chain: tuple[Path, ...]) -> None:
     real = path.resolve()
     if real in chain:
         names = " -> ".join(p.name for p in (*chain, real))
-        raise InputError([Problem(shown, None, "*INCLUDE", f"include loop: {names}; a deck cannot include itself")])
+        raise InputError(
+            [Problem(shown, None, "*INCLUDE", f"include loop: {names}; a deck cannot include itself")]
+        )
     with open_regular(path, MAX_BYTES, shown, follow=True) as fh:
         raw = fh.read()
-    text = raw.decode("utf-8", errors="replace") if not raw.startswith(b"\xef\xbb\xbf") else raw[3:].decode("utf-8", "replace")
+    text = (
+        raw.decode("utf-8", errors="replace")
+        if not raw.startswith(b"\xef\xbb\xbf")
+        else raw[3:].decode("utf-8", "replace")
+    )
     block: Block | None = None
     for no, line in enumerate(text.splitlines(), start=1):
         line = line.rstrip("\r\n")
@@ -88,7 +94,9 @@ def _read(path: Path, shown: str, deck: Deck, chain: tuple[Path, ...]) -> None:
                 deck.blocks.append(block)
             continue
         if block is None:
-            raise InputError([Problem(shown, no, "", "a card before the first keyword: a deck starts with *KEYWORD")])
+            raise InputError(
+                [Problem(shown, no, "", "a card before the first keyword: a deck starts with *KEYWORD")]
+            )
         block.cards.append(Card(line, shown, no))
     if block is not None and block.keyword == "INCLUDE":
         _include(block, deck, chain + (real,))
@@ -101,6 +109,15 @@ def _include(block: Block, deck: Deck, chain: tuple[Path, ...]) -> None:
         target = Path(name) if Path(name).is_absolute() else base / name
         shown = _display(Path(name), c.file)
         if not target.exists():
-            raise InputError([Problem(c.file, c.line, "*INCLUDE", f"included file {name!r} not found (looked for "
-                                      f"{target}); an include is relative to the deck that names it")])  # fmt: skip
+            raise InputError(
+                [
+                    Problem(
+                        c.file,
+                        c.line,
+                        "*INCLUDE",
+                        f"included file {name!r} not found (looked for "
+                        f"{target}); an include is relative to the deck that names it",
+                    )
+                ]
+            )
         _read(target, shown, deck, chain)

@@ -34,19 +34,36 @@ def refusals(m: Model, doc: LoadedYaml | None) -> list[Problem]:
     out: list[tuple[tuple[str | int, ...], str]] = []
     for sid, sp in m.springs.items():
         if sp.failure is not None:
-            out.append((("springs", sid, "failure"), "spring failure has no discrete-element keyword equivalent "
-                        "crashstudy can vouch for (*SECTION_DISCRETE CDL/TDL are deflection limits): remove failure: "
-                        "to export, or model the break in LS-DYNA by hand"))
+            out.append(
+                (
+                    ("springs", sid, "failure"),
+                    "spring failure has no discrete-element keyword equivalent "
+                    "crashstudy can vouch for (*SECTION_DISCRETE CDL/TDL are deflection limits): remove failure: "
+                    "to export, or model the break in LS-DYNA by hand",
+                )
+            )
         if sp.material.type not in BY_TYPE:
-            out.append((("springs", sid, "material", "type"), f"material {sp.material.type!r} has no LS-DYNA "
-                        f"mapping yet (exchange/dyna_materials.MATERIALS)"))
+            out.append(
+                (
+                    ("springs", sid, "material", "type"),
+                    f"material {sp.material.type!r} has no LS-DYNA "
+                    f"mapping yet (exchange/dyna_materials.MATERIALS)",
+                )
+            )
     for i, w in enumerate(m.rigid_walls):
         if w.stiffness is not None:
-            out.append((("rigid_walls", i, "stiffness"), "a penalty wall (stiffness) has no *RIGIDWALL_PLANAR "
-                        "equivalent (its RWKSF scales LS-DYNA's own penalty): remove stiffness: for a stonewall"))
+            out.append(
+                (
+                    ("rigid_walls", i, "stiffness"),
+                    "a penalty wall (stiffness) has no *RIGIDWALL_PLANAR "
+                    "equivalent (its RWKSF scales LS-DYNA's own penalty): remove stiffness: for a stonewall",
+                )
+            )
     file = doc.file if doc is not None else m.name
-    return [Problem(file, doc.line_of(path) if doc is not None else None, ".".join(map(str, path)), msg)
-            for path, msg in out]  # fmt: skip
+    return [
+        Problem(file, doc.line_of(path) if doc is not None else None, ".".join(map(str, path)), msg)
+        for path, msg in out
+    ]
 
 
 @dataclass
@@ -78,8 +95,10 @@ class _Deck:
         tbid = self._next()
         ids = [self._next() for _ in rows]
         self.curve_cards += [f"*DEFINE_TABLE\n{titles('DEFINE_TABLE')}", card("DEFINE_TABLE", {"TBID": tbid})]
-        self.curve_cards += [card("DEFINE_TABLE_ROW", {"VALUE": r["rate"], "LCID": n}, self.rounded, "table rate")
-                             for r, n in zip(rows, ids, strict=True)]  # fmt: skip
+        self.curve_cards += [
+            card("DEFINE_TABLE_ROW", {"VALUE": r["rate"], "LCID": n}, self.rounded, "table rate")
+            for r, n in zip(rows, ids, strict=True)
+        ]
         for r, n in zip(rows, ids, strict=True):
             self._write_curve(n, r["curve"], "same")
         self.meta_curves[str(tbid)] = ["table", "table", 0, 0]
@@ -95,11 +114,15 @@ class _Deck:
     def is_table(self, lcid: object) -> bool:  # pragma: no cover - import side only
         return False
 
-    def table_curves(self, tbid: object, field: str) -> list[dict[str, Any]]:  # pragma: no cover - import side only
+    def table_curves(
+        self, tbid: object, field: str
+    ) -> list[dict[str, Any]]:  # pragma: no cover - import side only
         raise NotImplementedError
 
     def _write_curve(self, n: int, cid: str, role: str) -> None:
-        if role == "constant":  # a constant load or gravity (1.0), or the step cap (dt): from t = 0 to past end_time
+        if (
+            role == "constant"
+        ):  # a constant load or gravity (1.0), or the step cap (dt): from t = 0 to past end_time
             value = self.m.time_step.dt if cid == "time_step.dt" and self.m.time_step.dt else 1.0
             xs, ys, pads = [0.0, 2.0 * self.m.end_time], [value, value], [0, 0]
         else:
@@ -114,8 +137,10 @@ class _Deck:
         what = f"curves.{cid}" if role != "constant" else "constant curve"
         self.curve_cards.append(f"*DEFINE_CURVE\n$ {role} curve {cid}\n{titles('DEFINE_CURVE')}")
         self.curve_cards.append(card("DEFINE_CURVE", {"LCID": n, "SIDR": 0, "SFA": 1.0, "SFO": 1.0}))
-        self.curve_cards.extend(card("DEFINE_CURVE_POINT", {"A": x, "O": y}, self.rounded, what)
-                                for x, y in zip(xs, ys, strict=True))  # fmt: skip
+        self.curve_cards.extend(
+            card("DEFINE_CURVE_POINT", {"A": x, "O": y}, self.rounded, what)
+            for x, y in zip(xs, ys, strict=True)
+        )
 
 
 def _pad_time(xs: list[float], ys: list[float]) -> tuple[list[float], list[float], list[int]]:
@@ -124,7 +149,11 @@ def _pad_time(xs: list[float], ys: list[float]) -> tuple[list[float], list[float
     head: list[tuple[float, float]] = []
     tail: list[tuple[float, float]] = []
     if xs[0] > 0.0 and (ys[0] != 0.0 or ys[1] != 0.0):
-        head = [(xs[0] - PAD * span - span, 0.0), (xs[0] - PAD * span, 0.0)] if ys[0] != 0.0 else [(xs[0] - span, 0.0)]
+        head = (
+            [(xs[0] - PAD * span - span, 0.0), (xs[0] - PAD * span, 0.0)]
+            if ys[0] != 0.0
+            else [(xs[0] - span, 0.0)]
+        )
     if ys[-1] != 0.0:
         tail = [(xs[-1] + PAD * span, 0.0), (xs[-1] + PAD * span + span, 0.0)]
     elif ys[-2] != 0.0:
@@ -157,27 +186,49 @@ def export_deck(m: Model, doc: LoadedYaml | None = None) -> tuple[str, list[str]
     nid = {n: i + 1 for i, n in enumerate(m.nodes)}
     units = UNIT_SYSTEMS[m.units]
     d.lines.append("*KEYWORD")
-    d.add("TITLE", f"{m.name} (crashstudy, units {m.units}: {units.length} {units.time} {units.mass} "
-                   f"{units.force})"[:80])  # fmt: skip
-    d.add("CONTROL_TERMINATION", titles("CONTROL_TERMINATION"),
-          card("CONTROL_TERMINATION", {"ENDTIM": m.end_time}, d.rounded, "end_time"))
+    d.add(
+        "TITLE",
+        f"{m.name} (crashstudy, units {m.units}: {units.length} {units.time} {units.mass} {units.force})"[
+            :80
+        ],
+    )
+    d.add(
+        "CONTROL_TERMINATION",
+        titles("CONTROL_TERMINATION"),
+        card("CONTROL_TERMINATION", {"ENDTIM": m.end_time}, d.rounded, "end_time"),
+    )
     ts = m.time_step
     if ts.safety_factor is not None:
-        d.add("CONTROL_TIMESTEP", card("CONTROL_TIMESTEP", {"DTINIT": 0.0, "TSSFAC": ts.safety_factor},
-                                       d.rounded, "time_step.safety_factor"))  # fmt: skip
+        d.add(
+            "CONTROL_TIMESTEP",
+            card(
+                "CONTROL_TIMESTEP",
+                {"DTINIT": 0.0, "TSSFAC": ts.safety_factor},
+                d.rounded,
+                "time_step.safety_factor",
+            ),
+        )
     elif ts.dt is not None:  # LS-DYNA has no fixed step: the first step and a cap (LCTM) of dt
         cap = d.lcid("time_step.dt", "constant")
-        d.add("CONTROL_TIMESTEP", card("CONTROL_TIMESTEP", {"DTINIT": ts.dt, "TSSFAC": 0.9, "LCTM": cap},
-                                       d.rounded, "time_step.dt"))  # fmt: skip
+        d.add(
+            "CONTROL_TIMESTEP",
+            card(
+                "CONTROL_TIMESTEP", {"DTINIT": ts.dt, "TSSFAC": 0.9, "LCTM": cap}, d.rounded, "time_step.dt"
+            ),
+        )
     d.add("NODE", titles("NODE"))
     for n, node in m.nodes.items():
         p = [*node.position, 0.0, 0.0][:3]
-        d.lines.append(card("NODE", {"NID": nid[n], "X": p[0], "Y": p[1], "Z": p[2]}, d.rounded, f"nodes.{n}.position"))
+        d.lines.append(
+            card("NODE", {"NID": nid[n], "X": p[0], "Y": p[1], "Z": p[2]}, d.rounded, f"nodes.{n}.position")
+        )
     masses = [(n, node.mass) for n, node in m.nodes.items() if node.mass is not None]
     if masses:
         d.add("ELEMENT_MASS", titles("ELEMENT_MASS"))
-        d.lines.extend(card("ELEMENT_MASS", {"EID": i + 1, "NID": nid[n], "MASS": mass}, d.rounded, f"nodes.{n}.mass")
-                       for i, (n, mass) in enumerate(masses))  # fmt: skip
+        d.lines.extend(
+            card("ELEMENT_MASS", {"EID": i + 1, "NID": nid[n], "MASS": mass}, d.rounded, f"nodes.{n}.mass")
+            for i, (n, mass) in enumerate(masses)
+        )
     _constraints(d, nid, dim)
     _springs(d, nid)
     _loads(d, nid, dim)
@@ -186,12 +237,27 @@ def export_deck(m: Model, doc: LoadedYaml | None = None) -> tuple[str, list[str]
     for db in ("NODOUT", "DEFORC", "GLSTAT"):
         d.add(f"DATABASE_{db}", card("DATABASE", {"DT": dt_out}, d.rounded, "output.interval"))
     ids = list(nid.values())
-    d.add("DATABASE_HISTORY_NODE", *(card("DATABASE_HISTORY_NODE", {f"ID{k + 1}": v for k, v in enumerate(ids[i : i + 8])})
-                                     for i in range(0, len(ids), 8)))  # fmt: skip
-    meta = {"format": 1, "name": m.name, "description": m.description, "units": m.units, "nodes": list(m.nodes),
-            "springs": list(m.springs), "walls": [[w.id, w.normal] for w in m.rigid_walls], "curves": d.meta_curves,
-            **m.model_dump(include={"time_step", "output", "termination", "metrics", "accuracy_check"},
-                           exclude_none=True), "exact": d.rounded.restore_table()}  # fmt: skip
+    d.add(
+        "DATABASE_HISTORY_NODE",
+        *(
+            card("DATABASE_HISTORY_NODE", {f"ID{k + 1}": v for k, v in enumerate(ids[i : i + 8])})
+            for i in range(0, len(ids), 8)
+        ),
+    )
+    meta = {
+        "format": 1,
+        "name": m.name,
+        "description": m.description,
+        "units": m.units,
+        "nodes": list(m.nodes),
+        "springs": list(m.springs),
+        "walls": [[w.id, w.normal] for w in m.rigid_walls],
+        "curves": d.meta_curves,
+        **m.model_dump(
+            include={"time_step", "output", "termination", "metrics", "accuracy_check"}, exclude_none=True
+        ),
+        "exact": d.rounded.restore_table(),
+    }
     text = "\n".join([d.lines[0], *_meta_lines(meta), *d.lines[1:], *d.curve_cards, "*END"]) + "\n"
     return text, d.rounded.items
 
@@ -201,14 +267,26 @@ def _constraints(d: _Deck, nid: dict[str, int], dim: int) -> None:
     rows, velocities = [], []
     for n, node in d.m.nodes.items():
         fixed = ["x", "y"][:dim] if node.fixed is True else [] if node.fixed is False else list(node.fixed)
-        dof = {"DOFX": int("x" in fixed), "DOFY": int("y" in fixed or dim == 1), "DOFZ": 1,
-               "DOFRX": 1, "DOFRY": 1, "DOFRZ": 1}  # fmt: skip
+        dof = {
+            "DOFX": int("x" in fixed),
+            "DOFY": int("y" in fixed or dim == 1),
+            "DOFZ": 1,
+            "DOFRX": 1,
+            "DOFRY": 1,
+            "DOFRZ": 1,
+        }
         rows.append(card("BOUNDARY_SPC_NODE", {"NID": nid[n], "CID": 0, **dof}))
         v = d.m.initial_velocity.get(n)
         if v is not None and any(v):
             vel = [*v, 0.0][:2]
-            velocities.append(card("INITIAL_VELOCITY_NODE", {"NID": nid[n], "VX": vel[0], "VY": vel[1], "VZ": 0.0},
-                                d.rounded, f"initial_velocity.{n}"))  # fmt: skip
+            velocities.append(
+                card(
+                    "INITIAL_VELOCITY_NODE",
+                    {"NID": nid[n], "VX": vel[0], "VY": vel[1], "VZ": 0.0},
+                    d.rounded,
+                    f"initial_velocity.{n}",
+                )
+            )
     if velocities:
         d.add("INITIAL_VELOCITY_NODE", titles("INITIAL_VELOCITY_NODE"), *velocities)
     d.add("BOUNDARY_SPC_NODE", titles("BOUNDARY_SPC_NODE"), *rows)
@@ -221,15 +299,36 @@ def _springs(d: _Deck, nid: dict[str, int]) -> None:
         mat = sp.material.model_dump(exclude_none=True)
         row = BY_TYPE[mat["type"]]
         d.add("PART", f"{sid}"[:70], card("PART", {"PID": k, "SECID": k, "MID": k}))
-        d.add("SECTION_DISCRETE", titles("SECTION_DISCRETE"),
-              card("SECTION_DISCRETE", {"SECID": k, "DRO": 0, "KD": 0.0, "V0": 0.0, "CL": 0.0, "FD": 0.0}),
-              titles("SECTION_DISCRETE_2"), card("SECTION_DISCRETE_2", {"CDL": 0.0, "TDL": 0.0}))  # fmt: skip
-        d.add(row.keyword, titles(row.keyword),
-              card(row.keyword, {"MID": k, **row.write(mat, d)}, d.rounded, f"springs.{sid}.material"))  # fmt: skip
+        d.add(
+            "SECTION_DISCRETE",
+            titles("SECTION_DISCRETE"),
+            card("SECTION_DISCRETE", {"SECID": k, "DRO": 0, "KD": 0.0, "V0": 0.0, "CL": 0.0, "FD": 0.0}),
+            titles("SECTION_DISCRETE_2"),
+            card("SECTION_DISCRETE_2", {"CDL": 0.0, "TDL": 0.0}),
+        )
+        d.add(
+            row.keyword,
+            titles(row.keyword),
+            card(row.keyword, {"MID": k, **row.write(mat, d)}, d.rounded, f"springs.{sid}.material"),
+        )
         a, b = sp.nodes
-        elements.append(card("ELEMENT_DISCRETE", {"EID": k, "PID": k, "N1": nid[a], "N2": nid[b], "VID": 0, "S": 1.0,
-                                                  "PF": 0, "OFFSET": sp.initial_elongation},
-                             d.rounded, f"springs.{sid}.initial_elongation"))  # fmt: skip
+        elements.append(
+            card(
+                "ELEMENT_DISCRETE",
+                {
+                    "EID": k,
+                    "PID": k,
+                    "N1": nid[a],
+                    "N2": nid[b],
+                    "VID": 0,
+                    "S": 1.0,
+                    "PF": 0,
+                    "OFFSET": sp.initial_elongation,
+                },
+                d.rounded,
+                f"springs.{sid}.initial_elongation",
+            )
+        )
     if elements:
         d.add("ELEMENT_DISCRETE", titles("ELEMENT_DISCRETE"), *elements)
 
@@ -240,19 +339,42 @@ def _loads(d: _Deck, nid: dict[str, int], dim: int) -> None:
         lc = d.lcid(ld.curve, "time") if ld.curve else d.lcid(f"loads.{i}", "constant")
         for k, f in enumerate(ld.force):
             if f != 0.0 or (k == 0 and not any(ld.force)):
-                d.add("LOAD_NODE_POINT", card("LOAD_NODE_POINT", {"NID": nid[ld.node], "DOF": k + 1, "LCID": lc, "SF": f},
-                                              d.rounded, f"loads.{i}.force.{k}"))  # fmt: skip
+                d.add(
+                    "LOAD_NODE_POINT",
+                    card(
+                        "LOAD_NODE_POINT",
+                        {"NID": nid[ld.node], "DOF": k + 1, "LCID": lc, "SF": f},
+                        d.rounded,
+                        f"loads.{i}.force.{k}",
+                    ),
+                )
     if m.gravity is not None:  # LS-DYNA body loads are base accelerations: gravity -g is SF = +g
         lc = d.lcid("gravity", "constant")
         for k, g in enumerate(m.gravity):
             if g != 0.0:
-                d.add(f"LOAD_BODY_{'XY'[k]}", card("LOAD_BODY", {"LCID": lc, "SF": -g}, d.rounded, f"gravity.{k}"))
+                d.add(
+                    f"LOAD_BODY_{'XY'[k]}",
+                    card("LOAD_BODY", {"LCID": lc, "SF": -g}, d.rounded, f"gravity.{k}"),
+                )
     vad = {"velocity": 0, "acceleration": 1, "displacement": 2}
     for i, q in enumerate(m.prescribed_motion):
-        d.add("BOUNDARY_PRESCRIBED_MOTION_NODE", titles("BOUNDARY_PRESCRIBED_MOTION_NODE"),
-              card("BOUNDARY_PRESCRIBED_MOTION_NODE", {"NID": nid[q.node], "DOF": "xy".index(q.direction) + 1,
-                                                       "VAD": vad[q.quantity], "LCID": d.lcid(q.curve, "time"),
-                                                       "SF": q.scale, "VID": 0}, d.rounded, f"prescribed_motion.{i}.scale"))  # fmt: skip
+        d.add(
+            "BOUNDARY_PRESCRIBED_MOTION_NODE",
+            titles("BOUNDARY_PRESCRIBED_MOTION_NODE"),
+            card(
+                "BOUNDARY_PRESCRIBED_MOTION_NODE",
+                {
+                    "NID": nid[q.node],
+                    "DOF": "xy".index(q.direction) + 1,
+                    "VAD": vad[q.quantity],
+                    "LCID": d.lcid(q.curve, "time"),
+                    "SF": q.scale,
+                    "VID": 0,
+                },
+                d.rounded,
+                f"prescribed_motion.{i}.scale",
+            ),
+        )
 
 
 def _walls(d: _Deck, nid: dict[str, int], dim: int) -> None:
@@ -262,14 +384,25 @@ def _walls(d: _Deck, nid: dict[str, int], dim: int) -> None:
         if w.nodes is not None:
             nsid = i
             ids = [nid[n] for n in w.nodes]
-            d.add("SET_NODE_LIST", card("SET_NODE_LIST", {"SID": nsid}),
-                  *(card("SET_NODE_LIST_IDS", {f"NID{k + 1}": v for k, v in enumerate(ids[j : j + 8])})
-                    for j in range(0, len(ids), 8)))  # fmt: skip
+            d.add(
+                "SET_NODE_LIST",
+                card("SET_NODE_LIST", {"SID": nsid}),
+                *(
+                    card("SET_NODE_LIST_IDS", {f"NID{k + 1}": v for k, v in enumerate(ids[j : j + 8])})
+                    for j in range(0, len(ids), 8)
+                ),
+            )
         p = [*w.point, 0.0, 0.0][:3]
         nv = [*w.normal, 0.0, 0.0][:3]
         head = [p[k] + nv[k] for k in range(3)]
-        d.add("RIGIDWALL_PLANAR_ID", card("RIGIDWALL_ID", {"ID": i, "TITLE": w.id}),
-              card("RIGIDWALL_PLANAR", {"NSID": nsid, "NSIDEX": 0, "BOXID": 0, "OFFSET": 0.0}),
-              card("RIGIDWALL_PLANAR_2", {"XT": p[0], "YT": p[1], "ZT": p[2], "XH": head[0], "YH": head[1], "ZH": head[2]},
-                   d.rounded, f"rigid_walls.{i - 1}.point / normal"))  # fmt: skip
-
+        d.add(
+            "RIGIDWALL_PLANAR_ID",
+            card("RIGIDWALL_ID", {"ID": i, "TITLE": w.id}),
+            card("RIGIDWALL_PLANAR", {"NSID": nsid, "NSIDEX": 0, "BOXID": 0, "OFFSET": 0.0}),
+            card(
+                "RIGIDWALL_PLANAR_2",
+                {"XT": p[0], "YT": p[1], "ZT": p[2], "XH": head[0], "YH": head[1], "ZH": head[2]},
+                d.rounded,
+                f"rigid_walls.{i - 1}.point / normal",
+            ),
+        )

@@ -22,13 +22,46 @@ from crashstudy.exchange.dyna_materials import ALIASES, KEYWORDS, MATERIALS, WHY
 from crashstudy.exchange.dyna_reader import DeckReader, Rows
 from crashstudy.units import UNIT_SYSTEMS
 
-SIMPLE = {"CONTROL_TERMINATION", "CONTROL_TIMESTEP", "NODE", "ELEMENT_MASS", "ELEMENT_DISCRETE", "INITIAL_VELOCITY_NODE",
-          "BOUNDARY_SPC_NODE", "BOUNDARY_PRESCRIBED_MOTION_NODE", "LOAD_NODE_POINT", "DATABASE_HISTORY_NODE"}  # fmt: skip
-OTHER = {"KEYWORD", "TITLE", "PART", "SECTION_DISCRETE", "DEFINE_CURVE", "DEFINE_CURVE_TITLE", "DEFINE_TABLE",
-         "LOAD_BODY_X", "LOAD_BODY_Y", "LOAD_BODY_Z", "RIGIDWALL_PLANAR", "RIGIDWALL_PLANAR_ID", "SET_NODE_LIST",
-         "DATABASE_NODOUT", "DATABASE_DEFORC", "DATABASE_GLSTAT"}  # fmt: skip
-TC_CODES = {0: "", 1: "x", 2: "y", 3: "z", 4: "xy", 5: "yz", 6: "zx", 7: "xyz"}  #: *NODE TC: translations held
-
+SIMPLE = {
+    "CONTROL_TERMINATION",
+    "CONTROL_TIMESTEP",
+    "NODE",
+    "ELEMENT_MASS",
+    "ELEMENT_DISCRETE",
+    "INITIAL_VELOCITY_NODE",
+    "BOUNDARY_SPC_NODE",
+    "BOUNDARY_PRESCRIBED_MOTION_NODE",
+    "LOAD_NODE_POINT",
+    "DATABASE_HISTORY_NODE",
+}
+OTHER = {
+    "KEYWORD",
+    "TITLE",
+    "PART",
+    "SECTION_DISCRETE",
+    "DEFINE_CURVE",
+    "DEFINE_CURVE_TITLE",
+    "DEFINE_TABLE",
+    "LOAD_BODY_X",
+    "LOAD_BODY_Y",
+    "LOAD_BODY_Z",
+    "RIGIDWALL_PLANAR",
+    "RIGIDWALL_PLANAR_ID",
+    "SET_NODE_LIST",
+    "DATABASE_NODOUT",
+    "DATABASE_DEFORC",
+    "DATABASE_GLSTAT",
+}
+TC_CODES = {
+    0: "",
+    1: "x",
+    2: "y",
+    3: "z",
+    4: "xy",
+    5: "yz",
+    6: "zx",
+    7: "xyz",
+}  #: *NODE TC: translations held
 
 
 def _material_keyword(name: str) -> tuple[str, bool]:
@@ -53,16 +86,25 @@ def import_deck(path: str, skip_unsupported: bool = False) -> tuple[dict[str, An
     if other:
         listed = [f"{b.file}:{b.line}: *{b.keyword}" for b in other]
         if not skip_unsupported:
-            raise InputError([b.problem("keyword not supported by crashstudy import (it has no model equivalent); "
-                                        "remove it or pass --skip-unsupported to skip it") for b in other])  # fmt: skip
+            raise InputError(
+                [
+                    b.problem(
+                        "keyword not supported by crashstudy import (it has no model equivalent); "
+                        "remove it or pass --skip-unsupported to skip it"
+                    )
+                    for b in other
+                ]
+            )
         notes.append("skipped unsupported keywords:\n  " + "\n  ".join(listed))
     r = DeckReader(meta, exact={float(w): float(x) for w, x in meta.get("exact", [])})
     by: dict[str, list[Block]] = {}
     for b in deck.blocks:
         if supported(b.keyword):
             by.setdefault(b.keyword, []).append(b)
-    rows = {k: [(b, c, f) for b in by.get(k, []) for c in b.cards if (f := r.fields(b, c, k)) is not None]
-            for k in SIMPLE}  # fmt: skip
+    rows = {
+        k: [(b, c, f) for b in by.get(k, []) for c in b.cards if (f := r.fields(b, c, k)) is not None]
+        for k in SIMPLE
+    }
     _read_curves(r, by)
     model: dict[str, Any] = {"name": "", "description": meta.get("description", ""), "units": "SI"}
     _title(model, by, meta, Path(path), notes)
@@ -84,34 +126,62 @@ def _meta(text: str, notes: list[str]) -> dict[str, Any]:
         return {}
     try:
         meta = json.loads(text)
-        shapes = {"name": str, "description": str, "units": str, "nodes": list, "springs": list, "walls": list,
-                  "curves": dict, "time_step": dict, "output": dict, "termination": dict, "metrics": list,
-                  "accuracy_check": bool, "exact": list}  # fmt: skip
+        shapes = {
+            "name": str,
+            "description": str,
+            "units": str,
+            "nodes": list,
+            "springs": list,
+            "walls": list,
+            "curves": dict,
+            "time_step": dict,
+            "output": dict,
+            "termination": dict,
+            "metrics": list,
+            "accuracy_check": bool,
+            "exact": list,
+        }
         ok = isinstance(meta, dict) and all(isinstance(meta[k], t) for k, t in shapes.items() if k in meta)
         ok = ok and all(isinstance(n, str) for k in ("nodes", "springs") for n in meta.get(k, []))
-        ok = ok and all(isinstance(w, list) and len(w) == 2 and isinstance(w[0], str) for w in meta.get("walls", []))
-        ok = ok and all(isinstance(p, list) and len(p) == 2 and all(isinstance(v, float) for v in p)
-                        for p in meta.get("exact", []))  # fmt: skip
-        ok = ok and all(isinstance(c, list) and len(c) == 4 and [type(v) for v in c] == [str, str, int, int]
-                        for c in meta.get("curves", {}).values())  # fmt: skip
+        ok = ok and all(
+            isinstance(w, list) and len(w) == 2 and isinstance(w[0], str) for w in meta.get("walls", [])
+        )
+        ok = ok and all(
+            isinstance(p, list) and len(p) == 2 and all(isinstance(v, float) for v in p)
+            for p in meta.get("exact", [])
+        )
+        ok = ok and all(
+            isinstance(c, list) and len(c) == 4 and [type(v) for v in c] == [str, str, int, int]
+            for c in meta.get("curves", {}).values()
+        )
     except (json.JSONDecodeError, AttributeError, TypeError):
         ok = False
     if not ok:
-        notes.append("the deck's $crashstudy: comment lines are damaged: ignored (ids made from the deck's numbers)")
+        notes.append(
+            "the deck's $crashstudy: comment lines are damaged: ignored (ids made from the deck's numbers)"
+        )
         return {}
     return dict(meta)
 
 
-def _title(model: dict[str, Any], by: dict[str, list[Block]], meta: dict[str, Any], path: Path, notes: list[str]) -> None:
+def _title(
+    model: dict[str, Any], by: dict[str, list[Block]], meta: dict[str, Any], path: Path, notes: list[str]
+) -> None:
     title = by["TITLE"][0].cards[0].text.strip() if by.get("TITLE") and by["TITLE"][0].cards else ""
-    name = meta.get("name") or re.sub(r"[^A-Za-z0-9_-]+", "-", re.split(r"[(,]", title)[0].strip() or path.stem)
+    name = meta.get("name") or re.sub(
+        r"[^A-Za-z0-9_-]+", "-", re.split(r"[(,]", title)[0].strip() or path.stem
+    )
     model["name"] = name.strip("-")[:64] or "imported"
     if not meta and title:
         model["description"] = title
-    units = meta.get("units") or next((u for u in UNIT_SYSTEMS if re.search(rf"\b{re.escape(u)}\b", title)), None)
+    units = meta.get("units") or next(
+        (u for u in UNIT_SYSTEMS if re.search(rf"\b{re.escape(u)}\b", title)), None
+    )
     if units is None:
-        notes.append(f"no unit system named in *TITLE ({title!r}): the model says units: SI; if the deck uses "
-                     f"another consistent system ({', '.join(UNIT_SYSTEMS)}), change units: in the model")  # fmt: skip
+        notes.append(
+            f"no unit system named in *TITLE ({title!r}): the model says units: SI; if the deck uses "
+            f"another consistent system ({', '.join(UNIT_SYSTEMS)}), change units: in the model"
+        )
     model["units"] = units or "SI"
 
 
@@ -135,8 +205,12 @@ def _read_curves(r: DeckReader, by: dict[str, list[Block]]) -> None:
         ys = [sfo * float(p["O"] or 0.0) + offo for p in pts]  # type: ignore[arg-type]
         lcid = int(h["LCID"])  # type: ignore[call-overload]
         if lcid in r.curves_raw:
-            r.fail(b, f"curve {lcid} is defined twice (also at {r.curves_raw[lcid][0].file}:{r.curves_raw[lcid][0].line})",
-                   cards[0], "LCID")  # fmt: skip
+            r.fail(
+                b,
+                f"curve {lcid} is defined twice (also at {r.curves_raw[lcid][0].file}:{r.curves_raw[lcid][0].line})",
+                cards[0],
+                "LCID",
+            )
         r.curves_raw[lcid] = (b, xs, ys)
     for b in by.get("DEFINE_TABLE", []):
         h = r.fields(b, b.cards[0], "DEFINE_TABLE") if b.cards else None
@@ -147,21 +221,33 @@ def _read_curves(r: DeckReader, by: dict[str, list[Block]]) -> None:
         r.tables[int(h["TBID"])] = [(float(f["VALUE"] or 0.0), int(f["LCID"] or 0)) for f in rows]  # type: ignore[arg-type, call-overload]
 
 
-def _nodes(r: DeckReader, rows: Rows, meta: dict[str, Any]
-           ) -> tuple[dict[str, dict[str, Any]], dict[int, str], int]:  # fmt: skip
+def _nodes(
+    r: DeckReader, rows: Rows, meta: dict[str, Any]
+) -> tuple[dict[str, dict[str, Any]], dict[int, str], int]:
     names = meta.get("nodes") or []
     found = [(b, c, f) for b, c, f in rows["NODE"] if f["NID"] is not None]
     seen: dict[object, Card] = {}
     for b, c, f in rows["NODE"]:
         if f["NID"] is None or f["NID"] in seen:
-            r.fail(b, "NID is blank" if f["NID"] is None else f"node {f['NID']} is defined twice (also at line "
-                   f"{seen[f['NID']].line} of {seen[f['NID']].file})", c, "NID")  # fmt: skip
+            r.fail(
+                b,
+                "NID is blank"
+                if f["NID"] is None
+                else f"node {f['NID']} is defined twice (also at line "
+                f"{seen[f['NID']].line} of {seen[f['NID']].file})",
+                c,
+                "NID",
+            )
         seen.setdefault(f["NID"], c)
     nids = [int(f["NID"]) for _, _, f in found]  # type: ignore[call-overload]
     use_meta = len(names) == len(found) and sorted(nids) == list(range(1, len(found) + 1))
-    nid_name = {n: (names[n - 1] if use_meta else f"n{f['NID']}") for n, (_, _, f) in zip(nids, found, strict=True)}
+    nid_name = {
+        n: (names[n - 1] if use_meta else f"n{f['NID']}") for n, (_, _, f) in zip(nids, found, strict=True)
+    }
     xyz = {int(f["NID"]): [float(f[k] or 0.0) for k in ("X", "Y", "Z")] for _, _, f in found}  # type: ignore[call-overload, arg-type]
-    held_dirs: dict[int, set[str]] = {n: set() for n in xyz}  # translations held: *NODE TC (1 x, 2 y, 3 z, 4 xy, 5 yz, 6 zx, 7 all), SPCs
+    held_dirs: dict[int, set[str]] = {
+        n: set() for n in xyz
+    }  # translations held: *NODE TC (1 x, 2 y, 3 z, 4 xy, 5 yz, 6 zx, 7 all), SPCs
     for b, c, f in found:
         held_dirs[int(f["NID"])] |= set(TC_CODES.get(int(f["TC"] or 0), ""))  # type: ignore[call-overload]
         if f["TC"] and int(f["TC"]) not in TC_CODES:  # type: ignore[call-overload]
@@ -169,15 +255,22 @@ def _nodes(r: DeckReader, rows: Rows, meta: dict[str, Any]
     for b, c, f in rows["BOUNDARY_SPC_NODE"]:
         n = int(f["NID"] or 0)  # type: ignore[call-overload]
         if n not in held_dirs or f["CID"]:
-            r.fail(b, f"NID {n}, CID {f['CID']}: expected a node of the deck and CID 0 (global axes)", c, "NID")
+            r.fail(
+                b, f"NID {n}, CID {f['CID']}: expected a node of the deck and CID 0 (global axes)", c, "NID"
+            )
             continue
         held_dirs[n] |= {a for a, k in (("x", "DOFX"), ("y", "DOFY"), ("z", "DOFZ")) if f[k]}
     held = {n: ("y" in d, "z" in d) for n, d in held_dirs.items()}
     if not all(p[2] == 0.0 and held[n][1] for n, p in xyz.items()):
         bad = next(n for n, p in xyz.items() if not (p[2] == 0.0 and held[n][1]))
         b, c, _ = next(t for t in found if t[2]["NID"] == bad)
-        r.fail(b, f"node {bad}: crashstudy models are 1-D (along x) or 2-D (x-y plane): every node needs z = 0 and "
-               "its z direction held by *BOUNDARY_SPC_NODE (DOFZ = 1)", c, "Z")  # fmt: skip
+        r.fail(
+            b,
+            f"node {bad}: crashstudy models are 1-D (along x) or 2-D (x-y plane): every node needs z = 0 and "
+            "its z direction held by *BOUNDARY_SPC_NODE (DOFZ = 1)",
+            c,
+            "Z",
+        )
     dim = 1 if xyz and all(p[1] == 0.0 and held[n][0] for n, p in xyz.items()) else 2
     mass: dict[int, float] = {}
     for b, c, f in rows["ELEMENT_MASS"]:
@@ -197,8 +290,9 @@ def _nodes(r: DeckReader, rows: Rows, meta: dict[str, Any]
     return nodes, nid_name, dim
 
 
-def _springs(r: DeckReader, by: dict[str, list[Block]], rows: Rows,
-             nid_name: dict[int, str], meta: dict[str, Any]) -> dict[str, dict[str, Any]]:  # fmt: skip
+def _springs(
+    r: DeckReader, by: dict[str, list[Block]], rows: Rows, nid_name: dict[int, str], meta: dict[str, Any]
+) -> dict[str, dict[str, Any]]:
     parts: dict[int, tuple[str, dict[str, object]]] = {}
     for b in by.get("PART", []):
         for head, c in zip(b.cards[::2], b.cards[1::2], strict=False):
@@ -210,16 +304,25 @@ def _springs(r: DeckReader, by: dict[str, list[Block]], rows: Rows,
     sections: dict[int, tuple[Block, Card]] = {}
     for b in by.get("SECTION_DISCRETE", []):
         if len(b.cards) % 2:
-            r.fail(b, "*SECTION_DISCRETE has two cards (SECID DRO KD V0 CL FD, then CDL TDL): the second is "
-                   "missing; LS-DYNA would read the next keyword's line or zeros", b.cards[-1])  # fmt: skip
+            r.fail(
+                b,
+                "*SECTION_DISCRETE has two cards (SECID DRO KD V0 CL FD, then CDL TDL): the second is "
+                "missing; LS-DYNA would read the next keyword's line or zeros",
+                b.cards[-1],
+            )
         for c1, c2 in zip(b.cards[::2], b.cards[1::2], strict=False):
             f1, f2 = r.fields(b, c1, "SECTION_DISCRETE"), r.fields(b, c2, "SECTION_DISCRETE_2")
             if f1 is None or f2 is None:
                 continue
             odd = [k for k in ("DRO", "KD", "V0", "CL", "FD") if f1[k]] + [k for k in ("CDL", "TDL") if f2[k]]
             if odd:
-                r.fail(b, f"{', '.join(odd)} must be 0 or blank: crashstudy springs are translational (DRO 0) with no "
-                       "dynamic magnification, clearance, failure deflection or displacement limits", c1, odd[0])  # fmt: skip
+                r.fail(
+                    b,
+                    f"{', '.join(odd)} must be 0 or blank: crashstudy springs are translational (DRO 0) with no "
+                    "dynamic magnification, clearance, failure deflection or displacement limits",
+                    c1,
+                    odd[0],
+                )
             sections[int(f1["SECID"] or 0)] = (b, c1)  # type: ignore[call-overload]
     mats: dict[int, tuple[Block, Card, dict[str, Any] | None]] = {}
     for kw in [k for k in by if _material_keyword(k)[0]]:
@@ -227,7 +330,10 @@ def _springs(r: DeckReader, by: dict[str, list[Block]], rows: Rows,
         for b in by[kw]:
             cards = b.cards[1:] if titled else b.cards
             if len(cards) != 1:
-                r.fail(b, f"expected one card after the keyword{' and title' if titled else ''}, found {len(cards)}")
+                r.fail(
+                    b,
+                    f"expected one card after the keyword{' and title' if titled else ''}, found {len(cards)}",
+                )
                 continue
             f = r.fields(b, cards[0], base)
             if f is None:
@@ -243,7 +349,9 @@ def _springs(r: DeckReader, by: dict[str, list[Block]], rows: Rows,
     eids = [f["EID"] for _, _, f in elems]
     for b, c, f in elems:
         if f["EID"] is None or eids.count(f["EID"]) > 1:
-            r.fail(b, "EID is blank" if f["EID"] is None else f"element {f['EID']} is defined twice", c, "EID")
+            r.fail(
+                b, "EID is blank" if f["EID"] is None else f"element {f['EID']} is defined twice", c, "EID"
+            )
     use_meta = len(names) == len(elems) and [f["EID"] for _, _, f in elems] == list(range(1, len(elems) + 1))
     springs: dict[str, dict[str, Any]] = {}
     for k, (b, c, f) in enumerate(elems):
@@ -257,7 +365,12 @@ def _springs(r: DeckReader, by: dict[str, list[Block]], rows: Rows,
         if secid not in sections:
             r.fail(b, f"part {pid} names SECID {secid}: no *SECTION_DISCRETE with this id", c, "PID")
         if mid not in mats or mats[mid][2] is None:
-            r.fail(b, f"part {pid} names MID {mid}: no supported spring or damper material with this id", c, "PID")
+            r.fail(
+                b,
+                f"part {pid} names MID {mid}: no supported spring or damper material with this id",
+                c,
+                "PID",
+            )
             continue
         n1, n2 = int(f["N1"] or 0), int(f["N2"] or 0)  # type: ignore[call-overload]
         if n1 not in nid_name or n2 not in nid_name:
@@ -265,8 +378,13 @@ def _springs(r: DeckReader, by: dict[str, list[Block]], rows: Rows,
             continue
         scale = f["S"]
         if scale is None or float(scale) != 1.0 or (f["VID"] or 0) != 0:  # type: ignore[arg-type]
-            r.fail(b, f"S must be 1.0 (a blank S reads as 0 in LS-DYNA, a spring with no force) and VID 0 (along "
-                   f"the nodes' axis); got S = {scale}, VID = {f['VID']}", c, "S")  # fmt: skip
+            r.fail(
+                b,
+                f"S must be 1.0 (a blank S reads as 0 in LS-DYNA, a spring with no force) and VID 0 (along "
+                f"the nodes' axis); got S = {scale}, VID = {f['VID']}",
+                c,
+                "S",
+            )
         spring: dict[str, Any] = {"nodes": [nid_name[n1], nid_name[n2]], "material": mats[mid][2]}
         if f["OFFSET"]:
             spring["initial_elongation"] = float(f["OFFSET"])  # type: ignore[arg-type]

@@ -65,52 +65,102 @@ def _yield_in(v: object) -> float | None:
 
 
 MATERIALS: tuple[MaterialMap, ...] = (
-    MaterialMap("linear_elastic", "MAT_SPRING_ELASTIC",
-                lambda m, c: {"K": m["stiffness"]},
-                lambda f, c: {"type": "linear_elastic", "stiffness": _num(f["K"])}),
-    MaterialMap("damper", "MAT_DAMPER_VISCOUS",
-                lambda m, c: {"DC": m["damping"]},
-                lambda f, c: {"type": "damper", "damping": _num(f["DC"])}),
-    MaterialMap("elastoplastic", "MAT_SPRING_ELASTOPLASTIC",
-                lambda m, c: {"K": m["stiffness"], "KT": m["tangent_stiffness"], "FY": m["yield_force"]},
-                lambda f, c: {"type": "elastoplastic", "stiffness": _num(f["K"]), "tangent_stiffness": _num(f["KT"]),
-                              "yield_force": _num(f["FY"])}),
-    MaterialMap("nonlinear_elastic", "MAT_SPRING_NONLINEAR_ELASTIC",
-                lambda m, c: {"LCD": c.lcid(m["curve"], "same"), "LCR": 0},
-                lambda f, c: {"type": "nonlinear_elastic", "curve": c.curve(f["LCD"], "same", "LCD")},
-                lambda f, c: not c.is_table(f["LCD"]) and not f["LCR"]),
-    MaterialMap("rate_elastic", "MAT_SPRING_NONLINEAR_ELASTIC",
-                lambda m, c: {"LCD": c.table(m["curves"]), "LCR": 0},
-                lambda f, c: {"type": "rate_elastic", "curves": c.table_curves(f["LCD"], "LCD")},
-                lambda f, c: c.is_table(f["LCD"]) and not f["LCR"]),
-    MaterialMap("nonlinear_damper", "MAT_DAMPER_NONLINEAR_VISCOUS",
-                lambda m, c: {"LCDR": c.lcid(m["curve"], "same")},
-                lambda f, c: {"type": "nonlinear_damper", "curve": c.curve(f["LCDR"], "same", "LCDR")}),
-    MaterialMap("general_nonlinear", "MAT_SPRING_GENERAL_NONLINEAR",
-                lambda m, c: {"LCDL": c.lcid(m["loading"], "same"), "LCDU": c.lcid(m["unloading"], "same"),
-                              "BETA": 0.0, "TYI": _yield_out(m.get("tension_yield"), 1.0),
-                              "CYI": _yield_out(m.get("compression_yield"), -1.0)},
-                lambda f, c: {"type": "general_nonlinear", "loading": c.curve(f["LCDL"], "same", "LCDL"),
-                              "unloading": c.curve(f["LCDU"], "same", "LCDU"),
-                              **{k: v for k, v in (("tension_yield", _yield_in(f["TYI"])),
-                                                   ("compression_yield", _yield_in(f["CYI"]))) if v is not None}},
-                lambda f, c: not f["BETA"]),
-    MaterialMap("crush", "MAT_SPRING_INELASTIC",
-                lambda m, c: {"LCFD": c.lcid(m["loading"], "crush"), "KU": m["unloading_stiffness"], "CTF": 1.0},
-                lambda f, c: {"type": "crush", "loading": c.curve(f["LCFD"], "crush", "LCFD"),
-                              "unloading_stiffness": _num(f["KU"])},
-                lambda f, c: f["CTF"] in (None, 0.0, 1.0)),
-)  # fmt: skip
+    MaterialMap(
+        "linear_elastic",
+        "MAT_SPRING_ELASTIC",
+        lambda m, c: {"K": m["stiffness"]},
+        lambda f, c: {"type": "linear_elastic", "stiffness": _num(f["K"])},
+    ),
+    MaterialMap(
+        "damper",
+        "MAT_DAMPER_VISCOUS",
+        lambda m, c: {"DC": m["damping"]},
+        lambda f, c: {"type": "damper", "damping": _num(f["DC"])},
+    ),
+    MaterialMap(
+        "elastoplastic",
+        "MAT_SPRING_ELASTOPLASTIC",
+        lambda m, c: {"K": m["stiffness"], "KT": m["tangent_stiffness"], "FY": m["yield_force"]},
+        lambda f, c: {
+            "type": "elastoplastic",
+            "stiffness": _num(f["K"]),
+            "tangent_stiffness": _num(f["KT"]),
+            "yield_force": _num(f["FY"]),
+        },
+    ),
+    MaterialMap(
+        "nonlinear_elastic",
+        "MAT_SPRING_NONLINEAR_ELASTIC",
+        lambda m, c: {"LCD": c.lcid(m["curve"], "same"), "LCR": 0},
+        lambda f, c: {"type": "nonlinear_elastic", "curve": c.curve(f["LCD"], "same", "LCD")},
+        lambda f, c: not c.is_table(f["LCD"]) and not f["LCR"],
+    ),
+    MaterialMap(
+        "rate_elastic",
+        "MAT_SPRING_NONLINEAR_ELASTIC",
+        lambda m, c: {"LCD": c.table(m["curves"]), "LCR": 0},
+        lambda f, c: {"type": "rate_elastic", "curves": c.table_curves(f["LCD"], "LCD")},
+        lambda f, c: c.is_table(f["LCD"]) and not f["LCR"],
+    ),
+    MaterialMap(
+        "nonlinear_damper",
+        "MAT_DAMPER_NONLINEAR_VISCOUS",
+        lambda m, c: {"LCDR": c.lcid(m["curve"], "same")},
+        lambda f, c: {"type": "nonlinear_damper", "curve": c.curve(f["LCDR"], "same", "LCDR")},
+    ),
+    MaterialMap(
+        "general_nonlinear",
+        "MAT_SPRING_GENERAL_NONLINEAR",
+        lambda m, c: {
+            "LCDL": c.lcid(m["loading"], "same"),
+            "LCDU": c.lcid(m["unloading"], "same"),
+            "BETA": 0.0,
+            "TYI": _yield_out(m.get("tension_yield"), 1.0),
+            "CYI": _yield_out(m.get("compression_yield"), -1.0),
+        },
+        lambda f, c: {
+            "type": "general_nonlinear",
+            "loading": c.curve(f["LCDL"], "same", "LCDL"),
+            "unloading": c.curve(f["LCDU"], "same", "LCDU"),
+            **{
+                k: v
+                for k, v in (
+                    ("tension_yield", _yield_in(f["TYI"])),
+                    ("compression_yield", _yield_in(f["CYI"])),
+                )
+                if v is not None
+            },
+        },
+        lambda f, c: not f["BETA"],
+    ),
+    MaterialMap(
+        "crush",
+        "MAT_SPRING_INELASTIC",
+        lambda m, c: {"LCFD": c.lcid(m["loading"], "crush"), "KU": m["unloading_stiffness"], "CTF": 1.0},
+        lambda f, c: {
+            "type": "crush",
+            "loading": c.curve(f["LCFD"], "crush", "LCFD"),
+            "unloading_stiffness": _num(f["KU"]),
+        },
+        lambda f, c: f["CTF"] in (None, 0.0, 1.0),
+    ),
+)
 
 BY_TYPE = {m.type: m for m in MATERIALS}
 KEYWORDS = tuple(dict.fromkeys(m.keyword for m in MATERIALS))
-ALIASES = {"MAT_S01": "MAT_SPRING_ELASTIC", "MAT_S02": "MAT_DAMPER_VISCOUS", "MAT_S03": "MAT_SPRING_ELASTOPLASTIC",
-           "MAT_S04": "MAT_SPRING_NONLINEAR_ELASTIC", "MAT_S05": "MAT_DAMPER_NONLINEAR_VISCOUS",
-           "MAT_S06": "MAT_SPRING_GENERAL_NONLINEAR", "MAT_S08": "MAT_SPRING_INELASTIC"}  # fmt: skip
+ALIASES = {
+    "MAT_S01": "MAT_SPRING_ELASTIC",
+    "MAT_S02": "MAT_DAMPER_VISCOUS",
+    "MAT_S03": "MAT_SPRING_ELASTOPLASTIC",
+    "MAT_S04": "MAT_SPRING_NONLINEAR_ELASTIC",
+    "MAT_S05": "MAT_DAMPER_NONLINEAR_VISCOUS",
+    "MAT_S06": "MAT_SPRING_GENERAL_NONLINEAR",
+    "MAT_S08": "MAT_SPRING_INELASTIC",
+}
 WHY_NOT = {  # fields of a known keyword that crashstudy cannot follow
     "MAT_SPRING_INELASTIC": "CTF = -1 (tension only) has no crashstudy material: crush acts in compression only",
     "MAT_SPRING_GENERAL_NONLINEAR": "BETA must be 0 (independent yield per direction, as crashstudy's "
-                                    "general_nonlinear): BETA != 0 hardens kinematically or isotropically",
+    "general_nonlinear): BETA != 0 hardens kinematically or isotropically",
     "MAT_SPRING_NONLINEAR_ELASTIC": "LCR (a rate scale curve) has no crashstudy equivalent; leave it 0",
 }
 

@@ -76,7 +76,11 @@ class DeckReader:
             xs, ys = xs[info[2] : len(xs) - info[3]], ys[info[2] : len(ys) - info[3]]
         if role == "crush":
             xs, ys = crush_curve_in(xs, ys)
-        name = info[0] if info and info[1] == role else f"curve-{lcid}" + ("" if role in ("same", "time") else f"-{role}")
+        name = (
+            info[0]
+            if info and info[1] == role
+            else f"curve-{lcid}" + ("" if role in ("same", "time") else f"-{role}")
+        )
         while name in self.curves and name not in self.made.values():
             name += "-2"
         self.curves[name] = {"x": xs, "y": ys}

@@ -118,14 +118,20 @@ class Test:
     def find(self, pattern: str) -> ChannelFile:
         """The one channel whose code matches ``pattern`` (16 characters, ``?`` any one character)."""
         if len(pattern) != CODE_LENGTH or any(c in pattern for c in "*[]"):
-            raise IsoMmeError(self.where, f"channel {pattern!r}: expected a 16-character channel code, '?' "
-                              "matching any one character", "channel")  # fmt: skip
+            raise IsoMmeError(
+                self.where,
+                f"channel {pattern!r}: expected a 16-character channel code, '?' matching any one character",
+                "channel",
+            )
         hits = [p for p, code in self.codes.items() if fnmatch.fnmatchcase(code.upper(), pattern.upper())]
         if len(hits) != 1:
             listed = ", ".join(sorted(self.codes[p] for p in hits) if hits else sorted(self.codes.values()))
             what = f"{len(hits)} channels match" if hits else "no channel matches; the test has"
-            raise IsoMmeError(self.where, f"channel {pattern!r}: {what}: {listed[:400]} (give a code that "
-                              "matches exactly one)", "channel")  # fmt: skip
+            raise IsoMmeError(
+                self.where,
+                f"channel {pattern!r}: {what}: {listed[:400]} (give a code that matches exactly one)",
+                "channel",
+            )
         return self.channel(hits[0])
 
     def times(self, ch: ChannelFile) -> np.ndarray:
@@ -135,13 +141,18 @@ class Test:
             ref = ch.header.get("Reference channel name", "")
             t = self.find(ref).values if len(ref) == CODE_LENGTH else None
             if t is None or len(t) != n:
-                raise IsoMmeError(ch.where, f"explicit time: 'Reference channel name' {ref[:40]!r} must be the "
-                                  f"code of a channel of {n} samples")  # fmt: skip
+                raise IsoMmeError(
+                    ch.where,
+                    f"explicit time: 'Reference channel name' {ref[:40]!r} must be the "
+                    f"code of a channel of {n} samples",
+                )
             return t
         t0 = number(ch.header, "Time of first sample", ch.where)
         dt = number(ch.header, "Sampling interval", ch.where)
         if t0 is None or dt is None or not dt > 0:
-            raise IsoMmeError(ch.where, "implicit time needs 'Time of first sample' and a 'Sampling interval' > 0")
+            raise IsoMmeError(
+                ch.where, "implicit time needs 'Time of first sample' and a 'Sampling interval' > 0"
+            )
         return t0 + dt * np.arange(n)
 
 
@@ -158,7 +169,9 @@ def read_channel(raw: bytes, where: str) -> ChannelFile:
         try:
             values.append(float(text))
         except ValueError:
-            raise IsoMmeError(f"{where}, line {k + 1}", f"expected a number or NOVALUE, got {text[:20]!r}") from None
+            raise IsoMmeError(
+                f"{where}, line {k + 1}", f"expected a number or NOVALUE, got {text[:20]!r}"
+            ) from None
     n = number(header, "Number of samples", where)
     if n is not None and n != len(values):
         raise IsoMmeError(where, f"'Number of samples' is {n:g}, the file has {len(values)} values")
@@ -236,8 +249,10 @@ def read_test(path: Path) -> Test:
         code = entry.split("/", 1)[0].strip()
         codes[f"{base}/{stem}.{k:03d}"] = code
     if not codes:
-        raise IsoMmeError(f"{where}: {base}/{stem}.chn", "expected 'Number of channels' and 'Name of channel 001 "
-                          ": CODE / name' lines")  # fmt: skip
+        raise IsoMmeError(
+            f"{where}: {base}/{stem}.chn",
+            "expected 'Number of channels' and 'Name of channel 001 : CODE / name' lines",
+        )
     return Test(where, header, codes, read)
 
 
@@ -268,18 +283,28 @@ def header_text(items: list[tuple[str, str]]) -> str:
 
 def mme_files(test: str, header: list[tuple[str, str]], channels: list[OutChannel]) -> dict[str, bytes]:
     """The files of one test (relative path -> bytes, UTF-8, CRLF line ends as the standard's examples)."""
-    files = {f"{test}.mme": header_text([("Data format edition number", "1.6"), *header,
-                                         ("Number of channels", str(len(channels)))]).encode()}  # fmt: skip
+    files = {
+        f"{test}.mme": header_text(
+            [("Data format edition number", "1.6"), *header, ("Number of channels", str(len(channels)))]
+        ).encode()
+    }
     chn = [("Instrumentation standard", "ISO 6487"), ("Number of channels", str(len(channels)))]
     chn += [(f"Name of channel {k:03d}", f"{c.code} / {c.name}") for k, c in enumerate(channels, 1)]
     files[f"Channel/{test}.chn"] = header_text(chn).encode()
     for k, c in enumerate(channels, 1):
-        head = [("Instrumentation standard", "ISO 6487"), ("Data format edition number", "1.6"),
-                ("Channel code", c.code), ("Name of the channel", c.name), *c.extra, ("Unit", c.unit),
-                ("Reference channel", "implicit"), ("Time of first sample", fmt(c.t0)),
-                ("Sampling interval", fmt(c.dt)), ("Number of samples", str(len(c.values))),
-                ("Data source", "calculated")]  # fmt: skip
+        head = [
+            ("Instrumentation standard", "ISO 6487"),
+            ("Data format edition number", "1.6"),
+            ("Channel code", c.code),
+            ("Name of the channel", c.name),
+            *c.extra,
+            ("Unit", c.unit),
+            ("Reference channel", "implicit"),
+            ("Time of first sample", fmt(c.t0)),
+            ("Sampling interval", fmt(c.dt)),
+            ("Number of samples", str(len(c.values))),
+            ("Data source", "calculated"),
+        ]
         body = "".join(fmt(v) + "\r\n" for v in np.asarray(c.values, dtype=float))
         files[f"Channel/{test}.{k:03d}"] = (header_text(head) + body).encode()
     return files
-

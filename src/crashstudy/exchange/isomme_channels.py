@@ -19,8 +19,11 @@ from crashstudy.units import si_per_unit
 #: SAE J211 channel frequency class -> the code's last character
 FILTER_LETTER = {1000: "A", 600: "B", 180: "C", 60: "D"}
 #: history -> (physical dimension of the code, unit kind, SI unit as ISO/TS 13499 writes it)
-NODE_HISTORIES = {"acceleration": ("AC", "acceleration", "m/(s*s)"), "velocity": ("VE", "velocity", "m/s"),
-                  "displacement": ("DS", "length", "m")}  # fmt: skip
+NODE_HISTORIES = {
+    "acceleration": ("AC", "acceleration", "m/(s*s)"),
+    "velocity": ("VE", "velocity", "m/s"),
+    "displacement": ("DS", "length", "m"),
+}
 SPRING_HISTORIES = {"spring_force": ("FO", "force", "N"), "spring_elongation": ("DS", "length", "m")}
 G = 9.80665  # m/s^2: filtered_acceleration is stored in g
 
@@ -61,24 +64,41 @@ def variant_channels(ds: Any, variant: int, model: dict[str, Any], free_nodes: l
     for name, (dim, kind, unit) in NODE_HISTORIES.items():
         if name not in ds:
             continue
-        h = np.asarray(ds[name].isel(variant=variant).values, dtype=float) * si_per_unit(system, kind)  # (T, N, A)
+        h = np.asarray(ds[name].isel(variant=variant).values, dtype=float) * si_per_unit(
+            system, kind
+        )  # (T, N, A)
         for i, node in enumerate(nodes):
             if node not in free_nodes:
                 continue
             for a, axis in enumerate(axes):
-                out.append(OutChannel(f"{pre[node]}{dim}{axis.upper()}0", f"{node} {name} {axis}", unit, t0, dt,
-                                      h[:, i, a]))  # fmt: skip
+                out.append(
+                    OutChannel(
+                        f"{pre[node]}{dim}{axis.upper()}0", f"{node} {name} {axis}", unit, t0, dt, h[:, i, a]
+                    )
+                )
     if "filtered_acceleration" in ds:
-        h = np.asarray(ds["filtered_acceleration"].isel(variant=variant).values, dtype=float) * G  # (T, N) in g
+        h = (
+            np.asarray(ds["filtered_acceleration"].isel(variant=variant).values, dtype=float) * G
+        )  # (T, N) in g
         for node, cfc in metric_filters(model).items():
             if node in nodes:
-                out.append(OutChannel(f"{pre[node]}ACR{FILTER_LETTER[cfc]}", f"{node} filtered_acceleration CFC {cfc}",
-                                      "m/(s*s)", t0, dt, h[:, nodes.index(node)],
-                                      (("Channel frequency class", str(cfc)),)))  # fmt: skip
+                out.append(
+                    OutChannel(
+                        f"{pre[node]}ACR{FILTER_LETTER[cfc]}",
+                        f"{node} filtered_acceleration CFC {cfc}",
+                        "m/(s*s)",
+                        t0,
+                        dt,
+                        h[:, nodes.index(node)],
+                        (("Channel frequency class", str(cfc)),),
+                    )
+                )
     for name, (dim, kind, unit) in SPRING_HISTORIES.items():
         if name not in ds:
             continue
-        h = np.asarray(ds[name].isel(variant=variant).values, dtype=float) * si_per_unit(system, kind)  # (T, S)
+        h = np.asarray(ds[name].isel(variant=variant).values, dtype=float) * si_per_unit(
+            system, kind
+        )  # (T, S)
         for j, spring in enumerate(springs):
             out.append(OutChannel(f"{pre[spring]}{dim}00", f"{spring} {name}", unit, t0, dt, h[:, j]))
     return out
@@ -96,6 +116,8 @@ def parse_selection(text: str, count: int) -> list[int]:
         except ValueError:
             raise ValueError(f"{part!r}: expected a variant number or a range A-B (e.g. 0,5,10-20)") from None
         if not 0 <= a <= b < count:
-            raise ValueError(f"{part!r}: expected variants within 0 .. {count - 1} (and A <= B in a range A-B)")
+            raise ValueError(
+                f"{part!r}: expected variants within 0 .. {count - 1} (and A <= B in a range A-B)"
+            )
         chosen.update(range(a, b + 1))
     return sorted(chosen)

@@ -17,18 +17,37 @@ DATA_MAX = 256 * 2**20  # bytes of a CSV test curve: a measured channel of ~10^7
 
 #: units a test channel may carry -> (kind, value of one of it in SI); spelled as ISO/TS 13499 does
 UNITS: dict[str, tuple[str, float]] = {
-    "m/(s*s)": ("acceleration", 1.0), "m/s**2": ("acceleration", 1.0), "m/s^2": ("acceleration", 1.0),
-    "m/s2": ("acceleration", 1.0), "mm/(s*s)": ("acceleration", 1e-3), "mm/(ms*ms)": ("acceleration", 1e3),
-    "g": ("acceleration", 9.80665), "G": ("acceleration", 9.80665),
-    "m/s": ("velocity", 1.0), "km/h": ("velocity", 1.0 / 3.6), "mm/s": ("velocity", 1e-3), "mm/ms": ("velocity", 1.0),
-    "m": ("length", 1.0), "mm": ("length", 1e-3), "cm": ("length", 1e-2),
-    "N": ("force", 1.0), "kN": ("force", 1e3), "daN": ("force", 10.0),
-    "s": ("time", 1.0), "ms": ("time", 1e-3),
-}  # fmt: skip
+    "m/(s*s)": ("acceleration", 1.0),
+    "m/s**2": ("acceleration", 1.0),
+    "m/s^2": ("acceleration", 1.0),
+    "m/s2": ("acceleration", 1.0),
+    "mm/(s*s)": ("acceleration", 1e-3),
+    "mm/(ms*ms)": ("acceleration", 1e3),
+    "g": ("acceleration", 9.80665),
+    "G": ("acceleration", 9.80665),
+    "m/s": ("velocity", 1.0),
+    "km/h": ("velocity", 1.0 / 3.6),
+    "mm/s": ("velocity", 1e-3),
+    "mm/ms": ("velocity", 1.0),
+    "m": ("length", 1.0),
+    "mm": ("length", 1e-3),
+    "cm": ("length", 1e-2),
+    "N": ("force", 1.0),
+    "kN": ("force", 1e3),
+    "daN": ("force", 10.0),
+    "s": ("time", 1.0),
+    "ms": ("time", 1e-3),
+}
 #: what each model quantity is measured in
-QUANTITY_KIND = {"acceleration": "acceleration", "velocity": "velocity", "displacement": "length",
-                 "spring_force": "force", "spring_elongation": "length", "force": "force",
-                 "elongation": "length"}  # fmt: skip
+QUANTITY_KIND = {
+    "acceleration": "acceleration",
+    "velocity": "velocity",
+    "displacement": "length",
+    "spring_force": "force",
+    "spring_elongation": "length",
+    "force": "force",
+    "elongation": "length",
+}
 
 
 #: a test curve cannot be used (the message names the file, a line, what was expected; ``field``: path,
@@ -66,8 +85,14 @@ def known_unit(unit: str, quantity: str | None) -> str:
     return ""
 
 
-def read_curve(path: Path, *, channel: str | None = None, unit: str | None = None, quantity: str | None = None,
-               system: str = "SI") -> TestCurve:  # fmt: skip
+def read_curve(
+    path: Path,
+    *,
+    channel: str | None = None,
+    unit: str | None = None,
+    quantity: str | None = None,
+    system: str = "SI",
+) -> TestCurve:
     """The test curve at ``path`` in the units of ``system``. A CSV's ``channel`` is its value column
     (default ``value``); its values are in model units unless ``unit`` names theirs. An ISO-MME test needs ``channel`` (16 characters, ``?``
     wildcards, exactly one match); its unit (or ``unit``, which overrides it) must be known and of
@@ -89,9 +114,13 @@ def _factor(where: str, unit: str, quantity: str | None, system: str) -> float:
     return si / si_per_unit(system, kind)
 
 
-def _isomme(path: Path, channel: str | None, unit: str | None, quantity: str | None, system: str) -> TestCurve:
+def _isomme(
+    path: Path, channel: str | None, unit: str | None, quantity: str | None, system: str
+) -> TestCurve:
     if not channel:
-        raise DataFileError(str(path), "an ISO-MME test needs channel: CODE (16 characters, '?' any one)", "channel")
+        raise DataFileError(
+            str(path), "an ISO-MME test needs channel: CODE (16 characters, '?' any one)", "channel"
+        )
     test = read_test(path)
     ch = test.find(channel)
     t = test.times(ch)
@@ -111,18 +140,27 @@ def _csv(path: Path, column: str) -> tuple[np.ndarray, np.ndarray]:
         with open_regular(path, DATA_MAX, what=str(path), follow=True) as fh:
             raw = fh.read()
     except FileNotFoundError:
-        raise DataFileError(str(path), "no such file (expected a CSV time,value or an ISO-MME test)") from None
+        raise DataFileError(
+            str(path), "no such file (expected a CSV time,value or an ISO-MME test)"
+        ) from None
     except PlantedEntryError as exc:
         raise DataFileError("", str(exc)) from None
     try:
         df = pd.read_csv(io.BytesIO(raw))
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
-        raise DataFileError(str(path), f"not a CSV table ({type(exc).__name__}); expected a header line "
-                            "'time,value' and rows of two numbers") from None  # fmt: skip
+        raise DataFileError(
+            str(path),
+            f"not a CSV table ({type(exc).__name__}); expected a header line "
+            "'time,value' and rows of two numbers",
+        ) from None
     if not {"time", column} <= set(df.columns):
         field = "path" if column == "value" else "channel"
-        raise DataFileError(f"{path}, line 1", f"expected the header 'time,{column}' (columns time and {column}); "
-                            f"that line has {len(df.columns)} column(s) with other names", field)  # fmt: skip
+        raise DataFileError(
+            f"{path}, line 1",
+            f"expected the header 'time,{column}' (columns time and {column}); "
+            f"that line has {len(df.columns)} column(s) with other names",
+            field,
+        )
     try:
         t, y = df["time"].to_numpy(dtype=float), df[column].to_numpy(dtype=float)
     except (ValueError, TypeError):

@@ -69,7 +69,9 @@ def secure_numba_cache() -> None:
         return
     folder = Path(given)
     try:
-        folder.mkdir(mode=0o700, parents=True, exist_ok=True)  # numba would create it; not chmod-ed when it exists
+        folder.mkdir(
+            mode=0o700, parents=True, exist_ok=True
+        )  # numba would create it; not chmod-ed when it exists
     except OSError:
         pass
     why = why_not_private(folder)
@@ -83,7 +85,9 @@ def secure_numba_cache() -> None:
     config = sys.modules.get("numba.core.config")
     if config is not None:
         setattr(config, "CACHE_DIR", str(safe))  # noqa: B010 (numba read it at import)
-    _PENDING.append(f"numba cache {given} (NUMBA_CACHE_DIR) not used: {why}; numba's compiled code goes to {safe}")
+    _PENDING.append(
+        f"numba cache {given} (NUMBA_CACHE_DIR) not used: {why}; numba's compiled code goes to {safe}"
+    )
 
 
 def warn_pending() -> None:
@@ -165,13 +169,19 @@ def _make_private(folder: Path) -> str | None:
 @functools.lru_cache(maxsize=8)
 def _cache_dir(env: str | None, home: str) -> Path:
     """:func:`cache_dir`, decided once per setting (it is asked for every chunk)."""
-    candidates = ([Path(env)] if env else []) + ([Path(home) / ".cache" / "crashstudy" / "kernels"] if home else [])
+    candidates = ([Path(env)] if env else []) + (
+        [Path(home) / ".cache" / "crashstudy" / "kernels"] if home else []
+    )
     for cand in candidates:
         why = _make_private(cand)
         if why is None:
             return cand
-        warnings.warn(f"kernel cache {cand} not used: {why}; compiled kernels must be in a folder only you can "
-                      "write to", KernelCacheWarning, stacklevel=3)  # fmt: skip
+        warnings.warn(
+            f"kernel cache {cand} not used: {why}; compiled kernels must be in a folder only you can "
+            "write to",
+            KernelCacheWarning,
+            stacklevel=3,
+        )
     return _fallback()
 
 
@@ -184,8 +194,11 @@ def _fallback() -> Path:
     why = _make_private(mine)
     if why is None:
         return mine
-    warnings.warn(f"kernel cache {mine} not used: {why}; this run compiles into a folder removed when it ends",
-                  KernelCacheWarning, stacklevel=4)  # fmt: skip
+    warnings.warn(
+        f"kernel cache {mine} not used: {why}; this run compiles into a folder removed when it ends",
+        KernelCacheWarning,
+        stacklevel=4,
+    )
     fresh = Path(tempfile.mkdtemp(prefix="crashstudy-kernels-"))
     atexit.register(shutil.rmtree, fresh, True)
     return fresh

@@ -59,7 +59,13 @@ REF_ELEMENT_STEP = 0.1e-6  # [s] per element-step (spring x step x variant)
 GENERIC_RATE = 3.5e8  # [element-steps/s] generic kernel, 2 threads
 GENERATED_RATE = 1.0e9  # [element-steps/s] generated kernel, 2 threads
 GENERIC_COMPILE = 24.0  # [s] compiling the generic kernel (once per machine)
-GEN_BASE, GEN_GENERAL, GEN_SPRING, GEN_WALL, GEN_RECORD = 2.0, 3.5, 0.4, 1.0, 1.0  # [s] generated_compile_seconds
+GEN_BASE, GEN_GENERAL, GEN_SPRING, GEN_WALL, GEN_RECORD = (
+    2.0,
+    3.5,
+    0.4,
+    1.0,
+    1.0,
+)  # [s] generated_compile_seconds
 GEN_SPRING2 = 0.045  # [s] per spring squared beyond GEN_SMALL: one unrolled function (compile_springs.md)
 GEN_SMALL = 8  # springs up to which the generated compile grows linearly (compile_costs.md)
 LOAD = 0.3  # [s] loading a compiled kernel from the disk cache (once per process)
@@ -90,7 +96,9 @@ class Companion(Protocol):
     def lock(self) -> str: ...  # its lock file in the kernel cache folder (not LOCK_NAME: it compiles beside)
 
     @property
-    def target(self) -> str: ...  # "module:function" that compiles it, called by ``python -m crashstudy.kernel.warm``
+    def target(
+        self,
+    ) -> str: ...  # "module:function" that compiles it, called by ``python -m crashstudy.kernel.warm``
 
     def ready(self) -> bool: ...  # compiled, in this process or in numba's disk cache
 
@@ -120,8 +128,14 @@ def generated_compile_seconds(material: np.ndarray, n_walls: int, record: bool =
     the square of the springs beyond a few dozen (compile_springs.md: 32 springs ~60 s, 64 ~200 s)."""
     general = int(np.sum(np.asarray(material) == GENERAL))
     S = len(material)
-    return (GEN_BASE + GEN_GENERAL * general + GEN_SPRING * (S - general) + GEN_SPRING2 * max(S - GEN_SMALL, 0) ** 2
-            + GEN_WALL * n_walls + GEN_RECORD * bool(record))  # fmt: skip
+    return (
+        GEN_BASE
+        + GEN_GENERAL * general
+        + GEN_SPRING * (S - general)
+        + GEN_SPRING2 * max(S - GEN_SMALL, 0) ** 2
+        + GEN_WALL * n_walls
+        + GEN_RECORD * bool(record)
+    )
 
 
 def reference_seconds(n_steps: float, n_springs: int, element_steps: float) -> float:
@@ -140,8 +154,9 @@ def generic_ready() -> bool:
     return compiled_or_cached(_generic())
 
 
-def generated_ready(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                    record: tuple[int, ...] = ()) -> bool:  # fmt: skip
+def generated_ready(
+    b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, record: tuple[int, ...] = ()
+) -> bool:
     from crashstudy.kernel import generated
 
     return generated.unsupported(b) is None and generated.is_compiled(b, histories, vary, record)
@@ -160,8 +175,14 @@ def own_compile_running() -> bool:
     return any(proc.poll() is None for proc in _BACKGROUND)
 
 
-def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kernel: KernelName = "compiled",
-         repeat: float = 1.0, record: tuple[int, ...] = ()) -> KernelName:  # fmt: skip
+def pick(
+    b: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None,
+    kernel: KernelName = "compiled",
+    repeat: float = 1.0,
+    record: tuple[int, ...] = (),
+) -> KernelName:
     """The kernel for batch ``b``: ``kernel`` or ``CRASHSTUDY_KERNEL`` when either names one, else the
     one expected to finish the run first among those compiled and the reference; with nothing
     compiled, the kernel quicker to compile and run (this shape's generated one unless it is large or
@@ -197,11 +218,14 @@ def pick(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, kern
         pass  # the generic kernel cannot win even if compiled: its module is not imported, its cache not looked at
     elif "generic" in usable and generic_ready():
         times["generic"] = run_time("generic", GENERIC_RATE)
-    elif "generic" in usable and len(times) == 1 and not own_compile_running():  # compile the quicker one here?
+    elif (
+        "generic" in usable and len(times) == 1 and not own_compile_running()
+    ):  # compile the quicker one here?
         ways: dict[KernelName, float] = {"generic": GENERIC_COMPILE + run_time("generic", GENERIC_RATE)}
         if "generated" in usable and generated.unsupported(b) is None:
-            ways["generated"] = (generated_compile_seconds(b.material, b.wall_nodes.shape[0], bool(record))
-                                 + run_time("generated", GENERATED_RATE))  # fmt: skip
+            ways["generated"] = generated_compile_seconds(
+                b.material, b.wall_nodes.shape[0], bool(record)
+            ) + run_time("generated", GENERATED_RATE)
         first = min(ways, key=lambda k: ways[k])
         if t_ref > ways[first]:
             return first
@@ -213,9 +237,15 @@ def note_loaded(kernel: KernelName) -> None:
     _LOADED.add(kernel)
 
 
-def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None, n_variants: int,
-               kernel: KernelName = "compiled", record: tuple[int, ...] = (),
-               companion: Companion | None = None) -> StartPlan | None:  # fmt: skip
+def plan_start(
+    b: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None,
+    n_variants: int,
+    kernel: KernelName = "compiled",
+    record: tuple[int, ...] = (),
+    companion: Companion | None = None,
+) -> StartPlan | None:
     """What a run of ``n_variants`` like ``b`` (a sample of them) is missing, or None (a kernel was
     named, everything is compiled, or the run is too short to care). ``record``: the metric nodes
     whose acceleration the kernels keep at every step (a generated kernel of its own); ``companion``:
@@ -254,9 +284,15 @@ def plan_start(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None
     return StartPlan(costs, t_ref, t_generic, t_fast, shape)
 
 
-def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                     record: tuple[int, ...] = (), must: bool = False, companion: Companion | None = None
-                     ) -> subprocess.Popen[bytes] | None:  # fmt: skip
+def start_background(
+    kernels: tuple[str, ...],
+    b: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None,
+    record: tuple[int, ...] = (),
+    must: bool = False,
+    companion: Companion | None = None,
+) -> subprocess.Popen[bytes] | None:
     """Compile ``kernels`` (or the ``companion`` alone, named in ``kernels``) in a detached low-priority process (it outlives this run, so the kernels
     are ready for the next one; a thread reaps it when it ends, so it never stays a zombie); None when
     no private cache folder is available. ``must``: a run waits for it (:func:`compile_foreground`), so it
@@ -273,32 +309,54 @@ def start_background(kernels: tuple[str, ...], b: Batch, histories: tuple[str, .
         np.savez(fh, **{k: v for k, v in vars(sample).items()})
     keys = [kernel_key(k, b, histories, vary, record) for k in kernels]
     job: dict[str, Any] = {
-        "kernels": list(kernels), "histories": list(histories), "vary": sorted(vary or ()),
-        "const": generated._constant_curves(b, vary), "npz": npz, "record": [int(n) for n in record], "keys": keys,
-        "seconds": [compile_seconds(k, b, record, companion) for k in kernels], "must": must}  # fmt: skip
+        "kernels": list(kernels),
+        "histories": list(histories),
+        "vary": sorted(vary or ()),
+        "const": generated._constant_curves(b, vary),
+        "npz": npz,
+        "record": [int(n) for n in record],
+        "keys": keys,
+        "seconds": [compile_seconds(k, b, record, companion) for k in kernels],
+        "must": must,
+    }
     if companion is not None and kernels == (companion.name,):
         job |= {"lock": companion.lock, "call": companion.target}
     cmd = [sys.executable, "-m", "crashstudy.kernel.warm", json.dumps(job)]
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            start_new_session=True, preexec_fn=None if must else _lower_priority)  # fmt: skip
+    proc = subprocess.Popen(
+        cmd,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        preexec_fn=None if must else _lower_priority,
+    )
     if not must:
         _BACKGROUND[:] = [p for p in _BACKGROUND if p.returncode is None] + [proc]
         threading.Thread(target=proc.wait, name=f"reap-{proc.pid}", daemon=True).start()
     return proc
 
 
-def kernel_key(kernel: str, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-               record: tuple[int, ...] = ()) -> str:  # fmt: skip
+def kernel_key(
+    kernel: str,
+    b: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None,
+    record: tuple[int, ...] = (),
+) -> str:
     """What a compile of ``kernel`` leaves in the cache, as a lock holder names it: "generic", a
     companion's name ("criteria"), or the generated kernel's shape key (one per model shape)."""
     if kernel != "generated":
         return kernel
     from crashstudy.kernel import generated
 
-    return generated.shape_key(generated._shape(b, histories, vary, generated._constant_curves(b, vary), record))
+    return generated.shape_key(
+        generated._shape(b, histories, vary, generated._constant_curves(b, vary), record)
+    )
 
 
-def compile_seconds(kernel: str, b: Batch, record: tuple[int, ...] = (), companion: Companion | None = None) -> float:
+def compile_seconds(
+    kernel: str, b: Batch, record: tuple[int, ...] = (), companion: Companion | None = None
+) -> float:
     """Expected seconds to compile ``kernel`` ("generic", "generated" or the companion's name) for batch ``b``."""
     if kernel == "generated":
         return generated_compile_seconds(b.material, b.wall_nodes.shape[0], bool(record))
@@ -309,9 +367,16 @@ def _lower_priority() -> None:  # pragma: no cover - runs in the child
     os.nice(10)
 
 
-def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str, ...],
-                       vary: frozenset[int] | None, stop: Any, record: tuple[int, ...] = (),
-                       say: Callable[[str], None] | None = None, companion: Companion | None = None) -> None:  # fmt: skip
+def compile_foreground(
+    kernels: tuple[str, ...],
+    b: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None,
+    stop: Any,
+    record: tuple[int, ...] = (),
+    say: Callable[[str], None] | None = None,
+    companion: Companion | None = None,
+) -> None:
     """Compile ``kernels`` in child processes and wait: the ``companion`` (the crash criteria, when
     ``kernels`` names it) in one of its own beside the others, so both cores compile; ``stop()`` raising
     (Ctrl-C) kills them at once.
@@ -321,11 +386,15 @@ def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str,
     never longer than this run's own compile, not at all for a holder that is gone or stopped, and no
     more once it stops using CPU); else compile here beside it. ``say``: tells the terminal."""
     beside = companion.name if companion is not None else None
-    groups = [g for g in (tuple(k for k in kernels if k == beside), tuple(k for k in kernels if k != beside)) if g]
+    groups = [
+        g for g in (tuple(k for k in kernels if k == beside), tuple(k for k in kernels if k != beside)) if g
+    ]
     procs: list[subprocess.Popen[bytes]] = []
     try:
         for group in groups:
-            if _other_compiles(group, b, histories, vary, record, stop, say or (lambda text: None), companion):
+            if _other_compiles(
+                group, b, histories, vary, record, stop, say or (lambda text: None), companion
+            ):
                 continue
             proc = start_background(group, b, histories, vary, record, must=True, companion=companion)
             if proc is not None:
@@ -343,16 +412,25 @@ def compile_foreground(kernels: tuple[str, ...], b: Batch, histories: tuple[str,
         raise
 
 
-def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                    record: tuple[int, ...], stop: Any, say: Callable[[str], None],
-                    companion: Companion | None = None) -> bool:  # fmt: skip
+def _other_compiles(
+    group: tuple[str, ...],
+    b: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None,
+    record: tuple[int, ...],
+    stop: Any,
+    say: Callable[[str], None],
+    companion: Companion | None = None,
+) -> bool:
     """Whether another process compiled ``group`` while this run waited for it (see :func:`compile_foreground`)."""
     alone = companion is not None and group == (companion.name,)
     lock = cache_dir() / (companion.lock if companion is not None and alone else LOCK_NAME)
     holder = compile_lock.read_holder(lock)
     if holder is None:
         return False
-    what = companion.label if companion is not None and alone else " and ".join(f"the {k} kernel" for k in group)
+    what = (
+        companion.label if companion is not None and alone else " and ".join(f"the {k} kernel" for k in group)
+    )
     own = sum(compile_seconds(k, b, record, companion) for k in group)
     key = kernel_key(group[-1], b, histories, vary, record)
     limit, why = compile_lock.plan_wait(holder, key, own)
@@ -367,16 +445,26 @@ def _other_compiles(group: tuple[str, ...], b: Batch, histories: tuple[str, ...]
     end = compile_lock.wait(lock, holder, limit, ready, stop, key)
     if end == "ready":
         return True
-    because = {"released": "the lock was released without it", "gone": "the holder is gone",
-               "stopped": "the holder is stopped", "stuck": "the holder uses no CPU",
-               "slow": "at the CPU share it gets, the holder would finish later than compiling here",
-               "limit": "it takes longer than expected"}[end]  # fmt: skip
+    because = {
+        "released": "the lock was released without it",
+        "gone": "the holder is gone",
+        "stopped": "the holder is stopped",
+        "stuck": "the holder uses no CPU",
+        "slow": "at the CPU share it gets, the holder would finish later than compiling here",
+        "limit": "it takes longer than expected",
+    }[end]
     say(f"stopped waiting ({because}); compiling {what} here (~{own:.0f} s)")
     return False
 
 
-def _ready(kernel: str, b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-           record: tuple[int, ...], companion: Companion | None = None) -> bool:  # fmt: skip
+def _ready(
+    kernel: str,
+    b: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None,
+    record: tuple[int, ...],
+    companion: Companion | None = None,
+) -> bool:
     if kernel == "generic":
         return generic_ready()
     if companion is not None and kernel == companion.name:

@@ -102,7 +102,9 @@ def state(pid: int | None) -> tuple[str, float | None]:
     return ("stopped" if code in ("T", "t") else "running"), cpu
 
 
-def plan_wait(holder: Holder | None, key: str, own_seconds: float, now: float | None = None) -> tuple[float, str]:
+def plan_wait(
+    holder: Holder | None, key: str, own_seconds: float, now: float | None = None
+) -> tuple[float, str]:
     """How long at most to wait for ``holder`` to compile kernel ``key`` (0: do not wait) and why, when
     compiling it here would take ``own_seconds``."""
     if holder is None:
@@ -111,17 +113,31 @@ def plan_wait(holder: Holder | None, key: str, own_seconds: float, now: float | 
         return 0.0, "the lock holder did not say what it compiles"
     run, _ = state(holder.pid)
     if run != "running":
-        return 0.0, f"the lock holder (process {holder.pid}) is {'not running' if run == 'gone' else 'stopped'}"
+        return (
+            0.0,
+            f"the lock holder (process {holder.pid}) is {'not running' if run == 'gone' else 'stopped'}",
+        )
     left = holder.remaining(key, time.time() if now is None else now)
     if left is None:
         return 0.0, f"process {holder.pid} holds the compile lock for other kernels"
     if left >= own_seconds:
-        return 0.0, f"process {holder.pid} compiles it too, expected in ~{left:.0f} s: compiling here is quicker"
-    return min(own_seconds, SLACK + MARGIN * left), f"process {holder.pid} compiles it, expected in ~{left:.0f} s"
+        return (
+            0.0,
+            f"process {holder.pid} compiles it too, expected in ~{left:.0f} s: compiling here is quicker",
+        )
+    return min(
+        own_seconds, SLACK + MARGIN * left
+    ), f"process {holder.pid} compiles it, expected in ~{left:.0f} s"
 
 
-def wait(lock: Path, holder: Holder, limit: float, ready: Callable[[], bool], stop: Callable[[], None],
-         key: str | None = None) -> str:  # fmt: skip
+def wait(
+    lock: Path,
+    holder: Holder,
+    limit: float,
+    ready: Callable[[], bool],
+    stop: Callable[[], None],
+    key: str | None = None,
+) -> str:
     """Wait at most ``limit`` seconds for ``holder`` to release ``lock``; why the wait ended: "ready",
     "released", "gone", "stopped", "stuck", "slow" or "limit". ``stop()`` raising (Ctrl-C) ends it at once.
 
@@ -131,7 +147,11 @@ def wait(lock: Path, holder: Holder, limit: float, ready: Callable[[], bool], st
     t0 = time.monotonic()
     _, cpu = state(holder.pid)
     first_cpu, last_cpu, last_change = cpu, cpu, t0
-    due = None if key is None or key not in holder.kernels else sum(holder.seconds[: holder.kernels.index(key) + 1])
+    due = (
+        None
+        if key is None or key not in holder.kernels
+        else sum(holder.seconds[: holder.kernels.index(key) + 1])
+    )
     while True:
         stop()
         if ready():

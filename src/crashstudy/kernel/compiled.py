@@ -117,32 +117,167 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                 j = sj[s]
                 kind = material[s]
                 kn = knotted[s] and n > 0
-                gs.geometry(s, i, j, D, B, kind in RATE_MATERIALS or has_term, pm_disp, x, x0_b, v, acc, dt_b, sg_b,
-                            l0_b, axis_prev, broken, crushed, e_tmp, ed_tmp, ax_tmp)
+                gs.geometry(
+                    s,
+                    i,
+                    j,
+                    D,
+                    B,
+                    kind in RATE_MATERIALS or has_term,
+                    pm_disp,
+                    x,
+                    x0_b,
+                    v,
+                    acc,
+                    dt_b,
+                    sg_b,
+                    l0_b,
+                    axis_prev,
+                    broken,
+                    crushed,
+                    e_tmp,
+                    ed_tmp,
+                    ax_tmp,
+                )
                 if options[PRELOADED, s]:  # e = e0 + ... (initial_elongation)
                     for w in range(B):
                         e_tmp[w] = e0[s, lo + w] + e_tmp[w]
-                nhit = gs.knots_passed(s, kind, B, off, curve_a[s], knot_check, cx_b, ky_b, e_tmp, e_prev, state,
-                                       k_c, k_x, k_y, k_sh) if kn else 0
+                nhit = (
+                    gs.knots_passed(
+                        s,
+                        kind,
+                        B,
+                        off,
+                        curve_a[s],
+                        knot_check,
+                        cx_b,
+                        ky_b,
+                        e_tmp,
+                        e_prev,
+                        state,
+                        k_c,
+                        k_x,
+                        k_y,
+                        k_sh,
+                    )
+                    if kn
+                    else 0
+                )
                 if kind == GENERAL:  # the material dispatch (kernel.generic_force)
-                    gf.general(s, lo, B, curve_a[s], curve_b[s], off, cx, cy, cds, cs0, cs1, cx_b, cy_b, ds_b, s0_b, yt_b,
-                               yc_b, e_tmp, F_tmp, state, g_arg, g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev)
+                    gf.general(
+                        s,
+                        lo,
+                        B,
+                        curve_a[s],
+                        curve_b[s],
+                        off,
+                        cx,
+                        cy,
+                        cds,
+                        cs0,
+                        cs1,
+                        cx_b,
+                        cy_b,
+                        ds_b,
+                        s0_b,
+                        yt_b,
+                        yc_b,
+                        e_tmp,
+                        F_tmp,
+                        state,
+                        g_arg,
+                        g_argt,
+                        g_argc,
+                        g_L,
+                        g_Ut,
+                        g_Uc,
+                        g_rev,
+                    )
                 else:
-                    gf.force(s, kind, lo, B, curve_a[s], off, rate_off, rate_curve, ktan, fy, rate_at, cx_b, cy_b, ds_b,
-                             s0_b, kp_b, e_tmp, ed_tmp, F_tmp, state, g_L, g_Ut)
+                    gf.force(
+                        s,
+                        kind,
+                        lo,
+                        B,
+                        curve_a[s],
+                        off,
+                        rate_off,
+                        rate_curve,
+                        ktan,
+                        fy,
+                        rate_at,
+                        cx_b,
+                        cy_b,
+                        ds_b,
+                        s0_b,
+                        kp_b,
+                        e_tmp,
+                        ed_tmp,
+                        F_tmp,
+                        state,
+                        g_L,
+                        g_Ut,
+                    )
                 fr = options[BREAKABLE, s]
                 if fr:
-                    gs.failure(s, n, lo, B, fail_t, fail_c, sft, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp)
+                    gs.failure(
+                        s, n, lo, B, fail_t, fail_c, sft, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp
+                    )
                 if kn:
                     k_any[s] = nhit > 0
                 if nhit > 0:  # rare: peak-force candidate and the deceleration data (see reference)
                     any_hit = True
-                    gs.knot_peaks(s, B, D, k_c, k_x, k_y, k_sh, e_prev, e_tmp, f_prev, F_tmp, ax_tmp, broken, actf, k_hit,
-                                  k_th, k_dfax, pf)
+                    gs.knot_peaks(
+                        s,
+                        B,
+                        D,
+                        k_c,
+                        k_x,
+                        k_y,
+                        k_sh,
+                        e_prev,
+                        e_tmp,
+                        f_prev,
+                        F_tmp,
+                        ax_tmp,
+                        broken,
+                        actf,
+                        k_hit,
+                        k_th,
+                        k_dfax,
+                        pf,
+                    )
                 # masked by arithmetic: a stopped variant adds 0 and compares against 0 (peaks are >= 0)
                 fh = options[PRELOADED, s] and kind not in DAMPER_MATERIALS
-                gs.scatter(s, i, j, n, fh, fr, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, f, ie, ie_tot,
-                           pf, mc, me, forces, elong, f_prev, e_prev)
+                gs.scatter(
+                    s,
+                    i,
+                    j,
+                    n,
+                    fh,
+                    fr,
+                    lo,
+                    D,
+                    B,
+                    e0,
+                    rate0,
+                    dt_b,
+                    F_tmp,
+                    e_tmp,
+                    ax_tmp,
+                    actf,
+                    ftmp,
+                    f,
+                    ie,
+                    ie_tot,
+                    pf,
+                    mc,
+                    me,
+                    forces,
+                    elong,
+                    f_prev,
+                    e_prev,
+                )
                 if has_term:
                     for w in range(B):
                         edot_min[w] = lw.least(edot_min[w], ed_tmp[w])
@@ -154,16 +289,108 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if fused:  # external forces, accelerations, velocities
                 gn.fused_update(h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke, pacc)
             else:
-                gn.accelerate(n, h, lo, B, N, D, not no_ext, has_gravity, load_node, load_curve, gravity, load_force, cx,
-                              cy, cds, cs0, off, m_b, im_b, f, fext, v, vnew, acc, dt_b)
+                gn.accelerate(
+                    n,
+                    h,
+                    lo,
+                    B,
+                    N,
+                    D,
+                    not no_ext,
+                    has_gravity,
+                    load_node,
+                    load_curve,
+                    gravity,
+                    load_force,
+                    cx,
+                    cy,
+                    cds,
+                    cs0,
+                    off,
+                    m_b,
+                    im_b,
+                    f,
+                    fext,
+                    v,
+                    vnew,
+                    acc,
+                    dt_b,
+                )
             if NP > 0:
-                gn.prescribed(n, h, lo, B, pm_node, pm_dir, pm_curve, pm_kind, pm_scale, cx, cy, cds, cs0, off, x0_b, m_b, x,
-                              v, vnew, acc, pm_acc, f, fext, nst, dt_b)
+                gn.prescribed(
+                    n,
+                    h,
+                    lo,
+                    B,
+                    pm_node,
+                    pm_dir,
+                    pm_curve,
+                    pm_kind,
+                    pm_scale,
+                    cx,
+                    cy,
+                    cds,
+                    cs0,
+                    off,
+                    x0_b,
+                    m_b,
+                    x,
+                    v,
+                    vnew,
+                    acc,
+                    pm_acc,
+                    f,
+                    fext,
+                    nst,
+                    dt_b,
+                )
             if W > 0:  # rigid walls (kernel.wall_contact)
-                wc.rigid(lo, B, W, N, D, h, wall_nodes, wn, wp, wk, free, x, v, vnew, acc, m_b, dt_b, jp, wall_e,
-                         wforce, imp, act, actf)
+                wc.rigid(
+                    lo,
+                    B,
+                    W,
+                    N,
+                    D,
+                    h,
+                    wall_nodes,
+                    wn,
+                    wp,
+                    wk,
+                    free,
+                    x,
+                    v,
+                    vnew,
+                    acc,
+                    m_b,
+                    dt_b,
+                    jp,
+                    wall_e,
+                    wforce,
+                    imp,
+                    act,
+                    actf,
+                )
             if not fused:  # (fused: kinetic energy summed above; no external work)
-                gn.energies(n, lo, B, N, D, not no_ext, v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work)
+                gn.energies(
+                    n,
+                    lo,
+                    B,
+                    N,
+                    D,
+                    not no_ext,
+                    v0,
+                    m_b,
+                    v,
+                    vnew,
+                    fext,
+                    fext_prev,
+                    dt_b,
+                    actf,
+                    ke,
+                    ke0,
+                    bal,
+                    work,
+                )
             nbad = 0
             for w in range(B):
                 wmax[w] = max(wmax[w], abs(work[w]))
@@ -175,7 +402,9 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if not fused:
                 gn.peak_accelerations(B, N, D, movable, acc, actf, pacc)
             if any_hit:
-                gn.knot_accelerations(B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_prev, acc, im_b, actf, pacc)
+                gn.knot_accelerations(
+                    B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_prev, acc, im_b, actf, pacc
+                )
             for wl in range(W):
                 for w in range(B):
                     pwall[wl, w] = lw.peak(pwall[wl, w], wforce[wl, w] * actf[w])
@@ -186,11 +415,30 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                 gb.fail_lanes(n, lo, B, D, e_floor, Out, K)
             if rec_now:
                 go.record(n, lo, B, n_out, P.out_every, H, K)
-            if step_nodes.shape[0] > 0:  # crash criteria: a^n of the recorded nodes added to their block's row
+            if (
+                step_nodes.shape[0] > 0
+            ):  # crash criteria: a^n of the recorded nodes added to their block's row
                 go.record_steps(n, lo, B, act, acc, rec_block, step_nodes, steps)
             if has_term and n > 0:
-                n_end = gn.stop_tests(n, lo, B, S, no_ext, ke_fraction, min_time, act, dt_b, forces, pf, edot_min, ke, wmax,
-                                     nst, e_init, n_end)
+                n_end = gn.stop_tests(
+                    n,
+                    lo,
+                    B,
+                    S,
+                    no_ext,
+                    ke_fraction,
+                    min_time,
+                    act,
+                    dt_b,
+                    forces,
+                    pf,
+                    edot_min,
+                    ke,
+                    wmax,
+                    nst,
+                    e_init,
+                    n_end,
+                )
             if n == n_end:
                 go.final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, Out.final_energy)
             if not fused:
@@ -200,8 +448,9 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
         go.results(lo, B, Out, K)
 
 
-def run_compiled(b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK,
-                 record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
+def run_compiled(
+    b: Batch, histories: tuple[str, ...], n_out: int, block: int = BLOCK, record: tuple[int, ...] = ()
+) -> KernelOutput:
     """Integrate every variant of ``b`` with the compiled kernel (same results as the reference);
     ``record``: nodes whose acceleration is kept at every step (``step_acceleration``)."""
     out, hist, summ = outputs(b, histories, n_out, record)

@@ -18,7 +18,9 @@ class StartPlan:
     generic_seconds: float  # ... on the generic kernel (compile not included)
     fast_seconds: float  # ... on the fastest kernel once everything is compiled
     shape: str  # the model shape in words
-    criteria: float = 0.0  # compile seconds of the companion (crash criteria) when the run needs it and it is missing
+    criteria: float = (
+        0.0  # compile seconds of the companion (crash criteria) when the run needs it and it is missing
+    )
     companion: str = "criteria"  # its name in the decision (Companion.name)
 
     @property
@@ -40,7 +42,9 @@ class Decision:
     foreground: tuple[str, ...] = ()
     now: tuple[str, ...] = ()
     after: tuple[str, ...] = ()
-    small_chunks: bool = False  # run the reference in chunks of choice.REF_CHUNK so a finished compile is taken soon
+    small_chunks: bool = (
+        False  # run the reference in chunks of choice.REF_CHUNK so a finished compile is taken soon
+    )
 
 
 def decide(p: StartPlan, background: bool) -> Decision:
@@ -70,17 +74,27 @@ def decide(p: StartPlan, background: bool) -> Decision:
         if p.reference_seconds > alone:
             rest: tuple[str, ...] = ("generated",) if background and gen_cost is not None else ()
             during = gen_cost is not None and p.generic_seconds > 2 * gen_cost
-            return Decision(alone, foreground=("generic", *beside), now=rest if during else (),
-                            after=() if during else rest)  # fmt: skip
+            return Decision(
+                alone,
+                foreground=("generic", *beside),
+                now=rest if during else (),
+                after=() if during else rest,
+            )
         if background:
             quick = "generated" if gen_cost is not None else "generic"
-            return Decision(min(p.reference_seconds, p.costs[quick] + p.fast_seconds), now=(quick,), small_chunks=True)
+            return Decision(
+                min(p.reference_seconds, p.costs[quick] + p.fast_seconds), now=(quick,), small_chunks=True
+            )
         return Decision(p.reference_seconds)
     t_now = min(p.reference_seconds, p.generic_seconds)
     if gen_cost is None:
         return Decision(t_now)
     if background:
-        return Decision(t_now, now=("generated",)) if t_now > 2 * gen_cost else Decision(t_now, after=("generated",))
+        return (
+            Decision(t_now, now=("generated",))
+            if t_now > 2 * gen_cost
+            else Decision(t_now, after=("generated",))
+        )
     if gen_cost + p.fast_seconds < t_now:
         return Decision(gen_cost + p.fast_seconds, foreground=("generated", *beside))
     return Decision(t_now)

@@ -31,22 +31,93 @@ if TYPE_CHECKING:
 _THREADS = [os.cpu_count() or 1]
 PER_THREAD = 8  # runs of blocks per thread (a thread that finishes early takes the next run)
 
-TOPO_FIELDS = ("spring_i", "spring_j", "material", "curve_a", "curve_b", "curve_off", "free", "load_node",
-               "load_curve", "pm_node", "pm_dir", "pm_kind", "pm_curve", "wall_nodes", "knot_check", "rate_curve", "rate_off")  # fmt: skip
-VARS_FIELDS = ("mass", "inv_mass", "x0", "v0", "length0", "sign", "kpar", "yield_t", "yield_c", "cx", "cy", "cds",
-               "cs0", "cs1", "knot_y", "gravity", "load_force", "pm_scale", "wall_point", "wall_normal", "wall_stiffness", "dt",
-               "n_steps", "out_every", "ke_fraction", "min_time", "invalid", "energy_floor",
-               "rec_block", "ktan", "fy", "e0", "fail_t", "fail_c", "state0", "ie0", "rate0", "cfac", "rate_at")  # fmt: skip
+TOPO_FIELDS = (
+    "spring_i",
+    "spring_j",
+    "material",
+    "curve_a",
+    "curve_b",
+    "curve_off",
+    "free",
+    "load_node",
+    "load_curve",
+    "pm_node",
+    "pm_dir",
+    "pm_kind",
+    "pm_curve",
+    "wall_nodes",
+    "knot_check",
+    "rate_curve",
+    "rate_off",
+)
+VARS_FIELDS = (
+    "mass",
+    "inv_mass",
+    "x0",
+    "v0",
+    "length0",
+    "sign",
+    "kpar",
+    "yield_t",
+    "yield_c",
+    "cx",
+    "cy",
+    "cds",
+    "cs0",
+    "cs1",
+    "knot_y",
+    "gravity",
+    "load_force",
+    "pm_scale",
+    "wall_point",
+    "wall_normal",
+    "wall_stiffness",
+    "dt",
+    "n_steps",
+    "out_every",
+    "ke_fraction",
+    "min_time",
+    "invalid",
+    "energy_floor",
+    "rec_block",
+    "ktan",
+    "fy",
+    "e0",
+    "fail_t",
+    "fail_c",
+    "state0",
+    "ie0",
+    "rate0",
+    "cfac",
+    "rate_at",
+)
 Topo = namedtuple("Topo", TOPO_FIELDS)  # type: ignore[misc]
 Vars = namedtuple("Vars", VARS_FIELDS)  # type: ignore[misc]
 # rec: which histories are kept (HISTORY_ORDER); energy: (T, 4, V) for the four ENERGIES
 # step_nodes (M,) and steps (T, M, D, V): the acceleration of nodes step_nodes summed over blocks of
 # Vars.rec_block steps (crash criteria; output.block_rows)
-Hist = namedtuple("Hist", ("rec", "pos", "disp", "vel", "acc", "force", "elong", "energy", "wall", "step_nodes",
-                           "steps"))  # type: ignore[misc]  # fmt: skip
-Summ = namedtuple("Summ", ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed",
-                           "peak_acc", "peak_wall", "energy_error", "final_energy", "max_elongation",
-                           "spring_fail_time", "wall_impulse"))  # type: ignore[misc]  # fmt: skip
+Hist = namedtuple(
+    "Hist", ("rec", "pos", "disp", "vel", "acc", "force", "elong", "energy", "wall", "step_nodes", "steps")
+)  # type: ignore[misc]
+Summ = namedtuple(
+    "Summ",
+    (
+        "status",
+        "fail_time",
+        "fail_item",
+        "t_end",
+        "peak_force",
+        "max_crush",
+        "absorbed",
+        "peak_acc",
+        "peak_wall",
+        "energy_error",
+        "final_energy",
+        "max_elongation",
+        "spring_fail_time",
+        "wall_impulse",
+    ),
+)  # type: ignore[misc]
 
 
 def set_threads(n: int) -> None:
@@ -63,8 +134,9 @@ def records(b: Batch) -> tuple[Any, Any]:
     return Topo(*(getattr(b, f) for f in TOPO_FIELDS)), Vars(*(getattr(b, f) for f in VARS_FIELDS))
 
 
-def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int, ...] = ()
-            ) -> tuple[KernelOutput, Any, Any]:  # fmt: skip
+def outputs(
+    b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int, ...] = ()
+) -> tuple[KernelOutput, Any, Any]:
     """The kernel output (summaries zeroed, histories NaN) and its (Hist, Summ) records. Histories not
     kept get a small placeholder the kernel never writes. ``record``: nodes whose acceleration is kept
     summed over blocks of ``b.rec_block`` steps (``out.step_acceleration``; zero after a variant's end, as
@@ -73,7 +145,9 @@ def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int,
     S = len(b.spring_i)
     out = allocate(S, N, D, b.wall_nodes.shape[0], V, histories, n_out)
     if record:
-        out.step_acceleration = np.zeros((int(np.max(block_rows(b.n_steps, b.rec_block), initial=0)), len(record), D, V))
+        out.step_acceleration = np.zeros(
+            (int(np.max(block_rows(b.n_steps, b.rec_block), initial=0)), len(record), D, V)
+        )
     steps = out.step_acceleration if out.step_acceleration is not None else np.empty((1, 1, 1, 1))
     want_energy = any(h in histories for h in ENERGIES)
     energy = np.full((n_out, 4, V), np.nan) if want_energy else np.empty((1, 4, 1))
@@ -82,12 +156,35 @@ def outputs(b: Batch, histories: tuple[str, ...], n_out: int, record: tuple[int,
     def buf(name: str, nd: int) -> np.ndarray:
         return out.histories[name] if name in out.histories else np.empty((1,) * nd)
 
-    hist = Hist(rec, buf("position", 4), buf("displacement", 4), buf("velocity", 4), buf("acceleration", 4),
-                buf("spring_force", 3), buf("spring_elongation", 3), energy, buf("wall_force", 3),
-                np.asarray(record, dtype=np.int64), steps)  # fmt: skip
-    summ = Summ(out.status, out.fail_time, out.fail_item, out.t_end, out.peak_force, out.max_crush,
-                out.absorbed_energy, out.peak_acceleration, out.peak_wall_force, out.energy_error, out.final_energy,
-                out.max_elongation, out.spring_fail_time, out.wall_impulse)  # fmt: skip
+    hist = Hist(
+        rec,
+        buf("position", 4),
+        buf("displacement", 4),
+        buf("velocity", 4),
+        buf("acceleration", 4),
+        buf("spring_force", 3),
+        buf("spring_elongation", 3),
+        energy,
+        buf("wall_force", 3),
+        np.asarray(record, dtype=np.int64),
+        steps,
+    )
+    summ = Summ(
+        out.status,
+        out.fail_time,
+        out.fail_item,
+        out.t_end,
+        out.peak_force,
+        out.max_crush,
+        out.absorbed_energy,
+        out.peak_acceleration,
+        out.peak_wall_force,
+        out.energy_error,
+        out.final_energy,
+        out.max_elongation,
+        out.spring_fail_time,
+        out.wall_impulse,
+    )
     return out, hist, summ
 
 

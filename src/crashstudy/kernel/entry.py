@@ -36,15 +36,35 @@ class Recorder(Protocol):
 
     def __call__(self, batch: Batch, run: Callable[[Batch], KernelOutput]) -> KernelOutput: ...
 
+
 __all__ = ["error_estimate", "get_threads", "run_batch", "run_ordered", "set_threads", "spread_columns"]
 SORT_SPREAD = 0.05  # step counts within this fraction of the longest: the batch runs unsorted (a copy saved)
-SUMMARIES = ("status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed_energy",
-             "peak_acceleration", "peak_wall_force", "energy_error", "final_energy", "max_elongation",
-             "spring_fail_time", "wall_impulse")  # fmt: skip
+SUMMARIES = (
+    "status",
+    "fail_time",
+    "fail_item",
+    "t_end",
+    "peak_force",
+    "max_crush",
+    "absorbed_energy",
+    "peak_acceleration",
+    "peak_wall_force",
+    "energy_error",
+    "final_energy",
+    "max_elongation",
+    "spring_fail_time",
+    "wall_impulse",
+)
 
 
-def compile_first(kernel: KernelName, batch: Batch, histories: tuple[str, ...], vary: frozenset[int] | None,
-                  check: Callable[[], None], record: tuple[int, ...] = ()) -> None:  # fmt: skip
+def compile_first(
+    kernel: KernelName,
+    batch: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None,
+    check: Callable[[], None],
+    record: tuple[int, ...] = (),
+) -> None:
     """Compile ``kernel`` ("generic" or "generated") for ``batch`` in a child process when it is not
     compiled yet, polling ``check`` while it runs (numba cannot be interrupted in this process)."""
     if kernel == "generic" and not choice.generic_ready():
@@ -53,9 +73,16 @@ def compile_first(kernel: KernelName, batch: Batch, histories: tuple[str, ...], 
         choice.compile_foreground(("generated",), batch, histories, vary, check, record)
 
 
-def run_batch(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: KernelName = "compiled",
-              vary: frozenset[int] | None = None, repeat: float = 1.0,
-              check: Callable[[], None] | None = None, record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
+def run_batch(
+    batch: Batch,
+    histories: tuple[str, ...],
+    n_out: int,
+    kernel: KernelName = "compiled",
+    vary: frozenset[int] | None = None,
+    repeat: float = 1.0,
+    check: Callable[[], None] | None = None,
+    record: tuple[int, ...] = (),
+) -> KernelOutput:
     """Integrate ``batch`` with ``kernel`` (see the module docstring). ``vary``: indices of the curves
     the study varies (the generated kernel keeps the others as constants); ``repeat``: how many
     batches like this one the run holds (for the choice); ``check``: raises to abandon the run;
@@ -65,7 +92,9 @@ def run_batch(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: Kern
     if kernel == "reference":
         from crashstudy.kernel.reference import run_reference
 
-        with np.errstate(all="ignore"):  # overflow is found by the energy check (status), as in the compiled kernels
+        with np.errstate(
+            all="ignore"
+        ):  # overflow is found by the energy check (status), as in the compiled kernels
             return run_reference(batch, histories, n_out, check, record)
     if check is not None:
         compile_first(kernel, batch, histories, vary, check, record)
@@ -81,21 +110,33 @@ def run_batch(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: Kern
     return run_compiled(batch, histories, n_out, record=record)
 
 
-def spread_columns(out: KernelOutput, take: np.ndarray, histories: tuple[str, ...], n_out: int) -> KernelOutput:
+def spread_columns(
+    out: KernelOutput, take: np.ndarray, histories: tuple[str, ...], n_out: int
+) -> KernelOutput:
     """The output with column k = column ``take[k]`` of ``out``."""
     S, N, W = out.peak_force.shape[0], out.peak_acceleration.shape[0], out.peak_wall_force.shape[0]
     full = allocate(S, N, 1, W, len(take), (), n_out)
     for name in SUMMARIES:
         getattr(full, name)[...] = getattr(out, name)[..., take]
-    full.histories = {h: out.histories[h][..., take] for h in (*histories, *out.histories) if h in out.histories}
+    full.histories = {
+        h: out.histories[h][..., take] for h in (*histories, *out.histories) if h in out.histories
+    }
     full.criteria = out.criteria.take(take) if out.criteria is not None else None
     return full
 
 
-def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np.ndarray, kernel: KernelName = "compiled",
-                vary: frozenset[int] | None = None, repeat: float = 1.0, accuracy: bool = False,
-                check: Callable[[], None] | None = None, recorder: Recorder | None = None
-                ) -> tuple[KernelOutput, np.ndarray]:  # fmt: skip
+def run_ordered(
+    batch: Batch,
+    histories: tuple[str, ...],
+    n_out: int,
+    spread: np.ndarray,
+    kernel: KernelName = "compiled",
+    vary: frozenset[int] | None = None,
+    repeat: float = 1.0,
+    accuracy: bool = False,
+    check: Callable[[], None] | None = None,
+    recorder: Recorder | None = None,
+) -> tuple[KernelOutput, np.ndarray]:
     """Run ``batch`` sorted by step count; returns the output and the error estimate (NaN unless
     ``accuracy``) for columns ``spread`` of ``batch`` (column k = variant ``spread[k]``).
     ``recorder`` (crash criteria, :class:`crashstudy.metrics.record.Recorder`): records its nodes at every
@@ -110,9 +151,13 @@ def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np
     if recorder is None:
         out = run_batch(sorted_batch, histories, n_out, kernel, vary, repeat, check)
     else:
-        out = recorder(sorted_batch, lambda sub: run_batch(sub, histories, n_out, kernel, vary, repeat, check,
-                                                           recorder.nodes))  # fmt: skip
-    estimate = error_estimate(sorted_batch, out, kernel, repeat, check) if accuracy else np.full(len(order), np.nan)
+        out = recorder(
+            sorted_batch,
+            lambda sub: run_batch(sub, histories, n_out, kernel, vary, repeat, check, recorder.nodes),
+        )
+    estimate = (
+        error_estimate(sorted_batch, out, kernel, repeat, check) if accuracy else np.full(len(order), np.nan)
+    )
     pos = np.empty_like(order)
     pos[order] = np.arange(len(order))
     cols = pos[spread]
@@ -121,8 +166,13 @@ def run_ordered(batch: Batch, histories: tuple[str, ...], n_out: int, spread: np
     return spread_columns(out, cols, histories, n_out), estimate[cols]
 
 
-def error_estimate(batch: Batch, out: KernelOutput, kernel: KernelName = "compiled", repeat: float = 1.0,
-                   check: Callable[[], None] | None = None) -> np.ndarray:  # fmt: skip
+def error_estimate(
+    batch: Batch,
+    out: KernelOutput,
+    kernel: KernelName = "compiled",
+    repeat: float = 1.0,
+    check: Callable[[], None] | None = None,
+) -> np.ndarray:
     """Richardson estimate of the relative error of the reported peaks, per variant.
 
     The variants are run again at half the step; for a second-order method the error of a value
@@ -131,7 +181,9 @@ def error_estimate(batch: Batch, out: KernelOutput, kernel: KernelName = "compil
     are left out). Absorbed energy is not included: for an elastic spring it is the energy stored at
     the end time, a phase-sensitive value whose relative error says little about the peaks.
     """
-    half = dataclasses.replace(batch, dt=batch.dt / 2, n_steps=batch.n_steps * 2, out_every=batch.out_every * 2)
+    half = dataclasses.replace(
+        batch, dt=batch.dt / 2, n_steps=batch.n_steps * 2, out_every=batch.out_every * 2
+    )
     fine = run_batch(half, (), 1, kernel, repeat=repeat, check=check)
     worst = np.zeros(batch.n_variants)
     for name in ("peak_force", "peak_acceleration"):

@@ -75,11 +75,15 @@ def _constants(b: Batch, shape: dict[str, Any]) -> np.ndarray:
     factor curves' shape coefficients (from the points as written, as arrays.batch.build_batch)."""
     off = b.curve_off
     with np.errstate(all="ignore"):
-        slope = [np.diff(b.by[off[c] : off[c + 1], :1], axis=0) / np.diff(b.bx[off[c] : off[c + 1], :1], axis=0)
-                 for c in range(len(off) - 1)]  # fmt: skip
+        slope = [
+            np.diff(b.by[off[c] : off[c + 1], :1], axis=0) / np.diff(b.bx[off[c] : off[c + 1], :1], axis=0)
+            for c in range(len(off) - 1)
+        ]
     bds = np.zeros((len(b.bx), 1))
     for c, sl in enumerate(slope):
         bds[off[c] + 1 : off[c + 1] - 1] = np.diff(sl, axis=0)
     arrays = {"bx": b.bx, "by": b.by, "bds": bds, "bs0": np.array([sl[0] for sl in slope]).reshape(-1, 1)}
-    return np.array([(arrays[arr] if arr in arrays else getattr(b, arr))[row, 0]
-                     for _, arr, row in _const_layout(shape)] + [0.0])  # fmt: skip
+    return np.array(
+        [(arrays[arr] if arr in arrays else getattr(b, arr))[row, 0] for _, arr, row in _const_layout(shape)]
+        + [0.0]
+    )

@@ -10,7 +10,9 @@ from crashstudy.kernel.gen_shape import Layout, _lsum
 from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
 from crashstudy.vocabulary.codes import GENERAL, PM_CODES
 
-PM_NAMES = {code: f"PM_{name.upper()}" for name, code in PM_CODES.items()}  # as the generated module imports them
+PM_NAMES = {
+    code: f"PM_{name.upper()}" for name, code in PM_CODES.items()
+}  # as the generated module imports them
 
 
 def pass_b(g: Layout, ind: str) -> None:
@@ -118,7 +120,10 @@ def emit_results(g: Layout, ind: str) -> None:
         g.emit(f"{ind}max_crush[{s}, q] = {g.R['mc', s]}")
         g.emit(f"{ind}max_elongation[{s}, q] = {g.R['me', s]}")
     for n in range(g.N):
-        g.emit(f"{ind}peak_acc[{n}, q] = " + ("0.0" if g.static[n] or not g.movable[n] else f"np.sqrt({g.R['pa', n]})"))
+        g.emit(
+            f"{ind}peak_acc[{n}, q] = "
+            + ("0.0" if g.static[n] or not g.movable[n] else f"np.sqrt({g.R['pa', n]})")
+        )
     for wl in range(g.W):
         g.emit(f"{ind}peak_wall[{wl}, q] = {g.R['pw', wl]}")
         g.emit(f"{ind}w_impulse[{wl}, q] = {g.R['wi', wl]}")
@@ -206,7 +211,9 @@ def wall(g: Layout, i2: str, n: int, wl: int) -> None:
     for d in range(g.D):
         jp = g.R["jp", wl, n, d]
         free = float(g.free[n][d])
-        g.emit(f"{i2}vn_{d}, a_{d}, we, {jp} = wall_dof(dvn, c, {nr[d]}, {free!r}, vn_{d}, a_{d}, vo_{d}, {jp}, we)")
+        g.emit(
+            f"{i2}vn_{d}, a_{d}, we, {jp} = wall_dof(dvn, c, {nr[d]}, {free!r}, vn_{d}, a_{d}, vo_{d}, {jp}, we)"
+        )
     g.emit(f"{i2}we{wl}_{n} = wall_work({g.R['m', n]}, we)")
     g.emit(f"{i2}wf{wl} = wf{wl} + wall_force({g.R['m', n]}, c)")
     g.emit(f"{i2}{g.R['wi', wl]} = {g.R['wi', wl]} + wall_impulse({g.R['m', n]}, dvn, c, h * dtw) * af")

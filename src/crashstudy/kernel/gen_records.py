@@ -66,9 +66,15 @@ def records(g: Layout, i3: str) -> None:
                     for k, (p, dd, _, _) in enumerate(g.pm):  # a prescribed dof: its kinematic acceleration
                         if (p, dd) == (n, d):
                             acc = g.R["pma", k]
-                    acc = g.R["wa", n, d] if ("wa", n, d) in g.R else acc  # a wall node: with the contact force
-                for name, arr, val in (("position", "h_pos", pos), ("displacement", "h_disp", dsp),
-                                       ("velocity", "h_vel", vel), ("acceleration", "h_acc", acc)):  # fmt: skip
+                    acc = (
+                        g.R["wa", n, d] if ("wa", n, d) in g.R else acc
+                    )  # a wall node: with the contact force
+                for name, arr, val in (
+                    ("position", "h_pos", pos),
+                    ("displacement", "h_disp", dsp),
+                    ("velocity", "h_vel", vel),
+                    ("acceleration", "h_acc", acc),
+                ):
                     if name in g.hist:
                         g.emit(f"{i5}{arr}[r, {n}, {d}, q] = {val}")
         for s in range(g.S):

@@ -16,40 +16,95 @@ Scalar: TypeAlias = Literal[
     "dt",  # the lane's time step
     "lim",  # its last step (-1.0: failed)
     "thr",  # the energy-balance threshold of the instability test
-    "ke0", "err", "ken", "ien", "efl",  # KE at t = 0, peak energy error, KE and IE at t^n, energy floor
-    "kef", "tmin", "stop",  # early termination: KE fraction, minimum time, stopped
-    "ein", "esc",  # preloaded springs: energy at t = 0, energy scale
-    "work", "wmax",  # external work and its peak |.|
+    "ke0",
+    "err",
+    "ken",
+    "ien",
+    "efl",  # KE at t = 0, peak energy error, KE and IE at t^n, energy floor
+    "kef",
+    "tmin",
+    "stop",  # early termination: KE fraction, minimum time, stopped
+    "ein",
+    "esc",  # preloaded springs: energy at t = 0, energy scale
+    "work",
+    "wmax",  # external work and its peak |.|
     "nst",  # prescribed motion: the lane's last step
     "crushed",  # 2-D: the first collapsed spring (-1.0: none)
     "wall_e",  # energy stored in the walls
 ]
 # one row per node n, spring s, wall wl, dimension d, load or prescribed motion k, curve c or knot k
 One: TypeAlias = Literal[
-    "m", "pa",  # node: mass, peak |a|^2
-    "kp", "fp", "ep", "ie", "pf", "mc", "me", "sg", "l0",  # spring: parameter, F and e of the previous step,
+    "m",
+    "pa",  # node: mass, peak |a|^2
+    "kp",
+    "fp",
+    "ep",
+    "ie",
+    "pf",
+    "mc",
+    "me",
+    "sg",
+    "l0",  # spring: parameter, F and e of the previous step,
     # absorbed energy, peak force, largest crush and elongation, 1-D axis sign, 2-D length at rest
-    "kh", "kth",  # spring with knots: crossed this step, crossing fraction
-    "kt", "fy",  # elastoplastic: tangent stiffness, yield force
-    "e0", "r0",  # preloaded: initial elongation, its rate at t = 0
-    "ft", "fc", "br",  # breakable: failure elongations in tension and compression, broken
-    "yt", "yc", "F", "E", "rev", "ed",  # general_nonlinear: yields, F and e of pass A, reversal, edot
-    "gkc", "gkx", "gky", "gksh",  # general_nonlinear with knots: the knot search
-    "pw", "wi", "wk", "wf",  # wall: peak force, impulse, stiffness, force
+    "kh",
+    "kth",  # spring with knots: crossed this step, crossing fraction
+    "kt",
+    "fy",  # elastoplastic: tangent stiffness, yield force
+    "e0",
+    "r0",  # preloaded: initial elongation, its rate at t = 0
+    "ft",
+    "fc",
+    "br",  # breakable: failure elongations in tension and compression, broken
+    "yt",
+    "yc",
+    "F",
+    "E",
+    "rev",
+    "ed",  # general_nonlinear: yields, F and e of pass A, reversal, edot
+    "gkc",
+    "gkx",
+    "gky",
+    "gksh",  # general_nonlinear with knots: the knot search
+    "pw",
+    "wi",
+    "wk",
+    "wf",  # wall: peak force, impulse, stiffness, force
     "g",  # gravity along d
-    "pms", "pma",  # prescribed motion k: scale, acceleration
-    "cfy", "cfx", "cff",  # factor curve c: force, abscissa and slope factors
-    "cy0", "s0",  # curve c: first ordinate and slope
-    "cx", "ds", "kyv",  # knot k: abscissa, slope change, force
+    "pms",
+    "pma",  # prescribed motion k: scale, acceleration
+    "cfy",
+    "cfx",
+    "cff",  # factor curve c: force, abscissa and slope factors
+    "cy0",
+    "s0",  # curve c: first ordinate and slope
+    "cx",
+    "ds",
+    "kyv",  # knot k: abscissa, slope change, force
 ]
 # node n x dimension d, spring s x d or state row, load k x d, wall wl x d or node
 Two: TypeAlias = Literal[
-    "x", "x0", "v", "im", "a", "ao", "v0", "fx",  # node: x, x0, v, 1/m, a^n, a^{n-1}, v0, external force
-    "xs", "am", "wa", "xh", "vh",  # static node's x; a^n kept for criteria; at a wall; x and v for histories
-    "kdf", "ap", "ax", "axh",  # spring x d: force jump x axis at a knot; previous, pass-A, history axis
-    "st", "rt",  # spring: material state row k, rate_elastic curve k's rate
+    "x",
+    "x0",
+    "v",
+    "im",
+    "a",
+    "ao",
+    "v0",
+    "fx",  # node: x, x0, v, 1/m, a^n, a^{n-1}, v0, external force
+    "xs",
+    "am",
+    "wa",
+    "xh",
+    "vh",  # static node's x; a^n kept for criteria; at a wall; x and v for histories
+    "kdf",
+    "ap",
+    "ax",
+    "axh",  # spring x d: force jump x axis at a knot; previous, pass-A, history axis
+    "st",
+    "rt",  # spring: material state row k, rate_elastic curve k's rate
     "lf",  # load k along d
-    "wn", "wp",  # wall wl: normal and point along d
+    "wn",
+    "wp",  # wall wl: normal and point along d
     "pen",  # wall wl x node n: stored penalty energy
 ]
 Three: TypeAlias = Literal["jp"]  # wall wl x node n x d: the velocity jump of the previous step

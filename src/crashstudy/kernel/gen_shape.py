@@ -42,8 +42,10 @@ def unsupported(b: Batch) -> str | None:
     if knots > MAX_KNOTS:
         return f"a curve has {knots} knots (the generated kernel takes at most {MAX_KNOTS})"
     if len(b.spring_i) > MAX_GENERATED_SPRINGS:
-        return (f"the model has {len(b.spring_i)} springs, and a generated kernel is compiled for at most "
-                f"{MAX_GENERATED_SPRINGS} (its compile time and memory grow faster than the springs)")  # fmt: skip
+        return (
+            f"the model has {len(b.spring_i)} springs, and a generated kernel is compiled for at most "
+            f"{MAX_GENERATED_SPRINGS} (its compile time and memory grow faster than the springs)"
+        )
     return None
 
 
@@ -51,39 +53,75 @@ def unsupported(b: Batch) -> str | None:
 # shape of a model: what the source depends on
 
 
-def _shape(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None,
-           const: list[int] | None = None, record: tuple[int, ...] = ()) -> dict[str, Any]:  # fmt: skip
+def _shape(
+    b: Batch,
+    histories: tuple[str, ...],
+    vary: frozenset[int] | None = None,
+    const: list[int] | None = None,
+    record: tuple[int, ...] = (),
+) -> dict[str, Any]:
     """What the generated source depends on. ``const``: the constant curves when already known (a
     background compile gets them from the run, whose batch it does not have). ``record``: nodes whose
     acceleration is kept at every step (a key only when there are some: other shapes keep their source)."""
     N, D, _ = b.x0.shape
     pm_nodes = set(b.pm_node.tolist())
-    static = [bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0) and n not in pm_nodes) for n in range(N)]
-    sign = [int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
-            for s in range(len(b.spring_i))]  # fmt: skip
+    static = [
+        bool(np.all(b.free[n] == 0.0) and not np.any(b.v0[n] != 0.0) and n not in pm_nodes) for n in range(N)
+    ]
+    sign = [
+        int(b.sign[s, 0]) if np.all(b.sign[s] == b.sign[s, 0]) and abs(b.sign[s, 0]) == 1.0 else 0
+        for s in range(len(b.spring_i))
+    ]
     const = _constant_curves(b, vary) if const is None else const
     rc = [b.rate_curve[b.rate_off[s] : b.rate_off[s + 1]].tolist() for s in range(len(b.spring_i))]
     return {
-        "const": const, "fac": _factor_curves(b, vary, const), "sign": sign, "kcheck": np.flatnonzero(b.knot_check).tolist(),
-        "version": GEN_VERSION, "block": BLOCK, "row": ROW, "N": N, "D": D, "S": len(b.spring_i),
-        "gravity": bool(np.any(b.gravity != 0.0)), "term": bool(np.any(b.ke_fraction > 0.0)),
+        "const": const,
+        "fac": _factor_curves(b, vary, const),
+        "sign": sign,
+        "kcheck": np.flatnonzero(b.knot_check).tolist(),
+        "version": GEN_VERSION,
+        "block": BLOCK,
+        "row": ROW,
+        "N": N,
+        "D": D,
+        "S": len(b.spring_i),
+        "gravity": bool(np.any(b.gravity != 0.0)),
+        "term": bool(np.any(b.ke_fraction > 0.0)),
         "walls": [[n for n in range(N) if b.wall_nodes[k, n] != 0.0] for k in range(b.wall_nodes.shape[0])],
-        "free": b.free.tolist(), "loads": [[int(n), int(c)] for n, c in zip(b.load_node, b.load_curve, strict=True)],
-        "si": b.spring_i.tolist(), "sj": b.spring_j.tolist(), "mat": b.material.tolist(),
+        "free": b.free.tolist(),
+        "loads": [[int(n), int(c)] for n, c in zip(b.load_node, b.load_curve, strict=True)],
+        "si": b.spring_i.tolist(),
+        "sj": b.spring_j.tolist(),
+        "mat": b.material.tolist(),
         "pre": [s for s in range(len(b.spring_i)) if np.any(b.e0[s] != 0.0)],
-        "fragile": [s for s in range(len(b.spring_i)) if np.any(np.isfinite(b.fail_t[s]) | np.isfinite(b.fail_c[s]))],
-        "ca": b.curve_a.tolist(), "cb": b.curve_b.tolist(), "off": b.curve_off.tolist(),
-        "movable": [bool(np.any(b.free[n] > 0.0)) or n in pm_nodes for n in range(N)], "static": static,
-        "pm": [[int(b.pm_node[k]), int(b.pm_dir[k]), int(b.pm_kind[k]), int(b.pm_curve[k])] for k in range(len(b.pm_node))],
-        "hist": [h for h in HISTORY_ORDER if h in histories or (h in ENERGIES and any(e in histories for e in ENERGIES))],
+        "fragile": [
+            s for s in range(len(b.spring_i)) if np.any(np.isfinite(b.fail_t[s]) | np.isfinite(b.fail_c[s]))
+        ],
+        "ca": b.curve_a.tolist(),
+        "cb": b.curve_b.tolist(),
+        "off": b.curve_off.tolist(),
+        "movable": [bool(np.any(b.free[n] > 0.0)) or n in pm_nodes for n in range(N)],
+        "static": static,
+        "pm": [
+            [int(b.pm_node[k]), int(b.pm_dir[k]), int(b.pm_kind[k]), int(b.pm_curve[k])]
+            for k in range(len(b.pm_node))
+        ],
+        "hist": [
+            h
+            for h in HISTORY_ORDER
+            if h in histories or (h in ENERGIES and any(e in histories for e in ENERGIES))
+        ],
         **({"record": [int(n) for n in record]} if record else {}),
-        **({"rc": rc} if any(rc) else {}),  # rate_elastic: each spring's curves (a key only when there are some)
-    }  # fmt: skip
+        **(
+            {"rc": rc} if any(rc) else {}
+        ),  # rate_elastic: each spring's curves (a key only when there are some)
+    }
 
 
 def _lsum(terms: list[str]) -> str:
     """Source of ``0.0 + t0 + t1 + ...`` added left to right, as the reference's accumulating loops."""
     return "(" * len(terms) + "0.0" + "".join(f" + {t})" for t in terms)
+
 
 @dataclass(frozen=True)
 class Layout:
@@ -155,14 +193,22 @@ def layout(shape: dict[str, Any]) -> Layout:
     fragile = shape["fragile"]  # springs that can break (failure): thresholds and a broken flag
     pre = shape["pre"]  # preloaded springs (initial_elongation): e0, the rate at t = 0, KE0 + IE0
     E0: Scalar = "ein" if pre else "ke0"  # the row of the energy at t = 0
-    ES: Scalar = "esc" if pre else "ke0"  # the row of the energy scale KE0 + |IE0| (the error's and the stop tests' scale)
+    ES: Scalar = (
+        "esc" if pre else "ke0"
+    )  # the row of the energy scale KE0 + |IE0| (the error's and the stop tests' scale)
     kcheck = set(shape["kcheck"])
     # knots that can hold a peak of |force| (Batch.knot_check), per spring following that curve
-    knots = {s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
-             for s in range(S) if mat[s] in KNOT_MATERIALS and ca[s] >= 0}  # fmt: skip
+    knots = {
+        s: [k for k in range(off[ca[s]] + 1, off[ca[s] + 1] - 1) if k in kcheck]
+        for s in range(S)
+        if mat[s] in KNOT_MATERIALS and ca[s] >= 0
+    }
     knotted = [s for s in range(S) if knots.get(s)]
-    keep_a = {n for n in range(N) if not static[n] and (dampers or term or (movable[n] and any(
-        n in (si[s], sj[s]) for s in knotted)))}  # a^{n-1} kept: dampers, knot crossings  # fmt: skip
+    keep_a = {
+        n
+        for n in range(N)
+        if not static[n] and (dampers or term or (movable[n] and any(n in (si[s], sj[s]) for s in knotted)))
+    }  # a^{n-1} kept: dampers, knot crossings
     R = Rows(ROW)
     R.each(("dt", "lim", "thr", "ke0", "err", "ken", "ien", "efl"))
     if term:
@@ -217,8 +263,12 @@ def layout(shape: dict[str, Any]) -> Layout:
                 R.add("fx", n, d)
     rc = shape.get("rc", [[] for _ in range(S)])  # rate_elastic: each spring's curves, in rate order
     ro = [sum(len(cs) for cs in rc[:s]) for s in range(S)]  # and where they start in Batch.rate_at
-    curves = sorted({c for s in range(S) for c in (ca[s], cb[s]) if c >= 0} | set(tcurves) | {c for cs in rc for c in cs})
-    cname = {key: f"k_{coef_name(key)}" for key, _, _ in _const_layout(shape)}  # coefficient -> local constant
+    curves = sorted(
+        {c for s in range(S) for c in (ca[s], cb[s]) if c >= 0} | set(tcurves) | {c for cs in rc for c in cs}
+    )
+    cname = {
+        key: f"k_{coef_name(key)}" for key, _, _ in _const_layout(shape)
+    }  # coefficient -> local constant
     fac = shape.get("fac", [])
     cmul: dict[Coef, str] = {}  # a factor curve's coefficient -> the row of its lane's factor
     for c in curves:
@@ -251,7 +301,9 @@ def layout(shape: dict[str, Any]) -> Layout:
             R.add("kdf", s, d)
         for d in range(D if D > 1 else 0):
             R.add("ap", s, d)  # previous direction (un-normalised)
-        for k in range(0 if s in general else spec(mat[s]).state_rows):  # general_nonlinear's follow its rows below
+        for k in range(
+            0 if s in general else spec(mat[s]).state_rows
+        ):  # general_nonlinear's follow its rows below
             R.add("st", s, k)
         if mat[s] == ELASTOPLASTIC:
             R.each(("kt", "fy"), s)
@@ -306,7 +358,49 @@ def layout(shape: dict[str, Any]) -> Layout:
     L: list[str] = []
     emit = L.append
     return Layout(
-        N, S, D, W, si, sj, mat, ca, cb, off, static, movable, hist, const, fac, sign, grav, term, walls, free, loads,
-        pm, ext, tcurves, loaded, general, fragile, pre, E0, ES, kcheck, knots, knotted, keep_a, R, live, rc, ro,
-        curves, cname, record, co, ramp, L, emit,
+        N,
+        S,
+        D,
+        W,
+        si,
+        sj,
+        mat,
+        ca,
+        cb,
+        off,
+        static,
+        movable,
+        hist,
+        const,
+        fac,
+        sign,
+        grav,
+        term,
+        walls,
+        free,
+        loads,
+        pm,
+        ext,
+        tcurves,
+        loaded,
+        general,
+        fragile,
+        pre,
+        E0,
+        ES,
+        kcheck,
+        knots,
+        knotted,
+        keep_a,
+        R,
+        live,
+        rc,
+        ro,
+        curves,
+        cname,
+        record,
+        co,
+        ramp,
+        L,
+        emit,
     )

@@ -14,30 +14,137 @@ from crashstudy.vocabulary.codes import ELASTOPLASTIC
 from crashstudy.vocabulary.materials import spec
 
 # the laws a generated module calls (crashstudy.kernel.laws, crashstudy.kernel.step_laws)
-LAWS = ("axis_2d", "crush_knot_force", "crush_law", "crush_window", "damper_force", "elongation_1d", "elongation_2d",
-        "end_rate", "general_law", "general_reverse_call", "general_window", "knot_accel", "knot_crossing",
-        "knot_step", "least", "linear_force", "nonlinear_force", "nonlinear_window", "peak", "ramp_knot", "ramp_start", "time_window",
-        "elastoplastic_law", "broken_at")  # fmt: skip
-STEP_LAWS = ("advance", "energy_balance", "energy_first_half", "energy_increment", "ext_power", "half_step", "kinetic",
-             "spring_extremes", "stop_test", "unstable", "unstable_limit", "wall_dof", "wall_force", "wall_hold",
-             "wall_impulse", "wall_jump", "wall_penalty", "wall_plane", "wall_work", "work_increment")  # fmt: skip
-PM_LAWS = ("prescribed_time", "prescribed_velocity", "prescribed_step")  # imported by a kernel with prescribed motion
+LAWS = (
+    "axis_2d",
+    "crush_knot_force",
+    "crush_law",
+    "crush_window",
+    "damper_force",
+    "elongation_1d",
+    "elongation_2d",
+    "end_rate",
+    "general_law",
+    "general_reverse_call",
+    "general_window",
+    "knot_accel",
+    "knot_crossing",
+    "knot_step",
+    "least",
+    "linear_force",
+    "nonlinear_force",
+    "nonlinear_window",
+    "peak",
+    "ramp_knot",
+    "ramp_start",
+    "time_window",
+    "elastoplastic_law",
+    "broken_at",
+)
+STEP_LAWS = (
+    "advance",
+    "energy_balance",
+    "energy_first_half",
+    "energy_increment",
+    "ext_power",
+    "half_step",
+    "kinetic",
+    "spring_extremes",
+    "stop_test",
+    "unstable",
+    "unstable_limit",
+    "wall_dof",
+    "wall_force",
+    "wall_hold",
+    "wall_impulse",
+    "wall_jump",
+    "wall_penalty",
+    "wall_plane",
+    "wall_work",
+    "work_increment",
+)
+PM_LAWS = (
+    "prescribed_time",
+    "prescribed_velocity",
+    "prescribed_step",
+)  # imported by a kernel with prescribed motion
 # local name in the generated kernel -> (record, field) of crashstudy.kernel.driver
-RECORD_NAMES = [(n, "P", f) for n, f in (
-    ("mass", "mass"), ("inv_mass", "inv_mass"), ("x0", "x0"), ("v0", "v0"), ("sign", "sign"), ("length0", "length0"),
-    ("kpar", "kpar"), ("yield_t", "yield_t"), ("yield_c", "yield_c"), ("cx", "cx"), ("cy", "cy"), ("cds", "cds"),
-    ("cs0", "cs0"), ("cs1", "cs1"), ("knot_y", "knot_y"), ("gravity", "gravity"), ("dt", "dt"),
-    ("n_steps", "n_steps"), ("out_every", "out_every"), ("invalid", "invalid"), ("e_floor", "energy_floor"),
-    ("ke_fraction", "ke_fraction"), ("min_time", "min_time"), ("wall_point", "wall_point"),
-    ("wall_normal", "wall_normal"), ("wall_k", "wall_stiffness"), ("load_force", "load_force"), ("pm_scale", "pm_scale"),
-    ("ktan", "ktan"), ("fyld", "fy"), ("elong0", "e0"), ("state0", "state0"), ("ie0", "ie0"), ("rate0", "rate0"),
-    ("fail_t", "fail_t"), ("fail_c", "fail_c"), ("cfac", "cfac"))] + [
-    ("off", "T", "curve_off")] + [(n, "H", f) for n, f in (
-    ("h_pos", "pos"), ("h_disp", "disp"), ("h_vel", "vel"), ("h_acc", "acc"), ("h_force", "force"),
-    ("h_elong", "elong"), ("h_energy", "energy"), ("h_wall", "wall"))] + [(n, "O", n) for n in (
-    "status", "fail_time", "fail_item", "t_end", "peak_force", "max_crush", "absorbed", "peak_acc", "peak_wall",
-    "energy_error", "final_energy", "max_elongation", "spring_fail_time")] + [
-    ("w_impulse", "O", "wall_impulse")]  # not "wall_impulse": that name is the law  # fmt: skip
+RECORD_NAMES = (
+    [
+        (n, "P", f)
+        for n, f in (
+            ("mass", "mass"),
+            ("inv_mass", "inv_mass"),
+            ("x0", "x0"),
+            ("v0", "v0"),
+            ("sign", "sign"),
+            ("length0", "length0"),
+            ("kpar", "kpar"),
+            ("yield_t", "yield_t"),
+            ("yield_c", "yield_c"),
+            ("cx", "cx"),
+            ("cy", "cy"),
+            ("cds", "cds"),
+            ("cs0", "cs0"),
+            ("cs1", "cs1"),
+            ("knot_y", "knot_y"),
+            ("gravity", "gravity"),
+            ("dt", "dt"),
+            ("n_steps", "n_steps"),
+            ("out_every", "out_every"),
+            ("invalid", "invalid"),
+            ("e_floor", "energy_floor"),
+            ("ke_fraction", "ke_fraction"),
+            ("min_time", "min_time"),
+            ("wall_point", "wall_point"),
+            ("wall_normal", "wall_normal"),
+            ("wall_k", "wall_stiffness"),
+            ("load_force", "load_force"),
+            ("pm_scale", "pm_scale"),
+            ("ktan", "ktan"),
+            ("fyld", "fy"),
+            ("elong0", "e0"),
+            ("state0", "state0"),
+            ("ie0", "ie0"),
+            ("rate0", "rate0"),
+            ("fail_t", "fail_t"),
+            ("fail_c", "fail_c"),
+            ("cfac", "cfac"),
+        )
+    ]
+    + [("off", "T", "curve_off")]
+    + [
+        (n, "H", f)
+        for n, f in (
+            ("h_pos", "pos"),
+            ("h_disp", "disp"),
+            ("h_vel", "vel"),
+            ("h_acc", "acc"),
+            ("h_force", "force"),
+            ("h_elong", "elong"),
+            ("h_energy", "energy"),
+            ("h_wall", "wall"),
+        )
+    ]
+    + [
+        (n, "O", n)
+        for n in (
+            "status",
+            "fail_time",
+            "fail_item",
+            "t_end",
+            "peak_force",
+            "max_crush",
+            "absorbed",
+            "peak_acc",
+            "peak_wall",
+            "energy_error",
+            "final_energy",
+            "max_elongation",
+            "spring_fail_time",
+        )
+    ]
+    + [("w_impulse", "O", "wall_impulse")]
+)  # not "wall_impulse": that name is the law
 
 
 def source(shape: dict[str, Any]) -> str:
@@ -115,24 +222,26 @@ def source(shape: dict[str, Any]) -> str:
     # results of the block's remaining lanes
     g.emit(f"{ind}for w in range(B):")
     emit_results(g, ind + "    ")
-    g.L.extend([
-        "",
-        "",
-        '@nb.njit(inline="always", error_model="numpy")',
-        "def _next_end(Z, B, after):",
-        '    """The smallest step limit of a running lane above ``after`` (-1 if none)."""',
-        "    out = np.inf",
-        "    for w in range(B):",
-        f"        lim = Z[{g.R.row('lim') * ROW} + w]",
-        "        if lim > after and lim < out:",
-        "            out = lim",
-        "    return out if out < np.inf else -1.0",
-        "",
-        "",
-        f"NROWS = {g.R.n}",
-        f"ROW = {ROW}",
-        "",
-    ])  # fmt: skip
+    g.L.extend(
+        [
+            "",
+            "",
+            '@nb.njit(inline="always", error_model="numpy")',
+            "def _next_end(Z, B, after):",
+            '    """The smallest step limit of a running lane above ``after`` (-1 if none)."""',
+            "    out = np.inf",
+            "    for w in range(B):",
+            f"        lim = Z[{g.R.row('lim') * ROW} + w]",
+            "        if lim > after and lim < out:",
+            "            out = lim",
+            "    return out if out < np.inf else -1.0",
+            "",
+            "",
+            f"NROWS = {g.R.n}",
+            f"ROW = {ROW}",
+            "",
+        ]
+    )
     return "\n".join(g.L) + "\n"
 
 
@@ -140,7 +249,9 @@ def lanes(g: Layout, ind: str) -> None:
     """Block setup: each lane's per-variant numbers into its rows of the work array Z."""
     g.emit(f"{ind}next_rec = np.zeros(B, dtype=np.int64)")
     g.emit(f"{ind}n_fail = np.full(B, -1, dtype=np.int64)")
-    g.emit(f"{ind}vi = np.arange(lo, lo + B)  # the variant of each lane (lanes are compacted as variants end)")
+    g.emit(
+        f"{ind}vi = np.arange(lo, lo + B)  # the variant of each lane (lanes are compacted as variants end)"
+    )
     g.emit(f"{ind}nmax = -1")
     g.emit(f"{ind}for w in range(B):")
     i2 = ind + "    "

@@ -39,7 +39,9 @@ def geometry(g: Layout, ind: str, springs: list[int], pass_a: bool) -> None:
             g.emit(f"{ind}{ap[d]} = u{d}")
         if not pass_a:  # the first collapsed spring in spring order (pass A's ones come first: see below)
             intact = f" and {g.R['br', s]} == 0.0" if s in g.fragile else ""  # a broken spring may collapse
-            g.emit(f"{ind}{g.R['crushed']} = {float(s)!r} if (gone and {g.R['crushed']} < 0.0{intact}) else {g.R['crushed']}")
+            g.emit(
+                f"{ind}{g.R['crushed']} = {float(s)!r} if (gone and {g.R['crushed']} < 0.0{intact}) else {g.R['crushed']}"
+            )
         else:
             g.emit(f"{ind}gone{s} = gone")
         g.emit(f"{ind}e{s} = elongation_2d(ln, {g.R['l0', s]})")
@@ -47,7 +49,9 @@ def geometry(g: Layout, ind: str, springs: list[int], pass_a: bool) -> None:
             g.emit(f"{ind}e{s} = {g.R['e0', s]} + e{s}")
 
 
-def knot_search(g: Layout, ind: str, s: int, lo: str, hi: str, shift: str, ep: str, out: tuple[str, str, str]) -> None:
+def knot_search(
+    g: Layout, ind: str, s: int, lo: str, hi: str, shift: str, ep: str, out: tuple[str, str, str]
+) -> None:
     """Candidate |force| of the flagged knots of spring s's curve on the path (lo, hi) (abscissa of
     the curve), with the abscissa and force of the knot that gave it: ``out`` (kc, kx, ky), as
     kernel.compiled's knot loop (``knot_peak``, the first knot starting from 0)."""
@@ -128,20 +132,27 @@ def pass_a(g: Layout, ind: str) -> None:
         g.emit(f"{i2}L = {g.ramp(g.ca[s], f'(e - {st[5]})')}")
         g.emit(f"{i2}Ut = {g.ramp(g.cb[s], '(e - et)')}")
         g.emit(f"{i2}Uc = {g.ramp(g.cb[s], '(e - ec)')}")
-        g.emit(f"{i2}{g.R['F', s]}, {st[0]}, {st[1]}, {st[2]}, {st[3]}, {st[4]}, {st[6]}, {st[7]}, rev = general_law("
-             f"e, mode, et, ft, ec, fc, {st[6]}, {st[7]}, L, Ut, Uc, ytw, ycw)")
+        g.emit(
+            f"{i2}{g.R['F', s]}, {st[0]}, {st[1]}, {st[2]}, {st[3]}, {st[4]}, {st[6]}, {st[7]}, rev = general_law("
+            f"e, mode, et, ft, ec, fc, {st[6]}, {st[7]}, L, Ut, Uc, ytw, ycw)"
+        )
         g.emit(f"{i2}{g.R['E', s]} = e")
-        g.emit(f"{i2}{g.R['rev', s]} = {g.R['rev', s]} + 1.0 if rev else {g.R['rev', s]}"
-             if g.D > 1 else f"{i2}{g.R['rev', s]} = 1.0 if rev else 0.0")  # fmt: skip
+        g.emit(
+            f"{i2}{g.R['rev', s]} = {g.R['rev', s]} + 1.0 if rev else {g.R['rev', s]}"
+            if g.D > 1
+            else f"{i2}{g.R['rev', s]} = 1.0 if rev else 0.0"
+        )
         g.emit(f"{i2}nrev += 1 if rev else 0")
     g.emit(f"{ind}if nrev > 0:")
     for s in g.general:
         g.emit(f"{ind}    for w in range(B):")
         g.emit(f"{ind}        if {g.R['rev', s]} == 1.0 or {g.R['rev', s]} == 3.0:")
         rows = ", ".join(g.R["st", s, k] for k in range(8))
-        g.emit(f"{ind}            {g.R['F', s]}, {rows} = general_reverse_call({g.R['E', s]}, "
-             + ", ".join(g.R["st", s, k] for k in (0, 1, 2, 3, 4, 6, 7))
-             + f", {g.R['yt', s]}, {g.R['yc', s]}, {g.ca[s]}, {g.cb[s]}, vi[w], cx, cy, cds, cs0, cs1, off)")
+        g.emit(
+            f"{ind}            {g.R['F', s]}, {rows} = general_reverse_call({g.R['E', s]}, "
+            + ", ".join(g.R["st", s, k] for k in (0, 1, 2, 3, 4, 6, 7))
+            + f", {g.R['yt', s]}, {g.R['yc', s]}, {g.ca[s]}, {g.cb[s]}, vi[w], cx, cy, cds, cs0, cs1, off)"
+        )
 
 
 def failure(g: Layout, ind: str, s: int) -> None:
@@ -177,8 +188,10 @@ def pass_k(g: Layout, ind: str) -> None:
                 continue
             g.emit(f"{i2}a2 = 0.0")
             for d in range(g.D):
-                g.emit(f"{i2}ai = knot_accel({g.R['ao', p, d]}, {g.R['a', p, d]}, th, {g.R['kdf', s, d]}, "
-                     f"{g.R['im', p, d]}, {side})")
+                g.emit(
+                    f"{i2}ai = knot_accel({g.R['ao', p, d]}, {g.R['a', p, d]}, th, {g.R['kdf', s, d]}, "
+                    f"{g.R['im', p, d]}, {side})"
+                )
                 g.emit(f"{i2}a2 = a2 + ai * ai")
             g.emit(f"{i2}{g.R['pa', p]} = peak({g.R['pa', p]}, (a2 if {g.R['kh', s]} > 0.0 else 0.0) * af)")
 
@@ -195,8 +208,10 @@ def pass_b_springs(g: Layout, i2: str) -> None:
                 for d in range(g.D):
                     g.emit(f"{i2}ax{s}_{d} = {g.R['ax', s, d]}")
                 intact = f" and {g.R['br', s]} == 0.0" if s in g.fragile else ""
-                g.emit(f"{i2}{g.R['crushed']} = {float(s)!r} if ({g.R['rev', s]} >= 2.0 and {g.R['crushed']} < 0.0{intact})"
-                     f" else {g.R['crushed']}")  # fmt: skip
+                g.emit(
+                    f"{i2}{g.R['crushed']} = {float(s)!r} if ({g.R['rev', s]} >= 2.0 and {g.R['crushed']} < 0.0{intact})"
+                    f" else {g.R['crushed']}"
+                )
             failure(g, i2, s)
             if s in g.knotted:
                 knot_post(g, i2, s, g.R["gkc", s], g.R["gkx", s], g.R["gky", s], g.R["gksh", s])
@@ -215,14 +230,18 @@ def pass_b_springs(g: Layout, i2: str) -> None:
         elif k == codes.CRUSH:
             emin, fstar = g.R["st", s, 0], g.R["st", s, 1]
             g.emit(f"{i2}emin = {emin}")
-            g.emit(f"{i2}F{s}, {emin}, {fstar} = crush_law(e{s}, emin, {fstar}, {g.ramp(g.ca[s], f'e{s}')}, {g.R['kp', s]})")
+            g.emit(
+                f"{i2}F{s}, {emin}, {fstar} = crush_law(e{s}, emin, {fstar}, {g.ramp(g.ca[s], f'e{s}')}, {g.R['kp', s]})"
+            )
             if s in g.knotted:  # (e, e_min before the step): crushing further
                 g.emit(f"{i2}lo_, hi_, sh = crush_window(e{s}, emin)")
                 knot_search(g, i2, s, "lo_", "hi_", "sh", g.R["ep", s], ("kc", "kx", "ky"))
         elif k == codes.ELASTOPLASTIC:
             st0, st1 = g.R["st", s, 0], g.R["st", s, 1]
-            g.emit(f"{i2}F{s}, {st0}, {st1} = elastoplastic_law(e{s}, {st0}, {st1}, {g.R['kp', s]}, {g.R['kt', s]}, "
-                 f"{g.R['fy', s]})")
+            g.emit(
+                f"{i2}F{s}, {st0}, {st1} = elastoplastic_law(e{s}, {st0}, {st1}, {g.R['kp', s]}, {g.R['kt', s]}, "
+                f"{g.R['fy', s]})"
+            )
         elif k == codes.NONLINEAR_DAMPER:
             g.emit(f"{i2}rd = {edot(g, s)}")
             g.emit(f"{i2}F{s} = {g.ramp(g.ca[s], 'rd')}")
@@ -231,8 +250,10 @@ def pass_b_springs(g: Layout, i2: str) -> None:
             g.emit(f"{i2}rd = abs({edot(g, s)})")
             g.emit(f"{i2}F{s} = {g.ramp(rc[0], f'e{s}')}")
             for q in range(len(rc) - 1):
-                g.emit(f"{i2}F{s} = rate_segment(F{s}, rd, {g.R['rt', s, q]}, {g.R['rt', s, q + 1]}, "
-                     f"{g.ramp(rc[q], f'e{s}')}, {g.ramp(rc[q + 1], f'e{s}')})")
+                g.emit(
+                    f"{i2}F{s} = rate_segment(F{s}, rd, {g.R['rt', s, q]}, {g.R['rt', s, q + 1]}, "
+                    f"{g.ramp(rc[q], f'e{s}')}, {g.ramp(rc[q + 1], f'e{s}')})"
+                )
         else:  # pragma: no cover - the compiler knows no other material
             raise ValueError(f"material code {k}")
         failure(g, i2, s)

@@ -47,8 +47,19 @@ from crashstudy.kernel.output import KernelOutput
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-__all__ = ["BLOCK", "GEN_VERSION", "MAX_KNOTS", "ROW", "_constant_curves", "_shape", "_source", "is_compiled",
-           "run_generated", "shape_key", "unsupported"]  # fmt: skip
+__all__ = [
+    "BLOCK",
+    "GEN_VERSION",
+    "MAX_KNOTS",
+    "ROW",
+    "_constant_curves",
+    "_shape",
+    "_source",
+    "is_compiled",
+    "run_generated",
+    "shape_key",
+    "unsupported",
+]
 _LOCK = threading.Lock()
 _LOADED: dict[str, Any] = {}
 _source = source
@@ -94,8 +105,9 @@ def shape_key(shape: dict[str, Any]) -> str:
     return _source_key(shape)[1]
 
 
-def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None,
-                record: tuple[int, ...] = ()) -> bool:  # fmt: skip
+def is_compiled(
+    b: Batch, histories: tuple[str, ...], vary: frozenset[int] | None = None, record: tuple[int, ...] = ()
+) -> bool:
     """Whether this model shape's kernel is compiled: loaded in this process, or in numba's disk cache
     (wherever ``NUMBA_CACHE_DIR`` puts it; the index is written after the compiled code)."""
     shape = _shape(b, histories, vary, record=record)
@@ -106,13 +118,21 @@ def is_compiled(b: Batch, histories: tuple[str, ...], vary: frozenset[int] | Non
         return False
     try:
         mod = _module(shape)
-        return bool(mod.run_blocks.signatures) or os.path.exists(mod.run_blocks._cache._cache_file._index_path)
+        return bool(mod.run_blocks.signatures) or os.path.exists(
+            mod.run_blocks._cache._cache_file._index_path
+        )
     except Exception:  # numba internals moved: treat as not compiled
         return False
 
 
-def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozenset[int] | None = None,
-                  const: list[int] | None = None, record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
+def run_generated(
+    b: Batch,
+    histories: tuple[str, ...],
+    n_out: int,
+    vary: frozenset[int] | None = None,
+    const: list[int] | None = None,
+    record: tuple[int, ...] = (),
+) -> KernelOutput:
     """Integrate every variant of ``b`` with its model's generated kernel (results bitwise those of
     the reference kernel). ``b`` must be supported (:func:`unsupported` returns None). ``record``:
     nodes whose acceleration is kept at every step (``step_acceleration``)."""
@@ -123,5 +143,7 @@ def run_generated(b: Batch, histories: tuple[str, ...], n_out: int, vary: frozen
     mod = _module(shape)
     out, hist, summ = outputs(b, histories, n_out, record)
     topo, var = records(b)
-    run_blocks(mod.run_blocks, block_starts(b.x0.shape[2], BLOCK), n_out, _constants(b, shape), topo, var, hist, summ)
+    run_blocks(
+        mod.run_blocks, block_starts(b.x0.shape[2], BLOCK), n_out, _constants(b, shape), topo, var, hist, summ
+    )
     return finish(out, hist)

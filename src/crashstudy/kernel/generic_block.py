@@ -231,13 +231,17 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
     broken = np.zeros((S, B), dtype=np.bool_)
     options = np.zeros((2, S), dtype=np.bool_)  # rows PRELOADED, BREAKABLE
     ftmp = np.empty((2, B))
-    e_init = np.zeros((2, B))  # KE0 + IE0 (the energy at t = 0), KE0 + |IE0| (the error's and stop tests' scale)
+    e_init = np.zeros(
+        (2, B)
+    )  # KE0 + IE0 (the energy at t = 0), KE0 + |IE0| (the error's and stop tests' scale)
     for s in range(S):
         for w in range(B):
             q = lo + w
             ie[s, w] = P.ie0[s, q]
             options[PRELOADED, s] = options[PRELOADED, s] or P.e0[s, q] != 0.0
-            options[BREAKABLE, s] = options[BREAKABLE, s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
+            options[BREAKABLE, s] = (
+                options[BREAKABLE, s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
+            )
     if has_state and P.state0.shape[0] > 0:
         for s in range(S):
             for k in range(NSTATE):
@@ -251,11 +255,81 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
         e_init[1, w] = ke0[w] + abs(ie0)
 
     return Block(
-        m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b, cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg, g_argt, g_argc,
-        g_L, g_Ut, g_Uc, g_rev, dt_b, x, v, vnew, f, fext, fext_prev, acc, acc_prev, k_sh, k_c, k_x, k_y,
-        k_any, k_hit, k_th, k_dfax, jump_prev, pm_acc, axis_prev, state, forces, elong, f_prev, e_prev, ie,
-        pf, mc, pacc, pwall, e_tmp, ed_tmp, F_tmp, ax_tmp, edot_min, crushed, work, wall_e, wmax, ke0, ke,
-        ie_tot, err, bal, wforce, act, actf, n_fail, nst, next_rec, st_ok, me, broken, options, ftmp,
+        m_b,
+        im_b,
+        x0_b,
+        sg_b,
+        l0_b,
+        kp_b,
+        cx_b,
+        cy_b,
+        ds_b,
+        ky_b,
+        s0_b,
+        yt_b,
+        yc_b,
+        g_arg,
+        g_argt,
+        g_argc,
+        g_L,
+        g_Ut,
+        g_Uc,
+        g_rev,
+        dt_b,
+        x,
+        v,
+        vnew,
+        f,
+        fext,
+        fext_prev,
+        acc,
+        acc_prev,
+        k_sh,
+        k_c,
+        k_x,
+        k_y,
+        k_any,
+        k_hit,
+        k_th,
+        k_dfax,
+        jump_prev,
+        pm_acc,
+        axis_prev,
+        state,
+        forces,
+        elong,
+        f_prev,
+        e_prev,
+        ie,
+        pf,
+        mc,
+        pacc,
+        pwall,
+        e_tmp,
+        ed_tmp,
+        F_tmp,
+        ax_tmp,
+        edot_min,
+        crushed,
+        work,
+        wall_e,
+        wmax,
+        ke0,
+        ke,
+        ie_tot,
+        err,
+        bal,
+        wforce,
+        act,
+        actf,
+        n_fail,
+        nst,
+        next_rec,
+        st_ok,
+        me,
+        broken,
+        options,
+        ftmp,
         e_init,
     ), nmax
 
@@ -264,7 +338,15 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
 def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
     """A step where some lane failed (rare): unstable (energy balance) or, in 2-D, a spring crushed to zero
     length; those lanes stop."""
-    act, actf, bal, e_scale, wmax, crushed, st_ok = K.act, K.actf, K.bal, K.e_init[1], K.wmax, K.crushed, K.st_ok
+    act, actf, bal, e_scale, wmax, crushed, st_ok = (
+        K.act,
+        K.actf,
+        K.bal,
+        K.e_init[1],
+        K.wmax,
+        K.crushed,
+        K.st_ok,
+    )
     n_fail, dt_b = K.n_fail, K.dt_b
     for w in range(B):
         if not act[w]:
@@ -280,4 +362,3 @@ def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
         n_fail[w] = n
         act[w] = False
         actf[w] = 0.0
-

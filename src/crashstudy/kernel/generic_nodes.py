@@ -27,7 +27,9 @@ _inl = nb.njit(cache=True, nogil=True, inline="always")
 
 
 @_inl
-def fused_update(h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke, pacc):  # pragma: no cover - compiled
+def fused_update(
+    h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke, pacc
+):  # pragma: no cover - compiled
     """1-D without walls, prescribed motion or external forces: a = f/m, v^{n+1/2}, kinetic energy, peak |a|
     and x^{n+1} in one pass (the arithmetic of the general path; x and v advance before the failure check,
     which changes nothing a failed variant reports)."""
@@ -49,8 +51,33 @@ def fused_update(h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke
 
 
 @_inl
-def accelerate(n, h, lo, B, N, D, ext, has_gravity, load_node, load_curve, gravity, load_force, cx, cy, cds, cs0, off, m_b,
-               im_b, f, fext, v, vnew, acc, dt_b):  # pragma: no cover - compiled
+def accelerate(
+    n,
+    h,
+    lo,
+    B,
+    N,
+    D,
+    ext,
+    has_gravity,
+    load_node,
+    load_curve,
+    gravity,
+    load_force,
+    cx,
+    cy,
+    cds,
+    cs0,
+    off,
+    m_b,
+    im_b,
+    f,
+    fext,
+    v,
+    vnew,
+    acc,
+    dt_b,
+):  # pragma: no cover - compiled
     """External forces (gravity, then the loads in order, scaled by their time curves), a^n = (f + f_ext)/m
     and v^{n+1/2}. Every stage here takes the arrays of the topology and input records, not the records
     (an inlined stage binds its arguments: a record costs an incref per array)."""
@@ -83,8 +110,33 @@ def accelerate(n, h, lo, B, N, D, ext, has_gravity, load_node, load_curve, gravi
 
 
 @_inl
-def prescribed(n, h, lo, B, pm_node, pm_dir, pm_curve, pm_kind, pm_scale, cx, cy, cds, cs0, off, x0_b, m_b, x, v, vnew, acc,
-               pm_acc, f, fext, nst, dt_b):  # pragma: no cover - compiled
+def prescribed(
+    n,
+    h,
+    lo,
+    B,
+    pm_node,
+    pm_dir,
+    pm_curve,
+    pm_kind,
+    pm_scale,
+    cx,
+    cy,
+    cds,
+    cs0,
+    off,
+    x0_b,
+    m_b,
+    x,
+    v,
+    vnew,
+    acc,
+    pm_acc,
+    f,
+    fext,
+    nst,
+    dt_b,
+):  # pragma: no cover - compiled
     """Prescribed motion of its dofs: v^{n+1/2} and a^n from the curve; f_ext takes the force it needs."""
     for k in range(pm_node.shape[0]):
         p = pm_node[k]
@@ -96,7 +148,9 @@ def prescribed(n, h, lo, B, pm_node, pm_dir, pm_curve, pm_kind, pm_scale, cx, cy
             t = n * dt_b[w]
             dtn = h * dt_b[w]
             tc = time_curve_at(c, prescribed_time(kind, t, dt_b[w]), q, cx, cy, cds, cs0, off)
-            vn = prescribed_velocity(kind, x0_b[p, d, w], pm_scale[k, q], tc, x[p, d, w], v[p, d, w], dt_b[w], dtn)
+            vn = prescribed_velocity(
+                kind, x0_b[p, d, w], pm_scale[k, q], tc, x[p, d, w], v[p, d, w], dt_b[w], dtn
+            )
             vnew[p, d, w], pm_acc[k, w] = prescribed_step(n == nst[w], vn, v[p, d, w], pm_acc[k, w], dtn)
             acc[p, d, w] = pm_acc[k, w]
             ftot = f[p, d, w] + fext[p, d, w]
@@ -104,7 +158,9 @@ def prescribed(n, h, lo, B, pm_node, pm_dir, pm_curve, pm_kind, pm_scale, cx, cy
 
 
 @_inl
-def energies(n, lo, B, N, D, ext, v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work):  # pragma: no cover - compiled
+def energies(
+    n, lo, B, N, D, ext, v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work
+):  # pragma: no cover - compiled
     """Kinetic energy at t^n and the external work (trapezoid; over the first half step f^0 acts on the
     mean velocity (v0 + v^{1/2}) / 2)."""
     if n == 0:
@@ -142,7 +198,9 @@ def peak_accelerations(B, N, D, movable, acc, actf, pacc):  # pragma: no cover -
 
 
 @_inl
-def knot_accelerations(B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_prev, acc, im_b, actf, pacc):  # pragma: no cover - compiled
+def knot_accelerations(
+    B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_prev, acc, im_b, actf, pacc
+):  # pragma: no cover - compiled
     """|a| at the knot crossings of this step (see the reference)."""
     for s in range(si.shape[0]):
         if not k_any[s]:
@@ -161,8 +219,25 @@ def knot_accelerations(B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_pr
 
 
 @_inl
-def stop_tests(n, lo, B, S, opening_ok, ke_fraction, min_time, act, dt_b, forces, pf, edot_min, ke, wmax, nst, e_init,
-               n_end):  # pragma: no cover - compiled
+def stop_tests(
+    n,
+    lo,
+    B,
+    S,
+    opening_ok,
+    ke_fraction,
+    min_time,
+    act,
+    dt_b,
+    forces,
+    pf,
+    edot_min,
+    ke,
+    wmax,
+    nst,
+    e_init,
+    n_end,
+):  # pragma: no cover - compiled
     """Early termination (docs/format.md) of the running lanes; returns the step at which the first ends."""
     e_scale = e_init[1]
     for w in range(B):

@@ -14,8 +14,24 @@ _jit = nb.njit(cache=True, nogil=True)
 def record(n, lo, B, n_out, out_every, H, K):  # pragma: no cover - compiled
     """The histories of the lanes that sample at step n."""
     act, next_rec, x, x0_b, v, vnew, acc = K.act, K.next_rec, K.x, K.x0_b, K.v, K.vnew, K.acc
-    forces, elong, ke, ie_tot, work, wall_e, wforce = K.forces, K.elong, K.ke, K.ie_tot, K.work, K.wall_e, K.wforce
-    rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong = H.rec, H.pos, H.disp, H.vel, H.acc, H.force, H.elong
+    forces, elong, ke, ie_tot, work, wall_e, wforce = (
+        K.forces,
+        K.elong,
+        K.ke,
+        K.ie_tot,
+        K.work,
+        K.wall_e,
+        K.wforce,
+    )
+    rec_mask, h_pos, h_disp, h_vel, h_acc, h_force, h_elong = (
+        H.rec,
+        H.pos,
+        H.disp,
+        H.vel,
+        H.acc,
+        H.force,
+        H.elong,
+    )
     h_energy, h_wall = H.energy, H.wall
     N, D, _ = x.shape
     S = forces.shape[0]
@@ -56,10 +72,29 @@ def record(n, lo, B, n_out, out_every, H, K):  # pragma: no cover - compiled
 @_jit
 def results(lo, B, Out, K):  # pragma: no cover - compiled
     """Write the block's summaries to its variants' columns."""
-    st_ok, err, e_scale, wmax, nst, n_fail, dt_b = K.st_ok, K.err, K.e_init[1], K.wmax, K.nst, K.n_fail, K.dt_b
+    st_ok, err, e_scale, wmax, nst, n_fail, dt_b = (
+        K.st_ok,
+        K.err,
+        K.e_init[1],
+        K.wmax,
+        K.nst,
+        K.n_fail,
+        K.dt_b,
+    )
     ie, pf, mc, me, pacc, pwall = K.ie, K.pf, K.mc, K.me, K.pacc, K.pwall
-    status, t_end, absorbed, peak_force, max_crush = Out.status, Out.t_end, Out.absorbed, Out.peak_force, Out.max_crush
-    peak_acc, peak_wall, energy_error, max_elongation = Out.peak_acc, Out.peak_wall, Out.energy_error, Out.max_elongation
+    status, t_end, absorbed, peak_force, max_crush = (
+        Out.status,
+        Out.t_end,
+        Out.absorbed,
+        Out.peak_force,
+        Out.max_crush,
+    )
+    peak_acc, peak_wall, energy_error, max_elongation = (
+        Out.peak_acc,
+        Out.peak_wall,
+        Out.energy_error,
+        Out.max_elongation,
+    )
     S, N, W = ie.shape[0], pacc.shape[0], pwall.shape[0]
     for w in range(B):
         q = lo + w

@@ -48,8 +48,28 @@ def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - com
 
 
 @_inl
-def geometry(s, i, j, D, B, rates, pm_disp, x, x0_b, v, acc, dt_b, sg_b, l0_b, axis_prev, broken, crushed, e_tmp,
-             ed_tmp, ax_tmp):  # pragma: no cover - compiled
+def geometry(
+    s,
+    i,
+    j,
+    D,
+    B,
+    rates,
+    pm_disp,
+    x,
+    x0_b,
+    v,
+    acc,
+    dt_b,
+    sg_b,
+    l0_b,
+    axis_prev,
+    broken,
+    crushed,
+    e_tmp,
+    ed_tmp,
+    ax_tmp,
+):  # pragma: no cover - compiled
     """Spring s's elongation ``e_tmp``, axis ``ax_tmp`` and (``rates``, always in 2-D) elongation rate
     ``ed_tmp`` from v^{n-1/2} + dt/2 a^{n-1}; in 2-D the previous direction and the first collapsed spring
     (models are 1-D or 2-D: schema ``Vector``)."""
@@ -67,7 +87,9 @@ def geometry(s, i, j, D, B, rates, pm_disp, x, x0_b, v, acc, dt_b, sg_b, l0_b, a
     for w in range(B):
         u0 = x[j, 0, w] - x[i, 0, w]
         u1 = x[j, 1, w] - x[i, 1, w]
-        ax_tmp[0, w], ax_tmp[1, w], ln, gone = axis_2d(u0, u1, axis_prev[s, 0, w], axis_prev[s, 1, w], l0_b[s, w])
+        ax_tmp[0, w], ax_tmp[1, w], ln, gone = axis_2d(
+            u0, u1, axis_prev[s, 0, w], axis_prev[s, 1, w], l0_b[s, w]
+        )
         axis_prev[s, 0, w] = u0
         axis_prev[s, 1, w] = u1
         if gone and crushed[w] < 0 and not broken[s, w]:  # a broken spring may collapse
@@ -82,8 +104,9 @@ def geometry(s, i, j, D, B, rates, pm_disp, x, x0_b, v, acc, dt_b, sg_b, l0_b, a
 
 
 @_inl
-def knots_passed(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y,
-                 k_sh):  # pragma: no cover - compiled
+def knots_passed(
+    s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y, k_sh
+):  # pragma: no cover - compiled
     """How many lanes passed over a flagged knot of spring s's curve since the previous step (a cheap test
     without stores; the state is still the one before the step); if any, :func:`knot_search` (rare)."""
     nhit = 0
@@ -97,20 +120,24 @@ def knots_passed(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, sta
         elif kind == GENERAL:
             for w in range(B):
                 lo_, hi_, _ = general_window(
-                    e_prev[s, w], e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 3, w], state[s, 5, w])
+                    e_prev[s, w], e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 3, w], state[s, 5, w]
+                )
                 nhit += knot_inside(cx_b[k, w], lo_, hi_)
         else:
             for w in range(B):
                 lo_, hi_, _ = nonlinear_window(e_prev[s, w], e_tmp[w])
                 nhit += knot_inside(cx_b[k, w], lo_, hi_)
     if nhit > 0:
-        nhit = knot_search(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y, k_sh)
+        nhit = knot_search(
+            s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y, k_sh
+        )
     return nhit
 
 
 @_jit
-def knot_search(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y,
-                k_sh):  # pragma: no cover - compiled
+def knot_search(
+    s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y, k_sh
+):  # pragma: no cover - compiled
     """The knots of spring s's curve that its lanes passed over this step (rare): each lane's winning
     knot (k_c, k_x, k_y, k_sh; the state is still the one before the step). Returns how many lanes
     passed one."""
@@ -125,7 +152,8 @@ def knot_search(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, stat
                 yk = crush_knot_force(ky_b[k, w])
             elif kind == GENERAL:  # on the loading curve, in its own (shifted) abscissa
                 lo_, hi_, sh = general_window(
-                    e_prev[s, w], e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 3, w], state[s, 5, w])
+                    e_prev[s, w], e_tmp[w], state[s, 0, w], state[s, 1, w], state[s, 3, w], state[s, 5, w]
+                )
                 yk = ky_b[k, w]
             else:  # nonlinear_elastic: the whole path
                 lo_, hi_, sh = nonlinear_window(e_prev[s, w], e_tmp[w])
@@ -141,8 +169,9 @@ def knot_search(s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, stat
 
 
 @_inl
-def knot_peaks(s, B, D, k_c, k_x, k_y, k_sh, e_prev, e_tmp, f_prev, F_tmp, ax_tmp, broken, actf, k_hit, k_th, k_dfax,
-               pf):  # pragma: no cover - compiled
+def knot_peaks(
+    s, B, D, k_c, k_x, k_y, k_sh, e_prev, e_tmp, f_prev, F_tmp, ax_tmp, broken, actf, k_hit, k_th, k_dfax, pf
+):  # pragma: no cover - compiled
     """After a knot crossing (rare): the peak-force candidate, and the crossing fraction and force jump
     x axis for the deceleration at the crossing (see the reference)."""
     for w in range(B):
@@ -157,8 +186,9 @@ def knot_peaks(s, B, D, k_c, k_x, k_y, k_sh, e_prev, e_tmp, f_prev, F_tmp, ax_tm
 
 
 @_inl
-def failure(s, n, lo, B, fail_t, fail_c, spring_fail_time, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken,
-            ftmp):  # pragma: no cover - compiled
+def failure(
+    s, n, lo, B, fail_t, fail_c, spring_fail_time, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp
+):  # pragma: no cover - compiled
     """A breakable spring: past a failure elongation it breaks (force 0 from this step on); ftmp[0] / ftmp[1]
     are the elongation and activity its extremes take (the failure elongation, 0 once broken)."""
     for w in range(B):
@@ -176,8 +206,35 @@ def failure(s, n, lo, B, fail_t, fail_c, spring_fail_time, dt_b, e_tmp, e_prev, 
 
 
 @_inl
-def scatter(s, i, j, n, fh, fr, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp, actf, ftmp, f, ie, ie_tot, pf, mc, me,
-            forces, elong, f_prev, e_prev):  # pragma: no cover - compiled
+def scatter(
+    s,
+    i,
+    j,
+    n,
+    fh,
+    fr,
+    lo,
+    D,
+    B,
+    e0,
+    rate0,
+    dt_b,
+    F_tmp,
+    e_tmp,
+    ax_tmp,
+    actf,
+    ftmp,
+    f,
+    ie,
+    ie_tot,
+    pf,
+    mc,
+    me,
+    forces,
+    elong,
+    f_prev,
+    e_prev,
+):  # pragma: no cover - compiled
     """Spring s's force on its nodes (f[i] += F ax, f[j] -= F ax) and its summaries: absorbed energy
     (:func:`step_laws.energy_increment`; ``fh``: a preloaded spring's first step, F^0 acting for the first
     half step, :func:`step_laws.energy_first_half`), peak force and extremes (:func:`step_laws.spring_extremes`;
@@ -190,7 +247,9 @@ def scatter(s, i, j, n, fh, fr, lo, D, B, e0, rate0, dt_b, F_tmp, e_tmp, ax_tmp,
             e = e_tmp[w]
             af = actf[w]
             if n == 1 and fh and e0[s, lo + w] != 0.0:
-                ie[s, w] = energy_first_half(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], dt_b[w], rate0[s, lo + w], af)
+                ie[s, w] = energy_first_half(
+                    ie[s, w], F, f_prev[s, w], e, e_prev[s, w], dt_b[w], rate0[s, lo + w], af
+                )
             elif n > 0:
                 ie[s, w] = energy_increment(ie[s, w], F, f_prev[s, w], e, e_prev[s, w], af)
             ie_tot[w] += ie[s, w]

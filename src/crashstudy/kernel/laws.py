@@ -117,14 +117,23 @@ def general_law(e, mode, et, ft, ec, fc, yld_t, yld_c, L, Ut, Uc, yt, yc):  # pr
     to_t = is0 & (L >= yt)
     to_c = is0 & (L <= yc)
     rev = (ist & (not on_l) & (bt <= thr_c)) | (isc & (not on_lc) & (bc >= thr_t))
-    return (F, 1.0 if to_t else (-1.0 if to_c else mode),
-            e if (on_l | to_t) else et, L if (on_l | to_t) else ft,
-            e if (on_lc | to_c) else ec, L if (on_lc | to_c) else fc,
-            1.0 if to_t else yld_t, 1.0 if to_c else yld_c, rev)  # fmt: skip
+    return (
+        F,
+        1.0 if to_t else (-1.0 if to_c else mode),
+        e if (on_l | to_t) else et,
+        L if (on_l | to_t) else ft,
+        e if (on_lc | to_c) else ec,
+        L if (on_lc | to_c) else fc,
+        1.0 if to_t else yld_t,
+        1.0 if to_c else yld_c,
+        rev,
+    )
 
 
 @_jit
-def general_reverse(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off):  # pragma: no cover
+def general_reverse(
+    e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off
+):  # pragma: no cover
     """Rule 4 for a lane whose unloading line reached the other direction's yield force (rare).
 
     The state is the one before the step (a reversing lane is on its unloading line, so rules 1-3
@@ -144,10 +153,14 @@ def general_reverse(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx
 
 
 @_jit
-def general_reverse_call(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off):  # pragma: no cover
+def general_reverse_call(
+    e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off
+):  # pragma: no cover
     """:func:`general_reverse` compiled once and called (rarely) by every generated kernel instead of
     being inlined into each."""
-    return general_reverse(e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off)
+    return general_reverse(
+        e, mode, et, ft, ec, fc, yld_t, yld_c, yt, yc, ca, cb, v, cx, cy, cds, cs0, cs1, off
+    )
 
 
 @_jit

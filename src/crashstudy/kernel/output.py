@@ -13,8 +13,22 @@ from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, HISTORY_ORDER, HISTORY_
 EXTRA_SHAPES = {"filtered_acceleration": ("node",)}
 ALL_SHAPES = {**HISTORY_SHAPES, **EXTRA_SHAPES}
 
-__all__ = ["ALL_SHAPES", "CRUSHED_TO_ZERO", "EXTRA_SHAPES", "HISTORY_ORDER", "HISTORY_SHAPES", "INVALID", "OK",
-           "UNSTABLE", "KernelOutput", "allocate", "block_ends", "block_means", "block_rows", "concatenate"]  # fmt: skip
+__all__ = [
+    "ALL_SHAPES",
+    "CRUSHED_TO_ZERO",
+    "EXTRA_SHAPES",
+    "HISTORY_ORDER",
+    "HISTORY_SHAPES",
+    "INVALID",
+    "OK",
+    "UNSTABLE",
+    "KernelOutput",
+    "allocate",
+    "block_ends",
+    "block_means",
+    "block_rows",
+    "concatenate",
+]
 
 
 @dataclass
@@ -40,7 +54,9 @@ class KernelOutput:
     # SPEC v2 summaries
     max_elongation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (S, V) max stretch max(e)
     # while intact [length]
-    spring_fail_time: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # (S, V) [time] when a spring
+    spring_fail_time: np.ndarray = field(
+        default_factory=lambda: np.zeros((0, 0))
+    )  # (S, V) [time] when a spring
     # with a failure option broke (NaN while intact)
     # (T, M, D, V) [length/time^2] acceleration of the recorded (metric) nodes in blocks of k = Batch.rec_block[v]
     # steps: row r of variant v is the SUM of a^n over the steps of block r (block_rows; block_means gives the
@@ -58,14 +74,17 @@ def concatenate(parts: list[KernelOutput]) -> KernelOutput:
         return parts[0]
     first = parts[0]
     names = [f for f in vars(first) if f not in ("histories", "step_acceleration", "criteria")]
-    out = KernelOutput(**{n: np.concatenate([getattr(p, n) for p in parts], axis=-1) for n in names},
-                       histories={h: np.concatenate([p.histories[h] for p in parts], axis=-1)
-                                  for h in first.histories})  # fmt: skip
+    out = KernelOutput(
+        **{n: np.concatenate([getattr(p, n) for p in parts], axis=-1) for n in names},
+        histories={h: np.concatenate([p.histories[h] for p in parts], axis=-1) for h in first.histories},
+    )
     recs = [p.step_acceleration for p in parts]
     if all(r is not None for r in recs):
         T = max(r.shape[0] for r in recs if r is not None)
         out.step_acceleration = np.concatenate(
-            [np.pad(r, [(0, T - r.shape[0])] + [(0, 0)] * (r.ndim - 1)) for r in recs if r is not None], axis=-1)
+            [np.pad(r, [(0, T - r.shape[0])] + [(0, 0)] * (r.ndim - 1)) for r in recs if r is not None],
+            axis=-1,
+        )
     return out
 
 
@@ -74,12 +93,22 @@ def allocate(S: int, N: int, D: int, W: int, V: int, histories: tuple[str, ...],
     sizes = {"node": N, "axis": D, "spring": S, "wall": W}
     hist = {h: np.full((n_out, *(sizes[d] for d in ALL_SHAPES[h]), V), np.nan) for h in histories}
     return KernelOutput(
-        status=np.zeros(V, dtype=np.int64), fail_time=np.full(V, np.nan), fail_item=np.full(V, -1, dtype=np.int64),
-        t_end=np.zeros(V), peak_force=np.zeros((S, V)), max_crush=np.zeros((S, V)),
-        absorbed_energy=np.zeros((S, V)), peak_acceleration=np.zeros((N, V)), peak_wall_force=np.zeros((W, V)),
-        energy_error=np.zeros(V), final_energy=np.zeros((4, V)), histories=hist,
-        max_elongation=np.zeros((S, V)), spring_fail_time=np.full((S, V), np.nan), wall_impulse=np.zeros((W, V)),
-    )  # fmt: skip
+        status=np.zeros(V, dtype=np.int64),
+        fail_time=np.full(V, np.nan),
+        fail_item=np.full(V, -1, dtype=np.int64),
+        t_end=np.zeros(V),
+        peak_force=np.zeros((S, V)),
+        max_crush=np.zeros((S, V)),
+        absorbed_energy=np.zeros((S, V)),
+        peak_acceleration=np.zeros((N, V)),
+        peak_wall_force=np.zeros((W, V)),
+        energy_error=np.zeros(V),
+        final_energy=np.zeros((4, V)),
+        histories=hist,
+        max_elongation=np.zeros((S, V)),
+        spring_fail_time=np.full((S, V), np.nan),
+        wall_impulse=np.zeros((W, V)),
+    )
 
 
 def block_rows(n_steps: np.ndarray, k: np.ndarray) -> np.ndarray:

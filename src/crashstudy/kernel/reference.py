@@ -69,8 +69,13 @@ STOP_EVERY = 256  # steps between calls of run_reference's ``check``
 __all__ = ["TINY_LENGTH", "UNSTABLE_ENERGY", "run_reference"]
 
 
-def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Callable[[], None] | None = None,
-                  record: tuple[int, ...] = ()) -> KernelOutput:  # fmt: skip
+def run_reference(
+    b: Batch,
+    histories: tuple[str, ...],
+    n_out: int,
+    check: Callable[[], None] | None = None,
+    record: tuple[int, ...] = (),
+) -> KernelOutput:
     """Integrate every variant of ``b``; see the module docstring for the step. ``check`` is called
     every ``STOP_EVERY`` steps; it raises to abandon the batch (Ctrl-C). ``record``: nodes whose
     acceleration is kept at every step (``KernelOutput.step_acceleration``, for the crash criteria)."""
@@ -90,7 +95,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
     x = b.x0.copy()
     v = b.v0.copy()
     m = b.mass
-    state = b.state0.copy() if len(b.state0) else np.zeros((S, mat.NSTATE, V))  # preloaded springs: arrays.preload
+    state = (
+        b.state0.copy() if len(b.state0) else np.zeros((S, mat.NSTATE, V))
+    )  # preloaded springs: arrays.preload
     f_prev = np.zeros((S, V))
     e_prev = np.zeros((S, V))
     fext_prev = np.zeros((N, D, V))
@@ -105,7 +112,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         ie0 = ie0 + b.ie0[s]
     # preloaded springs (F^0 != 0 only with an initial elongation: every material curve passes the origin)
     first_half = (b.e0 != 0.0) & ~np.isin(b.material, DAMPER_MATERIALS)[:, None]
-    broken = np.zeros((S, V), dtype=bool)  # springs past a failure elongation: no force for the rest of the run
+    broken = np.zeros(
+        (S, V), dtype=bool
+    )  # springs past a failure elongation: no force for the rest of the run
     work = np.zeros(V)
     wall_e = np.zeros(V)
     wmax = np.zeros(V)
@@ -155,7 +164,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                 d = x[j] - x[i]
                 length = np.sqrt(np.sum(d * d, axis=0))
                 gone = (length <= TINY_LENGTH * b.length0[s]) | (np.sum(d * axis_prev[s], axis=0) <= 0.0)
-                crushed = np.where(gone & ~broken[s] & (crushed < 0), s, crushed)  # a broken spring may collapse
+                crushed = np.where(
+                    gone & ~broken[s] & (crushed < 0), s, crushed
+                )  # a broken spring may collapse
                 axis = d / np.where(gone, 1.0, length)
                 axis_prev[s] = d
                 e = b.e0[s] + (length - b.length0[s])
@@ -186,7 +197,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
             out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], np.abs(F)), out.peak_force[s])
             if st_before is not None:  # knots passed over since the previous step (docs/solver.md, "Peaks")
                 cand, th, dF = knot_crossing_np(b, s, e, e_prev[s], F, f_prev[s], st_before)
-                cand = np.where(broken[s], 0.0, cand)  # a spring that breaks in this step: the step's ends only
+                cand = np.where(
+                    broken[s], 0.0, cand
+                )  # a spring that breaks in this step: the step's ends only
                 out.peak_force[s] = np.where(act, np.maximum(out.peak_force[s], cand), out.peak_force[s])
                 knot_hit[s], knot_th[s], knot_dfax[s] = cand > 0.0, th, dF * axis
             # extremes while intact; a spring that breaks in this step reached its failure elongation
@@ -194,7 +207,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
             # laws.peak's running maximum (np.maximum(0.0, -0.0) is -0.0: a spring only ever in tension
             # reported a max_crush of -0.0)
             out.max_crush[s] = np.where(intact & (-e_max > out.max_crush[s]), -e_max, out.max_crush[s])
-            out.max_elongation[s] = np.where(intact & (e_max > out.max_elongation[s]), e_max, out.max_elongation[s])
+            out.max_elongation[s] = np.where(
+                intact & (e_max > out.max_elongation[s]), e_max, out.max_elongation[s]
+            )
         f_prev, e_prev = forces, elong
 
         fext = m[:, None, :] * b.gravity[None, :, :] * np.ones((N, D, 1))
@@ -220,7 +235,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         for k in range(len(b.pm_node)):
             p, d, c = b.pm_node[k], b.pm_dir[k], b.pm_curve[k]
             tc = mat.time_curve_eval(c, prescribed_time_np(b.pm_kind[k], t, dt), *cargs)
-            vn = prescribed_velocity_np(b.pm_kind[k], b.x0[p, d], b.pm_scale[k], tc, x[p, d], v[p, d], dt, dtn)
+            vn = prescribed_velocity_np(
+                b.pm_kind[k], b.x0[p, d], b.pm_scale[k], tc, x[p, d], v[p, d], dt, dtn
+            )
             vnew[p, d], a[p, d] = prescribed_step_np(n == nst, vn, v[p, d], a_prev[p, d], dtn)
             fext[p, d] += m[p] * a[p, d] - ftot[p, d]
 
@@ -260,7 +277,9 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         bal = energy_balance_np(ke, ie_tot, wall_now, e_init, work)
         err = np.where(act, np.maximum(err, bal), err)
         amag = np.sqrt(np.sum(a * a, axis=1))
-        out.peak_acceleration[:] = np.where(act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration)
+        out.peak_acceleration[:] = np.where(
+            act, np.maximum(out.peak_acceleration, amag), out.peak_acceleration
+        )
         for s in range(S if n > 0 else 0):
             if not knotted[s]:
                 continue
@@ -274,9 +293,12 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
                 ai = (1.0 - th) * a_prev[p] + th * a[p]
                 ai = ai + corr if sgn > 0 else ai - corr
                 amag = np.sqrt(np.sum(ai * ai, axis=0))
-                out.peak_acceleration[p] = np.where(act & knot_hit[s], np.maximum(out.peak_acceleration[p], amag),
-                                                    out.peak_acceleration[p])  # fmt: skip
-        out.peak_wall_force[:] = np.where(act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force)
+                out.peak_acceleration[p] = np.where(
+                    act & knot_hit[s], np.maximum(out.peak_acceleration[p], amag), out.peak_acceleration[p]
+                )
+        out.peak_wall_force[:] = np.where(
+            act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force
+        )
 
         bad = act & unstable_np(bal, unstable_limit_np(e_scale, wmax, b.energy_floor))
         out.status[:] = np.where(bad, UNSTABLE, out.status)
@@ -287,18 +309,43 @@ def run_reference(b: Batch, histories: tuple[str, ...], n_out: int, check: Calla
         ok = act & ~bad & ~gone
         if out.step_acceleration is not None:  # block sums, added in step order (as the fast kernels)
             q = np.flatnonzero(ok)
-            out.step_acceleration[(n + (rk[q] - 1) // 2) // rk[q], :, :, q] += a[rec_nodes][:, :, q].transpose(2, 0, 1)
+            out.step_acceleration[(n + (rk[q] - 1) // 2) // rk[q], :, :, q] += a[rec_nodes][
+                :, :, q
+            ].transpose(2, 0, 1)
 
-        rec = ok & (n % b.out_every == 0) & (n // b.out_every < n_out)  # the last step may pass the last sample
+        rec = (
+            ok & (n % b.out_every == 0) & (n // b.out_every < n_out)
+        )  # the last step may pass the last sample
         if rec.any() and histories:
-            _record(out, rec, n // b.out_every, x, b.x0, 0.5 * (v + vnew) if n > 0 else b.v0, a, forces, elong,
-                    ke, ie_tot, work, wall_now, wall_force)  # fmt: skip
+            _record(
+                out,
+                rec,
+                n // b.out_every,
+                x,
+                b.x0,
+                0.5 * (v + vnew) if n > 0 else b.v0,
+                a,
+                forces,
+                elong,
+                ke,
+                ie_tot,
+                work,
+                wall_now,
+                wall_force,
+            )
         out.t_end[:] = np.where(ok, t, out.t_end)
         last = ok & (n == nst)
         if b.ke_fraction.any():
             opening = (edot_min >= 0.0) & no_ext
-            small = stop_test_np(b.ke_fraction, np.sum(np.abs(forces), axis=0), np.sum(out.peak_force, axis=0), ke,
-                                 e_scale, wmax, opening)  # fmt: skip
+            small = stop_test_np(
+                b.ke_fraction,
+                np.sum(np.abs(forces), axis=0),
+                np.sum(out.peak_force, axis=0),
+                ke,
+                e_scale,
+                wmax,
+                opening,
+            )
             stop = ok & (b.ke_fraction > 0) & (t >= b.min_time) & small & (n > 0)
             nst = np.where(stop, n, nst)
             last |= stop
@@ -333,18 +380,54 @@ def _force(b: Batch, s: int, e: np.ndarray, edot: np.ndarray, st: np.ndarray, ca
         return mat.rate_elastic(e, edot, b.rate_curve[a:z], b.rate_at[a:z], *cargs)
     if kind == GENERAL:
         cx, cy, cds, cs0, off = cargs
-        return mat.general_nonlinear(e, st, int(b.curve_a[s]), int(b.curve_b[s]), b.yield_t[s], b.yield_c[s],
-                                     cx, cy, cds, cs0, b.cs1, off)  # fmt: skip
+        return mat.general_nonlinear(
+            e,
+            st,
+            int(b.curve_a[s]),
+            int(b.curve_b[s]),
+            b.yield_t[s],
+            b.yield_c[s],
+            cx,
+            cy,
+            cds,
+            cs0,
+            b.cs1,
+            off,
+        )
     raise ValueError(f"unknown material code {kind}")
 
 
-def _record(out: KernelOutput, rec: np.ndarray, k: np.ndarray, x, x0, vel, a, forces, elong, ke, ie, work,
-            wall_e, wall_force) -> None:  # fmt: skip
+def _record(
+    out: KernelOutput,
+    rec: np.ndarray,
+    k: np.ndarray,
+    x,
+    x0,
+    vel,
+    a,
+    forces,
+    elong,
+    ke,
+    ie,
+    work,
+    wall_e,
+    wall_force,
+) -> None:
     cols = np.nonzero(rec)[0]
     rows = k[cols]
-    values = {"position": x, "displacement": x - x0, "velocity": vel, "acceleration": a,
-              "spring_force": forces, "spring_elongation": elong, "kinetic_energy": ke,
-              "internal_energy": ie, "external_work": work, "wall_energy": wall_e, "wall_force": wall_force}  # fmt: skip
+    values = {
+        "position": x,
+        "displacement": x - x0,
+        "velocity": vel,
+        "acceleration": a,
+        "spring_force": forces,
+        "spring_elongation": elong,
+        "kinetic_energy": ke,
+        "internal_energy": ie,
+        "external_work": work,
+        "wall_energy": wall_e,
+        "wall_force": wall_force,
+    }
     for name, arr in out.histories.items():
         src = values[name]
         arr[rows, ..., cols] = np.moveaxis(src[..., cols], -1, 0)

@@ -26,14 +26,17 @@ def spring_knotted(b: Batch) -> np.ndarray:
     return out
 
 
-def knot_peak_np(cand: np.ndarray, e_lo: np.ndarray, e_hi: np.ndarray, xk: np.ndarray, yk: np.ndarray) -> np.ndarray:
+def knot_peak_np(
+    cand: np.ndarray, e_lo: np.ndarray, e_hi: np.ndarray, xk: np.ndarray, yk: np.ndarray
+) -> np.ndarray:
     """NumPy twin of :func:`crashstudy.kernel.laws.knot_peak`: ``max(cand, |yk|)`` where ``e_lo < xk < e_hi``."""
     ak = np.abs(yk)
     return np.where((xk > e_lo) & (xk < e_hi) & (ak > cand), ak, cand)
 
 
-def knot_crossing_np(b: Batch, s: int, e: np.ndarray, ep: np.ndarray, F: np.ndarray, Fp: np.ndarray,
-                       st: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def knot_crossing_np(
+    b: Batch, s: int, e: np.ndarray, ep: np.ndarray, F: np.ndarray, Fp: np.ndarray, st: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Knots of spring ``s``'s curve passed over on its elastic (loading) path from ``ep`` to ``e``.
 
     ``st`` is the material state before this step. The path segment ``(lo, hi)`` in the curve's abscissa:

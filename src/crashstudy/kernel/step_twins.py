@@ -11,8 +11,9 @@ import numpy as np
 from crashstudy.vocabulary.codes import PM_ACCELERATION, PM_DISPLACEMENT, TINY_LENGTH, UNSTABLE_ENERGY
 
 
-def axis_2d_np(u0: np.ndarray, u1: np.ndarray, p0: np.ndarray, p1: np.ndarray, l0: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def axis_2d_np(
+    u0: np.ndarray, u1: np.ndarray, p0: np.ndarray, p1: np.ndarray, l0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Unit direction, length and collapse flag of a 2-D spring (the twin of ``laws.axis_2d``; the
     reference's D-generic sums, ``reference.run_reference``, are the same operations for D = 2)."""
     ln = np.sqrt((0.0 + u0 * u0) + u1 * u1)
@@ -26,8 +27,9 @@ def half_step_np(vo: np.ndarray, a: np.ndarray, dtn: np.ndarray | float) -> np.n
     return vo + dtn * a
 
 
-def advance_np(x: np.ndarray, vo: np.ndarray, vn: np.ndarray, dt: np.ndarray, af: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray]:
+def advance_np(
+    x: np.ndarray, vo: np.ndarray, vn: np.ndarray, dt: np.ndarray, af: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """x^{n+1} and the velocity kept (the twin of ``step_laws.advance``)."""
     return x + (dt * af) * vn, vn * af + vo * (1.0 - af)
 
@@ -37,10 +39,18 @@ def kinetic_np(ke: np.ndarray, m: np.ndarray, vo: np.ndarray, vn: np.ndarray) ->
     return ke + 0.5 * m * vo * vn
 
 
-def spring_extremes_np(pf: np.ndarray, mc: np.ndarray, me: np.ndarray, F: np.ndarray, af: np.ndarray,
-                       em: np.ndarray, ai: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def spring_extremes_np(
+    pf: np.ndarray,
+    mc: np.ndarray,
+    me: np.ndarray,
+    F: np.ndarray,
+    af: np.ndarray,
+    em: np.ndarray,
+    ai: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Peak |force|, crush and elongation (the twin of ``step_laws.spring_extremes``; ``laws.peak``'s
     running maximum: ``np.maximum(0.0, -0.0)`` is -0.0)."""
+
     def peak(p: np.ndarray, x: np.ndarray) -> np.ndarray:
         return np.where(x > p, x, p)
 
@@ -52,8 +62,16 @@ def prescribed_time_np(kind: int, t: np.ndarray, dt: np.ndarray) -> np.ndarray:
     return t + dt if kind == PM_DISPLACEMENT else t if kind == PM_ACCELERATION else t + 0.5 * dt
 
 
-def prescribed_velocity_np(kind: int, x0: np.ndarray, scale: np.ndarray, tc: np.ndarray, x: np.ndarray,
-                           v: np.ndarray, dt: np.ndarray, dtn: np.ndarray) -> np.ndarray:
+def prescribed_velocity_np(
+    kind: int,
+    x0: np.ndarray,
+    scale: np.ndarray,
+    tc: np.ndarray,
+    x: np.ndarray,
+    v: np.ndarray,
+    dt: np.ndarray,
+    dtn: np.ndarray,
+) -> np.ndarray:
     """v^{n+1/2} of a driven dof (the twin of ``step_laws.prescribed_velocity``)."""
     if kind == PM_DISPLACEMENT:
         return (x0 + scale * tc - x) / dt
@@ -62,23 +80,32 @@ def prescribed_velocity_np(kind: int, x0: np.ndarray, scale: np.ndarray, tc: np.
     return scale * tc
 
 
-def prescribed_step_np(last: np.ndarray | bool, vn: np.ndarray, vo: np.ndarray, pa: np.ndarray, dtn: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def prescribed_step_np(
+    last: np.ndarray | bool, vn: np.ndarray, vo: np.ndarray, pa: np.ndarray, dtn: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(v^{n+1/2}, a^n); the last step continues with ``pa`` (the twin of ``step_laws.prescribed_step``)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(last, vo + dtn * pa, vn), np.where(last, pa, (vn - vo) / dtn)
 
 
-def stop_test_np(kef: np.ndarray, fsum: np.ndarray, psum: np.ndarray, ke: np.ndarray, scale: np.ndarray,
-                 wmax: np.ndarray, opening: np.ndarray) -> np.ndarray:
+def stop_test_np(
+    kef: np.ndarray,
+    fsum: np.ndarray,
+    psum: np.ndarray,
+    ke: np.ndarray,
+    scale: np.ndarray,
+    wmax: np.ndarray,
+    opening: np.ndarray,
+) -> np.ndarray:
     """Early termination's force and energy test (the twin of ``step_laws.stop_test``)."""
     small_f = fsum <= kef * psum
     small_ke = ke <= kef * (scale + wmax)
     return small_f & (small_ke | opening)
 
 
-def energy_balance_np(ke: np.ndarray, ie: np.ndarray, wall: np.ndarray, e_init: np.ndarray, work: np.ndarray
-                      ) -> np.ndarray:
+def energy_balance_np(
+    ke: np.ndarray, ie: np.ndarray, wall: np.ndarray, e_init: np.ndarray, work: np.ndarray
+) -> np.ndarray:
     """|KE + IE + E_wall - E^0 - W_ext| per variant (the twin of ``step_laws.energy_balance``)."""
     return np.abs(ke + ie + wall - e_init - work)
 
@@ -107,14 +134,31 @@ def wall_penalty_np(k: np.ndarray, gap: np.ndarray) -> tuple[np.ndarray, np.ndar
     return fp, 0.5 * fp * pen
 
 
-def wall_plane_np(vn: np.ndarray, gap: np.ndarray, dist: np.ndarray, v: np.ndarray, x: np.ndarray, p: np.ndarray,
-                  nr: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def wall_plane_np(
+    vn: np.ndarray,
+    gap: np.ndarray,
+    dist: np.ndarray,
+    v: np.ndarray,
+    x: np.ndarray,
+    p: np.ndarray,
+    nr: np.ndarray,
+    dt: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One dof's share of the normal velocity and the plane distances (the twin of ``step_laws.wall_plane``)."""
     return vn + v * nr, gap + (x - p) * nr, dist + ((x + dt * v) - p) * nr
 
 
-def wall_dof_np(dvn: np.ndarray, c: np.ndarray, nr: np.ndarray, free: np.ndarray, v: np.ndarray, a: np.ndarray,
-                vo: np.ndarray, jp: np.ndarray, we: np.ndarray) -> tuple[np.ndarray, ...]:
+def wall_dof_np(
+    dvn: np.ndarray,
+    c: np.ndarray,
+    nr: np.ndarray,
+    free: np.ndarray,
+    v: np.ndarray,
+    a: np.ndarray,
+    vo: np.ndarray,
+    jp: np.ndarray,
+    we: np.ndarray,
+) -> tuple[np.ndarray, ...]:
     """One dof at a rigid wall: (v, a, wall work, jump) (the twin of ``step_laws.wall_dof``)."""
     jmp = dvn * nr * free
     return v + jmp, a + c * nr * free, we + vo * (jmp + jp), jmp

@@ -51,8 +51,31 @@ def penalty(
 
 
 @_jit
-def rigid(lo, B, W, N, D, h, wall_nodes, wall_normal, wall_point, wall_k, free, x, v, vnew, acc, m_b, dt_b, jump_prev,
-          wall_e, wforce, wall_impulse, act, actf):  # pragma: no cover  # fmt: skip
+def rigid(
+    lo,
+    B,
+    W,
+    N,
+    D,
+    h,
+    wall_nodes,
+    wall_normal,
+    wall_point,
+    wall_k,
+    free,
+    x,
+    v,
+    vnew,
+    acc,
+    m_b,
+    dt_b,
+    jump_prev,
+    wall_e,
+    wforce,
+    wall_impulse,
+    act,
+    actf,
+):  # pragma: no cover
     """Rigid walls: land a node crossing the plane on it; the held part of the jump is the contact force
     (added to ``wforce`` and to the node's acceleration), the rest the impact impulse."""
     for wl in range(W):
@@ -65,8 +88,16 @@ def rigid(lo, B, W, N, D, h, wall_nodes, wall_normal, wall_point, wall_k, free, 
                 gap = 0.0
                 dist = 0.0
                 for d in range(D):
-                    vn, gap, dist = sl.wall_plane(vn, gap, dist, vnew[n_, d, w], x[n_, d, w], wall_point[wl, d, q],
-                                                  wall_normal[wl, d, q], dt_b[w])
+                    vn, gap, dist = sl.wall_plane(
+                        vn,
+                        gap,
+                        dist,
+                        vnew[n_, d, w],
+                        x[n_, d, w],
+                        wall_point[wl, d, q],
+                        wall_normal[wl, d, q],
+                        dt_b[w],
+                    )
                 dvn = sl.wall_jump(vn, gap, dist, dt_b[w], wall_k[wl, q])
                 an = 0.0
                 for d in range(D):
@@ -75,8 +106,16 @@ def rigid(lo, B, W, N, D, h, wall_nodes, wall_normal, wall_point, wall_k, free, 
                 we = 0.0
                 for d in range(D):
                     vnew[n_, d, w], acc[n_, d, w], we, jump_prev[wl, n_, d, w] = sl.wall_dof(
-                        dvn, c, wall_normal[wl, d, q], free[n_, d], vnew[n_, d, w], acc[n_, d, w], v[n_, d, w],
-                        jump_prev[wl, n_, d, w], we)
+                        dvn,
+                        c,
+                        wall_normal[wl, d, q],
+                        free[n_, d],
+                        vnew[n_, d, w],
+                        acc[n_, d, w],
+                        v[n_, d, w],
+                        jump_prev[wl, n_, d, w],
+                        we,
+                    )
                 if act[w]:
                     wall_e[w] += sl.wall_work(m_b[n_, w], we)
                 wforce[wl, w] += sl.wall_force(m_b[n_, w], c)

@@ -50,7 +50,9 @@ def main(argv: list[str]) -> int:
     with open(folder / (os.path.basename(job["lock"]) if call is not None else LOCK_NAME), "a+") as lock:
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            write_holder(lock, list(job.get("keys", job["kernels"])), [float(s) for s in job.get("seconds", [])])
+            write_holder(
+                lock, list(job.get("keys", job["kernels"])), [float(s) for s in job.get("seconds", [])]
+            )
         except OSError:
             if not job.get("must"):
                 return 0  # another process compiles; it leaves the kernel in the same cache

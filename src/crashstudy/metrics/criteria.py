@@ -72,10 +72,19 @@ STANDARDS = {
     "delta_v": "largest velocity change along the direction",
 }
 UNITS = {
-    "peak_g": "g", "hic15": "1", "hic36": "1", "hic15_t1": "s", "hic15_t2": "s", "hic36_t1": "s",
-    "hic36_t2": "s", "clip3ms": "g", "clip3ms_cumulative": "g", "olc": "g", "dri": "1",
+    "peak_g": "g",
+    "hic15": "1",
+    "hic36": "1",
+    "hic15_t1": "s",
+    "hic15_t2": "s",
+    "hic36_t1": "s",
+    "hic36_t2": "s",
+    "clip3ms": "g",
+    "clip3ms_cumulative": "g",
+    "olc": "g",
+    "dri": "1",
     "delta_v": "velocity",
-}  # fmt: skip
+}
 
 DRI_OMEGA = 52.9  # rad/s
 DRI_ZETA = 0.224
@@ -85,8 +94,20 @@ OLC_FREE = 0.065  # m
 OLC_RESTRAINED = 0.235  # m
 MIN_PART = 256  # variants: fewer run on one thread
 
-_COLS = ("peak_g", "hic15", "hic15_t1", "hic15_t2", "hic36", "hic36_t1", "hic36_t2", "clip3ms",
-         "clip3ms_cumulative", "olc", "dri", "delta_v")  # fmt: skip
+_COLS = (
+    "peak_g",
+    "hic15",
+    "hic15_t1",
+    "hic15_t2",
+    "hic36",
+    "hic36_t1",
+    "hic36_t2",
+    "clip3ms",
+    "clip3ms_cumulative",
+    "olc",
+    "dri",
+    "delta_v",
+)
 # status bits of a variant (the note)
 _NO_FILTER, _LOW_RATE, _OLC_FREE, _OLC_END, _SHORT_CLIP, _SHORT, _NOT_FINITE = 1, 2, 4, 8, 16, 32, 64
 _NOTES = {
@@ -231,7 +252,9 @@ def _driver(
                 status[v] |= 16
             out[v, 7] = lev
             if want[4]:
-                out[v, 8] = clip_cumulative_row(res, n, h, CLIP_WINDOW, lev if lev == lev else -np.inf, lo, hi)
+                out[v, 8] = clip_cumulative_row(
+                    res, n, h, CLIP_WINDOW, lev if lev == lev else -np.inf, lo, hi
+                )
         if want[5]:
             u[0] = u0[v]
             for k in range(1, n):
@@ -319,11 +342,17 @@ def compute(
     status = np.zeros(nv, dtype=np.int64)
     acc = np.ascontiguousarray(acc)
     consts = (float(cfc), pad_code(pad), float(g), want, OLC_FREE * metre, OLC_RESTRAINED * metre)
-    driver, compiled = driver_for(_driver, int(np.sum(count)))  # a small record on a fresh machine: no compile
+    driver, compiled = driver_for(
+        _driver, int(np.sum(count))
+    )  # a small record on a fresh machine: no compile
 
-    def part(lo: int, hi: int) -> None:  # variants lo:hi (the compiled driver holds no GIL: parts run side by side)
+    def part(
+        lo: int, hi: int
+    ) -> None:  # variants lo:hi (the compiled driver holds no GIL: parts run side by side)
         s = slice(lo, hi)
-        driver(acc[s], count[s], dt[s], dt_s[s], u0[s], dirs[s], *consts, phi[s], g0[s], gs[s], out[s], status[s])
+        driver(
+            acc[s], count[s], dt[s], dt_s[s], u0[s], dirs[s], *consts, phi[s], g0[s], gs[s], out[s], status[s]
+        )
 
     bounds = np.linspace(0, nv, min(get_threads(), max(nv // MIN_PART, 1)) + 1).astype(np.int64)
     if len(bounds) <= 2 or not compiled:

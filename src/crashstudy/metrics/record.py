@@ -55,7 +55,7 @@ METRIC_META = {  # name: (unit kind, long name); the standard each follows: cras
     "olc": ("g", "occupant load criterion (65 mm free flight, 235 mm restrained)"),
     "dri": ("1", "dynamic response index (omega 52.9 rad/s, zeta 0.224) of the unfiltered deceleration"),
     "delta_v": ("velocity", "largest change of velocity along the direction from the initial value"),
-}  # fmt: skip
+}
 NOTE_TEXT = "criteria_note"
 NOTE_LONG = "why a crash criterion of the variant is not trusted (empty if every one is)"
 
@@ -140,8 +140,9 @@ class Recorder:
         return out
 
 
-def run_recorded(batch: Any, run: Callable[[Any], KernelOutput], topo: Any, n_out: int,
-                 budget: int | None = None) -> tuple[KernelOutput, ChunkCriteria]:  # fmt: skip
+def run_recorded(
+    batch: Any, run: Callable[[Any], KernelOutput], topo: Any, n_out: int, budget: int | None = None
+) -> tuple[KernelOutput, ChunkCriteria]:
     """Run ``batch`` through ``run`` (a kernel call that records the metric nodes) in groups whose
     record stays within ``budget`` bytes (default :data:`RECORD_BUDGET`); the criteria of each group
     are computed at once and its record dropped."""
@@ -158,8 +159,10 @@ def run_recorded(batch: Any, run: Callable[[Any], KernelOutput], topo: Any, n_ou
         crits.append(criteria_of(topo, sub, o, n_out))
         o.step_acceleration = None
         outs.append(o)
-    crit = ChunkCriteria({k: np.concatenate([c.values[k] for c in crits]) for k in crits[0].values},
-                         np.concatenate([c.notes for c in crits]))  # fmt: skip
+    crit = ChunkCriteria(
+        {k: np.concatenate([c.values[k] for c in crits]) for k in crits[0].values},
+        np.concatenate([c.notes for c in crits]),
+    )
     return concatenate(outs), crit
 
 
@@ -200,20 +203,24 @@ def criteria_of(topo: Any, b: Any, o: KernelOutput, n_out: int) -> ChunkCriteria
         m = topo.metric_nodes.index(mt.node)
         acc = _means_si(rec[:, m], ok, last, kb, metre / second**2)  # (v, T, D) SI
         v0 = b.v0[mt.node][:, ok].T * (metre / second)
-        res = criteria.compute(acc, count[ok], step[ok] * second, v0, _directions(mt, v0), mt.cfc,
-                               list(mt.criteria), G_SI)  # fmt: skip
+        res = criteria.compute(
+            acc, count[ok], step[ok] * second, v0, _directions(mt, v0), mt.cfc, list(mt.criteria), G_SI
+        )
         scale = {"velocity": second / metre, "time": 1.0 / second}
         wanted = set(mt.criteria) | {e for c in mt.criteria for e in criteria.EXTRA.get(c, ())}
         for name in (n for n in values if n in res and n in wanted):
-            values[name][ok, mt.node] = np.asarray(res[name], dtype=np.float64) * scale.get(METRIC_META[name][0], 1.0)
+            values[name][ok, mt.node] = np.asarray(res[name], dtype=np.float64) * scale.get(
+                METRIC_META[name][0], 1.0
+            )
         node_id = topo.node_ids[mt.node]
         for k, note in zip(ok, res.get("criteria_note", ()), strict=False):
             if note:
                 notes.setdefault(int(k), []).append(f"{node_id}: {note}")
         if filtered is not None and mt.node not in done_filter:
             done_filter.add(mt.node)
-            filtered[:, mt.node, ok] = _filtered_samples(acc, count[ok], step[ok] * second,
-                                                         b.out_every[ok] / kb[ok], mt.cfc, n_out)  # fmt: skip
+            filtered[:, mt.node, ok] = _filtered_samples(
+                acc, count[ok], step[ok] * second, b.out_every[ok] / kb[ok], mt.cfc, n_out
+            )
     if filtered is not None:
         o.histories["filtered_acceleration"] = filtered
     texts = np.full(V, "", dtype=object)
@@ -240,8 +247,9 @@ def _means_si(rec: np.ndarray, ok: np.ndarray, last: np.ndarray, k: np.ndarray, 
     return acc
 
 
-def _filtered_samples(acc: np.ndarray, count: np.ndarray, dt: np.ndarray, every: np.ndarray, cfc: int,
-                      n_out: int) -> np.ndarray:  # fmt: skip
+def _filtered_samples(
+    acc: np.ndarray, count: np.ndarray, dt: np.ndarray, every: np.ndarray, cfc: int, n_out: int
+) -> np.ndarray:
     """(n_out, v) filtered resultant [g] of ``acc`` (v, T, D) [m/s^2] at rows ``i * every`` (``every``: the
     history's sampling interval in record rows, not always whole: linear between rows), NaN after the end."""
     from crashstudy.metrics.criteria import j211_filter
@@ -275,7 +283,9 @@ def plan_warnings(plan: Any) -> list[str]:
     out = []
     for k, mt in enumerate(topo.metrics):
         if rate < 10.0 * mt.cfc:
-            out.append(f"{where}: metrics.{k}.cfc: CFC {mt.cfc} asks for a sample rate of {10 * mt.cfc:g} Hz, the "
-                       f"time step gives {rate:.4g} Hz: the filtered pulse and its criteria depend on the step "
-                       "(criteria_note says so); a smaller dt or tolerance resolves it")  # fmt: skip
+            out.append(
+                f"{where}: metrics.{k}.cfc: CFC {mt.cfc} asks for a sample rate of {10 * mt.cfc:g} Hz, the "
+                f"time step gives {rate:.4g} Hz: the filtered pulse and its criteria depend on the step "
+                "(criteria_note says so); a smaller dt or tolerance resolves it"
+            )
     return out

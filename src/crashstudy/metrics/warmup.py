@@ -40,5 +40,7 @@ def compile_criteria() -> None:
 
     interpreted.compile_from_now()  # else this short pulse would run as plain Python, compiling nothing
     acc = np.zeros((1, 8, 1))
-    criteria.compute(acc, np.array([8]), np.array([1e-4]), np.ones((1, 1)), np.ones(1), 180, criteria.CRITERIA, 9.80665)
+    criteria.compute(
+        acc, np.array([8]), np.array([1e-4]), np.ones((1, 1)), np.ones(1), 180, criteria.CRITERIA, 9.80665
+    )
     criteria.j211_filter(acc[:, :, 0], np.array([8]), np.array([1e-4]), 180)

@@ -18,11 +18,21 @@ from crashstudy.units import UNIT_SYSTEMS
 def units_of(plan: Plan) -> dict[str, str]:
     """The unit of each unit kind (``SUMMARY_META``, ``HISTORY_META``, :func:`axis_unit`) in the plan's system."""
     u = UNIT_SYSTEMS[plan.topology.units]
-    return {"length": u.length, "time": u.time, "velocity": u.velocity, "acceleration": u.acceleration,
-            "force": u.force, "energy": u.energy, "mass": u.mass, "1": "1", "g": "g",
-            "stiffness": f"{u.force}/{u.length}", "damping": f"{u.force}*{u.time}/{u.length}",
-            "impulse": f"{u.force}*{u.time}",
-            "curve": "curve units (x: length or time, y: force or motion)"}  # fmt: skip
+    return {
+        "length": u.length,
+        "time": u.time,
+        "velocity": u.velocity,
+        "acceleration": u.acceleration,
+        "force": u.force,
+        "energy": u.energy,
+        "mass": u.mass,
+        "1": "1",
+        "g": "g",
+        "stiffness": f"{u.force}/{u.length}",
+        "damping": f"{u.force}*{u.time}/{u.length}",
+        "impulse": f"{u.force}*{u.time}",
+        "curve": "curve units (x: length or time, y: force or motion)",
+    }
 
 
 def axis_unit(path: str, plan: Plan) -> str:
@@ -63,9 +73,17 @@ def model_facts(p: Plan) -> dict[str, str]:
     topo = p.topology
     driven = set(np.asarray(topo.pm_node).tolist())
     free = [n for k, n in enumerate(topo.node_ids) if not bool(np.all(topo.fixed[k])) and k not in driven]
-    mass = {n: float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]]) for n in topo.node_ids if f"nodes.{n}.mass" in topo.paths}
-    return {"free_nodes": json.dumps(free), "node_mass": json.dumps(mass), "regression": json.dumps(p.regression),
-            "body": json.dumps(body_facts(p))}  # fmt: skip
+    mass = {
+        n: float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]])
+        for n in topo.node_ids
+        if f"nodes.{n}.mass" in topo.paths
+    }
+    return {
+        "free_nodes": json.dumps(free),
+        "node_mass": json.dumps(mass),
+        "regression": json.dumps(p.regression),
+        "body": json.dumps(body_facts(p)),
+    }
 
 
 def body_facts(p: Plan) -> dict[str, Any]:
@@ -75,9 +93,19 @@ def body_facts(p: Plan) -> dict[str, Any]:
     ``prescribed_motion`` (whether the model drives a node)."""
     topo = p.topology
     driven = set(np.asarray(topo.pm_node).tolist())
-    free = [(float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]]), n) for k, n in enumerate(topo.node_ids)
-            if not bool(np.any(topo.fixed[k])) and k not in driven]  # fmt: skip
+    free = [
+        (float(p.base[topo.paths[f"nodes.{n}.mass"].slots[0]]), n)
+        for k, n in enumerate(topo.node_ids)
+        if not bool(np.any(topo.fixed[k])) and k not in driven
+    ]
     dim = topo.fixed.shape[1]
-    speeds = [float(np.linalg.norm([p.base[topo.paths[f"initial_velocity.{n}.{d}"].slots[0]] for d in range(dim)]))
-              for n in topo.node_ids if f"initial_velocity.{n}.0" in topo.paths]  # fmt: skip
-    return {"node": max(free)[1] if free else None, "initial_speeds": speeds, "prescribed_motion": bool(driven)}
+    speeds = [
+        float(np.linalg.norm([p.base[topo.paths[f"initial_velocity.{n}.{d}"].slots[0]] for d in range(dim)]))
+        for n in topo.node_ids
+        if f"initial_velocity.{n}.0" in topo.paths
+    ]
+    return {
+        "node": max(free)[1] if free else None,
+        "initial_speeds": speeds,
+        "prescribed_motion": bool(driven),
+    }

@@ -34,7 +34,9 @@ def curve_springs(material: np.ndarray, curve: np.ndarray) -> list[int]:
     return [s for s in range(len(material)) if int(material[s]) in ENDS_OF and int(curve[s]) >= 0]
 
 
-def past_curve_ends(b: Any, max_crush: np.ndarray, max_elongation: np.ndarray, cols: np.ndarray) -> np.ndarray:
+def past_curve_ends(
+    b: Any, max_crush: np.ndarray, max_elongation: np.ndarray, cols: np.ndarray
+) -> np.ndarray:
     """(S, V) codes (``PAST_FIRST`` + ``PAST_LAST``) of the springs of batch ``b`` whose extremes (S, V)
     passed an end of their curve; column k of the extremes belongs to variant ``cols[k]`` of ``b``."""
     out = np.zeros(max_crush.shape)
@@ -72,9 +74,13 @@ def warnings_of(ds: Any) -> list[str]:
     out = []
     for k, spring in enumerate(springs):
         first, last = int(counts[k, 0]), int(counts[k, 1])
-        said = [f"compressed past its curve's first point in {first}" if first else "",
-                f"stretched past its last point in {last}" if last else ""]  # fmt: skip
+        said = [
+            f"compressed past its curve's first point in {first}" if first else "",
+            f"stretched past its last point in {last}" if last else "",
+        ]
         if first or last:
-            out.append(f"spring {spring} was " + " and ".join(t for t in said if t) + f" of {n} variants: its force "
-                       "there is extrapolated along the curve's end segment (past_curve_end in the summary)")  # fmt: skip
+            out.append(
+                f"spring {spring} was " + " and ".join(t for t in said if t) + f" of {n} variants: its force "
+                "there is extrapolated along the curve's end segment (past_curve_end in the summary)"
+            )
     return out

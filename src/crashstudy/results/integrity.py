@@ -44,8 +44,10 @@ MANIFEST = "manifest.json"
 FINAL, PARTIAL = "results.nc", "results.nc.partial"
 MANIFEST_MAX = 16 * 2**20  # bytes: a manifest names a handful of files
 INCONSISTENT = "the result folder is inconsistent: re-run with --force"
-UNFINISHED = ("results.nc is not a finished result (it has no completion mark: an unfinished run's "
-              "results.nc.partial renamed by hand?): finish that run with --resume, or re-run with --force")  # fmt: skip
+UNFINISHED = (
+    "results.nc is not a finished result (it has no completion mark: an unfinished run's "
+    "results.nc.partial renamed by hand?): finish that run with --resume, or re-run with --force"
+)
 CHECKSUM = "checksum"
 NOT_CHECKED = ("failure_reason", "dt_control", "criteria_note")  # renumbered when the text tables are sorted
 _ODD = np.uint64(0x9E3779B97F4A7C15)  # odd: every weight below is odd, so a change of any one word shows
@@ -58,11 +60,15 @@ def checked_names(nc: netCDF4.Dataset) -> list[str]:
     when the file is created, nor the checksum itself)."""
     axes = json.loads(nc.getncattr("crashstudy_axes")) if "crashstudy_axes" in nc.ncattrs() else []
     skip = set(axes) | set(NOT_CHECKED) | {"variant", "done", CHECKSUM}
-    return sorted(n for n, v in nc.variables.items()
-                  if v.dimensions[:1] == ("variant",) and n not in skip and not n.endswith("_text"))  # fmt: skip
+    return sorted(
+        n
+        for n, v in nc.variables.items()
+        if v.dimensions[:1] == ("variant",) and n not in skip and not n.endswith("_text")
+    )
 
 
 NARROW = 8  # words per variant up to which variant_sums adds column by column
+
 
 def variant_sums(arrays: Mapping[str, np.ndarray], names: list[str]) -> np.ndarray:
     """Checksum (uint64, one per variant) of ``arrays[name]`` (each (V, ...) as stored), in ``names`` order.
@@ -79,7 +85,9 @@ def variant_sums(arrays: Mapping[str, np.ndarray], names: list[str]) -> np.ndarr
         if pad:
             raw = np.concatenate([raw, np.zeros((n, pad), dtype=np.uint8)], axis=1)
         words = raw.view("<u8")
-        weights = (np.arange(offset, offset + words.shape[1], dtype=np.uint64) * np.uint64(2) + np.uint64(1)) * _ODD
+        weights = (
+            np.arange(offset, offset + words.shape[1], dtype=np.uint64) * np.uint64(2) + np.uint64(1)
+        ) * _ODD
         with np.errstate(over="ignore"):  # the same sum two ways: numpy's row sums of few columns are slow
             if words.shape[1] <= NARROW:
                 part = np.zeros(n, dtype=np.uint64)
@@ -104,8 +112,11 @@ def stored(nc: netCDF4.Dataset, name: str, lo: int, hi: int) -> np.ndarray:
 
 
 def _block(nc: netCDF4.Dataset, names: list[str]) -> int:
-    per = sum(int(np.prod([len(nc.dimensions[d]) for d in nc.variables[n].dimensions[1:]], dtype=np.int64))
-              * nc.variables[n].dtype.itemsize for n in names)  # fmt: skip
+    per = sum(
+        int(np.prod([len(nc.dimensions[d]) for d in nc.variables[n].dimensions[1:]], dtype=np.int64))
+        * nc.variables[n].dtype.itemsize
+        for n in names
+    )
     return max(1, BLOCK_BYTES // max(per, 1))
 
 
@@ -145,7 +156,9 @@ def run_id(nc: netCDF4.Dataset) -> str:
             continue
         v = nc.variables[name]
         for lo in range(0, max(len(nc.dimensions[v.dimensions[0]]), 1), CHECK_BLOCK):
-            h.update(stored(nc, name, lo, min(lo + CHECK_BLOCK, len(nc.dimensions[v.dimensions[0]]))).tobytes())
+            h.update(
+                stored(nc, name, lo, min(lo + CHECK_BLOCK, len(nc.dimensions[v.dimensions[0]]))).tobytes()
+            )
     h.update(str(n).encode())
     return h.hexdigest()[:32]
 
@@ -247,8 +260,10 @@ def check_folder(folder: Path, final: str, summaries: tuple[str, ...]) -> tuple[
     if not os.path.lexists(path):
         if run_id is None:
             return "", None  # written before manifests existed
-        return (f"{INCONSISTENT} ({final} is from run {run_id}, and there is no {MANIFEST}: the run that wrote it "
-                "stopped before its last rename)"), None  # fmt: skip
+        return (
+            f"{INCONSISTENT} ({final} is from run {run_id}, and there is no {MANIFEST}: the run that wrote it "
+            "stopped before its last rename)"
+        ), None
     try:
         with open_regular(path, MANIFEST_MAX, MANIFEST) as fh:
             manifest = json.loads(fh.read().decode("utf-8"))

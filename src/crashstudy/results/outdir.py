@@ -25,9 +25,17 @@ from crashstudy.results.store import FINAL, PARQUET, PARTIAL, SUMMARY
 from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL
 from crashstudy.safefs import PlantedEntryError, clear_entry, open_regular
 
-DERIVED = ("sensitivity.csv", "sensitivity_*.nc", "sensitivity_*.png", "optimum.yaml", "history.csv",
-           "calibrated.yaml", "calibration.png", "report.html",
-           "correlation.csv")  # fmt: skip
+DERIVED = (
+    "sensitivity.csv",
+    "sensitivity_*.nc",
+    "sensitivity_*.png",
+    "optimum.yaml",
+    "history.csv",
+    "calibrated.yaml",
+    "calibration.png",
+    "report.html",
+    "correlation.csv",
+)
 """Files written beside a result from it (name patterns in the result folder); plus ``plots/``."""
 
 
@@ -44,11 +52,29 @@ def check_output(out_dir: Path, force: bool, source: str, study_name: str) -> No
     if os.path.lexists(final):
         other = study_of(final)
         if other != study_name:
-            raise InputError([Problem(source, None, "", f"{out_dir} holds the results of {other!r}, not of "
-                                      f"{study_name!r}; use --force to overwrite or choose another -o")])  # fmt: skip
+            raise InputError(
+                [
+                    Problem(
+                        source,
+                        None,
+                        "",
+                        f"{out_dir} holds the results of {other!r}, not of "
+                        f"{study_name!r}; use --force to overwrite or choose another -o",
+                    )
+                ]
+            )
     if os.path.lexists(out_dir / PARTIAL) or os.path.lexists(out_dir / ZARR_PARTIAL):
-        raise InputError([Problem(source, None, "", f"an unfinished run is in {out_dir}; use --resume to finish it "
-                                  "(run only) or --force to start again")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    source,
+                    None,
+                    "",
+                    f"an unfinished run is in {out_dir}; use --resume to finish it "
+                    "(run only) or --force to start again",
+                )
+            ]
+        )
 
 
 def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_name: str) -> None:
@@ -63,7 +89,13 @@ def prepare_output(out_dir: Path, resume: bool, force: bool, source: str, study_
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out_dir} is a file, not a folder")])
     if force and out_dir.exists():
-        for p in (out_dir / FINAL, out_dir / PARTIAL, out_dir / SUMMARY, out_dir / PARQUET, out_dir / MANIFEST):
+        for p in (
+            out_dir / FINAL,
+            out_dir / PARTIAL,
+            out_dir / SUMMARY,
+            out_dir / PARQUET,
+            out_dir / MANIFEST,
+        ):
             clear_entry(p)  # a link is removed, never followed (a dangling one too)
         for p in (out_dir / ZARR_FINAL, out_dir / ZARR_PARTIAL):
             remove_store(p)

@@ -54,7 +54,9 @@ class Results:
         try:
             os.lstat(final)  # a path too long or a loop of links raises here, named as such by the CLI
         except FileNotFoundError:
-            raise FileNotFoundError(f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})") from None
+            raise FileNotFoundError(
+                f"no {FINAL} in {self.dir} (an unfinished run leaves only {PARTIAL})"
+            ) from None
         problem, self.manifest = integrity.check_folder(self.dir, self.final, (PARQUET, SUMMARY))
         if problem:
             raise InputError([Problem(str(self.dir), None, "", problem)])
@@ -62,7 +64,9 @@ class Results:
         self._ds: xr.Dataset | None = None
         self._raw: xr.Dataset | None = None
         self._pinned: dict[str, tuple[IO[bytes], tuple[int, ...]]] = {}  # hashed files, held open (_vouched)
-        weakref.finalize(self, _close_pinned, self._pinned)  # closed with the object if close() is never called
+        weakref.finalize(
+            self, _close_pinned, self._pinned
+        )  # closed with the object if close() is never called
         self.summary_limit: int | None = SUMMARY_ROWS_MAX  #: rows :attr:`summary` reads whole (None: any)
 
     def open_file(self, name: str) -> IO[bytes]:
@@ -71,7 +75,9 @@ class Results:
         try:
             fh = open_regular(self.dir / name, what=name)
         except PlantedEntryError as exc:
-            raise InputError([Problem(str(self.dir), None, "", f"{integrity.INCONSISTENT} ({exc})")]) from None
+            raise InputError(
+                [Problem(str(self.dir), None, "", f"{integrity.INCONSISTENT} ({exc})")]
+            ) from None
         if self.manifest is None:
             return fh
         entry = self.manifest.get(name)
@@ -191,14 +197,15 @@ class Results:
         with self.open_file(PARQUET) as fh:
             return int(_parquet(fh).metadata.num_rows)
 
-    def summary_batches(self, columns: list[str] | None = None, rows: int | None = None) -> Generator[pd.DataFrame, None, None]:
+    def summary_batches(
+        self, columns: list[str] | None = None, rows: int | None = None
+    ) -> Generator[pd.DataFrame, None, None]:
         """:attr:`summary` (only ``columns``, in their order; default all) in blocks of at most ``rows``
         rows (default :data:`READ_BLOCK`), in variant order: what reads a summary of any size in memory
         bounded by the block (a Parquet row group at a time; text columns come as categoricals or strings
         per block; the index numbers the rows of the whole table). A ``summary.csv`` or a dataset-only folder is read whole first (older folders)."""
         rows = rows or READ_BLOCK
         if self.summary_source == PARQUET:
-
             with self.open_file(PARQUET) as fh:
                 lo = 0
                 for b in _parquet(fh).iter_batches(batch_size=rows, columns=columns):
@@ -227,7 +234,11 @@ class Results:
                     continue
                 t = f.read_row_group(g, columns=columns).to_pandas()
                 parts.append(t[t["variant"] == variant])
-        return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns or f.schema_arrow.names)
+        return (
+            pd.concat(parts, ignore_index=True)
+            if parts
+            else pd.DataFrame(columns=columns or f.schema_arrow.names)
+        )
 
     @property
     def summary(self) -> pd.DataFrame:
@@ -240,12 +251,16 @@ class Results:
         if source == PARQUET:
             rows = self.summary_rows()
             if self.summary_limit is not None and rows > self.summary_limit:
-                raise InputError([Problem(str(self.dir / PARQUET), None, "", too_large(rows, self.summary_limit))])
+                raise InputError(
+                    [Problem(str(self.dir / PARQUET), None, "", too_large(rows, self.summary_limit))]
+                )
             with self.open_file(PARQUET) as fh:
                 return pd.read_parquet(fh)
         if source == SUMMARY:
             with self.open_file(SUMMARY) as fh:
-                df = pd.read_csv(fh, dtype={"status": str, "failure_reason": str, "dt_control": str, NOTE_TEXT: str})
+                df = pd.read_csv(
+                    fh, dtype={"status": str, "failure_reason": str, "dt_control": str, NOTE_TEXT: str}
+                )
             for name in ("failure_reason", NOTE_TEXT):
                 if name in df:
                     df[name] = df[name].fillna("")
@@ -268,11 +283,13 @@ class Results:
 
 def too_large(rows: int, limit: int) -> str:
     """Why :attr:`Results.summary` refuses a summary of ``rows`` rows, and what reads it instead."""
-    return (f"the summary has {rows} rows, more than the {limit} that Results.summary reads whole into one "
-            f"pandas DataFrame (~250 bytes a row): read it in bounded memory with "
-            f".summary_batches(columns, rows) (blocks in variant order), .summary_columns([...]) (only the "
-            f"columns you need), .summary_row(variant) or .column_peak(column); or set "
-            f".summary_limit = None to read it whole anyway")
+    return (
+        f"the summary has {rows} rows, more than the {limit} that Results.summary reads whole into one "
+        f"pandas DataFrame (~250 bytes a row): read it in bounded memory with "
+        f".summary_batches(columns, rows) (blocks in variant order), .summary_columns([...]) (only the "
+        f"columns you need), .summary_row(variant) or .column_peak(column); or set "
+        f".summary_limit = None to read it whole anyway"
+    )
 
 
 def _close_pinned(pinned: dict[str, tuple[IO[bytes], tuple[int, ...]]]) -> None:
@@ -319,5 +336,3 @@ def open_results(directory: str | os.PathLike[str]) -> Results:
     """Open a result folder written by ``crashstudy run`` or ``crashstudy simulate`` (see the module
     docstring for what is checked)."""
     return Results(directory)
-
-

@@ -41,9 +41,11 @@ from crashstudy.results.attributes import plan_fingerprint
 from crashstudy.results.tables import metric_arrays, summary_arrays, text_tables
 from crashstudy.results.zarr_file import ZarrFile, variant_chunk
 
-NOT_SHARED = ("the Dask workers wrote {path} where this process does not see it (variants {lo} .. {last}: "
-              "checksums differ): with --scheduler and --store zarr the output folder must be a path every "
-              "worker sees (a shared file system), or use --store netcdf")  # fmt: skip
+NOT_SHARED = (
+    "the Dask workers wrote {path} where this process does not see it (variants {lo} .. {last}: "
+    "checksums differ): with --scheduler and --store zarr the output folder must be a path every "
+    "worker sees (a shared file system), or use --store netcdf"
+)
 
 
 @dataclass(frozen=True)
@@ -97,13 +99,16 @@ def codes_in(table: dict[str, int], texts: Any) -> tuple[np.ndarray, list[str]]:
     return (ids[codes] if len(codes) else np.zeros(0, dtype=np.int32)), new
 
 
-def write_region(compute: Callable[..., Any], path: str, plan: Any, ranges: list[tuple[int, int]],
-                 kernel: str) -> Receipt:  # fmt: skip
+def write_region(
+    compute: Callable[..., Any], path: str, plan: Any, ranges: list[tuple[int, int]], kernel: str
+) -> Receipt:
     """On a worker: compute each range with ``compute(plan, lo, hi, kernel)`` (``run_chunk``), write it
     into the store at ``path``, read it back, and return the :class:`Receipt`."""
     nc: Any = ZarrFile(path, "a")  # the netCDF4 API subset integrity uses
     if nc.getncattr("plan_fingerprint") != plan_fingerprint(plan):  # a task left running by an earlier run
-        raise OSError(f"{path} is no longer the store of this task's study (it was started again): not written")
+        raise OSError(
+            f"{path} is no longer the store of this task's study (it was started again): not written"
+        )
     names = integrity.checked_names(nc)
     local: dict[str, dict[str, int]] = {name: {} for name in text_tables(plan.topology)}
     sums, failed = [], 0
@@ -140,8 +145,9 @@ def regions(ranges: list[tuple[int, int]], chunk: int) -> Iterator[list[tuple[in
         yield group
 
 
-def region_tasks(writer: Any, compute: Callable[..., Any], plan: Any, ranges: list[tuple[int, int]],
-                 kernel: str) -> tuple[Callable[..., Any], Iterator[tuple[Any, ...]]]:  # fmt: skip
+def region_tasks(
+    writer: Any, compute: Callable[..., Any], plan: Any, ranges: list[tuple[int, int]], kernel: str
+) -> tuple[Callable[..., Any], Iterator[tuple[Any, ...]]]:
     """The function and tasks that have workers write the variants ``ranges`` into ``writer``'s store."""
     chunk = variant_chunk(writer.path) or max(1, plan.n_variants)
     fn = functools.partial(write_region, compute, os.path.abspath(writer.path))
@@ -153,8 +159,12 @@ def record(writer: Any, receipt: Receipt) -> None:
     nc = writer.nc
     at = 0
     for lo, hi in receipt.ranges:
-        if not np.array_equal(integrity.stored(nc, integrity.CHECKSUM, lo, hi), receipt.sums[at : at + hi - lo]):
-            raise InputError([Problem("-o", None, "", NOT_SHARED.format(path=Path(writer.path), lo=lo, last=hi - 1))])
+        if not np.array_equal(
+            integrity.stored(nc, integrity.CHECKSUM, lo, hi), receipt.sums[at : at + hi - lo]
+        ):
+            raise InputError(
+                [Problem("-o", None, "", NOT_SHARED.format(path=Path(writer.path), lo=lo, last=hi - 1))]
+            )
         at += hi - lo
     for name, local in receipt.texts.items():
         ids = writer._codes(name, np.asarray(local, dtype=object))  # the store's code of each local code

@@ -44,7 +44,7 @@ from crashstudy.results.tables import (
     SUMMARY,
     TEXT_LEN,
     chars,
-    decode_texts,  # fmt: skip
+    decode_texts,
     read_texts,
     stored_table,
     summary_frame,
@@ -57,8 +57,20 @@ from crashstudy.study.plan import Plan
 from crashstudy.study.provenance import HASH_WORDS, text_hash
 from crashstudy.vocabulary.summary import SUMMARY_META
 
-__all__ = ["CSV_MAX", "FINAL", "PARQUET", "PARTIAL", "SUMMARY", "ChunkResult", "ResultWriter", "Results",
-           "decode_texts", "open_results", "summary_frame", "write_summary"]  # fmt: skip
+__all__ = [
+    "CSV_MAX",
+    "FINAL",
+    "PARQUET",
+    "PARTIAL",
+    "SUMMARY",
+    "ChunkResult",
+    "ResultWriter",
+    "Results",
+    "decode_texts",
+    "open_results",
+    "summary_frame",
+    "write_summary",
+]
 
 ID_LEN = 64  # longest id (the schema allows 64 characters)
 AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
@@ -93,8 +105,15 @@ class ChunkResult:
 class ResultWriter:
     """Writes a plan's results into ``directory`` chunk by chunk (see the module docstring)."""
 
-    def __init__(self, directory: str | os.PathLike[str], plan: Plan, resume: bool = False,
-                 csv: bool | None = None, store: str = "netcdf", chunk: int = 4096) -> None:  # fmt: skip
+    def __init__(
+        self,
+        directory: str | os.PathLike[str],
+        plan: Plan,
+        resume: bool = False,
+        csv: bool | None = None,
+        store: str = "netcdf",
+        chunk: int = 4096,
+    ) -> None:
         self.dir = Path(directory)
         self.final_name = ZARR_FINAL if store == "zarr" else FINAL
         self.chunk = chunk  # variants per stored chunk along ``variant`` (Zarr: the run's chunk size)
@@ -107,25 +126,46 @@ class ResultWriter:
         self.dir.mkdir(parents=True, exist_ok=True)
         self.path = self.dir / integrity.partial_name(self.final_name)
         if resume and os.path.islink(self.path):
-            raise InputError([Problem(plan.study_file or plan.model_file, None, "",
-                                      f"{self.path} is a symbolic link, not a partial result of crashstudy; "
-                                      "refusing to write through it (remove it, or use --force)")])  # fmt: skip
+            raise InputError(
+                [
+                    Problem(
+                        plan.study_file or plan.model_file,
+                        None,
+                        "",
+                        f"{self.path} is a symbolic link, not a partial result of crashstudy; "
+                        "refusing to write through it (remove it, or use --force)",
+                    )
+                ]
+            )
         if resume and self.path.exists() and not partial_opens(self.path):
             # cut off before its first chunk was flushed (SIGKILL, full disk): nothing in it can be used
-            print(f"note: {self.path} could not be read (cut off while being written); starting it again",
-                  file=sys.stderr)  # fmt: skip
+            print(
+                f"note: {self.path} could not be read (cut off while being written); starting it again",
+                file=sys.stderr,
+            )
             remove_store(self.path)
         if resume and self.path.exists():
             self.nc = integrity.open_store(self.path, "a")
             if self.nc.getncattr("plan_fingerprint") != plan_fingerprint(plan):
                 self.nc.close()
-                raise InputError([Problem(plan.study_file or plan.model_file, None, "",
-                                          f"the unfinished run in {self.dir} was started from a different study or "
-                                          "model; use --force to start again")])  # fmt: skip
+                raise InputError(
+                    [
+                        Problem(
+                            plan.study_file or plan.model_file,
+                            None,
+                            "",
+                            f"the unfinished run in {self.dir} was started from a different study or "
+                            "model; use --force to start again",
+                        )
+                    ]
+                )
             self._verify_resumed()
         else:
             self.nc = self._create()
-        self.tables = {name: {t: k for k, t in enumerate(stored_table(self.nc, name))} for name in text_tables(plan.topology)}
+        self.tables = {
+            name: {t: k for k, t in enumerate(stored_table(self.nc, name))}
+            for name in text_tables(plan.topology)
+        }
         # summary.parquet made as the chunks come (a fresh run's), else from the finished store
         self.stream = SummaryStream(self.dir, self.nc, plan) if not (resume or self.csv) else None
 
@@ -142,8 +182,11 @@ class ResultWriter:
         if lost.any():
             first = np.flatnonzero(lost)
             where = ", ".join(str(k) for k in first[:5]) + (", ..." if len(first) > 5 else "")
-            print(f"note: {len(first)} finished variant(s) of {self.path} no longer match their checksum "
-                  f"(variants {where}); computing them again", file=sys.stderr)  # fmt: skip
+            print(
+                f"note: {len(first)} finished variant(s) of {self.path} no longer match their checksum "
+                f"(variants {where}); computing them again",
+                file=sys.stderr,
+            )
             self.nc.variables["done"][:] = (done & ~lost).astype("i1")
             self.nc.sync()
         missing = [n for n in self._summary_names() if n not in self.nc.variables]
@@ -190,8 +233,12 @@ class ResultWriter:
         # strings are fixed-width character arrays (CF): variable-length strings crash libhdf5 when a
         # file is opened many times (netcdf4-python issue 1444)
         nc.createDimension("id_len", ID_LEN)
-        for dim, ids in (("node", topo.node_ids), ("spring", topo.spring_ids), ("axis", ("x", "y")[: topo.dim]),
-                         ("wall", topo.wall_ids)):  # fmt: skip
+        for dim, ids in (
+            ("node", topo.node_ids),
+            ("spring", topo.spring_ids),
+            ("axis", ("x", "y")[: topo.dim]),
+            ("wall", topo.wall_ids),
+        ):
             v = nc.createVariable(dim, "S1", (dim, "id_len"))
             v._Encoding = "utf-8"
             v.units, v.long_name = "", f"{dim} id" if dim != "axis" else "coordinate axis"
@@ -212,29 +259,45 @@ class ResultWriter:
             v.units, v.long_name = units[HISTORY_META[name][0]], HISTORY_META[name][1]
         for name in self._summary_names():
             self._summary_variable(nc, name, cv)
-        for name in result_names(topo) if topo.metrics else ():  # the crash criteria (none: no numba import here)
+        for name in (
+            result_names(topo) if topo.metrics else ()
+        ):  # the crash criteria (none: no numba import here)
             kind, long = METRIC_META[name]
-            v = nc.createVariable(name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes])
+            v = nc.createVariable(
+                name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes]
+            )
             v.units, v.long_name, v.standard = units[kind], long, standard(name)
             v.nodes = " ".join(asked_nodes(topo, name))  # the others are NaN (and have no summary column)
-        small: dict[str, Any] = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [cv]}  # compresses ~50x, costs little
+        small: dict[str, Any] = {
+            "zlib": True,
+            "complevel": 1,
+            "shuffle": True,
+            "chunksizes": [cv],
+        }  # compresses ~50x, costs little
         st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
         st.units, st.long_name = "1", "ok or failed (failure_reason says why)"
-        st.flag_values, st.flag_meanings = np.arange(len(STATUS_MEANINGS), dtype="i1"), " ".join(STATUS_MEANINGS)
+        st.flag_values, st.flag_meanings = (
+            np.arange(len(STATUS_MEANINGS), dtype="i1"),
+            " ".join(STATUS_MEANINGS),
+        )
         nc.createDimension("text_len", TEXT_LEN)
         for name, long in text_tables(topo).items():
             nc.createDimension(f"{name}_kind", None)
-            tv = nc.createVariable(f"{name}_text", "S1", (f"{name}_kind", "text_len"), chunksizes=[16, TEXT_LEN])
+            tv = nc.createVariable(
+                f"{name}_text", "S1", (f"{name}_kind", "text_len"), chunksizes=[16, TEXT_LEN]
+            )
             tv._Encoding = "utf-8"
             tv.units, tv.long_name = "", f"the distinct texts of {name}"
-            v = nc.createVariable(name, "i4", ("variant",), fill_value=-1, zlib=True, complevel=1, shuffle=True,
-                                  chunksizes=[cv])  # fmt: skip
+            v = nc.createVariable(
+                name, "i4", ("variant",), fill_value=-1, zlib=True, complevel=1, shuffle=True, chunksizes=[cv]
+            )
             v.units, v.long_name, v.texts = "1", f"{long}: index into {name}_text", f"{name}_text"
         nc.createDimension("hash_word", HASH_WORDS)
         hv = nc.createVariable("input_hash", "u8", ("variant", "hash_word"), chunksizes=[cv, HASH_WORDS])
         hv.units, hv.long_name = "1", "hash of everything that determines the variant's results (reuse key)"
-        d = nc.createVariable("done", "i1", ("variant",), fill_value=0, zlib=True, complevel=1, shuffle=True,
-                              chunksizes=[cv])  # fmt: skip
+        d = nc.createVariable(
+            "done", "i1", ("variant",), fill_value=0, zlib=True, complevel=1, shuffle=True, chunksizes=[cv]
+        )
         d.units, d.long_name = "1", "1 once the variant's results are written"
         cs = nc.createVariable(integrity.CHECKSUM, "u8", ("variant",), fill_value=0, **small)
         cs.units, cs.long_name = "1", "sum of the variant's stored results (crashstudy.results.integrity)"
@@ -243,14 +306,26 @@ class ResultWriter:
             for v in nc.variables.values():
                 if v.dimensions[:1] == ("variant",) and v.name != "variant" and v.name not in self.plan_axes:
                     v.coordinates = coords
-        nc.setncatts({
-            "title": f"crashstudy results of {p.name}", "crashstudy_version": __version__,
-            "units": topo.units, "model_name": topo.name, "model_file": p.model_file, "model_yaml": p.model_text,
-            "study_file": p.study_file, "study_yaml": p.study_text, "crashstudy_axes": json.dumps([a.path for a in p.axes]),
-            "plan_fingerprint": plan_fingerprint(p), "history_interval": p.interval, "study_name": p.name,
-            "model_sha256": text_hash(p.model_text), "study_sha256": text_hash(p.study_text),
-            "Conventions": "CF-1.8", **model_facts(p),
-        })  # fmt: skip
+        nc.setncatts(
+            {
+                "title": f"crashstudy results of {p.name}",
+                "crashstudy_version": __version__,
+                "units": topo.units,
+                "model_name": topo.name,
+                "model_file": p.model_file,
+                "model_yaml": p.model_text,
+                "study_file": p.study_file,
+                "study_yaml": p.study_text,
+                "crashstudy_axes": json.dumps([a.path for a in p.axes]),
+                "plan_fingerprint": plan_fingerprint(p),
+                "history_interval": p.interval,
+                "study_name": p.name,
+                "model_sha256": text_hash(p.model_text),
+                "study_sha256": text_hash(p.study_text),
+                "Conventions": "CF-1.8",
+                **model_facts(p),
+            }
+        )
         return nc
 
     def write(self, res: ChunkResult | Receipt) -> None:
@@ -291,7 +366,9 @@ class ResultWriter:
         v.units, v.long_name = units_of(self.plan)[kind], long
         if name == "past_curve_end":  # the springs with a drawn curve (the others have no summary column)
             topo = self.plan.topology
-            v.springs = " ".join(topo.spring_ids[s] for s in curve_springs(topo.material, topo.spring_curves[:, 0]))
+            v.springs = " ".join(
+                topo.spring_ids[s] for s in curve_springs(topo.material, topo.spring_curves[:, 0])
+            )
 
     def _codes(self, name: str, texts: Any) -> np.ndarray:
         """Indices of ``texts`` in the file's table of ``name``; new texts are appended to it."""
@@ -309,9 +386,14 @@ class ResultWriter:
         if not len(new_idx):
             return 0
         self._no_stream()
-        names = [n for n, v in self.nc.variables.items()
-                 if v.dimensions[:1] == ("variant",) and n != "variant" and n not in self.plan_axes
-                 and n in old.variables]  # fmt: skip
+        names = [
+            n
+            for n, v in self.nc.variables.items()
+            if v.dimensions[:1] == ("variant",)
+            and n != "variant"
+            and n not in self.plan_axes
+            and n in old.variables
+        ]
         brk = np.nonzero((np.diff(new_idx) != 1) | (np.diff(old_idx) != 1))[0] + 1
         starts = np.concatenate([[0], brk]).tolist()
         ends = np.concatenate([brk, [len(new_idx)]]).tolist()
@@ -329,10 +411,14 @@ class ResultWriter:
                         self.nc.variables[n][a:b] = (read_texts(old, n, c, d) != "ok").astype("i1")
                     else:
                         self.nc.variables[n][a:b] = old.variables[n][c:d]
-                if integrity.CHECKSUM not in old.variables:  # a file from before checksums: trusted, summed now
+                if (
+                    integrity.CHECKSUM not in old.variables
+                ):  # a file from before checksums: trusted, summed now
                     self.nc.variables[integrity.CHECKSUM][a:b] = integrity.file_sums(self.nc, a, b)
                 # a copied variant whose data do not match its checksum is left to compute
-                good = integrity.file_sums(self.nc, a, b) == integrity.stored(self.nc, integrity.CHECKSUM, a, b)
+                good = integrity.file_sums(self.nc, a, b) == integrity.stored(
+                    self.nc, integrity.CHECKSUM, a, b
+                )
                 done[a:b] = good.astype("i1")
                 kept += int(good.sum())
         self.nc.sync()
@@ -351,7 +437,9 @@ class ResultWriter:
             new_id[order] = np.arange(len(texts), dtype=np.int32)
             var = self.nc.variables[name]
             for lo in range(0, self.plan.n_variants, block):
-                hi = min(lo + block, self.plan.n_variants)  # Zarr: a slice past the end fails on its last chunk
+                hi = min(
+                    lo + block, self.plan.n_variants
+                )  # Zarr: a slice past the end fails on its last chunk
                 got = var[lo:hi]
                 codes = np.asarray(got.filled(-1) if np.ma.isMaskedArray(got) else got)
                 var[lo:hi] = np.where(codes >= 0, new_id[np.clip(codes, 0, None)], -1)
@@ -383,11 +471,15 @@ class ResultWriter:
                 tables = write_summary(ds, self.dir, self.csv, rename=False)
         zarr = self.final_name == ZARR_FINAL
         if not (self.path.is_dir() and not self.path.is_symlink() if zarr else is_regular(self.path)):
-            raise PlantedEntryError(f"{self.path} was replaced by something else while the run was writing it")
+            raise PlantedEntryError(
+                f"{self.path} was replaced by something else while the run was writing it"
+            )
         if zarr:
             swap_store(self.path, final)
         else:
-            os.replace(self.path, final)  # first: the old manifest names this file only if its results are the same
+            os.replace(
+                self.path, final
+            )  # first: the old manifest names this file only if its results are the same
         remove_store(self.dir / (FINAL if zarr else ZARR_FINAL))  # one store per folder: the other is stale
         for name, tmp in tables.items():
             os.replace(tmp, self.dir / name)

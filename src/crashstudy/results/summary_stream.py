@@ -48,10 +48,16 @@ class SummaryStream:
         self.ids = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
         # the summary variables the store holds, with the attributes summary_columns reads (asked items)
         self.names: dict[str, tuple[tuple[str, ...], dict[str, str]]] = {}
-        for name, dims in [*((n, d) for n, (d, _, _) in SUMMARY_META.items()), *((n, ("node",)) for n in METRIC_META)]:
+        for name, dims in [
+            *((n, d) for n, (d, _, _) in SUMMARY_META.items()),
+            *((n, ("node",)) for n in METRIC_META),
+        ]:
             if name in nc.variables:
                 var = nc.variables[name]
-                self.names[name] = (dims, {k: str(var.getncattr(k)) for k in ("nodes", "springs") if k in var.ncattrs()})
+                self.names[name] = (
+                    dims,
+                    {k: str(var.getncattr(k)) for k in ("nodes", "springs") if k in var.ncattrs()},
+                )
         self.texts = [n for n in T.text_tables(topo) if n in nc.variables]
         self.next = 0  # the first variant not yet handed over
         self.rows: list[Any] = []  # the summary rows (pyarrow Tables) of the row group being filled
@@ -61,8 +67,14 @@ class SummaryStream:
         self.writer: Any = None
         self.live = self.n > 0
 
-    def add(self, lo: int, hi: int, data: dict[str, np.ndarray], codes: dict[str, np.ndarray],
-            tables: dict[str, dict[str, int]]) -> None:  # fmt: skip
+    def add(
+        self,
+        lo: int,
+        hi: int,
+        data: dict[str, np.ndarray],
+        codes: dict[str, np.ndarray],
+        tables: dict[str, dict[str, int]],
+    ) -> None:
         """Variants ``lo`` .. ``hi - 1``: their stored arrays ``data``, their text codes into the writer's
         ``tables`` (text -> code, in the order the texts first came)."""
         if not self.live:
@@ -80,8 +92,14 @@ class SummaryStream:
         while self.live and (self.held >= block or (self.next == self.n and self.held)):
             self._write_group(min(block, self.held))
 
-    def _rows(self, lo: int, hi: int, data: dict[str, np.ndarray], codes: dict[str, np.ndarray],
-              tables: dict[str, dict[str, int]]) -> Any:  # fmt: skip
+    def _rows(
+        self,
+        lo: int,
+        hi: int,
+        data: dict[str, np.ndarray],
+        codes: dict[str, np.ndarray],
+        tables: dict[str, dict[str, int]],
+    ) -> Any:
         """The summary rows of variants ``lo`` .. ``hi - 1`` (a pyarrow Table), their texts coded against
         the sorted ``tables`` (recorded in ``used``); None if the stream is dropped."""
         import pyarrow as pa
@@ -132,8 +150,13 @@ class SummaryStream:
         """The finished table (its temporary path) if it is the one the store's final ``tables`` give,
         else None (dropped: the caller makes it from the store)."""
         final = {n: sorted(tables[n]) for n in self.texts}
-        if not (self.live and self.next == self.n and not self.held and self.writer is not None
-                and all(u == final for u in self.used)):  # fmt: skip
+        if not (
+            self.live
+            and self.next == self.n
+            and not self.held
+            and self.writer is not None
+            and all(u == final for u in self.used)
+        ):
             self.drop()
             return None
         self.writer.close()

@@ -31,8 +31,10 @@ CSV_MAX = 100_000  # variants up to which summary.csv is written by default
 SUMMARY_BLOCK = 200_000  # rows of the summary tables made and written at once (a Parquet row group each)
 STATUS_MEANINGS = ("ok", "failed")  # flag_meanings of ``status`` (value = index)
 TEXT_LEN = 1024  # longest stored message (a text table holds each distinct text once)
-TEXT_TABLES = {"failure_reason": "why a variant failed (empty if ok)",
-               "dt_control": "node (and its stiffest spring) that controls the critical step"}  # fmt: skip
+TEXT_TABLES = {
+    "failure_reason": "why a variant failed (empty if ok)",
+    "dt_control": "node (and its stiffest spring) that controls the critical step",
+}
 HISTORY_META = {  # name: (unit kind, long name)
     "position": ("length", "node position"),
     "displacement": ("length", "node displacement from the initial position"),
@@ -41,9 +43,15 @@ HISTORY_META = {  # name: (unit kind, long name)
     "spring_force": ("force", "spring force (positive = tension)"),
     "spring_elongation": ("length", "spring elongation (negative = compression)"),
     "kinetic_energy": ("energy", "kinetic energy"),
-    "internal_energy": ("energy", "work done on all springs and dampers, plus the energy they stored at t = 0"),
+    "internal_energy": (
+        "energy",
+        "work done on all springs and dampers, plus the energy they stored at t = 0",
+    ),
     "external_work": ("energy", "work of loads, gravity and prescribed motion"),
-    "wall_energy": ("energy", "kinetic energy removed by rigid walls, plus the energy stored in penalty walls"),
+    "wall_energy": (
+        "energy",
+        "kinetic energy removed by rigid walls, plus the energy stored in penalty walls",
+    ),
     "wall_force": ("force", "rigid wall contact force (reaction to the forces pushing held nodes into it)"),
     "filtered_acceleration": ("g", "resultant acceleration of a metric node, SAE J211 filtered (its cfc)"),
 }
@@ -148,8 +156,9 @@ def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[
     return cols
 
 
-def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int | None = None, rename: bool = True
-                  ) -> dict[str, Path]:  # fmt: skip
+def write_summary(
+    ds: xr.Dataset, folder: Path, csv: bool, chunk: int | None = None, rename: bool = True
+) -> dict[str, Path]:
     """Write ``summary.parquet`` and, when ``csv``, ``summary.csv`` chunk by chunk (bounded memory),
     each through a temporary file and a rename; without ``csv`` an older ``summary.csv`` is removed.
     Both through pyarrow (its CSV writer is ~10x pandas' ``to_csv``; every float round-trips).
@@ -164,7 +173,7 @@ def write_summary(ds: xr.Dataset, folder: Path, csv: bool, chunk: int | None = N
     tmp_pq, tmp_csv = folder / (PARQUET + ".partial"), folder / (SUMMARY + ".partial")
     writers: list[Any] = []
     try:
-        with open_new(tmp_pq, mode="wb") as raw, (open_new(tmp_csv, mode="wb") if csv else nullcontext()) as fh:
+        with open_new(tmp_pq, mode="wb") as raw, open_new(tmp_csv, mode="wb") if csv else nullcontext() as fh:
             for lo in range(0, max(n, 1), chunk):
                 # straight from the arrays: a DataFrame in between copied every column once more
                 table = pa.table(summary_columns(ds, lo, min(n, lo + chunk)))
@@ -198,14 +207,22 @@ def summary_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
     o = res.out
     g = UNIT_SYSTEMS[plan.topology.units].g
     summary = {
-        "peak_force": o.peak_force.T, "max_crush": o.max_crush.T, "max_elongation": o.max_elongation.T,
-        "failure_time": o.spring_fail_time.T, "absorbed_energy": o.absorbed_energy.T,
-        "peak_deceleration": o.peak_acceleration.T, "peak_deceleration_g": o.peak_acceleration.T / g,
-        "energy_error": o.energy_error, "dt": res.dt, "dt_crit": res.dt_crit, "t_end": o.t_end,
-        "final_kinetic_energy": o.final_energy[0], "final_internal_energy": o.final_energy[1],
+        "peak_force": o.peak_force.T,
+        "max_crush": o.max_crush.T,
+        "max_elongation": o.max_elongation.T,
+        "failure_time": o.spring_fail_time.T,
+        "absorbed_energy": o.absorbed_energy.T,
+        "peak_deceleration": o.peak_acceleration.T,
+        "peak_deceleration_g": o.peak_acceleration.T / g,
+        "energy_error": o.energy_error,
+        "dt": res.dt,
+        "dt_crit": res.dt_crit,
+        "t_end": o.t_end,
+        "final_kinetic_energy": o.final_energy[0],
+        "final_internal_energy": o.final_energy[1],
         "error_estimate": res.error_estimate,
         "past_curve_end": res.curve_end.T if res.curve_end is not None else np.zeros_like(o.peak_force.T),
-    }  # fmt: skip
+    }
     if plan.topology.wall_ids:
         summary["peak_wall_force"] = o.peak_wall_force.T
         summary["wall_impulse"] = o.wall_impulse.T
@@ -235,20 +252,31 @@ def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
     (optimisation and calibration evaluate candidates this way)."""
     topo = plan.topology
     dims = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
-    data: dict[str, Any] = {name: (("variant", *SUMMARY_META[name][0]), a)
-                            for name, a in summary_arrays(plan, res).items()}  # fmt: skip
+    data: dict[str, Any] = {
+        name: (("variant", *SUMMARY_META[name][0]), a) for name, a in summary_arrays(plan, res).items()
+    }
     data["status"] = ("variant", np.where(res.out.status != 0, "failed", "ok"))
     data["failure_reason"] = ("variant", np.asarray(res.reasons, dtype=str))
     data["dt_control"] = ("variant", np.asarray(res.dt_control, dtype=str))
     if res.criteria is not None:
-        data.update({name: (("variant", "node"), a, {"nodes": " ".join(asked_nodes(topo, name))})
-                     for name, a in metric_arrays(plan, res).items()})  # fmt: skip
-        data[NOTE_TEXT] = ("variant", np.where(res.out.status != 0, "", np.asarray(res.criteria.notes, dtype=str)))
+        data.update(
+            {
+                name: (("variant", "node"), a, {"nodes": " ".join(asked_nodes(topo, name))})
+                for name, a in metric_arrays(plan, res).items()
+            }
+        )
+        data[NOTE_TEXT] = (
+            "variant",
+            np.where(res.out.status != 0, "", np.asarray(res.criteria.notes, dtype=str)),
+        )
     lo, hi = int(res.index[0]), int(res.index[-1]) + 1
     for path, values in plan.axis_values(lo, hi).items():
         data[path] = ("variant", values)
-    ds = xr.Dataset(data, coords={"variant": res.index, **{d: list(ids) for d, ids in dims.items() if ids}},
-                    attrs={"crashstudy_axes": json.dumps([a.path for a in plan.axes])})  # fmt: skip
+    ds = xr.Dataset(
+        data,
+        coords={"variant": res.index, **{d: list(ids) for d, ids in dims.items() if ids}},
+        attrs={"crashstudy_axes": json.dumps([a.path for a in plan.axes])},
+    )
     return summary_frame(ds)
 
 
@@ -258,7 +286,10 @@ def stored_table(nc: Any, name: str) -> list[str]:
         return []
     raw = nc.variables[f"{name}_text"]
     raw.set_auto_chartostring(False)
-    return [bytes(r).rstrip(b"\0").decode("utf-8", "replace") for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]]
+    return [
+        bytes(r).rstrip(b"\0").decode("utf-8", "replace")
+        for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]
+    ]
 
 
 def read_texts(nc: Any, name: str, lo: int, hi: int) -> np.ndarray:
@@ -270,7 +301,9 @@ def read_texts(nc: Any, name: str, lo: int, hi: int) -> np.ndarray:
     if v.dtype == np.dtype("S1") or v.dtype is str:  # crashstudy 0.1: fixed-width characters
         return np.asarray(netCDF4.chartostring(np.asarray(v[lo:hi])), dtype=object)
     codes = np.asarray(v[lo:hi]).astype(np.int64)
-    table = np.array(list(STATUS_MEANINGS) if name == "status" else stored_table(nc, name) or [""], dtype=object)
+    table = np.array(
+        list(STATUS_MEANINGS) if name == "status" else stored_table(nc, name) or [""], dtype=object
+    )
     return np.where(codes >= 0, table[np.clip(codes, 0, len(table) - 1)], "")
 
 

@@ -67,8 +67,13 @@ class ZarrVariable:
         object.__setattr__(self, "_array", array)
         object.__setattr__(self, "name", name)
         object.__setattr__(self, "dimensions", tuple(array.metadata.dimension_names or ()))
-        object.__setattr__(self, "dtype", np.dtype(array.dtype.to_native_dtype()
-                                                   if hasattr(array.dtype, "to_native_dtype") else array.dtype))
+        object.__setattr__(
+            self,
+            "dtype",
+            np.dtype(
+                array.dtype.to_native_dtype() if hasattr(array.dtype, "to_native_dtype") else array.dtype
+            ),
+        )
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -150,8 +155,15 @@ class ZarrFile:
         dims[name] = 0 if size is None else int(size)
         self.group.attrs[DIMS] = dims
 
-    def createVariable(self, name: str, dtype: str, dims: tuple[str, ...], fill_value: Any = None,  # noqa: N802
-                       chunksizes: list[int] | None = None, **_: Any) -> ZarrVariable:  # fmt: skip
+    def createVariable(
+        self,
+        name: str,
+        dtype: str,
+        dims: tuple[str, ...],
+        fill_value: Any = None,  # noqa: N802
+        chunksizes: list[int] | None = None,
+        **_: Any,
+    ) -> ZarrVariable:
         """An array of ``dims`` (netCDF4's arguments; compression is always zstd, chunks along ``variant``
         are the run's chunk size)."""
         from xarray.backends.zarr import FillValueCoder
@@ -166,9 +178,14 @@ class ZarrFile:
         fill = fill_value if fill_value is not None else (np.nan if np_dtype.kind == "f" else 0)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # 'S1' (CF character arrays) has no Zarr v3 specification yet
-            array = self.group.create_array(name, shape=shape, dtype=np_dtype, chunks=tuple(chunks),
-                                            fill_value=fill if np_dtype.kind != "S" else b"",
-                                            dimension_names=list(dims))  # fmt: skip
+            array = self.group.create_array(
+                name,
+                shape=shape,
+                dtype=np_dtype,
+                chunks=tuple(chunks),
+                fill_value=fill if np_dtype.kind != "S" else b"",
+                dimension_names=list(dims),
+            )
         if fill_value is not None:  # xarray masks by the _FillValue attribute (Zarr v3, as it writes it)
             array.attrs["_FillValue"] = _plain(FillValueCoder.encode(fill_value, np_dtype))
         var = ZarrVariable(self, name, array)

@@ -123,9 +123,7 @@ class DaskBackend:
     and its variant range, the results are the same.
     """
 
-    def __init__(
-        self, scheduler: str, timeout: float | None = None, n_workers: int = LOCAL_WORKERS
-    ) -> None:
+    def __init__(self, scheduler: str, timeout: float | None = None, n_workers: int = LOCAL_WORKERS) -> None:
         timeout = CONNECT_TIMEOUT if timeout is None else timeout
         try:
             import distributed
@@ -136,12 +134,16 @@ class DaskBackend:
         self.cluster: Any = None
         if scheduler == LOCAL:
             self.cluster = distributed.LocalCluster(
-                host="127.0.0.1", n_workers=n_workers, threads_per_worker=1, processes=True,
-                dashboard_address=None, silence_logs=logging.ERROR,
+                host="127.0.0.1",
+                n_workers=n_workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
                 # no dashboard; the scheduler's small HTTP server (health, metrics) still starts, and would
                 # take the fixed port 8787 (a warning when two runs overlap): a free loopback port instead
                 scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
-            )  # fmt: skip
+            )
             try:
                 self.client = distributed.Client(self.cluster, set_as_default=False)
             except BaseException:

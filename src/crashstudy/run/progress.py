@@ -12,8 +12,9 @@ class Progress:
     forced on into a file or pipe; silent otherwise. Before the first chunk ends the ETA is the
     run's ``estimate`` [s] (when known), never "inf"."""
 
-    def __init__(self, total: int, enabled: bool | None = None, stream: Any = None, estimate: float | None = None
-                 ) -> None:  # fmt: skip
+    def __init__(
+        self, total: int, enabled: bool | None = None, stream: Any = None, estimate: float | None = None
+    ) -> None:
         self.stream = stream or sys.stderr
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.enabled = self.tty if enabled is None else enabled
@@ -48,4 +49,3 @@ class Progress:
         if self.enabled and self.tty:
             self.stream.write("\n")
             self.stream.flush()
-

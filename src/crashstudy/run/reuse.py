@@ -16,7 +16,9 @@ from crashstudy.study.provenance import variant_hashes
 def _ranges(todo: np.ndarray, size: int) -> list[tuple[int, int]]:
     """Contiguous ranges of the variants still to do, each at most ``size`` long."""
     out: list[tuple[int, int]] = []
-    if todo.all():  # a fresh run: no index array of every variant (np.nonzero + diff took 4 s at 10^7 under load)
+    if (
+        todo.all()
+    ):  # a fresh run: no index array of every variant (np.nonzero + diff took 4 s at 10^7 under load)
         return [(lo, min(lo + size, len(todo))) for lo in range(0, len(todo), size)]
     idx = np.nonzero(todo)[0]
     if not len(idx):
@@ -71,4 +73,3 @@ def _reuse_finished(writer: ResultWriter, plan: Plan, final: Path, size: int) ->
             new_idx = lo + np.flatnonzero(cand >= 0)
             kept += writer.reuse(old, new_idx.astype(np.int64), cand[cand >= 0])  # checksums verified
         return kept
-

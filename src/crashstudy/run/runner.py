@@ -60,26 +60,50 @@ def chunk_size(plan: Plan) -> int:
     per_variant = 8 * plan.n_out * (width + 4)  # + the kernel's energy buffer
     # the per-step record of the metric nodes (crashstudy.metrics.record runs a bigger chunk in several batches)
     record = 8 * (float(np.max(sample.n_steps, initial=0)) + 1) * len(topo.metric_nodes) * topo.dim
-    return int(max(1, min(MAX_CHUNK, by_work, HISTORY_BUDGET // max(per_variant, 1),
-                          HISTORY_BUDGET // max(record, 1.0))))  # fmt: skip
+    return int(
+        max(
+            1,
+            min(
+                MAX_CHUNK, by_work, HISTORY_BUDGET // max(per_variant, 1), HISTORY_BUDGET // max(record, 1.0)
+            ),
+        )
+    )
 
 
-def run_kernel(batch: Batch, histories: tuple[str, ...], n_out: int, kernel: KernelName = "compiled",
-               vary: frozenset[int] | None = None, repeat: float = 1.0) -> KernelOutput:  # fmt: skip
+def run_kernel(
+    batch: Batch,
+    histories: tuple[str, ...],
+    n_out: int,
+    kernel: KernelName = "compiled",
+    vary: frozenset[int] | None = None,
+    repeat: float = 1.0,
+) -> KernelOutput:
     """:func:`crashstudy.kernel.entry.run_batch`, abandoned at a stop request (Ctrl-C)."""
     return entry.run_batch(batch, histories, n_out, kernel, vary, repeat, interrupt.check)
 
 
-def error_estimate(batch: Batch, out: KernelOutput, kernel: KernelName = "compiled", repeat: float = 1.0) -> np.ndarray:
+def error_estimate(
+    batch: Batch, out: KernelOutput, kernel: KernelName = "compiled", repeat: float = 1.0
+) -> np.ndarray:
     """:func:`crashstudy.kernel.entry.error_estimate`, abandoned at a stop request (Ctrl-C)."""
     return entry.error_estimate(batch, out, kernel, repeat, interrupt.check)
 
 
 kernel_override = choice.kernel_override
-__all__ = ["output_folder", "prepare_output", "remove_derived", "remove_stale_plots", "run_plan", "run_study", "simulate"]
+__all__ = [
+    "output_folder",
+    "prepare_output",
+    "remove_derived",
+    "remove_stale_plots",
+    "run_plan",
+    "run_study",
+    "simulate",
+]
 
 
-def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", repeat: float | None = None) -> ChunkResult:
+def run_chunk(
+    plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", repeat: float | None = None
+) -> ChunkResult:
     """Compute variants ``lo`` .. ``hi - 1`` of ``plan``. ``repeat``: how many chunks like this one the
     caller will compute (default: those of the plan), for the kernel choice.
 
@@ -91,8 +115,9 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
     # a variant's parameters are a function of its axis values: dedupe on those (few columns)
     axes = plan.axis_values(lo, hi)
     if axes and not plan.variants_distinct:
-        _, first, inverse = np.unique(np.stack(list(axes.values()), axis=1), axis=0, return_index=True,
-                                      return_inverse=True)  # fmt: skip
+        _, first, inverse = np.unique(
+            np.stack(list(axes.values()), axis=1), axis=0, return_index=True, return_inverse=True
+        )
         cols = lo + first
     elif axes:  # every variant differs from every other: nothing to dedupe
         cols, inverse = np.arange(lo, hi), np.arange(V)
@@ -106,8 +131,18 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
         from crashstudy.metrics.record import Recorder
 
         recorder = Recorder(topo, plan.n_out)
-    full, estimate = entry.run_ordered(batch, topo.histories, plan.n_out, inverse, kernel, plan.varying_curves, repeat,
-                                       topo.accuracy_check, interrupt.check, recorder)  # fmt: skip
+    full, estimate = entry.run_ordered(
+        batch,
+        topo.histories,
+        plan.n_out,
+        inverse,
+        kernel,
+        plan.varying_curves,
+        repeat,
+        topo.accuracy_check,
+        interrupt.check,
+        recorder,
+    )
     dt, dt_crit = steps.dt[inverse], steps.dt_crit[inverse]
     control = _control_texts(topo, steps.control_node[inverse], steps.control_spring[inverse])
     user_dt = uniq[topo.blocks["time_step"].start][inverse]
@@ -115,8 +150,18 @@ def run_chunk(plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", rep
     for k in np.flatnonzero(full.status):  # texts only for the failed variants
         reasons[k] = _reason(full, int(k), topo.spring_ids, user_dt[k], dt_crit[k], control[k])
     ends = past_curve_ends(batch, full.max_crush, full.max_elongation, inverse)
-    return ChunkResult(np.arange(lo, hi), full, dt, dt_crit, control, reasons, variant_hashes(plan, lo, hi),
-                       estimate, full.criteria, ends)  # fmt: skip
+    return ChunkResult(
+        np.arange(lo, hi),
+        full,
+        dt,
+        dt_crit,
+        control,
+        reasons,
+        variant_hashes(plan, lo, hi),
+        estimate,
+        full.criteria,
+        ends,
+    )
 
 
 def _step_order(plan: Plan, cols: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -143,17 +188,27 @@ def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarra
     width = len(topo.spring_ids) + 1
     keys, inv = np.unique((node.astype(np.int64) + 1) * width + spring + 1, return_inverse=True)
     pairs = np.stack([keys // width - 1, keys % width - 1])
-    texts = np.array([("none" if n < 0 else f"node {topo.node_ids[n]}")
-                      + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "") for n, s in pairs.T], dtype=object)  # fmt: skip
+    texts = np.array(
+        [
+            ("none" if n < 0 else f"node {topo.node_ids[n]}")
+            + (f" / spring {topo.spring_ids[s]}" if s >= 0 else "")
+            for n, s in pairs.T
+        ],
+        dtype=object,
+    )
     return texts[inv.reshape(-1)] if len(node) else np.zeros(0, dtype=object)
 
 
-def _reason(out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float, dt_crit: float, control: str) -> str:
+def _reason(
+    out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float, dt_crit: float, control: str
+) -> str:
     code = int(out.status[k])
     t = out.fail_time[k]
     if code == UNSTABLE:
-        return (f"numerical instability: energy balance lost (non-finite, or error above 100%) at t={t:.6g} "
-                f"(dt_crit={dt_crit:.6g}, {control})")  # fmt: skip
+        return (
+            f"numerical instability: energy balance lost (non-finite, or error above 100%) at t={t:.6g} "
+            f"(dt_crit={dt_crit:.6g}, {control})"
+        )
     if code == CRUSHED_TO_ZERO:
         return f"spring {springs[int(out.fail_item[k])]!r} crushed to zero length at t={t:.6g}"
     if code == INVALID:
@@ -176,10 +231,21 @@ class RunReport:
     n_reused: int = 0
 
 
-def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, scheduler: str | None = None,
-             resume: bool = False, force: bool = False, progress: bool | None = None,
-             kernel: KernelName = "compiled", chunk: int | None = None, notes: Any = None, csv: bool | None = None,
-             locked: bool = False, store: str | None = None) -> RunReport:  # fmt: skip
+def run_plan(
+    plan: Plan,
+    out_dir: str | os.PathLike[str],
+    jobs: int = 1,
+    scheduler: str | None = None,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool | None = None,
+    kernel: KernelName = "compiled",
+    chunk: int | None = None,
+    notes: Any = None,
+    csv: bool | None = None,
+    locked: bool = False,
+    store: str | None = None,
+) -> RunReport:
     """Run every variant of ``plan`` into ``out_dir`` (see :func:`run_study`). ``notes``: a stream for
     one-line notes (a kernel compiling), e.g. ``sys.stderr``; None: silent. ``csv``: write
     ``summary.csv`` (None: up to ``results.CSV_MAX`` variants); ``summary.parquet`` is always written."""
@@ -190,9 +256,13 @@ def run_plan(plan: Plan, out_dir: str | os.PathLike[str], jobs: int = 1, schedul
     if out.exists() and not out.is_dir():
         raise InputError([Problem(source, None, "", f"the output path {out} is a file, not a folder")])
     if locked:  # the caller holds the folder's lock (optimize, calibrate: over their whole search)
-        return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0, store)
+        return _run_locked(
+            plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0, store
+        )
     with output_folder(out, source):  # one run at a time in a folder: held until the run ends
-        return _run_locked(plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0, store)
+        return _run_locked(
+            plan, out, jobs, scheduler, resume, force, progress, kernel, chunk, notes, csv, t0, store
+        )
 
 
 @contextlib.contextmanager
@@ -203,12 +273,26 @@ def output_folder(out: Path, source: str) -> Iterator[None]:
         with folder_lock(out):
             yield
     except FolderBusy as exc:  # raised only by the lock
-        raise InputError([Problem(source, None, "", f"{exc}; wait for it to end or choose another -o")]) from None
+        raise InputError(
+            [Problem(source, None, "", f"{exc}; wait for it to end or choose another -o")]
+        ) from None
 
 
-def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume: bool, force: bool,
-                progress: bool | None, kernel: KernelName, chunk: int | None, notes: Any, csv: bool | None, t0: float,
-                store: str | None = None) -> RunReport:  # fmt: skip
+def _run_locked(
+    plan: Plan,
+    out: Path,
+    jobs: int,
+    scheduler: str | None,
+    resume: bool,
+    force: bool,
+    progress: bool | None,
+    kernel: KernelName,
+    chunk: int | None,
+    notes: Any,
+    csv: bool | None,
+    t0: float,
+    store: str | None = None,
+) -> RunReport:
     """:func:`run_plan` once the output folder is locked."""
     from crashstudy.run.backends import make_backend
 
@@ -222,16 +306,28 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
         # unchanged variants are reused by input hash, changed ones computed); another study is refused
         other = study_of(final)
         if other != plan.name:
-            raise InputError([Problem(plan.study_file or plan.model_file, None, "",
-                                      f"{out} holds the finished results of {other!r}, not of study {plan.name!r}: "
-                                      "nothing to resume; use --force to overwrite or choose another -o")])  # fmt: skip
+            raise InputError(
+                [
+                    Problem(
+                        plan.study_file or plan.model_file,
+                        None,
+                        "",
+                        f"{out} holds the finished results of {other!r}, not of study {plan.name!r}: "
+                        "nothing to resume; use --force to overwrite or choose another -o",
+                    )
+                ]
+            )
         resume = False
-    backend = make_backend(jobs, scheduler)  # before any file is written: a backend that cannot start leaves none
+    backend = make_backend(
+        jobs, scheduler
+    )  # before any file is written: a backend that cannot start leaves none
     size = chunk or chunk_size(plan)
     slots = backend.worker_threads() if hasattr(backend, "worker_threads") else jobs
     if chunk is None and (scheduler or jobs > 1):  # several chunks per worker thread keep every worker busy
         size = min(size, max(1, -(-plan.n_variants // (4 * max(1, slots)))))
-    if store == "zarr" and resume:  # the chunks of the unfinished store: each computed chunk is one stored object
+    if (
+        store == "zarr" and resume
+    ):  # the chunks of the unfinished store: each computed chunk is one stored object
         size = variant_chunk(partial) or size
     make = functools.partial(ResultWriter, out, plan, resume=resume, csv=csv, store=store, chunk=size)
     # a fresh run (nothing to resume or reuse, no worker writing the store) creates the store on the writer
@@ -264,8 +360,12 @@ def _run_locked(plan: Plan, out: Path, jobs: int, scheduler: str | None, resume:
             compute, tasks = region_tasks(made.result(), run_chunk, plan, ranges, kernel)
         written = 0  # variants of the chunk being written: shown once its write has ended
         for res in backend.imap_unordered(compute, tasks):
-            behind.put(res)  # written on the writer thread while the next chunk computes (the previous one ended)
-            bar.update(written)  # the line counts written variants only (a kill after it finds them in the file)
+            behind.put(
+                res
+            )  # written on the writer thread while the next chunk computes (the previous one ended)
+            bar.update(
+                written
+            )  # the line counts written variants only (a kill after it finds them in the file)
             written = res.size
             n_failed += res.n_failed
             interrupt.check()  # a signal's stop request: after a whole chunk is handed over (and then written)
@@ -300,9 +400,15 @@ def default_out(name: str) -> Path:
     return Path("results") / name
 
 
-def run_study(study: str | os.PathLike[str] | dict[str, Any], out_dir: str | os.PathLike[str] | None = None,
-              jobs: int = 1, scheduler: str | None = None, resume: bool = False, force: bool = False,
-              progress: bool | None = False) -> Results:  # fmt: skip
+def run_study(
+    study: str | os.PathLike[str] | dict[str, Any],
+    out_dir: str | os.PathLike[str] | None = None,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    resume: bool = False,
+    force: bool = False,
+    progress: bool | None = False,
+) -> Results:
     """Run a study (a file path or a dict as its YAML would load) and return its :class:`Results`.
 
     Results go to ``out_dir`` (default ``results/<study name>``). Raises
@@ -313,15 +419,21 @@ def run_study(study: str | os.PathLike[str] | dict[str, Any], out_dir: str | os.
     return run_plan(plan, out_dir or default_out(plan.name), jobs, scheduler, resume, force, progress).results
 
 
-def simulate(model: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None,
-             force: bool = True) -> Results:  # fmt: skip
+def simulate(
+    model: str | os.PathLike[str], out_dir: str | os.PathLike[str] | None = None, force: bool = True
+) -> Results:
     """Run one model file (no matrix) and return its :class:`Results` (a ``variant`` dim of length 1)."""
     report = simulate_report(str(model), out_dir, force)
     return report.results
 
 
-def simulate_report(model: str, out_dir: str | os.PathLike[str] | None = None, force: bool = True,
-                    notes: Any = None, warn: Callable[[str], None] | None = None) -> RunReport:  # fmt: skip
+def simulate_report(
+    model: str,
+    out_dir: str | os.PathLike[str] | None = None,
+    force: bool = True,
+    notes: Any = None,
+    warn: Callable[[str], None] | None = None,
+) -> RunReport:
     """Run one model file; ``force=False`` refuses a folder holding other results (the command line's
     default). ``warn`` receives the plausibility warnings of the model before it runs."""
     from crashstudy.schema import file_kind, parse_model
@@ -329,9 +441,18 @@ def simulate_report(model: str, out_dir: str | os.PathLike[str] | None = None, f
 
     doc = load_yaml(model)
     if file_kind(doc.data) == "study":
-        raise InputError([Problem(model, None, "", f"this is a study, not a model (it has "
-                                  f"{', '.join(k for k in doc.data if k in ('model', 'matrix', 'zip', 'set'))}): "
-                                  f"run its variants with `crashstudy run {model}`")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    model,
+                    None,
+                    "",
+                    f"this is a study, not a model (it has "
+                    f"{', '.join(k for k in doc.data if k in ('model', 'matrix', 'zip', 'set'))}): "
+                    f"run its variants with `crashstudy run {model}`",
+                )
+            ]
+        )
     lm = parse_model(doc)
     plan = plan_from_model(lm)
     refuse_fixed_dt(plan, lm.doc)
@@ -351,9 +472,18 @@ def refuse_fixed_dt(plan: Plan, doc: Any) -> None:
     batch, steps = build_batch(plan.topology, plan.params(0, 1), plan.interval)
     if steps.refused[0]:
         n, s = int(steps.control_node[0]), int(steps.control_spring[0])
-        ctrl = f"node {plan.topology.node_ids[n]}" + (f", spring {plan.topology.spring_ids[s]}" if s >= 0 else "")
+        ctrl = f"node {plan.topology.node_ids[n]}" + (
+            f", spring {plan.topology.spring_ids[s]}" if s >= 0 else ""
+        )
         dt = plan.base[plan.topology.blocks["time_step"].start]
-        raise InputError([Problem(doc.file, doc.line_of(("time_step", "dt")), "time_step.dt",
-                                  f"dt={dt:.6g} is above the critical step dt_crit={steps.dt_crit[0]:.6g} "
-                                  f"(controlled by {ctrl}); use a smaller dt or safety_factor")])  # fmt: skip
-
+        raise InputError(
+            [
+                Problem(
+                    doc.file,
+                    doc.line_of(("time_step", "dt")),
+                    "time_step.dt",
+                    f"dt={dt:.6g} is above the critical step dt_crit={steps.dt_crit[0]:.6g} "
+                    f"(controlled by {ctrl}); use a smaller dt or safety_factor",
+                )
+            ]
+        )

@@ -19,7 +19,9 @@ def start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, flo
     topo = plan.topology
     sample, _ = build_batch(topo, plan.params(0, min(plan.n_variants, 64)), plan.interval)
     vary = plan.varying_curves
-    rec = topo.metric_nodes  # metrics: the kernels record these nodes at every step (their own generated kernel)
+    rec = (
+        topo.metric_nodes
+    )  # metrics: the kernels record these nodes at every step (their own generated kernel)
     from crashstudy.metrics.warmup import CRITERIA
 
     companion = CRITERIA if rec else None  # the crash criteria compile beside the kernel
@@ -44,11 +46,19 @@ def start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, flo
 
     if do.foreground:
         say(f"compiling {what(do.foreground)}; Ctrl-C stops")
-        choice.compile_foreground(do.foreground, sample, topo.histories, vary, interrupt.check, rec, say, companion)
+        choice.compile_foreground(
+            do.foreground, sample, topo.histories, vary, interrupt.check, rec, say, companion
+        )
     if do.now and choice.start_background(do.now, sample, topo.histories, vary, rec) is not None:
-        say(f"compiling {what(do.now)} in the background"
-            + (f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
-               "when it is ready" if do.small_chunks else ""))  # fmt: skip
+        say(
+            f"compiling {what(do.now)} in the background"
+            + (
+                f"; the run starts on the NumPy reference (~{start.reference_seconds:.0f} s alone) and switches "
+                "when it is ready"
+                if do.small_chunks
+                else ""
+            )
+        )
     elif do.small_chunks:
         return False, start.reference_seconds, None
 
@@ -57,4 +67,3 @@ def start_kernels(plan: Plan, kernel: KernelName, notes: Any) -> tuple[bool, flo
             say(f"compiling {what(do.after)} in the background for the next run")
 
     return do.small_chunks, do.estimate, later if do.after else None
-

@@ -24,7 +24,9 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
-THREADED = False  # True: writes on the writer thread (off until a quiet 2-core measurement shows a gain: see below)
+THREADED = (
+    False  # True: writes on the writer thread (off until a quiet 2-core measurement shows a gain: see below)
+)
 _POOL: list[ThreadPoolExecutor] = []  # the one writer thread of the process, started at the first run
 
 

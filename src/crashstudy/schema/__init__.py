@@ -13,7 +13,15 @@ from crashstudy.schema.model import Model
 from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.schema.yamlio import LoadedYaml, load_yaml
 
-__all__ = ["LoadedModel", "Model", "file_kind", "load_model", "parse_model", "refuse_foreign", "validate_model_data"]
+__all__ = [
+    "LoadedModel",
+    "Model",
+    "file_kind",
+    "load_model",
+    "parse_model",
+    "refuse_foreign",
+    "validate_model_data",
+]
 
 
 @dataclass(frozen=True)
@@ -24,7 +32,9 @@ class LoadedModel:
     doc: LoadedYaml
 
 
-def validate_model_data(data: Any) -> tuple[Model | None, list[tuple[tuple[Any, ...], str]] | ValidationError]:
+def validate_model_data(
+    data: Any,
+) -> tuple[Model | None, list[tuple[tuple[Any, ...], str]] | ValidationError]:
     """Validate plain data; returns ``(model, [])``, ``(model, relational problems)`` or ``(None, error)``."""
     try:
         m = Model.model_validate(data)
@@ -43,9 +53,18 @@ def refuse_foreign(doc: LoadedYaml) -> None:
     ours = {name for cls in (Model, Study) for name in cls.model_fields}
     if isinstance(doc.data, dict) and doc.data and not ours.intersection(doc.data):
         first = doc.line_of((next(iter(doc.data)),))
-        raise InputError([Problem(doc.file, first, "", f"not a crashstudy model or study file: none of its "
-                                  f"{len(doc.data)} top-level keys is one of ours (a model has name, nodes, springs, "
-                                  "...; a study has name, model, matrix, ...)")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    doc.file,
+                    first,
+                    "",
+                    f"not a crashstudy model or study file: none of its "
+                    f"{len(doc.data)} top-level keys is one of ours (a model has name, nodes, springs, "
+                    "...; a study has name, model, matrix, ...)",
+                )
+            ]
+        )
 
 
 def file_kind(data: Any) -> str | None:
@@ -75,7 +94,7 @@ def parse_model(doc: LoadedYaml) -> LoadedModel:
         problems = pydantic_problems(found, doc, Model)
         seen = {p.field for p in problems}
         extra = [p for p in located(doc, raw_reference_problems(doc.data)) if p.field not in seen]
-        raise InputError(sorted(problems + extra, key=lambda p: (p.line or 0)))
+        raise InputError(sorted(problems + extra, key=lambda p: p.line or 0))
     if found:
         raise InputError(located(doc, found))
     assert m is not None

@@ -65,9 +65,12 @@ def _fixed_axes(fixed: bool | Sequence[str], dim: int) -> set[str]:
 def _nodes(m: Model, dim: int) -> Found:
     for nid, node in m.nodes.items():
         if len(node.position) != dim:
-            yield ("nodes", nid, "position"), (
-                f"expected {dim} coordinate(s) like the first node (a model is 1-D or 2-D throughout), "
-                f"got {len(node.position)}"
+            yield (
+                ("nodes", nid, "position"),
+                (
+                    f"expected {dim} coordinate(s) like the first node (a model is 1-D or 2-D throughout), "
+                    f"got {len(node.position)}"
+                ),
             )
         fixed = _fixed_axes(node.fixed, dim)
         if dim == 1 and "y" in fixed:
@@ -92,26 +95,34 @@ def _springs(m: Model, dim: int) -> Found:
         elif a in m.nodes and b in m.nodes:
             pa, pb = m.nodes[a].position, m.nodes[b].position
             if len(pa) == len(pb) and float(np.hypot.reduce(np.subtract(pb, pa))) == 0.0:
-                yield ("springs", sid, "nodes"), f"nodes {a!r} and {b!r} are at the same position: a spring needs a non-zero initial length"
+                yield (
+                    ("springs", sid, "nodes"),
+                    f"nodes {a!r} and {b!r} are at the same position: a spring needs a non-zero initial length",
+                )
         yield from _material(m, sid, sp)
 
 
 def origin_message(cid: str, key: str, at0: float, damper: bool) -> str:
     """Why a material curve must pass through the origin, and what to write instead."""
     if damper:
-        return (f"the damper curve {cid!r} must pass through the origin (its force at rate 0 is {at0:g}): a damper carries "
-                "no force at rest; a preload belongs on a spring, with initial_elongation")
+        return (
+            f"the damper curve {cid!r} must pass through the origin (its force at rate 0 is {at0:g}): a damper carries "
+            "no force at rest; a preload belongs on a spring, with initial_elongation"
+        )
     label = "curve" if key == "curve" else f"{key} curve"
-    return (f"the {label} {cid!r} must pass through the origin (its force at e=0 is {at0:g}): a spring that "
-            "carries force at t = 0 says so with initial_elongation (shift the curve through (0, 0) and set "
-            "initial_elongation to the elongation of the preload), never with a shifted curve")
+    return (
+        f"the {label} {cid!r} must pass through the origin (its force at e=0 is {at0:g}): a spring that "
+        "carries force at t = 0 says so with initial_elongation (shift the curve through (0, 0) and set "
+        "initial_elongation to the elongation of the preload), never with a shifted curve"
+    )
 
 
 def _material(m: Model, sid: str, sp: Spring) -> Found:
     mat = sp.material
     base: Path = ("springs", sid, "material")
-    refs: list[tuple[Path, str, str]] = [(base + (k,), k, getattr(mat, k)) for k in ("curve", "loading", "unloading")
-                                         if hasattr(mat, k)]  # fmt: skip
+    refs: list[tuple[Path, str, str]] = [
+        (base + (k,), k, getattr(mat, k)) for k in ("curve", "loading", "unloading") if hasattr(mat, k)
+    ]
     if isinstance(mat, RateElastic):  # a list of {rate, curve}: each curve is an elastic curve of its own
         refs = [(base + ("curves", i, "curve"), "curve", rc.curve) for i, rc in enumerate(mat.curves)]
     for path, _key, cid in refs:
@@ -125,7 +136,9 @@ def _material(m: Model, sid: str, sp: Spring) -> Found:
             if abs(at0) > 1e-9 * scale:
                 yield path, origin_message(cid, key, at0, mat.type in DAMPER_TYPES)
             elif key != "unloading" and signed:  # force of the sign of the elongation
-                bad = np.flatnonzero(wrong_sign_points(np.asarray(c.x)[:, None], np.asarray(c.y)[:, None])[:, 0])
+                bad = np.flatnonzero(
+                    wrong_sign_points(np.asarray(c.x)[:, None], np.asarray(c.y)[:, None])[:, 0]
+                )
                 if bad.size:
                     k = int(bad[0])
                     use = mat.type if key == "curve" else f"{mat.type} {key}"
@@ -133,34 +146,56 @@ def _material(m: Model, sid: str, sp: Spring) -> Found:
     if isinstance(mat, GeneralNonlinear) and mat.unloading in m.curves:
         c = m.curves[mat.unloading]
         if any(not b > a for a, b in zip(c.y, c.y[1:], strict=False)):
-            yield base + ("unloading",), f"the unloading curve {mat.unloading!r} must be increasing (y strictly increasing)"
+            yield (
+                base + ("unloading",),
+                f"the unloading curve {mat.unloading!r} must be increasing (y strictly increasing)",
+            )
     elif isinstance(mat, NonlinearDamper) and mat.curve in m.curves:
         c = m.curves[mat.curve]
         if any(b < a for a, b in zip(c.y, c.y[1:], strict=False)):
-            yield base + ("curve",), f"the damper curve {mat.curve!r} must be increasing (y non-decreasing with the rate)"
+            yield (
+                base + ("curve",),
+                f"the damper curve {mat.curve!r} must be increasing (y non-decreasing with the rate)",
+            )
     elif isinstance(mat, Crush) and mat.loading in m.curves:
         c = m.curves[mat.loading]
         if c.x[0] >= 0:
             yield base + ("loading",), f"the crush curve {mat.loading!r} needs a compression part (x < 0)"
         elif not any(y < 0 for x, y in zip(c.x, c.y, strict=False) if x < 0):
-            yield base + ("loading",), (
-                f"the crush curve {mat.loading!r} has no negative force in compression (x < 0): a crush spring "
-                "carries min(0, curve), so it would carry no force; compression forces are negative")  # fmt: skip
+            yield (
+                base + ("loading",),
+                (
+                    f"the crush curve {mat.loading!r} has no negative force in compression (x < 0): a crush spring "
+                    "carries min(0, curve), so it would carry no force; compression forces are negative"
+                ),
+            )
     e0 = sp.initial_elongation
     if e0 != 0.0 and mat.type in DAMPER_TYPES:
-        yield ("springs", sid, "initial_elongation"), (
-            f"a {mat.type} has no initial elongation (its force follows the elongation rate); remove "
-            "initial_elongation, or put the preload on a spring in parallel")
+        yield (
+            ("springs", sid, "initial_elongation"),
+            (
+                f"a {mat.type} has no initial elongation (its force follows the elongation rate); remove "
+                "initial_elongation, or put the preload on a spring in parallel"
+            ),
+        )
     fail = sp.failure
     if fail is not None:
         if fail.tension is not None and not e0 < fail.tension:
-            yield ("springs", sid, "failure", "tension"), (
-                f"expected a tension failure elongation above initial_elongation ({e0:g}), got {fail.tension:g}: "
-                "the spring would be broken at t = 0")
+            yield (
+                ("springs", sid, "failure", "tension"),
+                (
+                    f"expected a tension failure elongation above initial_elongation ({e0:g}), got {fail.tension:g}: "
+                    "the spring would be broken at t = 0"
+                ),
+            )
         if fail.compression is not None and not e0 > fail.compression:
-            yield ("springs", sid, "failure", "compression"), (
-                f"expected a compression failure elongation below initial_elongation ({e0:g}), got "
-                f"{fail.compression:g}: the spring would be broken at t = 0")
+            yield (
+                ("springs", sid, "failure", "compression"),
+                (
+                    f"expected a compression failure elongation below initial_elongation ({e0:g}), got "
+                    f"{fail.compression:g}: the spring would be broken at t = 0"
+                ),
+            )
 
 
 def _vectors(m: Model, dim: int) -> Found:
@@ -174,7 +209,10 @@ def _vectors(m: Model, dim: int) -> Found:
         fixed = _fixed_axes(m.nodes[nid].fixed, dim)
         for k, ax in enumerate(["x", "y"][:dim]):
             if ax in fixed and v[k] != 0.0:
-                yield ("initial_velocity", nid, k), f"node {nid!r} is fixed along {ax}; its initial velocity there must be 0"
+                yield (
+                    ("initial_velocity", nid, k),
+                    f"node {nid!r} is fixed along {ax}; its initial velocity there must be 0",
+                )
     if m.gravity is not None and len(m.gravity) != dim:
         yield ("gravity",), f"expected {dim} component(s), got {len(m.gravity)}"
 
@@ -197,10 +235,16 @@ def _loads_and_motion(m: Model, dim: int) -> Found:
         if dim == 1 and pm.direction == "y":
             yield path + ("direction",), "a 1-D model has only the direction 'x'"
         elif pm.direction in _fixed_axes(m.nodes[pm.node].fixed, dim):
-            yield path + ("direction",), f"node {pm.node!r} is fixed along {pm.direction}: a prescribed direction must not also be fixed"
+            yield (
+                path + ("direction",),
+                f"node {pm.node!r} is fixed along {pm.direction}: a prescribed direction must not also be fixed",
+            )
         key = (pm.node, pm.direction)
         if key in seen:
-            yield path, f"node {pm.node!r} already has a prescribed motion along {pm.direction} (entry {seen[key]})"
+            yield (
+                path,
+                f"node {pm.node!r} already has a prescribed motion along {pm.direction} (entry {seen[key]})",
+            )
         seen[key] = i
 
 
@@ -239,8 +283,10 @@ def _behind_walls(m: Model, dim: int) -> Found:
         bad = np.flatnonzero(row > 0)
         if bad.size:
             k = int(bad[0])
-            yield ("rigid_walls", i, "point"), behind_message(ids[k], float(row[k]), w.id,
-                                                            UNIT_SYSTEMS[m.units].length, bad.size - 1)
+            yield (
+                ("rigid_walls", i, "point"),
+                behind_message(ids[k], float(row[k]), w.id, UNIT_SYSTEMS[m.units].length, bad.size - 1),
+            )
 
 
 def _wall_and_motion(m: Model, dim: int, i: int, w: RigidWall) -> Found:
@@ -259,18 +305,27 @@ def _wall_and_motion(m: Model, dim: int, i: int, w: RigidWall) -> Found:
         if w.normal[axes.index(pm.direction)] == 0.0:
             continue
         where: Path = ("rigid_walls", i) + (("nodes", w.nodes.index(pm.node)) if w.nodes is not None else ())
-        yield where, (
-            f"wall {w.id!r} holds node {pm.node!r}, which prescribed_motion.{j} drives along {pm.direction} "
-            f"(into or away from the wall): a node cannot both follow a prescribed motion and be stopped by a wall; "
-            + ("remove the node from the wall's nodes" if w.nodes is not None else
-               "list the nodes the wall stops (nodes: [...]) without it")
-            + " or drive another node"
+        yield (
+            where,
+            (
+                f"wall {w.id!r} holds node {pm.node!r}, which prescribed_motion.{j} drives along {pm.direction} "
+                f"(into or away from the wall): a node cannot both follow a prescribed motion and be stopped by a wall; "
+                + (
+                    "remove the node from the wall's nodes"
+                    if w.nodes is not None
+                    else "list the nodes the wall stops (nodes: [...]) without it"
+                )
+                + " or drive another node"
+            ),
         )
 
 
 def _output(m: Model, dim: int) -> Found:
     if m.output.interval is not None and m.output.interval > m.end_time:
-        yield ("output", "interval"), f"expected an interval no longer than end_time ({m.end_time:g}), got {m.output.interval:g}"
+        yield (
+            ("output", "interval"),
+            f"expected an interval no longer than end_time ({m.end_time:g}), got {m.output.interval:g}",
+        )
     if not m.rigid_walls and isinstance(m.output.histories, list) and "wall_force" in m.output.histories:
         yield ("output", "histories"), "'wall_force' needs at least one rigid wall"
 
@@ -284,25 +339,41 @@ def _metrics(m: Model, dim: int) -> Found:
         if mt.node not in m.nodes:
             yield path + ("node",), f"unknown node {mt.node!r}; nodes: {', '.join(sorted(m.nodes))}"
         elif len(_fixed_axes(m.nodes[mt.node].fixed, dim)) == dim:
-            yield path + ("node",), f"node {mt.node!r} is fixed in every direction: it has no acceleration to judge"
+            yield (
+                path + ("node",),
+                f"node {mt.node!r} is fixed in every direction: it has no acceleration to judge",
+            )
         d = mt.direction
         if isinstance(d, str):
             if dim == 1 and d == "y":
                 yield path + ("direction",), "a 1-D model has only the direction 'x'"
         elif d is not None:
             if len(d) != dim:
-                yield path + ("direction",), f"expected {dim} component(s) (the model is {dim}-D), got {len(d)}"
+                yield (
+                    path + ("direction",),
+                    f"expected {dim} component(s) (the model is {dim}-D), got {len(d)}",
+                )
             elif not any(d):
                 yield path + ("direction",), "the direction must not be the zero vector"
         for k, c in enumerate(mt.criteria):
             key = (mt.node, c)
             if key in seen:
                 where = "this entry" if seen[key] == i else f"metrics.{seen[key]}"
-                yield path + ("criteria", k), f"criterion {c!r} of node {mt.node!r} is already asked for in {where}"
+                yield (
+                    path + ("criteria", k),
+                    f"criterion {c!r} of node {mt.node!r} is already asked for in {where}",
+                )
             else:
                 seen[key] = i
-    if not m.metrics and isinstance(m.output.histories, list) and "filtered_acceleration" in m.output.histories:
-        yield ("output", "histories"), "'filtered_acceleration' needs a metrics: block (it is the filtered pulse of its nodes)"
+    if (
+        not m.metrics
+        and isinstance(m.output.histories, list)
+        and "filtered_acceleration" in m.output.histories
+    ):
+        yield (
+            ("output", "histories"),
+            "'filtered_acceleration' needs a metrics: block (it is the filtered pulse of its nodes)",
+        )
 
 
 def raw_reference_problems(data: object) -> list[tuple[Path, str]]:
@@ -326,7 +397,7 @@ def raw_reference_problems(data: object) -> list[tuple[Path, str]]:
             out.append((path, f"unknown curve {name!r}; defined curves: {sorted(curves) or 'none'}"))
 
     springs = data.get("springs")
-    for sid, sp in (springs.items() if isinstance(springs, dict) else []):
+    for sid, sp in springs.items() if isinstance(springs, dict) else []:
         if not isinstance(sp, dict):
             continue
         ends = sp.get("nodes")
@@ -345,7 +416,7 @@ def raw_reference_problems(data: object) -> list[tuple[Path, str]]:
                 if item.get("curve") is not None:
                     curve_ref((key, i, "curve"), item.get("curve"))
     iv = data.get("initial_velocity")
-    for nid in (iv if isinstance(iv, dict) else {}):
+    for nid in iv if isinstance(iv, dict) else {}:
         node_ref(("initial_velocity", nid), nid)
     walls = data.get("rigid_walls")
     for i, w in enumerate(walls if isinstance(walls, list) else []):
@@ -361,8 +432,13 @@ def _iso_mme(m: Model, dim: int) -> Found:
     seen: dict[str, str] = {}
     for key, prefix in m.iso_mme.items():
         if key not in m.nodes and key not in m.springs:
-            yield ("iso_mme", key), (f"unknown id {key!r}: expected a node or spring id (nodes: "
-                                     f"{', '.join(list(m.nodes)[:6])}; springs: {', '.join(list(m.springs)[:6])})")  # fmt: skip
+            yield (
+                ("iso_mme", key),
+                (
+                    f"unknown id {key!r}: expected a node or spring id (nodes: "
+                    f"{', '.join(list(m.nodes)[:6])}; springs: {', '.join(list(m.springs)[:6])})"
+                ),
+            )
         elif prefix in seen:
             yield ("iso_mme", key), f"code {prefix} is already {seen[prefix]!r}'s: each id needs its own"
         seen.setdefault(prefix, key)

@@ -18,9 +18,17 @@ from pydantic import BaseModel
 from crashstudy.schema.model import Model
 
 # the bracketed unit of a description -> unit kind (a key of crashstudy.results.attributes.units_of)
-KINDS = {"length": "length", "time": "time", "mass": "mass", "force": "force", "1": "1",
-         "force/length": "stiffness", "force*time/length": "damping", "length/time": "velocity",
-         "length/time^2": "acceleration"}  # fmt: skip
+KINDS = {
+    "length": "length",
+    "time": "time",
+    "mass": "mass",
+    "force": "force",
+    "1": "1",
+    "force/length": "stiffness",
+    "force*time/length": "damping",
+    "length/time": "velocity",
+    "length/time^2": "acceleration",
+}
 _BRACKET = re.compile(r"\[([^\]]+)\]")
 _MOTION = {"displacement": "length", "velocity": "velocity", "acceleration": "acceleration"}
 
@@ -89,7 +97,9 @@ def curve_kind(path: str, model: dict[str, Any]) -> str | None:
             if mat.get(key) == cid:
                 uses.add(("velocity" if mat.get("type") == "nonlinear_damper" else "length", "force"))
         rate_curves = mat.get("curves")  # rate_elastic: a list of {rate, curve}
-        if isinstance(rate_curves, list) and any(isinstance(rc, dict) and rc.get("curve") == cid for rc in rate_curves):
+        if isinstance(rate_curves, list) and any(
+            isinstance(rc, dict) and rc.get("curve") == cid for rc in rate_curves
+        ):
             uses.add(("length", "force"))
     for load in model.get("loads") or []:
         if (load or {}).get("curve") == cid:

@@ -47,7 +47,9 @@ class Curve(Strict):
     @model_validator(mode="after")
     def _increasing(self) -> Curve:
         if len(self.x) != len(self.y):
-            raise ValueError(f"x and y must have the same number of points (x has {len(self.x)}, y has {len(self.y)})")
+            raise ValueError(
+                f"x and y must have the same number of points (x has {len(self.x)}, y has {len(self.y)})"
+            )
         for a, b in zip(self.x, self.x[1:], strict=False):
             if not b > a:
                 raise ValueError(f"x must be strictly increasing (found {a} followed by {b})")
@@ -58,8 +60,11 @@ class Node(Strict):
     """A nodal mass. ``position`` [length] is ``[x]`` (1-D) or ``[x, y]``; ``mass`` [mass]."""
 
     position: Vector = Field(description="initial position [length]: [x] in a 1-D model, [x, y] in a 2-D one")
-    mass: Positive | None = Field(default=None, description="nodal mass [mass] > 0; required unless fixed in every direction")
-    fixed: bool | Annotated[list[Axis], Field(min_length=1, max_length=2)] = Field(default=        False, description="true (all directions), false, or the fixed directions, e.g. [y]"
+    mass: Positive | None = Field(
+        default=None, description="nodal mass [mass] > 0; required unless fixed in every direction"
+    )
+    fixed: bool | Annotated[list[Axis], Field(min_length=1, max_length=2)] = Field(
+        default=False, description="true (all directions), false, or the fixed directions, e.g. [y]"
     )
 
 
@@ -73,27 +78,44 @@ class LinearElastic(Strict):
 class NonlinearElastic(Strict):
     """``F = C(e)``; loads and unloads along the same curve."""
 
-    type: Literal["nonlinear_elastic"] = Field(description="material law: F = C(e), same path loading and unloading")
+    type: Literal["nonlinear_elastic"] = Field(
+        description="material law: F = C(e), same path loading and unloading"
+    )
     curve: Id = Field(description="id of the curve C: force [force] vs elongation [length]")
 
 
 class GeneralNonlinear(Strict):
     """LS-DYNA S06-style spring: loading/unloading curves, yield forces [force] (absent = never)."""
 
-    type: Literal["general_nonlinear"] = Field(description="material law: LS-DYNA S06 loading/unloading curves with yield")
-    loading: Id = Field(description="id of the loading curve, force [force] vs elongation [length], through the origin")
-    unloading: Id = Field(description="id of the unloading curve, force vs elongation, through the origin, increasing")
-    tension_yield: Positive | None = Field(default=None, description="yield force in tension [force] > 0; absent: never yields")
-    compression_yield: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = Field(default=        None, description="yield force in compression [force] < 0; absent: never yields"
+    type: Literal["general_nonlinear"] = Field(
+        description="material law: LS-DYNA S06 loading/unloading curves with yield"
+    )
+    loading: Id = Field(
+        description="id of the loading curve, force [force] vs elongation [length], through the origin"
+    )
+    unloading: Id = Field(
+        description="id of the unloading curve, force vs elongation, through the origin, increasing"
+    )
+    tension_yield: Positive | None = Field(
+        default=None, description="yield force in tension [force] > 0; absent: never yields"
+    )
+    compression_yield: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = Field(
+        default=None, description="yield force in compression [force] < 0; absent: never yields"
     )
 
 
 class Crush(Strict):
     """Crushable structure that cannot pull; ``unloading_stiffness`` [force/length] > 0."""
 
-    type: Literal["crush"] = Field(description="material law: crushable structure, compression only, no tension")
-    loading: Id = Field(description="id of the crush curve, force [force] vs elongation [length]; its x < 0 part is used")
-    unloading_stiffness: Positive = Field(description="slope of elastic spring-back after crushing [force/length] > 0")
+    type: Literal["crush"] = Field(
+        description="material law: crushable structure, compression only, no tension"
+    )
+    loading: Id = Field(
+        description="id of the crush curve, force [force] vs elongation [length]; its x < 0 part is used"
+    )
+    unloading_stiffness: Positive = Field(
+        description="slope of elastic spring-back after crushing [force/length] > 0"
+    )
 
 
 class Damper(Strict):
@@ -110,10 +132,14 @@ class Elastoplastic(Strict):
     plastic elongation (the sum of ``|de_p|``).
     """
 
-    type: Literal["elastoplastic"] = Field(description="material law: bilinear elastoplastic, isotropic hardening (LS-DYNA S03)")
+    type: Literal["elastoplastic"] = Field(
+        description="material law: bilinear elastoplastic, isotropic hardening (LS-DYNA S03)"
+    )
     stiffness: Positive = Field(description="elastic stiffness K [force/length] > 0")
     tangent_stiffness: NonNegative = Field(description="slope after yield KT [force/length], 0 <= KT < K")
-    yield_force: Positive = Field(description="initial yield force FY [force] > 0, the same in tension and compression")
+    yield_force: Positive = Field(
+        description="initial yield force FY [force] > 0, the same in tension and compression"
+    )
 
     @field_validator("tangent_stiffness")
     @classmethod
@@ -127,14 +153,20 @@ class Elastoplastic(Strict):
 class NonlinearDamper(Strict):
     """Damper ``F = C(de/dt)`` (LS-DYNA S05): force [force] vs elongation rate [length/time]."""
 
-    type: Literal["nonlinear_damper"] = Field(description="material law: F = C(de/dt), force vs elongation rate")
-    curve: Id = Field(description="id of the curve C: force [force] vs elongation rate [length/time], through the origin, non-decreasing")
+    type: Literal["nonlinear_damper"] = Field(
+        description="material law: F = C(de/dt), force vs elongation rate"
+    )
+    curve: Id = Field(
+        description="id of the curve C: force [force] vs elongation rate [length/time], through the origin, non-decreasing"
+    )
 
 
 class RateCurve(Strict):
     """One curve of a ``rate_elastic`` spring and the elongation rate magnitude it holds at."""
 
-    rate: NonNegative = Field(description="elongation rate magnitude |de/dt| [length/time] >= 0 of this curve")
+    rate: NonNegative = Field(
+        description="elongation rate magnitude |de/dt| [length/time] >= 0 of this curve"
+    )
     curve: Id = Field(description="id of the curve: force [force] vs elongation [length], through the origin")
 
 
@@ -142,7 +174,9 @@ class RateElastic(Strict):
     """``F = C(e, |de/dt|)``: elastic curves at increasing rates, linear in the rate between them
     (LS-DYNA S04 with a ``*DEFINE_TABLE``); loads and unloads along them."""
 
-    type: Literal["rate_elastic"] = Field(description="material law: F = C(e, |de/dt|), force curves at increasing rates")
+    type: Literal["rate_elastic"] = Field(
+        description="material law: F = C(e, |de/dt|), force curves at increasing rates"
+    )
     curves: Annotated[list[RateCurve], Field(min_length=1, max_length=16)] = Field(
         description="the curves and their rates, rates strictly increasing; the first one below the first rate, "
         "the last one above the last rate, linear in the rate between"
@@ -153,26 +187,38 @@ class RateElastic(Strict):
     def _rates_increasing(cls, curves: list[RateCurve]) -> list[RateCurve]:
         for a, b in zip(curves, curves[1:], strict=False):
             if not b.rate > a.rate:
-                raise ValueError(f"rates must be strictly increasing (found {a.rate:g} followed by {b.rate:g})")
+                raise ValueError(
+                    f"rates must be strictly increasing (found {a.rate:g} followed by {b.rate:g})"
+                )
         return curves
 
 
 Material = Annotated[
-    LinearElastic | NonlinearElastic | GeneralNonlinear | Crush | Damper | Elastoplastic | NonlinearDamper
+    LinearElastic
+    | NonlinearElastic
+    | GeneralNonlinear
+    | Crush
+    | Damper
+    | Elastoplastic
+    | NonlinearDamper
     | RateElastic,
     Field(discriminator="type"),
 ]
 # the union above lists the classes of the material table (tests/test_material_table.py holds them equal)
 MATERIAL_TYPES = tuple(m.name for m in MATERIALS)
-DAMPER_TYPES = tuple(m.name for m in MATERIALS if m.by_rate)  # materials whose force follows the elongation rate
+DAMPER_TYPES = tuple(
+    m.name for m in MATERIALS if m.by_rate
+)  # materials whose force follows the elongation rate
 
 
 class Failure(Strict):
     """Elongations [length] at which a spring breaks (force 0 for the rest of the run); each optional."""
 
-    tension: Positive | None = Field(default=None, description="elongation e_t [length] > 0 beyond which the spring breaks in tension")
-    compression: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = Field(default=
-        None, description="elongation e_c [length] < 0 beyond which the spring breaks in compression"
+    tension: Positive | None = Field(
+        default=None, description="elongation e_t [length] > 0 beyond which the spring breaks in tension"
+    )
+    compression: Annotated[float, Field(lt=0, allow_inf_nan=False)] | None = Field(
+        default=None, description="elongation e_c [length] < 0 beyond which the spring breaks in compression"
     )
 
 
@@ -183,11 +229,14 @@ class Spring(Strict):
         description="ids of the two different nodes it joins; elongation e > 0 when they move apart"
     )
     material: Material = Field(description="force law, chosen by 'type'")
-    initial_elongation: Finite = Field(default=
-        0.0, description="elongation e0 [length] at t = 0 (preload or a free length that differs from the drawn one); "
-        "not for dampers"
+    initial_elongation: Finite = Field(
+        default=0.0,
+        description="elongation e0 [length] at t = 0 (preload or a free length that differs from the drawn one); "
+        "not for dampers",
     )
-    failure: Failure | None = Field(default=None, description="elongations at which the spring breaks; absent: never")
+    failure: Failure | None = Field(
+        default=None, description="elongations at which the spring breaks; absent: never"
+    )
 
 
 class Load(Strict):
@@ -195,7 +244,9 @@ class Load(Strict):
 
     node: Id = Field(description="id of the loaded node")
     force: Vector = Field(description="force vector [force], one component per dimension")
-    curve: Id | None = Field(default=None, description="id of a time curve scaling the force (zero outside it); absent: constant")
+    curve: Id | None = Field(
+        default=None, description="id of a time curve scaling the force (zero outside it); absent: constant"
+    )
 
 
 class PrescribedMotion(Strict):
@@ -215,19 +266,29 @@ class RigidWall(Strict):
 
     id: Id = Field(description="wall id (names the wall in results)")
     point: Vector = Field(description="a point of the wall plane [length]")
-    normal: Vector = Field(description="direction the wall faces (nodes stay on this side) [1], any length but not zero")
-    nodes: list[Id] | None = Field(default=None, description="ids of the nodes the wall stops; absent: every node")
-    stiffness: Positive | None = Field(default=None, description="contact stiffness [force/length] > 0: a penalty "
-                                       "wall (force = stiffness x penetration); absent: a rigid wall")
+    normal: Vector = Field(
+        description="direction the wall faces (nodes stay on this side) [1], any length but not zero"
+    )
+    nodes: list[Id] | None = Field(
+        default=None, description="ids of the nodes the wall stops; absent: every node"
+    )
+    stiffness: Positive | None = Field(
+        default=None,
+        description="contact stiffness [force/length] > 0: a penalty "
+        "wall (force = stiffness x penetration); absent: a rigid wall",
+    )
 
 
 class TimeStep(Strict):
     """Exactly one of ``safety_factor`` (0 < s <= 1), ``dt`` [time] or ``tolerance`` (relative)."""
 
-    safety_factor: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] | None = Field(default=        None, description="dt = safety_factor * dt_crit, 0 < s <= 1 [1]"
+    safety_factor: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] | None = Field(
+        default=None, description="dt = safety_factor * dt_crit, 0 < s <= 1 [1]"
     )
     dt: Positive | None = Field(default=None, description="fixed time step [time]; must not exceed dt_crit")
-    tolerance: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(default=        None, description="target relative error of the peaks, 0 < tol < 1 [1]; dt is chosen to meet it"
+    tolerance: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] | None = Field(
+        default=None,
+        description="target relative error of the peaks, 0 < tol < 1 [1]; dt is chosen to meet it",
     )
 
     @model_validator(mode="after")
@@ -246,14 +307,20 @@ class TimeStep(Strict):
 
 
 ISO_MME_PREFIX = r"^[0-9A-Z]{12}$"  #: an ISO/TS 13499 code's test object, position and locations
-HISTORY_NAMES = (*HISTORY_ORDER, "filtered_acceleration")  # the last: computed from the per-step record (metrics)
+HISTORY_NAMES = (
+    *HISTORY_ORDER,
+    "filtered_acceleration",
+)  # the last: computed from the per-step record (metrics)
 
 
 class Output(Strict):
     """History sampling: ``interval`` [time] (default end_time/1000) and which histories to keep."""
 
-    interval: Positive | None = Field(default=None, description="history sampling interval [time]; absent: end_time / 1000")
-    histories: Literal["all", "none"] | Annotated[list[str], Field(min_length=1)] = Field(default=        "all", description="histories to keep: all, none (summaries only) or a list of history names"
+    interval: Positive | None = Field(
+        default=None, description="history sampling interval [time]; absent: end_time / 1000"
+    )
+    histories: Literal["all", "none"] | Annotated[list[str], Field(min_length=1)] = Field(
+        default="all", description="histories to keep: all, none (summaries only) or a list of history names"
     )
 
     @field_validator("histories")
@@ -262,7 +329,9 @@ class Output(Strict):
         if isinstance(v, list):
             bad = [h for h in v if h not in HISTORY_NAMES]
             if bad:
-                raise ValueError(f"unknown history {bad[0]!r}; expected 'all', 'none' or names from {list(HISTORY_NAMES)}")
+                raise ValueError(
+                    f"unknown history {bad[0]!r}; expected 'all', 'none' or names from {list(HISTORY_NAMES)}"
+                )
         return v
 
 
@@ -274,11 +343,19 @@ CFC = Literal[60, 180, 600, 1000]
 class Metric(Strict):
     """Crash criteria of one node, from its acceleration at every time step (docs/format.md, metrics)."""
 
-    node: Id = Field(description="id of the node whose acceleration is judged (e.g. an occupant or the cabin)")
-    direction: Axis | Vector | None = Field(default=None, description=(
-        "direction of travel: x, y or a vector [1] (deceleration positive against it); absent: the node's "
-        "initial velocity direction (x when it has none)"))  # fmt: skip
-    cfc: CFC = Field(default=180, description="SAE J211-1 channel frequency class of the filter: 60, 180, 600 or 1000")
+    node: Id = Field(
+        description="id of the node whose acceleration is judged (e.g. an occupant or the cabin)"
+    )
+    direction: Axis | Vector | None = Field(
+        default=None,
+        description=(
+            "direction of travel: x, y or a vector [1] (deceleration positive against it); absent: the node's "
+            "initial velocity direction (x when it has none)"
+        ),
+    )
+    cfc: CFC = Field(
+        default=180, description="SAE J211-1 channel frequency class of the filter: 60, 180, 600 or 1000"
+    )
     criteria: Annotated[list[Criterion], Field(min_length=1)] = Field(
         description="criteria to compute: peak_g, hic15, hic36, clip3ms, clip3ms_cumulative, olc, dri, delta_v"
     )
@@ -293,7 +370,9 @@ class Termination(Strict):
     opening. ``min_time`` [time]: never stop before it.
     """
 
-    kinetic_energy_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = Field(default=        1.0e-3, description="stop threshold f, 0 < f < 1 [1]: spring forces and kinetic energy below f of their peaks"
+    kinetic_energy_fraction: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = Field(
+        default=1.0e-3,
+        description="stop threshold f, 0 < f < 1 [1]: spring forces and kinetic energy below f of their peaks",
     )
     min_time: NonNegative = Field(default=0.0, description="never stop before this time [time]")
 
@@ -301,25 +380,52 @@ class Termination(Strict):
 class Model(Strict):
     """A crashstudy model file: nodes, springs, curves, loads and run settings (docs/format.md)."""
 
-    name: Id = Field(description="model name: letters, digits, '-', '_' (names the result folder of simulate)")
+    name: Id = Field(
+        description="model name: letters, digits, '-', '_' (names the result folder of simulate)"
+    )
     description: str = Field(default="", description="free text, stored with the results")
-    units: UnitSystemName = Field(default="SI", description="unit system of every number: SI, mm-ms-kg-kN or mm-s-t-N")
+    units: UnitSystemName = Field(
+        default="SI", description="unit system of every number: SI, mm-ms-kg-kN or mm-s-t-N"
+    )
     curves: dict[Id, Curve] = Field(default={}, description="id -> tabulated curve (material or time curve)")
-    nodes: Annotated[dict[Id, Node], Field(min_length=1)] = Field(description="id -> nodal mass (at least one)")
-    springs: dict[Id, Spring] = Field(default={}, description="id -> massless spring or damper between two nodes")
-    initial_velocity: dict[Id, Vector] = Field(default={}, description="node id -> initial velocity [length/time]")
-    gravity: Vector | None = Field(default=None, description="body acceleration on every mass [length/time^2]; absent: none")
+    nodes: Annotated[dict[Id, Node], Field(min_length=1)] = Field(
+        description="id -> nodal mass (at least one)"
+    )
+    springs: dict[Id, Spring] = Field(
+        default={}, description="id -> massless spring or damper between two nodes"
+    )
+    initial_velocity: dict[Id, Vector] = Field(
+        default={}, description="node id -> initial velocity [length/time]"
+    )
+    gravity: Vector | None = Field(
+        default=None, description="body acceleration on every mass [length/time^2]; absent: none"
+    )
     loads: list[Load] = Field(default=[], description="concentrated forces on nodes")
-    prescribed_motion: list[PrescribedMotion] = Field(default=[], description="nodes driven along x or y by a time curve")
+    prescribed_motion: list[PrescribedMotion] = Field(
+        default=[], description="nodes driven along x or y by a time curve"
+    )
     rigid_walls: list[RigidWall] = Field(default=[], description="stonewalls that nodes cannot cross")
     end_time: Positive = Field(description="simulated duration [time] > 0, from t = 0")
-    time_step: TimeStep = Field(default=        TimeStep(tolerance=1.0e-3), description="one of safety_factor, dt or tolerance; default tolerance 1e-3"
+    time_step: TimeStep = Field(
+        default=TimeStep(tolerance=1.0e-3),
+        description="one of safety_factor, dt or tolerance; default tolerance 1e-3",
     )
-    output: Output = Field(default=Output(), description="history sampling interval and which histories to keep")
-    termination: Termination | None = Field(default=None, description="optional early end once the crash is over")
-    metrics: list[Metric] = Field(default=[], description="crash criteria of nodes (HIC, 3 ms clip, OLC, ...)")
-    iso_mme: dict[Id, Annotated[str, Field(pattern=ISO_MME_PREFIX)]] = Field(default={}, description=(
-        "node or spring id -> the first 12 characters of its ISO-MME channel codes (export --isomme), e.g. "
-        "10VEHCCG0000; absent: 10NODEnnnn00 / 10SPRGnnnn00 by position (docs/isomme.md)"))  # fmt: skip
-    accuracy_check: bool = Field(default=        False, description="re-run each variant at dt/2 and report a Richardson error estimate [1]"
+    output: Output = Field(
+        default=Output(), description="history sampling interval and which histories to keep"
+    )
+    termination: Termination | None = Field(
+        default=None, description="optional early end once the crash is over"
+    )
+    metrics: list[Metric] = Field(
+        default=[], description="crash criteria of nodes (HIC, 3 ms clip, OLC, ...)"
+    )
+    iso_mme: dict[Id, Annotated[str, Field(pattern=ISO_MME_PREFIX)]] = Field(
+        default={},
+        description=(
+            "node or spring id -> the first 12 characters of its ISO-MME channel codes (export --isomme), e.g. "
+            "10VEHCCG0000; absent: 10NODEnnnn00 / 10SPRGnnnn00 by position (docs/isomme.md)"
+        ),
+    )
+    accuracy_check: bool = Field(
+        default=False, description="re-run each variant at dt/2 and report a Richardson error estimate [1]"
     )

@@ -35,8 +35,17 @@ def data_path(data: Any, loc: tuple[Any, ...]) -> Path:
 
 def _looks_like_tag(part: str) -> bool:
     return any(ch in part for ch in "[]()") or part in {
-        *MATERIAL_CODES, "bool", "float", "int", "str", "list", "dict", "none", "literal", "function-after",
-    }  # fmt: skip
+        *MATERIAL_CODES,
+        "bool",
+        "float",
+        "int",
+        "str",
+        "list",
+        "dict",
+        "none",
+        "literal",
+        "function-after",
+    }
 
 
 def dotted(path: Path) -> str:
@@ -104,21 +113,29 @@ def _message(err: Any, allowed: list[str] | None) -> str:
         hint = ""
         if allowed:
             close = difflib.get_close_matches(str(key), allowed, n=3)
-            hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else f"; expected one of {allowed}"
+            hint = (
+                f"; did you mean {' or '.join(repr(c) for c in close)}?"
+                if close
+                else f"; expected one of {allowed}"
+            )
         return f"unknown key {key!r}{hint}"
     msg = str(err["msg"])
     if msg.startswith("Value error, "):
-        msg = msg[len("Value error, "):]
+        msg = msg[len("Value error, ") :]
     if msg.startswith("Input should be "):
-        msg = "expected " + msg[len("Input should be "):]
+        msg = "expected " + msg[len("Input should be ") :]
     if msg.startswith("Input tag "):
-        msg = msg.replace("Input tag", "material type").replace("found using 'type' does not match any of the expected tags:", "is unknown; expected one of")
+        msg = msg.replace("Input tag", "material type").replace(
+            "found using 'type' does not match any of the expected tags:", "is unknown; expected one of"
+        )
     if "input" in err and kind not in ("missing",) and not isinstance(err["input"], (dict, list)):
         msg += f" (got {err['input']!r})"
     return msg
 
 
-MAX_HINTED = 100  #: problems of a file given a "did you mean" hint (more are never shown: errors.InputError.format)
+MAX_HINTED = (
+    100  #: problems of a file given a "did you mean" hint (more are never shown: errors.InputError.format)
+)
 
 
 def pydantic_problems(
@@ -133,7 +150,9 @@ def pydantic_problems(
     for err in exc.errors(include_url=False):
         path = data_path(data, tuple(err["loc"]))
         parent = path[:-1] if err["type"] in ("extra_forbidden", "missing") else path
-        hinted = err["type"] == "extra_forbidden" and len(problems) < MAX_HINTED  # difflib is slow: the shown ones
+        hinted = (
+            err["type"] == "extra_forbidden" and len(problems) < MAX_HINTED
+        )  # difflib is slow: the shown ones
         allowed = _fields_at(root, data, parent) if hinted else None
         msg = _message(err, allowed)
         if (path, msg) in seen:

@@ -33,8 +33,9 @@ FORCE_ZERO = 1.0e-9
 SIGNED_TYPES = tuple(m.name for m in MATERIALS if m.curves and m.curves[0].rule == "signed")
 
 
-def depth_behind_walls(x: np.ndarray, free: np.ndarray, point: np.ndarray, normal: np.ndarray,
-                       held: np.ndarray) -> np.ndarray:  # fmt: skip
+def depth_behind_walls(
+    x: np.ndarray, free: np.ndarray, point: np.ndarray, normal: np.ndarray, held: np.ndarray
+) -> np.ndarray:
     """How far each node starts behind each wall, (W, N, V) [length]; 0 where it may start.
 
     ``x`` (N, D, V) node positions, ``free`` (N, D) the directions a node moves in, ``point`` and
@@ -63,15 +64,19 @@ def wrong_sign_points(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
 def behind_message(node: str, depth: float, wall: str, length: str, more: int = 0) -> str:
     """Why a node behind a wall is refused, and what to check."""
     others = f" (and {more} more of its nodes)" if more else ""
-    return (f"node {node!r} starts {depth:.6g} {length} behind wall {wall!r}{others}: a node the wall stops must "
-            "start on the side its normal points to, or on the plane (check the wall's point, its normal and "
-            "the node's position, and that they are in the model's length unit)")  # fmt: skip
+    return (
+        f"node {node!r} starts {depth:.6g} {length} behind wall {wall!r}{others}: a node the wall stops must "
+        "start on the side its normal points to, or on the plane (check the wall's point, its normal and "
+        "the node's position, and that they are in the model's length unit)"
+    )
 
 
 def sign_message(cid: str, k: int, x: float, y: float, use: str) -> str:
     """Why a material curve of the wrong sign is refused, naming the offending point."""
     part = "compression (x < 0)" if x < 0 else "tension (x > 0)"
     want = "<= 0" if x < 0 else ">= 0"
-    return (f"the {use} curve {cid!r} has force {y:g} at x = {x:g} (point {k}): in {part} its force must be "
-            f"{want}, of the sign of the elongation (compression forces are negative); the wrong sign is a "
-            "negative stiffness that pushes the nodes apart the more they are deformed")  # fmt: skip
+    return (
+        f"the {use} curve {cid!r} has force {y:g} at x = {x:g} (point {k}): in {part} its force must be "
+        f"{want}, of the sign of the elongation (compression forces are negative); the wrong sign is a "
+        "negative stiffness that pushes the nodes apart the more they are deformed"
+    )

@@ -42,7 +42,8 @@ class Distribution(Strict):
         default=None, description="[mu, sigma]: exp of a normal with mean mu and standard deviation sigma [1]"
     )
     truncnormal: Annotated[list[Finite], Field(min_length=4, max_length=4)] | None = Field(
-        default=None, description="[mean, standard deviation, low, high]: a normal cut to [low, high], axis units"
+        default=None,
+        description="[mean, standard deviation, low, high]: a normal cut to [low, high], axis units",
     )
 
     @model_validator(mode="after")
@@ -63,10 +64,15 @@ class Design(Strict):
     """Sampled rows of axis values (docs/design.md), crossed with matrix and zip."""
 
     method: Literal["lhs", "sobol", "halton", "random", "saltelli", "morris"] = Field(
-        default="lhs", description="sampling: lhs, sobol, halton, random; saltelli / morris for crashstudy sensitivity"
+        default="lhs",
+        description="sampling: lhs, sobol, halton, random; saltelli / morris for crashstudy sensitivity",
     )
-    n: int = Field(ge=1, le=1_000_000, description="rows (saltelli: base points, n (2d+2) rows; morris: trajectories)")
-    seed: int = Field(default=0, ge=0, description="seed of the random numbers: the same seed gives the same rows")
+    n: int = Field(
+        ge=1, le=1_000_000, description="rows (saltelli: base points, n (2d+2) rows; morris: trajectories)"
+    )
+    seed: int = Field(
+        default=0, ge=0, description="seed of the random numbers: the same seed gives the same rows"
+    )
     axes: dict[str, Distribution] = Field(min_length=1, description="axis path -> its distribution")
 
 
@@ -79,7 +85,9 @@ Constraint = Annotated[str, Field(pattern=CONSTRAINT.pattern)]
 class Optimize(Strict):
     """``crashstudy optimize``: minimise a summary column over bounded variables (docs/optimize.md)."""
 
-    minimize: str = Field(min_length=1, description="summary column to minimise, e.g. peak_deceleration_g.cabin")
+    minimize: str = Field(
+        min_length=1, description="summary column to minimise, e.g. peak_deceleration_g.cabin"
+    )
     constraints: list[Constraint] = Field(
         default=[], description="'COLUMN <= NUMBER' or 'COLUMN >= NUMBER' on summary columns [their units]"
     )
@@ -91,8 +99,8 @@ class Optimize(Strict):
 class Channel(Strict):
     """The measured quantity: a node's motion along an axis, or a spring's force or elongation."""
 
-    quantity: Literal["acceleration", "velocity", "displacement", "spring_force", "spring_elongation"] = Field(
-        description="history to fit (node quantities need node and direction, spring ones need spring)"
+    quantity: Literal["acceleration", "velocity", "displacement", "spring_force", "spring_elongation"] = (
+        Field(description="history to fit (node quantities need node and direction, spring ones need spring)")
     )
     node: str | None = Field(default=None, description="node id (acceleration, velocity, displacement)")
     spring: str | None = Field(default=None, description="spring id (spring_force, spring_elongation)")
@@ -102,11 +110,20 @@ class Channel(Strict):
 class TestData(Strict):
     """A test curve: a CSV (time, value) or one channel of an ISO-MME test (docs/format.md, calibrate)."""
 
-    path: str = Field(min_length=1, description="CSV file, or ISO-MME test (.mme, its folder or a .zip), relative to the study")
-    channel: str | None = Field(default=None, description="ISO-MME channel code, 16 characters, '?' matches any one; "
-                                "exactly one channel must match")  # fmt: skip
-    unit: str | None = Field(default=None, description="unit of the values (g, m/(s*s), m/s, km/h, mm, m, N, kN, ...), "
-                             "overriding the file's; converted into the model's units")  # fmt: skip
+    path: str = Field(
+        min_length=1,
+        description="CSV file, or ISO-MME test (.mme, its folder or a .zip), relative to the study",
+    )
+    channel: str | None = Field(
+        default=None,
+        description="ISO-MME channel code, 16 characters, '?' matches any one; "
+        "exactly one channel must match",
+    )
+    unit: str | None = Field(
+        default=None,
+        description="unit of the values (g, m/(s*s), m/s, km/h, mm, m, N, kN, ...), "
+        "overriding the file's; converted into the model's units",
+    )
 
 
 class Calibrate(Strict):
@@ -114,13 +131,17 @@ class Calibrate(Strict):
     rating (docs/optimize.md, docs/correlation.md)."""
 
     data: Annotated[str, Field(min_length=1)] | TestData = Field(
-        description="the test curve: a CSV path (time, value in model units), or {path, channel, unit}; relative to the study")
+        description="the test curve: a CSV path (time, value in model units), or {path, channel, unit}; relative to the study"
+    )
     channel: Channel = Field(description="what the data measured")
     variables: dict[str, Bounds] = Field(min_length=1, description="axis path -> [low, high] in its units")
     objective: Literal["rms", "iso18571"] = Field(
-        default="rms", description="rms: least squares of the residuals; iso18571: maximise the ISO/TS 18571 rating R"
+        default="rms",
+        description="rms: least squares of the residuals; iso18571: maximise the ISO/TS 18571 rating R",
     )
-    budget: int = Field(default=600, ge=10, le=1_000_000, description="model evaluations at most (iso18571) [1]")
+    budget: int = Field(
+        default=600, ge=10, le=1_000_000, description="model evaluations at most (iso18571) [1]"
+    )
 
 
 class Study(Strict):
@@ -135,13 +156,26 @@ class Study(Strict):
     model: Annotated[str, Field(min_length=1)] = Field(
         description="path of the model file, relative to this study file (or absolute)"
     )
-    matrix: dict[str, AxisValues] = Field(default=        {}, description="axis path -> values [units of that model field]; all axes crossed (full factorial)"
+    matrix: dict[str, AxisValues] = Field(
+        default={},
+        description="axis path -> values [units of that model field]; all axes crossed (full factorial)",
     )
-    zip: list[Annotated[dict[str, AxisValues], Field(min_length=1)]] = Field(default=        [], description="groups of axis path -> values [model units] that vary together; each group crossed with the matrix"
+    zip: list[Annotated[dict[str, AxisValues], Field(min_length=1)]] = Field(
+        default=[],
+        description="groups of axis path -> values [model units] that vary together; each group crossed with the matrix",
     )
-    design: Design | None = Field(default=None, description="sampled rows of axis values, crossed with matrix and zip")
-    optimize: Optimize | None = Field(default=None, description="what crashstudy optimize minimises, under which constraints")
-    calibrate: Calibrate | None = Field(default=None, description="what crashstudy calibrate fits to which data")
-    set: dict[str, Any] = Field(default={}, description="model field or dotted path -> value, applied to every variant")
-    regression: dict[str, Tolerance] = Field(default=        {}, description="summary column (or metric name) -> tolerance used by crashstudy compare"
+    design: Design | None = Field(
+        default=None, description="sampled rows of axis values, crossed with matrix and zip"
+    )
+    optimize: Optimize | None = Field(
+        default=None, description="what crashstudy optimize minimises, under which constraints"
+    )
+    calibrate: Calibrate | None = Field(
+        default=None, description="what crashstudy calibrate fits to which data"
+    )
+    set: dict[str, Any] = Field(
+        default={}, description="model field or dotted path -> value, applied to every variant"
+    )
+    regression: dict[str, Tolerance] = Field(
+        default={}, description="summary column (or metric name) -> tolerance used by crashstudy compare"
     )

@@ -37,7 +37,9 @@ REPARSE_CHARS = 200_000  #: syntax errors within this many characters get the Py
 YamlPath = tuple[str | int, ...]
 
 _T = "tag:yaml.org,2002:"
-STR, INT, FLOAT, BOOL, NULL, SEQ, MAP = (_T + n for n in ("str", "int", "float", "bool", "null", "seq", "map"))
+STR, INT, FLOAT, BOOL, NULL, SEQ, MAP = (
+    _T + n for n in ("str", "int", "float", "bool", "null", "seq", "map")
+)
 _SCALAR_TAGS = {STR: "text", INT: "an integer", FLOAT: "a number", BOOL: "true or false", NULL: "null"}
 
 # YAML 1.2 core schema (https://yaml.org/spec/1.2.2/#1032-tag-resolution); `\Z` makes `match` whole.
@@ -72,18 +74,30 @@ def max_values() -> int:
     except ValueError:
         value = 0
     if value <= 0:
-        raise InputError([Problem(MAX_VALUES_ENV, None, "", f"expected a whole number of values > 0 (the default "
-                                  f"is {MAX_NODES}), got {raw[:40]!r}")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    MAX_VALUES_ENV,
+                    None,
+                    "",
+                    f"expected a whole number of values > 0 (the default is {MAX_NODES}), got {raw[:40]!r}",
+                )
+            ]
+        )
     return value
 
 
 def _too_many_values(limit: int, aliases: int, at_least: int = 0) -> str:
     if aliases:
-        return (f"document too large: more than {limit:,} values once aliases are expanded (refusing a "
-                "possible alias bomb)")
+        return (
+            f"document too large: more than {limit:,} values once aliases are expanded (refusing a "
+            "possible alias bomb)"
+        )
     count = f"at least {at_least:,} values" if at_least else f"more than {limit:,} values"
-    return (f"document too large: {count} (keys, numbers, texts, lists and mappings; a chain model takes about "
-            f"19 per node), at most {limit:,}: set the environment variable {MAX_VALUES_ENV} to read more")
+    return (
+        f"document too large: {count} (keys, numbers, texts, lists and mappings; a chain model takes about "
+        f"19 per node), at most {limit:,}: set the environment variable {MAX_VALUES_ENV} to read more"
+    )
 
 
 class _Counting(Composer):
@@ -109,8 +123,10 @@ class _Counting(Composer):
         self.get_event()  # stream start
         node = None if self.check_event(StreamEndEvent) else self.compose_document()
         if not self.check_event(StreamEndEvent):
-            raise _Refused("expected a single YAML document, found a second one (after '---' or '...')",
-                           self.peek_event().start_mark)
+            raise _Refused(
+                "expected a single YAML document, found a second one (after '---' or '...')",
+                self.peek_event().start_mark,
+            )
         return node
 
     def compose_node(self, parent: Node | None, index: Any) -> Node:
@@ -120,18 +136,24 @@ class _Counting(Composer):
             self.get_event()
             self.aliases += 1
             if self.aliases > MAX_ALIASES:
-                raise _Refused(f"more than {MAX_ALIASES} aliases (*name); refusing a possible alias bomb", mark)
+                raise _Refused(
+                    f"more than {MAX_ALIASES} aliases (*name); refusing a possible alias bomb", mark
+                )
             target = self.anchors.get(anchor)
             if target is None:
                 raise _Refused(f"alias *{anchor} names no anchor &{anchor} defined before it", mark)
             if id(target) not in self.sizes:
-                raise _Refused(f"alias *{anchor} is inside its own anchor (recursive data is not allowed)", mark)
+                raise _Refused(
+                    f"alias *{anchor} is inside its own anchor (recursive data is not allowed)", mark
+                )
             self._add(self.sizes[id(target)], mark)
             # A new node (for the alias's own line) sharing the target's children: nothing is expanded.
             node = type(target)(target.tag, target.value, mark, event.end_mark)
             return node
         if anchor is not None and anchor in self.anchors:
-            raise _Refused(f"anchor &{anchor} defined twice (first at line {_line(self.anchors[anchor])})", mark)
+            raise _Refused(
+                f"anchor &{anchor} defined twice (first at line {_line(self.anchors[anchor])})", mark
+            )
         nested = int(self.check_event(SequenceStartEvent, MappingStartEvent))
         self.depth += nested
         if self.depth > MAX_DEPTH:

@@ -75,6 +75,7 @@ from crashstudy.schema.yamlcompose import (  # noqa: F401 - re-exported
 
 _PARSED: dict[tuple[str, str, int], LoadedYaml] = {}  # (file, text, value limit) -> parsed, see loads_yaml
 
+
 def format_path(path: YamlPath) -> str:
     """Dotted field path for messages, e.g. ``springs.cabin.material`` or ``loads.0.node``."""
     return ".".join(str(part) for part in path)
@@ -114,7 +115,7 @@ class LoadedYaml:
 
 
 def _show_tag(tag: str) -> str:
-    return "!!" + tag[len(_T):] if tag.startswith(_T) else tag
+    return "!!" + tag[len(_T) :] if tag.startswith(_T) else tag
 
 
 def _kind(node: Node) -> str:
@@ -143,8 +144,11 @@ class _Builder:
             raise _Refused(f"nesting deeper than {MAX_DEPTH} levels", node.start_mark)
         is_seq = isinstance(node, SequenceNode)
         if node.tag != (SEQ if is_seq else MAP):
-            self.add(_line(node), path, f"unsupported tag {_show_tag(node.tag)} on {_kind(node)}; "
-                     "expected plain data without tags")
+            self.add(
+                _line(node),
+                path,
+                f"unsupported tag {_show_tag(node.tag)} on {_kind(node)}; expected plain data without tags",
+            )
         if not is_seq:
             return self.mapping(node, path)
         items = []
@@ -161,7 +165,9 @@ class _Builder:
             if key is None:
                 continue
             if key in first:
-                self.add(_line(key_node), path + (key,), f"duplicate key {key!r} (first at line {first[key]})")
+                self.add(
+                    _line(key_node), path + (key,), f"duplicate key {key!r} (first at line {first[key]})"
+                )
                 continue
             first[key] = self.lines[path + (key,)] = _line(key_node)
             out[key] = self.build(value_node, path + (key,))
@@ -172,12 +178,19 @@ class _Builder:
             self.add(_line(node), path, f"expected a plain key (a name or number), found {_kind(node)}")
             return None
         if node.tag not in _SCALAR_TAGS:
-            self.add(_line(node), path + (node.value,), f"unsupported tag {_show_tag(node.tag)} on a key; "
-                     "expected plain data without tags")
+            self.add(
+                _line(node),
+                path + (node.value,),
+                f"unsupported tag {_show_tag(node.tag)} on a key; expected plain data without tags",
+            )
             return None
         if node.value == "<<" and not node.style:  # plain: None (Python parser) or "" (libyaml)
-            self.add(_line(node), path + ("<<",), "merge keys ('<<') are not supported (YAML 1.2 has none); "
-                     "write the keys out or use a plain alias (*name)")
+            self.add(
+                _line(node),
+                path + ("<<",),
+                "merge keys ('<<') are not supported (YAML 1.2 has none); "
+                "write the keys out or use a plain alias (*name)",
+            )
             return None
         return str(node.value)
 
@@ -194,8 +207,12 @@ class _Builder:
             base = {"0x": 16, "0o": 8}.get(body[:2], 10)
             digits = (body[2:] if base != 10 else body).lstrip("0") or "0"
             if len(digits) > MAX_INT_DIGITS:
-                self.add(_line(node), path, f"number too large: an integer of {len(digits)} digits (at "
-                         f"most {MAX_INT_DIGITS}); write it as a float with an exponent")
+                self.add(
+                    _line(node),
+                    path,
+                    f"number too large: an integer of {len(digits)} digits (at "
+                    f"most {MAX_INT_DIGITS}); write it as a float with an exponent",
+                )
                 return None
             return (-1 if text.startswith("-") else 1) * int(digits, base)
         if tag == FLOAT and _FLOAT_RE.match(text):
@@ -204,7 +221,9 @@ class _Builder:
                 return -math.inf if lower.startswith("-") else math.inf
             return math.nan if lower == ".nan" else float(text)
         if tag in _SCALAR_TAGS:
-            self.add(_line(node), path, f"expected {_SCALAR_TAGS[tag]} after {_show_tag(tag)}, found {text[:40]!r}")
+            self.add(
+                _line(node), path, f"expected {_SCALAR_TAGS[tag]} after {_show_tag(tag)}, found {text[:40]!r}"
+            )
         else:
             self.add(_line(node), path, f"unsupported tag {_show_tag(tag)}; expected plain data without tags")
         return None
@@ -293,9 +312,14 @@ def _parse(text: str, file: str) -> LoadedYaml:
         node = _compose_fast(text)
         if not isinstance(node, MappingNode):
             empty = node is None or (isinstance(node, ScalarNode) and node.tag == NULL and not node.value)
-            found = "an empty document" if empty else "a list" if isinstance(node, SequenceNode) else "plain text"
-            raise fail(1 if empty else _line(node), f"expected a mapping at top level (key: value lines), found {found}"
-                       " (is this a crashstudy model or study file?)")  # nothing of a foreign file is quoted
+            found = (
+                "an empty document" if empty else "a list" if isinstance(node, SequenceNode) else "plain text"
+            )
+            raise fail(
+                1 if empty else _line(node),
+                f"expected a mapping at top level (key: value lines), found {found}"
+                " (is this a crashstudy model or study file?)",
+            )  # nothing of a foreign file is quoted
         data = builder.build(node, ())
     except _Refused as exc:
         raise fail(None if exc.mark is None else exc.mark.line + 1, exc.message) from None
@@ -403,8 +427,10 @@ def _read(file: str) -> str:
     except (OSError, ValueError) as exc:
         reason = f"cannot read the file ({getattr(exc, 'strerror', None) or exc})"
     if not reason and raw is None:  # a non-blocking read with nothing to give: /proc/kmsg, a device, a pipe
-        reason = ("cannot read the file: it gives no data without waiting (a kernel or device file such as "
-                  "/proc/kmsg?); expected a YAML file")  # fmt: skip
+        reason = (
+            "cannot read the file: it gives no data without waiting (a kernel or device file such as "
+            "/proc/kmsg?); expected a YAML file"
+        )
     if reason:
         raise InputError([Problem(file, None, "", reason)])
     assert raw is not None
@@ -415,6 +441,8 @@ def _read(file: str) -> str:
             return raw.decode("utf-8")
         except UnicodeDecodeError as exc:
             line = raw.count(b"\n", 0, exc.start) + 1
-            reason = (f"not UTF-8 text: byte 0x{raw[exc.start]:02x} on line {line} cannot be decoded; "
-                      "save the file as UTF-8")
+            reason = (
+                f"not UTF-8 text: byte 0x{raw[exc.start]:02x} on line {line} cannot be decoded; "
+                "save the file as UTF-8"
+            )
     raise InputError([Problem(file, None, "", reason)])

@@ -25,8 +25,9 @@ class Axis:
     ref: PathRef
 
 
-def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], base: np.ndarray,
-          interval: float) -> tuple[list[Axis], list[int], list[Problem]]:  # fmt: skip
+def _axes(
+    study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], base: np.ndarray, interval: float
+) -> tuple[list[Axis], list[int], list[Problem]]:
     groups: list[tuple[tuple[str | int, ...], dict[str, Any]]] = [
         (("matrix", key), {key: vals}) for key, vals in study.matrix.items()
     ] + [(("zip", g), grp) for g, grp in enumerate(study.zip)]
@@ -34,8 +35,12 @@ def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], b
         from crashstudy.study.design import rows
 
         d = study.design
-        groups.append((("design", "axes"), rows(
-            d.method, d.n, d.seed, {path: dist.spec() for path, dist in d.axes.items()})))  # fmt: skip
+        groups.append(
+            (
+                ("design", "axes"),
+                rows(d.method, d.n, d.seed, {path: dist.spec() for path, dist in d.axes.items()}),
+            )
+        )
     axes: list[Axis] = []
     shape: list[int] = []
     problems: list[Problem] = []
@@ -43,7 +48,11 @@ def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], b
     for dim, (where, grp) in enumerate(groups):
         lengths = {len(v) for v in grp.values()}
         if len(lengths) > 1:
-            problems.append(study_problem(doc, where, f"the axes of a zip group need equal lengths, got {sorted(lengths)}"))
+            problems.append(
+                study_problem(
+                    doc, where, f"the axes of a zip group need equal lengths, got {sorted(lengths)}"
+                )
+            )
         shape.append(min(lengths))
         for path, vals in grp.items():
             loc = where + (path,) if where[0] in ("zip", "design") else where
@@ -57,4 +66,3 @@ def _axes(study: Study, doc: LoadedYaml, topo: Topology, data: dict[str, Any], b
             problems.extend(check_values(doc, loc, data, path, ref, vals, topo, base, interval))
             axes.append(Axis(path, np.asarray(vals, dtype=np.float64), dim, ref))
     return axes, shape, problems
-

@@ -78,7 +78,9 @@ def _variables(ctx: Context, block: str, variables: dict[str, list[float]]) -> l
         elif not lo < hi:
             problems.append(ctx.problem(at, f"bounds [low, high] need low < high, got [{lo!r}, {hi!r}]"))
         else:
-            problems += check_values(ctx.doc, at, ctx.data, path, ref, [lo, hi], ctx.topo, ctx.base, ctx.interval)
+            problems += check_values(
+                ctx.doc, at, ctx.data, path, ref, [lo, hi], ctx.topo, ctx.base, ctx.interval
+            )
     return problems
 
 
@@ -102,8 +104,11 @@ def check_optimize(ctx: Context) -> list[Problem]:
         except ValueError:
             ok = False
         if not ok:
-            problems.append(ctx.problem(at, f"constraint {text!r}: expected a finite number after {m.group(2)}, "
-                                        f"got {limit!r}"))  # fmt: skip
+            problems.append(
+                ctx.problem(
+                    at, f"constraint {text!r}: expected a finite number after {m.group(2)}, got {limit!r}"
+                )
+            )
     return problems
 
 
@@ -117,26 +122,55 @@ def check_calibrate(ctx: Context) -> list[Problem]:
     at = ("calibrate", "channel")
     if ch.quantity in NODE_QUANTITIES:
         if ch.node is None:
-            problems.append(ctx.problem(at, f"quantity {ch.quantity} is a node's: give node: ID (one of "
-                                        f"{', '.join(topo.node_ids[:8])})"))  # fmt: skip
+            problems.append(
+                ctx.problem(
+                    at,
+                    f"quantity {ch.quantity} is a node's: give node: ID (one of "
+                    f"{', '.join(topo.node_ids[:8])})",
+                )
+            )
         elif ch.node not in topo.node_ids:
-            problems.append(ctx.problem(at + ("node",), f"unknown node {ch.node!r}; nodes: {', '.join(topo.node_ids[:8])}"))
+            problems.append(
+                ctx.problem(
+                    at + ("node",), f"unknown node {ch.node!r}; nodes: {', '.join(topo.node_ids[:8])}"
+                )
+            )
         elif "xy".index(ch.direction) >= topo.dim:
-            problems.append(ctx.problem(at + ("direction",), f"the model is {topo.dim}-D: direction must be x"))
+            problems.append(
+                ctx.problem(at + ("direction",), f"the model is {topo.dim}-D: direction must be x")
+            )
         elif topo.fixed[topo.node_ids.index(ch.node), "xy".index(ch.direction)]:
-            problems.append(ctx.problem(at + ("node",), f"node {ch.node!r} is fixed in {ch.direction}: its "
-                                        f"{ch.quantity} is zero whatever the variables; name a free node"))  # fmt: skip
+            problems.append(
+                ctx.problem(
+                    at + ("node",),
+                    f"node {ch.node!r} is fixed in {ch.direction}: its "
+                    f"{ch.quantity} is zero whatever the variables; name a free node",
+                )
+            )
         if ch.spring is not None:
-            problems.append(ctx.problem(at + ("spring",), f"quantity {ch.quantity} is a node's: remove spring:"))
+            problems.append(
+                ctx.problem(at + ("spring",), f"quantity {ch.quantity} is a node's: remove spring:")
+            )
     else:
         if ch.spring is None:
-            problems.append(ctx.problem(at, f"quantity {ch.quantity} is a spring's: give spring: ID (one of "
-                                        f"{', '.join(topo.spring_ids[:8])})"))  # fmt: skip
+            problems.append(
+                ctx.problem(
+                    at,
+                    f"quantity {ch.quantity} is a spring's: give spring: ID (one of "
+                    f"{', '.join(topo.spring_ids[:8])})",
+                )
+            )
         elif ch.spring not in topo.spring_ids:
-            problems.append(ctx.problem(at + ("spring",), f"unknown spring {ch.spring!r}; springs: "
-                                        f"{', '.join(topo.spring_ids[:8])}"))  # fmt: skip
+            problems.append(
+                ctx.problem(
+                    at + ("spring",),
+                    f"unknown spring {ch.spring!r}; springs: {', '.join(topo.spring_ids[:8])}",
+                )
+            )
         if ch.node is not None:
-            problems.append(ctx.problem(at + ("node",), f"quantity {ch.quantity} is a spring's: remove node:"))
+            problems.append(
+                ctx.problem(at + ("node",), f"quantity {ch.quantity} is a spring's: remove node:")
+            )
     problems += _test_data(ctx, spec.data, ch.quantity)
     return problems
 
@@ -157,16 +191,24 @@ def _test_data(ctx: Context, data: Any, quantity: str) -> list[Problem]:
     except (OSError, ValueError) as exc:
         why = getattr(exc, "strerror", None) or type(exc).__name__
     if why:
-        return [ctx.problem(at, f"data file {path}: {why} (expected a CSV file with columns time, value, or an "
-                            "ISO-MME test: its .mme file, folder or .zip; relative to the study file)")]  # fmt: skip
+        return [
+            ctx.problem(
+                at,
+                f"data file {path}: {why} (expected a CSV file with columns time, value, or an "
+                "ISO-MME test: its .mme file, folder or .zip; relative to the study file)",
+            )
+        ]
     if not (is_isomme(path) or code or unit):
         return []
     try:
         read_curve(path, channel=code, unit=unit, quantity=quantity, system=ctx.topo.units)
     except ValueError as exc:
         fld = getattr(exc, "field", "path")
-        sub = ("calibrate", "data") + ((fld,) if not isinstance(data, str) and fld in ("channel", "unit") else
-                                       (() if isinstance(data, str) else ("path",)))  # fmt: skip
+        sub = ("calibrate", "data") + (
+            (fld,)
+            if not isinstance(data, str) and fld in ("channel", "unit")
+            else (() if isinstance(data, str) else ("path",))
+        )
         if isinstance(data, str) and fld == "channel":
             return [ctx.problem(sub, f"{exc} (write data: {{path: {rel}, channel: CODE}})")]
         return [ctx.problem(sub, str(exc))]

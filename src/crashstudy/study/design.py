@@ -32,7 +32,10 @@ _EDGE = 1e-12  # unit coordinates are kept inside (0, 1): the inverse CDF of a n
 def rows(method: str, n: int, seed: int, dists: dict[str, tuple[str, list[float]]]) -> dict[str, np.ndarray]:
     """The design's rows: axis path -> values (one per row), for ``dists`` (path -> (name, parameters))."""
     unit = unit_rows(method, n, seed, len(dists))
-    return {path: to_distribution(name, params, unit[:, k]) for k, (path, (name, params)) in enumerate(dists.items())}
+    return {
+        path: to_distribution(name, params, unit[:, k])
+        for k, (path, (name, params)) in enumerate(dists.items())
+    }
 
 
 def n_rows(method: str, n: int, d: int) -> int:
@@ -49,8 +52,12 @@ def unit_rows(method: str, n: int, seed: int, d: int) -> np.ndarray:
     elif method == "lhs":
         u = qmc.LatinHypercube(d, seed=np.random.default_rng(seed)).random(n)
     elif method in ("sobol", "halton"):
-        engine = (qmc.Sobol if method == "sobol" else qmc.Halton)(d, scramble=True, seed=np.random.default_rng(seed))
-        with warnings.catch_warnings():  # Sobol' balance is best at powers of two; any n is still a valid design
+        engine = (qmc.Sobol if method == "sobol" else qmc.Halton)(
+            d, scramble=True, seed=np.random.default_rng(seed)
+        )
+        with (
+            warnings.catch_warnings()
+        ):  # Sobol' balance is best at powers of two; any n is still a valid design
             warnings.simplefilter("ignore", UserWarning)
             u = engine.random(n)
     elif method in ("saltelli", "morris"):
@@ -105,7 +112,9 @@ def saltelli_rows(n: int, seed: int, d: int) -> np.ndarray:
     then B with column k from A (k = 1..d), then B (tests/test_design.py compares it with SALib)."""
     from scipy.stats import qmc
 
-    with warnings.catch_warnings():  # Sobol' balance is best at powers of two; its estimator is valid for any n
+    with (
+        warnings.catch_warnings()
+    ):  # Sobol' balance is best at powers of two; its estimator is valid for any n
         warnings.simplefilter("ignore")
         base = qmc.Sobol(d=2 * d, scramble=True, seed=seed).random(n)
     a, b = base[:, :d], base[:, d:]
@@ -132,4 +141,3 @@ def to_distribution(name: str, p: list[float], u: np.ndarray) -> np.ndarray:
         a, b = (p[2] - p[0]) / p[1], (p[3] - p[0]) / p[1]
         return np.asarray(stats.truncnorm.ppf(u, a, b, loc=p[0], scale=p[1]))
     raise ValueError(f"unknown distribution {name!r}")
-

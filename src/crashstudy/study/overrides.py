@@ -22,11 +22,22 @@ def _unknown_set_keys(overrides: dict[str, Any], sdoc: LoadedYaml) -> list[Probl
     for key in unknown[:MAX_REPORTED]:
         close = difflib.get_close_matches(key.split(".", 1)[0], fields, n=3, cutoff=0.6)
         hint = f"; closest: {', '.join(close)}" if close else f"; expected one of {', '.join(fields)}"
-        problems.append(study_problem(sdoc, ("set", key), f"unknown model field {key.split('.', 1)[0]!r} (set: "
-                                       f"takes model fields or dotted paths into them){hint}"))  # fmt: skip
+        problems.append(
+            study_problem(
+                sdoc,
+                ("set", key),
+                f"unknown model field {key.split('.', 1)[0]!r} (set: "
+                f"takes model fields or dotted paths into them){hint}",
+            )
+        )
     if len(unknown) > MAX_REPORTED:
-        problems.append(study_problem(sdoc, ("set",), f"and {len(unknown) - MAX_REPORTED:,} more keys under set: "
-                                       "that are not model fields"))  # fmt: skip
+        problems.append(
+            study_problem(
+                sdoc,
+                ("set",),
+                f"and {len(unknown) - MAX_REPORTED:,} more keys under set: that are not model fields",
+            )
+        )
     return problems
 
 
@@ -61,4 +72,3 @@ def _set_problem(sdoc: LoadedYaml, overrides: dict[str, Any], p: Problem) -> Pro
         path = ("set", *(int(k) if k.isdigit() else k for k in p.field.split(".")))
         return study_problem(sdoc, path, f"after 'set' the model is invalid: {p.message}")
     return study_problem(sdoc, ("set",), f"after 'set' the model is invalid: {p.field}: {p.message}")
-

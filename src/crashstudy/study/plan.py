@@ -35,7 +35,9 @@ from crashstudy.study.work import WORK_ENV, WORK_RATE, estimate_work, format_dur
 
 DEFAULT_SAMPLES = 1000
 MAX_VARIANTS = 100_000_000  # one results.nc; its axis coordinates alone take 0.8 GB each
-MAX_SAMPLE_BYTES = 256 * 2**20  # history samples of one variant (histories and the kernel's 4 energy records):
+MAX_SAMPLE_BYTES = (
+    256 * 2**20
+)  # history samples of one variant (histories and the kernel's 4 energy records):
 # the runner's HISTORY_BUDGET of a chunk, so that one variant always fits a chunk
 
 
@@ -83,8 +85,13 @@ class Plan:
         constants, and a scaled curve's shape as constants too (kernel.gen_shape)."""
         touched = {s for ax in self.axes for s in ax.ref.slots}
         off, blocks = self.topology.curve_offsets, self.topology.blocks
-        points = {c for c in range(len(off) - 1) for b in ("cx", "cy_") if b in blocks
-                  and any(blocks[b].start + k in touched for k in range(int(off[c]), int(off[c + 1])))}  # fmt: skip
+        points = {
+            c
+            for c in range(len(off) - 1)
+            for b in ("cx", "cy_")
+            if b in blocks
+            and any(blocks[b].start + k in touched for k in range(int(off[c]), int(off[c + 1])))
+        }
         fac = blocks.get("cfac", slice(0, 0))
         scaled = {(s - fac.start) // 2 for s in touched if fac.start <= s < fac.stop} - points
         return frozenset(points | {-1 - c for c in scaled})
@@ -122,9 +129,16 @@ def plan_from_model(lm: LoadedModel) -> Plan:
     return _plan(lm.model, lm.doc, None, [], [], None, {})
 
 
-def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis], shape: list[int],
-          name: str | None, regression: dict[str, dict[str, float]],
-          compiled: tuple[Topology, np.ndarray] | None = None) -> Plan:  # fmt: skip
+def _plan(
+    m: Model,
+    mdoc: LoadedYaml,
+    sdoc: LoadedYaml | None,
+    axes: list[Axis],
+    shape: list[int],
+    name: str | None,
+    regression: dict[str, dict[str, float]],
+    compiled: tuple[Topology, np.ndarray] | None = None,
+) -> Plan:
     topo, base = compiled or compile_model(m)
     end = max([m.end_time] + [float(v) for ax in axes if ax.path == "end_time" for v in ax.values])
     interval = _interval(m, end)
@@ -134,18 +148,35 @@ def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis],
     if n_out * 8 * width > MAX_SAMPLE_BYTES:
         keys = [k for k in (sdoc.data.get("set") or {} if sdoc else {}) if k.split(".")[0] == "output"]
         doc, at = (sdoc, ("set", keys[0])) if sdoc and keys else (mdoc, ("output", "interval"))
-        raise InputError([study_problem(doc, at, f"{n_out:.3g} history samples (end_time {end:g} / output.interval "
-                                         f"{interval:g}) of {width} values take {n_out * 8 * width / 2**20:.3g} MiB per "
-                                         f"variant, at most {MAX_SAMPLE_BYTES / 2**20:g} MiB: use a longer interval")])  # fmt: skip
+        raise InputError(
+            [
+                study_problem(
+                    doc,
+                    at,
+                    f"{n_out:.3g} history samples (end_time {end:g} / output.interval "
+                    f"{interval:g}) of {width} values take {n_out * 8 * width / 2**20:.3g} MiB per "
+                    f"variant, at most {MAX_SAMPLE_BYTES / 2**20:g} MiB: use a longer interval",
+                )
+            ]
+        )
     if sdoc is None:  # a lone model: what only its numbers can break (a step count that overflows)
         check = check_parameters(topo, base[:, None], interval)
         if check.bad[0]:
             raise InputError([study_problem(mdoc, ("end_time",), check.reason(0))])
     plan = Plan(
-        name=name or m.name, topology=topo, base=base, axes=tuple(axes), shape=tuple(shape), interval=interval,
-        n_out=n_out, model_text=mdoc.text, study_text=sdoc.text if sdoc else "", model_file=mdoc.file,
-        study_file=sdoc.file if sdoc else "", regression=regression,
-    )  # fmt: skip
+        name=name or m.name,
+        topology=topo,
+        base=base,
+        axes=tuple(axes),
+        shape=tuple(shape),
+        interval=interval,
+        n_out=n_out,
+        model_text=mdoc.text,
+        study_text=sdoc.text if sdoc else "",
+        model_file=mdoc.file,
+        study_file=sdoc.file if sdoc else "",
+        regression=regression,
+    )
     work, worst, steps = estimate_work(plan)
     limit = max_work()
     if work > limit:
@@ -153,13 +184,21 @@ def _plan(m: Model, mdoc: LoadedYaml, sdoc: LoadedYaml | None, axes: list[Axis],
         doc, loc = (sdoc, _axis_where(sdoc, "end_time")) if sdoc and on_axis else (mdoc, ("end_time",))
         P = plan.params(worst, worst + 1)[:, 0]
         b = topo.blocks
-        raise InputError([study_problem(doc, loc, (
-            f"the run would take about {work:.3g} element-steps (springs x time steps, summed over the "
-            f"{plan.n_variants:,} variant{'s' if plan.n_variants != 1 else ''}), about "
-            f"{format_duration(work / WORK_RATE)} at {WORK_RATE:.0e} a second; the longest variant ({worst}) takes "
-            f"{steps:.3g} steps to end_time {P[b['end_time'].start]:g}; at most {limit:.3g}: shorten end_time, "
-            f"use a larger time step, or set the environment variable {WORK_ENV} (e.g. {WORK_ENV}={work * 1.1:.2g})"
-        ))])  # fmt: skip
+        raise InputError(
+            [
+                study_problem(
+                    doc,
+                    loc,
+                    (
+                        f"the run would take about {work:.3g} element-steps (springs x time steps, summed over the "
+                        f"{plan.n_variants:,} variant{'s' if plan.n_variants != 1 else ''}), about "
+                        f"{format_duration(work / WORK_RATE)} at {WORK_RATE:.0e} a second; the longest variant ({worst}) takes "
+                        f"{steps:.3g} steps to end_time {P[b['end_time'].start]:g}; at most {limit:.3g}: shorten end_time, "
+                        f"use a larger time step, or set the environment variable {WORK_ENV} (e.g. {WORK_ENV}={work * 1.1:.2g})"
+                    ),
+                )
+            ]
+        )
     return dataclasses.replace(plan, work=work)
 
 
@@ -174,18 +213,38 @@ def _axis_where(sdoc: LoadedYaml, path: str) -> tuple[str | int, ...]:
 def _model_path(sdoc: LoadedYaml, base_dir: Path, name: str) -> Path:
     """The study's model file, or an :class:`InputError` at its ``model:`` line saying why it cannot be used."""
     if "\0" in name:
-        raise InputError([study_problem(sdoc, ("model",), "the model path contains a NUL character (\\0); "
-                                         "expected the path of a YAML file")])  # fmt: skip
+        raise InputError(
+            [
+                study_problem(
+                    sdoc,
+                    ("model",),
+                    "the model path contains a NUL character (\\0); expected the path of a YAML file",
+                )
+            ]
+        )
     try:
         path = (base_dir / name).resolve() if not os.path.isabs(name) else Path(name)
         mode = path.stat().st_mode
     except FileNotFoundError:
-        raise InputError([study_problem(sdoc, ("model",), f"model file not found: {base_dir / name}")]) from None
+        raise InputError(
+            [study_problem(sdoc, ("model",), f"model file not found: {base_dir / name}")]
+        ) from None
     except (OSError, RuntimeError, ValueError) as exc:  # a symbolic-link loop, a path too long, ...
-        why = "a loop of symbolic links" if "loop" in str(exc).lower() or getattr(exc, "errno", 0) == 40 else (
-            getattr(exc, "strerror", None) or str(exc))  # fmt: skip
-        raise InputError([study_problem(sdoc, ("model",), f"cannot use the model path {base_dir / name}: {why} "
-                                         "(symbolic links are followed to a file)")]) from None  # fmt: skip
+        why = (
+            "a loop of symbolic links"
+            if "loop" in str(exc).lower() or getattr(exc, "errno", 0) == 40
+            else (getattr(exc, "strerror", None) or str(exc))
+        )
+        raise InputError(
+            [
+                study_problem(
+                    sdoc,
+                    ("model",),
+                    f"cannot use the model path {base_dir / name}: {why} "
+                    "(symbolic links are followed to a file)",
+                )
+            ]
+        ) from None
     why = not_regular(mode)  # a directory, or a FIFO or device (reading one would wait or never end)
     if why:
         raise InputError([study_problem(sdoc, ("model",), f"model path {path}: {why}")])
@@ -201,17 +260,25 @@ def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
         return _load_study(source)
     try:
         return _load_study(source)
-    except InputError as exc:  # a dict has no file and no lines: "study (dict): matrix.x: ...", never "<...>:4:"
-        raise InputError([p if p.file != DICT_STUDY else Problem(p.file, None, p.field, p.message)
-                          for p in exc.problems]) from None  # fmt: skip
+    except (
+        InputError
+    ) as exc:  # a dict has no file and no lines: "study (dict): matrix.x: ...", never "<...>:4:"
+        raise InputError(
+            [p if p.file != DICT_STUDY else Problem(p.file, None, p.field, p.message) for p in exc.problems]
+        ) from None
 
 
 def _not_a_study(sdoc: LoadedYaml) -> Problem:
     keys = ", ".join(k for k in sdoc.data if k in Model.model_fields)
     name = sdoc.file if sdoc.file != DICT_STUDY else "MODEL.yaml"
-    return Problem(sdoc.file, None, "", f"this is a model, not a study (it has {keys}): run one model with "
-                   f"`crashstudy simulate {name}`, or write a study file with `model: {name}` and the axes to "
-                   "vary under `matrix:`")  # fmt: skip
+    return Problem(
+        sdoc.file,
+        None,
+        "",
+        f"this is a model, not a study (it has {keys}): run one model with "
+        f"`crashstudy simulate {name}`, or write a study file with `model: {name}` and the axes to "
+        "vary under `matrix:`",
+    )
 
 
 def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
@@ -236,12 +303,21 @@ def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
     data = _apply_set(mdoc.data, study.set, sdoc)
     m, found = validate_model_data(data)
     if isinstance(found, ValidationError) or found:
-        errs = (pydantic_problems(found, LoadedYaml(data, mdoc.text, mdoc.file, {}), Model)
-                if isinstance(found, ValidationError) else located(LoadedYaml(data, "", mdoc.file, {}), found))  # fmt: skip
+        errs = (
+            pydantic_problems(found, LoadedYaml(data, mdoc.text, mdoc.file, {}), Model)
+            if isinstance(found, ValidationError)
+            else located(LoadedYaml(data, "", mdoc.file, {}), found)
+        )
         raise InputError([_set_problem(sdoc, study.set, p) for p in errs])
     assert m is not None
     topo, base = compile_model(m)
-    ends = [v for grp in [study.matrix, *study.zip] for path, vals in grp.items() if path == "end_time" for v in vals]
+    ends = [
+        v
+        for grp in [study.matrix, *study.zip]
+        for path, vals in grp.items()
+        if path == "end_time"
+        for v in vals
+    ]
     interval = _interval(m, max([m.end_time, *ends]))
     axes, shape, problems = _axes(study, sdoc, topo, data, base, interval)
     from crashstudy.study.blocks import Context, check_blocks
@@ -251,12 +327,21 @@ def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
         raise InputError(problems)
 
     if math.prod(shape) > MAX_VARIANTS:
-        raise InputError([study_problem(sdoc, ("matrix",), f"{math.prod(shape):,} variants: at most "
-                                         f"{MAX_VARIANTS:,} fit in one result file; split the study")])  # fmt: skip
+        raise InputError(
+            [
+                study_problem(
+                    sdoc,
+                    ("matrix",),
+                    f"{math.prod(shape):,} variants: at most "
+                    f"{MAX_VARIANTS:,} fit in one result file; split the study",
+                )
+            ]
+        )
     regression = {k: v.model_dump() for k, v in study.regression.items()}
     plan = _plan(m, mdoc, sdoc, axes, shape, study.name, regression, (topo, base))
     check = check_parameters(topo, base[:, None], plan.interval)
     if not axes and check.bad[0]:  # with axes, each of their values was checked with the rest of the model
-        raise InputError([study_problem(sdoc, ("model",), f"the model (after 'set') is invalid: {check.reason(0)}")])
+        raise InputError(
+            [study_problem(sdoc, ("model",), f"the model (after 'set') is invalid: {check.reason(0)}")]
+        )
     return plan
-

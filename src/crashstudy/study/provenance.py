@@ -32,12 +32,37 @@ def topology_signature(plan: Plan) -> bytes:
     """Bytes of what every variant shares and what changes its results besides its parameters."""
     t = plan.topology
     h = hashlib.blake2b(digest_size=32)
-    for arr in (t.spring_nodes, t.material, t.spring_curves, t.curve_offsets, t.fixed, t.load_node, t.load_curve,
-                t.pm_node, t.pm_dir, t.pm_kind, t.pm_curve, t.wall_nodes):  # fmt: skip
+    for arr in (
+        t.spring_nodes,
+        t.material,
+        t.spring_curves,
+        t.curve_offsets,
+        t.fixed,
+        t.load_node,
+        t.load_curve,
+        t.pm_node,
+        t.pm_dir,
+        t.pm_kind,
+        t.pm_curve,
+        t.wall_nodes,
+    ):
         h.update(np.ascontiguousarray(arr).tobytes())
         h.update(b"|")
-    meta: tuple[object, ...] = (t.dim, t.node_ids, t.spring_ids, t.curve_ids, t.wall_ids, t.units, t.time_step_mode, t.histories,
-            t.termination, t.accuracy_check, repr(plan.interval), plan.n_out, __version__)  # fmt: skip
+    meta: tuple[object, ...] = (
+        t.dim,
+        t.node_ids,
+        t.spring_ids,
+        t.curve_ids,
+        t.wall_ids,
+        t.units,
+        t.time_step_mode,
+        t.histories,
+        t.termination,
+        t.accuracy_check,
+        repr(plan.interval),
+        plan.n_out,
+        __version__,
+    )
     if t.metrics:  # only when present: the hashes of results without metrics stay as they were
         meta = (*meta, t.metrics, t.extra_histories)
     h.update(repr(meta).encode())
@@ -56,7 +81,9 @@ def _mix(z: np.ndarray) -> np.ndarray:
 
 def variant_hashes(plan: Plan, lo: int, hi: int, signature: bytes | None = None) -> np.ndarray:
     """Input hashes of variants ``lo`` .. ``hi - 1``: uint64 array (V, HASH_WORDS)."""
-    h = hashlib.blake2b(signature if signature is not None else topology_signature(plan), digest_size=8 * HASH_WORDS)
+    h = hashlib.blake2b(
+        signature if signature is not None else topology_signature(plan), digest_size=8 * HASH_WORDS
+    )
     h.update(np.ascontiguousarray(plan.base).tobytes())
     h.update(repr([a.path for a in plan.axes]).encode())
     seeds = np.frombuffer(h.digest(), dtype=np.uint64)

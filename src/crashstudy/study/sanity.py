@@ -74,8 +74,15 @@ def _repeat_warnings(plan: Plan, sdoc: LoadedYaml | None) -> list[str]:
         if counts.max(initial=1) > 1:
             twice = ", ".join(f"{v:g} ({c} times)" for v, c in zip(vals, counts, strict=True) if c > 1)
             copies = plan.n_variants // len(ax.values) * int((counts - 1).sum())
-            out.append(_at_axis(plan, sdoc, ax.path, f"lists {twice}: {copies} of the {plan.n_variants} variants "
-                                "repeat others (same model, same results)").format())  # fmt: skip
+            out.append(
+                _at_axis(
+                    plan,
+                    sdoc,
+                    ax.path,
+                    f"lists {twice}: {copies} of the {plan.n_variants} variants "
+                    "repeat others (same model, same results)",
+                ).format()
+            )
     return out
 
 
@@ -157,16 +164,22 @@ def _axis_loc(sdoc: LoadedYaml | None, path: str) -> tuple[str | int, ...]:
 def _axis_problem(plan: Plan, sdoc: LoadedYaml | None, ax: Axis) -> Problem:
     n = len(np.unique(ax.values))
     if ax.ref.op == "speed":
-        why = ("the model gives no node an initial_velocity, and impact_velocity rescales each node's initial "
-               "velocity to this speed keeping its direction; give the moving nodes an initial_velocity")  # fmt: skip
+        why = (
+            "the model gives no node an initial_velocity, and impact_velocity rescales each node's initial "
+            "velocity to this speed keeping its direction; give the moving nodes an initial_velocity"
+        )
     elif ax.ref.slots and all(_inert_rows(plan)[list(ax.ref.slots)]):
         why = "it sets the mass of a node fixed in every direction, which never moves"
     elif ax.ref.op == "scale":
         why = "it scales values that are all zero"
     else:
         why = "the field it sets does not reach the model"
-    return _at_axis(plan, sdoc, ax.path, f"axis {ax.path!r} changes nothing: its {n} values all give the same "
-                    f"model ({why})")  # fmt: skip
+    return _at_axis(
+        plan,
+        sdoc,
+        ax.path,
+        f"axis {ax.path!r} changes nothing: its {n} values all give the same model ({why})",
+    )
 
 
 def _at_axis(plan: Plan, sdoc: LoadedYaml | None, path: str, message: str) -> Problem:
@@ -203,13 +216,18 @@ def _dt_refused(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
         hi = min(n_steps, lo + 65536)
         full = np.zeros((len(shape), hi - lo), dtype=np.int64)  # the other dimensions at their first value
         full[list(dims)] = np.unravel_index(np.arange(lo, hi), sub)
-        steps = variant_steps(plan.topology, plan.params_at(np.asarray(np.ravel_multi_index(tuple(full), shape))),
-                              plan.interval)  # fmt: skip
+        steps = variant_steps(
+            plan.topology, plan.params_at(np.asarray(np.ravel_multi_index(tuple(full), shape))), plan.interval
+        )
         refused[lo:hi], crit[lo:hi] = steps.refused, steps.dt_crit
     if not refused.any():
         return np.zeros(0, dtype=np.int64), np.zeros(0)
     idx = np.arange(min(plan.n_variants, MAX_DT_CHECK))
-    at = np.ravel_multi_index(tuple(np.unravel_index(idx, shape)[d] for d in dims), sub) if dims else np.zeros_like(idx)
+    at = (
+        np.ravel_multi_index(tuple(np.unravel_index(idx, shape)[d] for d in dims), sub)
+        if dims
+        else np.zeros_like(idx)
+    )
     bad = np.flatnonzero(refused[at])
     return idx[bad], crit[at[bad]]
 
@@ -231,8 +249,9 @@ def _refused_of(plan: Plan, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(out), np.concatenate(crit)
 
 
-def _dt_problem(plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml, refused: np.ndarray,
-                dt_crit: np.ndarray) -> Problem:  # fmt: skip
+def _dt_problem(
+    plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml, refused: np.ndarray, dt_crit: np.ndarray
+) -> Problem:
     worst = int(np.argmin(dt_crit))
     k = int(refused[worst])
     dt = float(plan.params(k, k + 1)[plan.topology.blocks["time_step"].start, 0])
@@ -243,10 +262,13 @@ def _dt_problem(plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml, refused: 
         bad = set(np.unique(v[refused]).tolist())
         if bad != set(np.unique(v).tolist()):
             where.append(f"{path} in [{', '.join(f'{x:g}' for x in sorted(bad))}]")
-    msg = (f"dt={dt:.6g} is above the critical step of {len(refused)} of {plan.n_variants} variant(s): "
-           f"dt_crit={float(dt_crit[worst]):.6g} at variant {k}" + (f" ({at})" if at else "")
-           + (f"; refused where {' and '.join(where)}" if where else "")
-           + f"; use a dt below {float(dt_crit[worst]):.6g} or time_step: {{safety_factor: 0.9}}")  # fmt: skip
+    msg = (
+        f"dt={dt:.6g} is above the critical step of {len(refused)} of {plan.n_variants} variant(s): "
+        f"dt_crit={float(dt_crit[worst]):.6g} at variant {k}"
+        + (f" ({at})" if at else "")
+        + (f"; refused where {' and '.join(where)}" if where else "")
+        + f"; use a dt below {float(dt_crit[worst]):.6g} or time_step: {{safety_factor: 0.9}}"
+    )
     if sdoc is not None:
         keys = [key for key in (sdoc.data.get("set") or {}) if key in ("time_step", "time_step.dt")]
         loc: tuple[str | int, ...] = ("set", keys[0]) if keys else _axis_loc(sdoc, "time_step.dt")

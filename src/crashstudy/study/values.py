@@ -59,8 +59,10 @@ def set_in(data: dict[str, Any], path: tuple[str | int, ...], value: Any) -> str
             if part >= len(cur):
                 return f"{here} has {len(cur)} item{'s' if len(cur) != 1 else ''} (0 .. {len(cur) - 1}): no item {part}"
         elif not isinstance(cur, dict):
-            return (f"{here} is {_kind(cur)}, not a mapping or a list: {'.'.join(str(p) for p in path)} "
-                    "cannot be set")  # fmt: skip
+            return (
+                f"{here} is {_kind(cur)}, not a mapping or a list: {'.'.join(str(p) for p in path)} "
+                "cannot be set"
+            )
         if depth == len(path) - 1:
             cur[part] = value  # type: ignore[index]
         else:
@@ -68,7 +70,9 @@ def set_in(data: dict[str, Any], path: tuple[str | int, ...], value: Any) -> str
     return None
 
 
-def parameter_check(topo: Topology, base: np.ndarray, ref: PathRef, values: np.ndarray, interval: float) -> ParameterCheck:
+def parameter_check(
+    topo: Topology, base: np.ndarray, ref: PathRef, values: np.ndarray, interval: float
+) -> ParameterCheck:
     P = np.repeat(base[:, None], len(values), axis=1)
     apply_axis(P, ref, values)
     return check_parameters(topo, P, interval)
@@ -84,9 +88,17 @@ def model_message(data: dict[str, Any], path: str, val: float) -> str:
     return msgs[0] if msgs else ""
 
 
-def check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, Any], path: str, ref: PathRef,
-                  values: list[float] | np.ndarray, topo: Topology, base: np.ndarray, interval: float
-                  ) -> list[Problem]:  # fmt: skip
+def check_values(
+    doc: LoadedYaml,
+    where: tuple[str | int, ...],
+    data: dict[str, Any],
+    path: str,
+    ref: PathRef,
+    values: list[float] | np.ndarray,
+    topo: Topology,
+    base: np.ndarray,
+    interval: float,
+) -> list[Problem]:
     """Each distinct value of an axis must make a valid model, the rest of the model as written.
 
     Every distinct value is checked, vectorised, on the parameter vector (:func:`check_parameters`:
@@ -94,21 +106,28 @@ def check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, 
     the model validation's own where it has one. At most :data:`MAX_REPORTED` values per axis are listed.
     """
     problems: list[Problem] = []
-    arr = np.asarray(values, dtype=np.float64)  # a design's rows stay an array (a list took ~50 bytes a value)
+    arr = np.asarray(
+        values, dtype=np.float64
+    )  # a design's rows stay an array (a list took ~50 bytes a value)
     if ref.op in ("scale", "speed"):
         wrong = np.nonzero(~(arr > 0) if ref.op == "scale" else ~(arr >= 0))[0]
         what = "a scale factor > 0" if ref.op == "scale" else "a speed >= 0"
         for k in wrong[:MAX_REPORTED]:
             problems.append(study_problem(doc, where + (int(k),), f"expected {what}, got {float(arr[k])!r}"))
         if len(wrong) > MAX_REPORTED:
-            problems.append(study_problem(doc, where, f"and {len(wrong) - MAX_REPORTED:,} more values that are not "
-                                           f"{what}"))  # fmt: skip
+            problems.append(
+                study_problem(
+                    doc, where, f"and {len(wrong) - MAX_REPORTED:,} more values that are not {what}"
+                )
+            )
         if problems:
             return problems
     uniq, first = np.unique(arr, return_index=True)
     bad = np.zeros(len(uniq), dtype=bool)
     for lo in range(0, len(uniq), CHECK_BLOCK):
-        bad[lo : lo + CHECK_BLOCK] = parameter_check(topo, base, ref, uniq[lo : lo + CHECK_BLOCK], interval).bad
+        bad[lo : lo + CHECK_BLOCK] = parameter_check(
+            topo, base, ref, uniq[lo : lo + CHECK_BLOCK], interval
+        ).bad
     if not bad.any():
         return problems
     shown = np.sort(first[bad])[:MAX_REPORTED]  # the first invalid values in file order
@@ -116,10 +135,17 @@ def check_values(doc: LoadedYaml, where: tuple[str | int, ...], data: dict[str, 
     for c, k in enumerate(shown):
         val = float(arr[int(k)])
         msg = (model_message(data, path, val) if ref.op == "set" else "") or check.reason(c)
-        problems.append(study_problem(doc, where + (int(k),), f"value {val!r} makes the model invalid: {msg}"))
+        problems.append(
+            study_problem(doc, where + (int(k),), f"value {val!r} makes the model invalid: {msg}")
+        )
     if bad.sum() > MAX_REPORTED:
-        problems.append(study_problem(doc, where, f"{int(bad.sum()) - MAX_REPORTED} more distinct values of "
-                                       f"{path!r} make the model invalid"))  # fmt: skip
+        problems.append(
+            study_problem(
+                doc,
+                where,
+                f"{int(bad.sum()) - MAX_REPORTED} more distinct values of {path!r} make the model invalid",
+            )
+        )
     return problems
 
 

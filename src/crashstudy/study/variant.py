@@ -23,8 +23,17 @@ from crashstudy.study.values import dict_path, set_in
 def variant_data(plan: Plan, study_file: str, n: int) -> dict[str, Any]:
     """Model data of variant ``n`` of the study ``study_file`` (already loaded as ``plan``)."""
     if not 0 <= n < plan.n_variants:
-        raise InputError([Problem(study_file, None, "--variant", f"variant {n} does not exist: the study has "
-                                  f"{plan.n_variants} variants, numbered 0 to {plan.n_variants - 1}")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    study_file,
+                    None,
+                    "--variant",
+                    f"variant {n} does not exist: the study has "
+                    f"{plan.n_variants} variants, numbered 0 to {plan.n_variants - 1}",
+                )
+            ]
+        )
     sdoc = load_yaml(study_file)
     study = Study.model_validate(sdoc.data)
     data = _apply_set(copy.deepcopy(load_yaml(plan.model_file).data), study.set, sdoc)

@@ -32,8 +32,16 @@ def max_work() -> float:
     except ValueError:
         value = math.nan
     if not value > 0:  # also NaN
-        raise InputError([Problem(WORK_ENV, None, "", f"expected a number of element-steps > 0 (the default is "
-                                  f"{MAX_WORK:g}), got {raw[:40]!r}")])  # fmt: skip
+        raise InputError(
+            [
+                Problem(
+                    WORK_ENV,
+                    None,
+                    "",
+                    f"expected a number of element-steps > 0 (the default is {MAX_WORK:g}), got {raw[:40]!r}",
+                )
+            ]
+        )
     return value
 
 
@@ -57,13 +65,17 @@ def estimate_work(plan: Plan) -> tuple[float, int, float]:
     else:
         rng = np.random.default_rng(0)
         idx = np.unique(np.concatenate([[0, Vs - 1], rng.integers(0, Vs, per - 2)]))
-    if shape != plan.shape:  # variant numbers of the study (the velocity-only dimensions at their first value)
+    if (
+        shape != plan.shape
+    ):  # variant numbers of the study (the velocity-only dimensions at their first value)
         idx = np.ravel_multi_index(np.unravel_index(idx, shape), plan.shape).astype(np.int64)
     total, worst, most = 0.0, 0, -1.0
     for lo in range(0, len(idx), WORK_BLOCK):
         at = idx[lo : lo + WORK_BLOCK]
         # the step choice alone (what build_batch's n_steps holds), not the whole batch: half the time
-        steps = np.asarray(variant_steps(plan.topology, plan.params_at(at), plan.interval).n_steps, dtype=np.float64)
+        steps = np.asarray(
+            variant_steps(plan.topology, plan.params_at(at), plan.interval).n_steps, dtype=np.float64
+        )
         total += float(steps.sum())
         k = int(np.argmax(steps))
         if steps[k] > most:
@@ -75,7 +87,9 @@ def step_dims(plan: Plan) -> tuple[int, ...]:
     """The study's dimensions holding an axis that sets anything but initial velocities (parameter block
     ``velocity``): the only ones that change a variant's time steps (the step choice never reads velocities)."""
     vel = plan.topology.blocks["velocity"]
-    return tuple(sorted({ax.dim for ax in plan.axes if any(not vel.start <= s < vel.stop for s in ax.ref.slots)}))
+    return tuple(
+        sorted({ax.dim for ax in plan.axes if any(not vel.start <= s < vel.stop for s in ax.ref.slots)})
+    )
 
 
 def _step_shape(plan: Plan) -> tuple[int, ...]:

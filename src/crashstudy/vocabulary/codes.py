@@ -12,7 +12,16 @@ KernelName = Literal["compiled", "reference", "generic", "generated"]
 
 # material codes seen by the kernels (spring ``material`` array); each material's row, its name among
 # them, is in vocabulary.materials (MATERIALS, MATERIAL_CODES, KNOT_MATERIALS, STATE_MATERIALS)
-LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER, ELASTOPLASTIC, NONLINEAR_DAMPER, RATE_ELASTIC = 0, 1, 2, 3, 4, 5, 6, 7
+LINEAR, NONLINEAR, GENERAL, CRUSH, DAMPER, ELASTOPLASTIC, NONLINEAR_DAMPER, RATE_ELASTIC = (
+    0,
+    1,
+    2,
+    3,
+    4,
+    5,
+    6,
+    7,
+)
 # rows of the (S, NSTATE, V) material state array (the most any material uses: MaterialSpec.state_rows)
 NSTATE = 8
 
@@ -25,10 +34,18 @@ OK, UNSTABLE, CRUSHED_TO_ZERO, INVALID = 0, 1, 2, 3
 
 # the histories a kernel can record: dims between time and variant, in the kernels' order
 HISTORY_SHAPES = {
-    "position": ("node", "axis"), "displacement": ("node", "axis"), "velocity": ("node", "axis"),
-    "acceleration": ("node", "axis"), "spring_force": ("spring",), "spring_elongation": ("spring",),
-    "kinetic_energy": (), "internal_energy": (), "external_work": (), "wall_energy": (), "wall_force": ("wall",),
-}  # fmt: skip
+    "position": ("node", "axis"),
+    "displacement": ("node", "axis"),
+    "velocity": ("node", "axis"),
+    "acceleration": ("node", "axis"),
+    "spring_force": ("spring",),
+    "spring_elongation": ("spring",),
+    "kinetic_energy": (),
+    "internal_energy": (),
+    "external_work": (),
+    "wall_energy": (),
+    "wall_force": ("wall",),
+}
 HISTORY_ORDER = tuple(HISTORY_SHAPES)
 # the four energies, written together (final_energy rows, h_energy columns)
 ENERGIES = ("kinetic_energy", "internal_energy", "external_work", "wall_energy")

@@ -27,7 +27,13 @@ KinkRule = Literal["none", "curve_knots", "crush_knots", "elastic_limit"]
 #: what bounds the stable step: its k (force/length) and/or its damping (force*time/length); rate_curves:
 #: the steepest slope of its curves as k and the steepest force change per unit rate between them as c
 StepRule = Literal[
-    "stiffness", "damping", "curve_slope", "curve_damping", "curve_slopes", "curve_slope_or_stiffness", "rate_curves"
+    "stiffness",
+    "damping",
+    "curve_slope",
+    "curve_damping",
+    "curve_slopes",
+    "curve_slope_or_stiffness",
+    "rate_curves",
 ]
 #: which window of the loading path can pass a knot peak (kernel.laws ``*_window``); None: no knot peaks
 KnotRule = Literal["nonlinear", "crush", "general"] | None
@@ -113,8 +119,10 @@ MATERIALS: tuple[MaterialSpec, ...] = (
         name="general_nonlinear",
         code=codes.GENERAL,
         schema_class="GeneralNonlinear",
-        slots=(Slot("ty", "tension_yield", float("inf"), "> 0", "a tension_yield > 0"),
-         Slot("cy", "compression_yield", float("-inf"), "< 0", "a compression_yield < 0")),
+        slots=(
+            Slot("ty", "tension_yield", float("inf"), "> 0", "a tension_yield > 0"),
+            Slot("cy", "compression_yield", float("-inf"), "< 0", "a compression_yield < 0"),
+        ),
         curves=(CurveRole("loading", "signed"), CurveRole("unloading", "increasing")),
         state_rows=8,
         knots="general",
@@ -162,9 +170,16 @@ MATERIALS: tuple[MaterialSpec, ...] = (
         name="elastoplastic",
         code=codes.ELASTOPLASTIC,
         schema_class="Elastoplastic",
-        slots=(Slot("k", "stiffness", rule="> 0", expect=_K_POS),
-         Slot("kt", "tangent_stiffness", rule="below k", expect="a tangent_stiffness >= 0 and below stiffness"),
-         Slot("fy", "yield_force", rule="> 0", expect="a yield_force > 0")),
+        slots=(
+            Slot("k", "stiffness", rule="> 0", expect=_K_POS),
+            Slot(
+                "kt",
+                "tangent_stiffness",
+                rule="below k",
+                expect="a tangent_stiffness >= 0 and below stiffness",
+            ),
+            Slot("fy", "yield_force", rule="> 0", expect="a yield_force > 0"),
+        ),
         curves=(),
         state_rows=2,
         knots=None,
