@@ -23,6 +23,7 @@ import numpy as np
 from crashstudy.arrays.compiler import Topology
 from crashstudy.arrays.preload import preload
 from crashstudy.arrays.timestep import MAX_STEPS, StepChoice, choose_steps, spring_stiffness_bound
+from crashstudy.vocabulary.batch_fields import SHARED_FIELDS
 from crashstudy.vocabulary.materials import KNOT_MATERIALS
 
 
@@ -119,25 +120,7 @@ class Batch:
         return Batch(**out)
 
 
-_SHARED = {
-    "spring_i",
-    "spring_j",
-    "material",
-    "curve_a",
-    "curve_b",
-    "curve_off",
-    "free",
-    "load_node",
-    "load_curve",
-    "pm_node",
-    "pm_dir",
-    "pm_kind",
-    "pm_curve",
-    "wall_nodes",
-    "knot_check",
-    "rate_curve",
-    "rate_off",
-}
+_SHARED = frozenset(SHARED_FIELDS)
 
 INVALID_REASONS = {
     1: "fixed dt is above the critical step",

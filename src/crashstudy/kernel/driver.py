@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from crashstudy.kernel.output import KernelOutput, allocate, block_rows
+from crashstudy.vocabulary.batch_fields import SHARED_FIELDS
 from crashstudy.vocabulary.codes import ENERGIES, HISTORY_ORDER
 
 if TYPE_CHECKING:
@@ -31,25 +32,7 @@ if TYPE_CHECKING:
 _THREADS = [os.cpu_count() or 1]
 PER_THREAD = 8  # runs of blocks per thread (a thread that finishes early takes the next run)
 
-TOPO_FIELDS = (
-    "spring_i",
-    "spring_j",
-    "material",
-    "curve_a",
-    "curve_b",
-    "curve_off",
-    "free",
-    "load_node",
-    "load_curve",
-    "pm_node",
-    "pm_dir",
-    "pm_kind",
-    "pm_curve",
-    "wall_nodes",
-    "knot_check",
-    "rate_curve",
-    "rate_off",
-)
+TOPO_FIELDS = SHARED_FIELDS  # the topology record T: the fields every variant shares
 VARS_FIELDS = (
     "mass",
     "inv_mass",
