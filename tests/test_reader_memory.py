@@ -199,8 +199,9 @@ def test_creating_a_store_does_not_hold_every_variant_number(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, store_kind: str
 ) -> None:
     """The traced peak of creating the result store (template: variant numbers, axis values) grows < 2 B
-    per variant from 1e5 to 4e5 variants, blocks of 4096 (np.arange of the whole study: 8 B per variant,
+    per variant (+ 1 MiB) from 1e5 to 4e5 variants, blocks of 4096 (np.arange of the whole study: 8 B per variant,
     800 MB at 10^8; independent truth: the stored numbers are 0 .. N-1)."""
+    import gc
     import tracemalloc
 
     import numpy as np
@@ -208,9 +209,13 @@ def test_creating_a_store_does_not_hold_every_variant_number(
     from crashstudy.results import store
 
     monkeypatch.setattr(store, "AXIS_BLOCK", 4096)
+    warm_plan = load_study(write_study(tmp_path / "warm", 1000))
+    warm = store.ResultWriter(tmp_path / "warm" / "out", warm_plan, store=store_kind, chunk=65536)
+    warm.abort()  # the store library's one-time set-up (codecs, caches) stays out of the measured peaks
     peaks = {}
     for n in (100_000, 400_000):
         plan = load_study(write_study(tmp_path / str(n), n))
+        gc.collect()  # what earlier tests left to the collector is not freed inside the measured window
         tracemalloc.start()
         try:
             tracemalloc.reset_peak()
@@ -221,7 +226,9 @@ def test_creating_a_store_does_not_hold_every_variant_number(
         numbers = writer.nc.variables["variant"][:]
         np.testing.assert_array_equal(numbers, np.arange(n))
         writer.abort()
-    assert peaks[400_000] - peaks[100_000] < 300_000 * 2 + 256 * 1024, peaks
+    # 2 B per variant plus 1 MiB: holding every variant number (8 B) grows 2.4 MB over these 300,000 variants
+    # (one suite run saw 1.07 MB of growth from the store library's own state with a 256 KiB allowance)
+    assert peaks[400_000] - peaks[100_000] < 300_000 * 2 + 1024 * 1024, peaks
 
 
 # --- sensitivity --method correlation, block by block ------------------------------------------------------
