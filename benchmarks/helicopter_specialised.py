@@ -26,6 +26,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from chain_specialised import _pos, _ramp_src  # benchmarks/: the ramp-sum source of the chain loop
 from crashstudy.kernel.laws import general_law, general_reverse_call
 from crashstudy.schema.yamlio import load_yaml
 
@@ -36,26 +37,16 @@ SPRING_IDS = ("underfloor", "cabin")
 CURVE_IDS = ("underfloor-loading", "underfloor-unloading", "cabin-loading", "cabin-unloading")
 
 
-def _ramp_source(name: str, x: list[float], y: list[float]) -> str:
-    """A numba function ``name(e)``: the ramp sum y0 + s0 (e - x0) + sum_k ds_k max(0, e - x_k), literal knots."""
-    s = np.diff(np.asarray(y, dtype=np.float64)) / np.diff(np.asarray(x, dtype=np.float64))
-    body = f"{float(y[0])!r} + {float(s[0])!r} * (e - {float(x[0])!r})"
-    for k in range(1, len(x) - 1):
-        d = f"(e - {float(x[k])!r})"
-        body += f" + {float(s[k] - s[k - 1])!r} * ({d} if {d} > 0.0 else 0.0)"
-    return f"def {name}(e):\n    return {body}\n"
-
-
 def _curves() -> dict[str, Any]:
     m = load_yaml(str(MODEL)).data
     assert tuple(m["nodes"]) == NODE_IDS and tuple(m["springs"]) == SPRING_IDS, (
         "helicopter-subfloor.yaml changed"
     )
-    ns: dict[str, Any] = {}
-    for k, cid in enumerate(CURVE_IDS):
-        exec(
-            compile(_ramp_source(f"c{k}", m["curves"][cid]["x"], m["curves"][cid]["y"]), "<heli>", "exec"), ns
-        )  # noqa: S102 - our own source
+    ns: dict[str, Any] = {"pos": _pos}
+    for k, cid in enumerate(CURVE_IDS):  # ramp sums with literal knots, as the chain loop writes them
+        x, y = np.asarray(m["curves"][cid]["x"], float), np.asarray(m["curves"][cid]["y"], float)
+        source = f"def c{k}(e):\n    return {_ramp_src('e', x, y)}\n"
+        exec(compile(source, "<helicopter_specialised>", "exec"), ns)  # noqa: S102 - our own source
     return {f"c{k}": nb.njit(inline="always", error_model="numpy")(ns[f"c{k}"]) for k in range(4)}
 
 
