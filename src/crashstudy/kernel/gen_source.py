@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from crashstudy.kernel.driver import Summ
 from crashstudy.kernel.gen_nodes import emit_results, pass_b
 from crashstudy.kernel.gen_records import ends, failures, records
 from crashstudy.kernel.gen_shape import ROW, Layout, _lsum, layout
@@ -125,26 +126,9 @@ RECORD_NAMES = (
             ("h_wall", "wall"),
         )
     ]
-    + [
-        (n, "O", n)
-        for n in (
-            "status",
-            "fail_time",
-            "fail_item",
-            "t_end",
-            "peak_force",
-            "max_crush",
-            "absorbed",
-            "peak_acc",
-            "peak_wall",
-            "energy_error",
-            "final_energy",
-            "max_elongation",
-            "spring_fail_time",
-        )
-    ]
-    + [("w_impulse", "O", "wall_impulse")]
-)  # not "wall_impulse": that name is the law
+    # every summary of driver.Summ, under its own name but "wall_impulse" (that name is the law)
+    + [("w_impulse" if n == "wall_impulse" else n, "O", n) for n in Summ._fields]
+)
 
 
 def source(shape: dict[str, Any]) -> str:
