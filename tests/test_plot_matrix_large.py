@@ -152,3 +152,16 @@ def test_a_large_density_matrix_does_not_hold_the_columns(
             tracemalloc.stop()
             pa.set_memory_pool(before)
     assert peaks[300_000] - peaks[50_000] < 2**20, peaks
+
+
+def test_max_points_zero_always_draws_the_density_and_a_negative_one_is_refused(
+    result: Path, tmp_path: Path, drawn: list, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--max-points 0: the density matrix of 1000 variants (x and the metric with --y none); -1: exit 2 and
+    a message naming the folder and the option, no traceback."""
+    _plot(result, tmp_path / "png", "--max-points", "0", "--y", "none")
+    assert [d.names for d, _ in drawn] == [[X, METRIC]]
+    argv = ["plot", str(result), "--kind", "matrix", "-o", str(tmp_path / "bad"), "--max-points", "-1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert str(result) in err and "--max-points -1" in err and "Traceback" not in err

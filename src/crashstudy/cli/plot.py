@@ -221,7 +221,9 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
     out = Path(args.output) if args.output else Path(args.dir) / "plots"
     figures: list[tuple[str, Figure]] = []
     try:
-        limit = getattr(args, "max_points", None) or POINTS_MAX
+        limit = POINTS_MAX if getattr(args, "max_points", None) is None else args.max_points
+        if limit < 0:
+            raise _fail(where, f"--max-points {limit}: give a number of variants, 0 or more")
         if args.kind == "matrix" and study_axes(ds) and res.summary_rows() > limit:
             figures = _density_figures(res, ds, args, limit)
         elif args.kind == "matrix":
