@@ -74,22 +74,26 @@ def test_a_compare_killed_by_sigkill_leaves_a_folder_that_the_next_compare_remov
 ) -> None:
     """Killed after writing its 2 x 5 part files: one folder named by the dead pid, holding them. The next
     compare (run to the end) removes it and its own, and leaves alone a folder whose process runs (this
-    test's) and a link that only looks like a dead one's folder (its target untouched)."""
+    test's), one of the same dead pid on another host (a TMPDIR shared between machines) and a link that
+    only looks like a dead one's folder (its target untouched)."""
     killed = _compare(pair, tmp_path, "kill")
     assert killed.returncode == -signal.SIGKILL, killed.stderr[-2000:]
     left = _scratch(tmp_path)
     assert len(left) == 1 and scratch.owner_pid(left[0].name) not in (None, os.getpid())
     assert len(list(left[0].iterdir())) == 10  # 5 parts a side
-    alive = tmp_path / f"{scratch.PREFIX}{os.getpid()}-compare-running"
-    alive.mkdir()
+    dead, host = left[0].name.split("-")[2:4]  # crashstudy-scratch-<pid>-<host>-compare-...
+    alive = tmp_path / f"{scratch.PREFIX}{os.getpid()}-{host}-compare-running"
+    other_host = tmp_path / f"{scratch.PREFIX}{dead}-{'0' * 8 if host != '0' * 8 else '1' * 8}-compare-x"
+    for folder in (alive, other_host):
+        folder.mkdir()
     target = tmp_path / "kept"
     target.mkdir()
     (target / "f").write_text("x")
-    link = tmp_path / f"{scratch.PREFIX}{scratch.owner_pid(left[0].name)}-compare-link"
+    link = tmp_path / f"{scratch.PREFIX}{dead}-{host}-compare-link"
     link.symlink_to(target)
     done = _compare(pair, tmp_path, "run")
     assert done.returncode == 0 and done.stdout.split() == ["1000", "matched"], done.stderr[-2000:]
-    assert _scratch(tmp_path) == sorted([alive, link])
+    assert _scratch(tmp_path) == sorted([alive, link, other_host])
     assert (target / "f").read_text() == "x"
 
 

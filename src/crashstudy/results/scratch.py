@@ -1,13 +1,16 @@
 """Scratch folders of the readers that spill to disk (``compare``'s hash parts, the correlation's rank
-buckets: GBs at 10^8 variants): ``TMPDIR/crashstudy-scratch-<pid>-<what>-<random>``. A folder is removed
-when its reader ends, and, when the process was killed (SIGKILL, out of memory, a lost node) before it
-could remove it, by the next reader that makes one: every scratch folder of this user whose process no
-longer runs is removed then (:func:`sweep`)."""
+buckets: GBs at 10^8 variants): ``TMPDIR/crashstudy-scratch-<pid>-<host>-<what>-<random>``. A folder is
+removed when its reader ends, and, when the process was killed (SIGKILL, out of memory) before it could
+remove it, by the next reader that makes one: every scratch folder of this user and this host (``<host>``:
+a short hash of the host name, so that a TMPDIR shared between machines or containers never loses a
+running reader's folder) whose process no longer runs is removed then (:func:`sweep`)."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
+import socket
 import stat
 import tempfile
 from collections.abc import Iterator
@@ -17,12 +20,16 @@ from pathlib import Path
 PREFIX = "crashstudy-scratch-"
 
 
+def _host() -> str:
+    return hashlib.sha256(socket.gethostname().encode()).hexdigest()[:8]
+
+
 @contextmanager
 def scratch_folder(what: str) -> Iterator[Path]:
-    """A fresh folder ``TMPDIR/crashstudy-scratch-<pid>-<what>-...`` removed on leaving (also on an
+    """A fresh folder ``TMPDIR/crashstudy-scratch-<pid>-<host>-<what>-...`` removed on leaving (also on an
     exception); the folders that killed readers left behind are removed first."""
     sweep()
-    tmp = Path(tempfile.mkdtemp(prefix=f"{PREFIX}{os.getpid()}-{what}-"))
+    tmp = Path(tempfile.mkdtemp(prefix=f"{PREFIX}{os.getpid()}-{_host()}-{what}-"))
     try:
         yield tmp
     finally:
@@ -56,11 +63,11 @@ def sweep(root: str | os.PathLike[str] | None = None) -> list[Path]:
 
 
 def owner_pid(name: str) -> int | None:
-    """The process id in a scratch folder's name (None: not a scratch folder)."""
+    """The process id in the name of a scratch folder of this host (None: not one)."""
     if not name.startswith(PREFIX):
         return None
-    head = name[len(PREFIX) :].split("-", 1)[0]
-    return int(head) if head.isdigit() else None
+    head, _, rest = name[len(PREFIX) :].partition("-")
+    return int(head) if head.isdigit() and rest.startswith(_host() + "-") else None
 
 
 def _running(pid: int) -> bool:
