@@ -165,3 +165,21 @@ def test_max_points_zero_always_draws_the_density_and_a_negative_one_is_refused(
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert str(result) in err and "--max-points -1" in err and "Traceback" not in err
+
+
+def test_an_older_folder_with_summary_csv_gives_the_same_counts(
+    result: Path, tmp_path: Path, drawn: list
+) -> None:
+    """The same summary as summary.csv (a folder of an older version, no Parquet statistics): bins from a
+    first pass, the same edges and counts as from summary.parquet."""
+    older = tmp_path / "older"
+    shutil.copytree(result, older)
+    pd.read_parquet(older / "summary.parquet").to_csv(older / "summary.csv", index=False)
+    (older / "summary.parquet").unlink()
+    reseal(older)
+    for folder in (result, older):
+        _plot(folder, tmp_path / folder.name, "--max-points", "0")
+    (a, _), (b, _) = drawn
+    assert (a.counted, a.skipped) == (b.counted, b.skipped) == (995, 5)
+    assert all(np.array_equal(p, q) for p, q in zip(a.edges + a.counts1, b.edges + b.counts1, strict=True))
+    assert all(np.array_equal(a.counts2[k], b.counts2[k]) for k in a.counts2)

@@ -107,6 +107,14 @@ def _xy(args: argparse.Namespace, ds: Any, axes: list[str]) -> tuple[str, str | 
     return x, next((a for a, m in factors(dict(ds.attrs), axes).items() if x not in m), None)
 
 
+def _schema(res: Any) -> pd.DataFrame:
+    """The summary.parquet's columns with their types, no rows."""
+    from crashstudy.results.reader import PARQUET, _parquet
+
+    with res.open_file(PARQUET) as fh:
+        return _parquet(fh).schema_arrow.empty_table().to_pandas()  # type: ignore[no-any-return]
+
+
 def _density_figures(res: Any, ds: Any, args: argparse.Namespace, limit: int) -> list[tuple[str, Figure]]:
     """``plot --kind matrix`` beyond ``limit`` variants: the density matrix of the axes and each metric
     (:mod:`crashstudy.analysis.plot_density`), read block by block; the metric is chosen as the exact
@@ -124,17 +132,19 @@ def _density_figures(res: Any, ds: Any, args: argparse.Namespace, limit: int) ->
             raise _fail(where, f"unknown study axis {value!r} for {name}; valid axes: {', '.join(axes)}")
     if y == x:
         raise _fail(where, f"x and y are the same axis {x!r}; choose two different axes")
-    with res.open_file(PARQUET) as fh:
-        parquet = _parquet(fh)
-        head = parquet.schema_arrow.empty_table().to_pandas()  # names and types, no rows
-        base, node = args.quantity or "peak_deceleration_g", crash_node(ds)
-        named = args.quantity in head or args.items or (node is not None and f"{base}.{node}" in head)
-        candidates = [c for c in head.columns if c.startswith(base + ".")]
-        if not named and candidates:  # the column with the largest values, as the exact figure takes it
-            head = pd.DataFrame({c: [(res.column_peak(c) or (np.nan,))[0]] for c in candidates})
-        metrics = _matrix_metrics(head, axes, args.quantity, args.items, free_nodes(ds), where, node)
-        columns = [x, *([y] if y else []), *metrics]
-        ranges = plot_density.statistics_ranges(parquet, columns)
+    stored = res.summary_source == PARQUET  # else an older folder's summary.csv or dataset
+    head = _schema(res) if stored else next(res.summary_batches(rows=1)).iloc[:0]  # names and types
+    base, node = args.quantity or "peak_deceleration_g", crash_node(ds)
+    named = args.quantity in head or args.items or (node is not None and f"{base}.{node}" in head)
+    candidates = [c for c in head.columns if c.startswith(base + ".")]
+    if not named and candidates:  # the column with the largest values, as the exact figure takes it
+        head = pd.DataFrame({c: [(res.column_peak(c) or (np.nan,))[0]] for c in candidates})
+    metrics = _matrix_metrics(head, axes, args.quantity, args.items, free_nodes(ds), where, node)
+    columns = [x, *([y] if y else []), *metrics]
+    ranges = None
+    if stored:
+        with res.open_file(PARQUET) as fh:
+            ranges = plot_density.statistics_ranges(_parquet(fh), columns)
     if ranges is None:
         ranges = plot_density.scan_ranges(res.summary_batches([*columns, "status"]), columns)
     units = axis_units(ds, axes)
