@@ -8,6 +8,8 @@ CPU = user + system seconds, the figure to compare on a shared machine; wall as 
 - ``crashstudy compare DIR DIR`` (the result against itself: the same order, read block by block)
 - ``open_results(DIR).summary`` (refused beyond ``summary_limit`` rows: the message is recorded)
 - ``open_results(DIR).summary_batches(["peak_force.s2"])``: the largest value, block by block
+- ``crashstudy plot DIR --kind matrix -o PLOTS``: beyond ``--max-points`` (10^6) a density matrix counted
+  block by block (the PNG goes to ``--plots``, default a folder in TMPDIR: never into DIR)
 
 Usage::
 
@@ -24,6 +26,7 @@ import os
 import re
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -47,7 +50,7 @@ BOUNDED = (
 )
 
 
-def readers(folder: Path) -> dict[str, list[str]]:
+def readers(folder: Path, plots: Path) -> dict[str, list[str]]:
     cli = [sys.executable, "-m", "crashstudy.cli"]
     return {
         "summary --exceed": [*cli, "summary", str(folder), "--exceed", "peak_force.s2", "4000"],
@@ -55,6 +58,7 @@ def readers(folder: Path) -> dict[str, list[str]]:
         "compare DIR DIR": [*cli, "compare", str(folder), str(folder)],
         "open_results().summary": [sys.executable, "-c", WHOLE, str(folder)],
         "summary_batches (bounded)": [sys.executable, "-c", BOUNDED, str(folder)],
+        "plot --kind matrix": [*cli, "plot", str(folder), "--kind", "matrix", "-o", str(plots)],
     }
 
 
@@ -85,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--src", type=Path, help="source tree whose crashstudy runs the readers (default: installed)"
     )
+    ap.add_argument("--plots", type=Path, help="folder for plot's PNG (default: a new folder in TMPDIR)")
     ap.add_argument("--label", default="", help="a name of the code measured (e.g. a commit)")
     ap.add_argument("--only", default="", help="comma list of readers to run (default all)")
     ap.add_argument(
@@ -97,7 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for folder in args.dirs:
         size = pq.ParquetFile(folder / "summary.parquet").metadata.num_rows
-        for name, cmd in readers(folder).items():
+        plots = args.plots or Path(tempfile.mkdtemp(prefix="crashstudy-readers-plots-"))
+        for name, cmd in readers(folder, plots).items():
             if args.only and name not in args.only.split(","):
                 continue
             r = timed(cmd, env)

@@ -8,7 +8,6 @@ order of everything listed are those of the whole-table merge."""
 from __future__ import annotations
 
 import math
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -17,6 +16,7 @@ import pandas as pd
 
 from crashstudy.analysis.compare_inputs import _axis_frame, _keys, _round_key
 from crashstudy.analysis.compare_values import STATUS_KEPT, ColumnStats, _Column, empty_lists, status_rows
+from crashstudy.results.scratch import scratch_folder
 
 if TYPE_CHECKING:
     from crashstudy.analysis.compare_inputs import _Side
@@ -76,14 +76,14 @@ def partitioned(
     new: _Side, base: _Side, axes: list[str], tolerances: dict[str, tuple[float, float]]
 ) -> dict[str, Any]:
     """The fields of a comparison of two summaries too large to merge in memory: split by a hash of their
-    keys into parts of about :data:`PART_ROWS` rows (Parquet files in a temporary folder, ``TMPDIR``), each
+    keys into parts of about :data:`PART_ROWS` rows (Parquet files in a scratch folder of ``TMPDIR``, :mod:`crashstudy.results.scratch`), each
     part merged by :func:`merged`. Kept: the aggregates per column, the counts, and the first
     :data:`STATUS_KEPT` status changes, missing and new variants."""
     n_parts = max(1, math.ceil(max(new.rows, base.rows) / PART_ROWS))
     stats = {c: ColumnStats(*t) for c, t in tolerances.items()}
     kept: dict[str, pd.DataFrame] = {}  # the first STATUS_KEPT status changes, missing and new variants
     counts = {"status": 0, "missing": 0, "extra": 0, "matched": 0, "failures": 0}
-    with tempfile.TemporaryDirectory(prefix="crashstudy-compare-") as tmp:
+    with scratch_folder("compare") as tmp:
         sides = {}
         for side, texts in ((new, ["status", "failure_reason"]), (base, ["status"])):
             cols = list(dict.fromkeys([*(a for a in axes if a in side.axes), "variant", *texts, *tolerances]))

@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+from crashstudy.results.scratch import scratch_folder
 
 Z95 = 1.959963984540054
 BUCKET_ROWS = 1 << 20  #: rows of the metric ranked at once (~1 M: ~70 MB with the rank's work arrays)
@@ -175,7 +176,7 @@ def _rank_sums(
     n_buckets = max(1, math.ceil(n / BUCKET_ROWS))
     cuts = np.unique(np.quantile(np.sort(sample), np.arange(1, n_buckets) / n_buckets, method="lower"))
     mean = (n + 1) / 2.0
-    with tempfile.TemporaryDirectory(prefix="crashstudy-ranks-") as tmp:
+    with scratch_folder("ranks") as tmp:
         files = [Path(tmp) / f"b{b}" for b in range(len(cuts) + 1)]
         handles = [open(f, "wb") for f in files]  # noqa: SIM115 - closed below, before the buckets are read
         try:

@@ -25,8 +25,9 @@ from crashstudy.analysis.plot import (
     study_axes,
     study_name,
 )
+from crashstudy.analysis.plot_density import POINTS_MAX
 from crashstudy.analysis.plot_matrix import default_metric, metric_columns, plot_matrix
-from crashstudy.analysis.plot_style import axis_units
+from crashstudy.analysis.plot_style import axis_label, axis_units, unit_text
 from crashstudy.errors import InputError, Problem
 from crashstudy.results.plot_tag import PLOT_TAG
 from crashstudy.safefs import replacing
@@ -97,6 +98,76 @@ def _matrix_metrics(
     return [f"{base}.{i}" for i in items]
 
 
+def _xy(args: argparse.Namespace, ds: Any, axes: list[str]) -> tuple[str, str | None]:
+    """The matrix plot's axes: ``--x`` (default the first study axis) and ``--y`` (``none``: no second
+    axis; default the first axis of another factor)."""
+    x = args.x_axis or axes[0]
+    if args.y_axis is not None:
+        return x, None if args.y_axis.lower() == "none" else args.y_axis  # --y none: line plot
+    return x, next((a for a, m in factors(dict(ds.attrs), axes).items() if x not in m), None)
+
+
+def _schema(res: Any) -> pd.DataFrame:
+    """The summary.parquet's columns with their types, no rows."""
+    from crashstudy.results.reader import PARQUET, _parquet
+
+    with res.open_file(PARQUET) as fh:
+        return _parquet(fh).schema_arrow.empty_table().to_pandas()  # type: ignore[no-any-return]
+
+
+def _density_figures(res: Any, ds: Any, args: argparse.Namespace, limit: int) -> list[tuple[str, Figure]]:
+    """``plot --kind matrix`` beyond ``limit`` variants: the density matrix of the axes and each metric
+    (:mod:`crashstudy.analysis.plot_density`), read block by block; the metric is chosen as the exact
+    figure chooses it, from the Parquet schema (and the columns' peaks, read block by block)."""
+    import numpy as np
+
+    from crashstudy.analysis import plot_density
+    from crashstudy.analysis.plot_style import display_scale
+    from crashstudy.results.reader import PARQUET, _parquet
+
+    where, axes = str(args.dir), study_axes(ds)
+    x, y = _xy(args, ds, axes)
+    for name, value in (("x", x), ("y", y)):
+        if value is not None and value not in axes:
+            raise _fail(where, f"unknown study axis {value!r} for {name}; valid axes: {', '.join(axes)}")
+    if y == x:
+        raise _fail(where, f"x and y are the same axis {x!r}; choose two different axes")
+    stored = res.summary_source == PARQUET  # else an older folder's summary.csv or dataset
+    head = _schema(res) if stored else next(res.summary_batches(rows=1)).iloc[:0]  # names and types
+    base, node = args.quantity or "peak_deceleration_g", crash_node(ds)
+    named = args.quantity in head or args.items or (node is not None and f"{base}.{node}" in head)
+    candidates = [c for c in head.columns if c.startswith(base + ".")]
+    if not named and candidates:  # the column with the largest values, as the exact figure takes it
+        head = pd.DataFrame({c: [(res.column_peak(c) or (np.nan,))[0]] for c in candidates})
+    metrics = _matrix_metrics(head, axes, args.quantity, args.items, free_nodes(ds), where, node)
+    columns = [x, *([y] if y else []), *metrics]
+    ranges = None
+    if stored:
+        with res.open_file(PARQUET) as fh:
+            ranges = plot_density.statistics_ranges(_parquet(fh), columns)
+    if ranges is None:
+        ranges = plot_density.scan_ranges(res.summary_batches([*columns, "status"]), columns)
+    units = axis_units(ds, axes)
+    out = []
+    for metric in metrics:
+        names = [x, *([y] if y else []), metric]
+        d = plot_density.count(res.summary_batches([*names, "status"]), names, ranges)
+        unit = ds[metric.split(".", 1)[0]].attrs.get("units") if metric.split(".", 1)[0] in ds else None
+        factor, shown = display_scale(unit or "", d.edges[-1])
+        labels = [axis_label(a, units) for a in names[:-1]] + [f"{metric}{unit_text(shown)}"]
+        fig = plot_density.plot_density(
+            d,
+            labels,
+            f"{study_name(ds)}: {metric}",
+            res.summary_rows(),
+            limit,
+            [1.0] * (len(names) - 1) + [factor],
+        )
+        suffix = f"-{x}" + (f"-{y}" if y else "") if args.x_axis or args.y_axis else ""
+        out.append((f"matrix-{metric}{suffix}", fig))
+    return out
+
+
 def _test_curve(args: argparse.Namespace, ds: object, name: str, groups: list) -> object:
     """``--test FILE [--channel CODE]``: the test curve in the results' units (one history panel only)."""
     if getattr(args, "test", None) is None:
@@ -160,7 +231,12 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
     out = Path(args.output) if args.output else Path(args.dir) / "plots"
     figures: list[tuple[str, Figure]] = []
     try:
-        if args.kind == "matrix":
+        limit = POINTS_MAX if getattr(args, "max_points", None) is None else args.max_points
+        if limit < 0:
+            raise _fail(where, f"--max-points {limit}: give a number of variants, 0 or more")
+        if args.kind == "matrix" and study_axes(ds) and res.summary_rows() > limit:
+            figures = _density_figures(res, ds, args, limit)
+        elif args.kind == "matrix":
             axes = study_axes(ds)
             summary = _matrix_summary(res, axes, args.quantity)
             if not axes:
@@ -168,13 +244,7 @@ def plot_command(args: argparse.Namespace) -> list[Path]:
                     where,
                     "these results have no study axes (a single model run); a matrix plot needs a study",
                 )
-            x = args.x_axis or axes[0]
-            if args.y_axis is not None:
-                y = None if args.y_axis.lower() == "none" else args.y_axis  # --y none: line plot
-            else:
-                y = next(
-                    (a for a, m in factors(dict(ds.attrs), axes).items() if x not in m), None
-                )  # another factor
+            x, y = _xy(args, ds, axes)
             node = crash_node(ds)
             for metric in _matrix_metrics(
                 summary, axes, args.quantity, args.items, free_nodes(ds), where, node

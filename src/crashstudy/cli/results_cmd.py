@@ -48,6 +48,13 @@ def register(sub: Any) -> dict[str, Callable[[argparse.Namespace], int]]:
     pl.add_argument(
         "--max-variants", type=int, default=50, help="most variants drawn in one figure (default 50)"
     )
+    pl.add_argument(
+        "--max-points",
+        type=int,
+        metavar="N",
+        help="matrix plot: beyond N variants (default 1000000) the panels are 2-D histograms (variants per "
+        "bin, log colour) counted block by block, in memory that does not grow with the study",
+    )
     pl.add_argument("-o", "--output", help="folder for the PNGs (default DIR/plots)")
     pl.add_argument("--force", action="store_true", help="write the PNGs even into another result's folder")
 
