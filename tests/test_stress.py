@@ -320,16 +320,35 @@ def forced_batch(scale: float, n_variants: int = 4, bad: int = 1):
 CHAIN_SIZES = [2, 3, 10, 100, 1000]
 
 
-@pytest.mark.parametrize("fixed", [True, False], ids=["fixed-end", "free"])
-@pytest.mark.parametrize("unequal", [False, True], ids=["equal", "unequal"])
-@pytest.mark.parametrize("n", CHAIN_SIZES)
+def _chain_cases() -> list[Any]:
+    """(n, unequal, fixed) for every size and both mass / end choices, except two of the 1000-mass chains
+    (each costs 24 M spring-steps): at n = 1000 the end condition changes nothing the test can see (omega_max
+    dt 1.98000 fixed and free for equal chains, 1.431 and 1.426 unequal; the ends themselves are covered at
+    n = 2 .. 100 in all four combinations), so 1000 keeps the equal free chain (the tightest omega_max dt)
+    and the unequal chain with a fixed end."""
+    return [
+        pytest.param(
+            n,
+            unequal,
+            fixed,
+            id=f"{n}-{'unequal' if unequal else 'equal'}-{'fixed-end' if fixed else 'free'}",
+        )
+        for n in CHAIN_SIZES
+        for unequal in (False, True)
+        for fixed in (True, False)
+        if n < 1000 or unequal == fixed
+    ]
+
+
+@pytest.mark.parametrize(("n", "unequal", "fixed"), _chain_cases())
 def test_chain_at_safety_factor_one_is_stable_and_bounded(n: int, unequal: bool, fixed: bool) -> None:
     """Chains of 2 to 1000 masses at ``safety_factor: 1.0``, run for N and 2N steps (N = max(2000, 8n)):
     status ok, energy_error < 1e-9 (round-off only), peak force over 2N steps <= 1.5x over N steps.
     The step is a real stress: omega_max dt in [1.0, 2), omega_max from a dense eigensolver.
 
     Measured: omega_max dt 1.98 (2 free equal masses, where the nodal bound is exact; long equal chains
-    approach it) down to 1.40 (unequal chains); energy_error <= 6e-11; peak ratio 1.000 .. 1.10.
+    approach it: 1.97976 at n = 100, 1.98000 at 1000) down to 1.40 (unequal chains); energy_error <= 6e-11;
+    peak ratio 1.000 .. 1.10.
     """
     N = max(2000, 8 * n)
     model = at_step(chain(n, unequal, fixed), N)
