@@ -16,6 +16,10 @@ from helpers import run_model
 from reference_scipy import solve_reference
 
 G = 9.80665  # m/s^2
+#: the kernel of every run here: the generic compiled one (bitwise the NumPy reference, test_kernel_twins); the
+#: automatic choice ("compiled") took the reference, 0.4-1.2 s a run, whenever it expected it to finish within
+#: a compiled kernel's load time, even with the generic kernel loaded
+FAST = "generic"
 INTERVAL = 0.01  # s, history sampling of the convergence runs; every step below divides it
 STEPS = (2.0e-3, 1.0e-3, 5.0e-4)  # s: h, h/2, h/4 (all below the critical step of the chains)
 
@@ -54,7 +58,7 @@ def _position_errors(model: dict[str, Any], reference: np.ndarray) -> np.ndarray
     """Max position error [m] over the sampled history of the free nodes, one per step of STEPS."""
     errors = []
     for h in STEPS:
-        out, batch, _ = run_model(dict(model, time_step={"dt": h}))
+        out, batch, _ = run_model(dict(model, time_step={"dt": h}), FAST)
         assert batch.dt[0] == h, "the step must not be snapped: it divides the output interval"
         assert out.status[0] == 0
         errors.append(np.max(np.abs(out.histories["position"][:, 1:, 0, 0] - reference)))
@@ -157,7 +161,7 @@ def test_tolerance_mode_keeps_linear_spring_peak_force_error_below_twice_the_tol
 
     Measured: 0.50, 0.48, 0.50 x tolerance.
     """
-    out, _, _ = run_model(_linear_spring(tolerance))
+    out, _, _ = run_model(_linear_spring(tolerance), FAST)
     err = abs(out.peak_force[0, 0] / (1.0 * np.sqrt(2.0e4 * 2.0)) - 1.0)
     assert err < 2.0 * tolerance, f"peak force error {err:.3g} at tolerance {tolerance}"
 
@@ -215,7 +219,7 @@ HELICOPTER: dict[
 @functools.cache
 def _helicopter_converged() -> np.ndarray:
     """Peak forces [N] at safety_factor 0.001 (dt 2.5e-6 s, 40 000 steps); half that step moves them 3e-6."""
-    out, _, _ = run_model(dict(HELICOPTER, time_step={"safety_factor": 0.001}))
+    out, _, _ = run_model(dict(HELICOPTER, time_step={"safety_factor": 0.001}), FAST)
     assert out.status[0] == 0
     return out.peak_force[:, 0].copy()
 
@@ -227,7 +231,7 @@ def test_tolerance_mode_keeps_helicopter_peak_force_error_below_twice_the_tolera
     Measured (underfloor, cabin) x tolerance: 1e-2: 0.06, 0.15; 1e-3: 0.27, 0.05; 1e-4: 1.20, 0.12.
     """
     converged = _helicopter_converged()
-    out, _, _ = run_model(dict(HELICOPTER, time_step={"tolerance": tolerance}))
+    out, _, _ = run_model(dict(HELICOPTER, time_step={"tolerance": tolerance}), FAST)
     err = np.abs(out.peak_force[:, 0] / converged - 1.0)
     assert out.status[0] == 0
     assert np.all(err < 2.0 * tolerance), f"peak force errors {err} at tolerance {tolerance}"
@@ -249,7 +253,7 @@ def test_tolerance_mode_keeps_damped_oscillator_peak_force_error_below_twice_the
     Measured: 0.02, 0.11, 0.14 x tolerance (0.65, 2.6, 9.6 x while the damper was first order).
     """
     model = _damped(time_step={"tolerance": tolerance}, output={"interval": INTERVAL, "histories": "none"})
-    out, _, _ = run_model(model)
+    out, _, _ = run_model(model, FAST)
     err = abs(out.peak_force[0, 0] / _damped_peak_force() - 1.0)
     assert err < 2.0 * tolerance, (
         f"peak force error {err:.3g} = {err / tolerance:.2f} x tolerance {tolerance}"

@@ -19,6 +19,7 @@ import yaml
 
 from conftest import run_model
 from crashstudy.cli.main import main
+from lanes import run_lanes
 
 K1, R1, K2, R2 = 1.0e4, 1.0, 3.0e4, 3.0  # [N/m] at [m/s]
 
@@ -57,11 +58,24 @@ def _driven(speed: float) -> dict[str, Any]:
     }
 
 
-@pytest.mark.parametrize("speed", [0.4, -0.4, 1.5, -2.2, 2.9, 5.0, -8.0])
-def test_spring_driven_at_a_constant_rate_follows_the_interpolated_stiffness(speed: float) -> None:
+SPEEDS = [0.4, -0.4, 1.5, -2.2, 2.9, 5.0, -8.0]  # m/s: below, between and above the two rates, both ways
+
+
+@pytest.fixture(scope="module")
+def driven_runs() -> dict[float, Any]:
+    """speed -> the reference's output of :func:`_driven` at that speed: the seven are lanes of one kernel
+    call (tests/lanes.py; the reference's cost is per step, hardly per lane)."""
+    outs, _, _ = run_lanes([_driven(v) for v in SPEEDS])
+    return dict(zip(SPEEDS, outs, strict=True))
+
+
+@pytest.mark.parametrize("speed", SPEEDS)
+def test_spring_driven_at_a_constant_rate_follows_the_interpolated_stiffness(
+    speed: float, driven_runs: dict[float, Any]
+) -> None:
     """F = k(|v|) e at every sample: below, between and above the two rates, stretched and crushed
     (relative 1e-12: the kernels evaluate the same two curves and one interpolation)."""
-    out, _, _ = run_model(_driven(speed), kernel="reference")
+    out = driven_runs[speed]
     force = out.histories["spring_force"][1:, 0, 0]
     elong = out.histories["spring_elongation"][1:, 0, 0]
     assert np.all(np.abs(elong) > 0)
@@ -109,12 +123,11 @@ def test_mass_on_a_rate_elastic_spring_converges_to_the_ode_solution(v0: float) 
     as it slows). Against solve_ivp (rtol 1e-11): the displacement error below 1e-5 of the amplitude at
     dt = 2e-5 s, and it falls at least 3x when dt halves (the central difference's second order, the
     rate estimate near the kinks at r1 and r2; measured 1.9e-6 and 3.9e-7)."""
+    outs, _, plan = run_lanes([_mass(v0, dt) for dt in (2.0e-5, 1.0e-5)])  # one reference call, two lanes
+    ref = _solve_ivp(v0, np.arange(plan.n_out) * 1.0e-3)  # the same samples for both steps
     errs = []
-    for dt in (2.0e-5, 1.0e-5):
-        out, _, _ = run_model(_mass(v0, dt), kernel="reference")
+    for out in outs:
         x = out.histories["displacement"][:, 1, 0, 0]
-        t = np.arange(len(x)) * 1.0e-3
-        ref = _solve_ivp(v0, t)
         errs.append(np.max(np.abs(x - ref)) / np.max(np.abs(ref)))
     assert errs[0] < 1e-5, errs
     assert errs[1] < errs[0] / 3.0, errs
@@ -196,9 +209,11 @@ def test_stretching_past_the_shortest_curve_end_is_reported() -> None:
     first point (code 1), one stretched to 0.03 m neither (0)."""
     from crashstudy.results.curve_ends import past_curve_ends
 
-    for speed, code in ((1.0, 2.0), (-1.0, 1.0), (0.6, 0.0)):
-        model = _driven(speed)
+    cases = ((1.0, 2.0), (-1.0, 1.0), (0.6, 0.0))
+    models = [_driven(speed) for speed, _ in cases]
+    for model in models:
         model["curves"]["stiff"] = {"x": [-0.04, 0.0, 0.04], "y": [-0.04 * K2, 0.0, 0.04 * K2]}
-        out, batch, _ = run_model(model, kernel="reference")
-        got = past_curve_ends(batch, out.max_crush, out.max_elongation, np.arange(1))
+    outs, batch, _ = run_lanes(models)  # one reference call, a lane per speed
+    for k, ((speed, code), out) in enumerate(zip(cases, outs, strict=True)):
+        got = past_curve_ends(batch, out.max_crush, out.max_elongation, np.array([k]))
         assert got[0, 0] == code, (speed, got)
