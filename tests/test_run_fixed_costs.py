@@ -108,8 +108,8 @@ def test_fixed_dt_check_equals_every_variants_batch_and_builds_only_distinct_ste
     n = plan.n_variants
     _, steps = build_batch(plan.topology, plan.params(0, n), plan.interval)
     built = []
-    real = sanity.variant_steps
-    monkeypatch.setattr(sanity, "variant_steps", lambda t, P, i: built.append(P.shape[1]) or real(t, P, i))
+    real = sanity.fixed_dt_check
+    monkeypatch.setattr(sanity, "fixed_dt_check", lambda t, P: built.append(P.shape[1]) or real(t, P))
     refused, crit = sanity._dt_refused(plan)
     np.testing.assert_array_equal(refused, np.flatnonzero(steps.refused))
     np.testing.assert_array_equal(crit, steps.dt_crit[steps.refused])

@@ -22,7 +22,14 @@ import numpy as np
 
 from crashstudy.arrays.compiler import Topology
 from crashstudy.arrays.preload import preload
-from crashstudy.arrays.timestep import MAX_STEPS, StepChoice, choose_steps, spring_stiffness_bound
+from crashstudy.arrays.timestep import (
+    MAX_STEPS,
+    StepChoice,
+    choose_steps,
+    critical_steps,
+    dt_refused,
+    spring_stiffness_bound,
+)
 from crashstudy.vocabulary.batch_fields import SHARED_FIELDS
 from crashstudy.vocabulary.materials import KNOT_MATERIALS
 
@@ -314,6 +321,21 @@ def variant_steps(topo: Topology, P: np.ndarray, interval: float) -> StepChoice:
     return _steps(
         topo, P, np.ascontiguousarray(P[b["mass"]]), np.ascontiguousarray(P[b["k"]]), cx, cy, interval
     )[2]
+
+
+def fixed_dt_check(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(refused, dt_crit) of the variants in ``P`` under a fixed ``dt``: ``variant_steps``'s ``refused``
+    and ``dt_crit`` through the same :func:`~crashstudy.arrays.timestep.critical_steps`, without the rest
+    of the step choice (controlling spring, sample and step counts): the pre-run check (study.sanity)."""
+    cx, cy = curve_points(topo, P)
+    b = topo.blocks
+    kmax, damp = spring_stiffness_bound(
+        topo, np.ascontiguousarray(P[b["k"]]), cx, cy, P[b["rate"]] if "rate" in b else None
+    )
+    dt_crit, _ = critical_steps(
+        topo, np.ascontiguousarray(P[b["mass"]]), kmax, damp, np.ascontiguousarray(P[b["wall_k"]])
+    )
+    return dt_refused(P[b["time_step"].start], dt_crit), dt_crit
 
 
 def curve_shapes(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

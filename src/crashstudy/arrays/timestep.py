@@ -127,6 +127,53 @@ def spring_stiffness_bound(
     return kmax, damp
 
 
+def critical_steps(
+    topo: Topology, mass: np.ndarray, kmax: np.ndarray, damp: np.ndarray, wall_k: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(dt_crit, the controlling node or -1), each (V,): the nodal bound of the module docstring, what
+    :func:`choose_steps` and the pre-run check of a fixed ``dt`` (:func:`dt_refused`) both use.
+    ``mass`` (N, V); ``kmax``, ``damp`` (S, V); ``wall_k`` (W, V) or None."""
+    N, V = mass.shape
+    K = np.zeros((N, V))
+    i, j = topo.spring_nodes[:, 0], topo.spring_nodes[:, 1]
+    for s in range(len(i)):  # row adds over the variants (np.add.at is ~10x slower for few springs)
+        K[i[s]] += kmax[s]
+        K[j[s]] += kmax[s]
+    for w in range(len(wall_k) if wall_k is not None else 0):
+        assert wall_k is not None
+        K[np.asarray(topo.wall_nodes[w], dtype=bool)] += 0.5 * wall_k[w]
+    movable = np.asarray(~topo.fixed.all(axis=1))
+    damped = bool(np.any(damp != 0))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        m = np.where(movable[:, None], mass, np.inf)
+        omega = np.sqrt(2.0 * K / m)
+        if damped or not np.all(m > 0):  # a damper (or a zero / NaN mass, gamma = 0/0): the damped limit
+            Cn = np.zeros((N, V))
+            for s in range(len(i)):
+                Cn[i[s]] += damp[s]
+                Cn[j[s]] += damp[s]
+            gamma = 2.0 * Cn / m  # nodal bound on the damping rate, like 2 K_n / m_n for the stiffness
+            xi = np.where(omega > 0, gamma / omega, np.inf)
+            dt_node = np.where(
+                omega > 0,
+                (2.0 / omega) * (np.sqrt(1.0 + xi * xi) - xi),
+                np.where(gamma > 0, 1.0 / gamma, np.inf),
+            )
+        else:  # gamma = 0 everywhere: the same limit with xi = 0, (2 / omega) * 1.0, bitwise
+            dt_node = np.where(omega > 0, 2.0 / omega, np.inf)
+    dt_node = np.where(np.isfinite(dt_node), CRITICAL_MARGIN * dt_node, np.inf)
+    if not N:
+        return np.full(V, np.inf), np.full(V, -1, dtype=np.int64)
+    ctrl = np.argmin(dt_node, axis=0)
+    dt_crit = np.min(dt_node, axis=0)  # the value at ctrl (no NaN in dt_node)
+    return dt_crit, np.where(np.isfinite(dt_crit), ctrl, -1).astype(np.int64)
+
+
+def dt_refused(dt: np.ndarray, dt_crit: np.ndarray) -> np.ndarray:
+    """Bool (V,): a fixed step ``dt`` above the critical step (beyond rounding)."""
+    return dt > dt_crit * (1.0 + 1e-12)
+
+
 def choose_steps(
     topo: Topology,
     mass: np.ndarray,
@@ -149,32 +196,8 @@ def choose_steps(
     wall_k : (W, V) contact stiffness of each wall [force/length] (0: rigid); None: no penalty wall.
     """
     N, V = mass.shape
-    K = np.zeros((N, V))
-    Cn = np.zeros((N, V))
     i, j = topo.spring_nodes[:, 0], topo.spring_nodes[:, 1]
-    for s in range(len(i)):  # row adds over the variants (np.add.at is ~10x slower for few springs)
-        K[i[s]] += kmax[s]
-        K[j[s]] += kmax[s]
-        Cn[i[s]] += damp[s]
-        Cn[j[s]] += damp[s]
-    for w in range(len(wall_k) if wall_k is not None else 0):
-        assert wall_k is not None
-        K[np.asarray(topo.wall_nodes[w], dtype=bool)] += 0.5 * wall_k[w]
-    movable = np.asarray(~topo.fixed.all(axis=1))
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        m = np.where(movable[:, None], mass, np.inf)
-        omega = np.sqrt(2.0 * K / m)
-        gamma = 2.0 * Cn / m  # nodal bound on the damping rate, like 2 K_n / m_n for the stiffness
-        xi = np.where(omega > 0, gamma / omega, np.inf)
-        dt_node = np.where(
-            omega > 0,
-            (2.0 / omega) * (np.sqrt(1.0 + xi * xi) - xi),
-            np.where(gamma > 0, 1.0 / gamma, np.inf),
-        )
-    dt_node = np.where(np.isfinite(dt_node), CRITICAL_MARGIN * dt_node, np.inf)
-    ctrl = np.argmin(dt_node, axis=0) if N else np.zeros(V, dtype=np.int64)
-    dt_crit = dt_node[ctrl, np.arange(V)] if N else np.full(V, np.inf)
-    ctrl = np.where(np.isfinite(dt_crit), ctrl, -1)
+    dt_crit, ctrl = critical_steps(topo, mass, kmax, damp, wall_k)
     # stiffest spring at the controlling node
     ctrl_spring = np.full(V, -1, dtype=np.int64)
     if topo.n_springs:
@@ -189,7 +212,7 @@ def choose_steps(
         dt = step_value * dt_crit
     elif mode == "dt":
         dt = step_value.copy()
-        refused = dt > dt_crit * (1.0 + 1e-12)
+        refused = dt_refused(dt, dt_crit)
     else:
         dt = np.minimum(dt_crit, TOLERANCE_FACTOR * np.sqrt(step_value / 2.0) * dt_crit)
         dt = np.minimum(dt, 0.25 * time_curve_spacing)

@@ -74,6 +74,7 @@ __all__ = [
 
 ID_LEN = 64  # longest id (the schema allows 64 characters)
 AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
+CHUNK_BYTES = 2**21  # most bytes of a per-variant HDF5 chunk (the run's chunk halved to fit, else 4096)
 REUSE_BLOCK = 65536  # variants copied at once from an earlier result
 
 
@@ -192,7 +193,7 @@ class ResultWriter:
         missing = [n for n in self._summary_names() if n not in self.nc.variables]
         if missing:  # a partial file of an earlier version: its done variants keep NaN there (not computed)
             for name in missing:
-                self._summary_variable(self.nc, name, min(self.plan.n_variants, 4096))
+                self._summary_variable(self.nc, name)
             for lo, hi in _ranges_of(done & ~lost):
                 self.nc.variables[integrity.CHECKSUM][lo:hi] = integrity.file_sums(self.nc, lo, hi)
             self.nc.sync()
@@ -251,29 +252,23 @@ class ResultWriter:
         for lo in range(0, V, AXIS_BLOCK):  # in blocks: bounded memory for any number of variants
             for path, values in p.axis_values(lo, min(V, lo + AXIS_BLOCK)).items():
                 nc.variables[path][lo : lo + len(values)] = values
-        cv = min(V, 4096)
         for name in topo.histories + topo.extra_histories:
             dims = ("variant", "time", *ALL_SHAPES[name])
             sizes = [1, p.n_out] + [len(nc.dimensions[d]) for d in ALL_SHAPES[name]]
             v = nc.createVariable(name, "f8", dims, fill_value=np.nan, chunksizes=[max(1, s) for s in sizes])
             v.units, v.long_name = units[HISTORY_META[name][0]], HISTORY_META[name][1]
         for name in self._summary_names():
-            self._summary_variable(nc, name, cv)
+            self._summary_variable(nc, name)
         for name in (
             result_names(topo) if topo.metrics else ()
         ):  # the crash criteria (none: no numba import here)
             kind, long = METRIC_META[name]
-            v = nc.createVariable(
-                name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=[cv, topo.n_nodes]
-            )
+            cn = [self._cv(topo.n_nodes), topo.n_nodes]
+            v = nc.createVariable(name, "f8", ("variant", "node"), fill_value=np.nan, chunksizes=cn)
             v.units, v.long_name, v.standard = units[kind], long, standard(name)
             v.nodes = " ".join(asked_nodes(topo, name))  # the others are NaN (and have no summary column)
-        small: dict[str, Any] = {
-            "zlib": True,
-            "complevel": 1,
-            "shuffle": True,
-            "chunksizes": [cv],
-        }  # compresses ~50x, costs little
+        # compressed ~50x, costs little
+        small: dict[str, Any] = {"zlib": True, "complevel": 1, "shuffle": True, "chunksizes": [self._cv(1)]}
         st = nc.createVariable("status", "i1", ("variant",), fill_value=-1, **small)
         st.units, st.long_name = "1", "ok or failed (failure_reason says why)"
         st.flag_values, st.flag_meanings = (
@@ -288,16 +283,14 @@ class ResultWriter:
             )
             tv._Encoding = "utf-8"
             tv.units, tv.long_name = "", f"the distinct texts of {name}"
-            v = nc.createVariable(
-                name, "i4", ("variant",), fill_value=-1, zlib=True, complevel=1, shuffle=True, chunksizes=[cv]
-            )
+            v = nc.createVariable(name, "i4", ("variant",), fill_value=-1, **small)
             v.units, v.long_name, v.texts = "1", f"{long}: index into {name}_text", f"{name}_text"
         nc.createDimension("hash_word", HASH_WORDS)
-        hv = nc.createVariable("input_hash", "u8", ("variant", "hash_word"), chunksizes=[cv, HASH_WORDS])
-        hv.units, hv.long_name = "1", "hash of everything that determines the variant's results (reuse key)"
-        d = nc.createVariable(
-            "done", "i1", ("variant",), fill_value=0, zlib=True, complevel=1, shuffle=True, chunksizes=[cv]
+        hv = nc.createVariable(
+            "input_hash", "u8", ("variant", "hash_word"), chunksizes=[self._cv(HASH_WORDS), HASH_WORDS]
         )
+        hv.units, hv.long_name = "1", "hash of everything that determines the variant's results (reuse key)"
+        d = nc.createVariable("done", "i1", ("variant",), fill_value=0, **small)
         d.units, d.long_name = "1", "1 once the variant's results are written"
         cs = nc.createVariable(integrity.CHECKSUM, "u8", ("variant",), fill_value=0, **small)
         cs.units, cs.long_name = "1", "sum of the variant's stored results (crashstudy.results.integrity)"
@@ -358,10 +351,18 @@ class ResultWriter:
             self.stream.drop()
             self.stream = None
 
-    def _summary_variable(self, nc: netCDF4.Dataset, name: str, cv: int) -> None:
-        """Create summary variable ``name`` (SUMMARY_META), chunked by ``cv`` variants."""
+    def _cv(self, width: int) -> int:
+        """Chunk length along ``variant`` of ``width`` 8-byte values: the run's (whole HDF5 chunks per write)."""
+        c = self.chunk if self.final_name != ZARR_FINAL else 4096
+        while c > 4096 and c % 2 == 0 and c * 8 * width > CHUNK_BYTES:
+            c //= 2
+        return max(1, min(self.plan.n_variants, c if 4096 <= c and c * 8 * width <= CHUNK_BYTES else 4096))
+
+    def _summary_variable(self, nc: netCDF4.Dataset, name: str) -> None:
+        """Create summary variable ``name`` (SUMMARY_META), chunked by :meth:`_cv`."""
         dims, kind, long = SUMMARY_META[name]
-        shape = [cv] + [max(1, len(nc.dimensions[d])) for d in dims]
+        rest = [max(1, len(nc.dimensions[d])) for d in dims]
+        shape = [self._cv(int(np.prod(rest))), *rest]
         v = nc.createVariable(name, "f8", ("variant", *dims), fill_value=np.nan, chunksizes=shape)
         v.units, v.long_name = units_of(self.plan)[kind], long
         if name == "past_curve_end":  # the springs with a drawn curve (the others have no summary column)

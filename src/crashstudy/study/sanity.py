@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from crashstudy.arrays.batch import build_batch, variant_steps
+from crashstudy.arrays.batch import build_batch, fixed_dt_check
 from crashstudy.arrays.compiler import apply_axis
 from crashstudy.errors import Problem
 from crashstudy.metrics.record import plan_warnings
@@ -201,7 +201,7 @@ def _dt_refused(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
     The step depends on no initial velocity, so the critical steps are computed once per distinct
     setting of the dimensions (matrix axes, zip groups, design rows) that hold an axis changing
     anything else: a matrix over masses x curve scales x impact speeds computes masses x scales steps,
-    and only the step choice (``variant_steps``), not whole batches. Variants are listed only when some
+    and only the critical step (``fixed_dt_check``), not whole batches. Variants are listed only when some
     are refused."""
     if plan.topology.time_step_mode != "dt":
         return np.zeros(0, dtype=np.int64), np.zeros(0)
@@ -216,10 +216,8 @@ def _dt_refused(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
         hi = min(n_steps, lo + 65536)
         full = np.zeros((len(shape), hi - lo), dtype=np.int64)  # the other dimensions at their first value
         full[list(dims)] = np.unravel_index(np.arange(lo, hi), sub)
-        steps = variant_steps(
-            plan.topology, plan.params_at(np.asarray(np.ravel_multi_index(tuple(full), shape))), plan.interval
-        )
-        refused[lo:hi], crit[lo:hi] = steps.refused, steps.dt_crit
+        at_lo = np.asarray(np.ravel_multi_index(tuple(full), shape))
+        refused[lo:hi], crit[lo:hi] = fixed_dt_check(plan.topology, plan.params_at(at_lo))
     if not refused.any():
         return np.zeros(0, dtype=np.int64), np.zeros(0)
     idx = np.arange(min(plan.n_variants, MAX_DT_CHECK))
@@ -243,9 +241,9 @@ def _refused_of(plan: Plan, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     crit: list[np.ndarray] = [np.zeros(0)]
     for lo in range(0, len(idx), 65536):
         part = idx[lo : lo + 65536]
-        steps = variant_steps(plan.topology, plan.params_at(part), plan.interval)
-        out.append(part[steps.refused])
-        crit.append(np.asarray(steps.dt_crit)[steps.refused])
+        refused, dt_crit = fixed_dt_check(plan.topology, plan.params_at(part))
+        out.append(part[refused])
+        crit.append(dt_crit[refused])
     return np.concatenate(out), np.concatenate(crit)
 
 
