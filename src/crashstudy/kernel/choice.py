@@ -208,7 +208,7 @@ def pick(
     def run_time(kind: str, rate: float) -> float:
         return work / rate + (0.0 if kind in _LOADED else LOAD)
 
-    if t_ref <= LOAD:  # nothing compiled can win once loading it is counted
+    if t_ref <= LOAD and not _LOADED:  # nothing compiled can win once loading it is counted
         return "reference"
     usable = RECORDING if record else KERNELS
     times: dict[KernelName, float] = {"reference": t_ref}
