@@ -74,6 +74,7 @@ def test_a_tiny_run_takes_the_reference_even_when_nothing_is_compiled(
     so the reference runs whatever is compiled; its numbers equal the generic kernel's bitwise."""
     batch, plan = _batch(_chain(1, 0.02), 1)
     assert choice.reference_seconds(float(batch.n_steps.max()), 1, float(batch.n_steps.sum())) < choice.LOAD
+    monkeypatch.setattr(choice, "_LOADED", set())  # compiled on disk, not loaded in this process
     for ready in (False, True):
         monkeypatch.setattr(choice, "generic_ready", lambda r=ready: r)
         assert choice.pick(batch, plan.topology.histories, None) == "reference"
