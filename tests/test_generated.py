@@ -16,8 +16,8 @@ import yaml
 from crashstudy.kernel import generated
 from crashstudy.run.runner import run_chunk
 from crashstudy.study.plan import load_study
-from helpers import assert_bitwise, run_model
-from twins import HELICOPTER, crush_bounce, mount_reversal
+from helpers import assert_bitwise, model_batch, run_model
+from twins import CASES, HELICOPTER, crush_bounce
 
 
 def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(
@@ -110,10 +110,12 @@ def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(
     monkeypatch.setattr(
         compiled, "run_compiled", lambda *a, **k: calls.append("generic") or real_generic(*a, **k)
     )
-    ref, _, _ = run_model(mount_reversal(), kernel="reference")
+    # the model and axes of a twin case (test_kernel_twins): its generated kernel, compiled once
+    model, axes = CASES["knots-1d-every-curve-material-constant-and-scaled-crush-rebound-and-reversal"]
+    ref, _, _ = run_model(model(), kernel="reference", variants=axes)
     for env, expected in (("generated", "generated"), ("generic", "generic"), ("reference", "generic")):
         monkeypatch.setenv("CRASHSTUDY_KERNEL", env)
-        got, _, _ = run_model(mount_reversal(), kernel="compiled")
+        got, _, _ = run_model(model(), kernel="compiled", variants=axes)
         assert calls[-1] == expected and len(calls) == 1 + (env != "generated")
         assert_bitwise(ref, got)
 
@@ -123,9 +125,14 @@ def test_early_termination_stops_when_the_spring_has_separated(kernel: str) -> N
     """Termination (spring force ~0 and the spring opening): the run ends at the separation time
     m v0 / F0 + (pi / 2) sqrt(m / k_u) = 0.05 + 0.01111 s (closed form; the 0.1 mm ramp adds ~1e-5 s),
     within 2 steps, instead of at end_time 0.2 s; peaks equal those of the run without termination."""
+    from crashstudy.kernel.entry import run_batch
+
     v0, m, f0, ku = 10.0, 100.0, 2.0e4, 2.0e6
     t_sep = m * v0 / f0 + 0.5 * np.pi * np.sqrt(m / ku)
-    out, batch, _ = run_model(crush_bounce(v0), kernel=kernel)
+    batch, plan = model_batch(crush_bounce(v0))
+    # the plateau as a curve the study scales (by 1: the same numbers): the generated kernel of the runner
+    # test above (one compile serves both)
+    out = run_batch(batch, plan.topology.histories, plan.n_out, kernel, vary=frozenset({-1}))
     full_model = {k: v for k, v in crush_bounce(v0).items() if k != "termination"}
     full, _, _ = run_model(full_model, kernel="generic")  # (bitwise the reference's: test_kernel_twins)
     assert out.status[0] == 0

@@ -5,15 +5,17 @@ itself checked against closed forms and scipy in test_physics and test_materials
 share their laws (:mod:`crashstudy.kernel.laws`) but not the reference's code. Tolerance: bitwise
 (every summary, every history; NaN where the reference has NaN).
 
-Cases (the models: tests/twins.py): every material in 1-D drawn both ways; three full twins (all materials,
-gravity, loads, prescribed displacement / velocity / acceleration, rigid walls incl. an inclined one,
-1-D and 2-D; the 1-D one with per-variant scaled spring, load and motion curves); 2-D rigid and penalty walls;
-a 2-D spring crushed to zero length; the general_nonlinear reversal (rule 4); knot crossings of every curve
-material in 1-D and 2-D, on constant and on scaled curves; the frontal model with per-variant and constant
-curves and lane compaction; early termination; the SPEC v2 spring features (elastoplastic, nonlinear_damper,
-initial_elongation, failure, max_elongation) breaking and intact beside rate_elastic, in 1-D and 2-D.
+Cases (the models: tests/twins.py): three full twins (all materials, gravity, loads, prescribed
+displacement / velocity / acceleration, rigid walls incl. an inclined one, 1-D and 2-D; the 1-D one with
+per-variant scaled spring, load and motion curves, and every material drawn both ways); 2-D rigid and
+penalty walls; a 2-D spring crushed to zero length; knot crossings of every curve material in 1-D and 2-D,
+on constant and (1-D) on scaled curves, beside the general_nonlinear reversal (rule 4); the frontal model
+with per-variant and constant curves and lane compaction; early termination; the SPEC v2 spring features
+(elastoplastic, nonlinear_damper, initial_elongation, failure, max_elongation) breaking (and, in 1-D,
+intact) beside rate_elastic, in 1-D and 2-D.
 Where features can live together they are disjoint sub-systems of one model (``twins.disjoint``): one
-generated kernel compile instead of several, each sub-system keeping its own check.
+generated kernel compile instead of several (a compile costs about 5 s of CPU per shape plus its springs'
+code), each sub-system keeping its own check.
 """
 
 from __future__ import annotations
@@ -52,10 +54,10 @@ def _check_ok(ref: KernelOutput, batch: Any, plan: Any) -> None:
 
 
 def _check_both_ways(ref: KernelOutput, batch: Any, plan: Any) -> None:
-    """Every material drawn left to right (1-D sign +1) and right to left (-1); the variants' output
-    intervals differ (their time steps do)."""
-    for prefix, sign in (("fwd", 1.0), ("rev", -1.0)):
-        springs = _springs(plan, prefix)
+    """Every material drawn left to right (1-D sign +1: the springs without a prefix) and right to left
+    (-1: ``rev-``); the variants' output intervals differ (their time steps do)."""
+    rev = _springs(plan, "rev")
+    for springs, sign in (([k for k in range(len(batch.sign)) if k not in rev], 1.0), (rev, -1.0)):
         assert (
             len(springs) == 5 and np.all(batch.sign[springs] == sign) and np.all(ref.peak_force[springs] > 0)
         )
@@ -69,9 +71,10 @@ def _check_full_twin(ref: KernelOutput, batch: Any, plan: Any) -> None:
     assert np.nanmax(ref.histories["wall_energy"]) > 0
 
 
-def _check_full_twin_scaled(ref: KernelOutput, batch: Any, plan: Any) -> None:
+def _check_full_twin_scaled_both_ways(ref: KernelOutput, batch: Any, plan: Any) -> None:
     _check_full_twin(ref, batch, plan)
     _check_scaled(ref, batch, plan)
+    _check_both_ways(ref, batch, plan)
 
 
 def _check_walls(ref: KernelOutput, batch: Any, plan: Any) -> None:
@@ -98,15 +101,28 @@ def _check_crushed(ref: KernelOutput, batch: Any, plan: Any) -> None:
     assert list(ref.status) == [0, 0, CRUSHED_TO_ZERO, CRUSHED_TO_ZERO] and list(ref.fail_item[2:]) == [0, 0]
 
 
-def _check_reversal(ref: KernelOutput, batch: Any, plan: Any) -> None:
-    force = ref.histories["spring_force"][:, 0, :]
+def _check_reversal(ref: KernelOutput, batch: Any, plan: Any, spring: int = 0) -> None:
+    """The general_nonlinear ``spring`` yields in compression and then in tension (rule 4) in every variant."""
+    force = ref.histories["spring_force"][:, spring, :]
     assert np.all(np.nanmin(force, axis=0) <= -2.0e4) and np.all(np.nanmax(force, axis=0) >= 2.0e4 - 1.0)
 
 
-def _check_knots(ref: KernelOutput, batch: Any, plan: Any) -> None:
-    """On every spring, the knot candidate raised the peak force above every sample (in some variant)."""
-    sampled = np.nanmax(np.abs(ref.histories["spring_force"]), axis=0)
-    assert np.all(ref.status == 0) and np.all(np.any(ref.peak_force > sampled, axis=1))
+def _check_knots(ref: KernelOutput, batch: Any, plan: Any, springs: Any = slice(None)) -> None:
+    """On every spring (of ``springs``), the knot candidate raised the peak force above every sample (in
+    some variant)."""
+    sampled = np.nanmax(np.abs(ref.histories["spring_force"][:, springs]), axis=0)
+    assert np.all(ref.status == 0) and np.all(np.any(ref.peak_force[springs] > sampled, axis=1))
+
+
+def _check_knots_and_reversal(ref: KernelOutput, batch: Any, plan: Any) -> None:
+    """:func:`_check_knots` on every knot spring (``k-``), on constant curves and on scaled ones
+    (``k-s-``), and on the crush-rebound front (``cr-front``); :func:`_check_reversal` on the mount."""
+    knots, scaled, mount = _springs(plan, "k"), _springs(plan, "k-s"), _springs(plan, "mount")
+    front = plan.topology.spring_ids.index("cr-front")
+    assert len(knots) == 6 and len(scaled) == 3 and len(mount) == 1
+    _check_knots(ref, batch, plan, [*knots, front])
+    _check_scaled(ref, batch, plan)
+    _check_reversal(ref, batch, plan, mount[0])
 
 
 def _check_frontal(ref: KernelOutput, batch: Any, plan: Any) -> None:
@@ -120,31 +136,29 @@ def _check_termination(ref: KernelOutput, batch: Any, plan: Any) -> None:
 
 def _check_v2_and_rate(ref: KernelOutput, batch: Any, plan: Any) -> None:
     """Every variant runs (on the generated kernel too). Breaking sub-system: springs break in some
-    variants, not all; preloads store energy. Intact one: nothing breaks; preloads store energy.
+    variants, not all; preloads store energy. Intact one (1-D): nothing breaks; preloads store energy.
     rate_elastic: its preload stores energy."""
     assert np.all(ref.status == 0) and generated.unsupported(batch) is None
     ids = plan.topology.spring_ids
     f, i = _springs(plan, "f"), _springs(plan, "i")
+    assert len(i) == (4 if batch.x0.shape[1] == 1 else 0)
     broke = np.isfinite(ref.spring_fail_time[f])
     assert broke.any() and not broke.all() and np.all(np.isnan(ref.spring_fail_time[i]))
-    for p in ("f-ep", "f-gn", "f-cr", "i-ep", "i-cr", "r-re"):
+    preloaded = ("f-ep", "f-gn", "f-cr", "r-re") + (("i-ep", "i-cr") if i else ())
+    for p in preloaded:
         assert np.all(batch.ie0[ids.index(p)] > 0), p
-    assert np.all(ref.max_elongation[[ids.index("f-ep"), ids.index("i-ep")]] > 0)
+    assert np.all(ref.max_elongation[[ids.index(p) for p in preloaded if p.endswith("-ep")]] > 0)
 
 
 # case (tests/twins.py CASES) -> what the case must exercise
 CHECKS: dict[str, Callable[[KernelOutput, Any, Any], None]] = {
-    "1d-every-material-both-ways": _check_both_ways,
-    "full-twin-1d-all-materials-scaled-curves": _check_full_twin_scaled,
+    "full-twin-1d-every-material-both-ways-scaled-curves": _check_full_twin_scaled_both_ways,
     "full-twin-2d-helicopter-two-walls": _check_full_twin_walls,
     "2d-rigid-and-penalty-walls": _check_penalty,
     "full-twin-2d-mixed-prescribed": _check_full_twin,
     "2d-crushed-to-zero": _check_crushed,
-    "general-nonlinear-reversal": _check_reversal,
-    "knots-crush-rebound": _check_knots,
-    "knots-every-curve-material-1d": _check_knots,
+    "knots-1d-every-curve-material-constant-and-scaled-crush-rebound-and-reversal": _check_knots_and_reversal,
     "knots-every-curve-material-2d": _check_knots,
-    "scaled-knots-every-curve-material": _check_scaled,
     "frontal-curve-and-mass-axes-lane-compaction": _check_frontal,
     "early-termination": _check_termination,
     **{f"v2-spring-features-and-rate-elastic-{dim}d": _check_v2_and_rate for dim in (1, 2)},

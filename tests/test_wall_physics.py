@@ -3,16 +3,21 @@ kink of its displacement curve (item 12), on every kernel (reference, generic, g
 
 Independent truths are closed forms: the momentum of a mass stopped by a wall, the force of a preloaded
 spring, the peak force of a mass on a spring brought to rest, a damper's law at the prescribed speed.
+The generated kernel runs the four rigid-wall models side by side in one model (one compiled kernel
+instead of four, :func:`_side_by_side`); each test checks its own part of that run against its closed form.
 """
 
 from __future__ import annotations
 
+from functools import cache
 from typing import Any
 
 import numpy as np
 import pytest
 
+from crashstudy.kernel.output import KernelOutput
 from helpers import run_model
+from twins import disjoint, part_of
 
 KERNELS = ["reference", "generic", "generated"]
 
@@ -42,6 +47,28 @@ def _hit(dt: float, spring: bool = False) -> dict[str, Any]:
     return model
 
 
+@cache
+def _side_by_side(dt: float) -> tuple[KernelOutput, Any]:
+    """The rigid-wall models of this file side by side in one model at step ``dt`` (:func:`twins.disjoint`:
+    unconnected, each wall holding its own part's nodes), run by the generated kernel: one compiled kernel
+    serves every test here. Fixed steps of 0.1 and 0.05 ms are stable for every part and leave each part's
+    closed form as it is (the resting mass and the stroke do not depend on the step)."""
+    parts = {"hit": _hit(dt), "held": _hit(dt, spring=True), "rest": _rest(), "stroke": _damped_stroke()}
+    parts["stroke"]["curves"]["u"]["x"][-1] = 0.08  # its rest at 0.06 m held to the end (past 0.05: 0)
+    model = disjoint(parts)
+    model.update(end_time=0.08, time_step={"dt": dt}, output={"interval": 1.0e-3, "histories": "all"})
+    out, _, plan = run_model(model, "generated")
+    return out, plan
+
+
+def _run(model: dict[str, Any], kernel: str, part: str, dt: float = 1.0e-4) -> KernelOutput:
+    """``model`` run by ``kernel``; the generated kernel runs it as part ``part`` of :func:`_side_by_side`
+    (its own nodes, springs and walls of that run's output)."""
+    if kernel == "generated":
+        return part_of(*_side_by_side(dt), part)
+    return run_model(model, kernel)[0]
+
+
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_rigid_wall_impulse_is_the_momentum_and_does_not_depend_on_dt(kernel: str) -> None:
     """A free 4 t mass at 15.6 m/s stopped by a rigid wall: wall_impulse = m v0 (1 + e), e = 0, within
@@ -50,7 +77,7 @@ def test_rigid_wall_impulse_is_the_momentum_and_does_not_depend_on_dt(kernel: st
     m, v0 = 4000.0, 15.6
     got = []
     for dt in (1.0e-4, 0.5e-4):
-        out, _, _ = run_model(_hit(dt), kernel)
+        out = _run(_hit(dt), kernel, "hit", dt)
         assert out.status[0] == 0
         assert _rel(out.wall_impulse[0, 0], m * v0) < 1e-9, out.wall_impulse[0, 0]
         assert out.peak_wall_force[0, 0] == 0.0
@@ -71,7 +98,7 @@ def test_front_mass_held_by_the_wall_reports_the_spring_force_and_no_deceleratio
     f_peak = v0 * np.sqrt(k * m2)
     errs = []
     for dt in (1.0e-4, 0.5e-4):
-        out, _, _ = run_model(_hit(dt, spring=True), kernel)
+        out = _run(_hit(dt, spring=True), kernel, "held", dt)
         assert out.status[0] == 0
         assert _rel(out.wall_impulse[0, 0], m1 * v0) < 1e-9, out.wall_impulse[0, 0]
         assert abs(out.peak_force[0, 0] - out.peak_wall_force[0, 0]) <= 1e-9 * f_peak
@@ -80,12 +107,9 @@ def test_front_mass_held_by_the_wall_reports_the_spring_force_and_no_deceleratio
     assert errs[0] < 1e-2 and errs[1] < errs[0], errs
 
 
-@pytest.mark.parametrize("kernel", KERNELS)
-def test_mass_resting_against_a_wall_under_a_preloaded_spring(kernel: str) -> None:
-    """A 10 kg mass sits on a wall, a spring (k = 1e5 N/m, compressed 0.01 m) pushes it in: contact force
-    = k 0.01 = 1000 N at every sample (1e-9 relative), deceleration 0 (before: 1000 N / 10 kg = 10.2 g),
-    no impulse."""
-    model = {
+def _rest() -> dict[str, Any]:
+    """1-D: a 10 kg mass on a wall (normal +x at x = 0), pushed in by a spring compressed 0.01 m."""
+    return {
         "name": "rest",
         "nodes": {"anchor": {"position": [1.0], "fixed": True}, "m": {"position": [0.0], "mass": 10.0}},
         "springs": {
@@ -99,7 +123,14 @@ def test_mass_resting_against_a_wall_under_a_preloaded_spring(kernel: str) -> No
         "end_time": 0.05,
         "output": {"interval": 1.0e-3, "histories": ["wall_force", "acceleration"]},
     }
-    out, _, _ = run_model(model, kernel)
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_mass_resting_against_a_wall_under_a_preloaded_spring(kernel: str) -> None:
+    """A 10 kg mass sits on a wall, a spring (k = 1e5 N/m, compressed 0.01 m) pushes it in: contact force
+    = k 0.01 = 1000 N at every sample (1e-9 relative), deceleration 0 (before: 1000 N / 10 kg = 10.2 g),
+    no impulse."""
+    out = _run(_rest(), kernel, "rest")
     assert out.status[0] == 0
     assert _rel(out.peak_wall_force[0, 0], 1000.0) < 1e-9
     assert np.all(np.abs(out.histories["wall_force"][:, 0, 0] - 1000.0) <= 1e-9 * 1000.0)
@@ -131,7 +162,7 @@ def test_damper_on_a_prescribed_stroke_peaks_at_the_law_of_the_fastest_prescribe
     """The damper's peak force is c times the fastest prescribed rate, 1000 x 6 = 6000 N (1e-6 relative:
     the rate is the step's displacement difference over dt), not the extrapolation across the kink
     v + dt/2 a (6 + 3 = 9 m/s: 9000 N before)."""
-    out, _, _ = run_model(_damped_stroke(), kernel)
+    out = _run(_damped_stroke(), kernel, "stroke")
     assert out.status[0] == 0
     assert _rel(out.peak_force[1, 0], 1000.0 * 6.0) < 1e-6, out.peak_force[1, 0]
 
