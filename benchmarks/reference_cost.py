@@ -20,12 +20,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, load, machine, machine_md, md_table, median  # noqa: E402
-from throughput import frontal_plan  # noqa: E402
-
 from crashstudy.arrays.batch import build_batch  # noqa: E402
 from crashstudy.kernel import choice  # noqa: E402
 from crashstudy.kernel.reference import run_reference  # noqa: E402
 from crashstudy.study.plan import load_study  # noqa: E402
+from throughput import frontal_plan  # noqa: E402
 
 SPRING = """name: one-spring
 nodes:
