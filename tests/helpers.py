@@ -159,6 +159,50 @@ def run_cli_process(
     )
 
 
+def run_cli_in_one_process(
+    *commands: tuple[str | Path, ...],
+    cwd: Path | None = None,
+    timeout: float = 600,
+    preexec_fn: Callable[[], Any] | None = None,
+) -> list[subprocess.CompletedProcess[str]]:
+    """Several commands, each run as :func:`run_cli` runs it, one after the other in ONE subprocess that
+    must end within ``timeout`` seconds: for inputs whose regression would hang or fill memory (the test
+    fails at the timeout, a blow-up ends that process and not the test run) at one interpreter start
+    (~1.5 s of CPU importing numpy, numba, xarray, ...) instead of one per command. An exception escaping
+    a command's ``main`` is that command's traceback and exit code 1, as in a process of its own."""
+    import json
+
+    proc = subprocess.run(
+        [sys.executable, "-c", _ONE_PROCESS, str(Path(__file__).resolve().parent)],
+        input=json.dumps([[str(a) for a in argv] for argv in commands]),
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout,
+        preexec_fn=preexec_fn,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return [
+        subprocess.CompletedProcess(["crashstudy", *map(str, argv)], rc, out, err)
+        for argv, (rc, out, err) in zip(commands, json.loads(proc.stdout.splitlines()[-1]), strict=True)
+    ]
+
+
+_ONE_PROCESS = """\
+import json, sys, traceback
+sys.path.insert(0, sys.argv[1])
+from helpers import run_cli
+done = []
+for argv in json.loads(sys.stdin.read()):
+    try:
+        p = run_cli(*argv)
+        done.append([p.returncode, p.stdout, p.stderr])
+    except BaseException:
+        done.append([1, "", traceback.format_exc()])
+print(json.dumps(done))
+"""
+
+
 #: a fresh interpreter's warning filters (python without -W or PYTHONWARNINGS): pytest's own, e.g.
 #: ``error::CrashstudyWarning`` of pyproject.toml, do not apply to a command a user runs
 _FRESH_FILTERS = (

@@ -1,13 +1,15 @@
 """Every execution backend gives results identical to the in-process run.
 
 One suite (:class:`BackendSuite`) is inherited by each backend: in-process, a process pool of two
-workers (``--jobs 2``) and a Dask ``LocalCluster`` of two worker processes on loopback
-(``--scheduler local``). Each runs the same small study (a 1-D crush spring and a body spring, 4 x 5
+workers (``--jobs 2``) and a Dask ``LocalCluster`` of two worker processes on loopback (the one
+``DaskBackend("local")`` starts, shared by the module's tests that are not about starting or killing a
+cluster, which reach it by its address as ``--scheduler tcp://127.0.0.1:PORT``). Each runs the same small study (a 1-D crush spring and a body spring, 4 x 5
 variants over body mass and impact speed, every history kept) and must reproduce the in-process
 ``results.nc`` exactly, variable by variable (NaN where the reference has NaN): with the default
 chunking, with many small chunks, and when a run is interrupted after two chunks and resumed.
-Dask-specific tests: a worker process dying mid-task, a missing ``distributed`` install, an
-unreachable scheduler, and the real command line with ``--scheduler local``.
+Dask-specific tests: a worker process dying mid-task (each with a ``--scheduler local`` cluster of its
+own), a missing ``distributed`` install, an unreachable scheduler, and the real command line with
+``--scheduler local``.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import crashstudy.run.backends
 from crashstudy.errors import InputError
 from crashstudy.results import integrity, regions
 from crashstudy.results.store import PARTIAL, ChunkResult, ResultWriter
+from crashstudy.run.dask_backend import DaskBackend
 from crashstudy.run.runner import run_chunk, run_plan
 from crashstudy.study.plan import load_study
 
@@ -90,6 +93,17 @@ def reference(study_file: Path, tmp_path_factory: pytest.TempPathFactory) -> xr.
     return _load(out)
 
 
+@pytest.fixture(scope="module")
+def local_cluster() -> Iterator[DaskBackend]:
+    """One ``--scheduler local`` cluster (``DaskBackend("local")``: 2 worker processes of one thread on
+    loopback) for the module's tests that are not about starting or killing a cluster; they reach it by
+    its address (``--scheduler tcp://127.0.0.1:PORT``). Each start costs ~2 worker processes importing
+    numpy, numba and crashstudy and loading the kernel: once here instead of once per run."""
+    backend = DaskBackend("local")
+    yield backend
+    backend.close()
+
+
 def assert_same_results(ds: xr.Dataset, ref: xr.Dataset) -> None:
     """Every variable, coordinate and attribute equal, bit for bit (NaN where the reference has NaN)."""
     assert set(ds.data_vars) == set(ref.data_vars)
@@ -117,6 +131,13 @@ class BackendSuite:
 
     options: dict[str, Any] = {}
     partial, final = PARTIAL, "results.nc"  # the store's names (results.zarr[.partial] with store="zarr")
+    shared_cluster = False  # True: ``scheduler`` is the address of the module's LocalCluster (local_cluster)
+
+    @pytest.fixture(autouse=True)
+    def _scheduler(self, request: pytest.FixtureRequest) -> None:
+        if self.shared_cluster:
+            address = request.getfixturevalue("local_cluster").cluster.scheduler_address
+            self.options = {**type(self).options, "scheduler": address}
 
     def run(self, study_file: Path, out: Path, **kw: Any) -> Any:
         return run_plan(
@@ -166,19 +187,11 @@ class TestProcessPool(BackendSuite):
     options = {"jobs": 2}
 
 
-class TestDaskLocalCluster(BackendSuite):
-    options = {"scheduler": "local"}
-
-
 class TestInProcessZarr(BackendSuite):
     """``--store zarr``: the same numbers (issue 19 item 2)."""
 
     options = {"store": "zarr"}
     partial, final = "results.zarr.partial", "results.zarr"
-
-
-class TestDaskLocalClusterZarr(TestInProcessZarr):
-    options = {"scheduler": "local", "store": "zarr"}
 
 
 # --- Dask only ------------------------------------------------------------------------------------
@@ -325,8 +338,6 @@ def test_zarr_store_replaced_whole_at_every_rename(
 
 def test_dask_backend_without_distributed_asks_for_the_extra(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "distributed", None)  # `import distributed` now raises ImportError
-    from crashstudy.run.dask_backend import DaskBackend
-
     with pytest.raises(InputError) as exc:
         DaskBackend("local")
     assert [(p.file, p.message) for p in exc.value.problems] == [
@@ -359,8 +370,6 @@ def test_backend_that_cannot_start_leaves_no_partial_result(
 
 
 def test_unreachable_scheduler_is_an_input_error_naming_the_address() -> None:
-    from crashstudy.run.dask_backend import DaskBackend
-
     with pytest.raises(InputError, match=r"cannot connect to a Dask scheduler at 'tcp://127\.0\.0\.1:9'"):
         DaskBackend("tcp://127.0.0.1:9", timeout=2)  # port 9 (discard): nothing listens on loopback
 
@@ -375,13 +384,25 @@ def test_cli_run_with_local_scheduler_exits_0(
     assert_same_results(_load(out), reference)
 
 
-def test_dask_local_workers_run_the_kernel_with_one_thread_each() -> None:
-    from crashstudy.kernel.compiled import get_threads
-    from crashstudy.run.dask_backend import DaskBackend
+# --- on the module's LocalCluster (local_cluster), last: the cluster lives only while these tests run ----
 
-    backend = DaskBackend("local")
-    try:
-        assert backend.worker_threads() == 2
-        assert sorted(backend.imap_unordered(get_threads, [()] * 6)) == [1] * 6
-    finally:
-        backend.close()
+
+class TestDaskLocalCluster(BackendSuite):
+    """The module's LocalCluster, by its address (an interrupted run closes only its client: the tasks
+    the workers had started finish on them, as on a cluster the user started)."""
+
+    shared_cluster = True
+
+
+class TestDaskLocalClusterZarr(TestInProcessZarr):
+    """The module's LocalCluster by its address; the workers write the store."""
+
+    shared_cluster = True
+
+
+def test_dask_local_workers_run_the_kernel_with_one_thread_each(local_cluster: DaskBackend) -> None:
+    """``DaskBackend("local")`` (the module's): 2 workers of one thread; each task's kernel runs with one."""
+    from crashstudy.kernel.compiled import get_threads
+
+    assert local_cluster.worker_threads() == 2
+    assert sorted(local_cluster.imap_unordered(get_threads, [()] * 6)) == [1] * 6

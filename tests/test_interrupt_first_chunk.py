@@ -12,7 +12,7 @@ chunk after it would have finished first), the generic kernel is not in the fres
 compile was stopped) and no compile is left running (the kernel cache's compile lock is free). The
 seconds from signal to exit are printed (``pytest -s``), never asserted.
 
-``--resume`` then computes every variant; its values are checked against a fresh computation of them
+``--resume`` (in this process) then computes every variant; its values are checked against a fresh computation of them
 run in this process on a few variants (the kernels agree bitwise, docs/kernels.md; tolerance rtol 1e-12).
 """
 
@@ -33,6 +33,7 @@ import xarray as xr
 
 from crashstudy.run.runner import run_chunk
 from crashstudy.study.plan import load_study
+from helpers import run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "studies" / "models" / "frontal-9mass.yaml"
@@ -140,17 +141,12 @@ def _lock_free(kernels: Path) -> bool:
     return not compiling(kernels)
 
 
-def _resume_and_check(study: Path, out: Path, n: int) -> None:
-    """``--resume`` (on the generic kernel of the test session's cache: the kernel does not change the
-    values) computes all ``n`` variants; a few equal a fresh computation of them here."""
-    env = dict(os.environ, CRASHSTUDY_KERNEL="generic", CRASHSTUDY_BACKGROUND_COMPILE="0")
-    p = subprocess.run(
-        _cli("run", study, "-o", out, "--resume", "--progress", "off"),
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+def _resume_and_check(study: Path, out: Path, n: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--resume`` in this process (on the generic kernel of the test session's cache: the kernel does
+    not change the values) computes all ``n`` variants; a few equal a fresh computation of them here."""
+    monkeypatch.setenv("CRASHSTUDY_KERNEL", "generic")
+    monkeypatch.setenv("CRASHSTUDY_BACKGROUND_COMPILE", "0")
+    p = run_cli("run", study, "-o", out, "--resume", "--progress", "off")
     assert p.returncode == 0, p.stderr
     assert f"({n} variants computed" in p.stdout, p.stdout
     assert not (out / "results.nc.partial").exists()
@@ -190,7 +186,7 @@ def test_ctrl_c_while_the_kernel_compiles_stops_the_compile_at_once(
 
 
 def test_ctrl_c_while_the_reference_runs_the_first_chunk_stops_it_and_resume_computes_every_variant(
-    tmp_path: Path,
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     study = _study(tmp_path, SMALL, 10)
     out = tmp_path / "out"
@@ -198,4 +194,4 @@ def test_ctrl_c_while_the_reference_runs_the_first_chunk_stops_it_and_resume_com
     assert code == 130, err
     assert sorted(p.name for p in out.iterdir()) == ["results.nc.partial"]
     assert _done(out) == 0  # the reference checks for Ctrl-C every 256 steps, inside the first chunk
-    _resume_and_check(study, out, 1000)
+    _resume_and_check(study, out, 1000, monkeypatch)

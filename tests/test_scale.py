@@ -15,7 +15,7 @@ import xarray as xr
 
 from crashstudy.results import curve_ends, integrity, store, tables
 from crashstudy.run import runner
-from crashstudy.study.plan import load_study
+from crashstudy.study.plan import Plan, load_study
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from matrix import TWO_SPRING  # noqa: E402 - the 2-spring model of issues 19 and 25 (benchmarks/matrix.py)
@@ -49,17 +49,22 @@ def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
         monkeypatch.setattr(mod, name, BLOCK, raising=False)  # raising=False: the test runs at main too
 
 
-def traced_peak(study: Path, out: Path, **kw: object) -> int:
-    """Peak bytes allocated by Python and NumPy (tracemalloc) while running ``study`` into ``out``
-    (generic kernel, chunks of CHUNK), with what the command line does after it."""
+def run_and_after(plan: Plan, out: Path, **kw: object) -> None:
+    """Run ``plan`` into ``out`` (generic kernel, chunks of CHUNK), with what the command line does after it."""
     from crashstudy.cli.main import _after_run
 
+    rep = runner.run_plan(plan, out, kernel="generic", chunk=CHUNK, progress=False, **kw)  # type: ignore[arg-type]
+    _after_run(rep.results)
+
+
+def traced_peak(study: Path, out: Path, **kw: object) -> int:
+    """Peak bytes allocated by Python and NumPy (tracemalloc) while running ``study`` into ``out``
+    (:func:`run_and_after`; the study file is read before)."""
     plan = load_study(study)
     tracemalloc.start()
     try:
         tracemalloc.reset_peak()
-        rep = runner.run_plan(plan, out, kernel="generic", chunk=CHUNK, progress=False, **kw)  # type: ignore[arg-type]
-        _after_run(rep.results)
+        run_and_after(plan, out, **kw)
         return tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -82,9 +87,8 @@ def test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants(
     variant); with 100 B per variant held on purpose (a list of arrays in run_chunk) the fresh run grows
     106 B per variant and the test fails."""
     n = 8 * BLOCK
-    traced_peak(
-        two_spring_study(tmp_path / "warm-up", 16), tmp_path / "warm-up" / "out"
-    )  # once-only imports, kernel load
+    # once-only imports and the kernel's load, untraced (tracemalloc makes this code ~4x slower)
+    run_and_after(load_study(two_spring_study(tmp_path / "warm-up", 16)), tmp_path / "warm-up" / "out")
     peaks = {}
     for size in (n, 4 * n):
         study = two_spring_study(tmp_path / str(size), size)
@@ -146,6 +150,18 @@ def two_results(tmp_path_factory: pytest.TempPathFactory) -> dict[int, Path]:
     return out
 
 
+def warm_call(argv: list[str]) -> None:
+    """The command line ``argv`` once in this process, untraced: the imports and caches of a first call
+    stay out of the measured peak (tracemalloc makes this code ~4x slower)."""
+    import contextlib
+    import io
+
+    from crashstudy.cli.main import main
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(argv) == 0
+
+
 def command_peak(argv: list[str]) -> tuple[int, str]:
     """(peak bytes, stdout) of the command line ``argv`` in this process: the traced peak (Python, NumPy)
     plus the peak of pyarrow's memory pool (an upper bound of the sum of both)."""
@@ -182,7 +198,7 @@ def test_peak_memory_of_a_reader_does_not_grow_with_the_variants(
     word, *rest = command.split()
     peaks = {}
     for size, folder in sorted(two_results.items()):
-        command_peak([word, str(folder), *rest])  # warm: imports and caches of the first call
+        warm_call([word, str(folder), *rest])  # warm: imports and caches of the first call
         peaks[size] = command_peak([word, str(folder), *rest])[0]
     small, big = sorted(peaks)
     grown = peaks[big] - peaks[small]

@@ -328,10 +328,8 @@ def test_dry_run_prints_the_variant_count_and_runs_nothing(
 # backends, interruption, resume, overwrite
 
 
-def test_jobs_2_gives_results_identical_to_jobs_1(matrix_study: Path, matrix_run: Path, work: Path) -> None:
-    out = work / "jobs2"
-    run_plan(load_study(matrix_study), out, jobs=2, chunk=16, progress=False)
-    assert_identical(load_ds(out), load_ds(matrix_run))
+# --jobs 2 against the in-process run (bitwise, small chunks, every history; interrupted and resumed too):
+# tests/test_backends.py::TestProcessPool
 
 
 # A CLI run slowed down to ~0.25 s per chunk of 5 variants, so that a signal lands mid-run: the real

@@ -21,7 +21,7 @@ import yaml
 
 from crashstudy.cli.main import main
 from folders import files, peak_force, snapshot
-from helpers import run_cli
+from helpers import run_cli, run_cli_in_one_process
 
 
 def limited() -> None:
@@ -29,20 +29,6 @@ def limited() -> None:
     memory ends in MemoryError, not in the machine's out-of-memory killer)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, 3 * 2**30))
-
-
-def cli(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
-    """The command line in a subprocess; a hang (a FIFO read) fails the test after ``timeout`` seconds."""
-    try:
-        return subprocess.run(
-            [sys.executable, "-m", "crashstudy.cli", *args],
-            capture_output=True,
-            text=True,
-            timeout=timeout,
-            preexec_fn=limited,
-        )
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"crashstudy {' '.join(args)} hung for {timeout} s")
 
 
 @pytest.fixture(scope="module")
@@ -56,25 +42,48 @@ def made(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 # --- item 5: a FIFO or a link to /dev/zero in a result folder ---------------------------------------
 
 
-@pytest.mark.parametrize(
-    ("name", "plant"),
-    [
-        ("manifest.json", "fifo"),
-        ("summary.parquet", "zero"),
-        ("results.nc", "fifo"),
-        ("manifest.json", "zero"),
-    ],
-)
+PLANTED = [
+    ("manifest.json", "fifo"),
+    ("summary.parquet", "zero"),
+    ("results.nc", "fifo"),
+    ("manifest.json", "zero"),
+]
+
+
+def in_one_process(
+    *commands: tuple[str, ...], timeout: float = 180
+) -> list[subprocess.CompletedProcess[str]]:
+    """The commands in one subprocess (helpers.run_cli_in_one_process) with Ctrl-C as in a terminal and
+    3 GiB of address space (:func:`limited`); a hang fails the tests after ``timeout`` seconds."""
+    try:
+        return run_cli_in_one_process(*commands, timeout=timeout, preexec_fn=limited)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"one of {commands} hung for {timeout} s")
+
+
+@pytest.fixture(scope="module")
+def planted_summaries(
+    made: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
+) -> dict[tuple[str, str], subprocess.CompletedProcess[str]]:
+    """``crashstudy summary`` of copies of the result folder, each with one file of PLANTED replaced by a
+    FIFO or a link to /dev/zero: every case in one subprocess (one interpreter start instead of four)."""
+    folders = []
+    for name, plant in PLANTED:
+        t = shutil.copytree(made["R"], tmp_path_factory.mktemp("planted") / "R")
+        (t / name).unlink()
+        if plant == "fifo":
+            os.mkfifo(t / name)
+        else:
+            (t / name).symlink_to("/dev/zero")
+        folders.append(("summary", str(t)))
+    return dict(zip(PLANTED, in_one_process(*folders), strict=True))
+
+
+@pytest.mark.parametrize(("name", "plant"), PLANTED)
 def test_summary_refuses_a_fifo_or_a_link_to_dev_zero_in_a_result_folder(
-    made: dict[str, Path], tmp_path: Path, name: str, plant: str
+    planted_summaries: dict[tuple[str, str], subprocess.CompletedProcess[str]], name: str, plant: str
 ) -> None:
-    t = shutil.copytree(made["R"], tmp_path / "R")
-    (t / name).unlink()
-    if plant == "fifo":
-        os.mkfifo(t / name)
-    else:
-        (t / name).symlink_to("/dev/zero")
-    done = cli("summary", str(t))
+    done = planted_summaries[(name, plant)]
     assert done.returncode == 2, done.stderr[-2000:]
     assert name in done.stderr and "Traceback" not in done.stderr, done.stderr
 
@@ -103,6 +112,22 @@ def _with_data(made: dict[str, Path], tmp: Path, plant: str) -> Path:
     return tmp / "cal.yaml"
 
 
+@pytest.fixture(scope="module")
+def calibrated_from_devices(
+    made: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, tuple[Path, subprocess.CompletedProcess[str]]]:
+    """``crashstudy calibrate`` with data.csv a FIFO and a link to /dev/zero, whose read would hang or
+    fill memory: both in one subprocess; {plant: (its folder, what the command did)}."""
+    folders = {plant: tmp_path_factory.mktemp(f"calibrate-{plant}") for plant in ("fifo", "zero")}
+    commands = [
+        ("calibrate", str(_with_data(made, tmp, plant)), "-o", str(tmp / "out"))
+        for plant, tmp in folders.items()
+    ]
+    return {
+        plant: (tmp, p) for (plant, tmp), p in zip(folders.items(), in_one_process(*commands), strict=True)
+    }
+
+
 @pytest.mark.parametrize(
     ("plant", "expected"),
     [
@@ -114,12 +139,14 @@ def _with_data(made: dict[str, Path], tmp: Path, plant: str) -> Path:
     ],
 )
 def test_calibrate_data_is_read_only_as_a_regular_file_within_the_models_time(
-    made: dict[str, Path], tmp_path: Path, plant: str, expected: str
+    made: dict[str, Path], tmp_path: Path, plant: str, expected: str, request: pytest.FixtureRequest
 ) -> None:
     """Never hangs, never fills memory, never quotes the file (a link to a secret), names the line."""
-    study = _with_data(made, tmp_path, plant)
-    run = cli if plant in ("fifo", "zero") else run_cli  # a FIFO or /dev/zero read would hang or fill memory
-    done = run("calibrate", str(study), "-o", str(tmp_path / "out"))
+    if plant in ("fifo", "zero"):  # a FIFO or /dev/zero read would hang or fill memory: a subprocess
+        tmp_path, done = request.getfixturevalue("calibrated_from_devices")[plant]
+    else:
+        study = _with_data(made, tmp_path, plant)
+        done = run_cli("calibrate", str(study), "-o", str(tmp_path / "out"))
     assert done.returncode == 2, done.stderr[-2000:]
     assert expected in done.stderr and "calibrate.data" in done.stderr, done.stderr
     assert "s3cr3t" not in done.stderr and "alice" not in done.stderr and "Traceback" not in done.stderr
