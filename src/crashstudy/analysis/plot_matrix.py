@@ -25,6 +25,16 @@ def _fail(where: str, message: str) -> InputError:
     return InputError([Problem(where, None, "", message)])
 
 
+def check_axes(axes: Sequence[str], x: str, y: str | None, where: str = "<summary>") -> None:
+    """A matrix plot's ``x`` and ``y`` (None: none) must be two different study axes (the exact heat map
+    and the density matrix of a large study check them alike)."""
+    for name, value in (("x", x), ("y", y)):
+        if value is not None and value not in axes:
+            raise _fail(where, f"unknown study axis {value!r} for {name}; valid axes: {', '.join(axes)}")
+    if y is not None and y == x:
+        raise _fail(where, f"x and y are the same axis {x!r}; choose two different axes")
+
+
 def _axis_columns(summary: pd.DataFrame) -> list[str]:
     """Study-axis columns of a summary table: those between ``variant`` and ``status``."""
     cols = list(summary.columns)
@@ -118,13 +128,7 @@ def plot_matrix(
     if metric not in metrics:
         raise _fail("<summary>", f"unknown metric {metric!r}; valid metrics: {', '.join(metrics)}")
     x = x or axes[0]
-    for name, value in (("x", x), ("y", y)):
-        if value is not None and value not in axes:
-            raise _fail(
-                "<summary>", f"unknown study axis {value!r} for {name}; valid axes: {', '.join(axes)}"
-            )
-    if y is not None and y == x:
-        raise _fail("<summary>", f"x and y are the same axis {x!r}; choose two different axes")
+    check_axes(axes, x, y)
     if agg not in ("max", "mean", "min"):
         raise _fail("<summary>", f"unknown agg {agg!r}; valid: max, mean, min")
     ok = (

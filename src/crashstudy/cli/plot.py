@@ -26,7 +26,7 @@ from crashstudy.analysis.plot import (
     study_name,
 )
 from crashstudy.analysis.plot_density import POINTS_MAX
-from crashstudy.analysis.plot_matrix import default_metric, metric_columns, plot_matrix
+from crashstudy.analysis.plot_matrix import check_axes, default_metric, metric_columns, plot_matrix
 from crashstudy.analysis.plot_style import axis_label, axis_units, unit_text
 from crashstudy.errors import InputError, Problem
 from crashstudy.results.plot_tag import PLOT_TAG
@@ -127,11 +127,7 @@ def _density_figures(res: Any, ds: Any, args: argparse.Namespace, limit: int) ->
 
     where, axes = str(args.dir), study_axes(ds)
     x, y = _xy(args, ds, axes)
-    for name, value in (("x", x), ("y", y)):
-        if value is not None and value not in axes:
-            raise _fail(where, f"unknown study axis {value!r} for {name}; valid axes: {', '.join(axes)}")
-    if y == x:
-        raise _fail(where, f"x and y are the same axis {x!r}; choose two different axes")
+    check_axes(axes, x, y, where)
     stored = res.summary_source == PARQUET  # else an older folder's summary.csv or dataset
     head = _schema(res) if stored else next(res.summary_batches(rows=1)).iloc[:0]  # names and types
     base, node = args.quantity or "peak_deceleration_g", crash_node(ds)
