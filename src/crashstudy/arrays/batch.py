@@ -298,7 +298,7 @@ def _steps(
     """(k_max, damping, the step choice) of the variants in ``P``: what :func:`build_batch` and
     :func:`variant_steps` both use."""
     b = topo.blocks
-    kmax, damp = spring_stiffness_bound(topo, kpar, cx, cy, P[b["rate"]] if "rate" in b else None)
+    kmax, damp = _bounds(topo, P, kpar, cx, cy)
     steps = choose_steps(
         topo,
         mass,
@@ -313,9 +313,17 @@ def _steps(
     return kmax, damp, steps
 
 
+def _bounds(
+    topo: Topology, P: np.ndarray, kpar: np.ndarray, cx: np.ndarray, cy: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(k_max, damping) of each spring and variant of ``P`` (the rate curves' rates from ``P``)."""
+    b = topo.blocks
+    return spring_stiffness_bound(topo, kpar, cx, cy, P[b["rate"]] if "rate" in b else None)
+
+
 def variant_steps(topo: Topology, P: np.ndarray, interval: float) -> StepChoice:
     """The step choice of the variants in ``P`` alone (what ``build_batch(topo, P, interval)[1]`` holds),
-    without the rest of the batch: the pre-run check of a fixed ``dt`` (study.sanity)."""
+    without the rest of the batch: the runner's step order and the study's work estimate."""
     cx, cy = curve_points(topo, P)
     b = topo.blocks
     return _steps(
@@ -329,9 +337,7 @@ def fixed_dt_check(topo: Topology, P: np.ndarray) -> tuple[np.ndarray, np.ndarra
     of the step choice (controlling spring, sample and step counts): the pre-run check (study.sanity)."""
     cx, cy = curve_points(topo, P)
     b = topo.blocks
-    kmax, damp = spring_stiffness_bound(
-        topo, np.ascontiguousarray(P[b["k"]]), cx, cy, P[b["rate"]] if "rate" in b else None
-    )
+    kmax, damp = _bounds(topo, P, np.ascontiguousarray(P[b["k"]]), cx, cy)
     dt_crit, _ = critical_steps(
         topo, np.ascontiguousarray(P[b["mass"]]), kmax, damp, np.ascontiguousarray(P[b["wall_k"]])
     )
