@@ -216,7 +216,8 @@ def _driver(
                 if defined:
                     filter_row(xin, n, a0, a1, a2, b1, b2, pad, m, fc[d], work)
                 else:
-                    fc[d, :n] = xin[:n]
+                    for k in range(n):  # not a slice copy (numba compiles its error message, ~5 s)
+                        fc[d, k] = xin[k]
         if need_res:
             ig = 1.0 / g
             if nd == 1:

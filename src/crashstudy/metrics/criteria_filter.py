@@ -218,7 +218,9 @@ def _filter_batch(a, count, dt_s, cfc, pad, pad_tol, out):  # pragma: no cover -
         if defined:
             filter_row(a[v], n, a0, a1, a2, b1, b2, pad, m, out[v], work)
         else:
-            out[v, :n] = a[v, :n]
+            # a loop, not out[v, :n] = a[v, :n]: numba compiles a slice copy's error message (~5 s)
+            for k in range(n):
+                out[v, k] = a[v, k]
         out[v, n:] = np.nan
     return ok
 
