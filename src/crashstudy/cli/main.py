@@ -256,7 +256,7 @@ def _after_run(res: Any) -> None:
     from crashstudy.results.curve_ends import warnings_of
     from crashstudy.schema.plausible import peak_g_warnings
 
-    with res.raw_dataset as raw:  # no texts decoded, nothing of every variant in memory
+    with res.raw_unindexed as raw:  # no texts decoded, nothing of every variant in memory, no dask import
         _warn(warnings_of(raw))
         attrs = dict(raw.attrs)
     body = json.loads(str(attrs.get("body", "{}")))
