@@ -75,7 +75,7 @@ def one(study: str, out: str) -> dict[str, float]:
     for k, (c, w) in d["spans"].items():
         row[k] = (c, w)
         inside += c
-    row["rest of main (parse, print, work estimate)"] = (c_end - c_imp - inside, float("nan"))
+    row["rest of main (parse, load_study, print)"] = (c_end - c_imp - inside, float("nan"))
     row["after main returned (process end)"] = (total - c_end, t1 - w_end)
     row["total (process)"] = (total, t1 - t0)
     return {k: v for k, v in row.items()}  # type: ignore[misc]
