@@ -64,6 +64,7 @@ def machine(start_load: str) -> dict[str, str]:
         "date": _dt.datetime.now().isoformat(timespec="seconds"),
         "os.cpu_count()": str(os.cpu_count()),
         "CPU model (lscpu)": cpu_model(),
+        "host (boot time; LLVM CPU name and vector features)": host(),
         "load average at start (1/5/15 min)": start_load,
         "load average at end (1/5/15 min)": load(),
         "python / numpy / numba / scipy": f"{platform.python_version()} / {numpy.__version__} / "
@@ -72,6 +73,18 @@ def machine(start_load: str) -> dict[str, str]:
         "crashstudy code measured": measured,
         "command": " ".join([Path(sys.executable).name, *sys.argv]),
     }
+
+
+def host() -> str:
+    """The machine's boot time and the CPU LLVM compiles for (its name and widest vector features):
+    a figure that moved by a factor between two dates on a new VM of the same "CPU model" shows it here
+    (the frontal throughput of 11-25 against 11-26: benchmarks/results/throughput_question_speed25.md)."""
+    import llvmlite.binding as ll
+
+    boot = _run(["uptime", "-s"]) or "unknown"
+    feats = ll.get_host_cpu_features()
+    vec = [f for f in ("avx512f", "avx2", "avx", "fma", "sse4.2") if feats.get(f)]
+    return f"booted {boot}; {ll.get_host_cpu_name()} ({' '.join(vec) or 'no AVX'})"
 
 
 def machine_md(info: dict[str, str]) -> str:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from crashstudy import environment
+from crashstudy.cli.process_end import FAST_END, end
 from crashstudy.errors import InputError
 from crashstudy.safefs import PlantedEntryError
 
@@ -145,6 +146,13 @@ def _plain_warnings() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    code = _command(args)
+    if argv is None and args.command in FAST_END:  # the process's own command line: no interpreter teardown
+        end(code)
+    return code
+
+
+def _command(args: argparse.Namespace) -> int:
     from crashstudy import interrupt
 
     interrupt.reset()
@@ -248,7 +256,7 @@ def _after_run(res: Any) -> None:
     from crashstudy.results.curve_ends import warnings_of
     from crashstudy.schema.plausible import peak_g_warnings
 
-    with res.raw_dataset as raw:  # no texts decoded, nothing of every variant in memory
+    with res.raw_unindexed as raw:  # no texts decoded, nothing of every variant in memory, no dask import
         _warn(warnings_of(raw))
         attrs = dict(raw.attrs)
     body = json.loads(str(attrs.get("body", "{}")))

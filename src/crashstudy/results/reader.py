@@ -139,6 +139,14 @@ class Results:
             open_regular(self.path, what=FINAL).close()
         return open_raw(self.path)
 
+    @property
+    def raw_unindexed(self) -> xr.Dataset:
+        """:attr:`raw_dataset` without the indexes of its small dimension coordinates (spring, node, ...):
+        for reading attributes and whole variables, not for ``.sel`` by label (:func:`open_raw`)."""
+        if self.final == FINAL:
+            open_regular(self.path, what=FINAL).close()
+        return open_raw(self.path, indexes=False)
+
     def column_peak(self, column: str) -> tuple[float, int] | None:
         """(largest value, its variant) of a summary column, read batch by batch; None when the column
         has no value (all NaN) or no such column exists."""
@@ -312,12 +320,14 @@ def _parquet(fh: IO[bytes]) -> Any:
     return pq.ParquetFile(fh, pre_buffer=False)
 
 
-def open_raw(path: Path) -> xr.Dataset:
+def open_raw(path: Path, indexes: bool = True) -> xr.Dataset:
     """A result store (netCDF file or Zarr folder) as xarray reads it, lazily, texts as stored, without
-    the variant coordinate (its index would hold every variant number in memory)."""
+    the variant coordinate (its index would hold every variant number in memory). ``indexes=False``: no
+    index of the other dimension coordinates either (no ``.sel`` by spring or node label); making those
+    indexes imports dask when it is installed (xarray asks whether they are dask arrays): 0.3 CPU s."""
     if path.name.startswith(ZARR_FINAL):
-        return _open_zarr(path, drop_variables=["variant"])
-    return xr.open_dataset(path, drop_variables=["variant"])
+        return _open_zarr(path, drop_variables=["variant"], create_default_indexes=indexes)
+    return xr.open_dataset(path, drop_variables=["variant"], create_default_indexes=indexes)
 
 
 def _open_zarr(path: Path, **kw: Any) -> xr.Dataset:

@@ -468,7 +468,9 @@ class ResultWriter:
         if streamed is not None:
             tables = {PARQUET: streamed}
         else:
-            with open_raw(self.path) as ds:  # no index of every variant
+            with open_raw(
+                self.path, indexes=False
+            ) as ds:  # no index (of every variant: memory; others: dask)
                 tables = write_summary(ds, self.dir, self.csv, rename=False)
         zarr = self.final_name == ZARR_FINAL
         if not (self.path.is_dir() and not self.path.is_symlink() if zarr else is_regular(self.path)):

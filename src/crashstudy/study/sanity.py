@@ -215,7 +215,8 @@ def _dt_refused(plan: Plan) -> tuple[np.ndarray, np.ndarray]:
     for lo in range(0, n_steps, 65536):
         hi = min(n_steps, lo + 65536)
         full = np.zeros((len(shape), hi - lo), dtype=np.int64)  # the other dimensions at their first value
-        full[list(dims)] = np.unravel_index(np.arange(lo, hi), sub)
+        if dims:  # none: only initial velocities vary, one critical step for every variant
+            full[list(dims)] = np.unravel_index(np.arange(lo, hi), sub)
         at_lo = np.asarray(np.ravel_multi_index(tuple(full), shape))
         refused[lo:hi], crit[lo:hi] = fixed_dt_check(plan.topology, plan.params_at(at_lo))
     if not refused.any():
