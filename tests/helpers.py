@@ -5,6 +5,7 @@ here (and from ``twins.py``, ``strategies.py``), never from each other."""
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import locale
 import math
@@ -102,6 +103,30 @@ def run_model(
     batch, plan = model_batch(model, variants)
     out = run_kernel(batch, plan.topology.histories, plan.n_out, kernel)
     return out, batch, plan
+
+
+@functools.cache
+def _generated_parts_run(dt: float, end_time: float, interval: float) -> tuple[KernelOutput, Plan]:
+    from models import generated_parts
+    from twins import disjoint
+
+    model = disjoint(generated_parts())
+    model.update(end_time=end_time, time_step={"dt": dt}, output={"interval": interval, "histories": "all"})
+    out, _, plan = run_model(model, "generated")
+    return out, plan
+
+
+def generated_part(part: str, like: dict[str, Any]) -> KernelOutput:
+    """Part ``part`` of :func:`models.generated_parts` run by the generated kernel with the step, end time
+    and output interval that the model ``like`` (that part alone) gets, as if it had run alone (its nodes,
+    springs and walls; per-variant numbers such as ``status`` and ``energy_error`` are the whole model's).
+    Every caller runs the same model shape, so the generated kernel compiles once for all of them (and
+    loads from the kernel cache in other processes); runs are cached per (step, end time, interval)."""
+    from twins import part_of
+
+    batch, plan = model_batch(like)
+    out, whole = _generated_parts_run(float(batch.dt[0]), float(like["end_time"]), float(plan.interval))
+    return part_of(out, whole, part)
 
 
 def run_cli(
