@@ -430,20 +430,30 @@ def test_validate_warns_when_the_step_is_too_long_for_the_filter_class(
     assert "metrics" not in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("kernel", ["generic", "generated"])
-def test_criteria_of_a_chunk_are_the_same_on_every_kernel(kernel: str, tmp_path: Path) -> None:
-    """The criteria, notes and filtered pulse of a chunk computed on a fast kernel equal the reference's
-    bit for bit (the record is bitwise equal, the criteria a function of it)."""
+@pytest.fixture(scope="module")
+def every_criterion_reference(tmp_path_factory: pytest.TempPathFactory):
+    """(plan, the reference's chunk of its 3 variants) of the half-sine sled with every criterion: run once
+    for both fast kernels' comparisons."""
     from crashstudy.run.runner import run_chunk
 
     plan = _plan(
-        tmp_path,
+        tmp_path_factory.mktemp("criteria"),
         pulse_model(
             metrics="  - {node: sled, cfc: 600, criteria: [peak_g, hic15, clip3ms, "
             "clip3ms_cumulative, olc, dri, delta_v]}"
         ),
     )
-    ref, got = run_chunk(plan, 0, 3, kernel="reference"), run_chunk(plan, 0, 3, kernel=kernel)
+    return plan, run_chunk(plan, 0, 3, kernel="reference")
+
+
+@pytest.mark.parametrize("kernel", ["generic", "generated"])
+def test_criteria_of_a_chunk_are_the_same_on_every_kernel(kernel: str, every_criterion_reference) -> None:
+    """The criteria, notes and filtered pulse of a chunk computed on a fast kernel equal the reference's
+    bit for bit (the record is bitwise equal, the criteria a function of it)."""
+    from crashstudy.run.runner import run_chunk
+
+    plan, ref = every_criterion_reference
+    got = run_chunk(plan, 0, 3, kernel=kernel)
     assert set(ref.criteria.values) == set(got.criteria.values)
     for name, arr in ref.criteria.values.items():
         assert np.array_equal(arr, got.criteria.values[name], equal_nan=True), name
