@@ -164,10 +164,33 @@ def breaking_spring() -> dict[str, Any]:
     )
 
 
+SCALED_K0, SCALED_M, SCALED_V0 = 4.0e4, 2.0, 3.0  # N/m, kg, m/s
+
+
+def scaled_spring(dt: float) -> dict[str, Any]:
+    """A mass on a straight nonlinear_elastic curve of slope SCALED_K0 (3 knots), moving at SCALED_V0
+    (tests/test_curve_factors.py, with the study's scale axes :data:`SCALES`)."""
+    return {
+        "name": "one-spring",
+        "units": "SI",
+        "curves": {"c": {"x": [-1.0, 0.0, 1.0], "y": [-SCALED_K0, 0.0, SCALED_K0]}},
+        "nodes": {"wall": {"position": [0.0], "fixed": True}, "m": {"position": [1.0], "mass": SCALED_M}},
+        "springs": {"s": {"nodes": ["wall", "m"], "material": {"type": "nonlinear_elastic", "curve": "c"}}},
+        "initial_velocity": {"m": [-SCALED_V0]},
+        "end_time": 0.05,
+        "time_step": {"dt": dt},
+        "output": {"histories": "none", "interval": 0.05},
+    }
+
+
+SCALES = {"curves.c.scale": [0.5, 1.0, 2.0, 3.0], "curves.c.x_scale": [1.0, 2.0, 0.5, 1.5]}
+
+
 def generated_parts() -> dict[str, dict[str, Any]]:
     """The parts of the one model that :func:`helpers.generated_part` runs on the generated kernel (prefix
     -> model). Its step, end time and output interval are those of the test that asks (numbers, not the
-    kernel's shape). The stroke's rest at 0.06 m is held to 1 s (past its curve's end at 0.05 s the
+    kernel's shape); it runs the four variants of :data:`SCALES` on the ``scaled`` part's curve (the
+    other parts are the same in every variant). The stroke's rest at 0.06 m is held to 1 s (past its curve's end at 0.05 s the
     displacement would fall to 0) and the penalty wall holds its one node by name (as it does by default)."""
     stroke = damped_stroke()
     stroke["curves"]["u"]["x"][-1] = 1.0
@@ -181,4 +204,5 @@ def generated_parts() -> dict[str, dict[str, Any]]:
         "penalty": penalty,
         "pull": PULL,
         "break": breaking_spring(),
+        "scaled": scaled_spring(1.0e-4),  # its curve scaled per variant by SCALES (helpers.generated_part)
     }
