@@ -466,11 +466,12 @@ def test_criteria_of_a_chunk_are_the_same_on_every_kernel(kernel: str, every_cri
 
 
 def _short_pulse() -> str:
-    """:func:`pulse_model` cut to 12.13 ms (the 10 ms pulse and 213 steps at rest after it; samples every
-    0.1 ms): 1213 steps, which no block size of the tests below divides (the last block of every variant
-    is partial), at 40 % of the NumPy reference's time for the 30 ms model."""
+    """:func:`pulse_model` cut to 8.13 ms, inside the 10 ms pulse (samples every 0.1 ms): 813 steps, and the
+    last block of every block size below (3, 5, 7, 9) is partial and holds non-zero accelerations, so its
+    mean tells whether it was divided by the steps that ran (after the pulse the sled's record is 0, where
+    any divisor gives 0); 27 % of the NumPy reference's time for the 30 ms model."""
     return pulse_model(extra="output: {interval: 1.0e-4}\n").replace(
-        "end_time: 0.03\n", "end_time: 0.01213\n"
+        "end_time: 0.03\n", "end_time: 0.00813\n"
     )
 
 
