@@ -5,6 +5,8 @@ here (and from ``twins.py``, ``strategies.py``), never from each other."""
 from __future__ import annotations
 
 import contextlib
+import copy
+import functools
 import io
 import locale
 import math
@@ -102,6 +104,46 @@ def run_model(
     batch, plan = model_batch(model, variants)
     out = run_kernel(batch, plan.topology.histories, plan.n_out, kernel)
     return out, batch, plan
+
+
+@functools.cache
+def _generated_parts_run(dt: float, end_time: float, interval: float) -> tuple[KernelOutput, Plan]:
+    from models import generated_parts
+    from twins import disjoint
+
+    model = disjoint(generated_parts())
+    histories = ["wall_force", "acceleration", "velocity", "wall_energy"]  # what the callers read (and the
+    # energies that come with wall_energy): less source than "all", 23 instead of 26 CPU s of compile
+    model.update(
+        end_time=end_time, time_step={"dt": dt}, output={"interval": interval, "histories": histories}
+    )
+    from models import SCALES
+
+    scales = {path.replace("curves.c.", "curves.scaled-c."): values for path, values in SCALES.items()}
+    out, _, plan = run_model(model, "generated", variants=scales)
+    return out, plan
+
+
+def generated_part(part: str, like: dict[str, Any], every_variant: bool = False) -> KernelOutput:
+    """Part ``part`` of :func:`models.generated_parts` run by the generated kernel with the step, end time
+    and output interval that the model ``like`` (that part alone) gets, as if it had run alone (its nodes,
+    springs and walls; per-variant numbers such as ``status`` and ``energy_error`` are the whole model's),
+    its variant 0 (all four variants of :data:`models.SCALES` with ``every_variant``).
+    Every caller runs the same model shape, so the generated kernel compiles once for all of them (and
+    loads from the kernel cache in other processes); runs are cached per (step, end time, interval)."""
+    from twins import part_of
+
+    batch, plan = model_batch(like)
+    out, whole = _generated_parts_run(float(batch.dt[0]), float(like["end_time"]), float(plan.interval))
+    got = part_of(out, whole, part)
+    if every_variant:
+        return got
+    first = copy.copy(got)  # variant 0 (the parts other than ``scaled`` are the same in every variant)
+    for name, value in vars(got).items():
+        if isinstance(value, np.ndarray):
+            setattr(first, name, value[..., :1])
+    first.histories = {h: a[..., :1] for h, a in got.histories.items()}
+    return first
 
 
 def run_cli(

@@ -10,7 +10,6 @@ generated source for what stays in registers.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -20,34 +19,21 @@ from crashstudy.kernel import driver
 from crashstudy.kernel.gen_shape import _shape
 from crashstudy.kernel.gen_source import source
 from crashstudy.study.plan import load_study
-from helpers import model_batch, run_model
+from helpers import generated_part, model_batch, run_model
+from models import SCALED_K0, SCALED_M, SCALED_V0, SCALES
+from models import scaled_spring as _spring
 
-K0, M, V0 = 4.0e4, 2.0, 3.0  # N/m, kg, m/s
-
-
-def _spring(dt: float) -> dict[str, Any]:
-    """A mass on a straight nonlinear_elastic curve of slope K0 (3 knots), moving at V0."""
-    return {
-        "name": "one-spring",
-        "units": "SI",
-        "curves": {"c": {"x": [-1.0, 0.0, 1.0], "y": [-K0, 0.0, K0]}},
-        "nodes": {"wall": {"position": [0.0], "fixed": True}, "m": {"position": [1.0], "mass": M}},
-        "springs": {"s": {"nodes": ["wall", "m"], "material": {"type": "nonlinear_elastic", "curve": "c"}}},
-        "initial_velocity": {"m": [-V0]},
-        "end_time": 0.05,
-        "time_step": {"dt": dt},
-        "output": {"histories": "none", "interval": 0.05},
-    }
-
-
-SCALES = {"curves.c.scale": [0.5, 1.0, 2.0, 3.0], "curves.c.x_scale": [1.0, 2.0, 0.5, 1.5]}
+K0, M, V0 = SCALED_K0, SCALED_M, SCALED_V0  # N/m, kg, m/s
 
 
 @pytest.mark.parametrize("kernel", ["reference", "generated"])
 def test_a_scaled_curve_is_scale_times_the_curve_of_x_over_x_scale(kernel: str) -> None:
     k = K0 * np.array(SCALES["curves.c.scale"]) / np.array(SCALES["curves.c.x_scale"])
     dt = float(2 * np.pi * np.sqrt(M / k.max()) / 2000)
-    out, _, _ = run_model(_spring(dt), kernel=kernel, variants=SCALES)
+    if kernel == "generated":  # a part of the one model of models.generated_parts, run with these scales
+        out = generated_part("scaled", _spring(dt), every_variant=True)
+    else:
+        out, _, _ = run_model(_spring(dt), kernel=kernel, variants=SCALES)
     assert np.all(out.status == 0)
     np.testing.assert_allclose(out.peak_force[0], V0 * np.sqrt(k * M), rtol=2e-4)
 

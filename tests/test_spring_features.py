@@ -30,36 +30,10 @@ from crashstudy.errors import InputError
 from crashstudy.kernel import choice, generated
 from crashstudy.schema import parse_model
 from crashstudy.schema.yamlio import loads_yaml
-from helpers import model_plan, run_model
+from helpers import generated_part, model_plan, run_model
 from lanes import run_lanes
-
-
-def _one_spring(
-    material: dict[str, Any],
-    mass: float,
-    v0: float = 0.0,
-    dim: int = 1,
-    end_time: float = 0.1,
-    dt: float | None = None,
-    interval: float = 1.0e-4,
-    **options: Any,
-) -> dict[str, Any]:
-    """Node ``a`` fixed at the origin, node ``b`` (``mass``) 1 m away (in 2-D along (0.6, 0.8)) moving away
-    from ``a`` at ``v0`` along the spring; spring ``s`` with ``material`` and spring ``options``."""
-    axis = [1.0] if dim == 1 else [0.6, 0.8]
-    model: dict[str, Any] = {
-        "name": "one-spring",
-        "curves": material.pop("_curves", {}),
-        "nodes": {"a": {"position": [0.0] * dim, "fixed": True}, "b": {"position": axis, "mass": mass}},
-        "springs": {"s": {"nodes": ["a", "b"], "material": material, **options}},
-        "end_time": end_time,
-        "output": {"interval": interval},
-    }
-    if v0:
-        model["initial_velocity"] = {"b": [v0 * c for c in axis]}
-    if dt is not None:
-        model["time_step"] = {"dt": dt}
-    return model
+from models import PULL, breaking_spring
+from models import one_spring as _one_spring
 
 
 def _along(out: Any, name: str, dim: int) -> np.ndarray:
@@ -483,15 +457,14 @@ def test_max_elongation_of_a_linear_oscillator_is_its_amplitude_in_summary_csv(t
 
 @pytest.mark.parametrize("kernel", ["generic", "generated"])
 def test_fast_kernels_give_the_reference_numbers_for_a_breaking_spring(kernel: str) -> None:
-    """A spring that breaks, on each fast kernel (the generated one runs it itself): bitwise the reference's
-    failure time, max elongation and velocities (the full twin cases are in test_kernel_twins)."""
-    model = _one_spring(
-        {"type": "linear_elastic", "stiffness": 1.0e4}, 1.0, 2.0, end_time=0.01, failure={"tension": 0.01}
-    )
+    """A spring that breaks, on each fast kernel (the generated one runs it itself, as a part of the one
+    model of :func:`models.generated_parts`): bitwise the reference's failure time, max elongation and
+    velocities (the full twin cases are in test_kernel_twins)."""
+    model = breaking_spring()
     ref, batch, _ = run_model(model, kernel="reference")
     assert generated.unsupported(batch) is None
     assert choice.pick(batch, (), None, kernel) == kernel
-    got, _, _ = run_model(model, kernel=kernel)
+    got = generated_part("break", model) if kernel == "generated" else run_model(model, kernel=kernel)[0]
     assert np.isfinite(ref.spring_fail_time[0, 0])
     assert got.spring_fail_time[0, 0] == ref.spring_fail_time[0, 0]
     assert got.max_elongation[0, 0] == ref.max_elongation[0, 0]
@@ -603,16 +576,6 @@ def test_study_axis_values_that_break_a_v2_rule_are_refused_per_variant() -> Non
     assert "must pass through the origin" in check.reason(1) and "initial_elongation" in check.reason(1)
 
 
-PULL = {
-    "name": "pull",
-    "nodes": {"a": {"position": [0.0], "fixed": True}, "b": {"position": [1.0], "mass": 1.0}},
-    "springs": {"s": {"nodes": ["a", "b"], "material": {"type": "linear_elastic", "stiffness": 100.0}}},
-    "initial_velocity": {"b": [1.0]},
-    "end_time": 0.1,
-    "output": {"histories": "all"},
-}
-
-
 @pytest.mark.parametrize("kernel", ["reference", "generic", "generated"])
 def test_a_spring_only_in_tension_has_a_max_crush_of_plus_zero(kernel: str) -> None:
     """A spring stretched from its rest length (x = sin(10 t) / 10, up to t = 0.1 s) never shortens:
@@ -620,7 +583,7 @@ def test_a_spring_only_in_tension_has_a_max_crush_of_plus_zero(kernel: str) -> N
     max_elongation sin(1) / 10 (closed form, 1e-3)."""
     from helpers import same_bits
 
-    out, _, _ = run_model(PULL, kernel=kernel)
+    out = generated_part("pull", PULL) if kernel == "generated" else run_model(PULL, kernel=kernel)[0]
     assert same_bits(out.max_crush, np.zeros_like(out.max_crush))
     assert out.max_elongation[0, 0] == pytest.approx(0.1 * math.sin(1.0), rel=1e-3)
 
