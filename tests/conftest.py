@@ -45,11 +45,13 @@ def cli():
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """In a parallel run (``-n N``), compile (or load from numba's cache) the generic kernel once, in the
-    main process, before any xdist worker needs it: workers then load the cached machine code instead of
-    each compiling it. Meanwhile a second process compiles, on the other core, the crash criteria and the
-    slowest generated kernels of the twin tests (:func:`warm_other_core`), which the workers then load
-    too. A run without workers (one file, ``-n 0``) compiles only what its tests ask for, when they ask."""
+    """In a parallel run (``-n N``), compile (or load from numba's cache) the generic kernel and then the
+    crash criteria once, in the main process, before any xdist worker needs them: workers then load the
+    cached machine code instead of each compiling it. Meanwhile a second process compiles, on the other
+    core, the slowest generated kernels of the twin tests and the generated kernel that the physics tests'
+    side-by-side model shares (:func:`warm_other_core`), which the workers then load too (two workers
+    would otherwise compile that shared shape at once). A run without workers (one file, ``-n 0``)
+    compiles only what its tests ask for, when they ask."""
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
         return
     other = subprocess.Popen(
@@ -66,21 +68,24 @@ def pytest_configure(config: pytest.Config) -> None:
         },
         kernel="generic",
     )
+    from crashstudy.metrics.warmup import compile_criteria
+
+    compile_criteria()
     other.wait()
 
 
 def warm_other_core() -> None:
-    """Compile the crash criteria and the generated kernels of ``twins.WARM_RECORD_CASES`` exactly as
-    tests/test_kernel_twins.py runs them (the same batch and record: the same shape key; tests/test_metrics.py's
-    block-record twins share it)."""
+    """Compile the generated kernels of ``twins.WARM_RECORD_CASES`` exactly as tests/test_kernel_twins.py
+    runs them (the same batch and record: the same shape key; tests/test_metrics.py's block-record twins
+    share it), and the shape of ``helpers.generated_part`` (any step: the shape key has none)."""
     from crashstudy.kernel.entry import run_batch
-    from crashstudy.metrics.warmup import compile_criteria
+    from helpers import _generated_parts_run
     from twins import WARM_RECORD_CASES
 
-    compile_criteria()
     for case in WARM_RECORD_CASES:
         batch, plan, record = record_case(case)
         run_batch(batch, plan.topology.histories, plan.n_out, "generated", record=record)
+    _generated_parts_run(1e-4, 1e-3, 1e-3)
 
 
 # The slowest tests of a parallel run on empty caches (``--durations``, 2 cores), slowest first: started
