@@ -101,7 +101,10 @@ def test_a_run_waits_for_another_process_compiling_the_kernel_it_needs(setup) ->
         ("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append
     )
     assert started == [] and done.exists(), "it waited and compiled nothing itself"
-    assert said[0].startswith("waiting for the generic kernel: process ") and f"~{choice.GENERIC_COMPILE:.0f} s" in said[0]
+    assert (
+        said[0].startswith("waiting for the generic kernel: process ")
+        and f"~{choice.GENERIC_COMPILE:.0f} s" in said[0]
+    )
 
 
 @pytest.mark.parametrize(("mode", "why"), [("dead", "is not running"), ("stop", "is stopped")])
