@@ -89,7 +89,7 @@ def test_a_long_run_compiles_the_quicker_kernel_only_when_that_beats_the_referen
 ) -> None:
     """With nothing compiled and no other process compiling, a chunk whose reference time exceeds a
     kernel's compile + run time goes to the kernel quicker to compile and run: this shape's generated
-    one (3 linear springs: ~3 s against the generic kernel's 24 s), the generic one when the generated
+    one (3 linear springs: ~3 s against the generic kernel's 50 s), the generic one when the generated
     kernel cannot run the shape; a shorter chunk to the reference; while a background compile this run
     started is running, the reference (the run planned for it; another process's compile never strands
     a run: tests/test_compile_lock.py)."""

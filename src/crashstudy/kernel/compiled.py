@@ -50,7 +50,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
     H histories, Out summaries): the step loop over a block's arrays ``K`` (:data:`generic_block.Block`);
     its stages are :mod:`crashstudy.kernel.generic_springs`, :mod:`crashstudy.kernel.generic_nodes` and
     :mod:`crashstudy.kernel.wall_contact`."""
-    # the records' arrays as locals, once per call: the inlined stages take arrays, never a record
+    # the records' arrays as locals, once per call: the stages take arrays, never a record
     si, sj, material, off, e0, rate0 = T.spring_i, T.spring_j, T.material, T.curve_off, P.e0, P.rate0
     curve_a, curve_b, knot_check, rate_off = T.curve_a, T.curve_b, T.knot_check, T.rate_off
     rate_curve, load_node, load_curve, pm_node = T.rate_curve, T.load_node, T.load_curve, T.pm_node
@@ -71,7 +71,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
         lo = starts[bi]
         B = starts[bi + 1] - lo
         K, nmax = gb.block_arrays(lo, B, has_state, any_knot, T, P, Out)
-        # the block's arrays as locals, once per block: the inlined stages take only the arrays they use
+        # the block's arrays as locals, once per block: the stages take only the arrays they use
         m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b = K.m_b, K.im_b, K.x0_b, K.sg_b, K.l0_b, K.kp_b, K.cx_b
         cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg = K.cy_b, K.ds_b, K.ky_b, K.s0_b, K.yt_b, K.yc_b, K.g_arg
         g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev = K.g_argt, K.g_argc, K.g_L, K.g_Ut, K.g_Uc, K.g_rev

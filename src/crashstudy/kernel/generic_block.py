@@ -8,6 +8,7 @@ and the lanes that fail. The step loop is :mod:`crashstudy.kernel.compiled`; its
 from __future__ import annotations
 
 from collections import namedtuple
+from typing import Any
 
 import numba as nb
 import numpy as np
@@ -22,7 +23,12 @@ from crashstudy.vocabulary.codes import (
 )
 from crashstudy.vocabulary.materials import KNOT_MATERIALS, STATE_MATERIALS
 
-_jit = nb.njit(cache=True, nogil=True)
+#: the generic kernel's compiled functions (this module's and its stages'): each compiled once, called from
+#: compiled code only (no CPython or C wrapper: a call from Python would crash); numba's default
+#: ``inline="never"``, LLVM inlines what is worth it (numba IR inlining made the cold compile 1.6x longer:
+#: benchmarks/results/generic_compile.md)
+_STAGE: dict[str, Any] = {"cache": True, "nogil": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+stage = nb.njit(**_STAGE)
 
 
 #: rows of the per-spring options array of a block: preloaded (initial_elongation), breakable (failure)
@@ -39,7 +45,7 @@ Block = namedtuple(  # type: ignore[misc]
 )
 
 
-@_jit
+@stage
 def flags(T, P, H):  # pragma: no cover - compiled
     """What the model contains: (has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot,
     pm_disp: (N, D) the dofs driven by a displacement curve, whose rate is v^{n-1/2} (see the reference))."""
@@ -90,7 +96,7 @@ def flags(T, P, H):  # pragma: no cover - compiled
     return has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp
 
 
-@_jit
+@stage
 def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - compiled
     """The block's copies of its variants' inputs and its state, zeroed or set to the initial state;
     invalid variants are marked; preloaded springs (``initial_elongation``) start from the batch's state and
@@ -334,7 +340,7 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
     ), nmax
 
 
-@_jit
+@stage
 def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
     """A step where some lane failed (rare): unstable (energy balance) or, in 2-D, a spring crushed to zero
     length; those lanes stop."""

@@ -1,14 +1,14 @@
 """The generic kernel's material dispatch: a spring's force over the block and its new state, one branch per
 material of :mod:`crashstudy.vocabulary.materials`, each the law of :mod:`crashstudy.kernel.laws`.
 
-Numba-inlined into :func:`crashstudy.kernel.compiled._run` (``inline="always"``) and, like the stages of
-:mod:`crashstudy.kernel.generic_springs`, given only the arrays it uses (not the block record).
+Compiled once and called by :func:`crashstudy.kernel.compiled._run` (no numba IR inlining, no CPython or C
+wrapper) and, like the stages of :mod:`crashstudy.kernel.generic_springs`, given only the arrays it uses (not
+the block record).
 """
 
 from __future__ import annotations
 
-import numba as nb
-
+from crashstudy.kernel.generic_block import stage
 from crashstudy.kernel.generic_springs import ramp
 from crashstudy.kernel.laws import (
     crush_law,
@@ -31,7 +31,7 @@ from crashstudy.vocabulary.codes import (
 )
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@stage
 def force(
     s,
     kind,
@@ -59,8 +59,7 @@ def force(
     """Spring s's force over the block (F_tmp) and its new state, every material but ``general_nonlinear``
     (:func:`general`; ``compiled._run`` picks): one branch per material, each the law of
     :mod:`crashstudy.kernel.laws`. ``ca`` is its curve, the other arrays those of the topology and input
-    records, not the records (bound per spring and step, a record costs an incref per array), and no more
-    than 30 arguments (CPython calls a function of more through ``*args``, which numba cannot inline)."""
+    records, not the records (passed per spring and step, a record costs an incref per array)."""
     if kind == LINEAR:
         for w in range(B):
             F_tmp[w] = linear_force(kp_b[s, w], e_tmp[w])
@@ -96,7 +95,7 @@ def force(
                 )
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@stage
 def general(
     s,
     lo,

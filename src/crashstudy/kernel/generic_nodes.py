@@ -1,15 +1,14 @@
 """The generic kernel's node stage over a block: external forces, accelerations and the central-difference
 update, prescribed motion, kinetic energy and external work, peak accelerations and the stop test.
 
-Every function is numba-inlined into :func:`crashstudy.kernel.compiled._run` (``inline="always"``: no call,
-no incref of the array arguments per step); every per-lane formula is a law of
+Every function is compiled once and called by :func:`crashstudy.kernel.compiled._run` (no numba IR
+inlining, no CPython or C wrapper: see :mod:`crashstudy.kernel.generic_springs`); every per-lane formula is a law of
 :mod:`crashstudy.kernel.step_laws` / :mod:`crashstudy.kernel.laws`.
 """
 
 from __future__ import annotations
 
-import numba as nb
-
+from crashstudy.kernel.generic_block import stage
 from crashstudy.kernel.laws import knot_accel, peak, time_curve_at
 from crashstudy.kernel.step_laws import (
     advance,
@@ -23,10 +22,8 @@ from crashstudy.kernel.step_laws import (
     work_increment,
 )
 
-_inl = nb.njit(cache=True, nogil=True, inline="always")
 
-
-@_inl
+@stage
 def fused_update(
     h, B, N, movable, f, im_b, m_b, x, v, vnew, acc, dt_b, actf, ke, pacc
 ):  # pragma: no cover - compiled
@@ -50,7 +47,7 @@ def fused_update(
             x[n_, 0, w], v[n_, 0, w] = advance(x[n_, 0, w], vo, vn, dt_b[w], af)
 
 
-@_inl
+@stage
 def accelerate(
     n,
     h,
@@ -80,7 +77,7 @@ def accelerate(
 ):  # pragma: no cover - compiled
     """External forces (gravity, then the loads in order, scaled by their time curves), a^n = (f + f_ext)/m
     and v^{n+1/2}. Every stage here takes the arrays of the topology and input records, not the records
-    (an inlined stage binds its arguments: a record costs an incref per array)."""
+    (a record passed per step costs an incref per array)."""
     if ext:
         for n_ in range(N):
             for d in range(D):
@@ -109,7 +106,7 @@ def accelerate(
                     vnew[n_, d, w] = half_step(v[n_, d, w], a, h * dt_b[w])
 
 
-@_inl
+@stage
 def prescribed(
     n,
     h,
@@ -157,7 +154,7 @@ def prescribed(
             fext[p, d, w] += m_b[p, w] * acc[p, d, w] - ftot
 
 
-@_inl
+@stage
 def energies(
     n, lo, B, N, D, ext, v0, m_b, v, vnew, fext, fext_prev, dt_b, actf, ke, ke0, bal, work
 ):  # pragma: no cover - compiled
@@ -184,7 +181,7 @@ def energies(
             work[w] = work_increment(work[w], bal[w], dt_b[w], actf[w])
 
 
-@_inl
+@stage
 def peak_accelerations(B, N, D, movable, acc, actf, pacc):  # pragma: no cover - compiled
     """Peak |a| of the movable nodes: the square is tracked (sqrt is monotonic, the peak is the same)."""
     for n_ in range(N):
@@ -197,7 +194,7 @@ def peak_accelerations(B, N, D, movable, acc, actf, pacc):  # pragma: no cover -
             pacc[n_, w] = peak(pacc[n_, w], a2 * actf[w])
 
 
-@_inl
+@stage
 def knot_accelerations(
     B, D, si, sj, movable, k_any, k_hit, k_th, k_dfax, acc_prev, acc, im_b, actf, pacc
 ):  # pragma: no cover - compiled
@@ -218,7 +215,7 @@ def knot_accelerations(
                 pacc[p, w] = peak(pacc[p, w], (a2 if k_hit[s, w] else 0.0) * actf[w])
 
 
-@_inl
+@stage
 def stop_tests(
     n,
     lo,
@@ -257,7 +254,7 @@ def stop_tests(
     return n_end
 
 
-@_inl
+@stage
 def advance_nodes(B, N, D, x, v, vnew, dt_b, actf):  # pragma: no cover - compiled
     """x^{n+1} and v^{n+1/2} kept; a stopped variant keeps x and v (vnew is finite for it)."""
     for n_ in range(N):

@@ -4,13 +4,12 @@ crash criteria, the final energies of the lanes that end and the block's summari
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
-_jit = nb.njit(cache=True, nogil=True)
+from crashstudy.kernel.generic_block import stage
 
 
-@_jit
+@stage
 def record(n, lo, B, n_out, out_every, H, K):  # pragma: no cover - compiled
     """The histories of the lanes that sample at step n."""
     act, next_rec, x, x0_b, v, vnew, acc = K.act, K.next_rec, K.x, K.x0_b, K.v, K.vnew, K.acc
@@ -69,7 +68,7 @@ def record(n, lo, B, n_out, out_every, H, K):  # pragma: no cover - compiled
                 h_wall[r, wl, q] = wforce[wl, w]
 
 
-@_jit
+@stage
 def results(lo, B, Out, K):  # pragma: no cover - compiled
     """Write the block's summaries to its variants' columns."""
     st_ok, err, e_scale, wmax, nst, n_fail, dt_b = (
@@ -118,7 +117,7 @@ def results(lo, B, Out, K):  # pragma: no cover - compiled
             peak_wall[wl, lo + w] = pwall[wl, w]
 
 
-@_jit
+@stage
 def record_steps(n, lo, B, act, acc, rec_block, step_nodes, steps):  # pragma: no cover - compiled
     """a^n of the recorded nodes (crash criteria) for the lanes still running after this step's checks,
     added to row ``(n + (k - 1) // 2) // k`` of the block record (``k = rec_block`` of the variant)."""
@@ -136,7 +135,7 @@ def record_steps(n, lo, B, act, acc, rec_block, step_nodes, steps):  # pragma: n
                     steps[r, m, d, lo + w] += acc[p, d, w]
 
 
-@_jit
+@stage
 def final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, final_energy):  # pragma: no cover - compiled
     """The energies of the lanes that end at step n."""
     for w in range(B):

@@ -1,16 +1,19 @@
 """The generic kernel's spring stage over a block, one spring at a time: geometry, curve ramps, the knot
 search, failure, and the scatter of the spring's force to its nodes with its summaries.
 
-Every function is numba-inlined into :func:`crashstudy.kernel.compiled._run` (``inline="always"``: no call)
-and takes only the arrays it uses, never the :data:`generic_block.Block` record (passed per spring and
-step, the record cost +33% compile time and +40% run time); every per-lane formula is a law of
+Every function is compiled once (:data:`generic_block.stage`: numba's default ``inline="never"``, no
+CPython or C wrapper, so it is callable from compiled code only) and called by
+:func:`crashstudy.kernel.compiled._run`; LLVM inlines what is worth it. numba IR inlining
+(``inline="always"``, 3c0414e to 1ab7358) re-typed and re-lowered every copy inside one huge function: the
+generic kernel's cold compile took 1.6x longer (benchmarks/results/generic_compile.md). Each takes only the
+arrays it uses, never the :data:`generic_block.Block` record (passed per spring and step, the record cost
++33% compile time and +40% run time); every per-lane formula is a law of
 :mod:`crashstudy.kernel.laws` / :mod:`crashstudy.kernel.step_laws`.
 """
 
 from __future__ import annotations
 
-import numba as nb
-
+from crashstudy.kernel.generic_block import stage
 from crashstudy.kernel.laws import (
     axis_2d,
     broken_at,
@@ -31,11 +34,8 @@ from crashstudy.kernel.laws import (
 from crashstudy.kernel.step_laws import energy_first_half, energy_increment, spring_extremes
 from crashstudy.vocabulary.codes import CRUSH, GENERAL
 
-_inl = nb.njit(cache=True, nogil=True, inline="always")
-_jit = nb.njit(cache=True, nogil=True)
 
-
-@_inl
+@stage
 def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - compiled
     """out = curve c at arg, over the block (the ramp sum of ``laws.ramp_start`` / ``ramp_knot``)."""
     a0 = off[c]
@@ -47,7 +47,7 @@ def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - com
             out[w] = ramp_knot(out[w], ds_b[k, w], arg[w], cx_b[k, w])
 
 
-@_inl
+@stage
 def geometry(
     s,
     i,
@@ -103,7 +103,7 @@ def geometry(
         ed_tmp[w] = edot
 
 
-@_inl
+@stage
 def knots_passed(
     s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y, k_sh
 ):  # pragma: no cover - compiled
@@ -134,7 +134,7 @@ def knots_passed(
     return nhit
 
 
-@_jit
+@stage
 def knot_search(
     s, kind, B, off, ca, knot_check, cx_b, ky_b, e_tmp, e_prev, state, k_c, k_x, k_y, k_sh
 ):  # pragma: no cover - compiled
@@ -168,7 +168,7 @@ def knot_search(
     return nhit
 
 
-@_inl
+@stage
 def knot_peaks(
     s, B, D, k_c, k_x, k_y, k_sh, e_prev, e_tmp, f_prev, F_tmp, ax_tmp, broken, actf, k_hit, k_th, k_dfax, pf
 ):  # pragma: no cover - compiled
@@ -185,7 +185,7 @@ def knot_peaks(
         pf[s, w] = peak(pf[s, w], kcw * actf[w])
 
 
-@_inl
+@stage
 def failure(
     s, n, lo, B, fail_t, fail_c, spring_fail_time, dt_b, e_tmp, e_prev, F_tmp, act, actf, broken, ftmp
 ):  # pragma: no cover - compiled
@@ -205,7 +205,7 @@ def failure(
             F_tmp[w] = 0.0
 
 
-@_inl
+@stage
 def scatter(
     s,
     i,
@@ -291,7 +291,7 @@ def scatter(
             e_prev[s, w] = e
 
 
-@_inl
+@stage
 def _forces_on_nodes(i, j, D, B, F_tmp, ax_tmp, f):  # pragma: no cover - compiled
     """f[i] += F ax, f[j] -= F ax over the block."""
     for d in range(D):
