@@ -283,7 +283,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                         edot_min[w] = lw.least(edot_min[w], ed_tmp[w])
 
             if any_hit:  # a^{n-1}, for the accelerations at this step's knot crossings
-                acc_prev[:] = acc
+                gn.keep(acc_prev, acc)
             if W > 0:  # penalty walls' forces (kernel.wall_contact)
                 wc.penalty(lo, B, W, N, D, wall_nodes, wn, wp, wk, x, f, wforce, wall_e, pen_e, act)
             if fused:  # external forces, accelerations, velocities
@@ -444,7 +444,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if not fused:
                 gn.advance_nodes(B, N, D, x, v, vnew, dt_b, actf)
             if not no_ext:
-                fext_prev[:] = fext
+                gn.keep(fext_prev, fext)
         go.results(lo, B, Out, K)
 
 

@@ -261,3 +261,13 @@ def advance_nodes(B, N, D, x, v, vnew, dt_b, actf):  # pragma: no cover - compil
         for d in range(D):
             for w in range(B):
                 x[n_, d, w], v[n_, d, w] = advance(x[n_, d, w], v[n_, d, w], vnew[n_, d, w], dt_b[w], actf[w])
+
+
+@stage
+def keep(dst, src):  # pragma: no cover - compiled
+    """``dst[...] = src`` for the (N, D, B) node arrays kept for the next step, as a loop: numba compiles
+    a slice copy's shape-mismatch message (string formatting, ~5 CPU s of the cold compile)."""
+    for n_ in range(min(dst.shape[0], src.shape[0])):  # acc_prev has no rows in a model without knots
+        for d in range(src.shape[1]):
+            for w in range(src.shape[2]):
+                dst[n_, d, w] = src[n_, d, w]
