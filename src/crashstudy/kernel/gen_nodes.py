@@ -7,6 +7,7 @@ from __future__ import annotations
 from typing import Any
 
 from crashstudy.kernel.gen_loops import stores
+from crashstudy.kernel.gen_rows import One
 from crashstudy.kernel.gen_shape import Layout, _lsum
 from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
 from crashstudy.vocabulary.codes import GENERAL, PM_CODES
@@ -115,7 +116,13 @@ def emit_results(g: Layout, ind: str) -> None:
     g.emit(f"{ind}    t_end[q] = int({g.R['lim']}) * {g.R['dt']}")
     g.emit(f"{ind}elif n_fail[w] > 0:")
     g.emit(f"{ind}    t_end[q] = (n_fail[w] - 1) * {g.R['dt']}")
-    for arr, row in (("absorbed", "ie"), ("peak_force", "pf"), ("max_crush", "mc"), ("max_elongation", "me")):
+    summaries: tuple[tuple[str, One], ...] = (
+        ("absorbed", "ie"),
+        ("peak_force", "pf"),
+        ("max_crush", "mc"),
+        ("max_elongation", "me"),
+    )
+    for arr, row in summaries:
         stores(g, ind, arr, [(s, (row, s)) for s in range(g.S)])
     still = [n for n in range(g.N) if g.static[n] or not g.movable[n]]
     for n in still:

@@ -6,6 +6,7 @@ block when an eighth of its lanes have ended.
 from __future__ import annotations
 
 from crashstudy.kernel.gen_nodes import _chain
+from crashstudy.kernel.gen_rows import One
 from crashstudy.kernel.gen_shape import Layout
 
 
@@ -98,7 +99,11 @@ def records(g: Layout, i3: str) -> None:
                         acc = R["pma", k]
                 acc = R["wa", n, d] if ("wa", n, d) in R else acc  # a wall node: with the contact force
                 g.emit(f"{i5}h_acc[r, {n}, {d}, q] = {acc}")
-        for name, arr, row in (("spring_force", "h_force", "fp"), ("spring_elongation", "h_elong", "ep")):
+        springs: tuple[tuple[str, str, One], ...] = (
+            ("spring_force", "h_force", "fp"),
+            ("spring_elongation", "h_elong", "ep"),
+        )
+        for name, arr, row in springs:
             if name in g.hist and g.S:
                 t = g.table([[s, R.row((row, s)) * R.stride] for s in range(g.S)])
                 g.emit(f"{i5}for i in range({g.S}):")

@@ -11,6 +11,7 @@ from crashstudy.kernel.driver import Summ
 from crashstudy.kernel.gen_loops import Load, loads
 from crashstudy.kernel.gen_nodes import emit_results, pass_b
 from crashstudy.kernel.gen_records import ends, failures, records
+from crashstudy.kernel.gen_rows import One, Two
 from crashstudy.kernel.gen_shape import ROW, Layout, layout
 from crashstudy.kernel.gen_springs import pass_a, pass_k
 from crashstudy.vocabulary.codes import ELASTOPLASTIC
@@ -183,13 +184,13 @@ def source(shape: dict[str, Any]) -> str:
         g.emit(f"{i3}rec = n == next_min")
         g.emit(f"{i3}if rec:")
         g.emit(f"{i3}    for w in range(B):")
-        keep = [(h, k) for n in g.live for d in range(g.D) for h, k in (("xh", "x"), ("vh", "v"))]
+        keep = [(h, k) for n in g.live for d in range(g.D) for h, k in _KEPT]
         t = g.table(
             [
                 [g.R.row((h, n, d)) * ROW, g.R.row((k, n, d)) * ROW]
                 for n in g.live
                 for d in range(g.D)
-                for h, k in (("xh", "x"), ("vh", "v"))
+                for h, k in _KEPT
             ]
         )
         g.emit(f"{i3}        for i in range({len(keep)}):")
@@ -245,6 +246,12 @@ def source(shape: dict[str, Any]) -> str:
     return "\n".join([*head, body, *fns, *tables, ""]) + "\n"
 
 
+# rows of the set-up loads and the history copy, by family (typed: gen_rows)
+_FACTORS: tuple[One, ...] = ("cfy", "cfx", "cff")
+_YIELDS: tuple[tuple[One, str], ...] = (("yt", "yield_t"), ("yc", "yield_c"))
+_PLASTIC: tuple[tuple[One, str], ...] = (("kt", "ktan"), ("fy", "fyld"))
+_FAILURE: tuple[tuple[One, str], ...] = (("ft", "fail_t"), ("fc", "fail_c"))
+_KEPT: tuple[tuple[Two, Two], ...] = (("xh", "x"), ("vh", "v"))
 STEP = {"fn": "float(n)", "h": "1.0 if n > 0 else 0.5", "wt": "1.0 if n > 0 else 0.0", "n1": "n == 1"}
 
 
@@ -336,7 +343,7 @@ def lanes(g: Layout, ind: str) -> None:
         if c in g.const:
             continue
         if c in fac:  # force scale, abscissa scale, slope factor; the knot forces (they flag peaks)
-            put += [((f, c), "cfac", (i, c)) for i, f in enumerate(("cfy", "cfx", "cff"))]
+            put += [((f, c), "cfac", (i, c)) for i, f in enumerate(_FACTORS)]
             put += [(("kyv", k), "knot_y", (k,)) for k in range(g.off[c], g.off[c + 1] - 1) if k in g.kcheck]
             continue
         a0 = g.off[c]
@@ -350,15 +357,10 @@ def lanes(g: Layout, ind: str) -> None:
     for s in range(g.S):
         put.append((("kp", s), "kpar", (s,)))
         put.append((("sg", s), "sign", (s,)) if g.D == 1 else (("l0", s), "length0", (s,)))
-    put += [((f, s), a, (s,)) for s in g.general for f, a in (("yt", "yield_t"), ("yc", "yield_c"))]
-    put += [
-        ((f, s), a, (s,))
-        for s in range(g.S)
-        if g.mat[s] == ELASTOPLASTIC
-        for f, a in (("kt", "ktan"), ("fy", "fyld"))
-    ]
+    put += [((f, s), a, (s,)) for s in g.general for f, a in _YIELDS]
+    put += [((f, s), a, (s,)) for s in range(g.S) if g.mat[s] == ELASTOPLASTIC for f, a in _PLASTIC]
     put += [(("rt", s, k), "rate_at", (g.ro[s] + k,)) for s in range(g.S) for k in range(len(g.rc[s]))]
-    put += [((f, s), a, (s,)) for s in g.fragile for f, a in (("ft", "fail_t"), ("fc", "fail_c"))]
+    put += [((f, s), a, (s,)) for s in g.fragile for f, a in _FAILURE]
     for s in g.pre:  # initial_elongation: e0, the rate at t = 0, IE0 and the material state (arrays.preload)
         put += [(("e0", s), "elong0", (s,)), (("r0", s), "rate0", (s,)), (("ie", s), "ie0", (s,))]
         put += [(("st", s, k), "state0", (s, k)) for k in range(spec(g.mat[s]).state_rows)]
