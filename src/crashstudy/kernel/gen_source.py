@@ -179,7 +179,7 @@ def source(shape: dict[str, Any]) -> str:
     g.emit(f"{i3}wt = 1.0 if n > 0 else 0.0")
     g.emit(f"{i3}n1 = n == 1")
     if g.general:
-        g.emit(f"{i3}{_function(g, fns, '_pass_a', 'n', pass_a, 'None')}")
+        pass_a(g, i3)
     if g.hist:  # a sample keeps x^n and v^{n-1/2}; the rest is read back after the pass
         g.emit(f"{i3}rec = n == next_min")
         g.emit(f"{i3}if rec:")
@@ -195,9 +195,9 @@ def source(shape: dict[str, Any]) -> str:
         )
         g.emit(f"{i3}        for i in range({len(keep)}):")
         g.emit(f"{i3}            Z[{t}[i, 0] + w] = Z[{t}[i, 1] + w]")
-    g.emit(f"{i3}nbad, nhit, nstop = {_function(g, fns, '_pass_b', 'n', pass_b, 'nbad, nhit, nstop')}")
+    pass_b(g, i3)
     if g.knotted:
-        g.emit(f"{i3}{_function(g, fns, '_pass_k', 'n, nhit', pass_k, 'None')}")
+        pass_k(g, i3)
     failures(g, i3)
     if g.record:  # a^n of the recorded nodes, lanes still running after the failure check
         g.emit(f"{i3}rk_w = 0")  # block sums: row (n + (k - 1) // 2) // k, divided once per run of equal k
@@ -278,12 +278,12 @@ def _arrays(body: str) -> list[str]:
 
 
 def _function(g: Layout, out: list[str], name: str, params: str, emitter: Any, returns: str) -> str:
-    """Emit a part of the kernel (``emitter``: a pass of the step, the block set-up, the histories, a lane's
-    results) as a compiled function of its own, appended to ``out``, and return its call. One function
-    compiles in time growing faster than its length (numba's type inference and lowering, LLVM's passes
-    over one body); a function per part types and optimises each part alone, and a part called from two
-    places (the results) is compiled once. Each part is a loop over the block's lanes or runs once per
-    lane that ends: one call per step and block costs nothing."""
+    """Emit a cold part of the kernel (``emitter``: the block set-up, the histories, a lane's results) as a
+    compiled function of its own, appended to ``out``, and return its call: one function compiles in time
+    growing faster than its length, and a part called from two places (the results) compiles once. The
+    step's passes stay in ``run_blocks``: split into functions of their own they compiled faster still, but
+    a kernel so compiled ran 2x slower in the process that compiled it (the same kernel loaded from numba's
+    cache did not; benchmarks/results/generated_source.md)."""
     n0 = len(g.L)
     emitter(g, "    ")
     body = "\n".join(g.L[n0:])
