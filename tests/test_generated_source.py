@@ -6,6 +6,7 @@ regenerate the file (``python tests/test_generated_source.py``), so that the dif
 
 from __future__ import annotations
 
+import ast
 import re
 import sys
 from pathlib import Path
@@ -73,14 +74,26 @@ EP_BESIDE_FACTOR_CURVE = {
 
 
 def _rows_read_never_written(src: str) -> set[int]:
-    """Work-array rows (``Z[k + w]``) the source reads but no statement assigns (the block's rows are
+    """Work-array rows (``Z[k + w]``, or ``Z[_T<t>[i, c] + w]`` for each row k in column c of the constant
+    table ``_T<t>``: kernel/gen_loops.py) the source reads but no statement assigns (the block's rows are
     loaded, then updated, by assignments)."""
-    reads = {int(k) for k in re.findall(r"Z\[(\d+) \+ w\]", src)}
+    tables = {
+        t: ast.literal_eval(rows)
+        for t, rows in re.findall(r"^_T(\d+) = np\.array\((.*), dtype=np\.int64\)$", src, re.M)
+    }
+
+    def rows(text: str) -> set[int]:
+        out = {int(k) for k in re.findall(r"Z\[(\d+) \+ w\]", text)}
+        for t, c in re.findall(r"Z\[_T(\d+)\[i, (\d+)\] \+ w\]", text):
+            out |= {row[int(c)] for row in tables[t]}
+        return out
+
+    reads = rows(src)
     writes: set[int] = set()
     for line in src.splitlines():
         target = re.match(r"\s*([^=]*?[^=!<>])=(?!=)", line)  # the targets of an assignment
         if target:
-            writes |= {int(k) for k in re.findall(r"Z\[(\d+) \+ w\]", target.group(1))}
+            writes |= rows(target.group(1))
     return reads - writes
 
 

@@ -5,7 +5,7 @@ from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, INVALID, OK, UNSTABLE
 from crashstudy.kernel.laws import axis_2d, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, ramp_knot, ramp_start, time_window, elastoplastic_law, broken_at
 from crashstudy.kernel.step_laws import advance, energy_balance, energy_first_half, energy_increment, ext_power, half_step, kinetic, spring_extremes, stop_test, unstable, unstable_limit, wall_dof, wall_force, wall_hold, wall_impulse, wall_jump, wall_penalty, wall_plane, wall_work, work_increment
 
-_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 16, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
+_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 17, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
 
 
 @nb.njit(nogil=True, error_model="numpy", cache=True)
@@ -16,47 +16,14 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
     x0 = P.x0
     v0 = P.v0
     sign = P.sign
-    length0 = P.length0
     kpar = P.kpar
-    yield_t = P.yield_t
-    yield_c = P.yield_c
-    cx = P.cx
-    cy = P.cy
-    cds = P.cds
-    cs0 = P.cs0
-    cs1 = P.cs1
-    knot_y = P.knot_y
-    gravity = P.gravity
     dt = P.dt
     n_steps = P.n_steps
     out_every = P.out_every
     invalid = P.invalid
     e_floor = P.energy_floor
-    ke_fraction = P.ke_fraction
-    min_time = P.min_time
-    wall_point = P.wall_point
-    wall_normal = P.wall_normal
-    wall_k = P.wall_stiffness
-    load_force = P.load_force
-    pm_scale = P.pm_scale
-    ktan = P.ktan
-    fyld = P.fy
-    elong0 = P.e0
-    state0 = P.state0
-    ie0 = P.ie0
-    rate0 = P.rate0
-    fail_t = P.fail_t
-    fail_c = P.fail_c
-    cfac = P.cfac
-    off = T.curve_off
-    h_pos = H.pos
-    h_disp = H.disp
-    h_vel = H.vel
-    h_acc = H.acc
     h_force = H.force
-    h_elong = H.elong
     h_energy = H.energy
-    h_wall = H.wall
     status = O.status
     fail_time = O.fail_time
     fail_item = O.fail_item
@@ -65,12 +32,9 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
     max_crush = O.max_crush
     absorbed = O.absorbed
     peak_acc = O.peak_acc
-    peak_wall = O.peak_wall
     energy_error = O.energy_error
     final_energy = O.final_energy
     max_elongation = O.max_elongation
-    spring_fail_time = O.spring_fail_time
-    w_impulse = O.wall_impulse
     k_cy0_0 = cst[0]
     k_s0_0 = cst[1]
     k_cx0 = cst[2]
@@ -85,39 +49,7 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
         next_rec = np.zeros(B, dtype=np.int64)
         n_fail = np.full(B, -1, dtype=np.int64)
         vi = np.arange(lo, lo + B)  # the variant of each lane (lanes are compacted as variants end)
-        nmax = -1
-        for w in range(B):
-            q = lo + w
-            Z[0 + w] = dt[q]
-            Z[1848 + w] = e_floor[q]
-            Z[2112 + w] = mass[1, q]
-            Z[2640 + w] = x0[1, 0, q]
-            Z[2904 + w] = x0[1, 0, q]
-            Z[3168 + w] = v0[1, 0, q]
-            Z[3432 + w] = inv_mass[1, 0, q]
-            Z[3696 + w] = mass[2, q]
-            Z[4224 + w] = x0[2, 0, q]
-            Z[4488 + w] = x0[2, 0, q]
-            Z[4752 + w] = v0[2, 0, q]
-            Z[5016 + w] = inv_mass[2, 0, q]
-            Z[5280 + w] = kpar[0, q]
-            Z[7128 + w] = sign[0, q]
-            Z[7392 + w] = kpar[1, q]
-            Z[9240 + w] = sign[1, q]
-            ke0 = 0.0
-            ke0 += 0.5 * mass[0, q] * v0[0, 0, q] * v0[0, 0, q]
-            ke0 += 0.5 * mass[1, q] * v0[1, 0, q] * v0[1, 0, q]
-            ke0 += 0.5 * mass[2, q] * v0[2, 0, q] * v0[2, 0, q]
-            Z[792 + w] = ke0
-            Z[528 + w] = unstable_limit(ke0, 0.0, e_floor[q])
-            if invalid[q] > 0:
-                status[q] = INVALID
-                fail_item[q] = invalid[q]
-                fail_time[q] = 0.0
-                Z[264 + w] = -1.0
-            else:
-                Z[264 + w] = float(n_steps[q])
-                nmax = max(nmax, n_steps[q])
+        nmax = _lanes(Z, B, lo, vi, mass, inv_mass, x0, v0, sign, kpar, dt, n_steps, invalid, e_floor, status, fail_time, fail_item)
         alive = nmax
         n_end = _next_end(Z, B, -1.0)
         next_min = 0
@@ -132,10 +64,8 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
             rec = n == next_min
             if rec:
                 for w in range(B):
-                    Z[9504 + w] = Z[2640 + w]
-                    Z[9768 + w] = Z[3168 + w]
-                    Z[10032 + w] = Z[4224 + w]
-                    Z[10296 + w] = Z[4752 + w]
+                    for i in range(4):
+                        Z[_T6[i, 0] + w] = Z[_T6[i, 1] + w]
             nbad = 0
             nhit = 0
             nstop = 0
@@ -203,23 +133,7 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
                 n_end = _next_end(Z, B, fn - 1.0)
                 ended = True
             if rec:
-                next_min = nmax + 1
-                for w in range(B):
-                    q = vi[w]
-                    if fn > Z[264 + w]:
-                        continue
-                    if n == next_rec[w]:
-                        r = n // out_every[q]
-                        next_rec[w] = n + out_every[q]
-                        if r < n_out:
-                            h_force[r, 0, q] = Z[5544 + w]
-                            h_force[r, 1, q] = Z[7656 + w]
-                            h_energy[r, 0, q] = Z[1320 + w]
-                            h_energy[r, 1, q] = Z[1584 + w]
-                            h_energy[r, 2, q] = 0.0
-                            h_energy[r, 3, q] = 0.0
-                    if fn + 1.0 <= Z[264 + w]:
-                        next_min = min(next_min, next_rec[w])
+                next_min = _records(Z, B, n, n_out, nmax, next_rec, vi, out_every, h_force, h_energy)
             if fn == n_end:
                 for w in range(B):
                     if fn == Z[264 + w]:
@@ -238,23 +152,7 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
                     k = 0
                     for w in range(B):
                         if fn + 1.0 > Z[264 + w]:
-                            q = vi[w]
-                            energy_error[q] = Z[1056 + w] / max(Z[792 + w] + 0.0, 1e-300)
-                            if status[q] == OK:
-                                t_end[q] = int(Z[264 + w]) * Z[0 + w]
-                            elif n_fail[w] > 0:
-                                t_end[q] = (n_fail[w] - 1) * Z[0 + w]
-                            absorbed[0, q] = Z[6072 + w]
-                            peak_force[0, q] = Z[6336 + w]
-                            max_crush[0, q] = Z[6600 + w]
-                            max_elongation[0, q] = Z[6864 + w]
-                            absorbed[1, q] = Z[8184 + w]
-                            peak_force[1, q] = Z[8448 + w]
-                            max_crush[1, q] = Z[8712 + w]
-                            max_elongation[1, q] = Z[8976 + w]
-                            peak_acc[0, q] = 0.0
-                            peak_acc[1, q] = np.sqrt(Z[2376 + w])
-                            peak_acc[2, q] = np.sqrt(Z[3960 + w])
+                            _results(Z, B, w, n_fail, vi, status, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, max_elongation)
                             continue
                         if k != w:
                             for r in range(NROWS):
@@ -269,26 +167,10 @@ def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):
                     for w in range(B):
                         next_min = min(next_min, next_rec[w])
         for w in range(B):
-            q = vi[w]
-            energy_error[q] = Z[1056 + w] / max(Z[792 + w] + 0.0, 1e-300)
-            if status[q] == OK:
-                t_end[q] = int(Z[264 + w]) * Z[0 + w]
-            elif n_fail[w] > 0:
-                t_end[q] = (n_fail[w] - 1) * Z[0 + w]
-            absorbed[0, q] = Z[6072 + w]
-            peak_force[0, q] = Z[6336 + w]
-            max_crush[0, q] = Z[6600 + w]
-            max_elongation[0, q] = Z[6864 + w]
-            absorbed[1, q] = Z[8184 + w]
-            peak_force[1, q] = Z[8448 + w]
-            max_crush[1, q] = Z[8712 + w]
-            max_elongation[1, q] = Z[8976 + w]
-            peak_acc[0, q] = 0.0
-            peak_acc[1, q] = np.sqrt(Z[2376 + w])
-            peak_acc[2, q] = np.sqrt(Z[3960 + w])
+            _results(Z, B, w, n_fail, vi, status, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, max_elongation)
 
 
-@nb.njit(inline="always", error_model="numpy")
+@nb.njit(nogil=True, error_model="numpy", cache=True)
 def _next_end(Z, B, after):
     """The smallest step limit of a running lane above ``after`` (-1 if none)."""
     out = np.inf
@@ -301,4 +183,102 @@ def _next_end(Z, B, after):
 
 NROWS = 40
 ROW = 264
+
+
+
+@nb.njit(nogil=True, error_model="numpy", cache=True)
+def _lanes(Z, B, lo, vi, mass, inv_mass, x0, v0, sign, kpar, dt, n_steps, invalid, e_floor, status, fail_time, fail_item):
+    """Lanes: crashstudy.kernel.gen_source."""
+    nmax = -1
+    for w in range(B):
+        q = lo + w
+        Z[0 + w] = dt[q]
+        Z[1848 + w] = e_floor[q]
+        for i in range(2):
+            Z[_T0[i, 0] + w] = mass[_T0[i, 1], q]
+        for i in range(4):
+            Z[_T1[i, 0] + w] = x0[_T1[i, 1], _T1[i, 2], q]
+        for i in range(2):
+            Z[_T2[i, 0] + w] = v0[_T2[i, 1], _T2[i, 2], q]
+        for i in range(2):
+            Z[_T3[i, 0] + w] = inv_mass[_T3[i, 1], _T3[i, 2], q]
+        for i in range(2):
+            Z[_T4[i, 0] + w] = kpar[_T4[i, 1], q]
+        for i in range(2):
+            Z[_T5[i, 0] + w] = sign[_T5[i, 1], q]
+        ke0 = 0.0
+        for n in range(3):  # every node, as the reference sums
+            for d in range(1):
+                ke0 += 0.5 * mass[n, q] * v0[n, d, q] * v0[n, d, q]
+        Z[792 + w] = ke0
+        Z[528 + w] = unstable_limit(ke0, 0.0, e_floor[q])
+        if invalid[q] > 0:
+            status[q] = INVALID
+            fail_item[q] = invalid[q]
+            fail_time[q] = 0.0
+            Z[264 + w] = -1.0
+        else:
+            Z[264 + w] = float(n_steps[q])
+            nmax = max(nmax, n_steps[q])
+    return nmax
+
+
+@nb.njit(nogil=True, error_model="numpy", cache=True)
+def _records(Z, B, n, n_out, nmax, next_rec, vi, out_every, h_force, h_energy):
+    """Records: crashstudy.kernel.gen_source."""
+    fn = float(n)
+    next_min = nmax + 1
+    for w in range(B):
+        q = vi[w]
+        if fn > Z[264 + w]:
+            continue
+        if n == next_rec[w]:
+            r = n // out_every[q]
+            next_rec[w] = n + out_every[q]
+            if r < n_out:
+                for i in range(2):
+                    h_force[r, _T7[i, 0], q] = Z[_T7[i, 1] + w]
+                h_energy[r, 0, q] = Z[1320 + w]
+                h_energy[r, 1, q] = Z[1584 + w]
+                h_energy[r, 2, q] = 0.0
+                h_energy[r, 3, q] = 0.0
+        if fn + 1.0 <= Z[264 + w]:
+            next_min = min(next_min, next_rec[w])
+    return next_min
+
+
+@nb.njit(nogil=True, error_model="numpy", cache=True)
+def _results(Z, B, w, n_fail, vi, status, t_end, peak_force, max_crush, absorbed, peak_acc, energy_error, max_elongation):
+    """Results: crashstudy.kernel.gen_source."""
+    q = vi[w]
+    energy_error[q] = Z[1056 + w] / max(Z[792 + w] + 0.0, 1e-300)
+    if status[q] == OK:
+        t_end[q] = int(Z[264 + w]) * Z[0 + w]
+    elif n_fail[w] > 0:
+        t_end[q] = (n_fail[w] - 1) * Z[0 + w]
+    for i in range(2):
+        absorbed[_T8[i, 0], q] = Z[_T8[i, 1] + w]
+    for i in range(2):
+        peak_force[_T9[i, 0], q] = Z[_T9[i, 1] + w]
+    for i in range(2):
+        max_crush[_T10[i, 0], q] = Z[_T10[i, 1] + w]
+    for i in range(2):
+        max_elongation[_T11[i, 0], q] = Z[_T11[i, 1] + w]
+    peak_acc[0, q] = 0.0
+    for i in range(2):
+        peak_acc[_T12[i, 0], q] = np.sqrt(Z[_T12[i, 1] + w])
+    return None
+_T0 = np.array([[2112, 1], [3696, 2]], dtype=np.int64)
+_T1 = np.array([[2640, 1, 0], [2904, 1, 0], [4224, 2, 0], [4488, 2, 0]], dtype=np.int64)
+_T2 = np.array([[3168, 1, 0], [4752, 2, 0]], dtype=np.int64)
+_T3 = np.array([[3432, 1, 0], [5016, 2, 0]], dtype=np.int64)
+_T4 = np.array([[5280, 0], [7392, 1]], dtype=np.int64)
+_T5 = np.array([[7128, 0], [9240, 1]], dtype=np.int64)
+_T6 = np.array([[9504, 2640], [9768, 3168], [10032, 4224], [10296, 4752]], dtype=np.int64)
+_T7 = np.array([[0, 5544], [1, 7656]], dtype=np.int64)
+_T8 = np.array([[0, 6072], [1, 8184]], dtype=np.int64)
+_T9 = np.array([[0, 6336], [1, 8448]], dtype=np.int64)
+_T10 = np.array([[0, 6600], [1, 8712]], dtype=np.int64)
+_T11 = np.array([[0, 6864], [1, 8976]], dtype=np.int64)
+_T12 = np.array([[1, 2376], [2, 3960]], dtype=np.int64)
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from crashstudy.kernel.gen_loops import stores
+from crashstudy.kernel.gen_rows import One
 from crashstudy.kernel.gen_shape import Layout, _lsum
 from crashstudy.kernel.gen_springs import edot, pass_b_springs, time_curve
 from crashstudy.vocabulary.codes import GENERAL, PM_CODES
@@ -114,19 +116,20 @@ def emit_results(g: Layout, ind: str) -> None:
     g.emit(f"{ind}    t_end[q] = int({g.R['lim']}) * {g.R['dt']}")
     g.emit(f"{ind}elif n_fail[w] > 0:")
     g.emit(f"{ind}    t_end[q] = (n_fail[w] - 1) * {g.R['dt']}")
-    for s in range(g.S):
-        g.emit(f"{ind}absorbed[{s}, q] = {g.R['ie', s]}")
-        g.emit(f"{ind}peak_force[{s}, q] = {g.R['pf', s]}")
-        g.emit(f"{ind}max_crush[{s}, q] = {g.R['mc', s]}")
-        g.emit(f"{ind}max_elongation[{s}, q] = {g.R['me', s]}")
-    for n in range(g.N):
-        g.emit(
-            f"{ind}peak_acc[{n}, q] = "
-            + ("0.0" if g.static[n] or not g.movable[n] else f"np.sqrt({g.R['pa', n]})")
-        )
-    for wl in range(g.W):
-        g.emit(f"{ind}peak_wall[{wl}, q] = {g.R['pw', wl]}")
-        g.emit(f"{ind}w_impulse[{wl}, q] = {g.R['wi', wl]}")
+    summaries: tuple[tuple[str, One], ...] = (
+        ("absorbed", "ie"),
+        ("peak_force", "pf"),
+        ("max_crush", "mc"),
+        ("max_elongation", "me"),
+    )
+    for arr, row in summaries:
+        stores(g, ind, arr, [(s, (row, s)) for s in range(g.S)])
+    still = [n for n in range(g.N) if g.static[n] or not g.movable[n]]
+    for n in still:
+        g.emit(f"{ind}peak_acc[{n}, q] = 0.0")
+    stores(g, ind, "peak_acc", [(n, ("pa", n)) for n in range(g.N) if n not in still], "np.sqrt({})")
+    stores(g, ind, "peak_wall", [(wl, ("pw", wl)) for wl in range(g.W)])
+    stores(g, ind, "w_impulse", [(wl, ("wi", wl)) for wl in range(g.W)])
 
 
 def node(g: Layout, i2: str, n: int) -> None:

@@ -5,7 +5,8 @@ block when an eighth of its lanes have ended.
 
 from __future__ import annotations
 
-from crashstudy.kernel.gen_nodes import _chain, emit_results
+from crashstudy.kernel.gen_nodes import _chain
+from crashstudy.kernel.gen_rows import One
 from crashstudy.kernel.gen_shape import Layout
 
 
@@ -37,51 +38,76 @@ def failures(g: Layout, i3: str) -> None:
 
 
 def records(g: Layout, i3: str) -> None:
-    """The histories of the lanes that sample at this step."""
+    """The histories of the lanes that sample at this step (the body of the kernel's ``_records``: it
+    returns ``next_min``, the next step a running lane samples)."""
     if g.hist:
-        g.emit(f"{i3}if rec:")
-        g.emit(f"{i3}    next_min = nmax + 1")
-        g.emit(f"{i3}    for w in range(B):")
-        g.emit(f"{i3}        q = vi[w]")
-        g.emit(f"{i3}        if fn > {g.R['lim']}:")
-        g.emit(f"{i3}            continue")
-        g.emit(f"{i3}        if n == next_rec[w]:")
-        g.emit(f"{i3}            r = n // out_every[q]")
-        g.emit(f"{i3}            next_rec[w] = n + out_every[q]")
-        g.emit(f"{i3}            if r < n_out:")
-        i5 = i3 + "                "
+        g.emit(f"{i3}next_min = nmax + 1")
+        g.emit(f"{i3}for w in range(B):")
+        g.emit(f"{i3}    q = vi[w]")
+        g.emit(f"{i3}    if fn > {g.R['lim']}:")
+        g.emit(f"{i3}        continue")
+        g.emit(f"{i3}    if n == next_rec[w]:")
+        g.emit(f"{i3}        r = n // out_every[q]")
+        g.emit(f"{i3}        next_rec[w] = n + out_every[q]")
+        g.emit(f"{i3}        if r < n_out:")
+        i5 = i3 + "            "
+        R = g.R
+        # the moving nodes' position, displacement and velocity: one loop over [n, d, xh, x0, vh, v]
+        move = [
+            [n, d, *(R.row((f, n, d)) * R.stride for f in ("xh", "x0", "vh", "v"))]
+            for n in range(g.N)
+            for d in range(g.D)
+            if not g.static[n]
+        ]
+        kept = [h for h in ("position", "displacement", "velocity") if h in g.hist]
+        if move and kept:
+            t = g.table(move)
+            g.emit(f"{i5}for i in range({len(move)}):")
+            g.emit(f"{i5}    n_, d_ = {t}[i, 0], {t}[i, 1]")
+            for name, arr, val in (
+                ("position", "h_pos", f"Z[{t}[i, 2] + w]"),
+                ("displacement", "h_disp", f"Z[{t}[i, 2] + w] - Z[{t}[i, 3] + w]"),
+                # v^{n+1/2} is the lane's v row now (it ran: vn * 1.0 + vo * 0.0)
+                (
+                    "velocity",
+                    "h_vel",
+                    f"(0.5 * (Z[{t}[i, 4] + w] + Z[{t}[i, 5] + w]) if n > 0 else Z[{t}[i, 4] + w])",
+                ),
+            ):
+                if name in g.hist:
+                    g.emit(f"{i5}    {arr}[r, n_, d_, q] = {val}")
         for n in range(g.N):
             for d in range(g.D):
                 if g.static[n]:
-                    pos, dsp, vel, acc = f"x0[{n}, {d}, q]", "0.0", "0.0", "0.0"
-                else:
-                    pos = g.R["xh", n, d]
-                    dsp = f"{g.R['xh', n, d]} - {g.R['x0', n, d]}"
-                    # v^{n+1/2} is the lane's v row now (it ran: vn * 1.0 + vo * 0.0)
-                    vel = f"(0.5 * ({g.R['vh', n, d]} + {g.R['v', n, d]}) if n > 0 else {g.R['vh', n, d]})"
-                    chain = _chain(g, n, d, lambda s: g.R["fp", s], lambda s, d: g.R["axh", s, d])
-                    fext = f"{g.R['m', n]} * {g.R['g', d]}" if g.grav else "0.0"
-                    fext = g.R["fx", n, d] if n in g.loaded else fext  # this step's external force
-                    acc = f"({chain} + {fext}) * {g.R['im', n, d]}"
-                    for k, (p, dd, _, _) in enumerate(g.pm):  # a prescribed dof: its kinematic acceleration
-                        if (p, dd) == (n, d):
-                            acc = g.R["pma", k]
-                    acc = (
-                        g.R["wa", n, d] if ("wa", n, d) in g.R else acc
-                    )  # a wall node: with the contact force
-                for name, arr, val in (
-                    ("position", "h_pos", pos),
-                    ("displacement", "h_disp", dsp),
-                    ("velocity", "h_vel", vel),
-                    ("acceleration", "h_acc", acc),
-                ):
-                    if name in g.hist:
-                        g.emit(f"{i5}{arr}[r, {n}, {d}, q] = {val}")
-        for s in range(g.S):
-            if "spring_force" in g.hist:
-                g.emit(f"{i5}h_force[r, {s}, q] = {g.R['fp', s]}")
-            if "spring_elongation" in g.hist:
-                g.emit(f"{i5}h_elong[r, {s}, q] = {g.R['ep', s]}")
+                    for name, arr, val in (
+                        ("position", "h_pos", f"x0[{n}, {d}, q]"),
+                        ("displacement", "h_disp", "0.0"),
+                        ("velocity", "h_vel", "0.0"),
+                        ("acceleration", "h_acc", "0.0"),
+                    ):
+                        if name in g.hist:
+                            g.emit(f"{i5}{arr}[r, {n}, {d}, q] = {val}")
+                    continue
+                if "acceleration" not in g.hist:
+                    continue
+                chain = _chain(g, n, d, lambda s: R["fp", s], lambda s, d: R["axh", s, d])
+                fext = f"{R['m', n]} * {R['g', d]}" if g.grav else "0.0"
+                fext = R["fx", n, d] if n in g.loaded else fext  # this step's external force
+                acc = f"({chain} + {fext}) * {R['im', n, d]}"
+                for k, (p, dd, _, _) in enumerate(g.pm):  # a prescribed dof: its kinematic acceleration
+                    if (p, dd) == (n, d):
+                        acc = R["pma", k]
+                acc = R["wa", n, d] if ("wa", n, d) in R else acc  # a wall node: with the contact force
+                g.emit(f"{i5}h_acc[r, {n}, {d}, q] = {acc}")
+        springs: tuple[tuple[str, str, One], ...] = (
+            ("spring_force", "h_force", "fp"),
+            ("spring_elongation", "h_elong", "ep"),
+        )
+        for name, arr, row in springs:
+            if name in g.hist and g.S:
+                t = g.table([[s, R.row((row, s)) * R.stride] for s in range(g.S)])
+                g.emit(f"{i5}for i in range({g.S}):")
+                g.emit(f"{i5}    {arr}[r, {t}[i, 0], q] = Z[{t}[i, 1] + w]")
         if "kinetic_energy" in g.hist:
             g.emit(f"{i5}h_energy[r, 0, q] = {g.R['ken']}")
             g.emit(f"{i5}h_energy[r, 1, q] = {g.R['ien']}")
@@ -89,13 +115,14 @@ def records(g: Layout, i3: str) -> None:
             g.emit(f"{i5}h_energy[r, 3, q] = {(g.R['wall_e'] + ' if n > 0 else 0.0') if g.W else '0.0'}")
         for wl in range(g.W if "wall_force" in g.hist else 0):
             g.emit(f"{i5}h_wall[r, {wl}, q] = {g.R['wf', wl]}")
-        g.emit(f"{i3}        if fn + 1.0 <= {g.R['lim']}:")
-        g.emit(f"{i3}            next_min = min(next_min, next_rec[w])")
+        g.emit(f"{i3}    if fn + 1.0 <= {g.R['lim']}:")
+        g.emit(f"{i3}        next_min = min(next_min, next_rec[w])")
 
 
-def ends(g: Layout, i3: str) -> None:
+def ends(g: Layout, i3: str, results: str) -> None:
     """Termination, final energies, and lane compaction: lanes whose variant ended leave the block once
-    they are an eighth of it (their results are written, the running lanes move down)."""
+    they are an eighth of it (their results are written by the call ``results``, the running lanes move
+    down)."""
     if g.term:  # lanes that met the termination test (and did not fail) end at this step
         g.emit(f"{i3}if nstop > 0:")
         g.emit(f"{i3}    for w in range(B):")
@@ -125,7 +152,7 @@ def ends(g: Layout, i3: str) -> None:
     g.emit(f"{i3}        k = 0")
     g.emit(f"{i3}        for w in range(B):")
     g.emit(f"{i3}            if fn + 1.0 > {g.R['lim']}:")
-    emit_results(g, i3 + "                ")
+    g.emit(f"{i3}                {results}")
     g.emit(f"{i3}                continue")
     g.emit(f"{i3}            if k != w:")
     g.emit(f"{i3}                for r in range(NROWS):")

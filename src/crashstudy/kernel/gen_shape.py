@@ -5,7 +5,7 @@ histories kept) and the layout every emitter shares (:func:`layout`: rows of the
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -24,7 +24,7 @@ from crashstudy.vocabulary.materials import KNOT_MATERIALS, RATE_MATERIALS, spec
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-GEN_VERSION = 16  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 17  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = environment.gen_block()  # variants per block (CRASHSTUDY_GEN_BLOCK)
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 
@@ -174,6 +174,13 @@ class Layout:
     ramp: Callable[[int, str], str]
     L: list[str]
     emit: Callable[[str], None]
+    tables: list[list[list[int]]] = field(default_factory=list)  # constant tables of the source (gen_loops)
+
+    def table(self, rows: list[list[int]]) -> str:
+        """The name of a module constant holding ``rows`` (an int64 array; one per distinct content)."""
+        if rows not in self.tables:
+            self.tables.append(rows)
+        return f"_T{self.tables.index(rows)}"
 
 
 def layout(shape: dict[str, Any]) -> Layout:

@@ -4,12 +4,15 @@ failures, histories, termination, lane compaction) and the results.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from crashstudy.kernel.driver import Summ
+from crashstudy.kernel.gen_loops import Load, loads
 from crashstudy.kernel.gen_nodes import emit_results, pass_b
 from crashstudy.kernel.gen_records import ends, failures, records
-from crashstudy.kernel.gen_shape import ROW, Layout, _lsum, layout
+from crashstudy.kernel.gen_rows import One, Two
+from crashstudy.kernel.gen_shape import ROW, Layout, layout
 from crashstudy.kernel.gen_springs import pass_a, pass_k
 from crashstudy.vocabulary.codes import ELASTOPLASTIC
 from crashstudy.vocabulary.materials import spec
@@ -150,18 +153,19 @@ def source(shape: dict[str, Any]) -> str:
         "def run_blocks(b_lo, b_hi, starts, n_out, cst, T, P, H, O):",
         '    """Blocks b_lo:b_hi; records of crashstudy.kernel.driver (T topology, P per-variant inputs,'
         ' H histories, O summaries)."""',
-        *[f"    {name} = {rec}.{field}" for name, rec, field in RECORD_NAMES],
-        *(["    rate_at = P.rate_at"] if any(g.rc) else []),
-        *(["    h_steps = H.steps", "    h_rk = P.rec_block"] if g.record else []),
-        *[f"    {g.cname[nm]} = cst[{i}]" for i, nm in enumerate(g.cname)],
-        "    for bi in range(b_lo, b_hi):",
-        "        lo = starts[bi]",
-        "        B = starts[bi + 1] - lo",
-        "        Z = np.zeros(NROWS * ROW)",
     ]
-    g.L.extend(head)
+    g.emit("    for bi in range(b_lo, b_hi):")
+    g.emit("        lo = starts[bi]")
+    g.emit("        B = starts[bi + 1] - lo")
+    g.emit("        Z = np.zeros(NROWS * ROW)")
     ind = "        "
-    lanes(g, ind)
+    fns: list[str] = []  # the kernel's other compiled functions (see _function)
+    g.emit(f"{ind}next_rec = np.zeros(B, dtype=np.int64)")
+    g.emit(f"{ind}n_fail = np.full(B, -1, dtype=np.int64)")
+    g.emit(
+        f"{ind}vi = np.arange(lo, lo + B)  # the variant of each lane (lanes are compacted as variants end)"
+    )
+    g.emit(f"{ind}nmax = {_function(g, fns, '_lanes', 'lo', lanes, 'nmax')}")
     g.emit(f"{ind}alive = nmax")
     g.emit(f"{ind}n_end = _next_end(Z, B, -1.0)")
     g.emit(f"{ind}next_min = 0")
@@ -180,10 +184,17 @@ def source(shape: dict[str, Any]) -> str:
         g.emit(f"{i3}rec = n == next_min")
         g.emit(f"{i3}if rec:")
         g.emit(f"{i3}    for w in range(B):")
-        for n in g.live:
-            for d in range(g.D):
-                g.emit(f"{i3}        {g.R['xh', n, d]} = {g.R['x', n, d]}")
-                g.emit(f"{i3}        {g.R['vh', n, d]} = {g.R['v', n, d]}")
+        keep = [(h, k) for n in g.live for d in range(g.D) for h, k in _KEPT]
+        t = g.table(
+            [
+                [g.R.row((h, n, d)) * ROW, g.R.row((k, n, d)) * ROW]
+                for n in g.live
+                for d in range(g.D)
+                for h, k in _KEPT
+            ]
+        )
+        g.emit(f"{i3}        for i in range({len(keep)}):")
+        g.emit(f"{i3}            Z[{t}[i, 0] + w] = Z[{t}[i, 1] + w]")
     pass_b(g, i3)
     if g.knotted:
         pass_k(g, i3)
@@ -201,16 +212,19 @@ def source(shape: dict[str, Any]) -> str:
             for d in range(g.D):
                 g.emit(f"{i3}        h_steps[rr, {m}, {d}, vi[w]] += {g.R['am', n, d]}")
     if g.hist:
-        records(g, i3)
-    ends(g, i3)
+        rec = _function(g, fns, "_records", "n, n_out, nmax, next_rec", records, "next_min")
+        g.emit(f"{i3}if rec:")
+        g.emit(f"{i3}    next_min = {rec}")
+    results = _function(g, fns, "_results", "w, n_fail", emit_results, "None")
+    ends(g, i3, results)
     # results of the block's remaining lanes
     g.emit(f"{ind}for w in range(B):")
-    emit_results(g, ind + "    ")
+    g.emit(f"{ind}    {results}")
     g.L.extend(
         [
             "",
             "",
-            '@nb.njit(inline="always", error_model="numpy")',
+            '@nb.njit(nogil=True, error_model="numpy", cache=True)',
             "def _next_end(Z, B, after):",
             '    """The smallest step limit of a running lane above ``after`` (-1 if none)."""',
             "    out = np.inf",
@@ -226,119 +240,157 @@ def source(shape: dict[str, Any]) -> str:
             "",
         ]
     )
-    return "\n".join(g.L) + "\n"
+    body = "\n".join(g.L)
+    head += _unpack(g, body)
+    tables = [f"_T{i} = np.array({rows!r}, dtype=np.int64)" for i, rows in enumerate(g.tables)]
+    return "\n".join([*head, body, *fns, *tables, ""]) + "\n"
+
+
+# rows of the set-up loads and the history copy, by family (typed: gen_rows)
+_FACTORS: tuple[One, ...] = ("cfy", "cfx", "cff")
+_YIELDS: tuple[tuple[One, str], ...] = (("yt", "yield_t"), ("yc", "yield_c"))
+_PLASTIC: tuple[tuple[One, str], ...] = (("kt", "ktan"), ("fy", "fyld"))
+_FAILURE: tuple[tuple[One, str], ...] = (("ft", "fail_t"), ("fc", "fail_c"))
+_KEPT: tuple[tuple[Two, Two], ...] = (("xh", "x"), ("vh", "v"))
+STEP = {"fn": "float(n)", "h": "1.0 if n > 0 else 0.5", "wt": "1.0 if n > 0 else 0.0", "n1": "n == 1"}
+
+
+def _unpack(g: Layout, body: str, records: bool = True) -> list[str]:
+    """The lines that name what ``body`` reads of the records (``records``) and of ``cst``, each once, as a
+    local."""
+    used = _words(body)
+    unpack = [(name, f"{rec}.{field}") for name, rec, field in RECORD_NAMES] if records else []
+    unpack += [("rate_at", "P.rate_at"), ("h_steps", "H.steps"), ("h_rk", "P.rec_block")] if records else []
+    unpack += [(g.cname[nm], f"cst[{i}]") for i, nm in enumerate(g.cname)]
+    return [f"    {name} = {value}" for name, value in unpack if name in used]
+
+
+def _words(body: str) -> set[str]:
+    """The names ``body`` uses (comments left out)."""
+    return set(re.findall(r"\b\w+\b", re.sub(r"#.*", "", body)))
+
+
+def _arrays(body: str) -> list[str]:
+    """The records' arrays ``body`` reads (their local names, in RECORD_NAMES order)."""
+    used = _words(body)
+    names = [name for name, _, _ in RECORD_NAMES] + ["rate_at", "h_steps", "h_rk"]
+    return [name for name in names if name in used]
+
+
+def _function(g: Layout, out: list[str], name: str, params: str, emitter: Any, returns: str) -> str:
+    """Emit a cold part of the kernel (``emitter``: the block set-up, the histories, a lane's results) as a
+    compiled function of its own, appended to ``out``, and return its call: one function compiles in time
+    growing faster than its length, and a part called from two places (the results) compiles once. The
+    step's passes stay in ``run_blocks``: split into functions of their own they compiled faster still, but
+    a kernel so compiled ran 2x slower in the process that compiled it (the same kernel loaded from numba's
+    cache did not; benchmarks/results/generated_source.md)."""
+    n0 = len(g.L)
+    emitter(g, "    ")
+    body = "\n".join(g.L[n0:])
+    del g.L[n0:]
+    used = _words(body)
+    consts = any(c in used for c in g.cname.values())
+    args = ", ".join(["Z", "B", params, "vi", *(["cst"] if consts else []), *_arrays(body)])
+    out += [
+        "",
+        "",
+        '@nb.njit(nogil=True, error_model="numpy", cache=True)',
+        f"def {name}({args}):",
+        f'    """{name.strip("_").replace("_", " ").capitalize()}: crashstudy.kernel.gen_source."""',
+        *_unpack(g, body, records=False),
+        *([f"    {k} = {v}" for k, v in STEP.items() if k in used] if "n" in params.split(", ") else []),
+        body,
+        f"    return {returns}",
+    ]
+    return f"{name}({args})"
 
 
 def lanes(g: Layout, ind: str) -> None:
-    """Block setup: each lane's per-variant numbers into its rows of the work array Z."""
-    g.emit(f"{ind}next_rec = np.zeros(B, dtype=np.int64)")
-    g.emit(f"{ind}n_fail = np.full(B, -1, dtype=np.int64)")
-    g.emit(
-        f"{ind}vi = np.arange(lo, lo + B)  # the variant of each lane (lanes are compacted as variants end)"
-    )
+    """Block setup (the body of the kernel's ``_lanes``, which returns the block's last step ``nmax``): each
+    lane's per-variant numbers into its rows of the work array Z (one loop per input array over a constant
+    table: gen_loops)."""
     g.emit(f"{ind}nmax = -1")
     g.emit(f"{ind}for w in range(B):")
     i2 = ind + "    "
     g.emit(f"{i2}q = lo + w")
+    R = g.R
+    put: list[Load] = []
     if g.term:
-        g.emit(f"{i2}{g.R['kef']} = ke_fraction[q]")
-        g.emit(f"{i2}{g.R['tmin']} = min_time[q]")
+        put += [("kef", "ke_fraction", ()), ("tmin", "min_time", ())]
     for n in range(g.N if g.D > 1 else 0):
         if g.static[n]:
-            for d in range(g.D):
-                g.emit(f"{i2}{g.R['xs', n, d]} = x0[{n}, {d}, q]")
-    g.emit(f"{i2}{g.R['dt']} = dt[q]")
-    g.emit(f"{i2}{g.R['efl']} = e_floor[q]")
-    for d in range(g.D if g.grav else 0):
-        g.emit(f"{i2}{g.R['g', d]} = gravity[{d}, q]")
-    for k in range(len(g.loads)):
-        for d in range(g.D):
-            g.emit(f"{i2}{g.R['lf', k, d]} = load_force[{k}, {d}, q]")
-    for k in range(len(g.pm)):
-        g.emit(f"{i2}{g.R['pms', k]} = pm_scale[{k}, q]")
-    if g.pm:
-        g.emit(f"{i2}{g.R['nst']} = float(n_steps[q])")
+            put += [(("xs", n, d), "x0", (n, d)) for d in range(g.D)]
+    put += [("dt", "dt", ()), ("efl", "e_floor", ())]
+    put += [(("g", d), "gravity", (d,)) for d in range(g.D if g.grav else 0)]
+    put += [(("lf", k, d), "load_force", (k, d)) for k in range(len(g.loads)) for d in range(g.D)]
+    put += [(("pms", k), "pm_scale", (k,)) for k in range(len(g.pm))]
     fac = g.fac
     for c in g.tcurves:
         if c not in g.const and c not in fac:
-            g.emit(f"{i2}{g.R['cx', g.off[c + 1] - 1]} = cx[{g.off[c + 1] - 1}, q]")
+            put.append((("cx", g.off[c + 1] - 1), "cx", (g.off[c + 1] - 1,)))
     for wl in range(g.W):
         for d in range(g.D):
-            g.emit(f"{i2}{g.R['wn', wl, d]} = wall_normal[{wl}, {d}, q]")
-            g.emit(f"{i2}{g.R['wp', wl, d]} = wall_point[{wl}, {d}, q]")
-        g.emit(f"{i2}{g.R['wk', wl]} = wall_k[{wl}, q]")
+            put += [(("wn", wl, d), "wall_normal", (wl, d)), (("wp", wl, d), "wall_point", (wl, d))]
+        put.append((("wk", wl), "wall_k", (wl,)))
     for n in g.live:
-        g.emit(f"{i2}{g.R['m', n]} = mass[{n}, q]")
+        put.append((("m", n), "mass", (n,)))
         for d in range(g.D):
-            g.emit(f"{i2}{g.R['x', n, d]} = x0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R['x0', n, d]} = x0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R['v', n, d]} = v0[{n}, {d}, q]")
-            g.emit(f"{i2}{g.R['im', n, d]} = inv_mass[{n}, {d}, q]")
+            put += [(("x", n, d), "x0", (n, d)), (("x0", n, d), "x0", (n, d))]
+            put += [(("v", n, d), "v0", (n, d)), (("im", n, d), "inv_mass", (n, d))]
             if g.ext:
-                g.emit(f"{i2}{g.R['v0', n, d]} = v0[{n}, {d}, q]")
+                put.append((("v0", n, d), "v0", (n, d)))
     for c in g.curves:
         if c in g.const:
             continue
         if c in fac:  # force scale, abscissa scale, slope factor; the knot forces (they flag peaks)
-            g.emit(f"{i2}{g.R['cfy', c]} = cfac[0, {c}, q]")
-            g.emit(f"{i2}{g.R['cfx', c]} = cfac[1, {c}, q]")
-            g.emit(f"{i2}{g.R['cff', c]} = cfac[2, {c}, q]")
-            for k in range(g.off[c], g.off[c + 1] - 1):
-                if k in g.kcheck:
-                    g.emit(f"{i2}{g.R['kyv', k]} = knot_y[{k}, q]")
+            put += [((f, c), "cfac", (i, c)) for i, f in enumerate(_FACTORS)]
+            put += [(("kyv", k), "knot_y", (k,)) for k in range(g.off[c], g.off[c + 1] - 1) if k in g.kcheck]
             continue
         a0 = g.off[c]
-        g.emit(f"{i2}{g.R['cy0', c]} = cy[{a0}, q]")
-        g.emit(f"{i2}{g.R['s0', c]} = cs0[{c}, q]")
+        put += [(("cy0", c), "cy", (a0,)), (("s0", c), "cs0", (c,))]
         for k in range(a0, g.off[c + 1] - 1):
-            g.emit(f"{i2}{g.R['cx', k]} = cx[{k}, q]")
+            put.append((("cx", k), "cx", (k,)))
             if k > a0:
-                g.emit(f"{i2}{g.R['ds', k]} = cds[{k}, q]")
+                put.append((("ds", k), "cds", (k,)))
             if k in g.kcheck:
-                g.emit(f"{i2}{g.R['kyv', k]} = knot_y[{k}, q]")
+                put.append((("kyv", k), "knot_y", (k,)))
     for s in range(g.S):
-        g.emit(f"{i2}{g.R['kp', s]} = kpar[{s}, q]")
-        if g.D == 1:
-            g.emit(f"{i2}{g.R['sg', s]} = sign[{s}, q]")
-        else:
-            g.emit(f"{i2}{g.R['l0', s]} = length0[{s}, q]")
-            for d in range(g.D):
-                g.emit(f"{i2}{g.R['ap', s, d]} = x0[{g.sj[s]}, {d}, q] - x0[{g.si[s]}, {d}, q]")
-    for s in g.general:
-        g.emit(f"{i2}{g.R['yt', s]} = yield_t[{s}, q]")
-        g.emit(f"{i2}{g.R['yc', s]} = yield_c[{s}, q]")
-    for s in range(g.S):
-        if g.mat[s] == ELASTOPLASTIC:
-            g.emit(f"{i2}{g.R['kt', s]} = ktan[{s}, q]")
-            g.emit(f"{i2}{g.R['fy', s]} = fyld[{s}, q]")
-    for s in range(g.S):  # rate_elastic: the rates of its curves
-        for k in range(len(g.rc[s])):
-            g.emit(f"{i2}{g.R['rt', s, k]} = rate_at[{g.ro[s] + k}, q]")
-    for s in g.fragile:  # failure elongations (+-inf: never)
-        g.emit(f"{i2}{g.R['ft', s]} = fail_t[{s}, q]")
-        g.emit(f"{i2}{g.R['fc', s]} = fail_c[{s}, q]")
+        put.append((("kp", s), "kpar", (s,)))
+        put.append((("sg", s), "sign", (s,)) if g.D == 1 else (("l0", s), "length0", (s,)))
+    put += [((f, s), a, (s,)) for s in g.general for f, a in _YIELDS]
+    put += [((f, s), a, (s,)) for s in range(g.S) if g.mat[s] == ELASTOPLASTIC for f, a in _PLASTIC]
+    put += [(("rt", s, k), "rate_at", (g.ro[s] + k,)) for s in range(g.S) for k in range(len(g.rc[s]))]
+    put += [((f, s), a, (s,)) for s in g.fragile for f, a in _FAILURE]
     for s in g.pre:  # initial_elongation: e0, the rate at t = 0, IE0 and the material state (arrays.preload)
-        g.emit(f"{i2}{g.R['e0', s]} = elong0[{s}, q]")
-        g.emit(f"{i2}{g.R['r0', s]} = rate0[{s}, q]")
-        g.emit(f"{i2}{g.R['ie', s]} = ie0[{s}, q]")
-        for k in range(spec(g.mat[s]).state_rows):  # the material table's state rows
-            g.emit(f"{i2}{g.R['st', s, k]} = state0[{s}, {k}, q]")
+        put += [(("e0", s), "elong0", (s,)), (("r0", s), "rate0", (s,)), (("ie", s), "ie0", (s,))]
+        put += [(("st", s, k), "state0", (s, k)) for k in range(spec(g.mat[s]).state_rows)]
+    loads(g, i2, put)
+    if g.pm:
+        g.emit(f"{i2}{R['nst']} = float(n_steps[q])")
+    if g.D > 1 and g.S:  # each spring's previous direction: x0[j] - x0[i]
+        t = g.table(
+            [[R.row(("ap", s, d)) * R.stride, g.sj[s], g.si[s], d] for s in range(g.S) for d in range(g.D)]
+        )
+        g.emit(f"{i2}for i in range({g.S * g.D}):")
+        g.emit(f"{i2}    Z[{t}[i, 0] + w] = x0[{t}[i, 1], {t}[i, 3], q] - x0[{t}[i, 2], {t}[i, 3], q]")
     g.emit(f"{i2}ke0 = 0.0")
-    for n in range(g.N):  # every node, as the reference sums
-        for d in range(g.D):
-            g.emit(f"{i2}ke0 += 0.5 * mass[{n}, q] * v0[{n}, {d}, q] * v0[{n}, {d}, q]")
-    g.emit(f"{i2}{g.R['ke0']} = ke0")
+    g.emit(f"{i2}for n in range({g.N}):  # every node, as the reference sums")
+    g.emit(f"{i2}    for d in range({g.D}):")
+    g.emit(f"{i2}        ke0 += 0.5 * mass[n, q] * v0[n, d, q] * v0[n, d, q]")
+    g.emit(f"{i2}{R['ke0']} = ke0")
     if g.pre:  # KE0 + IE0, IE0 summed over the springs in order as the reference
-        g.emit(f"{i2}ie0t = {_lsum([f'ie0[{s}, q]' for s in range(g.S)])}")
-        g.emit(f"{i2}{g.R['ein']} = ke0 + ie0t")
+        g.emit(f"{i2}ie0t = 0.0")
+        g.emit(f"{i2}for s in range({g.S}):")
+        g.emit(f"{i2}    ie0t = ie0t + ie0[s, q]")
+        g.emit(f"{i2}{R['ein']} = ke0 + ie0t")
         g.emit(f"{i2}ke0 = ke0 + abs(ie0t)  # the scale KE0 + |IE0|")
-        g.emit(f"{i2}{g.R['esc']} = ke0")
-    g.emit(f"{i2}{g.R['thr']} = unstable_limit(ke0, 0.0, e_floor[q])")
+        g.emit(f"{i2}{R['esc']} = ke0")
+    g.emit(f"{i2}{R['thr']} = unstable_limit(ke0, 0.0, e_floor[q])")
     g.emit(f"{i2}if invalid[q] > 0:")
     g.emit(f"{i2}    status[q] = INVALID")
     g.emit(f"{i2}    fail_item[q] = invalid[q]")
     g.emit(f"{i2}    fail_time[q] = 0.0")
-    g.emit(f"{i2}    {g.R['lim']} = -1.0")
+    g.emit(f"{i2}    {R['lim']} = -1.0")
     g.emit(f"{i2}else:")
-    g.emit(f"{i2}    {g.R['lim']} = float(n_steps[q])")
+    g.emit(f"{i2}    {R['lim']} = float(n_steps[q])")
     g.emit(f"{i2}    nmax = max(nmax, n_steps[q])")
