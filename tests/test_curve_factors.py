@@ -9,6 +9,8 @@ generated source for what stays in registers.
 
 from __future__ import annotations
 
+import ast
+import re
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +54,16 @@ def test_the_generated_kernel_keeps_a_scaled_curves_shape_and_reads_three_factor
     shape = _shape(batch, (), plan.varying_curves)
     assert shape["const"] == [] and shape["fac"] == [0]
     src = source(shape)
-    assert "cfac[0, 0, q]" in src and "cfac[2, 0, q]" in src
+    # the block set-up copies the factors through a constant table: (work row, factor, curve) per line
+    table = re.search(r"= cfac\[_T(\d+)\[i, 1\], _T\1\[i, 2\], q\]", src)
+    assert table is not None, "the kernel reads no per-variant curve factor"
+    rows = re.search(rf"^_T{table[1]} = np\.array\((.*), dtype=np\.int64\)$", src, re.M)
+    assert rows is not None
+    assert [tuple(r[1:]) for r in ast.literal_eval(rows[1])] == [
+        (0, 0),
+        (1, 0),
+        (2, 0),
+    ]  # ys, xs, ys/xs of curve 0
     assert not any(f"{a}[" in src for a in ("cx", "cy", "cds", "cs0")), (
         "a per-variant curve coefficient is read"
     )
