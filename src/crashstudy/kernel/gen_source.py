@@ -184,15 +184,13 @@ def source(shape: dict[str, Any]) -> str:
         g.emit(f"{i3}rec = n == next_min")
         g.emit(f"{i3}if rec:")
         g.emit(f"{i3}    for w in range(B):")
-        keep = [(h, k) for n in g.live for d in range(g.D) for h, k in _KEPT]
-        t = g.table(
-            [
-                [g.R.row((h, n, d)) * ROW, g.R.row((k, n, d)) * ROW]
-                for n in g.live
-                for d in range(g.D)
-                for h, k in _KEPT
-            ]
-        )
+        keep = [
+            [g.R.row((h, n, d)) * ROW, g.R.row((k, n, d)) * ROW]
+            for n in g.live
+            for d in range(g.D)
+            for h, k in _KEPT
+        ]
+        t = g.table(keep)
         g.emit(f"{i3}        for i in range({len(keep)}):")
         g.emit(f"{i3}            Z[{t}[i, 0] + w] = Z[{t}[i, 1] + w]")
     pass_b(g, i3)
@@ -241,7 +239,7 @@ def source(shape: dict[str, Any]) -> str:
         ]
     )
     body = "\n".join(g.L)
-    head += _unpack(g, body)
+    head += _unpack(g, _words(body))
     tables = [f"_T{i} = np.array({rows!r}, dtype=np.int64)" for i, rows in enumerate(g.tables)]
     return "\n".join([*head, body, *fns, *tables, ""]) + "\n"
 
@@ -255,12 +253,14 @@ _KEPT: tuple[tuple[Two, Two], ...] = (("xh", "x"), ("vh", "v"))
 STEP = {"fn": "float(n)", "h": "1.0 if n > 0 else 0.5", "wt": "1.0 if n > 0 else 0.0", "n1": "n == 1"}
 
 
-def _unpack(g: Layout, body: str, records: bool = True) -> list[str]:
-    """The lines that name what ``body`` reads of the records (``records``) and of ``cst``, each once, as a
-    local."""
-    used = _words(body)
-    unpack = [(name, f"{rec}.{field}") for name, rec, field in RECORD_NAMES] if records else []
-    unpack += [("rate_at", "P.rate_at"), ("h_steps", "H.steps"), ("h_rk", "P.rec_block")] if records else []
+# the records' arrays a kernel part may read: RECORD_NAMES and those only some shapes have
+_ARRAYS = (*RECORD_NAMES, ("rate_at", "P", "rate_at"), ("h_steps", "H", "steps"), ("h_rk", "P", "rec_block"))
+
+
+def _unpack(g: Layout, used: set[str], records: bool = True) -> list[str]:
+    """The lines that name what a body using the names ``used`` reads of the records (``records``) and of
+    ``cst``, each once, as a local."""
+    unpack = [(name, f"{rec}.{field}") for name, rec, field in _ARRAYS] if records else []
     unpack += [(g.cname[nm], f"cst[{i}]") for i, nm in enumerate(g.cname)]
     return [f"    {name} = {value}" for name, value in unpack if name in used]
 
@@ -270,11 +270,9 @@ def _words(body: str) -> set[str]:
     return set(re.findall(r"\b\w+\b", re.sub(r"#.*", "", body)))
 
 
-def _arrays(body: str) -> list[str]:
-    """The records' arrays ``body`` reads (their local names, in RECORD_NAMES order)."""
-    used = _words(body)
-    names = [name for name, _, _ in RECORD_NAMES] + ["rate_at", "h_steps", "h_rk"]
-    return [name for name in names if name in used]
+def _arrays(used: set[str]) -> list[str]:
+    """The records' arrays a body using the names ``used`` reads (their local names, in _ARRAYS order)."""
+    return [name for name, _, _ in _ARRAYS if name in used]
 
 
 def _function(g: Layout, out: list[str], name: str, params: str, emitter: Any, returns: str) -> str:
@@ -290,14 +288,14 @@ def _function(g: Layout, out: list[str], name: str, params: str, emitter: Any, r
     del g.L[n0:]
     used = _words(body)
     consts = any(c in used for c in g.cname.values())
-    args = ", ".join(["Z", "B", params, "vi", *(["cst"] if consts else []), *_arrays(body)])
+    args = ", ".join(["Z", "B", params, "vi", *(["cst"] if consts else []), *_arrays(used)])
     out += [
         "",
         "",
         '@nb.njit(nogil=True, error_model="numpy", cache=True)',
         f"def {name}({args}):",
         f'    """{name.strip("_").replace("_", " ").capitalize()}: crashstudy.kernel.gen_source."""',
-        *_unpack(g, body, records=False),
+        *_unpack(g, used, records=False),
         *([f"    {k} = {v}" for k, v in STEP.items() if k in used] if "n" in params.split(", ") else []),
         body,
         f"    return {returns}",
