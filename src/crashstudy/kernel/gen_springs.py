@@ -148,10 +148,12 @@ def pass_a(g: Layout, ind: str) -> None:
         g.emit(f"{ind}    for w in range(B):")
         g.emit(f"{ind}        if {g.R['rev', s]} == 1.0 or {g.R['rev', s]} == 3.0:")
         rows = ", ".join(g.R["st", s, k] for k in range(8))
+        # the curve numbers as int64, not literals: numba compiles a law called with a literal int once per
+        # value, so every new curve number in a model cost a compile of the reversal laws (~4 CPU s)
         g.emit(
             f"{ind}            {g.R['F', s]}, {rows} = general_reverse_call({g.R['E', s]}, "
             + ", ".join(g.R["st", s, k] for k in (0, 1, 2, 3, 4, 6, 7))
-            + f", {g.R['yt', s]}, {g.R['yc', s]}, {g.ca[s]}, {g.cb[s]}, vi[w], cx, cy, cds, cs0, cs1, off)"
+            + f", {g.R['yt', s]}, {g.R['yc', s]}, np.int64({g.ca[s]}), np.int64({g.cb[s]}), vi[w], cx, cy, cds, cs0, cs1, off)"
         )
 
 
