@@ -104,7 +104,7 @@ def test_hic_window_limited_optimum_is_exact_between_samples() -> None:
 
         t1 = np.arange(0.0, t[-1] - 0.015 + 1e-12, dt / 400)
         scan = (integral(t1 + 0.015) - integral(t1)).max() ** 2.5 / 0.015**1.5
-        got = R.hic_row(x, n, dt, 0.015, np.empty(n + 1), np.empty(n + 1))
+        got = R.hic_row(x, n, dt, 0.015, np.empty(n + 1), np.empty(n + 1), True)
         plain = R.hic_row(x, n, dt, 0.015, np.empty(n + 1), np.empty(n + 1), False)
         assert got[2] - got[1] == pytest.approx(0.015, abs=1e-12)  # the limit is active
         assert scan - 1e-9 * scan <= got[0] <= scan * (1 + 1e-6) and got[0] >= plain[0]  # scan from below
@@ -118,7 +118,7 @@ def test_hic_of_half_sine_matches_closed_form_with_t1_t2(tau: float) -> None:
         t = np.arange(int(round(0.1 / dt)) + 1) * dt
         x = half_sine(t, peak, tau)
         for window in C.HIC_WINDOWS.values():
-            hic, t1, t2 = R.hic_row(x, x.size, dt, window, np.empty(x.size + 1), np.empty(x.size + 1))
+            hic, t1, t2 = R.hic_row(x, x.size, dt, window, np.empty(x.size + 1), np.empty(x.size + 1), True)
             want = hic_half_sine(peak, tau, window)
             assert hic == pytest.approx(want[0], rel=3e-5 * (dt / 1e-5) ** 2)  # O(dt^2): 3e-5 at 10 us
             assert t1 == pytest.approx(want[1], abs=dt) and t2 == pytest.approx(want[2], abs=dt)

@@ -244,9 +244,9 @@ def _driver(
         if want[0]:
             out[v, 0] = peak_row(res, n)
         if want[1]:
-            out[v, 1], out[v, 2], out[v, 3] = hic_row(res, n, h, 0.015, cum, blk)
+            out[v, 1], out[v, 2], out[v, 3] = hic_row(res, n, h, 0.015, cum, blk, True)
         if want[2]:
-            out[v, 4], out[v, 5], out[v, 6] = hic_row(res, n, h, 0.036, cum, blk)
+            out[v, 4], out[v, 5], out[v, 6] = hic_row(res, n, h, 0.036, cum, blk, True)
         if want[3] or want[4]:
             lev, _ = clip_row(res, n, h, CLIP_WINDOW, mn, hmin)
             if np.isnan(lev):

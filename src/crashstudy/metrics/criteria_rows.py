@@ -69,13 +69,14 @@ def _sift_down(key, heap, i, size):  # pragma: no cover - compiled
 
 
 @_jit
-def hic_row(x, n, dt, window, cum, blk, refine=True):  # pragma: no cover - compiled
+def hic_row(x, n, dt, window, cum, blk, refine):  # pragma: no cover - compiled
     """HIC of ``x[:n] >= 0`` [g] sampled every ``dt`` [s] over ``0 < t2 - t1 <= window`` [s].
 
     Returns ``(hic, t1, t2)`` [-, s, s]. The candidates are every pair of samples ``t1 < t2``
     no more than ``window`` apart, plus the intervals of exactly ``window`` that start or end on a
     sample (the other end interpolated), so that an active window limit is met exactly, and (with
-    ``refine``) the intervals of exactly ``window`` whose start lies between samples where the
+    ``refine``, the product passes True; no default: a call that omits it is another numba signature,
+    compiled again for ~3 CPU s) the intervals of exactly ``window`` whose start lies between samples where the
     integral over the window is stationary (``x(t1) = x(t1 + window)``, solved on each piece of the
     piecewise-linear curve): the window-limited HIC is then exact for that curve. The search
     is exact (tests hold it equal to a brute force): the sample pairs are grouped into blocks
