@@ -194,6 +194,28 @@ class TestInProcessZarr(BackendSuite):
     partial, final = "results.zarr.partial", "results.zarr"
 
 
+WRITING_SIDE = ("distributed", "matplotlib", "netCDF4", "pandas", "pyarrow", "scipy", "xarray", "zarr")
+
+
+def test_pool_worker_task_imports_neither_writer_nor_reader(study_file: Path, tmp_path: Path) -> None:
+    """What a ``--jobs`` worker unpickles for a task (``run_chunk`` and the plan, as ``ProcessPool``
+    sends them) imports none of the writer's or reader's libraries: a fresh interpreter loads the task
+    and lists the top-level packages in its ``sys.modules`` (each worker paid ~1 s CPU for them)."""
+    import subprocess
+
+    task = tmp_path / "task.pkl"
+    task.write_bytes(pickle.dumps((run_chunk, (load_study(study_file), 0, 2, "compiled"))))
+    code = (
+        "import pickle, sys; fn, args = pickle.loads(open(sys.argv[1], 'rb').read()); "
+        "print(fn.__module__, sorted({m.partition('.')[0] for m in sys.modules}))"
+    )
+    proc = subprocess.run([sys.executable, "-c", code, str(task)], capture_output=True, text=True, check=True)
+    module, loaded = proc.stdout.split(" ", 1)
+    assert module == "crashstudy.run.runner"
+    assert "numpy" in loaded and "crashstudy" in loaded  # the listing is of the task's own imports
+    assert [name for name in WRITING_SIDE if repr(name) in loaded] == []
+
+
 # --- Dask only ------------------------------------------------------------------------------------
 
 
