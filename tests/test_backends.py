@@ -194,13 +194,25 @@ class TestInProcessZarr(BackendSuite):
     partial, final = "results.zarr.partial", "results.zarr"
 
 
-WRITING_SIDE = ("distributed", "matplotlib", "netCDF4", "pandas", "pyarrow", "scipy", "xarray", "zarr")
+#: libraries a task does not use: the writer's and reader's, and the input validation's (pydantic)
+NOT_FOR_A_TASK = (
+    "distributed",
+    "matplotlib",
+    "netCDF4",
+    "pandas",
+    "pyarrow",
+    "pydantic",
+    "scipy",
+    "xarray",
+    "zarr",
+)
 
 
 def test_pool_worker_task_imports_neither_writer_nor_reader(study_file: Path, tmp_path: Path) -> None:
     """What a ``--jobs`` worker unpickles for a task (``run_chunk`` and the plan, as ``ProcessPool``
-    sends them) imports none of the writer's or reader's libraries: a fresh interpreter loads the task
-    and lists the top-level packages in its ``sys.modules`` (each worker paid ~1 s CPU for them)."""
+    sends them) imports none of the writer's, reader's or validation's libraries: a fresh interpreter
+    loads the task and lists the top-level packages in its ``sys.modules`` (each worker paid ~1 s CPU
+    for them)."""
     import subprocess
 
     task = tmp_path / "task.pkl"
@@ -213,7 +225,7 @@ def test_pool_worker_task_imports_neither_writer_nor_reader(study_file: Path, tm
     module, loaded = proc.stdout.split(" ", 1)
     assert module == "crashstudy.run.runner"
     assert "numpy" in loaded and "crashstudy" in loaded  # the listing is of the task's own imports
-    assert [name for name in WRITING_SIDE if repr(name) in loaded] == []
+    assert [name for name in NOT_FOR_A_TASK if repr(name) in loaded] == []
 
 
 # --- Dask only ------------------------------------------------------------------------------------
