@@ -34,22 +34,9 @@ from crashstudy.study.plan import Plan, load_study, plan_from_model
 from crashstudy.study.provenance import variant_hashes
 from crashstudy.vocabulary.codes import KernelName
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the writer (netCDF4) and reader (pandas, xarray) are imported by the functions that
+    # write: a --jobs worker unpickles run_chunk from this module and needs neither
     from crashstudy.results.store import Results, ResultWriter
-
-# The writer (netCDF4), the reader (pandas, xarray) and the output-folder policy are imported by the
-# functions that write: a ``--jobs`` worker unpickles :func:`run_chunk` from this module and needs none
-# of them (docs/robustness.md, "processes started by tests").
-
-
-def __getattr__(name: str) -> Any:
-    """``Results`` (the reader's class, returned by :func:`run_study`), imported when first asked for."""
-    if name == "Results":
-        from crashstudy.results.store import Results
-
-        return Results
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
 MAX_CHUNK = 65536  # variants per chunk at most
