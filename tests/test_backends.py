@@ -183,8 +183,43 @@ class TestInProcess(BackendSuite):
     options: dict[str, Any] = {}
 
 
+class SharedPool:
+    """The module's ``ProcessPool`` handed to one run: its ``close`` leaves the pool running for the next."""
+
+    def __init__(self, pool: crashstudy.run.backends.ProcessPool) -> None:
+        self.pool = pool
+
+    def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
+        return self.pool.imap_unordered(fn, tasks)
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.fixture(scope="module")
+def process_pool() -> Iterator[crashstudy.run.backends.ProcessPool]:
+    """One ``--jobs 2`` pool (2 spawned worker processes) for the suite's runs: what they test is the
+    numbers the workers compute, not the pool's start (each start: 2 processes importing numpy, numba,
+    crashstudy and loading the kernel, ~3 s CPU each; 4 runs started 8 of them)."""
+    pool = crashstudy.run.backends.ProcessPool(2)
+    yield pool
+    pool.close()
+
+
 class TestProcessPool(BackendSuite):
+    """``--jobs 2``: every run of the suite on the module's pool of 2 worker processes."""
+
     options = {"jobs": 2}
+
+    @pytest.fixture(autouse=True)
+    def _shared_pool(
+        self, process_pool: crashstudy.run.backends.ProcessPool, monkeypatch: pytest.MonkeyPatch
+    ) -> None:
+        def make_backend(jobs: int = 1, scheduler: str | None = None) -> SharedPool:
+            assert (jobs, scheduler) == (2, None)
+            return SharedPool(process_pool)
+
+        monkeypatch.setattr(crashstudy.run.backends, "make_backend", make_backend)
 
 
 class TestInProcessZarr(BackendSuite):
@@ -192,6 +227,40 @@ class TestInProcessZarr(BackendSuite):
 
     options = {"store": "zarr"}
     partial, final = "results.zarr.partial", "results.zarr"
+
+
+#: libraries a task does not use: the writer's and reader's, and the input validation's (pydantic)
+NOT_FOR_A_TASK = (
+    "distributed",
+    "matplotlib",
+    "netCDF4",
+    "pandas",
+    "pyarrow",
+    "pydantic",
+    "scipy",
+    "xarray",
+    "zarr",
+)
+
+
+def test_pool_worker_task_imports_neither_writer_nor_reader(study_file: Path, tmp_path: Path) -> None:
+    """What a ``--jobs`` worker unpickles for a task (``run_chunk`` and the plan, as ``ProcessPool``
+    sends them) imports none of the writer's, reader's or validation's libraries: a fresh interpreter
+    loads the task and lists the top-level packages in its ``sys.modules`` (each worker paid ~1 s CPU
+    for them)."""
+    import subprocess
+
+    task = tmp_path / "task.pkl"
+    task.write_bytes(pickle.dumps((run_chunk, (load_study(study_file), 0, 2, "compiled"))))
+    code = (
+        "import pickle, sys; fn, args = pickle.loads(open(sys.argv[1], 'rb').read()); "
+        "print(fn.__module__, sorted({m.partition('.')[0] for m in sys.modules}))"
+    )
+    proc = subprocess.run([sys.executable, "-c", code, str(task)], capture_output=True, text=True, check=True)
+    module, loaded = proc.stdout.split(" ", 1)
+    assert module == "crashstudy.run.runner"
+    assert "numpy" in loaded and "crashstudy" in loaded  # the listing is of the task's own imports
+    assert [name for name in NOT_FOR_A_TASK if repr(name) in loaded] == []
 
 
 # --- Dask only ------------------------------------------------------------------------------------

@@ -361,7 +361,9 @@ def worker_killed(fault_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> 
     rc, _, err = run.finish()
     files = sorted(p.name for p in out.iterdir())
     kept = done_in_partial(out) if "results.nc.partial" in files else -1
-    resume = cli("run", fault_dir / "study.yaml", "-o", out, "--resume", "--jobs", "2", "--progress", "off")
+    # resumed in this process: its subject is the partial file the killed worker's run left (a --jobs 2
+    # resume is TestProcessPool's in test_backends); a pool here started 2 more worker processes
+    resume = cli("run", fault_dir / "study.yaml", "-o", out, "--resume", "--progress", "off")
     return Outcome(rc, err, files, kept, resume, out)
 
 

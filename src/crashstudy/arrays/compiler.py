@@ -11,12 +11,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crashstudy.schema.model import Model
 from crashstudy.vocabulary.codes import HISTORY_ORDER, PM_CODES
 from crashstudy.vocabulary.materials import BY_NAME
+
+if TYPE_CHECKING:  # a Topology (unpickled by a --jobs worker) needs no pydantic
+    from crashstudy.schema.model import Model
 
 TIME_STEP_MODES = ("safety_factor", "dt", "tolerance")
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -26,10 +25,11 @@ import numpy as np
 
 from crashstudy import __version__
 from crashstudy.errors import InputError, Problem
-from crashstudy.kernel.output import ALL_SHAPES, KernelOutput
+from crashstudy.kernel.output import ALL_SHAPES
 from crashstudy.metrics.record import METRIC_META, asked_nodes, result_names, standard
 from crashstudy.results import integrity
 from crashstudy.results.attributes import axis_unit, model_facts, plan_fingerprint, units_of
+from crashstudy.results.chunk_result import ChunkResult  # re-exported: a task's result
 from crashstudy.results.curve_ends import curve_springs
 from crashstudy.results.integrity import FINAL, PARTIAL
 from crashstudy.results.placement import partial_opens, remove_store, swap_store
@@ -76,31 +76,6 @@ ID_LEN = 64  # longest id (the schema allows 64 characters)
 AXIS_BLOCK = 1_000_000  # variants whose axis coordinates are written at once
 CHUNK_BYTES = 2**21  # most bytes of a per-variant HDF5 chunk (the run's chunk halved to fit, else 4096)
 REUSE_BLOCK = 65536  # variants copied at once from an earlier result
-
-
-@dataclass
-class ChunkResult:
-    """Results of variants ``index`` (sorted global numbers) as computed by one task."""
-
-    index: np.ndarray
-    out: KernelOutput
-    dt: np.ndarray
-    dt_crit: np.ndarray
-    dt_control: np.ndarray  # (V,) object: texts
-    reasons: np.ndarray  # (V,) object: texts, "" where ok
-    hashes: np.ndarray  # (V, HASH_WORDS) uint64
-    error_estimate: np.ndarray  # (V,) NaN unless the model asks for accuracy_check
-    criteria: Any = None  # crashstudy.metrics.record.ChunkCriteria of a model with metrics, else None
-    curve_end: np.ndarray | None = None  # (S, V) past_curve_end codes (crashstudy.results.curve_ends)
-
-    @property
-    def size(self) -> int:
-        """Variants computed."""
-        return len(self.index)
-
-    @property
-    def n_failed(self) -> int:
-        return int(np.count_nonzero(self.out.status))
 
 
 class ResultWriter:

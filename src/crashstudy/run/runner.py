@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,20 +24,19 @@ from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch, variant
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
-from crashstudy.results import integrity
+from crashstudy.results.chunk_result import ChunkResult
 from crashstudy.results.curve_ends import past_curve_ends
-from crashstudy.results.outdir import prepare_output, remove_derived, remove_stale_plots, study_of
-from crashstudy.results.regions import region_tasks
-from crashstudy.results.store import FINAL, ChunkResult, Results, ResultWriter
-from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
 from crashstudy.run.progress import Progress
-from crashstudy.run.reuse import _ranges, _reuse_finished
 from crashstudy.run.start import start_kernels
 from crashstudy.run.write_behind import WriteBehind
 from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study.plan import Plan, load_study, plan_from_model
 from crashstudy.study.provenance import variant_hashes
 from crashstudy.vocabulary.codes import KernelName
+
+if TYPE_CHECKING:  # the writer (netCDF4) and reader (pandas, xarray) are imported by the functions that
+    # write: a --jobs worker unpickles run_chunk from this module and needs neither
+    from crashstudy.results.store import Results, ResultWriter
 
 HISTORY_BUDGET = 256 * 2**20  # bytes of history arrays per chunk
 MAX_CHUNK = 65536  # variants per chunk at most
@@ -92,9 +91,6 @@ def error_estimate(
 kernel_override = choice.kernel_override
 __all__ = [
     "output_folder",
-    "prepare_output",
-    "remove_derived",
-    "remove_stale_plots",
     "run_plan",
     "run_study",
     "simulate",
@@ -294,7 +290,13 @@ def _run_locked(
     store: str | None = None,
 ) -> RunReport:
     """:func:`run_plan` once the output folder is locked."""
+    from crashstudy.results import integrity
+    from crashstudy.results.outdir import prepare_output, study_of
+    from crashstudy.results.regions import region_tasks
+    from crashstudy.results.store import FINAL, Results, ResultWriter
+    from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
     from crashstudy.run.backends import make_backend
+    from crashstudy.run.reuse import _ranges, _reuse_finished
 
     prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
     if store is None:  # the folder's kind of store is kept (--resume continues it); a new folder: netCDF

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
-
-from pydantic import ValidationError
+from typing import TYPE_CHECKING, Any
 
 from crashstudy.errors import InputError, Problem
-from crashstudy.schema.checks import model_problems, raw_reference_problems
-from crashstudy.schema.model import Model
-from crashstudy.schema.report import located, pydantic_problems
 from crashstudy.schema.yamlio import LoadedYaml, load_yaml
+
+if TYPE_CHECKING:
+    from pydantic import ValidationError
+
+    from crashstudy.schema.model import Model
 
 __all__ = [
     "LoadedModel",
@@ -22,6 +22,17 @@ __all__ = [
     "refuse_foreign",
     "validate_model_data",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``Model``, imported when first asked for: pydantic and the model classes (~0.5 s) are not
+    imported by a module that only needs this package's light parts (a ``--jobs`` worker
+    unpickling a plan: ``arrays.parameter_checks`` -> ``schema.signs``)."""
+    if name == "Model":
+        from crashstudy.schema.model import Model
+
+        return Model
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
@@ -36,6 +47,11 @@ def validate_model_data(
     data: Any,
 ) -> tuple[Model | None, list[tuple[tuple[Any, ...], str]] | ValidationError]:
     """Validate plain data; returns ``(model, [])``, ``(model, relational problems)`` or ``(None, error)``."""
+    from pydantic import ValidationError
+
+    from crashstudy.schema.checks import model_problems
+    from crashstudy.schema.model import Model
+
     try:
         m = Model.model_validate(data)
     except ValidationError as exc:
@@ -48,6 +64,7 @@ def refuse_foreign(doc: LoadedYaml) -> None:
 
     Such a file is not ours (a configuration file, ``key: value`` lines of another program): listing
     each of its keys as "unknown" would echo the file, so nothing of it is quoted."""
+    from crashstudy.schema.model import Model
     from crashstudy.schema.study import Study
 
     ours = {name for cls in (Model, Study) for name in cls.model_fields}
@@ -72,6 +89,7 @@ def file_kind(data: Any) -> str | None:
 
     A study without its ``model:`` key is still a study (it has ``matrix``, ``zip``, ``set`` ...), so
     its error is the missing ``model:``, not every study key reported as unknown to a model."""
+    from crashstudy.schema.model import Model
     from crashstudy.schema.study import Study
 
     if not isinstance(data, dict):
@@ -88,6 +106,12 @@ def file_kind(data: Any) -> str | None:
 
 def parse_model(doc: LoadedYaml) -> LoadedModel:
     """Validate a loaded document as a model file; raise :class:`InputError` with every problem."""
+    from pydantic import ValidationError
+
+    from crashstudy.schema.checks import raw_reference_problems
+    from crashstudy.schema.model import Model
+    from crashstudy.schema.report import located, pydantic_problems
+
     refuse_foreign(doc)
     m, found = validate_model_data(doc.data)
     if isinstance(found, ValidationError):

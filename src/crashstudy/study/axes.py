@@ -4,15 +4,17 @@ value checked (vectorised) to make a valid model with the rest of the model as w
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from crashstudy.arrays.compiler import PathRef, Topology
 from crashstudy.errors import Problem
-from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import LoadedYaml
 from crashstudy.study.values import check_values, study_problem, unknown_path
+
+if TYPE_CHECKING:
+    from crashstudy.schema.study import Study
 
 
 @dataclass(frozen=True)

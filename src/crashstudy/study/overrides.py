@@ -8,7 +8,6 @@ import difflib
 from typing import Any
 
 from crashstudy.errors import InputError, Problem
-from crashstudy.schema.model import Model
 from crashstudy.schema.yamlio import LoadedYaml
 from crashstudy.study.values import MAX_REPORTED, dict_path, set_in, study_problem
 
@@ -16,6 +15,8 @@ from crashstudy.study.values import MAX_REPORTED, dict_path, set_in, study_probl
 def _unknown_set_keys(overrides: dict[str, Any], sdoc: LoadedYaml) -> list[Problem]:
     """Keys of ``set`` whose first part is no model field: the first :data:`MAX_REPORTED`, then how many
     more (checked before the model is copied and validated: 499,000 such keys took 21 s to refuse)."""
+    from crashstudy.schema.model import Model
+
     unknown = [k for k in overrides if k.split(".", 1)[0] not in Model.model_fields]
     fields = list(Model.model_fields)
     problems = []

@@ -14,24 +14,23 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from pydantic import ValidationError
 
 from crashstudy.arrays.compiler import Topology, apply_axis, compile_model
 from crashstudy.arrays.parameter_checks import check_parameters
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel.output import HISTORY_SHAPES
 from crashstudy.schema import LoadedModel, file_kind, parse_model, refuse_foreign, validate_model_data
-from crashstudy.schema.model import Model
-from crashstudy.schema.report import located, pydantic_problems
-from crashstudy.schema.study import Study
 from crashstudy.schema.yamlio import LoadedYaml, load_yaml, loads_yaml, not_regular
 from crashstudy.study.axes import Axis, _axes
 from crashstudy.study.overrides import _apply_set, _set_problem
 from crashstudy.study.values import study_problem
 from crashstudy.study.work import WORK_ENV, WORK_RATE, estimate_work, format_duration, max_work
+
+if TYPE_CHECKING:  # pydantic is imported by the functions that validate: a Plan unpickled by a --jobs
+    from crashstudy.schema.model import Model  # worker needs none of it
 
 DEFAULT_SAMPLES = 1000
 MAX_VARIANTS = 100_000_000  # one results.nc; its axis coordinates alone take 0.8 GB each
@@ -269,6 +268,8 @@ def load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
 
 
 def _not_a_study(sdoc: LoadedYaml) -> Problem:
+    from crashstudy.schema.model import Model
+
     keys = ", ".join(k for k in sdoc.data if k in Model.model_fields)
     name = sdoc.file if sdoc.file != DICT_STUDY else "MODEL.yaml"
     return Problem(
@@ -282,6 +283,12 @@ def _not_a_study(sdoc: LoadedYaml) -> Problem:
 
 
 def _load_study(source: str | os.PathLike[str] | dict[str, Any]) -> Plan:
+    from pydantic import ValidationError
+
+    from crashstudy.schema.model import Model
+    from crashstudy.schema.report import located, pydantic_problems
+    from crashstudy.schema.study import Study
+
     if isinstance(source, dict):
         import yaml
 

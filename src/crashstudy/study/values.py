@@ -11,7 +11,6 @@ import difflib
 from typing import Any
 
 import numpy as np
-from pydantic import ValidationError
 
 from crashstudy.arrays.compiler import PathRef, Topology, apply_axis
 from crashstudy.arrays.parameter_checks import ParameterCheck, check_parameters
@@ -80,6 +79,8 @@ def parameter_check(
 
 def model_message(data: dict[str, Any], path: str, val: float) -> str:
     """The model validation's first message for ``val`` at ``path`` ("" if the model stays valid)."""
+    from pydantic import ValidationError
+
     trial = copy.deepcopy(data)
     if set_in(trial, dict_path(trial, path), val):
         return ""
