@@ -326,7 +326,7 @@ CHAIN_SIZES = [2, 3, 10, 100, 1000]
 
 def _chain_cases() -> list[Any]:
     """(n, unequal, fixed) for every size and both mass / end choices, except two of the 1000-mass chains
-    (each costs 24 M spring-steps): at n = 1000 the end condition changes nothing the test can see (omega_max
+    (each cost 24 M spring-steps at 8000 steps, now 6 M): at n = 1000 the end condition changes nothing the test can see (omega_max
     dt 1.98000 fixed and free for equal chains, 1.431 and 1.426 unequal; the ends themselves are covered at
     n = 2 .. 100 in all four combinations), so 1000 keeps the equal free chain (the tightest omega_max dt)
     and the unequal chain with a fixed end."""
@@ -346,15 +346,18 @@ def _chain_cases() -> list[Any]:
 
 @pytest.mark.parametrize(("n", "unequal", "fixed"), _chain_cases())
 def test_chain_at_safety_factor_one_is_stable_and_bounded(n: int, unequal: bool, fixed: bool) -> None:
-    """Chains of 2 to 1000 masses at ``safety_factor: 1.0``, run for N and 2N steps (N = max(2000, 8n)):
-    status ok, energy_error < 1e-9 (round-off only), peak force over 2N steps <= 1.5x over N steps.
+    """Chains of 2 to 1000 masses at ``safety_factor: 1.0``, run for N = 2000 and 2N steps: status ok,
+    energy_error < 1e-9 (round-off only), peak force over 2N steps <= 1.5x over N steps.
     The step is a real stress: omega_max dt in [1.0, 2), omega_max from a dense eigensolver.
+    (N was max(2000, 8n), 8000 at n = 1000, 4x the kernel work. Planted: the 1000-mass equal chain's step
+    multiplied by 1.010111 (omega_max dt 2.000017) fails status and energy_error at N = 2000 as at 8000;
+    by 1.0101011 (1.9999977, still stable) both pass: the run length does not move the threshold.)
 
     Measured: omega_max dt 1.98 (2 free equal masses, where the nodal bound is exact; long equal chains
     approach it: 1.97976 at n = 100, 1.98000 at 1000) down to 1.40 (unequal chains); energy_error <= 6e-11;
     peak ratio 1.000 .. 1.10.
     """
-    N = max(2000, 8 * n)
+    N = 2000
     model = at_step(chain(n, unequal, fixed), N)
     T = model["end_time"]
     out, batch, _ = run_model(model, variants={"end_time": [T, 2 * T]})
