@@ -106,9 +106,13 @@ def run_model(
     return out, batch, plan
 
 
-@functools.cache
-def _generated_parts_run(dt: float, end_time: float, interval: float) -> tuple[KernelOutput, Plan]:
-    from models import generated_parts
+def generated_parts_model(
+    dt: float, end_time: float, interval: float
+) -> tuple[dict[str, Any], dict[str, list[float]]]:
+    """(model, {axis path: values}) of the one side-by-side model of :func:`models.generated_parts` as
+    :func:`generated_part` runs it (its generated kernel is compiled at start-up, tests/conftest.py): a
+    study of this model with these axes (any values, any step) runs that same compiled kernel."""
+    from models import SCALES, generated_parts
     from twins import disjoint
 
     model = disjoint(generated_parts())
@@ -117,9 +121,13 @@ def _generated_parts_run(dt: float, end_time: float, interval: float) -> tuple[K
     model.update(
         end_time=end_time, time_step={"dt": dt}, output={"interval": interval, "histories": histories}
     )
-    from models import SCALES
-
     scales = {path.replace("curves.c.", "curves.scaled-c."): values for path, values in SCALES.items()}
+    return model, scales
+
+
+@functools.cache
+def _generated_parts_run(dt: float, end_time: float, interval: float) -> tuple[KernelOutput, Plan]:
+    model, scales = generated_parts_model(dt, end_time, interval)
     out, _, plan = run_model(model, "generated", variants=scales)
     return out, plan
 

@@ -206,3 +206,34 @@ def generated_parts() -> dict[str, dict[str, Any]]:
         "break": breaking_spring(),
         "scaled": scaled_spring(1.0e-4),  # its curve scaled per variant by SCALES (helpers.generated_part)
     }
+
+
+# ------------------------------------------------------------------------------------------------
+# One generated-kernel shape for two tests that need the generated kernel on a whole model of their own
+# (its energies and its status are per model, not per part): tests/test_properties.py's node that
+# reaches a wall in the first step, and tests/test_stress.py's instability forced by hand. The wall's
+# place, the speed, the stiffness, the step and the end time are numbers of the model, not of its shape:
+# one compile (~10 CPU s) serves both files.
+# ------------------------------------------------------------------------------------------------
+
+
+def wall_spring(
+    wall: str = "1.0", speed: float = -10.0, stiffness: float = 1.0e4, end_time: float = 0.01
+) -> str:
+    """YAML text: node ``a`` fixed at 0, node ``b`` (1 kg) at 1 m on a linear spring (``stiffness``
+    [N/m]) moving at ``speed`` [m/s], a rigid wall (normal +x) at ``wall`` [m] that stops ``b``; every
+    history, sampled every 1e-5 s, safety factor 0.9."""
+    return f"""\
+name: wall-start
+nodes:
+  a: {{position: [0.0], fixed: true}}
+  b: {{position: [1.0], mass: 1.0}}
+springs:
+  s: {{nodes: [a, b], material: {{type: linear_elastic, stiffness: {stiffness!r}}}}}
+initial_velocity: {{b: [{speed!r}]}}
+rigid_walls:
+  - {{id: floor, point: [{wall}], normal: [1.0], nodes: [b]}}
+end_time: {end_time!r}
+time_step: {{safety_factor: 0.9}}
+output: {{interval: 1.0e-5, histories: all}}
+"""

@@ -16,8 +16,8 @@ import yaml
 from crashstudy.kernel import generated
 from crashstudy.run.runner import run_chunk
 from crashstudy.study.plan import load_study
-from helpers import assert_bitwise, model_batch, run_model
-from twins import CASES, HELICOPTER, crush_bounce
+from helpers import assert_bitwise, generated_parts_model, model_batch, run_model
+from twins import HELICOPTER, crush_bounce
 
 
 def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(
@@ -25,18 +25,17 @@ def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(
 ) -> None:
     """``run_chunk`` with the default kernel takes the fastest kernel that is compiled: the generated one
     when this shape's is, else the generic one, else (while this run's own background compile runs) the NumPy
-    reference; the numbers are bitwise the same every time. (A one-spring model with a scaled curve: the
-    choice does not depend on the model's size, and its generated kernel is among the quickest to compile.)"""
+    reference; the numbers are bitwise the same every time. (The side-by-side model of the physics tests,
+    300 steps, its curve scaled in y and x: the choice does not depend on the model's size once the reference
+    is expected to take longer than loading a kernel, and its generated kernel is compiled at start-up,
+    helpers.generated_parts_model, so this test compiles nothing.)"""
     from crashstudy.kernel import choice
 
-    (tmp_path / "m.yaml").write_text(yaml.safe_dump(crush_bounce(), sort_keys=False))
-    study = {
-        "name": "pick",
-        "model": str(tmp_path / "m.yaml"),
-        "matrix": {"curves.plateau.scale": [0.8, 1.2], "impact_velocity": [8.0, 10.0, 12.0]},
-    }
+    model, axes = generated_parts_model(1.0e-4, 0.03, 1.0e-3)
+    (tmp_path / "m.yaml").write_text(yaml.safe_dump(model, sort_keys=False))
+    study = {"name": "pick", "model": str(tmp_path / "m.yaml"), "matrix": axes}
     plan = load_study(study)
-    assert plan.varying_curves == frozenset({-1 - plan.topology.curve_ids.index("plateau")})  # scaled only
+    assert plan.varying_curves == frozenset({-1 - plan.topology.curve_ids.index("scaled-c")})  # scaled only
     calls: list[str] = []
     real_generated, real_generic = generated.run_generated, runner_generic()
     monkeypatch.setattr(
@@ -110,12 +109,14 @@ def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(
     monkeypatch.setattr(
         compiled, "run_compiled", lambda *a, **k: calls.append("generic") or real_generic(*a, **k)
     )
-    # the model and axes of a twin case (test_kernel_twins): its generated kernel, compiled once
-    model, axes = CASES["knots-1d-every-curve-material-constant-and-scaled-crush-rebound-and-reversal"]
-    ref, _, _ = run_model(model(), kernel="reference", variants=axes)
+    # the side-by-side model of the physics tests, 10 steps: its generated kernel is compiled at start-up
+    # (helpers.generated_parts_model; before, a twin case's, compiled by test_kernel_twins unless this test
+    # came first, and a NumPy reference run of that case)
+    model, axes = generated_parts_model(1.0e-4, 1.0e-3, 1.0e-3)
+    ref, _, _ = run_model(model, kernel="reference", variants=axes)
     for env, expected in (("generated", "generated"), ("generic", "generic"), ("reference", "generic")):
         monkeypatch.setenv("CRASHSTUDY_KERNEL", env)
-        got, _, _ = run_model(model(), kernel="compiled", variants=axes)
+        got, _, _ = run_model(model, kernel="compiled", variants=axes)
         assert calls[-1] == expected and len(calls) == 1 + (env != "generated")
         assert_bitwise(ref, got)
 
@@ -124,16 +125,21 @@ def test_kernel_environment_variable_chooses_the_kernel_of_a_small_run(
 def test_early_termination_stops_when_the_spring_has_separated(kernel: str) -> None:
     """Termination (spring force ~0 and the spring opening): the run ends at the separation time
     m v0 / F0 + (pi / 2) sqrt(m / k_u) = 0.05 + 0.01111 s (closed form; the 0.1 mm ramp adds ~1e-5 s),
-    within 2 steps, instead of at end_time 0.2 s; peaks equal those of the run without termination."""
+    within 2 steps, instead of at end_time 0.2 s; peaks equal those of the run without termination.
+    (At the model's tolerance 1e-5, dt 4.4 us: the error is 1.0e-6 s against a bound of 2.9e-5 s; a force
+    threshold 10x too loose stops 6.3e-5 s early. At 1e-4, 3x less reference CPU, that planted bug stopped
+    5.2e-5 s early against a bound of 4.8e-5 s: too close, so the step stays.)"""
     from crashstudy.kernel.entry import run_batch
 
     v0, m, f0, ku = 10.0, 100.0, 2.0e4, 2.0e6
     t_sep = m * v0 / f0 + 0.5 * np.pi * np.sqrt(m / ku)
-    batch, plan = model_batch(crush_bounce(v0))
-    # the plateau as a curve the study scales (by 1: the same numbers): the generated kernel of the runner
-    # test above (one compile serves both)
-    out = run_batch(batch, plan.topology.histories, plan.n_out, kernel, vary=frozenset({-1}))
-    full_model = {k: v for k, v in crush_bounce(v0).items() if k != "termination"}
+    model = crush_bounce(v0)
+    batch, plan = model_batch(model)
+    # with the per-step record of the body (node 1): the generated kernel of the twin case
+    # "early-termination" (twins.RECORD_CASES; the step is no part of the shape), which
+    # tests/test_kernel_twins.py compiles: this test compiles nothing
+    out = run_batch(batch, plan.topology.histories, plan.n_out, kernel, record=(1,))
+    full_model = {k: v for k, v in model.items() if k != "termination"}
     full, _, _ = run_model(full_model, kernel="generic")  # (bitwise the reference's: test_kernel_twins)
     assert out.status[0] == 0
     assert abs(out.t_end[0] - t_sep) <= 2.0 * batch.dt[0] + 2.0e-5, (out.t_end[0], t_sep)

@@ -48,6 +48,7 @@ from hypothesis import strategies as st
 
 from crashstudy.results.store import Results
 from helpers import STUDIES, dump, run_main
+from models import wall_spring
 from strategies import examples, num, valid_model
 
 COUNTS: Counter[str] = Counter()
@@ -182,22 +183,6 @@ def test_model_at_rest_until_a_late_load_runs(tmp_path: Path) -> None:
     assert row["status"] == "ok" and row["energy_error"] < 1e-6
 
 
-WALL_START = """\
-name: wall-start
-nodes:
-  a: {position: [0.0], fixed: true}
-  b: {position: [1.0], mass: 1.0}
-springs:
-  s: {nodes: [a, b], material: {type: linear_elastic, stiffness: 1.0e4}}
-initial_velocity: {b: [-10.0]}
-rigid_walls:
-  - {id: floor, point: [WALL], normal: [1.0], nodes: [b]}
-end_time: 0.01
-time_step: {safety_factor: 0.9}
-output: {interval: 1.0e-5, histories: all}
-"""
-
-
 @pytest.mark.parametrize("kernel", ["reference", "generic", "generated"])
 @pytest.mark.parametrize("wall", ["1.0", "0.99996"], ids=["starts-on-the-wall", "wall-within-first-step"])
 def test_energy_error_of_a_node_that_reaches_a_wall_in_the_first_step(
@@ -210,7 +195,7 @@ def test_energy_error_of_a_node_that_reaches_a_wall_in_the_first_step(
     the wall at 0.99996. The t = 0 state is now the one before any impact, on every kernel.)"""
     monkeypatch.setenv("CRASHSTUDY_KERNEL", kernel)
     path = tmp_path / "wall-start.yaml"
-    path.write_text(WALL_START.replace("WALL", wall))
+    path.write_text(wall_spring(wall))
     rc, out, err = run_main("simulate", str(path), "-o", str(tmp_path / "out"))
     assert rc == 0, err
     res = Results(tmp_path / "out")

@@ -33,6 +33,7 @@ from crashstudy.arrays.timestep import CRITICAL_MARGIN
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE
 from crashstudy.schema.yamlio import load_yaml
 from helpers import STUDIES, model_plan, output_differences, run_model
+from models import wall_spring
 
 FRONTAL = STUDIES / "models" / "frontal-9mass.yaml"
 HELICOPTER = STUDIES / "models" / "helicopter-subfloor.yaml"
@@ -299,10 +300,13 @@ def mass_axis_study(tmp: Path, dt: float, masses: list[float]) -> Path:
     return path
 
 
-def forced_batch(scale: float, n_variants: int = 4, bad: int = 1):
+def forced_batch(
+    scale: float, n_variants: int = 4, bad: int = 1, model: dict[str, Any] | None = None, samples: int = 1
+):
     """A batch of ``conservative``-like variants (different speeds) with variant ``bad``'s dt set to
-    ``scale`` x its dt_crit by hand. Returns (batch, steps, plan)."""
-    model = at_step(conservative(1), 2000)
+    ``scale`` x its dt_crit by hand, every history kept at ``samples`` intervals (:func:`at_step`);
+    ``model`` instead of ``conservative`` when given. Returns (batch, steps, plan)."""
+    model = at_step(conservative(1) if model is None else model, 2000, samples)
     model["output"] = {"interval": model["output"]["interval"], "histories": "all"}
     plan = model_plan(model)
     topo = plan.topology
@@ -322,7 +326,7 @@ CHAIN_SIZES = [2, 3, 10, 100, 1000]
 
 def _chain_cases() -> list[Any]:
     """(n, unequal, fixed) for every size and both mass / end choices, except two of the 1000-mass chains
-    (each costs 24 M spring-steps): at n = 1000 the end condition changes nothing the test can see (omega_max
+    (each cost 24 M spring-steps at 8000 steps, now 6 M): at n = 1000 the end condition changes nothing the test can see (omega_max
     dt 1.98000 fixed and free for equal chains, 1.431 and 1.426 unequal; the ends themselves are covered at
     n = 2 .. 100 in all four combinations), so 1000 keeps the equal free chain (the tightest omega_max dt)
     and the unequal chain with a fixed end."""
@@ -342,15 +346,18 @@ def _chain_cases() -> list[Any]:
 
 @pytest.mark.parametrize(("n", "unequal", "fixed"), _chain_cases())
 def test_chain_at_safety_factor_one_is_stable_and_bounded(n: int, unequal: bool, fixed: bool) -> None:
-    """Chains of 2 to 1000 masses at ``safety_factor: 1.0``, run for N and 2N steps (N = max(2000, 8n)):
-    status ok, energy_error < 1e-9 (round-off only), peak force over 2N steps <= 1.5x over N steps.
+    """Chains of 2 to 1000 masses at ``safety_factor: 1.0``, run for N = 2000 and 2N steps: status ok,
+    energy_error < 1e-9 (round-off only), peak force over 2N steps <= 1.5x over N steps.
     The step is a real stress: omega_max dt in [1.0, 2), omega_max from a dense eigensolver.
+    (N was max(2000, 8n), 8000 at n = 1000, 4x the kernel work. Planted: the 1000-mass equal chain's step
+    multiplied by 1.010111 (omega_max dt 2.000017) fails status and energy_error at N = 2000 as at 8000;
+    by 1.0101011 (1.9999977, still stable) both pass: the run length does not move the threshold.)
 
     Measured: omega_max dt 1.98 (2 free equal masses, where the nodal bound is exact; long equal chains
     approach it: 1.97976 at n = 100, 1.98000 at 1000) down to 1.40 (unequal chains); energy_error <= 6e-11;
     peak ratio 1.000 .. 1.10.
     """
-    N = max(2000, 8 * n)
+    N = 2000
     model = at_step(chain(n, unequal, fixed), N)
     T = model["end_time"]
     out, batch, _ = run_model(model, variants={"end_time": [T, 2 * T]})
@@ -598,19 +605,23 @@ def test_fixed_dt_above_critical_refuses_only_the_light_variants_of_a_study(tmp_
     "ignore:overflow encountered:RuntimeWarning"
 )  # the NumPy kernel on the way to inf
 def test_instability_forced_by_hand_fails_that_variant_only() -> None:
-    """One variant of four gets dt = 3 x dt_crit by hand (omega_max dt about 4.4): status UNSTABLE at a finite
-    time, NaN histories after it; the three others are bitwise equal to running each alone, on every kernel;
-    both fast kernels bitwise equal to the reference."""
+    """One variant of four gets dt = 3 x dt_crit by hand (omega dt = 4.2): status UNSTABLE at a finite time
+    (the 9th step), NaN histories after it (20 samples); the three others are bitwise equal to running each
+    alone, on every kernel; both fast kernels bitwise equal to the reference. The model is a 1 kg mass on
+    a 1e4 N/m spring with a wall so far away (-1e300 m) that nothing reaches it (:func:`models.wall_spring`):
+    the generated kernel of tests/test_properties.py's wall test, one compile for both files."""
     from crashstudy.run.runner import run_kernel
 
-    batch, steps, plan = forced_batch(3.0)
+    model = yaml.safe_load(wall_spring(wall="-1.0e300", speed=-1.0))
+    batch, steps, plan = forced_batch(3.0, model=model, samples=20)
+    assert plan.n_out == 21
     ref = run_kernel(batch, plan.topology.histories, plan.n_out, "reference")
     for kernel in ("reference", "generic", "generated"):
         out = run_kernel(batch, plan.topology.histories, plan.n_out, kernel)
         assert list(out.status) == [0, UNSTABLE, 0, 0], kernel
         assert np.isfinite(out.fail_time[1]) and 0 < out.fail_time[1] < batch.n_steps[1] * batch.dt[1]
         k_fail = int(np.ceil(out.fail_time[1] / plan.interval))
-        assert np.all(np.isnan(out.histories["position"][k_fail + 1 :, :, :, 1]))
+        assert k_fail + 1 < plan.n_out and np.all(np.isnan(out.histories["position"][k_fail + 1 :, :, :, 1]))
         assert output_differences(ref, out) == [], kernel
         for k in (0, 2, 3):
             alone = run_kernel(batch.take(np.array([k])), plan.topology.histories, plan.n_out, kernel)
