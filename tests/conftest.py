@@ -104,7 +104,6 @@ SLOW_FIRST = (
     "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[early-termination]",
     "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[2d-crushed-to-zero]",
     "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference",  # the other cases
-    "test_generated.py::test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change",
     "test_iso18571.py::test_scores_match_the_installed_package",
     "test_stress.py::test_instability_forced_by_hand_fails_that_variant_only",
     "test_metrics.py::test_block_record_is_bitwise_the_references_on_the_fast_kernels",
