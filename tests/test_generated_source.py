@@ -49,6 +49,38 @@ def test_generated_source_of_the_two_spring_model_is_the_golden_file() -> None:
     assert "# generated" not in got and "def run_blocks(" in got
 
 
+def test_a_pass_compiled_in_the_running_process_is_vectorised(tmp_path: Path) -> None:
+    """The step's passes are functions of their own (``_pass_b``); the process that compiles a kernel runs the
+    pass's own code, optimised once by numba, while a kernel loaded from numba's cache runs the copy linked
+    into ``run_blocks`` (optimised twice). Once was not enough to vectorise the frontal model's lane loop
+    while numba's negative-index fix-ups (``Z[k + w]``) stayed in: that kernel ran 2x slower where it was
+    compiled (gen_source._lanes_known_positive). Truth: LLVM's vector types in the optimised code of
+    ``_pass_b`` alone, compiled here without a cache (~5 CPU s; without the mask: none)."""
+    import importlib.util
+
+    import numba as nb
+    import yaml
+
+    from conftest import model_batch
+    from crashstudy.kernel.gen_shape import _shape
+    from crashstudy.kernel.gen_source import source
+
+    frontal = Path(__file__).parent.parent / "studies" / "models" / "frontal-9mass.yaml"
+    batch, plan = model_batch(yaml.safe_load(frontal.read_text()))
+    src = source(_shape(batch, plan.topology.histories))
+    assert re.search(r"^def _pass_b\(Z, B, n, vi, cst\):$", src, re.M)
+    path = tmp_path / "frontal_kernel.py"
+    path.write_text(src.replace("cache=True", "cache=False"))
+    spec = importlib.util.spec_from_file_location("frontal_kernel", path)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    f8, i8 = nb.types.Array(nb.float64, 1, "C"), nb.types.Array(nb.int64, 1, "C")
+    mod._pass_b.compile((f8, nb.int64, nb.int64, i8, f8))
+    code = mod._pass_b.inspect_llvm(mod._pass_b.signatures[0])
+    assert re.search(r"<\d+ x double>", code), "the lane loop of _pass_b is not vectorised"
+
+
 # an elastoplastic spring 0 beside curve 0 scaled per variant (a factor curve): their rows were both named
 # "fy0" (the spring's yield force, the curve's force factor), so the curve's row was never loaded
 EP = {"type": "elastoplastic", "stiffness": 4.0e4, "tangent_stiffness": 1.0e4, "yield_force": 2.0e3}

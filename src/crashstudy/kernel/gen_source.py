@@ -179,7 +179,7 @@ def source(shape: dict[str, Any]) -> str:
     g.emit(f"{i3}wt = 1.0 if n > 0 else 0.0")
     g.emit(f"{i3}n1 = n == 1")
     if g.general:
-        pass_a(g, i3)
+        g.emit(f"{i3}{_function(g, fns, '_pass_a', 'n', pass_a, 'None', hot=True)}")
     if g.hist:  # a sample keeps x^n and v^{n-1/2}; the rest is read back after the pass
         g.emit(f"{i3}rec = n == next_min")
         g.emit(f"{i3}if rec:")
@@ -193,9 +193,11 @@ def source(shape: dict[str, Any]) -> str:
         t = g.table(keep)
         g.emit(f"{i3}        for i in range({len(keep)}):")
         g.emit(f"{i3}            Z[{t}[i, 0] + w] = Z[{t}[i, 1] + w]")
-    pass_b(g, i3)
+    g.emit(
+        f"{i3}nbad, nhit, nstop = {_function(g, fns, '_pass_b', 'n', pass_b, 'nbad, nhit, nstop', hot=True)}"
+    )
     if g.knotted:
-        pass_k(g, i3)
+        g.emit(f"{i3}{_function(g, fns, '_pass_k', 'n, nhit', pass_k, 'None', hot=True)}")
     failures(g, i3)
     if g.record:  # a^n of the recorded nodes, lanes still running after the failure check
         g.emit(f"{i3}rk_w = 0")  # block sums: row (n + (k - 1) // 2) // k, divided once per run of equal k
@@ -275,16 +277,17 @@ def _arrays(used: set[str]) -> list[str]:
     return [name for name, _, _ in _ARRAYS if name in used]
 
 
-def _function(g: Layout, out: list[str], name: str, params: str, emitter: Any, returns: str) -> str:
-    """Emit a cold part of the kernel (``emitter``: the block set-up, the histories, a lane's results) as a
-    compiled function of its own, appended to ``out``, and return its call: one function compiles in time
-    growing faster than its length, and a part called from two places (the results) compiles once. The
-    step's passes stay in ``run_blocks``: split into functions of their own they compiled faster still, but
-    a kernel so compiled ran 2x slower in the process that compiled it (the same kernel loaded from numba's
-    cache did not; benchmarks/results/generated_source.md)."""
+def _function(
+    g: Layout, out: list[str], name: str, params: str, emitter: Any, returns: str, hot: bool = False
+) -> str:
+    """Emit a part of the kernel (``emitter``: a pass of the step, the block set-up, the histories, a lane's
+    results) as a compiled function of its own, appended to ``out``, and return its call: one function
+    compiles in time growing faster than its length (numba's type inference and lowering, LLVM's passes
+    over one body), and a part called from two places (the results) compiles once. ``hot``: a pass of the
+    step, whose lane loops must vectorise (:func:`_lanes_known_positive`)."""
     n0 = len(g.L)
     emitter(g, "    ")
-    body = "\n".join(g.L[n0:])
+    body = "\n".join(_lanes_known_positive(g.L[n0:]) if hot else g.L[n0:])
     del g.L[n0:]
     used = _words(body)
     consts = any(c in used for c in g.cname.values())
@@ -301,6 +304,29 @@ def _function(g: Layout, out: list[str], name: str, params: str, emitter: Any, r
         f"    return {returns}",
     ]
     return f"{name}({args})"
+
+
+# a lane index is below 2**31 (a block holds BLOCK lanes): masking it tells LLVM it is not negative
+LANE_MASK = 0x7FFFFFFF
+
+
+def _lanes_known_positive(lines: list[str]) -> list[str]:
+    """``lines`` with each lane loop ``for w in range(B):`` indexing with ``w = w_ & LANE_MASK`` (the same
+    number). numba fixes up a negative index (``Z[k + w]``: +len when < 0) on every access; in a pass of its
+    own, ``B`` and ``Z`` are arguments and one run of LLVM's pipeline (numba optimises each function once)
+    does not prove ``w >= 0``, so the fix-ups stay and the loop is not vectorised: the kernel ran 2x slower
+    in the process that compiled it. Only ``run_blocks``' copy of the pass, optimised a second time when
+    linked into it, vectorised, and only a process that loads the kernel from numba's cache runs that copy
+    (in the compiling one, the call binds to the pass's own code). With the mask both vectorise
+    (benchmarks/results/generated_source.md, "The 2x explained")."""
+    out = []
+    for ln in lines:
+        head = ln[: len(ln) - len(ln.lstrip())]
+        if ln.strip() == "for w in range(B):":
+            out += [f"{head}for w_ in range(B):", f"{head}    w = w_ & {LANE_MASK}"]
+        else:
+            out.append(ln)
+    return out
 
 
 def lanes(g: Layout, ind: str) -> None:
