@@ -109,9 +109,9 @@ def test_checks_of_a_1e7_variant_study_take_memory_of_its_distinct_values(tmp_pa
 
 @pytest.mark.parametrize(("n", "size"), [(1, 4), (10, 3), (65536, 4096), (100_001, 65536)])
 def test_ranges_of_a_fresh_run_cover_every_variant_once_in_order(n: int, size: int) -> None:
-    """The fresh-run shortcut of runner._ranges (no index array of every variant) gives the same ranges
+    """The fresh-run shortcut of reuse._ranges (no index array of every variant) gives the same ranges
     as a plain walk: consecutive, at most ``size`` long, covering 0 .. n - 1 exactly once."""
-    from crashstudy.run.runner import _ranges
+    from crashstudy.run.reuse import _ranges
 
     expected = [(lo, min(lo + size, n)) for lo in range(0, n, size)]
     assert _ranges(np.ones(n, dtype=bool), size) == expected
