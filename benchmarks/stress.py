@@ -45,7 +45,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 import crashstudy.run.runner as runner  # noqa: E402
 import test_stress as cases  # noqa: E402  (the tests' model builders: the table runs the same models)
 from crashstudy.kernel.output import INVALID  # noqa: E402
-from crashstudy.results.store import ChunkResult  # noqa: E402
+from crashstudy.results.chunk_result import ChunkResult  # noqa: E402
 from crashstudy.study.plan import Axis, Plan  # noqa: E402
 from helpers import output_differences  # noqa: E402  (tests/helpers.py: the tests' comparer of kernel outputs)
 

@@ -29,7 +29,8 @@ import xarray as xr
 import crashstudy.run.backends
 from crashstudy.errors import InputError
 from crashstudy.results import integrity, regions
-from crashstudy.results.store import PARTIAL, ChunkResult, ResultWriter
+from crashstudy.results.chunk_result import ChunkResult
+from crashstudy.results.store import PARTIAL, ResultWriter
 from crashstudy.run.dask_backend import DaskBackend
 from crashstudy.run.runner import run_chunk, run_plan
 from crashstudy.study.plan import load_study

@@ -660,7 +660,7 @@ UNITS_SI = {
 @pytest.fixture(scope="module")
 def api_run(
     work: Path, tmp_path_factory: pytest.TempPathFactory
-) -> tuple[crashstudy.run.runner.Results, dict[str, Any]]:
+) -> tuple[crashstudy.results.store.Results, dict[str, Any]]:
     study = {
         "name": "api-check",
         "model": str(work / "model.yaml"),

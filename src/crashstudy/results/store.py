@@ -29,7 +29,7 @@ from crashstudy.kernel.output import ALL_SHAPES
 from crashstudy.metrics.record import METRIC_META, asked_nodes, result_names, standard
 from crashstudy.results import integrity
 from crashstudy.results.attributes import axis_unit, model_facts, plan_fingerprint, units_of
-from crashstudy.results.chunk_result import ChunkResult  # re-exported: a task's result
+from crashstudy.results.chunk_result import ChunkResult
 from crashstudy.results.curve_ends import curve_springs
 from crashstudy.results.integrity import FINAL, PARTIAL
 from crashstudy.results.placement import partial_opens, remove_store, swap_store
@@ -63,7 +63,6 @@ __all__ = [
     "PARQUET",
     "PARTIAL",
     "SUMMARY",
-    "ChunkResult",
     "ResultWriter",
     "Results",
     "decode_texts",

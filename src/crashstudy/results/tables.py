@@ -202,7 +202,7 @@ def write_summary(
 
 
 def summary_arrays(plan: Any, res: Any) -> dict[str, np.ndarray]:
-    """The summary variables of a chunk (a :class:`crashstudy.results.store.ChunkResult` of ``plan``), (variants[, items]) each, NaN where a variant failed (but its
+    """The summary variables of a chunk (a :class:`crashstudy.results.chunk_result.ChunkResult` of ``plan``), (variants[, items]) each, NaN where a variant failed (but its
     ``dt``, ``dt_crit``): what :class:`crashstudy.results.store.ResultWriter` stores and :func:`chunk_frame` tabulates."""
     o = res.out
     g = UNIT_SYSTEMS[plan.topology.units].g

@@ -4,7 +4,7 @@ or, with ``--store zarr``, by the workers into the store at its shared path.
 ``--scheduler tcp://HOST:PORT`` connects to a running scheduler (``dask scheduler`` and ``dask worker``
 started by the user, see ``docs/dask.md``); ``--scheduler local`` starts a two-worker ``LocalCluster`` on
 the loopback interface for the run and stops it after. Workers compute :func:`crashstudy.run.runner.run_chunk`
-and send back a :class:`~crashstudy.results.store.ChunkResult` that the client writes; with ``--store zarr``
+and send back a :class:`~crashstudy.results.chunk_result.ChunkResult` that the client writes; with ``--store zarr``
 each task (:func:`crashstudy.results.regions.write_region`) writes its chunk's region of ``results.zarr.partial``
 and sends back a small :class:`~crashstudy.results.regions.Receipt` (the backend maps whatever function
 it is given).
