@@ -61,7 +61,7 @@ __all__ = [
     "unsupported",
 ]
 _LOCK = threading.Lock()
-_LOADED: dict[str, Any] = {}
+_LOADED: dict[tuple[str, str], Any] = {}  # (kernel folder asked for, shape key) -> module
 _source = source
 
 
@@ -79,11 +79,14 @@ def _source_key(shape: dict[str, Any]) -> tuple[str, str]:
 
 
 def _module(shape: dict[str, Any]) -> Any:
-    """The compiled module for ``shape`` (generated, written and imported once per process)."""
+    """The compiled module for ``shape`` (generated, written and imported once per process and kernel
+    folder: a process that changes ``CRASHSTUDY_KERNEL_CACHE`` loads and compiles into the new folder)."""
     src, key = _source_key(shape)
     with _LOCK:
-        if key in _LOADED:
-            return _LOADED[key]
+        asked = str(cache_dir())
+        loaded = _LOADED.get((asked, key))
+        if loaded is not None:
+            return loaded
         folder = checked_dir()  # private to this user: numba unpickles what it finds there
         path = folder / f"k_{key}.py"
         if not path.exists() or path.read_text() != src:
@@ -96,7 +99,7 @@ def _module(shape: dict[str, Any]) -> Any:
         mod = importlib.util.module_from_spec(spec)
         sys.modules[name] = mod
         spec.loader.exec_module(mod)
-        _LOADED[key] = mod
+        _LOADED[(asked, key)] = mod
         return mod
 
 
@@ -111,10 +114,11 @@ def is_compiled(
     """Whether this model shape's kernel is compiled: loaded in this process, or in numba's disk cache
     (wherever ``NUMBA_CACHE_DIR`` puts it; the index is written after the compiled code)."""
     shape = _shape(b, histories, vary, record=record)
-    key = shape_key(shape)
-    if key in _LOADED and _LOADED[key].run_blocks.signatures:
+    folder = cache_dir()
+    loaded = _LOADED.get((str(folder), shape_key(shape)))
+    if loaded is not None and loaded.run_blocks.signatures:
         return True
-    if why_not_private(cache_dir()) is not None:
+    if why_not_private(folder) is not None:
         return False
     try:
         mod = _module(shape)

@@ -1,0 +1,36 @@
+"""A process that changes its kernel folder (``CRASHSTUDY_KERNEL_CACHE``) mid-way uses the new folder: the
+kernel choice asks the new folder whether a shape is compiled, and a run writes and compiles its generated
+kernel there, not in the folder it loaded the shape from first (a notebook that points the variable at
+another folder between two studies)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from crashstudy.kernel import generated
+from crashstudy.kernel.gen_shape import _shape
+from helpers import _generated_parts_run, generated_parts_model, model_batch
+
+
+def test_a_changed_kernel_folder_is_the_one_asked_and_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # the side-by-side physics shape: compiled at start-up (tests/conftest.py), run here in this process
+    _generated_parts_run(1e-4, 1e-3, 1e-3)
+    model, scales = generated_parts_model(1e-4, 1e-3, 1e-3)
+    batch, plan = model_batch(model, scales)
+    histories = plan.topology.histories
+    assert generated.is_compiled(batch, histories)
+    first = Path(generated._module(_shape(batch, histories, None)).__file__).parent
+
+    new = tmp_path / "kernels"
+    new.mkdir(mode=0o700)
+    with monkeypatch.context() as env:
+        env.setenv("CRASHSTUDY_KERNEL_CACHE", str(new))
+        assert not generated.is_compiled(batch, histories)  # nothing is compiled in the new folder
+        module = generated._module(_shape(batch, histories, None))
+        assert Path(module.__file__).parent == new != first
+        assert not module.run_blocks.signatures  # the new folder's module, not the one compiled before
+    assert generated.is_compiled(batch, histories)  # back in the first folder: its module, compiled
