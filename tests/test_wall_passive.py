@@ -1,4 +1,4 @@
-"""A rigid wall is passive: a run whose walls give energy back is UNSTABLE (docs/solver.md, "Instability").
+"""A rigid wall is passive: a run whose walls give energy back is UNSTABLE (docs/solver.md, "Instability tests").
 
 An unstable step (omega dt 4.2) that throws a node through a rigid wall is bounded by the wall's velocity
 jump, which lands the node on the plane: the discrete energy balance still closes (error ~1e-9), so the
@@ -109,8 +109,8 @@ SWEEPS = {  # name: (model, {axis: (low, high)}, largest dt / dt_crit)
         0.99,
     ),
     "2-D rigid": (_model_2d, {"rigid_walls.0.point.1": (-0.5, 1.0)}, 0.99),
-    # the penalty wall's own stiffness is not in this model's dt_crit: above ~0.8 x dt_crit some runs
-    # lose their energy balance (the existing test, not this one); 0.75 keeps them all stable
+    # with this oblique penalty wall, 5 and 13 of 400 runs (two draws) at 0.83 .. 0.99 x dt_crit lose their balance
+    # (error 1.1 .. 3.2, the existing test, before and after this one): dt_crit is not conservative there
     "2-D penalty": (lambda: _model_2d(1.0e6), {"rigid_walls.0.point.1": (-0.5, 0.99)}, 0.75),
 }
 

@@ -20,7 +20,7 @@ def failures(g: Layout, i3: str) -> None:
     work = g.R["work"] if g.ext else "0.0"
     bal = f"energy_balance({g.R['ken']}, {g.R['ien']}, {wall_now}, {g.R[g.E0]}, {work})"
     bad = f"unstable({bal}, {g.R['thr']})"
-    if g.W:  # walls that gave energy (docs/solver.md, "Instability")
+    if g.W:  # walls that gave energy (docs/solver.md, "Instability tests")
         bad = f"({bad} or wall_gives({wall_now}, {g.R['thr']}))"
     g.emit(f"{i3}        if {bad}:")
     g.emit(f"{i3}            status[vi[w]] = UNSTABLE")

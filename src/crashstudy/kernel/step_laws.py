@@ -135,7 +135,7 @@ def unstable(bal, limit):  # pragma: no cover - compiled
 def wall_gives(wall, limit):  # pragma: no cover - compiled
     """The walls have given energy: the energy they have taken is below -``WALL_PASSIVITY`` x ``limit``
     (``unstable_limit``'s). Only an unstable step can do it: it throws a node through the wall, whose jump
-    lands it on the plane, so the balance still closes (docs/solver.md, "Instability")."""
+    lands it on the plane, so the balance still closes (docs/solver.md, "Instability tests")."""
     return wall < -WALL_PASSIVITY * limit
 
 
