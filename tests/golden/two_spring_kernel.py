@@ -3,9 +3,9 @@ import numba as nb
 import numpy as np
 from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, INVALID, OK, UNSTABLE
 from crashstudy.kernel.laws import axis_2d, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, ramp_knot, ramp_start, time_window, elastoplastic_law, broken_at
-from crashstudy.kernel.step_laws import advance, energy_balance, energy_first_half, energy_increment, ext_power, half_step, kinetic, spring_extremes, stop_test, unstable, unstable_limit, wall_dof, wall_force, wall_hold, wall_impulse, wall_jump, wall_penalty, wall_plane, wall_work, work_increment
+from crashstudy.kernel.step_laws import advance, energy_balance, energy_first_half, energy_increment, ext_power, half_step, kinetic, spring_extremes, stop_test, unstable, unstable_limit, wall_dof, wall_force, wall_gives, wall_hold, wall_impulse, wall_jump, wall_penalty, wall_plane, wall_work, work_increment
 
-_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 18, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
+_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 19, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
 
 
 @nb.njit(nogil=True, error_model="numpy", cache=True)

@@ -394,10 +394,12 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             nbad = 0
             for w in range(B):
                 wmax[w] = max(wmax[w], abs(work[w]))
-                b_ = sl.energy_balance(ke[w], ie_tot[w], wall_e[w] if n > 0 else 0.0, e_init[0, w], work[w])
-                bal[w] = b_  # t = 0: before impacts
+                wall_now = wall_e[w] if n > 0 else 0.0  # t = 0: before impacts
+                b_ = sl.energy_balance(ke[w], ie_tot[w], wall_now, e_init[0, w], work[w])
+                bal[w] = b_
                 err[w] = lw.peak(err[w], b_ * actf[w])
-                nbad += act[w] & sl.unstable(b_, sl.unstable_limit(e_init[1, w], wmax[w], e_floor[lo + w]))
+                lim = sl.unstable_limit(e_init[1, w], wmax[w], e_floor[lo + w])
+                nbad += act[w] & (sl.unstable(b_, lim) or sl.wall_gives(wall_now, lim))
             anybad = nbad > 0
             if not fused:
                 gn.peak_accelerations(B, N, D, movable, acc, actf, pacc)

@@ -70,7 +70,7 @@ def pass_b(g: Layout, ind: str) -> None:
         g.emit(f"{i2}thr = {g.R['thr']}")
     g.emit(f"{i2}{g.R['err']} = peak({g.R['err']}, bal * af)")
     g.emit(f"{i2}{g.R['thr']} = thr")
-    bad = "unstable(bal, thr)"
+    bad = f"(unstable(bal, thr) or wall_gives({wall}, thr))" if g.W else "unstable(bal, thr)"
     if g.D > 1:
         bad = f"({bad} or {g.R['crushed']} >= 0.0)"
     g.emit(f"{i2}nbad += (1 if af > 0.0 else 0) if {bad} else 0")

@@ -11,7 +11,7 @@ from crashstudy.kernel.gen_shape import Layout
 
 
 def failures(g: Layout, i3: str) -> None:
-    """The lanes whose energy balance broke (or, in 2-D, whose spring collapsed) stop here (rare)."""
+    """The lanes whose energy balance broke or whose walls gave energy (or, in 2-D, whose spring collapsed) stop here (rare)."""
     g.emit(f"{i3}if nbad > 0:")
     g.emit(f"{i3}    for w in range(B):")
     g.emit(f"{i3}        if not fn <= {g.R['lim']}:")
@@ -19,7 +19,10 @@ def failures(g: Layout, i3: str) -> None:
     wall_now = f"({g.R['wall_e']} if n > 0 else 0.0)" if g.W else "0.0"  # t = 0: before any impact
     work = g.R["work"] if g.ext else "0.0"
     bal = f"energy_balance({g.R['ken']}, {g.R['ien']}, {wall_now}, {g.R[g.E0]}, {work})"
-    g.emit(f"{i3}        if unstable({bal}, {g.R['thr']}):")
+    bad = f"unstable({bal}, {g.R['thr']})"
+    if g.W:  # walls that gave energy (docs/solver.md, "Instability tests")
+        bad = f"({bad} or wall_gives({wall_now}, {g.R['thr']}))"
+    g.emit(f"{i3}        if {bad}:")
     g.emit(f"{i3}            status[vi[w]] = UNSTABLE")
     if g.D > 1:
         g.emit(f"{i3}        elif {g.R['crushed']} >= 0.0:")

@@ -58,6 +58,7 @@ STEP_LAWS = (
     "unstable_limit",
     "wall_dof",
     "wall_force",
+    "wall_gives",
     "wall_hold",
     "wall_impulse",
     "wall_jump",

@@ -13,7 +13,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
-from crashstudy.kernel.step_laws import unstable, unstable_limit
+from crashstudy.kernel.step_laws import unstable, unstable_limit, wall_gives
 from crashstudy.vocabulary.codes import (
     CRUSHED_TO_ZERO,
     INVALID,
@@ -342,7 +342,7 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
 
 @stage
 def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
-    """A step where some lane failed (rare): unstable (energy balance) or, in 2-D, a spring crushed to zero
+    """A step where some lane failed (rare): unstable (energy balance, or walls that gave energy) or, in 2-D, a spring crushed to zero
     length; those lanes stop."""
     act, actf, bal, e_scale, wmax, crushed, st_ok = (
         K.act,
@@ -353,11 +353,12 @@ def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
         K.crushed,
         K.st_ok,
     )
-    n_fail, dt_b = K.n_fail, K.dt_b
+    n_fail, dt_b, wall_e = K.n_fail, K.dt_b, K.wall_e
     for w in range(B):
         if not act[w]:
             continue
-        if unstable(bal[w], unstable_limit(e_scale[w], wmax[w], e_floor[lo + w])):
+        lim = unstable_limit(e_scale[w], wmax[w], e_floor[lo + w])
+        if unstable(bal[w], lim) or wall_gives(wall_e[w] if n > 0 else 0.0, lim):
             st_ok[w] = UNSTABLE
         elif D > 1 and crushed[w] >= 0:
             st_ok[w] = CRUSHED_TO_ZERO

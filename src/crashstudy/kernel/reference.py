@@ -42,6 +42,7 @@ from crashstudy.kernel.step_twins import (
     stop_test_np,
     unstable_limit_np,
     unstable_np,
+    wall_gives_np,
     wall_hold_np,
     wall_penalty_np,
 )
@@ -300,7 +301,8 @@ def run_reference(
             act, np.maximum(out.peak_wall_force, wall_force), out.peak_wall_force
         )
 
-        bad = act & unstable_np(bal, unstable_limit_np(e_scale, wmax, b.energy_floor))
+        limit = unstable_limit_np(e_scale, wmax, b.energy_floor)
+        bad = act & (unstable_np(bal, limit) | wall_gives_np(wall_now, limit))
         out.status[:] = np.where(bad, UNSTABLE, out.status)
         gone = act & ~bad & (crushed >= 0)
         out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba as nb
 
 from crashstudy.kernel.laws import peak
-from crashstudy.vocabulary.codes import PM_ACCELERATION, PM_DISPLACEMENT, UNSTABLE_ENERGY
+from crashstudy.vocabulary.codes import PM_ACCELERATION, PM_DISPLACEMENT, UNSTABLE_ENERGY, WALL_PASSIVITY
 
 _jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 
@@ -129,6 +129,14 @@ def unstable_limit(scale, wmax, floor):  # pragma: no cover - compiled
 def unstable(bal, limit):  # pragma: no cover - compiled
     """The run is unstable: its energy balance error is above the limit, or not a number."""
     return not (bal <= limit)
+
+
+@_jit
+def wall_gives(wall, limit):  # pragma: no cover - compiled
+    """The walls have given energy: the energy they have taken is below -``WALL_PASSIVITY`` x ``limit``
+    (``unstable_limit``'s). Only an unstable step can do it: it throws a node through the wall, whose jump
+    lands it on the plane, so the balance still closes (docs/solver.md, "Instability tests")."""
+    return wall < -WALL_PASSIVITY * limit
 
 
 @_jit

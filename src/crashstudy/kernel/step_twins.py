@@ -8,7 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from crashstudy.vocabulary.codes import PM_ACCELERATION, PM_DISPLACEMENT, TINY_LENGTH, UNSTABLE_ENERGY
+from crashstudy.vocabulary.codes import (
+    PM_ACCELERATION,
+    PM_DISPLACEMENT,
+    TINY_LENGTH,
+    UNSTABLE_ENERGY,
+    WALL_PASSIVITY,
+)
 
 
 def axis_2d_np(
@@ -118,6 +124,11 @@ def unstable_limit_np(scale: np.ndarray, wmax: np.ndarray, floor: np.ndarray) ->
 def unstable_np(bal: np.ndarray, limit: np.ndarray) -> np.ndarray:
     """Balance error above the limit or not a number (the twin of ``step_laws.unstable``)."""
     return ~np.isfinite(bal) | (bal > limit)
+
+
+def wall_gives_np(wall: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """The walls have given energy (the twin of ``step_laws.wall_gives``)."""
+    return wall < -WALL_PASSIVITY * limit
 
 
 def wall_hold_np(dvn: np.ndarray, an: np.ndarray, dtn: np.ndarray) -> np.ndarray:
