@@ -211,13 +211,15 @@ K_BREAK, M_BREAK, V_BREAK, E_FAIL = 1.0e4, 1.0, 2.0, 0.01  # amplitude v0 / w = 
 
 
 def _breaking(direction: float, dim: int, failure: dict[str, float]) -> dict[str, Any]:
-    """A linear spring (k = 1e4 N/m) under a 1 kg mass leaving (direction 1) or crushing (-1) at 2 m/s."""
+    """A linear spring (k = 1e4 N/m) under a 1 kg mass leaving (direction 1) or crushing (-1) at 2 m/s,
+    run to 6 ms: 0.76 ms (76 samples) past the break at 5.24 ms; the spring that holds reaches 0.0113 m
+    (6000 reference steps at dt = 1e-6 s per lane; 10 ms, 10000 steps before)."""
     return _one_spring(
         {"type": "linear_elastic", "stiffness": K_BREAK},
         M_BREAK,
         direction * V_BREAK,
         dim,
-        end_time=0.01,
+        end_time=0.006,
         dt=1.0e-6,
         interval=1.0e-5,
         failure=failure,
