@@ -192,10 +192,13 @@ def test_energy_error_of_a_node_that_reaches_a_wall_in_the_first_step(
     ``wall_energy``, KE + IE + E_wall - W_ext must stay 50 J at every sample and ``energy_error`` be round-off.
     (Found by the model generator: the t = 0 balance and record held that first impact's wall energy
     while the kinetic energy was still KE0, energy_error 1 - gap / (v dt): 1.0 on the plane, 0.4 for
-    the wall at 0.99996. The t = 0 state is now the one before any impact, on every kernel.)"""
+    the wall at 0.99996. The t = 0 state is now the one before any impact, on every kernel.)
+    The run lasts 10 steps (1e-4 s; 1000 before): the node rests on the wall after the first step, and
+    the bug shows at the t = 0 sample. Planted (the reference's t = 0 record keeping the first impact's
+    wall energy): fails at 10 steps as at 1000."""
     monkeypatch.setenv("CRASHSTUDY_KERNEL", kernel)
     path = tmp_path / "wall-start.yaml"
-    path.write_text(wall_spring(wall))
+    path.write_text(wall_spring(wall, end_time=1.0e-4))
     rc, out, err = run_main("simulate", str(path), "-o", str(tmp_path / "out"))
     assert rc == 0, err
     res = Results(tmp_path / "out")
