@@ -6,9 +6,9 @@ The contract under test (docs/studies.md, issue 5): an interrupted or failed run
 short message without a traceback, and ``crashstudy run --resume`` then completes with results identical to
 an uninterrupted run, variable by variable (NaN where the reference has NaN) and attribute by attribute.
 
-The interrupted study (``FAULT_STUDY``) is 1000 variants of a one-spring model with ``histories: none`` and
+The interrupted study (``FAULT_STUDY``) is 500 variants of a one-spring model with ``histories: none`` and
 a 2e-5 s history interval over 2 s: the kernel's per-variant energy buffer (100 001 samples) keeps chunks
-at 83 variants, so the run writes 13 chunks in a few seconds and a signal can land between chunks. Each
+at 83 variants, so the run writes 7 chunks in a few seconds and a signal can land between chunks. Each
 test waits for the progress line (``--progress on``) to show finished chunks before it strikes.
 
 Disk-full and read-only cases mount a small tmpfs (``mount -t tmpfs``), which needs root; they are skipped
@@ -44,7 +44,7 @@ import xarray as xr
 from helpers import run_cli as cli  # the command line in this process (helpers.run_cli)
 from helpers import run_cli_in_one_process
 
-N_VARIANTS = 1000
+N_VARIANTS = 500
 CHUNK = 83  # chunk_size() of FAULT_STUDY: 256 MiB / (8 B * 100 001 samples * 4 energies)
 
 FAULT_MODEL = """\
@@ -70,7 +70,7 @@ model: models/fault-model.yaml
 matrix:
   nodes.body.mass: [1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5]
   springs.spring.material.stiffness: [1.0e4, 1.5e4, 2.0e4, 2.5e4, 3.0e4, 3.5e4, 4.0e4, 4.5e4, 5.0e4, 5.5e4]
-  impact_velocity: [1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5]
+  impact_velocity: [1.0, 2.0, 3.0, 4.0, 5.0]
 """
 
 SMALL_STUDY = """\
@@ -448,7 +448,7 @@ def test_output_path_that_is_a_file_or_under_a_file_is_refused(fault_dir: Path, 
 
 @pytest.fixture
 def disk_full(fault_dir: Path, tmpfs) -> tuple[Path, subprocess.CompletedProcess[str], Path]:  # type: ignore[no-untyped-def]
-    """A run into a 512 KiB tmpfs (the result needs about 1.3 MB): the netCDF writes fail with ENOSPC."""
+    """A run into a 512 KiB tmpfs (the result needs about 1 MB): the netCDF writes fail with ENOSPC."""
     full = tmpfs("512k")
     out = full / "out"
     p = cli("run", fault_dir / "study.yaml", "-o", out, "--progress", "off")
