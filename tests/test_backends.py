@@ -34,6 +34,7 @@ from crashstudy.results.store import PARTIAL, ResultWriter
 from crashstudy.run.dask_backend import DaskBackend
 from crashstudy.run.runner import run_chunk, run_plan
 from crashstudy.study.plan import load_study
+from helpers import on_shared_pool
 
 MODEL = """\
 name: two-spring-crush
@@ -185,43 +186,16 @@ class TestInProcess(BackendSuite):
     options: dict[str, Any] = {}
 
 
-class SharedPool:
-    """The module's ``ProcessPool`` handed to one run: its ``close`` leaves the pool running for the next."""
-
-    def __init__(self, pool: crashstudy.run.backends.ProcessPool) -> None:
-        self.pool = pool
-
-    def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
-        return self.pool.imap_unordered(fn, tasks)
-
-    def close(self) -> None:
-        pass
-
-
-@pytest.fixture(scope="module")
-def process_pool() -> Iterator[crashstudy.run.backends.ProcessPool]:
-    """One ``--jobs 2`` pool (2 spawned worker processes) for the suite's runs: what they test is the
-    numbers the workers compute, not the pool's start (each start: 2 processes importing numpy, numba,
-    crashstudy and loading the kernel, ~3 s CPU each; 4 runs started 8 of them)."""
-    pool = crashstudy.run.backends.ProcessPool(2)
-    yield pool
-    pool.close()
-
-
 class TestProcessPool(BackendSuite):
-    """``--jobs 2``: every run of the suite on the module's pool of 2 worker processes."""
+    """``--jobs 2``: every run of the suite on the test process's shared pool of 2 worker processes
+    (helpers.shared_process_pool: what they test is the numbers the workers compute, not the pool's start;
+    4 runs started 8 worker processes, the pool is shared with test_design's --jobs 2 run too)."""
 
     options = {"jobs": 2}
 
     @pytest.fixture(autouse=True)
-    def _shared_pool(
-        self, process_pool: crashstudy.run.backends.ProcessPool, monkeypatch: pytest.MonkeyPatch
-    ) -> None:
-        def make_backend(jobs: int = 1, scheduler: str | None = None) -> SharedPool:
-            assert (jobs, scheduler) == (2, None)
-            return SharedPool(process_pool)
-
-        monkeypatch.setattr(crashstudy.run.backends, "make_backend", make_backend)
+    def _shared_pool(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        on_shared_pool(monkeypatch)
 
 
 class TestInProcessZarr(BackendSuite):
