@@ -253,6 +253,45 @@ print(json.dumps(done))
 """
 
 
+@functools.cache
+def shared_process_pool() -> Any:
+    """One ``--jobs 2`` pool (``run.backends.ProcessPool(2)``: 2 spawned worker processes) for every test of
+    this test process whose subject is the numbers the workers compute, not the pool's start (each start:
+    2 processes importing numpy, numba and crashstudy, ~1.6 CPU s each). Never closed by a test:
+    concurrent.futures shuts it down when the process exits."""
+    from crashstudy.run.backends import ProcessPool
+
+    return ProcessPool(2)
+
+
+class SharedPool:
+    """The shared pool handed to one run as its backend: its ``close`` leaves the pool running for the next."""
+
+    def __init__(self, pool: Any) -> None:
+        self.pool = pool
+
+    def imap_unordered(self, fn: Callable[..., Any], tasks: Any) -> Any:
+        return self.pool.imap_unordered(fn, tasks)
+
+    def close(self) -> None:
+        pass
+
+
+def on_shared_pool(monkeypatch: Any) -> None:
+    """``--jobs 2`` runs (``run.backends.make_backend(2)``) use :func:`shared_process_pool` until the test
+    ends; other runs get their own backend as before."""
+    import crashstudy.run.backends
+
+    real = crashstudy.run.backends.make_backend
+
+    def make_backend(jobs: int = 1, scheduler: str | None = None) -> Any:
+        if (jobs, scheduler) != (2, None):
+            return real(jobs, scheduler)
+        return SharedPool(shared_process_pool())
+
+    monkeypatch.setattr(crashstudy.run.backends, "make_backend", make_backend)
+
+
 #: a fresh interpreter's warning filters (python without -W or PYTHONWARNINGS): pytest's own, e.g.
 #: ``error::CrashstudyWarning`` of pyproject.toml, do not apply to a command a user runs
 _FRESH_FILTERS = (

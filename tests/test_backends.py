@@ -2,13 +2,13 @@
 
 One suite (:class:`BackendSuite`) is inherited by each backend: in-process, a process pool of two
 workers (``--jobs 2``) and a Dask ``LocalCluster`` of two worker processes on loopback (the one
-``DaskBackend("local")`` starts, shared by the module's tests that are not about starting or killing a
-cluster, which reach it by its address as ``--scheduler tcp://127.0.0.1:PORT``). Each runs the same small study (a 1-D crush spring and a body spring, 4 x 5
+``DaskBackend("local")`` starts, shared by the module's tests that are not about starting a cluster,
+which reach it by its address as ``--scheduler tcp://127.0.0.1:PORT``). Each runs the same small study (a 1-D crush spring and a body spring, 4 x 5
 variants over body mass and impact speed, every history kept) and must reproduce the in-process
 ``results.nc`` exactly, variable by variable (NaN where the reference has NaN): with the default
 chunking, with many small chunks, and when a run is interrupted after two chunks and resumed.
-Dask-specific tests: a worker process dying mid-task (each with a ``--scheduler local`` cluster of its
-own), a missing ``distributed`` install, an unreachable scheduler, and the real command line with
+Dask-specific tests: a worker process dying mid-task (on the module's cluster, whose nanny replaces it),
+a missing ``distributed`` install, an unreachable scheduler, and the real command line with
 ``--scheduler local``.
 """
 
@@ -34,6 +34,7 @@ from crashstudy.results.store import PARTIAL, ResultWriter
 from crashstudy.run.dask_backend import DaskBackend
 from crashstudy.run.runner import run_chunk, run_plan
 from crashstudy.study.plan import load_study
+from helpers import on_shared_pool
 
 MODEL = """\
 name: two-spring-crush
@@ -97,7 +98,8 @@ def reference(study_file: Path, tmp_path_factory: pytest.TempPathFactory) -> xr.
 @pytest.fixture(scope="module")
 def local_cluster() -> Iterator[DaskBackend]:
     """One ``--scheduler local`` cluster (``DaskBackend("local")``: 2 worker processes of one thread on
-    loopback) for the module's tests that are not about starting or killing a cluster; they reach it by
+    loopback) for the module's tests that are not about starting a cluster (a worker that dies in a test is
+    replaced by its nanny); they reach it by
     its address (``--scheduler tcp://127.0.0.1:PORT``). Each start costs ~2 worker processes importing
     numpy, numba and crashstudy and loading the kernel: once here instead of once per run."""
     backend = DaskBackend("local")
@@ -184,43 +186,16 @@ class TestInProcess(BackendSuite):
     options: dict[str, Any] = {}
 
 
-class SharedPool:
-    """The module's ``ProcessPool`` handed to one run: its ``close`` leaves the pool running for the next."""
-
-    def __init__(self, pool: crashstudy.run.backends.ProcessPool) -> None:
-        self.pool = pool
-
-    def imap_unordered(self, fn: Callable[..., Any], tasks: Iterable[tuple[Any, ...]]) -> Iterator[Any]:
-        return self.pool.imap_unordered(fn, tasks)
-
-    def close(self) -> None:
-        pass
-
-
-@pytest.fixture(scope="module")
-def process_pool() -> Iterator[crashstudy.run.backends.ProcessPool]:
-    """One ``--jobs 2`` pool (2 spawned worker processes) for the suite's runs: what they test is the
-    numbers the workers compute, not the pool's start (each start: 2 processes importing numpy, numba,
-    crashstudy and loading the kernel, ~3 s CPU each; 4 runs started 8 of them)."""
-    pool = crashstudy.run.backends.ProcessPool(2)
-    yield pool
-    pool.close()
-
-
 class TestProcessPool(BackendSuite):
-    """``--jobs 2``: every run of the suite on the module's pool of 2 worker processes."""
+    """``--jobs 2``: every run of the suite on the test process's shared pool of 2 worker processes
+    (helpers.shared_process_pool: what they test is the numbers the workers compute, not the pool's start;
+    4 runs started 8 worker processes, the pool is shared with test_design's --jobs 2 run too)."""
 
     options = {"jobs": 2}
 
     @pytest.fixture(autouse=True)
-    def _shared_pool(
-        self, process_pool: crashstudy.run.backends.ProcessPool, monkeypatch: pytest.MonkeyPatch
-    ) -> None:
-        def make_backend(jobs: int = 1, scheduler: str | None = None) -> SharedPool:
-            assert (jobs, scheduler) == (2, None)
-            return SharedPool(process_pool)
-
-        monkeypatch.setattr(crashstudy.run.backends, "make_backend", make_backend)
+    def _shared_pool(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        on_shared_pool(monkeypatch)
 
 
 class TestInProcessZarr(BackendSuite):
@@ -305,42 +280,6 @@ class KillOneWorker:
 def receipt_bound(variants: int) -> int:
     """Bytes a region's receipt may take: its checksums and a little more, not the arrays."""
     return 64 * variants + 16 * 1024
-
-
-@pytest.mark.parametrize("store", ["netcdf", "zarr"])
-def test_dask_study_completes_identically_when_a_worker_dies(
-    study_file: Path, reference: xr.Dataset, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, store: str
-) -> None:
-    """A worker dies in its first task (with Zarr: its region half written): the result is the in-process one.
-    With Zarr the workers write the store and send back only receipts (issue 19 item 3)."""
-    marker = tmp_path / "worker-killed"
-    real = crashstudy.run.backends.make_backend
-    made: list[KillOneWorker] = []
-    monkeypatch.setattr(
-        crashstudy.run.backends,
-        "make_backend",
-        lambda *a, **k: made.append(KillOneWorker(real(*a, **k), marker)) or made[-1],
-    )
-    out = tmp_path / "out"
-    rep = run_plan(
-        load_study(study_file),
-        out,
-        scheduler="local",
-        chunk=SMALL_CHUNK,
-        force=True,
-        progress=False,
-        store=store,
-    )
-    assert marker.exists(), "no worker was killed"
-    assert rep.n_computed == N_VARIANTS and rep.n_failed == 0
-    assert_same_results(_load(out), reference)
-    received = made[0].received
-    assert sum(r.size for r, _ in received) == N_VARIANTS
-    if store == "zarr":
-        assert all(isinstance(r, regions.Receipt) for r, _ in received)
-        assert all(n < receipt_bound(r.size) for r, n in received), [n for _, n in received]
-    else:  # the client writes: every array comes back
-        assert all(isinstance(r, ChunkResult) for r, _ in received)
 
 
 def test_receipt_is_checksums_and_texts_not_arrays(
@@ -455,6 +394,50 @@ def test_cli_run_with_local_scheduler_exits_0(
 
 
 # --- on the module's LocalCluster (local_cluster), last: the cluster lives only while these tests run ----
+
+
+@pytest.mark.parametrize("store", ["netcdf", "zarr"])
+def test_dask_study_completes_identically_when_a_worker_dies(
+    study_file: Path,
+    reference: xr.Dataset,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    store: str,
+    local_cluster: DaskBackend,
+) -> None:
+    """A worker of the module's LocalCluster dies in its first task (with Zarr: its region half written): the
+    result is the in-process one. With Zarr the workers write the store and send back only receipts (issue
+    19 item 3). The cluster's nanny starts a new worker; the test waits for it, so that the cluster has its
+    2 workers again for the tests after it (the dead worker's replacement is the only process it starts)."""
+    marker = tmp_path / "worker-killed"
+    real = crashstudy.run.backends.make_backend
+    made: list[KillOneWorker] = []
+    monkeypatch.setattr(
+        crashstudy.run.backends,
+        "make_backend",
+        lambda *a, **k: made.append(KillOneWorker(real(*a, **k), marker)) or made[-1],
+    )
+    out = tmp_path / "out"
+    rep = run_plan(
+        load_study(study_file),
+        out,
+        scheduler=local_cluster.cluster.scheduler_address,
+        chunk=SMALL_CHUNK,
+        force=True,
+        progress=False,
+        store=store,
+    )
+    assert marker.exists(), "no worker was killed"
+    local_cluster.client.wait_for_workers(2, timeout=120)
+    assert rep.n_computed == N_VARIANTS and rep.n_failed == 0
+    assert_same_results(_load(out), reference)
+    received = made[0].received
+    assert sum(r.size for r, _ in received) == N_VARIANTS
+    if store == "zarr":
+        assert all(isinstance(r, regions.Receipt) for r, _ in received)
+        assert all(n < receipt_bound(r.size) for r, n in received), [n for _, n in received]
+    else:  # the client writes: every array comes back
+        assert all(isinstance(r, ChunkResult) for r, _ in received)
 
 
 class TestDaskLocalCluster(BackendSuite):

@@ -16,6 +16,7 @@ from crashstudy.cli.main import main
 from crashstudy.results.store import open_results
 from crashstudy.study.design import n_rows, rows
 from crashstudy.study.plan import load_study
+from helpers import on_shared_pool
 from models import DROP as MODEL
 
 
@@ -204,9 +205,14 @@ def test_sobol_indices_of_a_crash_run_match_the_closed_form_of_its_peak_force(tm
             )
 
 
-def test_a_design_study_on_two_worker_processes_gives_the_in_process_numbers(tmp_path: Path) -> None:
+def test_a_design_study_on_two_worker_processes_gives_the_in_process_numbers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The design's rows are a dimension like a zip group, so the backends need nothing new: --jobs 2
-    (process pool) writes the same summary, bit for bit, as one process."""
+    (process pool) writes the same summary, bit for bit, as one process. The pool is the test process's
+    shared one (helpers.shared_process_pool, also test_backends.TestProcessPool's): 2 spawned workers that
+    unpickle the design's plan, started once."""
+    on_shared_pool(monkeypatch)
     study = _study(
         tmp_path,
         {"method": "sobol", "n": 32, "seed": 6, "axes": {"nodes.body.mass": {"lognormal": [4.6, 0.2]}}},

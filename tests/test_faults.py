@@ -6,9 +6,9 @@ The contract under test (docs/studies.md, issue 5): an interrupted or failed run
 short message without a traceback, and ``crashstudy run --resume`` then completes with results identical to
 an uninterrupted run, variable by variable (NaN where the reference has NaN) and attribute by attribute.
 
-The interrupted study (``FAULT_STUDY``) is 1000 variants of a one-spring model with ``histories: none`` and
+The interrupted study (``FAULT_STUDY``) is 500 variants of a one-spring model with ``histories: none`` and
 a 2e-5 s history interval over 2 s: the kernel's per-variant energy buffer (100 001 samples) keeps chunks
-at 83 variants, so the run writes 13 chunks in a few seconds and a signal can land between chunks. Each
+at 83 variants, so the run writes 7 chunks in a few seconds and a signal can land between chunks. Each
 test waits for the progress line (``--progress on``) to show finished chunks before it strikes.
 
 Disk-full and read-only cases mount a small tmpfs (``mount -t tmpfs``), which needs root; they are skipped
@@ -32,6 +32,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import netCDF4
 import numpy as np
@@ -41,9 +42,9 @@ import pytest
 import xarray as xr
 
 from helpers import run_cli as cli  # the command line in this process (helpers.run_cli)
-from helpers import run_cli_in_one_process, run_cli_process
+from helpers import run_cli_in_one_process
 
-N_VARIANTS = 1000
+N_VARIANTS = 500
 CHUNK = 83  # chunk_size() of FAULT_STUDY: 256 MiB / (8 B * 100 001 samples * 4 energies)
 
 FAULT_MODEL = """\
@@ -69,7 +70,7 @@ model: models/fault-model.yaml
 matrix:
   nodes.body.mass: [1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5]
   springs.spring.material.stiffness: [1.0e4, 1.5e4, 2.0e4, 2.5e4, 3.0e4, 3.5e4, 4.0e4, 4.5e4, 5.0e4, 5.5e4]
-  impact_velocity: [1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5]
+  impact_velocity: [1.0, 2.0, 3.0, 4.0, 5.0]
 """
 
 SMALL_STUDY = """\
@@ -447,7 +448,7 @@ def test_output_path_that_is_a_file_or_under_a_file_is_refused(fault_dir: Path, 
 
 @pytest.fixture
 def disk_full(fault_dir: Path, tmpfs) -> tuple[Path, subprocess.CompletedProcess[str], Path]:  # type: ignore[no-untyped-def]
-    """A run into a 512 KiB tmpfs (the result needs about 1.3 MB): the netCDF writes fail with ENOSPC."""
+    """A run into a 512 KiB tmpfs (the result needs about 1 MB): the netCDF writes fail with ENOSPC."""
     full = tmpfs("512k")
     out = full / "out"
     p = cli("run", fault_dir / "study.yaml", "-o", out, "--progress", "off")
@@ -745,8 +746,8 @@ ATTACKS = [
 ]
 
 
-#: attacks whose regression would hang or fill memory: their commands run in a subprocess (one for the attack's
-#: commands) with a timeout (the others in this process)
+#: attacks whose regression would hang or fill memory: their commands run in a subprocess with a timeout (the
+#: others in this process); all of them in ONE subprocess (:func:`may_hang`), with the variant bomb's run
 MAY_HANG = {
     "billion-laughs-model",
     "billion-laughs-study",
@@ -757,24 +758,83 @@ MAY_HANG = {
 }
 
 
+def _attack_files(root: Path, kind: str, text: str) -> tuple[Path, list[tuple[str | Path, ...]]]:
+    """The attacked file (the model or the study, the other one good) written under ``root``; the commands
+    that read it."""
+    (root / "models").mkdir(parents=True)
+    model = root / "models" / "fault-model.yaml"
+    study = root / "study.yaml"
+    model.write_text(text if kind == "model" else FAULT_MODEL)
+    study.write_text(text if kind == "study" else GOOD_STUDY)
+    attacked = _attacked(root, kind)
+    commands: list[tuple[str | Path, ...]] = [
+        ("validate", attacked),
+        ("run", study, "-o", root / "out", "--progress", "off"),
+    ]
+    if kind == "model":
+        commands.append(("simulate", model, "-o", root / "out"))
+    return attacked, commands
+
+
+def _attacked(root: Path, kind: str) -> Path:
+    return root / "models" / "fault-model.yaml" if kind == "model" else root / "study.yaml"
+
+
+def _bomb_study(folder: Path) -> Path:
+    """A study of 100 values on each of six axes: 10^12 variants."""
+    values = "[" + ", ".join(f"{1.0 + k / 100:.2f}" for k in range(100)) + "]"
+    axes = [
+        "nodes.body.mass",
+        "springs.spring.material.stiffness",
+        "impact_velocity",
+        "end_time",
+        "nodes.body.position.0",
+        "initial_velocity.body.0",
+    ]
+    study = folder / "bomb.yaml"
+    study.write_text(
+        "name: bomb\nmodel: models/fault-model.yaml\nmatrix:\n" + "".join(f"  {a}: {values}\n" for a in axes)
+    )
+    return study
+
+
+@pytest.fixture(scope="module")
+def may_hang(
+    fault_dir: Path, tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, tuple[Path, list[tuple[str | Path, ...]], list[subprocess.CompletedProcess[str]]]]:
+    """Every command whose regression would hang or fill memory (the MAY_HANG attacks' and the variant
+    bomb's run), one after the other in ONE subprocess that must end within 240 s (a hang fails these tests
+    at the timeout, a blow-up ends that process and not the test run) in a folder that holds a folder per
+    case: one interpreter start instead of seven. {case id: (its folder, its commands, what each did)}."""
+    here = tmp_path_factory.mktemp("may-hang")
+    cases: dict[str, tuple[Path, list[tuple[str | Path, ...]]]] = {}
+    for case, kind, text, _, _ in ATTACKS:
+        if case in MAY_HANG:
+            cases[case] = (here / case, _attack_files(here / case, kind, text)[1])
+    (here / "bomb").mkdir()
+    cases["bomb"] = (
+        here / "bomb",
+        [("run", _bomb_study(fault_dir), "-o", here / "bomb" / "out", "--progress", "off")],
+    )
+    done = iter(
+        run_cli_in_one_process(*[c for _, cmds in cases.values() for c in cmds], cwd=here, timeout=240)
+    )
+    return {case: (root, cmds, [next(done) for _ in cmds]) for case, (root, cmds) in cases.items()}
+
+
 @pytest.mark.parametrize(
     ("kind", "text", "line", "field"), [a[1:] for a in ATTACKS], ids=[a[0] for a in ATTACKS]
 )
 def test_yaml_attack_is_refused_with_exit_2(
     tmp_path: Path, kind: str, text: str, line: int | None, field: str, request: pytest.FixtureRequest
 ) -> None:
-    (tmp_path / "models").mkdir()
-    model = tmp_path / "models" / "fault-model.yaml"
-    study = tmp_path / "study.yaml"
-    model.write_text(text if kind == "model" else FAULT_MODEL)
-    study.write_text(text if kind == "study" else GOOD_STUDY)
-    attacked = model if kind == "model" else study
-    commands = [("validate", attacked), ("run", study, "-o", tmp_path / "out", "--progress", "off")]
-    if kind == "model":
-        commands.append(("simulate", model, "-o", tmp_path / "out"))
-    if request.node.callspec.id in MAY_HANG:  # subprocess.TimeoutExpired would fail the test
-        done = run_cli_in_one_process(*commands, cwd=tmp_path, timeout=240)
+    case = request.node.callspec.id
+    if case in MAY_HANG:  # run in the module's one subprocess with a timeout (its working folder: the parent)
+        tmp_path, commands, done = request.getfixturevalue("may_hang")[case]
+        attacked = _attacked(tmp_path, kind)
+        assert not (tmp_path.parent / "PWNED").exists()
     else:
+        attacked, commands = _attack_files(tmp_path, kind, text)
         done = [cli(*argv, cwd=tmp_path) for argv in commands]
     for argv, p in zip(commands, done, strict=True):
         assert p.returncode == 2, (argv, p.stdout, p.stderr[-1500:])
@@ -788,25 +848,13 @@ def test_yaml_attack_is_refused_with_exit_2(
     assert not (tmp_path / "out").exists()
 
 
-def test_variant_bomb_is_refused_without_traceback(fault_dir: Path, tmp_path: Path) -> None:
-    values = "[" + ", ".join(f"{1.0 + k / 100:.2f}" for k in range(100)) + "]"
-    axes = [
-        "nodes.body.mass",
-        "springs.spring.material.stiffness",
-        "impact_velocity",
-        "end_time",
-        "nodes.body.position.0",
-        "initial_velocity.body.0",
-    ]
-    study = fault_dir / "bomb.yaml"
-    study.write_text(
-        "name: bomb\nmodel: models/fault-model.yaml\nmatrix:\n" + "".join(f"  {a}: {values}\n" for a in axes)
-    )
+def test_variant_bomb_is_refused_without_traceback(fault_dir: Path, may_hang: dict[str, Any]) -> None:
+    study = _bomb_study(fault_dir)
     p = cli("run", study, "--dry-run")  # refused up front, naming the count and the limit
     assert p.returncode == 2 and "1,000,000,000,000 variants" in p.stderr, p.stderr
     assert_clean_message(p.stderr)
-    out = tmp_path / "out"
-    p = run_cli_process("run", study, "-o", out, "--progress", "off", timeout=120)
+    folder, _, (p,) = may_hang["bomb"]  # the run itself, in the module's one subprocess with a timeout
+    out = folder / "out"
     assert p.returncode in (1, 2), p.stderr[-1500:]
     assert_clean_message(p.stderr)
     assert not out.exists() or not any(out.iterdir())

@@ -22,6 +22,7 @@ from matrix import TWO_SPRING  # noqa: E402 - the 2-spring model of issues 19 an
 
 BLOCK = 256  # every whole-study pass reads or writes this many variants at once in these tests
 CHUNK = 256  # variants per computed chunk
+RUN_BLOCK = 1024  # blocks and computed chunks of the run's peak-memory test
 
 
 def two_spring_study(folder: Path, n: int, name: str = "scale") -> Path:
@@ -37,8 +38,8 @@ def two_spring_study(folder: Path, n: int, name: str = "scale") -> Path:
     return path
 
 
-@pytest.fixture
-def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+def set_blocks(monkeypatch: pytest.MonkeyPatch, rows: int) -> None:
+    """Every whole-study pass reads or writes ``rows`` variants at once."""
     for mod, name in (
         (integrity, "CHECK_BLOCK"),
         (store, "REUSE_BLOCK"),
@@ -46,32 +47,37 @@ def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
         (tables, "SUMMARY_BLOCK"),
         (curve_ends, "BLOCK"),
     ):
-        monkeypatch.setattr(mod, name, BLOCK, raising=False)  # raising=False: the test runs at main too
+        monkeypatch.setattr(mod, name, rows, raising=False)  # raising=False: the test runs at main too
 
 
-def run_and_after(plan: Plan, out: Path, **kw: object) -> None:
-    """Run ``plan`` into ``out`` (generic kernel, chunks of CHUNK), with what the command line does after it."""
+@pytest.fixture
+def small_blocks(monkeypatch: pytest.MonkeyPatch) -> None:
+    set_blocks(monkeypatch, BLOCK)
+
+
+def run_and_after(plan: Plan, out: Path, chunk: int = CHUNK) -> None:
+    """Run ``plan`` into ``out`` (generic kernel, chunks of ``chunk``), with what the command line does after it."""
     from crashstudy.cli.main import _after_run
 
-    rep = runner.run_plan(plan, out, kernel="generic", chunk=CHUNK, progress=False, **kw)  # type: ignore[arg-type]
+    rep = runner.run_plan(plan, out, kernel="generic", chunk=chunk, progress=False)
     _after_run(rep.results)
 
 
-def traced_peak(study: Path, out: Path, **kw: object) -> int:
+def traced_peak(study: Path, out: Path, chunk: int) -> int:
     """Peak bytes allocated by Python and NumPy (tracemalloc) while running ``study`` into ``out``
     (:func:`run_and_after`; the study file is read before)."""
     plan = load_study(study)
     tracemalloc.start()
     try:
         tracemalloc.reset_peak()
-        run_and_after(plan, out, **kw)
+        run_and_after(plan, out, chunk)
         return tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
 
 
 def test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants(
-    tmp_path: Path, small_blocks: None
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """At N = 2048 and 4N variants, a fresh run and a re-run (every variant reused) peak at traced memory that
     grows by less than 24 bytes per variant of the 3N more (plus 256 KiB). Before: the re-run's hash lookup and
@@ -85,16 +91,23 @@ def test_peak_memory_of_a_run_and_of_its_rerun_does_not_grow_with_the_variants(
     On the generic kernel (2026-11-27; the reference's NumPy steps were ~40 of the test's 71 CPU s), after a
     warm-up run that loads it: fresh 755 -> 794 KB (6 B per variant), re-run 352 -> 495 KB (23 B per
     variant); with 100 B per variant held on purpose (a list of arrays in run_chunk) the fresh run grows
-    106 B per variant and the test fails."""
-    n = 8 * BLOCK
+    106 B per variant and the test fails.
+    Blocks and chunks of RUN_BLOCK = 1024 variants (BLOCK, 256, until 2026-11-27): the test's cost is per
+    block (the summary's columns, the reuse's copies, a chunk's set-up, each slow under tracemalloc), what it
+    measures is what is held per variant, whatever the block: 20.9 -> 8.4 CPU s; fresh 1948 -> 1973 KB (4 B
+    per variant), re-run 560 -> 628 KB (11 B per variant); 100 B per variant held on purpose in run_chunk:
+    fresh 2152 -> 2795 KB, 105 B per variant, and the test fails (bound 24 B per variant + 256 KiB: it fails
+    on what holds more than ~67 B per variant at this N)."""
+    n = 2048
+    set_blocks(monkeypatch, RUN_BLOCK)
     # once-only imports and the kernel's load, untraced (tracemalloc makes this code ~4x slower)
     run_and_after(load_study(two_spring_study(tmp_path / "warm-up", 16)), tmp_path / "warm-up" / "out")
     peaks = {}
     for size in (n, 4 * n):
         study = two_spring_study(tmp_path / str(size), size)
         out = tmp_path / str(size) / "out"
-        peaks[("fresh", size)] = traced_peak(study, out)
-        peaks[("rerun", size)] = traced_peak(study, out)
+        peaks[("fresh", size)] = traced_peak(study, out, RUN_BLOCK)
+        peaks[("rerun", size)] = traced_peak(study, out, RUN_BLOCK)
     for kind in ("fresh", "rerun"):
         grown = peaks[(kind, 4 * n)] - peaks[(kind, n)]
         assert grown < 3 * n * 24.0 + 256 * 1024, (kind, peaks)
