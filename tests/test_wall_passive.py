@@ -12,6 +12,7 @@ penalty walls) stay ok with their walls' energy >= 0 to round-off.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -21,10 +22,10 @@ import yaml
 from crashstudy.arrays.batch import build_batch
 from crashstudy.arrays.compiler import apply_axis
 from crashstudy.kernel.output import UNSTABLE
-from crashstudy.vocabulary.codes import WALL_PASSIVITY
+from crashstudy.vocabulary.codes import UNSTABLE_WALLS, WALL_PASSIVITY
 from helpers import model_plan, output_differences
 from models import wall_spring
-from test_stress import at_step, forced_batch
+from test_stress import at_step, conservative, forced_batch
 
 
 def _first_giving_step(x0: float, v0: float, k: float, m: float, wall: float, dt: float) -> int:
@@ -61,6 +62,7 @@ def test_an_unstable_step_bounded_by_a_rigid_wall_fails_at_the_step_the_wall_giv
     assert n_bad == 2  # 1 -> 0.944 -> 1.876, then thrown through the wall from there (it moves away)
     out = run_kernel(batch, hist, plan.n_out, kernel)
     assert list(out.status) == [0, UNSTABLE, 0, 0], kernel
+    assert out.fail_item[1] == UNSTABLE_WALLS  # the passivity test, not the energy balance (-1)
     assert out.fail_time[1] == n_bad * batch.dt[1]
     assert out.energy_error[1] < 1e-6  # the balance itself closes: the old test could not see it
     k_fail = int(np.ceil(out.fail_time[1] / plan.interval))
@@ -74,6 +76,54 @@ def test_an_unstable_step_bounded_by_a_rigid_wall_fails_at_the_step_the_wall_giv
         alone = run_kernel(batch.take(np.array([k])), hist, plan.n_out, kernel)
         assert alone.status[0] == 0
         assert output_differences(out, alone, k, 0) == [], f"{kernel}: variant {k} differs from its run alone"
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
+@pytest.mark.parametrize("wall", ["0.9", "-1e9"])
+def test_the_runner_names_the_failed_test_wall_passivity_or_energy_balance(
+    wall: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Through ``run_chunk`` (the path of ``simulate`` and studies; its step multiplied by 3 where the
+    runner builds the batch): with the wall at 0.9 m the reason names the wall 'floor' and the passivity
+    test at the step of the scalar model (was: "energy balance lost", although the balance held); with
+    test_stress's two-mass chain and a wall out of reach (-1e9 m; at -1e3 and -1e6 m the thrown node
+    reaches it first and the passivity test fails it) the balance is lost and the reason keeps its text
+    (tests/test_stress.py's regex)."""
+    import crashstudy.run.runner as runner
+
+    if wall == "0.9":
+        model = at_step(yaml.safe_load(wall_spring(wall=wall, speed=-1.0)), 2000, 20)
+    else:  # test_stress's two-mass chain (its balance is lost at 3 x dt_crit) with a wall out of reach
+        model = dict(conservative(2000), rigid_walls=[{"id": "far", "point": [-1.0e9], "normal": [1.0]}])
+    plan = model_plan(model)
+    real = runner.build_batch
+
+    def patched(topo: Any, P: np.ndarray, interval: float) -> Any:
+        batch, steps = real(topo, P, interval)
+        batch.dt[:] = 3.0 * steps.dt_crit
+        return batch, steps
+
+    monkeypatch.setattr(runner, "build_batch", patched)
+    res = runner.run_chunk(plan, 0, 1)
+    assert list(res.out.status) == [UNSTABLE], res.reasons
+    dt = 3.0 * res.dt_crit[0]
+    if wall == "0.9":
+        n_bad = _first_giving_step(1.0, -1.0, 1.0e4, 1.0, 0.9, dt)
+        pattern = (
+            r"numerical instability: rigid wall 'floor' gave back energy \(passivity test\) at t=(\S+) "
+            r"\(dt_crit=(\S+), node b / spring s\): the time step is too large for this contact"
+        )
+    else:
+        n_bad = None
+        pattern = (
+            r"numerical instability: energy balance lost \(non-finite, or error above 100%\) at t=(\S+) "
+            r"\(dt_crit=(\S+), node (\w+) / spring (\w+)\)"
+        )
+    m = re.fullmatch(pattern, res.reasons[0])
+    assert m, res.reasons[0]
+    assert float(m.group(2)) == pytest.approx(res.dt_crit[0], rel=1e-5)
+    if n_bad is not None:
+        assert float(m.group(1)) == pytest.approx(n_bad * dt, rel=1e-5)
 
 
 def _model_2d(k_wall: float = 0.0) -> dict[str, Any]:
