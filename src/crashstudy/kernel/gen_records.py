@@ -8,6 +8,7 @@ from __future__ import annotations
 from crashstudy.kernel.gen_nodes import _chain
 from crashstudy.kernel.gen_rows import One
 from crashstudy.kernel.gen_shape import Layout
+from crashstudy.vocabulary.codes import UNSTABLE_WALLS
 
 
 def failures(g: Layout, i3: str) -> None:
@@ -19,11 +20,12 @@ def failures(g: Layout, i3: str) -> None:
     wall_now = f"({g.R['wall_e']} if n > 0 else 0.0)" if g.W else "0.0"  # t = 0: before any impact
     work = g.R["work"] if g.ext else "0.0"
     bal = f"energy_balance({g.R['ken']}, {g.R['ien']}, {wall_now}, {g.R[g.E0]}, {work})"
-    bad = f"unstable({bal}, {g.R['thr']})"
-    if g.W:  # walls that gave energy (docs/solver.md, "Instability tests")
-        bad = f"({bad} or wall_gives({wall_now}, {g.R['thr']}))"
-    g.emit(f"{i3}        if {bad}:")
+    g.emit(f"{i3}        if unstable({bal}, {g.R['thr']}):")
     g.emit(f"{i3}            status[vi[w]] = UNSTABLE")
+    if g.W:  # walls that gave energy while the balance held (docs/solver.md, "Instability tests")
+        g.emit(f"{i3}        elif wall_gives({wall_now}, {g.R['thr']}):")
+        g.emit(f"{i3}            status[vi[w]] = UNSTABLE")
+        g.emit(f"{i3}            fail_item[vi[w]] = {UNSTABLE_WALLS}")
     if g.D > 1:
         g.emit(f"{i3}        elif {g.R['crushed']} >= 0.0:")
         g.emit(f"{i3}            status[vi[w]] = CRUSHED_TO_ZERO")

@@ -20,6 +20,7 @@ from crashstudy.vocabulary.codes import (
     NSTATE,
     PM_DISPLACEMENT,
     UNSTABLE,
+    UNSTABLE_WALLS,
 )
 from crashstudy.vocabulary.materials import KNOT_MATERIALS, STATE_MATERIALS
 
@@ -358,8 +359,11 @@ def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
         if not act[w]:
             continue
         lim = unstable_limit(e_scale[w], wmax[w], e_floor[lo + w])
-        if unstable(bal[w], lim) or wall_gives(wall_e[w] if n > 0 else 0.0, lim):
+        if unstable(bal[w], lim):
             st_ok[w] = UNSTABLE
+        elif wall_gives(wall_e[w] if n > 0 else 0.0, lim):  # the balance held: fail_item names the walls
+            st_ok[w] = UNSTABLE
+            Out.fail_item[lo + w] = UNSTABLE_WALLS
         elif D > 1 and crushed[w] >= 0:
             st_ok[w] = CRUSHED_TO_ZERO
             Out.fail_item[lo + w] = crushed[w]

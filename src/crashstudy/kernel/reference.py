@@ -58,6 +58,7 @@ from crashstudy.vocabulary.codes import (
     RATE_ELASTIC,
     TINY_LENGTH,
     UNSTABLE_ENERGY,
+    UNSTABLE_WALLS,
 )
 from crashstudy.vocabulary.materials import DAMPER_MATERIALS
 
@@ -302,8 +303,11 @@ def run_reference(
         )
 
         limit = unstable_limit_np(e_scale, wmax, b.energy_floor)
-        bad = act & (unstable_np(bal, limit) | wall_gives_np(wall_now, limit))
+        lost = act & unstable_np(bal, limit)
+        gives = act & ~lost & wall_gives_np(wall_now, limit)  # the balance held (fail_item names the test)
+        bad = lost | gives
         out.status[:] = np.where(bad, UNSTABLE, out.status)
+        out.fail_item[:] = np.where(gives, UNSTABLE_WALLS, out.fail_item)
         gone = act & ~bad & (crushed >= 0)
         out.status[:] = np.where(gone, CRUSHED_TO_ZERO, out.status)
         out.fail_item[:] = np.where(gone, crushed, out.fail_item)

@@ -32,7 +32,7 @@ from crashstudy.run.write_behind import WriteBehind
 from crashstudy.safefs import FolderBusy, folder_lock
 from crashstudy.study.plan import Plan, load_study, plan_from_model
 from crashstudy.study.provenance import variant_hashes
-from crashstudy.vocabulary.codes import KernelName
+from crashstudy.vocabulary.codes import UNSTABLE_WALLS, KernelName
 
 if TYPE_CHECKING:  # the writer (netCDF4) and reader (pandas, xarray) are imported by the functions that
     # write: a --jobs worker unpickles run_chunk from this module and needs neither
@@ -144,7 +144,7 @@ def run_chunk(
     user_dt = uniq[topo.blocks["time_step"].start][inverse]
     reasons = np.full(V, "", dtype=object)
     for k in np.flatnonzero(full.status):  # texts only for the failed variants
-        reasons[k] = _reason(full, int(k), topo.spring_ids, user_dt[k], dt_crit[k], control[k])
+        reasons[k] = _reason(full, int(k), topo, user_dt[k], dt_crit[k], control[k])
     ends = past_curve_ends(batch, full.max_crush, full.max_elongation, inverse)
     return ChunkResult(
         np.arange(lo, hi),
@@ -195,18 +195,20 @@ def _control_texts(topo: Any, node: np.ndarray, spring: np.ndarray) -> np.ndarra
     return texts[inv.reshape(-1)] if len(node) else np.zeros(0, dtype=object)
 
 
-def _reason(
-    out: KernelOutput, k: int, springs: tuple[str, ...], user_dt: float, dt_crit: float, control: str
-) -> str:
-    code = int(out.status[k])
-    t = out.fail_time[k]
+def _reason(out: KernelOutput, k: int, topo: Any, user_dt: float, dt_crit: float, control: str) -> str:
+    code, t, at = int(out.status[k]), out.fail_time[k], f"(dt_crit={dt_crit:.6g}, {control})"
+    if code == UNSTABLE and int(out.fail_item[k]) == UNSTABLE_WALLS:  # the passivity test failed
+        w = ", ".join(repr(w) for w in topo.wall_ids)
+        w = f"rigid wall {w}" if len(topo.wall_ids) == 1 else f"rigid walls {w} (together)"
+        return f"numerical instability: {w} gave back energy (passivity test) at t={t:.6g} {at}: " + (
+            "the time step is too large for this contact"
+        )
     if code == UNSTABLE:
         return (
-            f"numerical instability: energy balance lost (non-finite, or error above 100%) at t={t:.6g} "
-            f"(dt_crit={dt_crit:.6g}, {control})"
+            f"numerical instability: energy balance lost (non-finite, or error above 100%) at t={t:.6g} {at}"
         )
     if code == CRUSHED_TO_ZERO:
-        return f"spring {springs[int(out.fail_item[k])]!r} crushed to zero length at t={t:.6g}"
+        return f"spring {topo.spring_ids[int(out.fail_item[k])]!r} crushed to zero length at t={t:.6g}"
     if code == INVALID:
         item = int(out.fail_item[k])
         if item == 1:

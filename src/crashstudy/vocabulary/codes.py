@@ -54,4 +54,6 @@ TINY_LENGTH = 1e-12  # a 2-D spring shorter than this fraction of its initial le
 UNSTABLE_ENERGY = 1.0  # an energy balance error above this fraction of KE0 + IE0 + |W_ext| (+ a round-off
 # floor of 1e-9 of the springs' k L0^2 and the initial m v0^2) is an instability
 WALL_PASSIVITY = 1e-9  # walls that have given back more than this fraction of that limit: an instability
+# fail_item of an UNSTABLE variant: which test failed (-1, as allocated: the energy balance)
+UNSTABLE_BALANCE, UNSTABLE_WALLS = -1, -2  # UNSTABLE_WALLS: the rigid walls gave back energy
 TIME_EPS = 1e-9  # relative to a time curve's span: t = n dt carries round-off, a knot at end_time is inside
