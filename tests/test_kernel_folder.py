@@ -1,4 +1,4 @@
-"""A process that changes its kernel folder (``CRASHSTUDY_KERNEL_CACHE``) mid-way uses the new folder: the
+"""A generated kernel's name covers the laws it calls, and a process that changes its kernel folder (``CRASHSTUDY_KERNEL_CACHE``) mid-way uses the new folder: the
 kernel choice asks the new folder whether a shape is compiled, and a run writes and compiles its generated
 kernel there, not in the folder it loaded the shape from first (a notebook that points the variable at
 another folder between two studies)."""
@@ -34,3 +34,38 @@ def test_a_changed_kernel_folder_is_the_one_asked_and_written(
         assert Path(module.__file__).parent == new != first
         assert not module.run_blocks.signatures  # the new folder's module, not the one compiled before
     assert generated.is_compiled(batch, histories)  # back in the first folder: its module, compiled
+
+
+def test_a_kernel_name_changes_with_the_laws_it_calls(monkeypatch: pytest.MonkeyPatch) -> None:
+    """numba's cache checks only the generated file's own time stamp: a crashstudy whose laws changed (a
+    fixed law, a new constant) must not load a kernel compiled with the old ones, so the name (the file
+    and its numba index) is a hash of the source and of the modules the source imports."""
+    import hashlib
+
+    from crashstudy.kernel import laws, step_laws
+    from crashstudy.vocabulary import codes
+
+    model, scales = generated_parts_model(1e-4, 1e-3, 1e-3)
+    batch, plan = model_batch(model, scales)
+    shape = _shape(batch, plan.topology.histories, None)
+    src = generated._source(shape)
+    imported = {m.__name__ for m in (laws, step_laws, codes)}
+    assert all(f"from {name} import" in src for name in imported)  # what the source calls, all hashed
+    files = b"".join(Path(str(m.__file__)).read_bytes() for m in (laws, step_laws, codes))
+    assert (
+        generated.shape_key(shape)
+        == hashlib.sha256(src.encode() + hashlib.sha256(files).digest()).hexdigest()[:20]
+    )
+
+    monkeypatch.setattr(generated, "_SOURCES", {})
+    monkeypatch.setattr(
+        generated, "laws_fingerprint", lambda: hashlib.sha256(files + b"# a fixed law").digest()
+    )
+    assert generated._source_key(shape) == (
+        src,
+        hashlib.sha256(src.encode() + generated.laws_fingerprint()).hexdigest()[:20],
+    )
+    assert (
+        generated.shape_key(shape)
+        != hashlib.sha256(src.encode() + hashlib.sha256(files).digest()).hexdigest()[:20]
+    )

@@ -30,11 +30,13 @@ next to the generated source, in the user's private folder of :mod:`crashstudy.k
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import os
 import sys
 import threading
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from crashstudy.kernel.cache import cache_dir, checked_dir, why_not_private
@@ -69,13 +71,27 @@ _SOURCES: dict[str, tuple[str, str]] = {}  # repr(shape) -> (source, key)
 
 
 def _source_key(shape: dict[str, Any]) -> tuple[str, str]:
-    """A shape's source and its name (a hash of the source), generated once per process: the kernel
-    choice, the compile check and the run all ask for it every chunk."""
+    """A shape's source and its name (a hash of the source and of the laws it calls), generated once per
+    process: the kernel choice, the compile check and the run all ask for it every chunk."""
     r = repr(shape)
     if r not in _SOURCES:
         src = _source(shape)
-        _SOURCES[r] = (src, hashlib.sha256(src.encode()).hexdigest()[:20])
+        _SOURCES[r] = (src, hashlib.sha256(src.encode() + laws_fingerprint()).hexdigest()[:20])
     return _SOURCES[r]
+
+
+@functools.cache
+def laws_fingerprint() -> bytes:
+    """A hash of the modules a generated kernel imports (its laws and their constants). numba's cache checks
+    only the generated file's own time stamp, so a crashstudy whose laws changed while a model's source did
+    not would otherwise load the kernel compiled with the old laws; with this in the name, it compiles anew."""
+    from crashstudy.kernel import laws, step_laws
+    from crashstudy.vocabulary import codes
+
+    h = hashlib.sha256()
+    for module in (laws, step_laws, codes):
+        h.update(Path(str(module.__file__)).read_bytes())
+    return h.digest()
 
 
 def _module(shape: dict[str, Any]) -> Any:
