@@ -73,6 +73,12 @@ def _check_full_twin_scaled_both_ways(ref: KernelOutput, batch: Any, plan: Any) 
     _check_full_twin(ref, batch, plan)
     _check_scaled(ref, batch, plan)
     _check_both_ways(ref, batch, plan)
+    # both ways, the crush springs reach their plateau (at least 1800 N, scaled) and the general_nonlinear
+    # ones their yield (1500 N) in some variant, and each has unloaded from its peak in some variant
+    ids, last = plan.topology.spring_ids, np.abs(ref.histories["spring_force"][-1])
+    for s in ("crush", "rev-crush", "yielding", "rev-yielding"):
+        k = ids.index(s)
+        assert np.max(ref.peak_force[k]) >= 1500.0 and np.any(last[k] < ref.peak_force[k]), s
 
 
 def _check_full_twin_2d(ref: KernelOutput, batch: Any, plan: Any) -> None:
