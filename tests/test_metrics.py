@@ -537,9 +537,8 @@ def test_block_record_with_k_1_is_the_every_step_record_bit_for_bit(every_step) 
 @pytest.mark.parametrize(
     "case",
     [
-        "full-twin-2d-mixed-prescribed",
+        "full-twin-2d-mixed-prescribed-helicopter-rigid-and-penalty-walls",
         "early-termination",
-        "frontal-curve-and-mass-axes-lane-compaction",
         "2d-crushed-to-zero",
     ],
 )

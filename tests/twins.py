@@ -11,13 +11,11 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-import yaml
 
 from crashstudy.kernel.output import ALL_SHAPES, KernelOutput
 from helpers import STUDIES, model_batch
 
 G = 9.80665  # m/s^2
-FRONTAL = STUDIES / "models" / "frontal-9mass.yaml"
 HELICOPTER = STUDIES / "models" / "helicopter-subfloor.yaml"
 MASSES = [6.0, 8.0, 10.0, 12.0, 14.0]
 
@@ -334,7 +332,7 @@ _CURVE_KEYS = ("loading", "unloading", "curve")
 
 
 def disjoint(parts: dict[str, dict[str, Any]], base: dict[str, Any] | None = None) -> dict[str, Any]:
-    """One model of the sub-systems ``parts`` (prefix -> model without gravity), side by side and
+    """One model of the sub-systems ``parts`` (prefix -> model without gravity, or with the base's), side by side and
     unconnected: every node, spring, wall and used curve ``id`` becomes ``<prefix>-<id>`` (a part's walls
     hold its own nodes, its loads and prescribed motion act on them); end time, time step and output are
     the first part's. With ``base``, the parts are added beside that model (kept as it is: its ids, walls,
@@ -344,7 +342,7 @@ def disjoint(parts: dict[str, dict[str, Any]], base: dict[str, Any] | None = Non
     for key in ("curves", "nodes", "springs", "initial_velocity"):
         model.setdefault(key, {})
     for p, part in parts.items():
-        assert "gravity" not in part, p
+        assert part.get("gravity", model.get("gravity")) == model.get("gravity"), p  # the base's, if any
 
         def curve(cid: str, p: str = p, part: dict[str, Any] = part) -> str:
             model["curves"][f"{p}-{cid}"] = part["curves"][cid]
@@ -402,8 +400,12 @@ def part_of(out: KernelOutput, plan: Any, prefix: str) -> KernelOutput:
 
 def full_twin_both_ways() -> dict[str, Any]:
     """TWIN_1D (every material left to right, walls, gravity, load, prescribed velocity) with
-    :func:`one_d_materials` drawn right to left beside it (``rev-``, under the same gravity)."""
-    return disjoint({"rev": one_d_materials(True)}, base=TWIN_1D)
+    :func:`one_d_materials` drawn right to left beside it (``rev-``, under the same gravity), to 0.03 s
+    instead of TWIN_1D's 0.06 (the reference run 1.5 s of CPU instead of 4.0): by then the crush springs
+    have reached their plateau and unloaded, the general_nonlinear ones yielded and unloaded."""
+    model = disjoint({"rev": one_d_materials(True)}, base=TWIN_1D)
+    model["end_time"] = 0.03
+    return model
 
 
 def knots(dim: int, scaled: bool = False) -> dict[str, Any]:
@@ -413,11 +415,34 @@ def knots(dim: int, scaled: bool = False) -> dict[str, Any]:
     return disjoint(parts | ({f"s-{p}": part for p, part in parts.items()} if scaled else {}))
 
 
-def knots_and_reversal() -> dict[str, Any]:
-    """:func:`knots` 1-D on constant and on scaled curves, :data:`CRUSH_REBOUND` (``cr-``) and
-    :func:`mount_reversal` (``mount-``) beside them, to 0.08 s (the mount's reversal ends after 0.06 s)."""
-    model = disjoint({"k": knots(1, scaled=True), "cr": CRUSH_REBOUND, "mount": mount_reversal()})
+def _v2_parts(dim: int) -> dict[str, dict[str, Any]]:
+    """The SPEC v2 spring features breaking (``f-``) beside rate_elastic (``r-``); in 1-D, intact (``i-``)
+    too. (2-D has no ``i-``: a spring's 2-D code and its breaking code are separate, each checked here: 2-D
+    in ``f-``, intact in 1-D ``i-``; in 2-D the springs without a failure option, ``f-nd``, ``f-gn`` and
+    ``r-``, still run beside breaking ones.)"""
+    return (
+        {"f": _v2_springs(dim)}
+        | ({"i": _v2_intact(dim)} if dim == 1 else {})
+        | {"r": rate_elastic_model(dim)}
+    )
+
+
+def springs_1d() -> dict[str, Any]:
+    """:func:`knots` 1-D on constant and on scaled curves (``k-``), :data:`CRUSH_REBOUND` (``cr-``),
+    :func:`mount_reversal` (``mount-``) and :func:`_v2_parts` 1-D side by side, on the knots' fixed step of
+    0.4 ms, to 0.08 s (the mount's reversal ends after 0.06 s; the v2 springs that break do by then)."""
+    parts = {"k": knots(1, scaled=True), "cr": CRUSH_REBOUND, "mount": mount_reversal(), **_v2_parts(1)}
+    model = disjoint(parts)
     model["end_time"] = 0.08
+    return model
+
+
+def springs_2d() -> dict[str, Any]:
+    """:func:`_v2_parts` 2-D (its step, end time 0.3 s and output) with :func:`one_mass` 2-D of every curve
+    material beside them (``crush-``, ``elastic-``, ``general-``), to 0.1 s (the v2 springs that break do
+    by then; the reference run 0.9 s of CPU instead of 2.3 at 0.3 s)."""
+    model = disjoint(_v2_parts(2) | {p: one_mass(k, dim=2) for k, p in _KNOT_PREFIX.items()})
+    model["end_time"] = 0.1
     return model
 
 
@@ -448,18 +473,14 @@ def _helicopter_penalty_side() -> dict[str, Any]:
     return model
 
 
-def _frontal() -> dict[str, Any]:
-    model = yaml.safe_load(FRONTAL.read_text())
-    model["output"] = {"interval": 1.0e-3, "histories": "all"}
-    model["end_time"] = (
-        0.015  # 24 variants ending at 16 different steps (reference run 3.4 s CPU; 6.9 at 0.03)
-    )
-    return model
-
-
-def _helicopter_crushed() -> dict[str, Any]:
-    model = yaml.safe_load(HELICOPTER.read_text())
-    model["output"]["histories"] = ["position", "spring_force", "kinetic_energy"]
+def full_twin_2d() -> dict[str, Any]:
+    """TWIN_2D_MIXED (crush, damper, linear, nonlinear; prescribed displacement and acceleration, an
+    inclined rigid wall ``slope``), with :func:`_helicopter_penalty_side` beside it (``h-``: two
+    general_nonlinear springs, its load pulse, a rigid floor and a penalty side wall holding both masses),
+    under the same gravity, to 0.06 s (TWIN_2D_MIXED's 0.1 s: the reference run 8.6 s of CPU instead of
+    4.2; by 0.06 s every wall is hit and the helicopter's underfloor has passed its largest crush)."""
+    model = disjoint({"h": _helicopter_penalty_side()}, base=TWIN_2D_MIXED)
+    model["end_time"] = 0.06
     return model
 
 
@@ -479,14 +500,6 @@ KNOTS_AND_REVERSAL = {
     **{k.replace("curves.", "curves.k-"): v for k, v in SCALED_KNOTS.items()},
     "nodes.cr-body.mass": [900.0, 1100.0, 1200.0, 1300.0, 1500.0],
     "initial_velocity.mount-engine.0": [-2.0, -2.5, -2.75, -3.0, -3.5],
-}
-
-_rng = np.random.default_rng(4)
-# per-variant and constant curves, and variants ending at different steps (lane compaction)
-_FRONTAL_AXES = {
-    "curves.rail-loading.scale": list(np.linspace(0.7, 1.5, 24)),
-    "nodes.engine.mass": list(_rng.uniform(100.0, 250.0, 24)),
-    "nodes.bumper.mass": list(np.random.default_rng(7).permutation(np.linspace(3.0, 40.0, 24))),
 }
 
 # force and abscissa scales of spring, time and motion curves (a constant shape and per-variant factors)
@@ -614,17 +627,34 @@ def rate_elastic_model(dim: int) -> dict[str, Any]:
     }
 
 
-def v2_and_rate(dim: int) -> dict[str, Any]:
-    """The SPEC v2 spring features breaking (``f-``) beside rate_elastic (``r-``); in 1-D, intact
-    (``i-``) too. (2-D has no ``i-``: a spring's 2-D code and its breaking code are separate, each checked
-    here: 2-D in ``f-``, intact in 1-D ``i-``; in 2-D the springs without a failure option, ``f-nd``,
-    ``f-gn`` and ``r-``, still run beside breaking ones. Without it the 2-D kernel compiles in about 27 s
-    of CPU instead of 38.)"""
-    parts = {"f": _v2_springs(dim)} | ({"i": _v2_intact(dim)} if dim == 1 else {})
-    return disjoint(parts | {"r": rate_elastic_model(dim)})
+_SPEEDS = [0.5, 2.0, 4.0, 6.0, 9.0]  # m/s
 
 
-_V2_AXES = {"impact_velocity": [0.5, 2.0, 4.0, 6.0, 9.0], "curves.r-mid.scale": [1.0, 0.8, 1.2, 1.0, 1.5]}
+def _v2_axes(dim: int) -> dict[str, list[float]]:
+    """The v2 parts' speeds (b and c at +-speed along their axis, as ``impact_velocity`` would set them, but
+    only them: not the knots' bodies nor the mount) and a per-variant factor on a rate_elastic curve."""
+    ax = [1.0] if dim == 1 else [0.6, 0.8]
+    return {
+        **{
+            f"initial_velocity.{p}-{n}.{d}": [sg * c * v for v in _SPEEDS]
+            for p in ("fir" if dim == 1 else "fr")
+            for n, sg in (("b", 1.0), ("c", -1.0))
+            for d, c in enumerate(ax)
+        },
+        "curves.r-mid.scale": [1.0, 0.8, 1.2, 1.0, 1.5],
+    }
+
+
+# the knots' masses up to 10 kg (as in :func:`one_mass`): at 14 kg the nonlinear elastic spring, run to 0.3 s
+# on this model's 0.5 ms step, passes its curve's last knot (-0.1 m) and crushes to zero length
+_SPRINGS_2D_AXES = _v2_axes(2) | {k: [6.0, 7.0, 8.0, 9.0, 10.0] for k in KNOT_MASSES}
+# the general_nonlinear knot spring (``general-s``) of :func:`springs_2d` crushed to zero length in the last
+# two variants (a heavy body at 12 and 16 m/s), the other variants as in its own case
+CRUSHED_2D_AXES = _SPRINGS_2D_AXES | {
+    "nodes.general-body.mass": [6.0, 7.0, 8.0, 5000.0, 5000.0],
+    "initial_velocity.general-body.0": [-2.4, -2.4, -2.4, -7.2, -9.6],
+    "initial_velocity.general-body.1": [-3.2, -3.2, -3.2, -9.6, -12.8],
+}
 
 # case -> (model builder, study axes); tests/test_kernel_twins.py CHECKS says what each case must exercise
 CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]]]] = {
@@ -636,45 +666,42 @@ CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]]]] = 
             **_SCALED_1D,
         },
     ),
-    "full-twin-2d-helicopter-two-walls": (
-        _helicopter_walls,
-        {"nodes.cabin.mass": [200.0, 250, 300, 350, 400]},
+    "full-twin-2d-mixed-prescribed-helicopter-rigid-and-penalty-walls": (
+        full_twin_2d,
+        {
+            "nodes.bob.mass": TWINS["2d-mixed-prescribed"][2],
+            "nodes.h-cabin.mass": [200.0, 250, 300, 350, 400],
+            "rigid_walls.2.stiffness": [2e5, 5e5, 1e6, 2e6, 4e6],
+        },
     ),
-    "2d-rigid-and-penalty-walls": (
-        _helicopter_penalty_side,
-        {"rigid_walls.1.stiffness": [2e5, 5e5, 1e6, 2e6, 4e6]},
+    "2d-v2-spring-features-rate-elastic-and-knots": (springs_2d, _SPRINGS_2D_AXES),
+    "2d-crushed-to-zero": (springs_2d, CRUSHED_2D_AXES),  # the shape of the case above: no compile of its own
+    "1d-knots-constant-and-scaled-crush-rebound-reversal-v2-spring-features-and-rate-elastic": (
+        springs_1d,
+        KNOTS_AND_REVERSAL | _v2_axes(1),
     ),
-    "full-twin-2d-mixed-prescribed": (
-        (lambda: TWINS["2d-mixed-prescribed"][0]),
-        {"nodes.bob.mass": TWINS["2d-mixed-prescribed"][2]},
+    # 40 variants of 13 different steps ending each at its own time (lane compaction)
+    "early-termination": (
+        _bounce_many,
+        {
+            "impact_velocity": list(np.linspace(4.0, 16.0, 40)),
+            "nodes.body.mass": list(np.random.default_rng(3).permutation(np.linspace(60.0, 140.0, 40))),
+        },
     ),
-    "2d-crushed-to-zero": (_helicopter_crushed, {"impact_velocity": [6.0, 8.2, 10.0, 30.0]}),
-    "knots-1d-every-curve-material-constant-and-scaled-crush-rebound-and-reversal": (
-        knots_and_reversal,
-        KNOTS_AND_REVERSAL,
-    ),
-    "knots-every-curve-material-2d": (lambda: knots(2), KNOT_MASSES),
-    "frontal-curve-and-mass-axes-lane-compaction": (_frontal, _FRONTAL_AXES),
-    "early-termination": (_bounce_many, {"impact_velocity": list(np.linspace(4.0, 16.0, 40))}),
-    **{
-        f"v2-spring-features-and-rate-elastic-{dim}d": ((lambda d=dim: v2_and_rate(d)), _V2_AXES)
-        for dim in (1, 2)
-    },
 }
 
 # cases run with the per-step record of every movable node (tests/test_metrics.py's record twins are these
 # shapes: one compile serves both files); the others run without a record
 RECORD_CASES = (
     "full-twin-1d-every-material-both-ways-scaled-curves",
-    "full-twin-2d-helicopter-two-walls",
-    "2d-rigid-and-penalty-walls",
-    "full-twin-2d-mixed-prescribed",
+    "full-twin-2d-mixed-prescribed-helicopter-rigid-and-penalty-walls",
+    "2d-v2-spring-features-rate-elastic-and-knots",
     "2d-crushed-to-zero",
-    "frontal-curve-and-mass-axes-lane-compaction",
     "early-termination",
 )
-# the slowest compiles, started at session start on the other core (tests/conftest.py)
-WARM_RECORD_CASES = ("frontal-curve-and-mass-axes-lane-compaction", "full-twin-2d-helicopter-two-walls")
+# the slowest compile (34 CPU s), started at session start on the other core beside helpers.generated_part's
+# shape (~23 s): about as long as the main core's generic kernel (~57 s) (tests/conftest.py)
+WARM_RECORD_CASES = ("full-twin-2d-mixed-prescribed-helicopter-rigid-and-penalty-walls",)
 
 
 def record_case(case: str) -> tuple[Any, Any, tuple[int, ...]]:
