@@ -52,7 +52,8 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     m, _ = validate_model_data(data)
     where = plan.study_file or plan.model_file
     period = first_period(plan.topology, plan.params(0, 1)[:, 0])
-    warnings = dt_warnings + (unit_warnings(m, _first_dt_crit(plan), where, period) if m is not None else [])
+    warnings = dt_warnings + _dt_interval_warnings(plan, sdoc, mdoc)
+    warnings += unit_warnings(m, _first_dt_crit(plan), where, period) if m is not None else []
     warnings += _speed_axis_warnings(plan, where)
     warnings += _repeat_warnings(plan, sdoc)
     warnings += plan_warnings(plan)
@@ -248,6 +249,33 @@ def _refused_of(plan: Plan, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(out), np.concatenate(crit)
 
 
+def _dt_interval_warnings(plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml) -> list[str]:
+    """A fixed ``dt`` above the history interval: the step is lowered to the interval (it divides the
+    interval exactly, docs/format.md), so the run takes dt / interval times the steps asked for."""
+    if plan.topology.time_step_mode != "dt":
+        return []
+    first = np.arange(min(plan.n_variants, MAX_DT_CHECK))
+    dt = float(np.max(plan.params_at(first)[plan.topology.blocks["time_step"].start]))
+    if dt <= plan.interval * (1.0 + 1e-9):
+        return []
+    file, line = _dt_where(plan, sdoc, mdoc)
+    return [
+        f"{file}:{line}: time_step.dt: dt={dt:.6g} is above output.interval={plan.interval:.6g}, so the step "
+        f"is lowered to {plan.interval:.6g} ({dt / plan.interval:.3g} x the steps asked for); to run at dt, "
+        f"set output.interval to a multiple of it (e.g. {dt:.6g})"
+    ]
+
+
+def _dt_where(plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml) -> tuple[str, int | None]:
+    """(file, line) of the fixed ``time_step.dt``: the study's ``set`` or axis when it gives it, else the model's."""
+    if sdoc is not None:
+        keys = [key for key in (sdoc.data.get("set") or {}) if key in ("time_step", "time_step.dt")]
+        loc: tuple[str | int, ...] = ("set", keys[0]) if keys else _axis_loc(sdoc, "time_step.dt")
+        if keys or any(ax.path == "time_step.dt" for ax in plan.axes):
+            return sdoc.file, sdoc.line_of(loc)
+    return mdoc.file, mdoc.line_of(("time_step", "dt"))
+
+
 def _dt_problem(
     plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml, refused: np.ndarray, dt_crit: np.ndarray
 ) -> Problem:
@@ -268,9 +296,5 @@ def _dt_problem(
         + (f"; refused where {' and '.join(where)}" if where else "")
         + f"; use a dt below {float(dt_crit[worst]):.6g} or time_step: {{safety_factor: 0.9}}"
     )
-    if sdoc is not None:
-        keys = [key for key in (sdoc.data.get("set") or {}) if key in ("time_step", "time_step.dt")]
-        loc: tuple[str | int, ...] = ("set", keys[0]) if keys else _axis_loc(sdoc, "time_step.dt")
-        if keys or "time_step.dt" in values:
-            return Problem(sdoc.file, sdoc.line_of(loc), "time_step.dt", msg)
-    return Problem(mdoc.file, mdoc.line_of(("time_step", "dt")), "time_step.dt", msg)
+    file, line = _dt_where(plan, sdoc, mdoc)
+    return Problem(file, line, "time_step.dt", msg)
