@@ -52,3 +52,15 @@ def test_a_fixed_step_above_the_history_interval_is_reported_with_its_line(
     assert len(said) == 1 and f"m.yaml:{line}: time_step.dt: dt={dt:g}" in said[0], said
     assert f"lowered to {interval:g} ({ratio:g} x the steps asked for)" in said[0], said
     assert float(batch.dt[0]) == pytest.approx(dt / ratio, rel=1e-12)
+
+
+def test_a_fixed_step_refused_for_every_variant_is_the_one_error_on_it(tmp_path: Path) -> None:
+    """dt above the critical step of every variant: exit 2 with the dt_crit problem, and no warning on the
+    same dt about the interval (the step must change anyway)."""
+    model = tmp_path / "m.yaml"
+    model.write_text(MODEL.format(dt=3e-2, output=""))
+    res = run_cli("validate", model)
+    assert res.returncode == 2
+    dt_crit = 0.99 * 2.0 / math.sqrt(2.0 * 1.0e4 / 1.0)  # the nodal bound 2 K_n / m_n, 1 % margin (solver.md)
+    assert f"time_step.dt: dt=0.03 is above the critical step dt_crit={dt_crit:.6g}" in res.stderr, res.stderr
+    assert "warning" not in res.stdout + res.stderr

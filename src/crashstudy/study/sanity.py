@@ -43,7 +43,10 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     problems = [_axis_problem(plan, sdoc, ax) for ax in plan.axes if not _axis_changes_model(plan, ax)]
     refused, dt_crit = _dt_refused(plan)
     dt_warnings = []
-    if refused.size == min(plan.n_variants, MAX_DT_CHECK):
+    dt_refused_all = refused.size == min(
+        plan.n_variants, MAX_DT_CHECK
+    )  # the dt is an error: nothing else on it
+    if dt_refused_all:
         problems.append(_dt_problem(plan, sdoc, mdoc, refused, dt_crit))
     elif refused.size:  # the others can run: these fail with the reason (failure isolation)
         p = _dt_problem(plan, sdoc, mdoc, refused, dt_crit)
@@ -52,7 +55,7 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     m, _ = validate_model_data(data)
     where = plan.study_file or plan.model_file
     period = first_period(plan.topology, plan.params(0, 1)[:, 0])
-    warnings = dt_warnings + _dt_interval_warnings(plan, sdoc, mdoc)
+    warnings = dt_warnings + ([] if dt_refused_all else _dt_interval_warnings(plan, sdoc, mdoc))
     warnings += unit_warnings(m, _first_dt_crit(plan), where, period) if m is not None else []
     warnings += _speed_axis_warnings(plan, where)
     warnings += _repeat_warnings(plan, sdoc)
