@@ -64,3 +64,17 @@ def test_a_fixed_step_refused_for_every_variant_is_the_one_error_on_it(tmp_path:
     dt_crit = 0.99 * 2.0 / math.sqrt(2.0 * 1.0e4 / 1.0)  # the nodal bound 2 K_n / m_n, 1 % margin (solver.md)
     assert f"time_step.dt: dt=0.03 is above the critical step dt_crit={dt_crit:.6g}" in res.stderr, res.stderr
     assert "warning" not in res.stdout + res.stderr
+
+
+def test_a_fixed_step_axis_is_reported_at_its_largest_value_and_its_line(tmp_path: Path) -> None:
+    """dt as a study axis: the largest value is the one lowered most, and the axis line is where to change it."""
+    (tmp_path / "m.yaml").write_text(MODEL.format(dt=5e-6, output=""))
+    study = tmp_path / "s.yaml"
+    study.write_text(
+        "name: steps\nmodel: m.yaml\nmatrix:\n  nodes.b.mass: [1.0, 2.0]\n  time_step.dt: [5.0e-6, 9.0e-4]\n"
+    )
+    res = run_cli("validate", study)
+    assert res.returncode == 0, res.stderr
+    said = [ln for ln in (res.stdout + res.stderr).splitlines() if "is above output.interval" in ln]
+    assert len(said) == 1 and "s.yaml:5: time_step.dt: dt=0.0009" in said[0], said
+    assert "lowered to 1e-05 (90 x the steps asked for)" in said[0], said

@@ -257,8 +257,8 @@ def _dt_interval_warnings(plan: Plan, sdoc: LoadedYaml | None, mdoc: LoadedYaml)
     interval exactly, docs/format.md), so the run takes dt / interval times the steps asked for."""
     if plan.topology.time_step_mode != "dt":
         return []
-    first = np.arange(min(plan.n_variants, MAX_DT_CHECK))
-    dt = float(np.max(plan.params_at(first)[plan.topology.blocks["time_step"].start]))
+    given = [ax.values for ax in plan.axes if ax.path == "time_step.dt"]  # else every variant has the base's
+    dt = float(np.max(given[0])) if given else float(plan.base[plan.topology.blocks["time_step"].start])
     if dt <= plan.interval * (1.0 + 1e-9):
         return []
     file, line = _dt_where(plan, sdoc, mdoc)
