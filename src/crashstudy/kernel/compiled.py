@@ -413,9 +413,8 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if D > 1:
                 for w in range(B):
                     anybad = anybad or (act[w] and crushed[w] >= 0)
-            if (
-                anybad
-            ):  # rare: lanes that fail at this step stop (fail_item: which test, codes.UNSTABLE_WALLS)
+            # rare: lanes that fail at this step stop (fail_item says which test: codes.UNSTABLE_WALLS)
+            if anybad:
                 gb.fail_lanes(n, lo, B, D, e_floor, Out, K)
             if rec_now:
                 go.record(n, lo, B, n_out, P.out_every, H, K)

@@ -12,7 +12,8 @@ from crashstudy.vocabulary.codes import UNSTABLE_WALLS
 
 
 def failures(g: Layout, i3: str) -> None:
-    """The lanes whose energy balance broke or whose walls gave energy (or, in 2-D, whose spring collapsed) stop here (rare)."""
+    """The lanes whose energy balance broke or whose walls gave energy (or, in 2-D, whose spring collapsed)
+    stop here (rare)."""
     g.emit(f"{i3}if nbad > 0:")
     g.emit(f"{i3}    for w in range(B):")
     g.emit(f"{i3}        if not fn <= {g.R['lim']}:")

@@ -343,8 +343,8 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
 
 @stage
 def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
-    """A step where some lane failed (rare): unstable (energy balance, or walls that gave energy) or, in 2-D, a spring crushed to zero
-    length; those lanes stop."""
+    """A step where some lane failed (rare): unstable (energy balance, or walls that gave energy) or, in 2-D,
+    a spring crushed to zero length; those lanes stop."""
     act, actf, bal, e_scale, wmax, crushed, st_ok = (
         K.act,
         K.actf,
