@@ -39,33 +39,27 @@ def test_a_changed_kernel_folder_is_the_one_asked_and_written(
 def test_a_kernel_name_changes_with_the_laws_it_calls(monkeypatch: pytest.MonkeyPatch) -> None:
     """numba's cache checks only the generated file's own time stamp: a crashstudy whose laws changed (a
     fixed law, a new constant) must not load a kernel compiled with the old ones, so the name (the file
-    and its numba index) is a hash of the source and of the modules the source imports."""
+    and its numba index) is a hash of the source and of every crashstudy module the source imports."""
     import hashlib
-
-    from crashstudy.kernel import laws, step_laws
-    from crashstudy.vocabulary import codes
+    import importlib
+    import re
 
     model, scales = generated_parts_model(1e-4, 1e-3, 1e-3)
     batch, plan = model_batch(model, scales)
     shape = _shape(batch, plan.topology.histories, None)
     src = generated._source(shape)
-    imported = {m.__name__ for m in (laws, step_laws, codes)}
-    assert all(f"from {name} import" in src for name in imported)  # what the source calls, all hashed
-    files = b"".join(Path(str(m.__file__)).read_bytes() for m in (laws, step_laws, codes))
-    assert (
-        generated.shape_key(shape)
-        == hashlib.sha256(src.encode() + hashlib.sha256(files).digest()).hexdigest()[:20]
-    )
+    named = re.findall(r"^from (crashstudy\.\S+) import", src, flags=re.M)
+    assert set(named) == {
+        "crashstudy.vocabulary.codes",
+        "crashstudy.kernel.laws",
+        "crashstudy.kernel.step_laws",
+    }
+    files = b"".join(Path(str(importlib.import_module(n).__file__)).read_bytes() for n in named)
+    before = hashlib.sha256(src.encode() + hashlib.sha256(files).digest()).hexdigest()[:20]
+    assert generated.shape_key(shape) == before
 
     monkeypatch.setattr(generated, "_SOURCES", {})
-    monkeypatch.setattr(
-        generated, "laws_fingerprint", lambda: hashlib.sha256(files + b"# a fixed law").digest()
-    )
-    assert generated._source_key(shape) == (
-        src,
-        hashlib.sha256(src.encode() + generated.laws_fingerprint()).hexdigest()[:20],
-    )
-    assert (
-        generated.shape_key(shape)
-        != hashlib.sha256(src.encode() + hashlib.sha256(files).digest()).hexdigest()[:20]
-    )
+    changed = hashlib.sha256(files + b"# a fixed law").digest()
+    monkeypatch.setattr(generated, "laws_fingerprint", lambda modules: changed)
+    assert generated._source_key(shape) == (src, hashlib.sha256(src.encode() + changed).hexdigest()[:20])
+    assert generated.shape_key(shape) != before

@@ -34,6 +34,7 @@ import functools
 import hashlib
 import importlib.util
 import os
+import re
 import sys
 import threading
 from pathlib import Path
@@ -71,26 +72,25 @@ _SOURCES: dict[str, tuple[str, str]] = {}  # repr(shape) -> (source, key)
 
 
 def _source_key(shape: dict[str, Any]) -> tuple[str, str]:
-    """A shape's source and its name (a hash of the source and of the laws it calls), generated once per
+    """A shape's source and its name (a hash of the source and of the modules it imports), generated once per
     process: the kernel choice, the compile check and the run all ask for it every chunk."""
     r = repr(shape)
     if r not in _SOURCES:
         src = _source(shape)
-        _SOURCES[r] = (src, hashlib.sha256(src.encode() + laws_fingerprint()).hexdigest()[:20])
+        imported = tuple(re.findall(r"^from (crashstudy\.[\w.]+) import", src, flags=re.M))
+        _SOURCES[r] = (src, hashlib.sha256(src.encode() + laws_fingerprint(imported)).hexdigest()[:20])
     return _SOURCES[r]
 
 
 @functools.cache
-def laws_fingerprint() -> bytes:
-    """A hash of the modules a generated kernel imports (its laws and their constants). numba's cache checks
-    only the generated file's own time stamp, so a crashstudy whose laws changed while a model's source did
-    not would otherwise load the kernel compiled with the old laws; with this in the name, it compiles anew."""
-    from crashstudy.kernel import laws, step_laws
-    from crashstudy.vocabulary import codes
-
+def laws_fingerprint(modules: tuple[str, ...]) -> bytes:
+    """A hash of the crashstudy modules a generated kernel imports (its laws and their constants). numba's
+    cache checks only the generated file's own time stamp, so a crashstudy whose laws changed while a model's
+    source did not would otherwise load the kernel compiled with the old laws; with this in the name, it
+    compiles anew."""
     h = hashlib.sha256()
-    for module in (laws, step_laws, codes):
-        h.update(Path(str(module.__file__)).read_bytes())
+    for name in modules:
+        h.update(Path(str(importlib.import_module(name).__file__)).read_bytes())
     return h.digest()
 
 
