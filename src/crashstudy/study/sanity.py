@@ -43,9 +43,8 @@ def check_plan(plan: Plan) -> tuple[list[Problem], list[str]]:
     problems = [_axis_problem(plan, sdoc, ax) for ax in plan.axes if not _axis_changes_model(plan, ax)]
     refused, dt_crit = _dt_refused(plan)
     dt_warnings = []
-    dt_refused_all = refused.size == min(
-        plan.n_variants, MAX_DT_CHECK
-    )  # the dt is an error: nothing else on it
+    # no variant can run at the dt: that is the one message on it (not also the interval warning)
+    dt_refused_all = refused.size == min(plan.n_variants, MAX_DT_CHECK)
     if dt_refused_all:
         problems.append(_dt_problem(plan, sdoc, mdoc, refused, dt_crit))
     elif refused.size:  # the others can run: these fail with the reason (failure isolation)
