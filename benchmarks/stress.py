@@ -43,7 +43,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 import crashstudy.run.runner as runner  # noqa: E402
-import test_stress as cases  # noqa: E402  (the tests' model builders: the table runs the same models)
+import stress_models as builders  # noqa: E402  (the tests' model builders: the table runs the same models)
+import test_stress as cases  # noqa: E402  (and the tests' cases: sizes, ratios, speeds)
 from crashstudy.kernel.output import INVALID  # noqa: E402
 from crashstudy.results.chunk_result import ChunkResult  # noqa: E402
 from crashstudy.study.plan import Axis, Plan  # noqa: E402
@@ -54,7 +55,7 @@ ROWS: list[dict[str, str]] = []
 
 def variant_plan(model: dict[str, Any], path: str, values: list[float]) -> Plan:
     """The model's plan with one study axis ``path`` (as a study file's matrix would give)."""
-    plan = cases.model_plan(model)
+    plan = builders.model_plan(model)
     ref = plan.topology.paths[path]
     n_out = plan.n_out
     if path == "end_time":
@@ -115,10 +116,10 @@ def chains(quick: bool) -> None:
         for unequal in (False, True):
             for fixed in (True, False):
                 N = max(2000, 8 * n) * (1 if quick or n < 1000 else 10)
-                model = cases.at_step(cases.chain(n, unequal, fixed), N)
+                model = builders.at_step(builders.chain(n, unequal, fixed), N)
                 T = model["end_time"]
                 res, _, wall = run(model, "end_time", [T, 2 * T])
-                w_dt = cases.chain_omega_max(model) * res.dt[0]
+                w_dt = builders.chain_omega_max(model) * res.dt[0]
                 p1, p2 = res.out.peak_force.max(axis=0)
                 ok = p2 <= 1.5 * p1 and w_dt < 2.0
                 name = f"chain {n} {'unequal' if unequal else 'equal'} {'fixed-end' if fixed else 'free'}, sf 1.0"
@@ -135,15 +136,15 @@ def chains(quick: bool) -> None:
 def ratios(quick: bool) -> None:
     print("stiffness / mass ratios at safety_factor 1.0")
     for kr, mr in cases.RATIOS:
-        steps = cases.ratio_steps(kr, mr)
+        steps = builders.ratio_steps(kr, mr)
         if quick:
             steps = min(steps, 100_000)
         steps = 100 * (steps // 100)
-        model = cases.at_step(cases.ratio_model(kr, mr), steps, samples=100)
-        _, node, spring = cases.critical(model)
+        model = builders.at_step(builders.ratio_model(kr, mr), steps, samples=100)
+        _, node, spring = builders.critical(model)
         res, plan, wall = run(model, "end_time", [model["end_time"]])
         t = np.arange(plan.n_out) * plan.interval
-        exact = cases.ratio_closed_form(kr, mr, t)[:, 0]
+        exact = builders.ratio_closed_form(kr, mr, t)[:, 0]
         got = res.out.histories["displacement"][:, 1, 0, 0]
         rel = float(np.max(np.abs(got - exact)) / np.max(np.abs(exact)))
         add(
@@ -161,7 +162,7 @@ def frontal() -> None:
     speeds = cases.FRONTAL_SPEEDS
     ref = None
     for ts in (None, {"safety_factor": 1.0}):
-        res, _, wall = run(cases.frontal(ts), "impact_velocity", speeds)
+        res, _, wall = run(builders.frontal(ts), "impact_velocity", speeds)
         crush = res.out.max_crush.max(axis=0)
         if ref is None:
             ref = crush
@@ -180,7 +181,7 @@ def frontal() -> None:
 
 def helicopter() -> None:
     print("helicopter-subfloor (2-D) 6 .. 100 m/s")
-    model = cases.load_yaml(str(cases.HELICOPTER)).data
+    model = builders.load_yaml(str(builders.HELICOPTER)).data
     for ts in (None, {"safety_factor": 1.0}):
         m = dict(model, output=dict(model["output"], histories=["position"]))
         if ts:
@@ -210,9 +211,9 @@ def softening() -> None:
     print("softening curve (snap-through)")
     for ts in (None, {"safety_factor": 1.0}):
         kind = "default tolerance 1e-3" if ts is None else "sf 1.0"
-        res, _, wall = run(cases.snap_through(1.0, ts), "impact_velocity", cases.SNAP_SPEEDS)
+        res, _, wall = run(builders.snap_through(1.0, ts), "impact_velocity", cases.SNAP_SPEEDS)
         for k, v in enumerate(cases.SNAP_SPEEDS):
-            crush, _, peak = cases.snap_through_closed_form(v)
+            crush, _, peak = builders.snap_through_closed_form(v)
             c, p = res.out.max_crush[0, k], res.out.peak_force[0, k]
             snapped_exact, snapped = crush > 0.75, c > 0.75
             note = (
@@ -233,7 +234,7 @@ def softening() -> None:
 def long_runs(quick: bool) -> None:
     print("long runs")
     for n_steps in [10**5] if quick else [10**6, 10**7]:
-        model = cases.conservative(n_steps)
+        model = builders.conservative(n_steps)
         res, _, wall = run(model, "end_time", [model["end_time"]])
         e = res.out.final_energy[:, 0]
         add(
@@ -247,10 +248,10 @@ def long_runs(quick: bool) -> None:
     # the same springs and masses, nothing fixed, net momentum: positions drift far from x0 (1e5 m over 10^7
     # steps), so the elongation (x_j - x0_j) - (x_i - x0_i) loses digits to cancellation
     n_steps = 10**5 if quick else 10**7
-    model = cases.conservative(n_steps)
+    model = builders.conservative(n_steps)
     model["nodes"]["ground"] = {"position": [0.0], "mass": 1.0}
     model["initial_velocity"]["ground"] = [5.0]  # momentum 5 + 1 - 4 = 2 kg m/s: drifts at 0.5 m/s
-    model = cases.at_step(model, n_steps)
+    model = builders.at_step(model, n_steps)
     res, _, wall = run(model, "end_time", [model["end_time"]])
     drift = 0.5 * res.out.t_end[0]
     add(
@@ -268,7 +269,7 @@ def fixed_dt(tmp: Path) -> None:
     from crashstudy.study.plan import load_study
 
     masses = [1e-4, 1e-3, 1e-2, 0.1, 1.0]
-    plan = load_study(cases.mass_axis_study(tmp, 1.0e-3, masses))
+    plan = load_study(builders.mass_axis_study(tmp, 1.0e-3, masses))
     t0 = time.perf_counter()
     res = runner.run_chunk(plan, 0, plan.n_variants)
     wall = time.perf_counter() - t0
@@ -303,7 +304,7 @@ def forced_dt(
 
 def forced() -> None:
     print("instabilities forced by hand")
-    model = cases.conservative(2000)
+    model = builders.conservative(2000)
     speeds = [1.0, 2.0, 3.0, 4.0]
     clean, _, _ = run(model, "impact_velocity", speeds)
     with forced_dt("b", -3.0, factor=3.0):
@@ -343,7 +344,7 @@ def dampers() -> None:
         ("fixed anchor, damper", True, None, 1.0),
         ("fixed anchor, damper", True, None, None),
     ):
-        model = cases.damper_pair(sf or 1.0, k)
+        model = builders.damper_pair(sf or 1.0, k)
         if fixed:
             model["nodes"]["a"] = {"position": [0.0], "fixed": True}
         if sf is None:  # the default time_step, tolerance 1e-3; one sample so the step is not cut by it
@@ -351,7 +352,7 @@ def dampers() -> None:
             model["end_time"] = 0.2
             model["output"] = {"interval": 0.2, "histories": "none"}
         else:
-            model = cases.at_step(model, 200)
+            model = builders.at_step(model, 200)
         res, _, wall = run(model, "end_time", [model["end_time"]])
         ke = res.out.final_energy[0, 0]
         wrong = (
@@ -434,7 +435,7 @@ def main() -> None:
     import tempfile
 
     t0 = time.perf_counter()
-    run(cases.conservative(10), "end_time", [1e-3])  # warm-up: load the compiled kernel
+    run(builders.conservative(10), "end_time", [1e-3])  # warm-up: load the compiled kernel
     chains(args.quick)
     ratios(args.quick)
     frontal()

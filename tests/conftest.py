@@ -1,6 +1,6 @@
 """pytest set-up: the tests' import path, environment and hypothesis profile, the ``cli`` fixture, and the
 compile warm-up of a parallel run. What the test modules share is in helpers.py (and twins.py,
-strategies.py, pulses.py, models.py, folders.py)."""
+strategies.py, pulses.py, models.py, stress_models.py, folders.py)."""
 
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ from crashstudy.kernel.output import UNSTABLE
 from crashstudy.vocabulary.codes import UNSTABLE_WALLS, WALL_PASSIVITY
 from helpers import model_plan, output_differences
 from models import penalty_hit, wall_spring
-from test_stress import at_step, conservative, forced_batch
+from stress_models import at_step, conservative, forced_batch
 
 
 def _first_giving_step(x0: float, v0: float, k: float, m: float, wall: float, dt: float) -> int:
