@@ -45,13 +45,13 @@ def cli():
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """In a parallel run (``-n N``), compile (or load from numba's cache) the generic kernel and then the
-    crash criteria once, in the main process, before any xdist worker needs them: workers then load the
-    cached machine code instead of each compiling it. Meanwhile a second process compiles, on the other
-    core, the slowest generated kernels of the twin tests and the generated kernel that the physics tests'
-    side-by-side model shares (:func:`warm_other_core`), which the workers then load too (two workers
-    would otherwise compile that shared shape at once). A run without workers (one file, ``-n 0``)
-    compiles only what its tests ask for, when they ask."""
+    """In a parallel run (``-n N``), compile (or load from numba's cache) the generic kernel once, before
+    any xdist worker needs it: workers then load the cached machine code instead of each compiling it.
+    Meanwhile a second process compiles, on the other core, the slowest generated kernel of the twin tests,
+    the generated kernel that the physics tests' side-by-side model shares and the crash criteria
+    (:func:`warm_other_core`: about as long as the generic kernel alone), which the workers then load too
+    (two workers would otherwise compile a shared shape at once). A run without workers (one file,
+    ``-n 0``) compiles only what its tests ask for, when they ask."""
     if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
         return
     other = subprocess.Popen(
@@ -68,17 +68,16 @@ def pytest_configure(config: pytest.Config) -> None:
         },
         kernel="generic",
     )
-    from crashstudy.metrics.warmup import compile_criteria
-
-    compile_criteria()
     other.wait()
 
 
 def warm_other_core() -> None:
     """Compile the generated kernels of ``twins.WARM_RECORD_CASES`` exactly as tests/test_kernel_twins.py
     runs them (the same batch and record: the same shape key; tests/test_metrics.py's block-record twins
-    share it), and the shape of ``helpers.generated_part`` (any step: the shape key has none)."""
+    share it), the shape of ``helpers.generated_part`` (any step: the shape key has none) and the crash
+    criteria."""
     from crashstudy.kernel.entry import run_batch
+    from crashstudy.metrics.warmup import compile_criteria
     from helpers import _generated_parts_run
     from twins import WARM_RECORD_CASES
 
@@ -86,13 +85,15 @@ def warm_other_core() -> None:
         batch, plan, record = record_case(case)
         run_batch(batch, plan.topology.histories, plan.n_out, "generated", record=record)
     _generated_parts_run(1e-4, 1e-3, 1e-3)
+    compile_criteria()
 
 
-# The slowest tests of a parallel run on empty caches (``--durations``, 2 cores), slowest first: started
-# first, they run while the many short tests fill the other core, instead of one of them starting last and
-# leaving a core idle at the end. The twin cases come before tests/test_metrics.py's block-record twins,
-# which run the same generated kernel shapes (twins.RECORD_CASES) and then load them from the cache that
-# the twin case on the other worker has just written, instead of compiling them at the same time.
+# The slowest tests of a parallel run on empty caches (``--durations``, 2 cores), slowest first. pyproject's
+# ``--dist worksteal`` gives each worker a contiguous share of the collection, these at the head of the first
+# share; a worker that runs out takes half of what is left of the other's share, from its tail. So none of
+# them starts last and leaves a core idle at the end. The twin cases come before tests/test_metrics.py's
+# block-record twins, which run the same generated kernel shapes (twins.RECORD_CASES) and then load them from
+# the cache that the twin case has just written, instead of compiling them at the same time.
 SLOW_FIRST = (
     "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[1d-knots-constant-and-scaled-crush-rebound-reversal-v2-spring-features-and-rate-elastic]",
     "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference[2d-v2-spring-features-rate-elastic-and-knots]",

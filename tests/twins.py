@@ -699,8 +699,8 @@ RECORD_CASES = (
     "2d-crushed-to-zero",
     "early-termination",
 )
-# the slowest compile (34 CPU s), started at session start on the other core beside helpers.generated_part's
-# shape (~23 s): about as long as the main core's generic kernel (~57 s) (tests/conftest.py)
+# a slow compile, started at session start on the other core beside helpers.generated_part's shape and the
+# crash criteria (~46 CPU s in all): about as long as the generic kernel alone (~51 s) (tests/conftest.py)
 WARM_RECORD_CASES = ("full-twin-2d-mixed-prescribed-helicopter-rigid-and-penalty-walls",)
 
 
