@@ -27,12 +27,14 @@ from __future__ import annotations
 
 import atexit
 import functools
+import hashlib
 import os
 import shutil
 import stat
 import sys
 import tempfile
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -216,3 +218,70 @@ def compiled_or_cached(run: Any) -> bool:
         return os.path.exists(run._cache._cache_file._index_path)
     except AttributeError:  # numba internals moved: assume it must be compiled
         return False
+
+
+#: the stamp, in a numba cache folder, of the crashstudy sources its compiled code was built from
+STAMP_NAME = "crashstudy-sources.sha256"
+#: the packages whose compiled functions numba caches, calling each other across files (kernel, metrics), and
+#: the package whose constants they freeze into their machine code (vocabulary)
+COMPILED_SOURCES = ("kernel", "metrics", "vocabulary")
+_CHECKED: set[str] = set()
+
+
+def cached_njit(**options: Any) -> Callable[[Any], Any]:
+    """``numba.njit(cache=True, **options)`` for crashstudy's compiled functions: each function's numba cache
+    folder is checked by :func:`fresh_numba_cache` when the function is defined (at import, before any call)."""
+    import numba as nb
+
+    jit = nb.njit(cache=True, **options)
+    return lambda func: fresh_numba_cache(jit(func))
+
+
+def fresh_numba_cache(dispatcher: Any) -> Any:
+    """Remove a numba cache folder's compiled code built from other crashstudy sources than these.
+
+    numba keys a cached function on its own file's time stamp and its own bytecode: not on the compiled
+    functions it calls in other files, nor on the constants it imports. After an edit of ``laws.py`` alone
+    (a ``git pull``, a branch switch, an editable install), numba would load a generic kernel
+    (``compiled.py``, unchanged) that still runs the old law. So, once per process and folder, the folder's
+    stamp (:data:`STAMP_NAME`: a hash of every source file of :data:`COMPILED_SOURCES`) is compared with
+    these sources; when it differs, the folder's numba files (indexes ``.nbi``, data ``.nbc``) are removed,
+    numba compiles again and writes new ones, and the stamp is rewritten. Returns ``dispatcher``."""
+    try:
+        folder = Path(dispatcher._cache._cache_path)
+    except AttributeError:  # not cached, or numba internals moved: nothing to check
+        return dispatcher
+    if str(folder) in _CHECKED:
+        return dispatcher
+    _CHECKED.add(str(folder))
+    now = sources_hash()
+    stamp = folder / STAMP_NAME
+    try:
+        if stamp.read_text() == now:
+            return dispatcher
+    except OSError:
+        pass
+    for old in [*folder.glob("*.nbi"), *folder.glob("*.nbc")]:
+        try:
+            old.unlink()
+        except OSError:  # removed by another process at the same time
+            pass
+    try:
+        tmp = folder / f".{STAMP_NAME}.{os.getpid()}"
+        tmp.write_text(now)
+        os.replace(tmp, stamp)
+    except OSError:  # a read-only folder: numba does not write there either
+        pass
+    return dispatcher
+
+
+@functools.lru_cache(maxsize=1)
+def sources_hash() -> str:
+    """sha256 of the names and contents of the source files of :data:`COMPILED_SOURCES`."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for package in COMPILED_SOURCES:
+        for src in sorted((root / package).glob("*.py")):
+            h.update(f"{package}/{src.name}\0".encode())
+            h.update(src.read_bytes())
+    return h.hexdigest()

@@ -19,18 +19,18 @@ A new material is one law function here, one dispatch line in each fast kernel
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from crashstudy.kernel.cache import cached_njit
 from crashstudy.vocabulary.codes import (
     TIME_EPS,
     TINY_LENGTH,
 )
 
-_jit = nb.njit(cache=True, nogil=True, error_model="numpy")
+_jit = cached_njit(nogil=True, error_model="numpy")
 # per-step laws of the generic kernel that LLVM did not inline as well (time curves: arrays in;
 # general_law: 13 numbers in, 9 out): numba IR inlining, 16-19% faster on general-nonlinear-tension
-_inl = nb.njit(cache=True, nogil=True, inline="always")
+_inl = cached_njit(nogil=True, inline="always")
 
 
 # ---- numbers ---------------------------------------------------------------------------------

@@ -7,12 +7,11 @@ and :mod:`crashstudy.kernel.step_twins`.
 
 from __future__ import annotations
 
-import numba as nb
-
+from crashstudy.kernel.cache import cached_njit
 from crashstudy.kernel.laws import peak
 from crashstudy.vocabulary.codes import PM_ACCELERATION, PM_DISPLACEMENT, UNSTABLE_ENERGY, WALL_PASSIVITY
 
-_jit = nb.njit(cache=True, nogil=True, error_model="numpy")
+_jit = cached_njit(nogil=True, error_model="numpy")
 
 
 # ---- the central-difference node update (docs/solver.md) -------------------------------------

@@ -8,11 +8,10 @@ penalty law gives an exact 0), > 0 a penalty wall (the rigid jump is 0).
 
 from __future__ import annotations
 
-import numba as nb
-
 from crashstudy.kernel import step_laws as sl
+from crashstudy.kernel.cache import cached_njit
 
-_jit = nb.njit(cache=True, nogil=True)
+_jit = cached_njit(nogil=True)
 
 
 @_jit

@@ -38,9 +38,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 from concurrent.futures import ThreadPoolExecutor
 
-import numba as nb
 import numpy as np
 
+from crashstudy.kernel.cache import cached_njit
 from crashstudy.kernel.driver import get_threads
 
 from .criteria_clips import clip_cumulative_row, clip_row
@@ -171,7 +171,7 @@ def dri_matrices(
     return phi, g0, gs
 
 
-@nb.njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def _driver(
     acc, count, dt, dt_s, u0, dirs, cfc, pad, g, want, s_free, s_rest, phi, g0, gs, out, status
 ):  # pragma: no cover

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
+from crashstudy.kernel.cache import cached_njit
 
-_jit = nb.njit(cache=True, nogil=True)
+_jit = cached_njit(nogil=True)
 
 
 @_jit

@@ -36,8 +36,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
+
+from crashstudy.kernel.cache import cached_njit
 
 from .interpreted import driver_for
 
@@ -46,7 +47,7 @@ PADS = ("constant", "zero", "reflect")
 J211_FACTOR = 2.0775
 MIN_RATE_PER_CFC = 10.0  # samples per second per hertz of channel class (J211 post-processors' rule)
 
-_jit = nb.njit(cache=True, nogil=True)
+_jit = cached_njit(nogil=True)
 
 
 @_jit

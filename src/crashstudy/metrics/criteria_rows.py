@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
-_jit = nb.njit(cache=True, nogil=True)
+from crashstudy.kernel.cache import cached_njit
+
+_jit = cached_njit(nogil=True)
 NOT_REACHED = -1.0  # OLC: t1 or t2 not reached within the record
 BLOCK = 1.5  # HIC search: blocks of BLOCK sqrt(window / dt) samples, rows taken 16 samples at a time
 
