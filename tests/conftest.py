@@ -1,6 +1,7 @@
 """pytest set-up: the tests' import path, environment and hypothesis profile, the ``cli`` fixture, and the
 compile warm-up of a parallel run. What the test modules share is in helpers.py (and twins.py,
-strategies.py, pulses.py, models.py, stress_models.py, folders.py)."""
+twin_models.py, twin_v2_models.py, model_parts.py, strategies.py, pulses.py, models.py, stress_models.py,
+folders.py)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """What the test modules share: running a model (as YAML text or a dict) with a chosen kernel, the command
 line in this process or in a subprocess, and the one comparer of kernel outputs. Test modules import from
-here (and from ``twins.py``, ``strategies.py``), never from each other."""
+here (and from ``twins.py``, ``twin_models.py``, ``model_parts.py``, ``strategies.py``), never from each other."""
 
 from __future__ import annotations
 
@@ -112,8 +112,8 @@ def generated_parts_model(
     """(model, {axis path: values}) of the one side-by-side model of :func:`models.generated_parts` as
     :func:`generated_part` runs it (its generated kernel is compiled at start-up, tests/conftest.py): a
     study of this model with these axes (any values, any step) runs that same compiled kernel."""
+    from model_parts import disjoint
     from models import SCALES, generated_parts
-    from twins import disjoint
 
     model = disjoint(generated_parts())
     histories = ["wall_force", "acceleration", "velocity", "wall_energy"]  # what the callers read (and the
@@ -139,7 +139,7 @@ def generated_part(part: str, like: dict[str, Any], every_variant: bool = False)
     its variant 0 (all four variants of :data:`models.SCALES` with ``every_variant``).
     Every caller runs the same model shape, so the generated kernel compiles once for all of them (and
     loads from the kernel cache in other processes); runs are cached per (step, end time, interval)."""
-    from twins import part_of
+    from model_parts import part_of
 
     batch, plan = model_batch(like)
     out, whole = _generated_parts_run(float(batch.dt[0]), float(like["end_time"]), float(plan.interval))

@@ -17,7 +17,7 @@ from crashstudy.kernel import generated
 from crashstudy.run.runner import run_chunk
 from crashstudy.study.plan import load_study
 from helpers import assert_bitwise, generated_parts_model, model_batch, run_model
-from twins import HELICOPTER, crush_bounce
+from twin_models import HELICOPTER, crush_bounce
 
 
 def test_runner_takes_the_fastest_compiled_kernel_and_results_do_not_change(

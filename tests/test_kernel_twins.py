@@ -33,7 +33,8 @@ from crashstudy.kernel import entry, generated
 from crashstudy.kernel.entry import run_batch
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, KernelOutput
 from helpers import output_differences, run_model
-from twins import CASES, RECORD_CASES, one_d_materials, record_case
+from twin_models import one_d_materials
+from twins import CASES, RECORD_CASES, record_case
 
 FAST = ["generic", "generated"]
 

@@ -20,7 +20,7 @@ from scipy.optimize import minimize_scalar
 
 from crashstudy.arrays.batch import build_batch
 from helpers import model_plan, run_model
-from twins import (
+from twin_models import (
     CRUSH_REBOUND,
     FRONT_X,
     FRONT_Y,

@@ -598,7 +598,7 @@ def test_results_files_hold_no_negative_zero(tmp_path: Path, monkeypatch: pytest
     import netCDF4
 
     from crashstudy.run import runner
-    from twins import one_d_materials
+    from twin_models import one_d_materials
 
     path = tmp_path / "m.yaml"
     path.write_text(yaml.safe_dump(one_d_materials(False)))
