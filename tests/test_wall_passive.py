@@ -56,7 +56,9 @@ def test_an_unstable_step_bounded_by_a_rigid_wall_fails_at_the_step_the_wall_giv
     other three variants ok and bitwise as run alone; the fast kernels bitwise equal to the reference."""
     from crashstudy.run.runner import run_kernel
 
-    batch, _, plan = forced_batch(3.0, model=yaml.safe_load(wall_spring(wall=wall, speed=-1.0)), samples=20)
+    # 200 steps (2000 before): the forced variant fails at its 2nd step either way
+    model = yaml.safe_load(wall_spring(wall=wall, speed=-1.0))
+    batch, _, plan = forced_batch(3.0, model=model, samples=20, n_steps=200)
     hist = plan.topology.histories
     n_bad = _first_giving_step(1.0, -1.0, 1.0e4, 1.0, float(wall), float(batch.dt[1]))
     assert n_bad == 2  # 1 -> 0.944 -> 1.876, then thrown through the wall from there (it moves away)
@@ -225,7 +227,10 @@ def test_one_penalty_impact_at_the_critical_step_gains_at_most_a_quarter_of_its_
     assert 0.2 < worst < 0.24
     assert _impact_gain(1.6).max() > 1.4 and _impact_gain(1.95).max() > 6.0  # under the old bound
     k, m = 1.0e6, 1.0
-    plan = model_plan(dict(penalty_hit(None), end_time=0.05))
+    # the model's 6 ms and a 1 ms output interval: 138 steps of the default step (0.05 s at 1e-5 before,
+    # 5000 steps per run); at dt = r x dt_crit the rebound is over within ~10 of them
+    hit = penalty_hit(None)
+    plan = model_plan(dict(hit, output=dict(hit["output"], interval=1.0e-3)))
     batch, steps = build_batch(plan.topology, plan.base[:, None], plan.interval)
     assert steps.dt_crit[0] == pytest.approx(0.99 / np.sqrt(k / m), rel=1e-12)
     for r in (0.5, 0.77, 1.0):
