@@ -156,6 +156,83 @@ def test_every_work_array_row_the_generated_kernel_reads_is_assigned(case: str) 
         assert _rows_read_never_written(source(shape)) == set(), f"{case}, histories {histories}"
 
 
+@pytest.mark.parametrize("case", _twin_shapes()[1:])
+def test_a_pass_assigns_each_lane_local_once(case: str) -> None:
+    """numba's SSA reconstruction walks a whole function once for each variable assigned more than once;
+    the step's passes reused ``kc``, ``th``, ``e``, ``a``... once per spring or node (39 such variables in
+    the knots shape's ``_pass_b``: ~1.3 CPU s of its ~14 s compile). gen_locals.single_definitions renames
+    them. Truth: numba's own IR of each pass (its frontend, no compile): only the pass's counters
+    (``nbad``, ``nhit``, ``nstop``, ``nrev``) and the lane index of pass A's two lane loops are assigned
+    twice."""
+    import collections
+
+    from numba.core import compiler, ir
+
+    from crashstudy.kernel.gen_shape import _shape
+    from crashstudy.kernel.gen_source import source
+    from crashstudy.vocabulary.codes import HISTORY_ORDER
+    from twins import record_case
+
+    batch, plan, record = record_case(case)
+    src = source(_shape(batch, tuple(HISTORY_ORDER), plan.varying_curves, record=record))
+    ns: dict[str, object] = {}
+    exec(compile(src.replace("cache=True", "cache=False"), case, "exec"), ns)
+    for name in ("_pass_a", "_pass_b", "_pass_k"):
+        if name not in ns:
+            continue
+        blocks = compiler.run_frontend(ns[name].py_func).blocks.values()  # type: ignore[attr-defined]
+        defs = collections.Counter(
+            s.target.name
+            for b in blocks
+            for s in b.body
+            if isinstance(s, ir.Assign) and s.target.name[0] != "$"
+        )
+        twice = {v for v, k in defs.items() if k > 1} - {"nbad", "nhit", "nstop", "nrev", "w", "w_"}
+        assert twice == set(), f"{case} {name}: assigned more than once: {sorted(twice)}"
+
+
+# a lane body as the passes have it: straight-line redefinitions, a branch that assigns (kept), an augmented
+# counter, a row of Z read and written, a local carried from the lane before (``carry``)
+LANE_BODY = """def f(Z, B):
+    hits = 0
+    carry = 0.0
+    for w_ in range(B):
+        w = w_ & 2147483647
+        a = Z[0 + w] * 2.0
+        b = a + carry
+        a = b - 1.0  # the second a
+        if a > 1.0:
+            c = a * 3.0
+        else:
+            c = 0.5
+        hits += 1 if c > 1.0 else 0
+        Z[8 + w] = a + c
+        th, a = a * 0.5, Z[8 + w] - 1.0
+        Z[16 + w] = th + a
+        carry = th
+    return hits, carry
+"""
+
+
+def test_renamed_locals_compute_the_same_numbers() -> None:
+    """Truth: the lane body as written, run by Python, against the same body after
+    gen_locals.single_definitions (the renames the passes get), on the same random work array."""
+    import numpy as np
+
+    from crashstudy.kernel.gen_locals import single_definitions
+
+    renamed = "\n".join(single_definitions(LANE_BODY.splitlines()))
+    assert "a_r1 = b - 1.0" in renamed and "th, a_r2 = a_r1 * 0.5" in renamed, renamed
+    assert "carry_r" not in renamed and "c_r" not in renamed  # carried; assigned in a branch
+    got = []
+    for text in (LANE_BODY, renamed):
+        ns: dict[str, object] = {}
+        exec(text, ns)
+        Z = np.random.default_rng(5).uniform(-2.0, 4.0, 24)
+        got.append((ns["f"](Z, 8), Z.tobytes()))  # type: ignore[operator]
+    assert got[0] == got[1]
+
+
 if __name__ == "__main__":  # regenerate the golden file
     sys.path.insert(0, str(Path(__file__).parent))
     GOLDEN.write_text(generated_source())

@@ -5,7 +5,7 @@ from crashstudy.vocabulary.codes import CRUSHED_TO_ZERO, INVALID, OK, UNSTABLE
 from crashstudy.kernel.laws import axis_2d, crush_knot_force, crush_law, crush_window, damper_force, elongation_1d, elongation_2d, end_rate, general_law, general_reverse_call, general_window, knot_accel, knot_crossing, knot_step, least, linear_force, nonlinear_force, nonlinear_window, peak, ramp_knot, ramp_start, time_window, elastoplastic_law, broken_at
 from crashstudy.kernel.step_laws import advance, energy_balance, energy_first_half, energy_increment, ext_power, half_step, kinetic, spring_extremes, stop_test, unstable, unstable_limit, wall_dof, wall_force, wall_gives, wall_hold, wall_impulse, wall_jump, wall_penalty, wall_plane, wall_work, work_increment
 
-_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 20, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
+_SHAPE = {'const': [0], 'fac': [], 'sign': [1, 1], 'kcheck': [], 'version': 21, 'block': 256, 'row': 264, 'N': 3, 'D': 1, 'S': 2, 'gravity': False, 'term': False, 'walls': [], 'free': [[0.0], [1.0], [1.0]], 'loads': [], 'si': [0, 1], 'sj': [1, 2], 'mat': [1, 0], 'pre': [], 'fragile': [], 'ca': [0, -1], 'cb': [-1, -1], 'off': [0, 4], 'movable': [False, True, True], 'static': [True, False, False], 'pm': [], 'hist': ['spring_force', 'kinetic_energy', 'internal_energy', 'external_work', 'wall_energy']}
 
 
 @nb.njit(nogil=True, error_model="numpy", cache=True)
@@ -191,18 +191,18 @@ def _pass_b(Z, B, n, vi, cst):
         d1 = Z[2640 + w] - Z[2904 + w]
         e0 = elongation_1d(1.0, d1, 0.0)
         F0 = nonlinear_force(ramp_knot(ramp_knot(ramp_start(k_cy0_0, k_s0_0, e0, k_cx0), k_ds1, e0, k_cx1), k_ds2, e0, k_cx2))
-        d1 = Z[2640 + w] - Z[2904 + w]
+        d1_r1 = Z[2640 + w] - Z[2904 + w]
         d2 = Z[4224 + w] - Z[4488 + w]
-        e1 = elongation_1d(1.0, d2, d1)
+        e1 = elongation_1d(1.0, d2, d1_r1)
         F1 = linear_force(Z[7392 + w], e1)
         ie_tot = 0.0
         Z[6072 + w] = energy_increment(Z[6072 + w], F0, Z[5544 + w], e0, Z[5808 + w], afw)
-        ie_tot = ie_tot + Z[6072 + w]
+        ie_tot_r1 = ie_tot + Z[6072 + w]
         Z[6336 + w], Z[6600 + w], Z[6864 + w] = spring_extremes(Z[6336 + w], Z[6600 + w], Z[6864 + w], F0, af, e0, af)
         Z[5544 + w] = F0
         Z[5808 + w] = e0
         Z[8184 + w] = energy_increment(Z[8184 + w], F1, Z[7656 + w], e1, Z[7920 + w], afw)
-        ie_tot = ie_tot + Z[8184 + w]
+        ie_tot_r2 = ie_tot_r1 + Z[8184 + w]
         Z[8448 + w], Z[8712 + w], Z[8976 + w] = spring_extremes(Z[8448 + w], Z[8712 + w], Z[8976 + w], F1, af, e1, af)
         Z[7656 + w] = F1
         Z[7920 + w] = e1
@@ -212,25 +212,25 @@ def _pass_b(Z, B, n, vi, cst):
         vo_0 = Z[3168 + w]
         vn_0 = half_step(vo_0, a, h * dtw)
         a_0 = a
-        ke = kinetic(ke, Z[2112 + w], vo_0, vn_0)
+        ke_r1 = kinetic(ke, Z[2112 + w], vo_0, vn_0)
         Z[2640 + w], Z[3168 + w] = advance(Z[2640 + w], vo_0, vn_0, dtw, af)
         Z[2376 + w] = peak(Z[2376 + w], (0.0 + a_0 * a_0) * af)
-        fs = (0.0 - F1)
-        a = (fs + 0.0) * Z[5016 + w]
-        vo_0 = Z[4752 + w]
-        vn_0 = half_step(vo_0, a, h * dtw)
-        a_0 = a
-        ke = kinetic(ke, Z[3696 + w], vo_0, vn_0)
-        Z[4224 + w], Z[4752 + w] = advance(Z[4224 + w], vo_0, vn_0, dtw, af)
-        Z[3960 + w] = peak(Z[3960 + w], (0.0 + a_0 * a_0) * af)
-        ke = ke if wt > 0.0 else Z[792 + w]
-        bal = energy_balance(ke, ie_tot, 0.0, Z[792 + w], 0.0)
+        fs_r1 = (0.0 - F1)
+        a_r1 = (fs_r1 + 0.0) * Z[5016 + w]
+        vo_0_r1 = Z[4752 + w]
+        vn_0_r1 = half_step(vo_0_r1, a_r1, h * dtw)
+        a_0_r1 = a_r1
+        ke_r2 = kinetic(ke_r1, Z[3696 + w], vo_0_r1, vn_0_r1)
+        Z[4224 + w], Z[4752 + w] = advance(Z[4224 + w], vo_0_r1, vn_0_r1, dtw, af)
+        Z[3960 + w] = peak(Z[3960 + w], (0.0 + a_0_r1 * a_0_r1) * af)
+        ke_r3 = ke_r2 if wt > 0.0 else Z[792 + w]
+        bal = energy_balance(ke_r3, ie_tot_r2, 0.0, Z[792 + w], 0.0)
         thr = Z[528 + w]
         Z[1056 + w] = peak(Z[1056 + w], bal * af)
         Z[528 + w] = thr
         nbad += (1 if af > 0.0 else 0) if unstable(bal, thr) else 0
-        Z[1320 + w] = ke
-        Z[1584 + w] = ie_tot
+        Z[1320 + w] = ke_r3
+        Z[1584 + w] = ie_tot_r2
     return nbad, nhit, nstop
 
 

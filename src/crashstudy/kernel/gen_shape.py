@@ -24,7 +24,7 @@ from crashstudy.vocabulary.materials import KNOT_MATERIALS, RATE_MATERIALS, spec
 if TYPE_CHECKING:
     from crashstudy.arrays.batch import Batch
 
-GEN_VERSION = 20  # bump when the generated source changes meaning (old cached kernels are ignored)
+GEN_VERSION = 21  # bump when the generated source changes meaning (old cached kernels are ignored)
 BLOCK = environment.gen_block()  # variants per block (CRASHSTUDY_GEN_BLOCK)
 ROW = BLOCK + 8  # row stride of the work array: not a power of two (rows 2 KiB apart alias in L1)
 

@@ -8,6 +8,7 @@ import re
 from typing import Any
 
 from crashstudy.kernel.driver import Summ
+from crashstudy.kernel.gen_locals import single_definitions
 from crashstudy.kernel.gen_loops import Load, loads
 from crashstudy.kernel.gen_nodes import emit_results, pass_b
 from crashstudy.kernel.gen_records import ends, failures, records
@@ -288,7 +289,7 @@ def _function(
     step, whose lane loops must vectorise (:func:`_lanes_known_positive`)."""
     n0 = len(g.L)
     emitter(g, "    ")
-    body = "\n".join(_lanes_known_positive(g.L[n0:]) if hot else g.L[n0:])
+    body = "\n".join(single_definitions(_lanes_known_positive(g.L[n0:])) if hot else g.L[n0:])
     del g.L[n0:]
     used = _words(body)
     consts = any(c in used for c in g.cname.values())
