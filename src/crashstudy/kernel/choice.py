@@ -64,8 +64,9 @@ REF_ELEMENT_STEP = 0.2e-6  # [s] per element-step (spring x step x variant)
 GENERIC_RATE = 1.4e8  # [element-steps/s] generic kernel, 2 threads
 GENERATED_RATE = 2.0e8  # [element-steps/s] generated kernel, 2 threads
 # [s] compiling the generic kernel (once per machine): the lead's quiet-machine 79 s at 1ab7358 times the
-# side-by-side ratio 0.63 of its stages compiled once each (benchmarks/results/generic_compile.md)
-GENERIC_COMPILE = 50.0
+# side-by-side ratio 0.63 of its stages compiled once each, times 0.82 of its records read once and its
+# stages linked instead of dispatchers (benchmarks/results/generic_compile.md)
+GENERIC_COMPILE = 41.0
 GEN_BASE, GEN_GENERAL, GEN_SPRING, GEN_WALL, GEN_RECORD = (
     2.0,
     3.5,

@@ -50,19 +50,25 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
     H histories, Out summaries): the step loop over a block's arrays ``K`` (:data:`generic_block.Block`);
     its stages are :mod:`crashstudy.kernel.generic_springs`, :mod:`crashstudy.kernel.generic_nodes` and
     :mod:`crashstudy.kernel.wall_contact`."""
-    # the records' arrays as locals, once per call: the stages take arrays, never a record
-    si, sj, material, off, e0, rate0 = T.spring_i, T.spring_j, T.material, T.curve_off, P.e0, P.rate0
-    curve_a, curve_b, knot_check, rate_off = T.curve_a, T.curve_b, T.knot_check, T.rate_off
-    rate_curve, load_node, load_curve, pm_node = T.rate_curve, T.load_node, T.load_curve, T.pm_node
-    pm_dir, pm_curve, pm_kind, ktan, fy, rate_at = T.pm_dir, T.pm_curve, T.pm_kind, P.ktan, P.fy, P.rate_at
-    cx, cy, cds, cs0, cs1, gravity, load_force = P.cx, P.cy, P.cds, P.cs0, P.cs1, P.gravity, P.load_force
-    pm_scale, fail_t, fail_c, v0 = P.pm_scale, P.fail_t, P.fail_c, P.v0
-    ke_fraction, min_time, e_floor, rec_block = P.ke_fraction, P.min_time, P.energy_floor, P.rec_block
-    wall_nodes, free, step_nodes, steps = T.wall_nodes, T.free, H.step_nodes, H.steps
-    N, D, _ = P.x0.shape
+    # the records' arrays as locals, once per call: the stages take arrays, never a record. Read through
+    # aliases used in this block only: numba keeps a variable used in several blocks (T, P, K) in a stack
+    # slot and reloads the WHOLE record at each attribute read; LLVM's SROA then splits every such load
+    # (18 s of the cold compile; benchmarks/results/generic_compile.md)
+    t, p = T, P
+    si, sj, material, off, e0, rate0 = t.spring_i, t.spring_j, t.material, t.curve_off, p.e0, p.rate0
+    curve_a, curve_b, knot_check, rate_off = t.curve_a, t.curve_b, t.knot_check, t.rate_off
+    rate_curve, load_node, load_curve, pm_node = t.rate_curve, t.load_node, t.load_curve, t.pm_node
+    pm_dir, pm_curve, pm_kind, ktan, fy, rate_at = t.pm_dir, t.pm_curve, t.pm_kind, p.ktan, p.fy, p.rate_at
+    cx, cy, cds, cs0, cs1, gravity, load_force = p.cx, p.cy, p.cds, p.cs0, p.cs1, p.gravity, p.load_force
+    pm_scale, fail_t, fail_c, v0 = p.pm_scale, p.fail_t, p.fail_c, p.v0
+    ke_fraction, min_time, e_floor, rec_block = p.ke_fraction, p.min_time, p.energy_floor, p.rec_block
+    wall_nodes, free, step_nodes, steps = t.wall_nodes, t.free, H.step_nodes, H.steps
+    wp, wn, wk, out_every, x0 = p.wall_point, p.wall_normal, p.wall_stiffness, p.out_every, p.x0
+    imp, sft, final_energy = Out.wall_impulse, Out.spring_fail_time, Out.final_energy
+    N, D, _ = x0.shape
     S = si.shape[0]
     W = wall_nodes.shape[0]
-    NP = T.pm_node.shape[0]
+    NP = pm_node.shape[0]
     flags = gb.flags(T, P, H)
     has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp = flags
     # 1-D models without walls, prescribed motion or external forces take a fused node update
@@ -71,22 +77,22 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
         lo = starts[bi]
         B = starts[bi + 1] - lo
         K, nmax = gb.block_arrays(lo, B, has_state, any_knot, T, P, Out)
+        k = K  # (an alias used in this block only: one read of the record, as t and p above)
         # the block's arrays as locals, once per block: the stages take only the arrays they use
-        m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b = K.m_b, K.im_b, K.x0_b, K.sg_b, K.l0_b, K.kp_b, K.cx_b
-        cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg = K.cy_b, K.ds_b, K.ky_b, K.s0_b, K.yt_b, K.yc_b, K.g_arg
-        g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev = K.g_argt, K.g_argc, K.g_L, K.g_Ut, K.g_Uc, K.g_rev
-        dt_b, x, v, vnew, f, fext, fext_prev, acc = K.dt_b, K.x, K.v, K.vnew, K.f, K.fext, K.fext_prev, K.acc
-        acc_prev, k_sh, k_c, k_x, k_y, k_any = K.acc_prev, K.k_sh, K.k_c, K.k_x, K.k_y, K.k_any
-        k_hit, k_th, k_dfax, jump_prev, pm_acc = K.k_hit, K.k_th, K.k_dfax, K.jump_prev, K.pm_acc
-        axis_prev, state, forces, elong, f_prev = K.axis_prev, K.state, K.forces, K.elong, K.f_prev
-        e_prev, ie, pf, mc, pacc, pwall, e_tmp = K.e_prev, K.ie, K.pf, K.mc, K.pacc, K.pwall, K.e_tmp
-        ed_tmp, F_tmp, ax_tmp, edot_min, crushed = K.ed_tmp, K.F_tmp, K.ax_tmp, K.edot_min, K.crushed
-        work, wall_e, wmax, ke0, ke, ie_tot, err = K.work, K.wall_e, K.wmax, K.ke0, K.ke, K.ie_tot, K.err
-        bal, wforce, act, actf, nst = K.bal, K.wforce, K.act, K.actf, K.nst
-        next_rec, st_ok, me, broken, options, ftmp = K.next_rec, K.st_ok, K.me, K.broken, K.options, K.ftmp
-        e_init = K.e_init
-        wp, wn, wk, jp, imp = P.wall_point, P.wall_normal, P.wall_stiffness, jump_prev, Out.wall_impulse
-        sft = Out.spring_fail_time
+        m_b, im_b, x0_b, sg_b, l0_b, kp_b, cx_b = k.m_b, k.im_b, k.x0_b, k.sg_b, k.l0_b, k.kp_b, k.cx_b
+        cy_b, ds_b, ky_b, s0_b, yt_b, yc_b, g_arg = k.cy_b, k.ds_b, k.ky_b, k.s0_b, k.yt_b, k.yc_b, k.g_arg
+        g_argt, g_argc, g_L, g_Ut, g_Uc, g_rev = k.g_argt, k.g_argc, k.g_L, k.g_Ut, k.g_Uc, k.g_rev
+        dt_b, x, v, vnew, f, fext, fext_prev, acc = k.dt_b, k.x, k.v, k.vnew, k.f, k.fext, k.fext_prev, k.acc
+        acc_prev, k_sh, k_c, k_x, k_y, k_any = k.acc_prev, k.k_sh, k.k_c, k.k_x, k.k_y, k.k_any
+        k_hit, k_th, k_dfax, jump_prev, pm_acc = k.k_hit, k.k_th, k.k_dfax, k.jump_prev, k.pm_acc
+        axis_prev, state, forces, elong, f_prev = k.axis_prev, k.state, k.forces, k.elong, k.f_prev
+        e_prev, ie, pf, mc, pacc, pwall, e_tmp = k.e_prev, k.ie, k.pf, k.mc, k.pacc, k.pwall, k.e_tmp
+        ed_tmp, F_tmp, ax_tmp, edot_min, crushed = k.ed_tmp, k.F_tmp, k.ax_tmp, k.edot_min, k.crushed
+        work, wall_e, wmax, ke0, ke, ie_tot, err = k.work, k.wall_e, k.wmax, k.ke0, k.ke, k.ie_tot, k.err
+        bal, wforce, act, actf, nst = k.bal, k.wforce, k.act, k.actf, k.nst
+        next_rec, st_ok, me, broken, options, ftmp = k.next_rec, k.st_ok, k.me, k.broken, k.options, k.ftmp
+        e_init = k.e_init
+        jp = jump_prev
         pen_e = np.zeros((W, N, B))  # stored energy of each node at each penalty wall
         for n in range(nmax + 1):
             nact = 0
@@ -417,7 +423,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
             if anybad:
                 gb.fail_lanes(n, lo, B, D, e_floor, Out, K)
             if rec_now:
-                go.record(n, lo, B, n_out, P.out_every, H, K)
+                go.record(n, lo, B, n_out, out_every, H, K)
             if (
                 step_nodes.shape[0] > 0
             ):  # crash criteria: a^n of the recorded nodes added to their block's row
@@ -443,7 +449,7 @@ def _run(b_lo, b_hi, starts, n_out, T, P, H, Out):  # pragma: no cover - compile
                     n_end,
                 )
             if n == n_end:
-                go.final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, Out.final_energy)
+                go.final_energies(n, lo, B, act, nst, ke, ie_tot, work, wall_e, final_energy)
             if not fused:
                 gn.advance_nodes(B, N, D, x, v, vnew, dt_b, actf)
             if not no_ext:

@@ -7,11 +7,16 @@ and the lanes that fail. The step loop is :mod:`crashstudy.kernel.compiled`; its
 
 from __future__ import annotations
 
+import inspect
 from collections import namedtuple
+from collections.abc import Callable
 from typing import Any
 
-import numba as nb
 import numpy as np
+from numba.core import compiler
+from numba.core.cpu import CPUTargetOptions
+from numba.core.registry import cpu_target
+from numba.extending import intrinsic
 
 from crashstudy.kernel.step_laws import unstable, unstable_limit, wall_gives
 from crashstudy.vocabulary.codes import (
@@ -24,12 +29,48 @@ from crashstudy.vocabulary.codes import (
 )
 from crashstudy.vocabulary.materials import KNOT_MATERIALS, STATE_MATERIALS
 
-#: the generic kernel's compiled functions (this module's and its stages'): each compiled once, called from
-#: compiled code only (no CPython or C wrapper: a call from Python would crash); numba's default
-#: ``inline="never"``, LLVM inlines what is worth it (numba IR inlining made the cold compile 1.6x longer:
-#: benchmarks/results/generic_compile.md)
-_STAGE: dict[str, Any] = {"cache": True, "nogil": True, "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
-stage = nb.njit(**_STAGE)
+_FLAGS: dict[str, Any] = {
+    "nopython": True,
+    "nogil": True,
+    "no_cpython_wrapper": True,
+    "no_cfunc_wrapper": True,
+}
+
+
+def stage(py_func: Callable[..., Any]) -> Any:
+    """The generic kernel's compiled functions (this module's and its stages'), callable from compiled code only
+    (a call from Python raises): typed and lowered once per argument types with the flags of
+    ``numba.njit(nogil=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)``, then linked into the caller
+    and called (numba's ``compile_internal`` path, as its own builtins: an ``intrinsic`` whose code is a
+    call). Not a dispatcher: no dispatcher typing per call site, no disk-cache entry of its own (``_run``'s
+    holds the whole kernel), and records read once (see ``compiled._run``): the cold compile -23 %
+    (benchmarks/results/generic_compile.md). numba IR inlining (``inline="always"``) re-typed every copy
+    (1.6x longer); LLVM inlines what is worth it (today: none of the stages)."""
+    done: dict[tuple[Any, ...], Any] = {}
+
+    def typer(typingctx: Any, *args: Any) -> Any:
+        if args not in done:
+            flags: Any = compiler.Flags()
+            CPUTargetOptions.parse_as_flags(flags, _FLAGS)
+            flags.no_compile = True
+            done[args] = compiler.compile_extra(
+                typingctx, cpu_target.target_context, py_func, args, None, flags, {}
+            )
+        cres = done[args]
+
+        def codegen(context: Any, builder: Any, sig: Any, llargs: Any) -> Any:
+            context.active_code_library.add_linking_library(cres.library)
+            return context.call_internal(builder, cres.fndesc, sig, llargs)
+
+        return cres.signature, codegen
+
+    # the intrinsic takes py_func's arguments by name (numba reads them from the signature)
+    params = list(inspect.signature(py_func).parameters.values())
+    first = inspect.Parameter("typingctx", inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    typer.__signature__ = inspect.Signature([first, *params])  # type: ignore[attr-defined]
+    typer.__name__ = typer.__qualname__ = py_func.__name__
+    typer.__doc__ = py_func.__doc__
+    return intrinsic(typer)
 
 
 #: rows of the per-spring options array of a block: preloaded (initial_elongation), breakable (failure)
@@ -51,7 +92,14 @@ def flags(T, P, H):  # pragma: no cover - compiled
     """What the model contains: (has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot,
     pm_disp: (N, D) the dofs driven by a displacement curve, whose rate is v^{n-1/2} (see the reference))."""
     material, gravity, rec_mask, ke_fraction, free = T.material, P.gravity, H.rec, P.ke_fraction, T.free
-    pm_node, curve_a, off, knot_check = T.pm_node, T.curve_a, T.curve_off, T.knot_check
+    pm_node, curve_a, off, knot_check, pm_kind, pm_dir = (
+        T.pm_node,
+        T.curve_a,
+        T.curve_off,
+        T.knot_check,
+        T.pm_kind,
+        T.pm_dir,
+    )
     N, D, _ = P.x0.shape
     S = T.spring_i.shape[0]
     NL = T.load_node.shape[0]
@@ -92,8 +140,8 @@ def flags(T, P, H):  # pragma: no cover - compiled
                     any_knot = True
     pm_disp = np.zeros((N, D), dtype=np.bool_)
     for k in range(NP):
-        if T.pm_kind[k] == PM_DISPLACEMENT:
-            pm_disp[pm_node[k], T.pm_dir[k]] = True
+        if pm_kind[k] == PM_DISPLACEMENT:
+            pm_disp[pm_node[k], pm_dir[k]] = True
     return has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp
 
 
@@ -107,6 +155,8 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
     mass, inv_mass, x0, v0, length0, sign, kpar = P.mass, P.inv_mass, P.x0, P.v0, P.length0, P.sign, P.kpar
     yield_t, yield_c, cx, cy, cds, cs0, knot_y = P.yield_t, P.yield_c, P.cx, P.cy, P.cds, P.cs0, P.knot_y
     dt, n_steps, invalid, fail_item, fail_time = P.dt, P.n_steps, P.invalid, Out.fail_item, Out.fail_time
+    ie0_, e0, fail_t, fail_c, state0 = P.ie0, P.e0, P.fail_t, P.fail_c, P.state0
+    # (T, P and Out read here only: a record read in a loop is reloaded whole each time, see compiled._run)
     N, D, _ = x0.shape
     S = si.shape[0]
     K = cx.shape[0]
@@ -244,20 +294,18 @@ def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - c
     for s in range(S):
         for w in range(B):
             q = lo + w
-            ie[s, w] = P.ie0[s, q]
-            options[PRELOADED, s] = options[PRELOADED, s] or P.e0[s, q] != 0.0
-            options[BREAKABLE, s] = (
-                options[BREAKABLE, s] or P.fail_t[s, q] < np.inf or P.fail_c[s, q] > -np.inf
-            )
-    if has_state and P.state0.shape[0] > 0:
+            ie[s, w] = ie0_[s, q]
+            options[PRELOADED, s] = options[PRELOADED, s] or e0[s, q] != 0.0
+            options[BREAKABLE, s] = options[BREAKABLE, s] or fail_t[s, q] < np.inf or fail_c[s, q] > -np.inf
+    if has_state and state0.shape[0] > 0:
         for s in range(S):
             for k in range(NSTATE):
                 for w in range(B):
-                    state[s, k, w] = P.state0[s, k, lo + w]
+                    state[s, k, w] = state0[s, k, lo + w]
     for w in range(B):
         ie0 = 0.0
         for s in range(S):
-            ie0 = ie0 + P.ie0[s, lo + w]
+            ie0 = ie0 + ie0_[s, lo + w]
         e_init[0, w] = ke0[w] + ie0
         e_init[1, w] = ke0[w] + abs(ie0)
 
@@ -354,7 +402,7 @@ def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
         K.crushed,
         K.st_ok,
     )
-    n_fail, dt_b, wall_e = K.n_fail, K.dt_b, K.wall_e
+    n_fail, dt_b, wall_e, fail_item, fail_time = K.n_fail, K.dt_b, K.wall_e, Out.fail_item, Out.fail_time
     for w in range(B):
         if not act[w]:
             continue
@@ -363,13 +411,13 @@ def fail_lanes(n, lo, B, D, e_floor, Out, K):  # pragma: no cover - compiled
             st_ok[w] = UNSTABLE
         elif wall_gives(wall_e[w] if n > 0 else 0.0, lim):  # the balance held: fail_item names the walls
             st_ok[w] = UNSTABLE
-            Out.fail_item[lo + w] = UNSTABLE_WALLS
+            fail_item[lo + w] = UNSTABLE_WALLS
         elif D > 1 and crushed[w] >= 0:
             st_ok[w] = CRUSHED_TO_ZERO
-            Out.fail_item[lo + w] = crushed[w]
+            fail_item[lo + w] = crushed[w]
         else:
             continue
-        Out.fail_time[lo + w] = n * dt_b[w]
+        fail_time[lo + w] = n * dt_b[w]
         n_fail[w] = n
         act[w] = False
         actf[w] = 0.0

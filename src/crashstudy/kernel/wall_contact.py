@@ -9,12 +9,10 @@ penalty law gives an exact 0), > 0 a penalty wall (the rigid jump is 0).
 from __future__ import annotations
 
 from crashstudy.kernel import step_laws as sl
-from crashstudy.kernel.cache import cached_njit
-
-_jit = cached_njit(nogil=True)
+from crashstudy.kernel.generic_block import stage
 
 
-@_jit
+@stage
 def gap_of(x, wall_point, wall_normal, wl, n_, w, q, D):  # pragma: no cover - compiled
     """Distance of node ``n_`` (lane ``w``, variant ``q``) from wall ``wl``'s plane, along its normal."""
     gap = 0.0
@@ -23,7 +21,7 @@ def gap_of(x, wall_point, wall_normal, wl, n_, w, q, D):  # pragma: no cover - c
     return gap
 
 
-@_jit
+@stage
 def penalty(
     lo, B, W, N, D, wall_nodes, wall_normal, wall_point, wall_k, x, f, wforce, wall_e, pen_e, act
 ):  # pragma: no cover
@@ -49,7 +47,7 @@ def penalty(
                 pen_e[wl, n_, w] = ep
 
 
-@_jit
+@stage
 def rigid(
     lo,
     B,
