@@ -95,7 +95,7 @@ def setup(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-u
 
 def test_a_run_waits_for_another_process_compiling_the_kernel_it_needs(setup) -> None:  # type: ignore[no-untyped-def]
     batch, plan, hold, started, done = setup
-    hold("busy", "generic", 5.0)  # expected in ~5 s, compiling here would take GENERIC_COMPILE (50 s)
+    hold("busy", "generic", 5.0)  # expected in ~5 s, compiling here would take GENERIC_COMPILE (41 s)
     said: list[str] = []
     choice.compile_foreground(
         ("generic",), batch, plan.topology.histories, None, lambda: None, say=said.append
