@@ -266,10 +266,10 @@ def fresh_numba_cache(dispatcher: Any) -> Any:
             old.unlink()
         except OSError:  # removed by another process at the same time
             pass
+    from crashstudy.safefs import write_text
+
     try:
-        tmp = folder / f".{STAMP_NAME}.{os.getpid()}"
-        tmp.write_text(now)
-        os.replace(tmp, stamp)
+        write_text(stamp, now)
     except OSError:  # a read-only folder: numba does not write there either
         pass
     return dispatcher
