@@ -133,3 +133,22 @@ def md_table(rows: list[dict[str, Any]], cols: list[str] | None = None) -> str:
     out = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     out += ["| " + " | ".join(fmt(r.get(c, "")) for c in cols) + " |" for r in rows]
     return "\n".join(out) + "\n"
+
+
+def wait_for_kernels(plan: Any, timeout: float = 600.0) -> None:
+    """Until the generic kernel and ``plan``'s generated kernel are compiled (numba's disk cache): what a
+    background compile started by an earlier run leaves, compiled here when no other process holds the lock.
+    A warm cell measured while that compile still runs would wait for it, or share the cores with it."""
+    import time
+
+    from crashstudy.arrays.batch import build_batch
+    from crashstudy.kernel import choice
+
+    sample, _ = build_batch(plan.topology, plan.params(0, 1), plan.interval)
+    hist, vary = plan.topology.histories, plan.varying_curves
+    deadline = time.time() + timeout
+    while (
+        not (choice.generic_ready() and choice.generated_ready(sample, hist, vary)) and time.time() < deadline
+    ):
+        choice.compile_foreground(("generic", "generated"), sample, hist, vary, lambda: None)
+        time.sleep(1.0)  # another process held the lock: its compile ends, or the next round compiles

@@ -42,7 +42,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import FRONTAL, MODELS, RESULTS, load, machine, machine_md, md_table, write_csv  # noqa: E402
+from common import FRONTAL, MODELS, RESULTS, load, machine, machine_md, md_table, wait_for_kernels, write_csv  # noqa: E402
 
 TWO_SPRING = """name: two-spring-curves
 units: SI
@@ -240,17 +240,7 @@ def one(cell: dict[str, Any]) -> dict[str, Any]:
     if (
         cell["cache"] == "cold"
     ):  # the next (warm) run finds this shape's kernels compiled (as after a background compile)
-        from crashstudy.arrays.batch import build_batch
-
-        sample, _ = build_batch(plan.topology, plan.params(0, 1), plan.interval)
-        hist, vary = plan.topology.histories, plan.varying_curves
-        deadline = time.time() + 600
-        while (
-            not (choice.generic_ready() and choice.generated_ready(sample, hist, vary))
-            and time.time() < deadline
-        ):
-            choice.compile_foreground(("generic", "generated"), sample, hist, vary, lambda: None)
-            time.sleep(1.0)  # another process held the lock: its compile ends, or the next round compiles
+        wait_for_kernels(plan)
     if spec["loop"] is not None:
         ids = plan.topology.spring_ids
         ours = np.array(rep.results.summary[[f"peak_force.{s}" for s in ids]].to_numpy(dtype=float).T)

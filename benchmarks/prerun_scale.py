@@ -35,7 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import RESULTS, load, machine, machine_md, md_table  # noqa: E402
+from common import RESULTS, load, machine, machine_md, md_table, wait_for_kernels  # noqa: E402
 
 MODEL = """\
 name: two-spring
@@ -191,10 +191,16 @@ def main() -> None:
     ap.add_argument("--prerun", action="store_true")
     ap.add_argument("--memory", action="store_true")
     ap.add_argument("--one", help=argparse.SUPPRESS)
+    ap.add_argument("--wait", help=argparse.SUPPRESS)
     ap.add_argument("--report", default=str(RESULTS / "prerun_scale.md"))
     args = ap.parse_args()
     if args.one:
         print(json.dumps(prerun_one(Path(args.one))))
+        return
+    if args.wait:
+        from crashstudy.study.plan import load_study
+
+        wait_for_kernels(load_study(Path(args.wait)))
         return
     both = not (args.prerun or args.memory)
     start = load()
@@ -211,6 +217,9 @@ def main() -> None:
                 check=True,
                 capture_output=True,
             )
+            subprocess.run(
+                [sys.executable, __file__, "--wait", str(warm)], check=True
+            )  # its background compile
             rows = []
             for sizes in ((100, 100, 100), (1000, 100, 100)):
                 path = work / f"m{np.prod(sizes)}.yaml"
