@@ -210,7 +210,7 @@ def generated_parts() -> dict[str, dict[str, Any]]:
 
 # ------------------------------------------------------------------------------------------------
 # One generated-kernel shape for two tests that need the generated kernel on a whole model of their own
-# (its energies and its status are per model, not per part): tests/test_properties.py's node that
+# (its energies and its status are per model, not per part): tests/test_properties_models.py's node that
 # reaches a wall in the first step, and tests/test_stress.py's instability forced by hand. The wall's
 # place, the speed, the stiffness, the step and the end time are numbers of the model, not of its shape:
 # one compile (~10 CPU s) serves both files.

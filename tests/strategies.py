@@ -1,4 +1,4 @@
-"""Hypothesis strategies of random valid inputs (tests/test_properties.py, tests/test_invariants.py): models
+"""Hypothesis strategies of random valid inputs (tests/test_properties_*.py, tests/test_invariants.py): models
 of 2-6 nodes in 1-D and 2-D trees, every material of the generator, walls, loads, gravity, preloads and
 three unit systems, with the curves they need."""
 

@@ -343,7 +343,7 @@ def test_instability_forced_by_hand_fails_that_variant_only() -> None:
     (the 9th step), NaN histories after it (20 samples); the three others are bitwise equal to running each
     alone, on every kernel; both fast kernels bitwise equal to the reference. The model is a 1 kg mass on
     a 1e4 N/m spring with a wall so far away (-1e300 m) that nothing reaches it (:func:`models.wall_spring`):
-    the generated kernel of tests/test_properties.py's wall test, one compile for both files.
+    the generated kernel of tests/test_properties_models.py's wall test, one compile for both files.
     200 steps per variant (2000 before; 13 runs, 5 of them the NumPy reference's; the
     failure is at the 9th step of the forced variant at either length). Planted (a failed variant's status
     spread to the whole batch in the reference kernel): fails at 200 steps as at 2000."""
