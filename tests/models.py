@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-TWO_SPRING_CRUSH: dict[str, Any] = {  # the study tests' model (tests/test_study.py, tests/test_new_user.py)
+TWO_SPRING_CRUSH: dict[str, Any] = {  # the study tests' model (tests/test_study_*.py, tests/test_new_user.py)
     "name": "two-spring-crush",
     "description": "1-D frontal impact: crush spring against a wall, body mass behind a linear spring.",
     "units": "SI",

@@ -1,7 +1,7 @@
 """What a new user trips over (issue 13 items 1, 2, 5, 7): data loss, silent mistakes, the summary
 table, help texts and messages.
 
-The model is the 1-D frontal impact of test_study: a crush spring (wall - front, unloading stiffness
+The model is the 1-D frontal impact of test_study_*.py: a crush spring (wall - front, unloading stiffness
 5e6 N/m) and a linear spring (front - body, 2e6 N/m), 20 ms. Independent truths used below:
 
 - the critical step of a free node is ``0.99 * 2 / sqrt(2 K / m)`` with ``K`` the sum of the stiffnesses
