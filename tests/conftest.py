@@ -76,7 +76,7 @@ def pytest_configure(config: pytest.Config) -> None:
 
 def warm_other_core() -> None:
     """Compile the generated kernels of ``twins.WARM_RECORD_CASES`` exactly as tests/test_kernel_twins.py
-    runs them (the same batch and record: the same shape key; tests/test_metrics.py's block-record twins
+    runs them (the same batch and record: the same shape key; tests/test_metrics_record.py's block-record twins
     share it), the shape of ``helpers.generated_part`` (any step: the shape key has none) and the crash
     criteria."""
     from crashstudy.kernel.entry import run_batch
@@ -96,7 +96,7 @@ def warm_other_core() -> None:
 # The slowest tests of a parallel run on empty caches (``--durations``, 2 cores), slowest first. pyproject's
 # ``--dist worksteal`` gives each worker a contiguous share of the collection, these at the head of the first
 # share; a worker that runs out takes half of what is left of the other's share, from its tail. So none of
-# them starts last and leaves a core idle at the end. The twin cases come before tests/test_metrics.py's
+# them starts last and leaves a core idle at the end. The twin cases come before tests/test_metrics_record.py's
 # block-record twins, which run the same generated kernel shapes (twins.RECORD_CASES) and then load them from
 # the cache that the twin case has just written, instead of compiling them at the same time.
 SLOW_FIRST = (
@@ -109,7 +109,7 @@ SLOW_FIRST = (
     "test_kernel_twins.py::test_fast_kernels_bitwise_equal_to_reference",  # the other cases
     "test_invariants.py::test_a_mass_stopped_over_a_crush_d_peaks_at_least_at_v0_squared_over_2d",
     "test_stress.py::test_instability_forced_by_hand_fails_that_variant_only",
-    "test_metrics.py::test_block_record_is_bitwise_the_references_on_the_fast_kernels",
+    "test_metrics_record.py::test_block_record_is_bitwise_the_references_on_the_fast_kernels",
 )
 
 

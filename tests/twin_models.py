@@ -1,5 +1,5 @@
 """The model builders of the bitwise twin tests: the same model run by the NumPy reference kernel and by
-each fast kernel (tests/test_kernel_twins.py, tests/test_metrics.py's per-step record), shared with the
+each fast kernel (tests/test_kernel_twins.py, tests/test_metrics_record.py's per-step record), shared with the
 physics and knot-peak tests that check some of them against closed forms. The twin cases (a builder and
 its study axes) are tests/twins.py; the v2 spring features' builders tests/twin_v2_models.py."""
 

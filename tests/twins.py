@@ -112,7 +112,7 @@ CASES: dict[str, tuple[Callable[[], dict[str, Any]], dict[str, list[float]]]] = 
     ),
 }
 
-# cases run with the per-step record of every movable node (tests/test_metrics.py's record twins are these
+# cases run with the per-step record of every movable node (tests/test_metrics_record.py's record twins are these
 # shapes: one compile serves both files); the others run without a record
 RECORD_CASES = (
     "full-twin-1d-every-material-both-ways-scaled-curves",
