@@ -42,7 +42,7 @@ output: {histories: none}
 
 # ------------------------------------------------------------------------------------------------
 # One generated-kernel shape for the physics tests of several files (tests/test_wall_physics.py,
-# tests/test_spring_features.py): their small models side by side in ONE model (model_parts.disjoint), so the
+# tests/test_spring_features_*.py): their small models side by side in ONE model (model_parts.disjoint), so the
 # generated kernel compiles once for all of them (~6 CPU s per shape) and each test reads its own part
 # (helpers.generated_part). The reference and generic kernels still run each model alone.
 # ------------------------------------------------------------------------------------------------

@@ -4,7 +4,7 @@ kink of its displacement curve (item 12), on every kernel (reference, generic, g
 Independent truths are closed forms: the momentum of a mass stopped by a wall, the force of a preloaded
 spring, the peak force of a mass on a spring brought to rest, a damper's law at the prescribed speed.
 The generated kernel runs these models side by side in one model (:func:`models.generated_parts`, shared
-with tests/test_spring_features.py: one compiled kernel for all of them, :func:`helpers.generated_part`);
+with tests/test_spring_features_*.py: one compiled kernel for all of them, :func:`helpers.generated_part`);
 each test checks its own part of that run against its closed form.
 """
 
