@@ -24,7 +24,7 @@ def _load(name: str) -> dict[str, Any]:
 
 
 # 2-D, smooth: nonlinear_elastic + linear_elastic chain under gravity and a trapezoidal load pulse
-# (the chain of tests/test_physics.py).
+# (the chain of tests/test_physics_2d_and_walls.py).
 CHAIN_2D: dict[str, Any] = {
     "name": "chain-2d",
     "curves": {
