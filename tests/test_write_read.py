@@ -113,7 +113,7 @@ def _argv(made: dict[str, Path], command: str, tmp: Path) -> tuple[list[str], Pa
         }[command], r
     if (
         command == "export"
-    ):  # the ISO-MME side reads a result folder (the LS-DYNA side: tests/test_dyna_exchange.py)
+    ):  # the ISO-MME side reads a result folder (the LS-DYNA side: tests/test_dyna_exchange_*.py)
         return ["export", str(made["R"]), "--isomme", str(tmp / "ISO")], tmp / "ISO"
     if command == "import":
         (tmp / "M").mkdir()
