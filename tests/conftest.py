@@ -33,6 +33,7 @@ from helpers import (  # noqa: E402, F401 - re-exported: test files written agai
     run_cli,
     run_model,
 )
+from plot_results import opened, small  # noqa: E402, F401 - fixtures of tests/test_plot_*.py
 from study_cases import matrix_run, matrix_study, work  # noqa: E402, F401 - fixtures of tests/test_study_*.py
 from twins import record_case  # noqa: E402, F401 - re-exported likewise
 
