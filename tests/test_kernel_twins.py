@@ -1,7 +1,7 @@
 """Both fast kernels (generic and generated) bitwise equal to the NumPy reference, on every feature.
 
 The independent truth is the reference kernel (:mod:`crashstudy.kernel.reference`, plain NumPy,
-itself checked against closed forms and scipy in test_physics_* and test_materials). The fast kernels
+itself checked against closed forms and scipy in test_physics_* and test_materials_*). The fast kernels
 share their laws (:mod:`crashstudy.kernel.laws`) but not the reference's code. Tolerance: bitwise
 (every summary, every history; NaN where the reference has NaN).
 
