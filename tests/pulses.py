@@ -1,4 +1,4 @@
-"""Acceleration pulses and the crash criteria of one pulse, for the criteria tests (tests/test_criteria.py,
+"""Acceleration pulses and the crash criteria of one pulse, for the criteria tests (tests/test_criteria_*.py,
 tests/test_criteria_filter.py)."""
 
 from __future__ import annotations
@@ -21,3 +21,15 @@ def one(acc_1d: np.ndarray, dt: float, names=C.CRITERIA, cfc: int = 1000, v0: fl
 
 def half_sine(t: np.ndarray, peak: float, tau: float) -> np.ndarray:
     return np.where(t <= tau, peak * np.sin(np.pi * np.clip(t, 0.0, tau) / tau), 0.0)
+
+
+def trapezoid(
+    t: np.ndarray, start: float, rise: float, flat: float, fall: float, peak: float, base: float = 0.0
+):
+    return base + (peak - base) * np.interp(
+        t,
+        [start, start + rise, start + rise + flat, start + rise + flat + fall],
+        [0.0, 1.0, 1.0, 0.0],
+        left=0.0,
+        right=0.0,
+    )
