@@ -22,6 +22,7 @@ os.environ["CRASHSTUDY_BACKGROUND_COMPILE"] = "0"
 # HYPOTHESIS_PROFILE=explore draws new ones, as for the counts in docs/robustness.md
 from hypothesis import settings  # noqa: E402
 
+from analysis_study import tied  # noqa: E402, F401 - the fixture of tests/test_analysis_output_*.py
 from fault_runs import fault_dir, reference  # noqa: E402, F401 - fixtures of tests/test_faults_*.py
 from helpers import (  # noqa: E402, F401 - re-exported: test files written against conftest import these from it
     LINEAR_SPRING,

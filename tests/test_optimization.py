@@ -1,6 +1,6 @@
 """``crashstudy optimize`` and ``crashstudy calibrate`` against closed forms and an independent
 integrator (scipy solve_ivp), and their errors. (The calibration of a spring to noisy solve_ivp data, with
-its intervals, is in tests/test_analysis_output.py.)"""
+its intervals, is in tests/test_analysis_output_exceedance_and_calibration.py.)"""
 
 from __future__ import annotations
 
