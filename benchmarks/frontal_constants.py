@@ -1,6 +1,7 @@
 """The frontal model's topology and constants, read from frontal-9mass.yaml at import (numba freezes
-module-level constants into the compiled code), and the rows of the one block work array. Part of the hand-specialised reference loop for
-``studies/models/frontal-9mass.yaml`` (benchmarks only; frontal_specialised.py describes it)."""
+module-level constants into the compiled code), and the rows of the one block work array. Part of the
+hand-specialised reference loop for ``studies/models/frontal-9mass.yaml`` (benchmarks only;
+frontal_specialised.py describes it)."""
 
 from __future__ import annotations
 

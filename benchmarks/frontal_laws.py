@@ -1,6 +1,7 @@
 """The frontal loop's branch-free pieces (selects, ``min``/``max``): ramp-sum curves, the crush and
-general_nonlinear material laws, the per-step summaries and the node update. Part of the hand-specialised reference loop for
-``studies/models/frontal-9mass.yaml`` (benchmarks only; frontal_specialised.py describes it)."""
+general_nonlinear material laws, the per-step summaries and the node update. Part of the hand-specialised
+reference loop for ``studies/models/frontal-9mass.yaml`` (benchmarks only; frontal_specialised.py describes
+it)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,8 @@
 """pytest set-up: the tests' import path, environment and hypothesis profile, the ``cli`` fixture, and the
 compile warm-up of a parallel run. What the test modules share is in helpers.py (and twins.py,
 twin_models.py, twin_v2_models.py, model_parts.py, strategies.py, pulses.py, models.py, stress_models.py,
-folders.py)."""
+folders.py). The module fixtures that the test files of one subject share are defined in their helper
+modules (analysis_study.py, fault_runs.py, plot_results.py, study_cases.py) and registered here by import."""
 
 from __future__ import annotations
 

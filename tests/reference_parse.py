@@ -1,6 +1,7 @@
-"""The scipy reference solver's reading of a model dict (docs/format.md) into its :class:`_Model`,
-refusing the materials and keys it does not support. Part of the independent scipy reference solver (reference_scipy.py, which
-describes its scope, physics and numerics); like it, it does not import ``crashstudy``."""
+"""The scipy reference solver's reading of a model dict (docs/format.md) into its :class:`_Model`, refusing
+the materials and keys it does not support. Part of the independent scipy reference solver
+(reference_scipy.py, which describes its scope, physics and numerics); like it, it does not import
+``crashstudy``."""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """The scipy reference solver's results: the piecewise dense output of its integration and
-:class:`RefResult`, the histories on the requested times. Part of the independent scipy reference solver (reference_scipy.py, which
-describes its scope, physics and numerics); like it, it does not import ``crashstudy``."""
+:class:`RefResult`, the histories on the requested times. Part of the independent scipy reference solver
+(reference_scipy.py, which describes its scope, physics and numerics); like it, it does not import
+``crashstudy``."""
 
 from __future__ import annotations
 

@@ -1,13 +1,14 @@
 """Every kind of invalid input file exits with code 2 and a short message naming file, line and field.
 
-Each case edits a small valid model (``BASE``; the cases are in bad_model_cases.py) and runs ``crashstudy validate``
-and ``crashstudy simulate -o DIR`` on it. Both must exit 2 and print to stderr, without a traceback
-and on less than 40 lines, a problem line ``<file>:<line>: <field path>: <message>`` where the line
-is the exact line of the offending text, the field path is the dotted path of the offending field,
-and the message says what was expected; ``simulate`` must leave its output folder empty.
+Each case edits a small valid model (``BASE``; the cases are in bad_model_cases.py) and runs ``crashstudy
+validate`` and ``crashstudy simulate -o DIR`` on it. Both must exit 2 and print to stderr, without a
+traceback and on less than 40 lines, a problem line ``<file>:<line>: <field path>: <message>`` where the
+line is the exact line of the offending text, the field path is the dotted path of the offending field, and
+the message says what was expected; ``simulate`` must leave its output folder empty.
 
 Most checks call :func:`crashstudy.cli.main` in-process (fast); a few run the real command line in a
-subprocess, as a user would. Invalid study files and the example files of ``studies/`` are checked here too."""
+subprocess, as a user would. Invalid study files and the example files of ``studies/`` are checked here
+too."""
 
 from __future__ import annotations
 

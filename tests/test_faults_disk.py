@@ -4,7 +4,8 @@ Disk-full and read-only cases mount a small tmpfs (``mount -t tmpfs``), which ne
 with the reason when mounting is not permitted. (As root, ``chmod 0o555`` does not stop writes, so a
 read-only mount is the honest test.)
 
-The contract under test (docs/studies.md, issue 5) and the shared fault study are described in fault_runs.py."""
+The contract under test (docs/studies.md, issue 5) and the shared fault study are described in
+fault_runs.py."""
 
 from __future__ import annotations
 

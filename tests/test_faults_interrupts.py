@@ -2,7 +2,8 @@
 mid-study (issue 5, item 4), and an unfinished run that is neither resumed nor forced, or resumed onto
 another study's partial result.
 
-The contract under test (docs/studies.md, issue 5) and the shared fault study are described in fault_runs.py."""
+The contract under test (docs/studies.md, issue 5) and the shared fault study are described in
+fault_runs.py."""
 
 from __future__ import annotations
 

@@ -2,7 +2,8 @@
 looked up, that output is written only inside the chosen folder, and that existing results are not
 overwritten without ``--force``.
 
-The contract under test (docs/studies.md, issue 5) and the shared fault study are described in fault_runs.py."""
+The contract under test (docs/studies.md, issue 5) and the shared fault study are described in
+fault_runs.py."""
 
 from __future__ import annotations
 

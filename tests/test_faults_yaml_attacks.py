@@ -2,7 +2,8 @@
 bombs, huge values, variant bombs) are refused with exit 2 and a message naming the line and field,
 without a traceback and without hanging.
 
-The contract under test (docs/studies.md, issue 5) and the shared fault study are described in fault_runs.py."""
+The contract under test (docs/studies.md, issue 5) and the shared fault study are described in
+fault_runs.py."""
 
 from __future__ import annotations
 
