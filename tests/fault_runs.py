@@ -98,7 +98,7 @@ def files_under(root: Path) -> set[str]:
     return {str(p.relative_to(root)) for p in root.rglob("*")}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # read only: one per worker, shared by the tests/test_faults_*.py modules
 def fault_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("fault")
     (d / "models").mkdir()
@@ -108,7 +108,7 @@ def fault_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return d
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def reference(fault_dir: Path) -> tuple[xr.Dataset, Path]:
     """The uninterrupted run: the truth every resumed run must reproduce."""
     out = fault_dir / "reference"
