@@ -6,7 +6,7 @@ takes the same functions milliseconds as plain Python (about 30 us per sample fo
 :func:`driver_for` therefore hands out the numba function's own Python code (``py_func``, with every
 numba function it calls replaced the same way: nothing is written twice) until a process has
 interpreted ``PLAIN_MAX_SAMPLES`` samples, and the compiled one after that or once it is compiled.
-The results are the same to the last bit on the test signals (tests/test_criteria.py): numba
+The results are the same to the last bit on the test signals (tests/test_criteria_convergence_and_batching.py): numba
 compiles without fast-math, so every operation rounds as in Python.
 """
 

@@ -33,7 +33,7 @@ _POOL: list[ThreadPoolExecutor] = []  # the one writer thread of the process, st
 def _writer_thread() -> ThreadPoolExecutor:
     """The process's writer thread: one for the process's life, never one per run (an HDF5 library
     that keeps state per thread saw that state end with each run's thread: a crash in a later run's
-    garbage collection, tests/test_faults.py's disk-full resume, in process)."""
+    garbage collection, tests/test_faults_disk.py's disk-full resume, in process)."""
     if not _POOL:
         _POOL.append(ThreadPoolExecutor(1, thread_name_prefix="crashstudy-writer"))
     return _POOL[0]
