@@ -436,29 +436,11 @@ def cells(
 
 
 def write(rows: list[dict[str, Any]], out: Path, info: dict[str, str]) -> None:
-    cols = [
-        "model",
-        "kind",
-        "variants",
-        "cache",
-        "kernel",
-        "steps_per_variant",
-        "end_to_end_s",
-        "cpu_s",
-        "kernel_s",
-        "kernel_cpu_s",
-        "outside_us_per_variant",
-        "element_steps_per_s",
-        "loop_s",
-        "loop_cpu_s",
-        "ratio",
-        "cpu_ratio",
-        "check",
-        "check_knot_springs",
-        "failed",
-        "load",
-        "code",
-    ]
+    cols = (
+        "model kind variants cache kernel steps_per_variant end_to_end_s cpu_s kernel_s kernel_cpu_s "
+        "outside_us_per_variant element_steps_per_s loop_s loop_cpu_s ratio cpu_ratio check check_knot_springs "
+        "failed load code"
+    ).split()
     write_csv(out.with_suffix(".csv"), [{c: r.get(c) for c in cols} for r in rows], info)
     looped = [r for r in rows if r.get("ratio") is not None]
     worst = max(looped, key=lambda r: r["ratio"]) if looped else None
@@ -471,6 +453,13 @@ def write(rows: list[dict[str, Any]], out: Path, info: dict[str, str]) -> None:
             "",
         ]
         warm = [r for r in looped if r["cache"] != "cold"]  # a cold cell's compile runs in a child process
+        if warm:
+            w = max(warm, key=lambda r: r["ratio"])
+            head += [
+                f"Worst warm cell: {w['model']} / {w['kind']} / {w['variants']} variants: {w['ratio']:.2f}x "
+                f"({w['end_to_end_s']:.2f} s vs {w['loop_s']:.2f} s).",
+                "",
+            ]
         by_cpu = max(warm or looped, key=lambda r: r.get("cpu_ratio") or 0.0)
         if by_cpu.get("cpu_ratio") is not None:
             head += [
