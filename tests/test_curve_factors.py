@@ -88,3 +88,27 @@ def test_blocks_are_run_in_a_few_calls_per_thread_not_one_call_per_block(
     assert len(calls) <= 2 * driver.PER_THREAD
     covered = sorted(b for lo, hi in calls for b in range(lo, hi))
     assert covered == list(range(len(starts) - 1))
+
+
+def test_fewer_variants_than_full_blocks_are_split_over_the_threads_and_keep_their_numbers(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """40 variants on 2 threads are two blocks of 20, not one block on one core; every variant's numbers are
+    bitwise those of the same batch run as one block (truth: the one-block run; a block's variants are
+    independent)."""
+    from crashstudy.kernel.compiled import run_compiled
+
+    monkeypatch.setattr(driver, "_THREADS", [2])
+    assert driver.block_starts(40, 256).tolist() == [0, 20, 40]
+    assert driver.block_starts(20, 256).tolist() == [0, 20]  # under 2 x MIN_LANES: one block
+    assert driver.block_starts(600, 256).tolist() == [0, 256, 512, 600]  # full blocks: as before
+    scale = np.linspace(0.5, 2.0, 40).tolist()
+    batch, plan = model_batch(_spring(1e-4), {"curves.c.scale": scale, "curves.c.x_scale": scale[::-1]})
+    hist = plan.topology.histories
+    split = run_compiled(batch, hist, plan.n_out)
+    monkeypatch.setattr(driver, "MIN_LANES", 10**9)  # one block of 40
+    assert driver.block_starts(40, 256).tolist() == [0, 40]
+    whole = run_compiled(batch, hist, plan.n_out)
+    for name in ("peak_force", "max_crush", "max_elongation", "absorbed_energy", "final_energy", "status"):
+        np.testing.assert_array_equal(getattr(split, name), getattr(whole, name), err_msg=name)
+    assert np.all(split.status == 0) and len(np.unique(split.peak_force[0])) > 30  # the variants differ

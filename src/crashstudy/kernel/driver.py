@@ -179,8 +179,17 @@ def finish(out: KernelOutput, hist: Any) -> KernelOutput:
     return out
 
 
+MIN_LANES = 16  # a block split over the threads keeps at least this many variants (two AVX-512 vectors)
+
+
 def block_starts(V: int, block: int) -> np.ndarray:
-    """First variant of each block of at most ``block`` variants, and V."""
+    """First variant of each block of at most ``block`` variants, and V. Fewer variants than the threads'
+    full blocks are split evenly over the threads (blocks of at least :data:`MIN_LANES`): 64 variants of a
+    large model were one block on one core while the other idled (a block's variants are independent: each
+    variant's numbers are those it has alone)."""
+    nb = min(get_threads(), V // MIN_LANES)
+    if 1 < nb and V < nb * block:
+        block = -(-V // nb)
     return np.unique(np.minimum(np.arange(0, V + block, block), V)).astype(np.int64)
 
 
