@@ -60,13 +60,13 @@ def made(monkeypatch: pytest.MonkeyPatch) -> list[str]:
     return how
 
 
-def _from_store(out: Path, name: str) -> bytes:
+def _from_store(out: Path, name: str, table: str = tables.PARQUET) -> bytes:
     """The table write_summary makes from the finished store in ``out`` (written beside, then read)."""
-    scratch = out.parent / f"scratch-{out.name}"
+    scratch = out.parent / f"scratch-{out.name}-{table}"
     scratch.mkdir()
     with open_raw(out / name) as ds:
-        tables.write_summary(ds, scratch, False)
-    return (scratch / tables.PARQUET).read_bytes()
+        tables.write_summary(ds, scratch, table == tables.SUMMARY)
+    return (scratch / table).read_bytes()
 
 
 @pytest.mark.parametrize("kind", ["netcdf", "zarr"])
@@ -88,6 +88,21 @@ def test_a_streamed_summary_is_the_table_made_from_the_store_byte_for_byte(
     )
     want = v0[~bad] * np.sqrt(K * m[~bad]) * np.sin(END * np.sqrt(K / m[~bad]))
     np.testing.assert_allclose(s["peak_force.s"].to_numpy()[~bad], want, rtol=5e-3)  # 8 steps: 0.22 % at 1 kg
+
+
+def test_a_streamed_summary_csv_is_the_table_made_from_the_store_byte_for_byte(
+    tmp_path: Path, made: list[str]
+) -> None:
+    # summary.csv asked for (what a study of up to CSV_MAX variants writes by default): streamed beside the
+    # Parquet table, through the same columns and pyarrow's CSV writer, not read back from the store
+    plan = _plan(tmp_path, {"impact_velocity": SPEEDS, "nodes.b.mass": MASSES})
+    run_plan(plan, tmp_path / "R", kernel="reference", chunk=5, progress=False, csv=True)
+    assert made == []
+    for table in (tables.PARQUET, tables.SUMMARY):
+        assert (tmp_path / "R" / table).read_bytes() == _from_store(tmp_path / "R", "results.nc", table), table
+    text = (tmp_path / "R" / tables.SUMMARY).read_text().splitlines()
+    assert len(text) == 1 + len(MASSES) * len(SPEEDS) and text[0].startswith('"variant"')
+    assert sum('"failed"' in line for line in text) == 2 * len(SPEEDS)  # the 1 and 2 g masses
 
 
 def test_a_text_first_seen_after_a_written_row_group_makes_the_table_from_the_store(

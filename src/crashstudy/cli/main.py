@@ -256,9 +256,9 @@ def _after_run(res: Any) -> None:
     from crashstudy.results.curve_ends import warnings_of
     from crashstudy.schema.plausible import peak_g_warnings
 
-    with res.raw_unindexed as raw:  # no texts decoded, nothing of every variant in memory, no dask import
-        _warn(warnings_of(raw))
-        attrs = dict(raw.attrs)
+    with res.stored() as nc:  # as stored: no texts decoded, no xarray (nor pandas, nor dask) imported
+        _warn(warnings_of(nc))
+        attrs = {k: nc.getncattr(k) for k in nc.ncattrs()}
     body = json.loads(str(attrs.get("body", "{}")))
     node = body.get("node")
     if node is None:

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from crashstudy.results.tables import stored_ids
 from crashstudy.vocabulary.codes import GENERAL
 from crashstudy.vocabulary.materials import MATERIALS
 
@@ -60,15 +61,18 @@ def past_curve_ends(
 BLOCK = 1_000_000  # variants read at once
 
 
-def warnings_of(ds: Any) -> list[str]:
-    """One line per spring of a results dataset that went past a curve end in some variant."""
-    if "past_curve_end" not in ds:
+def warnings_of(nc: Any) -> list[str]:
+    """One line per spring of a result store that went past a curve end in some variant. ``nc``: the store
+    read through the netCDF4 API (:meth:`crashstudy.results.reader.Results.stored`)."""
+    if "past_curve_end" not in nc.variables:
         return []
-    springs = [str(s) for s in ds["spring"].values]
-    n = ds.sizes["variant"]
+    springs = stored_ids(nc, "spring")
+    n = len(nc.dimensions["variant"])
+    var = nc.variables["past_curve_end"]
+    var.set_auto_mask(False)  # (variant, spring), NaN: failed
     counts = np.zeros((len(springs), 2), dtype=np.int64)
     for lo in range(0, n, BLOCK):  # block by block: bounded memory for any number of variants
-        codes = np.asarray(ds["past_curve_end"][lo : lo + BLOCK].values)  # (variant, spring), NaN: failed
+        codes = np.asarray(var[lo : lo + BLOCK])
         counts[:, 0] += np.isin(codes, (1.0, 3.0)).sum(axis=0)
         counts[:, 1] += np.isin(codes, (2.0, 3.0)).sum(axis=0)
     out = []

@@ -20,23 +20,25 @@ A folder written before manifests existed (no run id) is read as before: regular
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import weakref
-from collections.abc import Generator
+from collections.abc import Generator, Iterator
 from pathlib import Path
-from typing import IO, Any
-
-import pandas as pd
-import xarray as xr
+from typing import IO, TYPE_CHECKING, Any
 
 from crashstudy.errors import InputError, Problem
 from crashstudy.metrics.record import NOTE_TEXT
 from crashstudy.results import integrity
 from crashstudy.results.integrity import FINAL, MANIFEST, PARTIAL
 from crashstudy.results.tables import PARQUET, SUMMARY, decode_texts, summary_frame
-from crashstudy.results.zarr_file import DIMS, ZARR_FINAL
+from crashstudy.results.zarr_file import DIMS, ZARR_FINAL, ZarrFile
 from crashstudy.safefs import PlantedEntryError, open_regular
+
+if TYPE_CHECKING:  # imported where used: a run reads and writes without xarray
+    import pandas as pd
+    import xarray as xr
 
 __all__ = ["Results", "open_results"]
 NOT_THE_RUNS = "it is not the file that run wrote (changed or copied in since)"
@@ -117,6 +119,8 @@ class Results:
         """The results as an xarray Dataset (lazily loaded; study axes are coordinates along ``variant``).
         Beyond :attr:`summary_limit` variants nothing is read on opening: the text variables are decoded
         where indexed, and ``variant`` is a dimension without an index (its position is its number)."""
+        import xarray as xr
+
         if self._ds is None:
             ds = self.raw_dataset
             big = self.summary_limit is not None and ds.sizes.get("variant", 0) > self.summary_limit
@@ -146,6 +150,23 @@ class Results:
         if self.final == FINAL:
             open_regular(self.path, what=FINAL).close()
         return open_raw(self.path, indexes=False)
+
+    @contextlib.contextmanager
+    def stored(self) -> Iterator[Any]:
+        """The store as written, read through the netCDF4 API (a ``netCDF4.Dataset``, or a
+        :class:`~crashstudy.results.zarr_file.ZarrFile`), without xarray: attributes and whole variables
+        for the checks after a run (xarray's import and opening were ~0.15 s of every run)."""
+        if self.final == FINAL:
+            import netCDF4
+
+            open_regular(self.path, what=FINAL).close()
+            nc: Any = netCDF4.Dataset(self.path, "r")
+        else:
+            nc = ZarrFile(self.path, "r")
+        try:
+            yield nc
+        finally:
+            nc.close()
 
     def column_peak(self, column: str) -> tuple[float, int] | None:
         """(largest value, its variant) of a summary column, read batch by batch; None when the column
@@ -179,6 +200,8 @@ class Results:
     def summary_columns(self, columns: list[str]) -> pd.DataFrame:
         """Only ``columns`` of :attr:`summary` (read without the others where the file allows: a
         10^6-variant summary.parquet is ~250 MiB in memory, two of its columns 16 MiB)."""
+        import pandas as pd
+
         if self.summary_source == PARQUET:
             with self.open_file(PARQUET) as fh:
                 return pd.read_parquet(fh, columns=columns)
@@ -212,6 +235,8 @@ class Results:
         rows (default :data:`READ_BLOCK`), in variant order: what reads a summary of any size in memory
         bounded by the block (a Parquet row group at a time; text columns come as categoricals or strings
         per block; the index numbers the rows of the whole table). A ``summary.csv`` or a dataset-only folder is read whole first (older folders)."""
+        import pandas as pd
+
         rows = rows or READ_BLOCK
         if self.summary_source == PARQUET:
             with self.open_file(PARQUET) as fh:
@@ -229,6 +254,8 @@ class Results:
     def summary_row(self, variant: int, columns: list[str] | None = None) -> pd.DataFrame:
         """The rows of :attr:`summary` whose ``variant`` is ``variant`` (0 or 1 of them), read through
         the Parquet row-group statistics (the row groups that cannot hold it are skipped)."""
+        import pandas as pd
+
         if self.summary_source != PARQUET:
             df = self.summary if columns is None else self.summary[columns]
             return df[df["variant"] == variant].reset_index(drop=True)
@@ -255,6 +282,8 @@ class Results:
         :attr:`summary_limit` rows (default :data:`SUMMARY_ROWS_MAX`); a larger summary is refused with
         an error naming the readers that work in bounded memory (:meth:`summary_batches`,
         :meth:`summary_columns`); set ``summary_limit = None`` to read it whole anyway."""
+        import pandas as pd
+
         source = self.summary_source
         if source == PARQUET:
             rows = self.summary_rows()
@@ -325,6 +354,8 @@ def open_raw(path: Path, indexes: bool = True) -> xr.Dataset:
     the variant coordinate (its index would hold every variant number in memory). ``indexes=False``: no
     index of the other dimension coordinates either (no ``.sel`` by spring or node label); making those
     indexes imports dask when it is installed (xarray asks whether they are dask arrays): 0.3 CPU s."""
+    import xarray as xr
+
     if path.name.startswith(ZARR_FINAL):
         return _open_zarr(path, drop_variables=["variant"], create_default_indexes=indexes)
     return xr.open_dataset(path, drop_variables=["variant"], create_default_indexes=indexes)
@@ -334,6 +365,8 @@ def _open_zarr(path: Path, **kw: Any) -> xr.Dataset:
     """A Zarr store as xarray reads it, lazily without dask; the writer's own bookkeeping attribute
     dropped (so that it shows what ``results.nc`` shows)."""
     import warnings
+
+    import xarray as xr
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # zarr: 'S1' (CF character arrays) has no v3 specification yet

@@ -32,7 +32,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from crashstudy.errors import InputError, Problem
 from crashstudy.metrics.record import NOTE_TEXT
@@ -91,7 +90,10 @@ def text_values(res: Any) -> dict[str, np.ndarray]:
 def codes_in(table: dict[str, int], texts: Any) -> tuple[np.ndarray, list[str]]:
     """Codes of ``texts`` in ``table`` (text -> code), the new texts added to it at the next codes;
     returns (int32 codes, the new texts in code order)."""
-    codes, uniq = pd.factorize(np.asarray(texts, dtype=object))
+    import pyarrow as pa  # (was pandas' factorize: the same codes, and no pandas import of its own)
+
+    coded = pa.array(np.asarray(texts, dtype=object), type=pa.string()).dictionary_encode()
+    codes, uniq = coded.indices.to_numpy(), coded.dictionary.to_pylist()  # uniq in order of first appearance
     new = [t for t in uniq if t not in table]
     start = len(table)
     table.update({t: start + k for k, t in enumerate(new)})

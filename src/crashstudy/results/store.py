@@ -142,7 +142,7 @@ class ResultWriter:
             for name in text_tables(plan.topology)
         }
         # summary.parquet made as the chunks come (a fresh run's), else from the finished store
-        self.stream = SummaryStream(self.dir, self.nc, plan) if not (resume or self.csv) else None
+        self.stream = SummaryStream(self.dir, self.nc, plan, self.csv) if not resume else None
 
     def _verify_resumed(self) -> None:
         """Forget the done variants whose data no longer match their checksum: they are computed again.
@@ -440,7 +440,7 @@ class ResultWriter:
         self.nc.close()
         final = self.dir / self.final_name
         if streamed is not None:
-            tables = {PARQUET: streamed}
+            tables = streamed
         else:
             with open_raw(
                 self.path, indexes=False

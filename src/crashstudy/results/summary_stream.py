@@ -9,9 +9,9 @@ through the same :func:`~crashstudy.results.tables.summary_columns`, over a data
 store holds for those variants. The file is the one ``write_summary`` would write, byte for byte
 (tests/test_summary_stream.py), or it is not used:
 
-- only a fresh run whose chunks arrive in variant order from 0 (the in-process runner) streams; a resumed
-  run, reused variants, a chunk out of order (process pools, Dask) or ``summary.csv`` wanted: the finished
-  store is read as before;
+- only a fresh run whose chunks arrive in variant order from 0 (the in-process runner) streams, and
+  ``summary.csv`` with it when asked for (the same tables through pyarrow's CSV writer); a resumed run,
+  reused variants or a chunk out of order (process pools, Dask): the finished store is read as before;
 - a row group's texts are coded against the text tables as they are when it is written; when a table
   at the end (sorted, :meth:`ResultWriter._sort_tables`) is not the one every row group used (a text that
   first appeared later), or a text would not be stored whole, the stream is dropped and the table is made
@@ -32,17 +32,19 @@ from crashstudy.results import tables as T
 from crashstudy.safefs import open_new
 from crashstudy.vocabulary.summary import SUMMARY_META
 
-STREAM = T.PARQUET + ".stream.partial"  # the table being made (renamed to summary.parquet when the run ends)
+STREAM = (
+    ".stream.partial"  # suffix of the tables being made (renamed to summary.parquet / .csv when the run ends)
+)
 
 
 class SummaryStream:
     """The summary table of a run written as its chunks arrive (see the module docstring)."""
 
-    def __init__(self, folder: Path, nc: Any, plan: Any) -> None:
+    def __init__(self, folder: Path, nc: Any, plan: Any, csv: bool = False) -> None:
         from crashstudy.metrics.record import METRIC_META
 
         self.plan, self.n = plan, plan.n_variants
-        self.path = folder / STREAM
+        self.paths = {name: folder / (name + STREAM) for name in (T.PARQUET, *([T.SUMMARY] if csv else []))}
         self.axes = [a.path for a in plan.axes]
         topo = plan.topology
         self.ids = {"spring": topo.spring_ids, "node": topo.node_ids, "wall": topo.wall_ids}
@@ -63,8 +65,8 @@ class SummaryStream:
         self.rows: list[Any] = []  # the summary rows (pyarrow Tables) of the row group being filled
         self.held = 0  # rows in them
         self.used: list[dict[str, list[str]]] = []  # the text tables each chunk's rows were coded with
-        self.fh: Any = None
-        self.writer: Any = None
+        self.files: list[Any] = []  # the open tables, in the order of self.paths
+        self.writers: list[Any] = []  # their writers (Parquet, then CSV)
         self.live = self.n > 0
 
     def add(
@@ -102,7 +104,6 @@ class SummaryStream:
     ) -> Any:
         """The summary rows of variants ``lo`` .. ``hi - 1`` (a pyarrow Table), their texts coded against
         the sorted ``tables`` (recorded in ``used``); None if the stream is dropped."""
-        import pyarrow as pa
 
         size = hi - lo
         sorted_tables = {n: sorted(tables[n]) for n in self.texts}
@@ -128,7 +129,7 @@ class SummaryStream:
                 rows[d] = _Var(np.array(ids, dtype=str))
         ds = _Rows(rows, {"crashstudy_axes": json.dumps(self.axes)}, size)
         self.used.append(sorted_tables)
-        return pa.table(T.summary_columns(cast(Any, ds), 0, size))  # read as a store opened by xarray
+        return T.arrow_table(T.summary_columns(cast(Any, ds), 0, size))  # read as a store opened by xarray
 
     def _write_group(self, size: int) -> None:
         """Write the first ``size`` rows held as one row group (contiguous columns, as write_summary's)."""
@@ -139,44 +140,50 @@ class SummaryStream:
         table = held.slice(0, size)  # chunked as the chunks came: the same row group (tests: same bytes)
         self.rows = [held.slice(size)] if self.held > size else []
         self.held -= size
-        if self.writer is None:
-            fh = open_new(self.path, mode="wb")
-            self.fh = fh
-            texts = [n for n in ("status", *T.TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
-            self.writer = pq.ParquetWriter(fh, table.schema, use_dictionary=texts)
-        self.writer.write_table(table)
+        if not self.writers:  # the writers of write_summary
+            import pyarrow.csv as pcsv
 
-    def result(self, tables: dict[str, dict[str, int]]) -> Path | None:
-        """The finished table (its temporary path) if it is the one the store's final ``tables`` give,
-        else None (dropped: the caller makes it from the store)."""
+            for path in self.paths.values():
+                self.files.append(open_new(path, mode="wb"))
+            texts = [n for n in ("status", *T.TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
+            self.writers.append(pq.ParquetWriter(self.files[0], table.schema, use_dictionary=texts))
+            if len(self.files) > 1:
+                self.writers.append(pcsv.CSVWriter(self.files[1], table.schema))
+        for w in self.writers:
+            w.write_table(table)
+
+    def result(self, tables: dict[str, dict[str, int]]) -> dict[str, Path] | None:
+        """The finished tables ({final name: temporary path}) if they are the ones the store's final
+        ``tables`` give, else None (dropped: the caller makes them from the store)."""
         final = {n: sorted(tables[n]) for n in self.texts}
         if not (
             self.live
             and self.next == self.n
             and not self.held
-            and self.writer is not None
+            and self.writers
             and all(u == final for u in self.used)
         ):
             self.drop()
             return None
-        self.writer.close()
-        self.fh.close()
+        while self.writers:
+            self.writers.pop(0).close()
+        for fh in self.files:
+            fh.close()
         self.live = False
-        return self.path
+        return dict(self.paths)
 
     def drop(self) -> None:
         """Stop streaming and remove what was written."""
         self.live, self.rows, self.held = False, [], 0
-        if self.writer is not None:
+        while self.writers:
             with contextlib.suppress(Exception):
-                self.writer.close()
-            self.writer = None
-        if self.fh is not None:
+                self.writers.pop(0).close()
+        while self.files:
             with contextlib.suppress(OSError):  # a full disk: the file is removed below anyway
-                self.fh.close()
-            self.fh = None
-        with contextlib.suppress(OSError):
-            self.path.unlink()
+                self.files.pop(0).close()
+        for path in self.paths.values():
+            with contextlib.suppress(OSError):
+                path.unlink()
 
 
 class _Var:

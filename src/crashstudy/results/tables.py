@@ -12,18 +12,18 @@ import json
 import os
 from contextlib import nullcontext
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-import pandas as pd
-import xarray as xr
-from xarray.backends import BackendArray
-from xarray.core import indexing
 
 from crashstudy.metrics.record import METRIC_META, NOTE_LONG, NOTE_TEXT, asked_nodes
 from crashstudy.safefs import clear_entry, open_new
 from crashstudy.units import UNIT_SYSTEMS
 from crashstudy.vocabulary.summary import SUMMARY_META
+
+if TYPE_CHECKING:  # imported where used: a run writes its summary with pyarrow, without xarray
+    import pandas as pd
+    import xarray as xr
 
 SUMMARY = "summary.csv"
 PARQUET = "summary.parquet"
@@ -62,16 +62,56 @@ def text_tables(topo: Any) -> dict[str, str]:
     return {**TEXT_TABLES, NOTE_TEXT: NOTE_LONG} if topo.metrics else dict(TEXT_TABLES)
 
 
+class Coded(NamedTuple):
+    """A text column as codes into its table of distinct texts (-1: no text): a pandas ``Categorical``
+    in :func:`summary_frame`, an Arrow dictionary column in the written tables (:func:`arrow_table`)."""
+
+    codes: np.ndarray
+    texts: list[str]
+
+
 def _categorical(ds: xr.Dataset, sub: xr.Dataset, name: str) -> Any:
-    """``sub[name]`` as texts: categorical when stored as codes, plain strings for files of 0.1."""
+    """``sub[name]`` as texts: :class:`Coded` when stored as codes, plain strings for files of 0.1."""
     arr = sub[name].values
     if arr.dtype.kind in "iuf":  # codes (xarray turns the -1 fill of an unwritten variant into NaN)
         cats = _table(ds, name)
-        codes = _codes(arr, len(cats))
+        codes = code_indices(arr, len(cats))
         if len(set(cats)) < len(cats):  # a table never repeats a text; guard a hand-edited file
             return np.asarray(cats, dtype=object)[np.clip(codes, 0, None)]
-        return pd.Categorical.from_codes(codes, categories=cats)
+        return Coded(codes, cats)
     return arr.astype(str)
+
+
+def _code_type(n: int) -> Any:
+    """The integer type of the codes of a table of ``n`` texts: the smallest pandas' ``Categorical``
+    takes (so that a table written from either is the same file)."""
+    return (
+        next(t for t in (np.int8, np.int16, np.int32) if n < np.iinfo(t).max) if n < 2**31 - 1 else np.int64
+    )
+
+
+def frame_columns(cols: dict[str, Any]) -> dict[str, Any]:
+    """:func:`summary_columns` with each :class:`Coded` column as a pandas ``Categorical``."""
+    import pandas as pd
+
+    return {
+        k: pd.Categorical.from_codes(v.codes, categories=v.texts) if isinstance(v, Coded) else v
+        for k, v in cols.items()
+    }
+
+
+def arrow_table(cols: dict[str, Any]) -> Any:
+    """:func:`summary_columns` as a pyarrow Table, each :class:`Coded` column a dictionary column (the
+    types pyarrow gives a pandas ``Categorical``: the same Parquet and CSV bytes)."""
+    import pyarrow as pa
+
+    out = {}
+    for k, v in cols.items():
+        if isinstance(v, Coded):
+            idx = pa.array(v.codes.astype(_code_type(len(v.texts))), mask=v.codes < 0)
+            v = pa.DictionaryArray.from_arrays(idx, pa.array(v.texts, type=pa.string()))
+        out[k] = v
+    return pa.table(out)
 
 
 def _table(ds: xr.Dataset, name: str) -> list[str]:
@@ -82,51 +122,46 @@ def _table(ds: xr.Dataset, name: str) -> list[str]:
     return [str(t) for t in raw] if len(raw) else [""]
 
 
-def _codes(arr: np.ndarray, n: int) -> np.ndarray:
+def code_indices(arr: np.ndarray, n: int) -> np.ndarray:
     """Stored codes as int64 indices into a table of ``n`` texts; -1 where none (unwritten, out of range)."""
     arr = np.where(np.isfinite(arr), arr, -1).astype(np.int64)
     return np.where((arr >= 0) & (arr < n), arr, -1)
 
 
-class _Texts(BackendArray):
-    """A text variable stored as codes, decoded only where it is indexed (what :func:`decode_texts` gives,
-    'nan' where no text, without reading the whole variable)."""
-
-    def __init__(self, codes: xr.Variable, cats: list[str]) -> None:
-        self.codes, self.table = codes, np.asarray([*cats, "nan"], dtype=str)
-        self.shape, self.dtype = codes.shape, self.table.dtype
-
-    def __getitem__(self, key: Any) -> np.ndarray:
-        return indexing.explicit_indexing_adapter(key, self.shape, indexing.IndexingSupport.BASIC, self._read)
-
-    def _read(self, key: tuple[Any, ...]) -> np.ndarray:
-        codes = _codes(np.asarray(self.codes[key].values), len(self.table) - 1)
-        return self.table[codes]  # -1: the last entry, 'nan'
-
-
 def decode_texts(ds: xr.Dataset, lazy: bool = False) -> xr.Dataset:
     """``ds`` with ``status``, ``failure_reason`` and ``dt_control`` as texts (the tables dropped);
     ``lazy``: decoded only where indexed (nothing read now)."""
+    from crashstudy.results.lazy_texts import lazy_texts
+
     out = ds
     for name in ("status", *TEXT_TABLES, NOTE_TEXT):
         if name in ds and ds[name].dtype.kind in "iuf":
             texts: Any
             if lazy:  # decoded where indexed: a 10^8-variant result decoded whole would be GBs of texts
-                texts = indexing.LazilyIndexedArray(_Texts(ds[name].variable, _table(ds, name)))
+                texts = lazy_texts(ds[name].variable, _table(ds, name), code_indices)
             else:
-                texts = np.asarray(_categorical(ds, ds, name), dtype=str)
+                texts = _decoded(_categorical(ds, ds, name))
             long = ds[name].attrs.get("long_name", "").split(": index into")[0]
             out = out.assign({name: (ds[name].dims, texts, {"units": "", "long_name": long})})
     return out.drop_vars([f"{n}_text" for n in (*TEXT_TABLES, NOTE_TEXT) if f"{n}_text" in out])
 
 
+def _decoded(col: Any) -> np.ndarray:
+    """A text column as strings ('nan' where no text, as a decoded ``Categorical``)."""
+    if isinstance(col, Coded):
+        return np.asarray([*col.texts, "nan"], dtype=str)[col.codes]  # -1: the last entry
+    return np.asarray(col, dtype=str)
+
+
 def summary_frame(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> pd.DataFrame:
     """Tidy summary table, one row per variant: axis values, status, then one column per metric and item."""
-    return pd.DataFrame(summary_columns(ds, lo, hi))
+    import pandas as pd
+
+    return pd.DataFrame(frame_columns(summary_columns(ds, lo, hi)))
 
 
 def summary_columns(ds: xr.Dataset, lo: int = 0, hi: int | None = None) -> dict[str, Any]:
-    """The columns of :func:`summary_frame`, in order (arrays; the texts as categoricals)."""
+    """The columns of :func:`summary_frame`, in order (arrays; the texts as :class:`Coded`)."""
     sub = ds.isel(variant=slice(lo, hi))
     axes = json.loads(ds.attrs.get("crashstudy_axes", "[]"))
     # opened without the variant coordinate (its index would hold 8 bytes per variant): its numbers
@@ -164,7 +199,6 @@ def write_summary(
     Both through pyarrow (its CSV writer is ~10x pandas' ``to_csv``; every float round-trips).
     ``rename=False``: leave them under their temporary names and return {final name: temporary path}
     (the caller renames them and removes an older ``summary.csv``)."""
-    import pyarrow as pa
     import pyarrow.csv as pcsv
     import pyarrow.parquet as pq
 
@@ -176,7 +210,7 @@ def write_summary(
         with open_new(tmp_pq, mode="wb") as raw, open_new(tmp_csv, mode="wb") if csv else nullcontext() as fh:
             for lo in range(0, max(n, 1), chunk):
                 # straight from the arrays: a DataFrame in between copied every column once more
-                table = pa.table(summary_columns(ds, lo, min(n, lo + chunk)))
+                table = arrow_table(summary_columns(ds, lo, min(n, lo + chunk)))
                 if not writers:
                     # dictionary pages for the texts only: trying them on every float column doubled the time
                     texts = [n for n in ("status", *TEXT_TABLES, NOTE_TEXT) if n in table.column_names]
@@ -272,6 +306,8 @@ def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
     lo, hi = int(res.index[0]), int(res.index[-1]) + 1
     for path, values in plan.axis_values(lo, hi).items():
         data[path] = ("variant", values)
+    import xarray as xr
+
     ds = xr.Dataset(
         data,
         coords={"variant": res.index, **{d: list(ids) for d, ids in dims.items() if ids}},
@@ -290,6 +326,19 @@ def stored_table(nc: Any, name: str) -> list[str]:
         bytes(r).rstrip(b"\0").decode("utf-8", "replace")
         for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]
     ]
+
+
+def stored_ids(nc: Any, dim: str) -> list[str]:
+    """The ids along dimension ``dim`` (spring, node, wall) of an open result store (netCDF4 API)."""
+    if dim not in nc.variables:
+        return []
+    raw = nc.variables[dim]
+    raw.set_auto_chartostring(False)
+    raw.set_auto_mask(False)
+    chars = np.asarray(raw[:])
+    if chars.ndim < 2 or not chars.shape[0]:
+        return []
+    return [bytes(r).rstrip(b"\0").decode("utf-8", "replace") for r in chars.view(f"S{chars.shape[1]}")[:, 0]]
 
 
 def read_texts(nc: Any, name: str, lo: int, hi: int) -> np.ndarray:
