@@ -99,7 +99,9 @@ def test_a_streamed_summary_csv_is_the_table_made_from_the_store_byte_for_byte(
     run_plan(plan, tmp_path / "R", kernel="reference", chunk=5, progress=False, csv=True)
     assert made == []
     for table in (tables.PARQUET, tables.SUMMARY):
-        assert (tmp_path / "R" / table).read_bytes() == _from_store(tmp_path / "R", "results.nc", table), table
+        assert (tmp_path / "R" / table).read_bytes() == _from_store(tmp_path / "R", "results.nc", table), (
+            table
+        )
     text = (tmp_path / "R" / tables.SUMMARY).read_text().splitlines()
     assert len(text) == 1 + len(MASSES) * len(SPEEDS) and text[0].startswith('"variant"')
     assert sum('"failed"' in line for line in text) == 2 * len(SPEEDS)  # the 1 and 2 g masses

@@ -342,7 +342,10 @@ ALLOWED = {
         "ParquetWriter",
     ): 1,  # into a handle from safefs.open_new, open across the chunks
     ("results/tables.py", "CSVWriter"): 1,  # into a handle from safefs.open_new
-    ("results/summary_stream.py", "CSVWriter"): 1,  # into a handle from safefs.open_new, beside the Parquet one
+    (
+        "results/summary_stream.py",
+        "CSVWriter",
+    ): 1,  # into a handle from safefs.open_new, beside the Parquet one
     ("results/reader.py", "Dataset"): 1,  # the reader itself (Results.stored), after safefs.open_regular
     ("results/tables.py", "replace"): 1,  # the staged summaries renamed into place
     ("results/integrity.py", "Dataset"): 1,  # results.nc, after safefs.open_regular checked it
