@@ -35,6 +35,7 @@ T0W, T0C = time.perf_counter(), _cpu()
 import crashstudy.kernel.entry as E  # noqa: E402
 import crashstudy.results.integrity as I  # noqa: E402, E741
 import crashstudy.results.store as S  # noqa: E402
+import crashstudy.run.chunk as C  # noqa: E402
 import crashstudy.run.runner as R  # noqa: E402
 import crashstudy.study.plan as P  # noqa: E402
 import crashstudy.study.sanity as SA  # noqa: E402
@@ -42,7 +43,7 @@ from crashstudy.cli import main as M  # noqa: E402
 
 ACC: dict[str, list[float]] = {}  # label: [thread CPU, wall, calls] (exclusive of the phases inside it)
 FIRST: list[float] = []  # process CPU and wall from the end of the imports to the first kernel call
-KERNEL = "chunk: kernel (run_ordered)"
+KERNEL = "chunk: kernel (run_ordered, chunk thread)"
 IMPORT_C = IMPORT_W = 0.0
 LOCAL = threading.local()  # each thread's stack of open phases (the writer thread has its own)
 
@@ -75,12 +76,13 @@ PHASES = [
     (SA, "check_plan", "pre-run checks (check_plan)"),
     (S.ResultWriter, "__init__", "create the result store"),
     (R, "start_kernels", "kernel start (choice, loading)"),
-    (R, "run_chunk", "chunk: rest of run_chunk"),
-    (R, "_step_order", "chunk: params_at (step order)"),
-    (R, "build_batch", "chunk: build_batch"),
-    (E, "run_ordered", "chunk: kernel (run_ordered)"),
-    (R, "variant_hashes", "chunk: variant_hashes"),
-    (R, "past_curve_ends", "chunk: past_curve_ends"),
+    (C, "prepare_chunk", "chunk: rest of prepare_chunk"),
+    (C, "_step_order", "chunk: params_at (step order)"),
+    (C, "build_batch", "chunk: build_batch"),
+    (C, "compute_chunk", "chunk: rest of compute_chunk (chunk thread)"),
+    (E, "run_ordered", "chunk: kernel (run_ordered, chunk thread)"),
+    (C, "variant_hashes", "chunk: variant_hashes"),
+    (C, "past_curve_ends", "chunk: past_curve_ends"),
     (S.ResultWriter, "write", "write a chunk (store + summary rows)"),
     (S.ResultWriter, "finish", "finish: renames"),
     (S.ResultWriter, "_sort_tables", "finish: sort text tables"),

@@ -158,13 +158,13 @@ def test_a_chunk_is_built_in_step_order_never_copied_and_its_numbers_are_unchang
 
 
 def test_a_chunk_with_repeated_variants_is_made_from_variant_numbers_in_step_order(tmp_path: Any) -> None:
-    """``runner._step_order`` takes the variant numbers of a chunk's distinct variants and makes their
+    """``chunk._step_order`` takes the variant numbers of a chunk's distinct variants and makes their
     parameters in step order from those numbers (``Plan.params_at``; gathering the columns of the unsorted
     matrix cost 16x as much): equal to the brute-force sort of the unsorted parameters; and a chunk with
     repeated variants (a mass given twice) equals each variant run alone, bitwise, on the NumPy reference."""
     from crashstudy.arrays.batch import build_batch, variant_steps
     from crashstudy.kernel import entry
-    from crashstudy.run.runner import _step_order, run_chunk
+    from crashstudy.run.chunk import _step_order, run_chunk
     from crashstudy.study.plan import load_study
     from helpers import assert_bitwise
 

@@ -86,27 +86,27 @@ def test_the_runner_names_the_failed_test_wall_passivity_or_energy_balance(
     wall: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Through ``run_chunk`` (the path of ``simulate`` and studies; its step multiplied by 3 where the
-    runner builds the batch): with the wall at 0.9 m the reason names the wall 'floor' and the passivity
+    chunk builds the batch): with the wall at 0.9 m the reason names the wall 'floor' and the passivity
     test at the step of the scalar model (was: "energy balance lost", although the balance held); with
     test_stress's two-mass chain and a wall out of reach (-1e9 m; at -1e3 and -1e6 m the thrown node
     reaches it first and the passivity test fails it) the balance is lost and the reason keeps its text
     (tests/test_stress.py's regex)."""
-    import crashstudy.run.runner as runner
+    import crashstudy.run.chunk as chunk
 
     if wall == "0.9":
         model = at_step(yaml.safe_load(wall_spring(wall=wall, speed=-1.0)), 2000, 20)
     else:  # test_stress's two-mass chain (its balance is lost at 3 x dt_crit) with a wall out of reach
         model = dict(conservative(2000), rigid_walls=[{"id": "far", "point": [-1.0e9], "normal": [1.0]}])
     plan = model_plan(model)
-    real = runner.build_batch
+    real = chunk.build_batch
 
     def patched(topo: Any, P: np.ndarray, interval: float) -> Any:
         batch, steps = real(topo, P, interval)
         batch.dt[:] = 3.0 * steps.dt_crit
         return batch, steps
 
-    monkeypatch.setattr(runner, "build_batch", patched)
-    res = runner.run_chunk(plan, 0, 1)
+    monkeypatch.setattr(chunk, "build_batch", patched)
+    res = chunk.run_chunk(plan, 0, 1)
     assert list(res.out.status) == [UNSTABLE], res.reasons
     dt = 3.0 * res.dt_crit[0]
     if wall == "0.9":
