@@ -7,7 +7,7 @@ this process.
 from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future, wait
 from dataclasses import dataclass
 from typing import Any
 
@@ -119,23 +119,27 @@ def compute_chunk(p: Prepared) -> ChunkResult:
 
 
 def pipelined(plan: Plan, ranges: Iterable[tuple[int, int]], kernel: KernelName) -> Iterator[ChunkResult]:
-    """:func:`run_chunk` of each range, in order, in this process: the next chunk's set-up (parameters and
-    batch: NumPy under the GIL) is made on this thread while the chunk before it computes on a thread of
-    its own (its kernel releases the GIL). One kernel runs at a time; at most two chunks are in hand.
-    On 2 cores, 10^6 variants of 86 steps: the set-up no longer waits for the kernel (issue 25)."""
-    pool = ThreadPoolExecutor(1, thread_name_prefix="crashstudy-chunk")
+    """:func:`run_chunk` of each range, in order, in this process: each chunk computes (:func:`compute_chunk`:
+    its kernel releases the GIL) on the process's chunk thread while this thread prepares the next one
+    (:func:`prepare_chunk`: NumPy under the GIL) and the caller writes the one before. One kernel runs at a
+    time; at most three chunks are in hand (prepared, computing, being written)."""
+    from crashstudy.run.write_behind import process_thread
+
+    pool = process_thread("chunk")
     pending: Future[ChunkResult] | None = None
     try:
         for lo, hi in ranges:
             ready = prepare_chunk(plan, lo, hi, kernel)
-            if pending is not None:
-                yield pending.result()
-            pending = pool.submit(compute_chunk, ready)
+            done = pending.result() if pending is not None else None
+            pending = pool.submit(compute_chunk, ready)  # before the caller writes the one done
+            if done is not None:
+                yield done
         if pending is not None:
-            done, pending = pending, None
-            yield done.result()
+            last, pending = pending.result(), None
+            yield last
     finally:  # an error or a stop: the chunk under way ends first (its kernel stops at a stop request)
-        pool.shutdown(wait=True, cancel_futures=True)
+        if pending is not None and not pending.cancel():
+            wait([pending])
 
 
 def _step_order(plan: Plan, cols: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
