@@ -374,7 +374,7 @@ def test_instability_forced_by_hand_is_reported_by_the_runner_with_its_reason(
     """Through ``run_chunk`` on a study plan (the step of the 3 m/s variant multiplied by 3 where the runner
     builds its batch): that variant fails with "numerical instability: energy balance lost (...) at t=... (dt_crit=...,
     node ... / spring ...)", the others are ok and bitwise equal to an unpatched run."""
-    import crashstudy.run.runner as runner
+    import crashstudy.run.chunk as runner  # where run_chunk builds its batch
     from crashstudy.study.plan import load_study
 
     model = conservative(2000)
