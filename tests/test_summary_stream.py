@@ -10,6 +10,8 @@ NumPy reference kernel (no compile).
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 
 import numpy as np
@@ -102,6 +104,10 @@ def test_a_streamed_summary_csv_is_the_table_made_from_the_store_byte_for_byte(
         assert (tmp_path / "R" / table).read_bytes() == _from_store(tmp_path / "R", "results.nc", table), (
             table
         )
+    # the manifest's SHA-256 of each, hashed as the stream wrote it: that of the file's bytes
+    files = json.loads((tmp_path / "R" / "manifest.json").read_text())["files"]
+    for table in (tables.PARQUET, tables.SUMMARY):
+        assert files[table]["sha256"] == hashlib.sha256((tmp_path / "R" / table).read_bytes()).hexdigest()
     text = (tmp_path / "R" / tables.SUMMARY).read_text().splitlines()
     assert len(text) == 1 + len(MASSES) * len(SPEEDS) and text[0].startswith('"variant"')
     assert sum('"failed"' in line for line in text) == 2 * len(SPEEDS)  # the 1 and 2 g masses

@@ -215,14 +215,17 @@ def sha256_of(fh: Any, block: int = 2**16) -> str:
     return h.hexdigest()
 
 
-def write_manifest(folder: Path, run_id: str, names: list[str]) -> None:
+def write_manifest(
+    folder: Path, run_id: str, names: list[str], digests: dict[str, str] | None = None
+) -> None:
     """Write ``manifest.json`` (through a temporary file and a rename): the run id and, for each file
-    ``names`` in ``folder``, its size and (summaries) SHA-256."""
+    ``names`` in ``folder``, its size and (summaries) SHA-256: from ``digests`` where the writer hashed the
+    bytes as it wrote them, else read from the file."""
     entries: dict[str, dict[str, object]] = {}
     for name in names:
         entry: dict[str, object] = {"size": store_bytes(folder / name)}
         if not name.startswith(("results.nc", ZARR_FINAL)):
-            entry["sha256"] = sha256(folder / name)
+            entry["sha256"] = (digests or {}).get(name) or sha256(folder / name)
         entries[name] = entry
     with replacing(folder / MANIFEST) as fh:
         json.dump({"crashstudy_manifest": 1, "run_id": run_id, "files": entries}, fh, indent=1)

@@ -462,7 +462,10 @@ class ResultWriter:
             os.replace(tmp, self.dir / name)
         if SUMMARY not in tables:
             clear_entry(self.dir / SUMMARY)
-        integrity.write_manifest(self.dir, run_id, [self.final_name, *tables])  # last: the set is whole
+        digests = self.stream.digests if streamed is not None and self.stream is not None else {}
+        integrity.write_manifest(
+            self.dir, run_id, [self.final_name, *tables], digests
+        )  # last: the set is whole
         return final
 
 
