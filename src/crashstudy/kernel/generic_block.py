@@ -7,6 +7,7 @@ and the lanes that fail. The step loop is :mod:`crashstudy.kernel.compiled`; its
 
 from __future__ import annotations
 
+import functools
 import inspect
 from collections import namedtuple
 from collections.abc import Callable
@@ -37,7 +38,7 @@ _FLAGS: dict[str, Any] = {
 }
 
 
-def stage(py_func: Callable[..., Any]) -> Any:
+def stage(py_func: Callable[..., Any], nrt: bool = False) -> Any:
     """The generic kernel's compiled functions (this module's and its stages'), callable from compiled code only
     (a call from Python raises): typed and lowered once per argument types with the flags of
     ``numba.njit(nogil=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)``, then linked into the caller
@@ -53,6 +54,7 @@ def stage(py_func: Callable[..., Any]) -> Any:
             flags: Any = compiler.Flags()
             CPUTargetOptions.parse_as_flags(flags, _FLAGS)
             flags.no_compile = True
+            flags.nrt = nrt
             done[args] = compiler.compile_extra(
                 typingctx, cpu_target.target_context, py_func, args, None, flags, {}
             )
@@ -87,7 +89,7 @@ Block = namedtuple(  # type: ignore[misc]
 )
 
 
-@stage
+@functools.partial(stage, nrt=True)
 def flags(T, P, H):  # pragma: no cover - compiled
     """What the model contains: (has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot,
     pm_disp: (N, D) the dofs driven by a displacement curve, whose rate is v^{n-1/2} (see the reference))."""
@@ -145,7 +147,7 @@ def flags(T, P, H):  # pragma: no cover - compiled
     return has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp
 
 
-@stage
+@functools.partial(stage, nrt=True)
 def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - compiled
     """The block's copies of its variants' inputs and its state, zeroed or set to the initial state;
     invalid variants are marked; preloaded springs (``initial_elongation``) start from the batch's state and
