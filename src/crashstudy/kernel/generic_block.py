@@ -38,7 +38,7 @@ _FLAGS: dict[str, Any] = {
 }
 
 
-def stage(py_func: Callable[..., Any], nrt: bool = False) -> Any:
+def stage(py_func: Callable[..., Any], nrt: bool = False, inline: bool = False) -> Any:
     """The generic kernel's compiled functions (this module's and its stages'), callable from compiled code only
     (a call from Python raises): typed and lowered once per argument types with the flags of
     ``numba.njit(nogil=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)``, then linked into the caller
@@ -46,7 +46,15 @@ def stage(py_func: Callable[..., Any], nrt: bool = False) -> Any:
     call). Not a dispatcher: no dispatcher typing per call site, no disk-cache entry of its own (``_run``'s
     holds the whole kernel), and records read once (see ``compiled._run``): the cold compile -23 %
     (benchmarks/results/generic_compile.md). numba IR inlining (``inline="always"``) re-typed every copy
-    (1.6x longer); LLVM inlines what is worth it (today: none of the stages)."""
+    (1.6x longer). ``nrt=False`` (the per-step stages): compiled without numba's reference counting, so a
+    call does not incref / decref each of its ~20 array arguments; safe because no stage allocates or
+    returns an array (numba refuses both at compile time without NRT: "NRT required but not enabled", and a
+    returned array must be an argument), none keeps an array past its call (the caller's block arrays outlive
+    it), and what they call (``laws``, ``step_laws``, other stages) takes and returns scalars or borrows the
+    caller's arrays; only :func:`flags` and :func:`block_arrays`, which allocate, keep NRT (the 1179-spring
+    grid, 1 variant: simulate 5.2-5.6 -> 4.2-4.4 s, docs/kernels.md). ``inline=True`` (:data:`hot_stage`,
+    the per-spring stages called on every spring and step): the LLVM function gets ``alwaysinline`` before it
+    is linked, so LLVM inlines it into ``_run``'s spring loop (the call passed every array as ~10 words)."""
     done: dict[tuple[Any, ...], Any] = {}
 
     def typer(typingctx: Any, *args: Any) -> Any:
@@ -55,9 +63,13 @@ def stage(py_func: Callable[..., Any], nrt: bool = False) -> Any:
             CPUTargetOptions.parse_as_flags(flags, _FLAGS)
             flags.no_compile = True
             flags.nrt = nrt
-            done[args] = compiler.compile_extra(
+            cres = compiler.compile_extra(
                 typingctx, cpu_target.target_context, py_func, args, None, flags, {}
             )
+            if inline:  # LLVM inlines it into its caller (before the module is first linked)
+                fn = cres.library._final_module.get_function(cres.fndesc.llvm_func_name)
+                fn.add_function_attribute("alwaysinline")
+            done[args] = cres
         cres = done[args]
 
         def codegen(context: Any, builder: Any, sig: Any, llargs: Any) -> Any:
@@ -73,6 +85,10 @@ def stage(py_func: Callable[..., Any], nrt: bool = False) -> Any:
     typer.__name__ = typer.__qualname__ = py_func.__name__
     typer.__doc__ = py_func.__doc__
     return intrinsic(typer)
+
+
+#: a stage LLVM inlines into its caller (the per-spring stages of the step, see :func:`stage`)
+hot_stage = functools.partial(stage, inline=True)
 
 
 #: rows of the per-spring options array of a block: preloaded (initial_elongation), breakable (failure)

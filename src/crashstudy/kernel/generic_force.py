@@ -8,7 +8,7 @@ the block record).
 
 from __future__ import annotations
 
-from crashstudy.kernel.generic_block import stage
+from crashstudy.kernel.generic_block import hot_stage, stage
 from crashstudy.kernel.generic_springs import ramp
 from crashstudy.kernel.laws import (
     crush_law,
@@ -31,7 +31,7 @@ from crashstudy.vocabulary.codes import (
 )
 
 
-@stage
+@hot_stage
 def force(
     s,
     kind,

@@ -13,7 +13,7 @@ arrays it uses, never the :data:`generic_block.Block` record (passed per spring 
 
 from __future__ import annotations
 
-from crashstudy.kernel.generic_block import stage
+from crashstudy.kernel.generic_block import hot_stage, stage
 from crashstudy.kernel.laws import (
     axis_2d,
     broken_at,
@@ -47,7 +47,7 @@ def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - com
             out[w] = ramp_knot(out[w], ds_b[k, w], arg[w], cx_b[k, w])
 
 
-@stage
+@hot_stage
 def geometry(
     s,
     i,
@@ -205,7 +205,7 @@ def failure(
             F_tmp[w] = 0.0
 
 
-@stage
+@hot_stage
 def scatter(
     s,
     i,
@@ -291,7 +291,7 @@ def scatter(
             e_prev[s, w] = e
 
 
-@stage
+@hot_stage
 def _forces_on_nodes(i, j, D, B, F_tmp, ax_tmp, f):  # pragma: no cover - compiled
     """f[i] += F ax, f[j] -= F ax over the block."""
     for d in range(D):
