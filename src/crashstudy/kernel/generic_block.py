@@ -54,7 +54,8 @@ def stage(py_func: Callable[..., Any], nrt: bool = False, inline: bool = False) 
     caller's arrays; only :func:`flags` and :func:`block_arrays`, which allocate, keep NRT (the 1179-spring
     grid, 1 variant: simulate 5.2-5.6 -> 4.2-4.4 s, docs/kernels.md). ``inline=True`` (:data:`hot_stage`,
     the per-spring stages called on every spring and step): the LLVM function gets ``alwaysinline`` before it
-    is linked, so LLVM inlines it into ``_run``'s spring loop (the call passed every array as ~10 words)."""
+    is linked, so LLVM inlines it into ``_run``'s spring loop (the call passed every array as ~10 words;
+    with numba's debug info on, the stage stays ``noinline``, numba's choice)."""
     done: dict[tuple[Any, ...], Any] = {}
 
     def typer(typingctx: Any, *args: Any) -> Any:
@@ -66,8 +67,10 @@ def stage(py_func: Callable[..., Any], nrt: bool = False, inline: bool = False) 
             cres = compiler.compile_extra(
                 typingctx, cpu_target.target_context, py_func, args, None, flags, {}
             )
-            if inline:  # LLVM inlines it into its caller (before the module is first linked)
-                fn = cres.library._final_module.get_function(cres.fndesc.llvm_func_name)
+            fn = cres.library._final_module.get_function(cres.fndesc.llvm_func_name)
+            # LLVM inlines it into its caller (set before the module is first linked); not with debug info
+            # (NUMBA_DEBUGINFO, NUMBA_ENABLE_PROFILING): numba makes the function noinline, LLVM rejects both
+            if inline and b"noinline" not in list(fn.attributes):
                 fn.add_function_attribute("alwaysinline")
             done[args] = cres
         cres = done[args]
