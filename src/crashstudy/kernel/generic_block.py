@@ -46,16 +46,16 @@ def stage(py_func: Callable[..., Any], nrt: bool = False, inline: bool = False) 
     call). Not a dispatcher: no dispatcher typing per call site, no disk-cache entry of its own (``_run``'s
     holds the whole kernel), and records read once (see ``compiled._run``): the cold compile -23 %
     (benchmarks/results/generic_compile.md). numba IR inlining (``inline="always"``) re-typed every copy
-    (1.6x longer). ``nrt=False`` (the per-step stages): compiled without numba's reference counting, so a
-    call does not incref / decref each of its ~20 array arguments; safe because no stage allocates or
-    returns an array (numba refuses both at compile time without NRT: "NRT required but not enabled", and a
-    returned array must be an argument), none keeps an array past its call (the caller's block arrays outlive
-    it), and what they call (``laws``, ``step_laws``, other stages) takes and returns scalars or borrows the
-    caller's arrays; only :func:`flags` and :func:`block_arrays`, which allocate, keep NRT (the 1179-spring
-    grid, 1 variant: simulate 5.2-5.6 -> 4.2-4.4 s, docs/kernels.md). ``inline=True`` (:data:`hot_stage`,
-    the per-spring stages called on every spring and step): the LLVM function gets ``alwaysinline`` before it
-    is linked, so LLVM inlines it into ``_run``'s spring loop (the call passed every array as ~10 words;
-    with numba's debug info on, the stage stays ``noinline``, numba's choice)."""
+    (1.6x longer). ``nrt=False`` (the per-step stages): compiled without numba's reference counting, so a call does
+    not incref / decref each of its ~20 array arguments; safe because no stage allocates or returns an array
+    (without NRT numba refuses both at compile time: "Only accept returning of array passed into the function as
+    argument", which ``np.empty``'s own implementation hits; tests/test_generic_stage.py), none keeps an array past
+    its call (the caller's block arrays outlive it), and what they call (``laws``, ``step_laws``, other stages)
+    takes and returns scalars or borrows the caller's arrays; only :func:`flags` and :func:`block_arrays`, which
+    allocate, keep NRT (the 1179-spring grid, 1 variant: simulate 5.2-5.6 -> 4.2-4.4 s, docs/kernels.md).
+    ``inline=True`` (:data:`hot_stage`, the per-spring stages called on every spring and step): the LLVM function
+    gets ``alwaysinline`` before it is linked, so LLVM inlines it into ``_run``'s spring loop (the call passed every
+    array as ~10 words; with numba's debug info on, the stage stays ``noinline``, numba's choice)."""
     done: dict[tuple[Any, ...], Any] = {}
 
     def typer(typingctx: Any, *args: Any) -> Any:
