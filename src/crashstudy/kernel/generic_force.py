@@ -3,7 +3,8 @@ material of :mod:`crashstudy.vocabulary.materials`, each the law of :mod:`crashs
 
 Compiled once and called by :func:`crashstudy.kernel.compiled._run` (no numba IR inlining, no CPython or C
 wrapper) and, like the stages of :mod:`crashstudy.kernel.generic_springs`, given only the arrays it uses (not
-the block record).
+the block record). :func:`force` is LLVM ``alwaysinline`` (:data:`generic_block.hot_stage`, called on every
+spring and step); :func:`general` stays a call (inlined too, with ``knots_passed``, the grid ran 2.1x slower).
 """
 
 from __future__ import annotations

@@ -3,7 +3,10 @@ search, failure, and the scatter of the spring's force to its nodes with its sum
 
 Every function is compiled once (:data:`generic_block.stage`: numba's default ``inline="never"``, no
 CPython or C wrapper, so it is callable from compiled code only) and called by
-:func:`crashstudy.kernel.compiled._run`; LLVM inlines what is worth it. numba IR inlining
+:func:`crashstudy.kernel.compiled._run`, without NRT; the ones called on every spring and step
+(:data:`generic_block.hot_stage`: ``geometry``, ``scatter``, ``_forces_on_nodes``) are LLVM ``alwaysinline``
+(the grid, 1 variant: 0.23x the kernel time; inlining ``ramp`` and ``failure`` too made it 1.29x slower,
+docs/kernels.md), LLVM inlines the rest when worth it. numba IR inlining
 (``inline="always"``, 3c0414e to 1ab7358) re-typed and re-lowered every copy inside one huge function: the
 generic kernel's cold compile took 1.6x longer (benchmarks/results/generic_compile.md). Each takes only the
 arrays it uses, never the :data:`generic_block.Block` record (passed per spring and step, the record cost
