@@ -97,10 +97,20 @@ def _env(root: str, cache: str) -> dict[str, str]:
     return env
 
 
-def runs(trees: list[str], caches: list[str], repeats: int, end_time: str, model: str) -> dict[str, object]:
+def runs(
+    trees: list[str],
+    caches: list[str],
+    repeats: int,
+    end_time: str,
+    model: str,
+    worker: str = WORKER,
+    figure: str = "256 variants, 1 thread",
+) -> dict[str, object]:
+    """CPU seconds of ``repeats`` calls in each tree's ``worker`` (it prints "ready", then one figure per
+    line it reads), trees alternated (also :mod:`generic_narrow`)."""
     procs = [
         subprocess.Popen(
-            [sys.executable, "-c", WORKER, t, "run", str(end_time), model],
+            [sys.executable, "-c", worker, t, "run", str(end_time), model],
             env=_env(t, c),
             text=True,
             stdin=subprocess.PIPE,
@@ -123,7 +133,7 @@ def runs(trees: list[str], caches: list[str], repeats: int, end_time: str, model
         p.wait()
     med = [sorted(t)[len(t) // 2] for t in times]
     return {
-        "figure": f"run_cpu_s_per_call ({model}, 256 variants, 1 thread)",
+        "figure": f"run_cpu_s_per_call ({model}, {figure})",
         "base": med[0],
         "branch": med[1],
         "ratio": med[1] / med[0],

@@ -44,3 +44,45 @@ def test_a_stage_is_linked_into_its_caller_with_njit_results_and_errors() -> Non
     # numba.njit's error model ("python"): a division by zero raises, as in the njit function it replaced
     with pytest.raises(ZeroDivisionError):
         _caller(x, 0.0)
+
+
+def _double(x):  # pragma: no cover - compiled
+    for i in range(x.shape[0]):
+        x[i] = 2.0 * x[i]
+
+
+double = stage(_double, inline=True)
+
+
+@nb.njit
+def _double_caller(x):  # pragma: no cover - compiled
+    double(x)
+
+
+def test_an_inline_stage_is_inlined_into_its_caller() -> None:
+    x = np.linspace(-1.0, 3.0, 7)
+    want = 2.0 * x
+    _double_caller(x)
+    assert np.array_equal(x, want)
+    calls = [
+        ln for ln in _double_caller.inspect_llvm(_double_caller.signatures[0]).splitlines() if " call " in ln
+    ]
+    assert not [ln for ln in calls if "_double" in ln.replace("_double_caller", "")]  # no call left: inlined
+
+
+def _allocate(n):  # pragma: no cover - compiled
+    return np.zeros(n).sum()
+
+
+allocate = stage(_allocate)  # nrt=False (the default): numba refuses to lower an allocation
+
+
+@nb.njit
+def _allocate_caller(n):  # pragma: no cover - compiled
+    return allocate(n)
+
+
+def test_a_stage_without_nrt_cannot_allocate() -> None:
+    # np.zeros' own implementation, typed without NRT, returns an array that is not its argument
+    with pytest.raises(Exception, match="Only accept returning of array passed into the function"):
+        _allocate_caller(3)

@@ -7,6 +7,7 @@ and the lanes that fail. The step loop is :mod:`crashstudy.kernel.compiled`; its
 
 from __future__ import annotations
 
+import functools
 import inspect
 from collections import namedtuple
 from collections.abc import Callable
@@ -37,7 +38,7 @@ _FLAGS: dict[str, Any] = {
 }
 
 
-def stage(py_func: Callable[..., Any]) -> Any:
+def stage(py_func: Callable[..., Any], nrt: bool = False, inline: bool = False) -> Any:
     """The generic kernel's compiled functions (this module's and its stages'), callable from compiled code only
     (a call from Python raises): typed and lowered once per argument types with the flags of
     ``numba.njit(nogil=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)``, then linked into the caller
@@ -45,7 +46,16 @@ def stage(py_func: Callable[..., Any]) -> Any:
     call). Not a dispatcher: no dispatcher typing per call site, no disk-cache entry of its own (``_run``'s
     holds the whole kernel), and records read once (see ``compiled._run``): the cold compile -23 %
     (benchmarks/results/generic_compile.md). numba IR inlining (``inline="always"``) re-typed every copy
-    (1.6x longer); LLVM inlines what is worth it (today: none of the stages)."""
+    (1.6x longer). ``nrt=False`` (the per-step stages): compiled without numba's reference counting, so a call does
+    not incref / decref each of its ~20 array arguments; safe because no stage allocates or returns an array
+    (without NRT numba refuses both at compile time: "Only accept returning of array passed into the function as
+    argument", which ``np.empty``'s own implementation hits; tests/test_generic_stage.py), none keeps an array past
+    its call (the caller's block arrays outlive it), and what they call (``laws``, ``step_laws``, other stages)
+    takes and returns scalars or borrows the caller's arrays; only :func:`flags` and :func:`block_arrays`, which
+    allocate, keep NRT (the 1179-spring grid, 1 variant: simulate 5.2-5.6 -> 4.2-4.4 s, docs/kernels.md).
+    ``inline=True`` (:data:`hot_stage`, the per-spring stages called on every spring and step): the LLVM function
+    gets ``alwaysinline`` before it is linked, so LLVM inlines it into ``_run``'s spring loop (the call passed every
+    array as ~10 words; with numba's debug info on, the stage stays ``noinline``, numba's choice)."""
     done: dict[tuple[Any, ...], Any] = {}
 
     def typer(typingctx: Any, *args: Any) -> Any:
@@ -53,9 +63,16 @@ def stage(py_func: Callable[..., Any]) -> Any:
             flags: Any = compiler.Flags()
             CPUTargetOptions.parse_as_flags(flags, _FLAGS)
             flags.no_compile = True
-            done[args] = compiler.compile_extra(
+            flags.nrt = nrt
+            cres = compiler.compile_extra(
                 typingctx, cpu_target.target_context, py_func, args, None, flags, {}
             )
+            fn = cres.library._final_module.get_function(cres.fndesc.llvm_func_name)
+            # LLVM inlines it into its caller (set before the module is first linked); not with debug info
+            # (NUMBA_DEBUGINFO, NUMBA_ENABLE_PROFILING): numba makes the function noinline, LLVM rejects both
+            if inline and b"noinline" not in list(fn.attributes):
+                fn.add_function_attribute("alwaysinline")
+            done[args] = cres
         cres = done[args]
 
         def codegen(context: Any, builder: Any, sig: Any, llargs: Any) -> Any:
@@ -73,6 +90,10 @@ def stage(py_func: Callable[..., Any]) -> Any:
     return intrinsic(typer)
 
 
+#: a stage LLVM inlines into its caller (the per-spring stages of the step, see :func:`stage`)
+hot_stage = functools.partial(stage, inline=True)
+
+
 #: rows of the per-spring options array of a block: preloaded (initial_elongation), breakable (failure)
 PRELOADED, BREAKABLE = 0, 1
 #: the arrays of a block, one record for the stages of the step (inputs copied per lane, state, scratch,
@@ -87,7 +108,7 @@ Block = namedtuple(  # type: ignore[misc]
 )
 
 
-@stage
+@functools.partial(stage, nrt=True)
 def flags(T, P, H):  # pragma: no cover - compiled
     """What the model contains: (has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot,
     pm_disp: (N, D) the dofs driven by a displacement curve, whose rate is v^{n-1/2} (see the reference))."""
@@ -145,7 +166,7 @@ def flags(T, P, H):  # pragma: no cover - compiled
     return has_state, has_gravity, no_ext, any_hist, has_term, movable, knotted, any_knot, pm_disp
 
 
-@stage
+@functools.partial(stage, nrt=True)
 def block_arrays(lo, B, has_state, any_knot, T, P, Out):  # pragma: no cover - compiled
     """The block's copies of its variants' inputs and its state, zeroed or set to the initial state;
     invalid variants are marked; preloaded springs (``initial_elongation``) start from the batch's state and

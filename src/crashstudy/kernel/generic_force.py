@@ -3,12 +3,13 @@ material of :mod:`crashstudy.vocabulary.materials`, each the law of :mod:`crashs
 
 Compiled once and called by :func:`crashstudy.kernel.compiled._run` (no numba IR inlining, no CPython or C
 wrapper) and, like the stages of :mod:`crashstudy.kernel.generic_springs`, given only the arrays it uses (not
-the block record).
+the block record). :func:`force` is LLVM ``alwaysinline`` (:data:`generic_block.hot_stage`, called on every
+spring and step); :func:`general` stays a call (inlined too, with ``knots_passed``, the grid ran 2.1x slower).
 """
 
 from __future__ import annotations
 
-from crashstudy.kernel.generic_block import stage
+from crashstudy.kernel.generic_block import hot_stage, stage
 from crashstudy.kernel.generic_springs import ramp
 from crashstudy.kernel.laws import (
     crush_law,
@@ -31,7 +32,7 @@ from crashstudy.vocabulary.codes import (
 )
 
 
-@stage
+@hot_stage
 def force(
     s,
     kind,

@@ -3,7 +3,10 @@ search, failure, and the scatter of the spring's force to its nodes with its sum
 
 Every function is compiled once (:data:`generic_block.stage`: numba's default ``inline="never"``, no
 CPython or C wrapper, so it is callable from compiled code only) and called by
-:func:`crashstudy.kernel.compiled._run`; LLVM inlines what is worth it. numba IR inlining
+:func:`crashstudy.kernel.compiled._run`, without NRT; the ones called on every spring and step
+(:data:`generic_block.hot_stage`: ``geometry``, ``scatter``, ``_forces_on_nodes``) are LLVM ``alwaysinline``
+(the grid, 1 variant: 0.23x the kernel time; inlining ``ramp`` and ``failure`` too made it 1.29x slower,
+docs/kernels.md), LLVM inlines the rest when worth it. numba IR inlining
 (``inline="always"``, 3c0414e to 1ab7358) re-typed and re-lowered every copy inside one huge function: the
 generic kernel's cold compile took 1.6x longer (benchmarks/results/generic_compile.md). Each takes only the
 arrays it uses, never the :data:`generic_block.Block` record (passed per spring and step, the record cost
@@ -13,7 +16,7 @@ arrays it uses, never the :data:`generic_block.Block` record (passed per spring 
 
 from __future__ import annotations
 
-from crashstudy.kernel.generic_block import stage
+from crashstudy.kernel.generic_block import hot_stage, stage
 from crashstudy.kernel.laws import (
     axis_2d,
     broken_at,
@@ -47,7 +50,7 @@ def ramp(c, arg, out, off, cx_b, cy_b, ds_b, s0_b, B):  # pragma: no cover - com
             out[w] = ramp_knot(out[w], ds_b[k, w], arg[w], cx_b[k, w])
 
 
-@stage
+@hot_stage
 def geometry(
     s,
     i,
@@ -205,7 +208,7 @@ def failure(
             F_tmp[w] = 0.0
 
 
-@stage
+@hot_stage
 def scatter(
     s,
     i,
@@ -291,7 +294,7 @@ def scatter(
             e_prev[s, w] = e
 
 
-@stage
+@hot_stage
 def _forces_on_nodes(i, j, D, B, F_tmp, ax_tmp, f):  # pragma: no cover - compiled
     """f[i] += F ax, f[j] -= F ax over the block."""
     for d in range(D):
