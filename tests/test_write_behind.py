@@ -1,5 +1,4 @@
-"""A chunk's results written on a writer thread while the next chunk computes (issue 25, run/write_behind.py),
-and the next chunk prepared while this one computes (run/chunk.py pipelined).
+"""A chunk's results written on a writer thread while the next chunk computes (issue 25, run/write_behind.py).
 
 Truth: the same run written in the main thread (``write_behind.THREADED = False``, the runner as it was).
 A 1-D mass on a linear spring (k = 100 N/m, m = 1..4 kg, v0 = 1 m/s), 24 variants in chunks of 5 (five
@@ -117,49 +116,3 @@ def test_writes_happen_in_order_one_at_a_time_and_close_raises_the_last_error() 
     w.put(7)
     with pytest.raises(ValueError, match="bad chunk 7"):
         w.close()
-
-
-def test_pipelined_chunks_overlap_the_next_set_up_with_the_kernel_and_equal_the_plain_loop_byte_for_byte(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """run/chunk.py ``pipelined``: chunk k + 1 is prepared while chunk k computes on the chunk thread, one
-    kernel at a time. Truth: the same run with the chunks one after the other (``runner.run_chunk`` wrapped,
-    which the runner does not pipeline): the same files byte for byte."""
-    import crashstudy.run.chunk as chunk
-    import crashstudy.run.runner as runner
-
-    prepared: list[int] = []
-    started = {k: threading.Event() for k in range(0, 24, 5)}  # set when chunk k has been prepared
-    running, overlapped, most = [0], [], [0]
-    real_prepare, real_compute = chunk.prepare_chunk, chunk.compute_chunk
-
-    def prepare(plan, lo, hi, *a):  # type: ignore[no-untyped-def]
-        prepared.append(lo)
-        out = real_prepare(plan, lo, hi, *a)
-        started[lo].set()
-        return out
-
-    def compute(p):  # type: ignore[no-untyped-def]
-        running[0] += 1
-        most[0] = max(most[0], running[0])
-        try:
-            if p.hi < 24:  # the next chunk is prepared while this one is still computing (a plain loop waits)
-                overlapped.append(started[p.hi].wait(timeout=20))
-            return real_compute(p)
-        finally:
-            running[0] -= 1
-
-    monkeypatch.setattr(chunk, "prepare_chunk", prepare)
-    monkeypatch.setattr(chunk, "compute_chunk", compute)
-    piped = _run(tmp_path, "piped", True, monkeypatch)
-    assert prepared == [0, 5, 10, 15, 20] and overlapped == [True] * 4 and most[0] == 1
-
-    def one_after_the_other(*a):  # type: ignore[no-untyped-def]
-        return real_compute(real_prepare(*a))
-
-    monkeypatch.setattr(runner, "run_chunk", one_after_the_other)
-    plain = _run(tmp_path, "plain", True, monkeypatch)
-    names = sorted(p.name for p in plain.iterdir() if p.is_file())
-    assert names == sorted(p.name for p in piped.iterdir() if p.is_file()) and "results.nc" in names
-    for name in names:
-        assert (plain / name).read_bytes() == (piped / name).read_bytes(), name

@@ -24,8 +24,7 @@ from crashstudy.arrays.batch import Batch, build_batch
 from crashstudy.errors import InputError, Problem
 from crashstudy.kernel import choice, entry
 from crashstudy.kernel.output import KernelOutput
-from crashstudy.run import chunk as chunks
-from crashstudy.run.chunk import pipelined, run_chunk
+from crashstudy.run.chunk import run_chunk
 from crashstudy.run.progress import Progress
 from crashstudy.run.start import start_kernels
 from crashstudy.run.write_behind import WriteBehind
@@ -177,7 +176,7 @@ def _run_locked(
     from crashstudy.results.regions import region_tasks
     from crashstudy.results.store import FINAL, Results, ResultWriter
     from crashstudy.results.zarr_file import ZARR_FINAL, ZARR_PARTIAL, variant_chunk
-    from crashstudy.run.backends import InProcess, make_backend
+    from crashstudy.run.backends import make_backend
     from crashstudy.run.reuse import _ranges, _reuse_finished
 
     prepare_output(out, resume, force, plan.study_file or plan.model_file, plan.name)
@@ -243,10 +242,7 @@ def _run_locked(
         if scheduler and store == "zarr":  # the workers write their regions of the store (results/regions.py)
             compute, tasks = region_tasks(made.result(), run_chunk, plan, ranges, kernel)
         written = 0  # variants of the chunk being written: shown once its write has ended
-        # in this process, the real run_chunk (not one a test wrapped) is pipelined (crashstudy.run.chunk)
-        in_process = isinstance(backend, InProcess) and compute is chunks.run_chunk
-        done = pipelined(plan, ranges, kernel) if in_process else backend.imap_unordered(compute, tasks)
-        for res in done:
+        for res in backend.imap_unordered(compute, tasks):
             behind.put(
                 res
             )  # written on the writer thread while the next chunk computes (the previous one ended)

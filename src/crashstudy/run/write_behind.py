@@ -33,8 +33,7 @@ _POOLS: dict[
 
 
 def process_thread(name: str) -> ThreadPoolExecutor:
-    """The process's thread ``name`` (``writer``: this module's; ``chunk``: run/chunk.py's ``pipelined``):
-    one for the process's life, never one per run (an HDF5 library that keeps state per thread saw that
+    """The process's thread ``name`` (``writer``: this module's): one for the process's life, never one per run (an HDF5 library that keeps state per thread saw that
     state end with each run's thread: a crash in a later run's garbage collection,
     tests/test_faults_disk.py's disk-full resume, in process)."""
     if name not in _POOLS:
