@@ -43,7 +43,7 @@ from crashstudy.cli import main as M  # noqa: E402
 
 ACC: dict[str, list[float]] = {}  # label: [thread CPU, wall, calls] (exclusive of the phases inside it)
 FIRST: list[float] = []  # process CPU and wall from the end of the imports to the first kernel call
-KERNEL = "chunk: kernel (run_ordered, chunk thread)"
+KERNEL = "chunk: kernel (run_ordered)"
 IMPORT_C = IMPORT_W = 0.0
 LOCAL = threading.local()  # each thread's stack of open phases (the writer thread has its own)
 
@@ -79,8 +79,8 @@ PHASES = [
     (C, "prepare_chunk", "chunk: rest of prepare_chunk"),
     (C, "_step_order", "chunk: params_at (step order)"),
     (C, "build_batch", "chunk: build_batch"),
-    (C, "compute_chunk", "chunk: rest of compute_chunk (chunk thread)"),
-    (E, "run_ordered", "chunk: kernel (run_ordered, chunk thread)"),
+    (C, "compute_chunk", "chunk: rest of compute_chunk"),
+    (E, "run_ordered", "chunk: kernel (run_ordered)"),
     (C, "variant_hashes", "chunk: variant_hashes"),
     (C, "past_curve_ends", "chunk: past_curve_ends"),
     (S.ResultWriter, "write", "write a chunk (store + summary rows)"),
