@@ -1,21 +1,19 @@
 """One chunk of a study's variants computed: :func:`run_chunk`, a pure function of the plan and a variant range
-(any backend gives identical results), in two parts: :func:`prepare_chunk` (dedupe, step order, batch) and
-:func:`compute_chunk` (the kernel, then texts, hashes, curve ends).
+(any backend gives identical results). Moved here from :mod:`crashstudy.run.runner`, which re-exports it.
 
-(Overlapping the next chunk's preparation with this chunk's kernel on a thread of its own took the 10^6 x 86-step
+(Overlapping the next chunk's set-up with this chunk's kernel on a thread of its own took the 10^6 x 86-step
 2-spring study from 3.3 to 2.5 s in process, but a test run deadlocked in ``ThreadPoolExecutor.submit``
 on its first chunk; it was taken out, see docs/robustness.md.)
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from crashstudy import interrupt
-from crashstudy.arrays.batch import INVALID_REASONS, Batch, build_batch, variant_steps
+from crashstudy.arrays.batch import INVALID_REASONS, build_batch, variant_steps
 from crashstudy.kernel import entry
 from crashstudy.kernel.output import CRUSHED_TO_ZERO, INVALID, UNSTABLE, KernelOutput
 from crashstudy.results.chunk_result import ChunkResult
@@ -24,23 +22,7 @@ from crashstudy.study.plan import Plan
 from crashstudy.study.provenance import variant_hashes
 from crashstudy.vocabulary.codes import UNSTABLE_WALLS, KernelName
 
-__all__ = ["Prepared", "compute_chunk", "prepare_chunk", "run_chunk"]
-
-
-@dataclass
-class Prepared:
-    """A chunk made ready for its kernel (:func:`prepare_chunk`): its distinct variants' parameters in step
-    order, their batch and step choice, and where each variant of the chunk is among them."""
-
-    plan: Plan
-    lo: int
-    hi: int
-    kernel: KernelName
-    repeat: float
-    uniq: np.ndarray
-    inverse: np.ndarray
-    batch: Batch
-    steps: Any
+__all__ = ["run_chunk"]
 
 
 def run_chunk(
@@ -52,13 +34,6 @@ def run_chunk(
     Identical variants are computed once; the rest are ordered by step count so that the kernel's
     blocks hold variants that finish together.
     """
-    return compute_chunk(prepare_chunk(plan, lo, hi, kernel, repeat))
-
-
-def prepare_chunk(
-    plan: Plan, lo: int, hi: int, kernel: KernelName = "compiled", repeat: float | None = None
-) -> Prepared:
-    """The part of :func:`run_chunk` before the kernel: dedupe, step order, the batch."""
     topo = plan.topology
     V = hi - lo
     # a variant's parameters are a function of its axis values: dedupe on those (few columns)
@@ -75,44 +50,38 @@ def prepare_chunk(
     uniq, inverse = _step_order(plan, cols, inverse.reshape(-1))
     batch, steps = build_batch(topo, uniq, plan.interval)
     repeat = plan.n_variants / max(V, 1) if repeat is None else repeat
-    return Prepared(plan, lo, hi, kernel, repeat, uniq, inverse, batch, steps)
-
-
-def compute_chunk(p: Prepared) -> ChunkResult:
-    """The rest of :func:`run_chunk`: the kernel, then each variant's texts, hash and curve ends."""
-    plan, topo, inverse, steps = p.plan, p.plan.topology, p.inverse, p.steps
     recorder = None
     if topo.metrics:
         from crashstudy.metrics.record import Recorder
 
         recorder = Recorder(topo, plan.n_out)
     full, estimate = entry.run_ordered(
-        p.batch,
+        batch,
         topo.histories,
         plan.n_out,
         inverse,
-        p.kernel,
+        kernel,
         plan.varying_curves,
-        p.repeat,
+        repeat,
         topo.accuracy_check,
         interrupt.check,
         recorder,
     )
     dt, dt_crit = steps.dt[inverse], steps.dt_crit[inverse]
     control = _control_texts(topo, steps.control_node[inverse], steps.control_spring[inverse])
-    user_dt = p.uniq[topo.blocks["time_step"].start][inverse]
-    reasons = np.full(p.hi - p.lo, "", dtype=object)
+    user_dt = uniq[topo.blocks["time_step"].start][inverse]
+    reasons = np.full(V, "", dtype=object)
     for k in np.flatnonzero(full.status):  # texts only for the failed variants
         reasons[k] = _reason(full, int(k), topo, user_dt[k], dt_crit[k], control[k])
-    ends = past_curve_ends(p.batch, full.max_crush, full.max_elongation, inverse)
+    ends = past_curve_ends(batch, full.max_crush, full.max_elongation, inverse)
     return ChunkResult(
-        np.arange(p.lo, p.hi),
+        np.arange(lo, hi),
         full,
         dt,
         dt_crit,
         control,
         reasons,
-        variant_hashes(plan, p.lo, p.hi),
+        variant_hashes(plan, lo, hi),
         estimate,
         full.criteria,
         ends,

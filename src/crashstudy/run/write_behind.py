@@ -27,18 +27,16 @@ from typing import Any
 THREADED = (
     False  # True: writes on the writer thread (off until a quiet 2-core measurement shows a gain: see below)
 )
-_POOLS: dict[
-    str, ThreadPoolExecutor
-] = {}  # the process's long-lived threads, by name, started when first asked
+_POOL: list[ThreadPoolExecutor] = []  # the one writer thread of the process, started at the first run
 
 
-def process_thread(name: str) -> ThreadPoolExecutor:
-    """The process's thread ``name`` (``writer``: this module's): one for the process's life, never one per run (an HDF5 library that keeps state per thread saw that
-    state end with each run's thread: a crash in a later run's garbage collection,
-    tests/test_faults_disk.py's disk-full resume, in process)."""
-    if name not in _POOLS:
-        _POOLS[name] = ThreadPoolExecutor(1, thread_name_prefix=f"crashstudy-{name}")
-    return _POOLS[name]
+def _writer_thread() -> ThreadPoolExecutor:
+    """The process's writer thread: one for the process's life, never one per run (an HDF5 library
+    that keeps state per thread saw that state end with each run's thread: a crash in a later run's
+    garbage collection, tests/test_faults_disk.py's disk-full resume, in process)."""
+    if not _POOL:
+        _POOL.append(ThreadPoolExecutor(1, thread_name_prefix="crashstudy-writer"))
+    return _POOL[0]
 
 
 class WriteBehind:
@@ -46,7 +44,7 @@ class WriteBehind:
 
     def __init__(self, write: Callable[[Any], None], threaded: bool | None = None) -> None:
         self._write = write
-        self._pool = process_thread("writer") if (THREADED if threaded is None else threaded) else None
+        self._pool = _writer_thread() if (THREADED if threaded is None else threaded) else None
         self._last: Future[Any] | None = None
 
     def put(self, result: Any) -> None:
