@@ -318,21 +318,20 @@ def chunk_frame(plan: Any, res: Any) -> pd.DataFrame:
 
 def stored_table(nc: Any, name: str) -> list[str]:
     """The distinct texts of ``name`` stored in ``nc`` (empty for files without a table)."""
-    if f"{name}_text" not in nc.variables:
-        return []
-    raw = nc.variables[f"{name}_text"]
-    raw.set_auto_chartostring(False)
-    return [
-        bytes(r).rstrip(b"\0").decode("utf-8", "replace")
-        for r in np.asarray(raw[:]).view(f"S{TEXT_LEN}")[:, 0]
-    ]
+    return _char_rows(nc, f"{name}_text")
 
 
 def stored_ids(nc: Any, dim: str) -> list[str]:
     """The ids along dimension ``dim`` (spring, node, wall) of an open result store (netCDF4 API)."""
-    if dim not in nc.variables:
+    return _char_rows(nc, dim)
+
+
+def _char_rows(nc: Any, name: str) -> list[str]:
+    """Each row of the (n, width) 'S1' character variable ``name`` of ``nc`` as a text (UTF-8, the NULs
+    that pad it dropped); empty when ``nc`` has no such variable or it has no row."""
+    if name not in nc.variables:
         return []
-    raw = nc.variables[dim]
+    raw = nc.variables[name]
     raw.set_auto_chartostring(False)
     raw.set_auto_mask(False)
     chars = np.asarray(raw[:])
